@@ -1,0 +1,56 @@
+"""What every frame source yields and how it is opened and closed."""
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class SourceError(RuntimeError):
+    """A source could not be opened or stopped delivering frames; the message says what to do."""
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One image from a source.
+
+    index : int            frame number from the source, 0-based (gaps mean frames lost upstream)
+    timestamp_ns : int     acquisition time in nanoseconds (camera clock when it has one)
+    image : ndarray        2-D uint8 or uint16 grey image, shape (H, W)
+    pixel_format : str     "Mono8", "Mono12" or "Mono16" (Mono12 is stored in uint16)
+    metadata : dict        per-frame extras, e.g. "truth_u"/"truth_v" for synthetic sources
+    """
+    index: int
+    timestamp_ns: int
+    image: np.ndarray
+    pixel_format: str
+    metadata: dict = field(default_factory=dict)
+
+
+class FrameSource(ABC):
+    """A context manager that yields ``Frame`` objects.
+
+    ``with open_source(uri) as source: for frame in source: ...``. Iteration ends
+    when the source is exhausted (files) or closed; a lost camera raises
+    ``SourceError``. ``settings`` describes the source for session metadata.
+    """
+
+    uri: str = ""
+
+    @abstractmethod
+    def __iter__(self):
+        ...
+
+    @property
+    def settings(self) -> dict:
+        return {}
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False

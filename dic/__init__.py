@@ -1,0 +1,13 @@
+"""livedic's measurement core: pure functions on numpy arrays.
+
+Correlation (ZNCC), integer-pixel search (exhaustive, coarse-fine, PSO, WSO,
+improved WSO), sub-pixel refinement (surface fit, gradient, Newton-Raphson,
+improved surface fit, IC-GN) and an exact speckle simulator. No I/O, no threads.
+"""
+
+from dic.correlation import zncc
+from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
+from dic.result import Measurement
+from dic.status import Status
+
+__all__ = ["measure", "zncc", "Measurement", "Status", "SEARCH_METHODS", "SUBPIXEL_METHODS"]

@@ -1,0 +1,79 @@
+"""Result records passed between the stages of a measurement.
+
+Arrays are structure-of-arrays, one entry per point, so numba kernels fill them
+in place and callers slice them without copying.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class IntegerSearchResult:
+    """Integer-pixel match per point.
+
+    xs, ys : int64 (N,)   snapped point positions in the reference
+    u, v : int64 (N,)     integer displacement of the best match
+    zncc : float64 (N,)   ZNCC there (NaN where status is not OK)
+    status : int8 (N,)    ``dic.status.Status`` codes
+    evaluations : int64 (N,)  distinct positions whose ZNCC was computed
+    calls : int64 (N,)        fitness calls, repeats included
+    """
+    xs: np.ndarray
+    ys: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    zncc: np.ndarray
+    status: np.ndarray
+    evaluations: np.ndarray
+    calls: np.ndarray
+
+
+@dataclass
+class SubpixelResult:
+    """Refined displacement per point.
+
+    u, v : float64 (N,)   displacement; NaN where status is not OK
+    zncc : float64 (N,)   correlation at the result
+    status : int8 (N,)
+    ux, uy, vx, vy : float64 (N,) or None   displacement gradients (1st-order methods)
+    iterations : int64 (N,) or None          iterations used (iterative methods)
+    """
+    u: np.ndarray
+    v: np.ndarray
+    zncc: np.ndarray
+    status: np.ndarray
+    ux: np.ndarray = None
+    uy: np.ndarray = None
+    vx: np.ndarray = None
+    vy: np.ndarray = None
+    iterations: np.ndarray = None
+
+
+@dataclass
+class Measurement:
+    """What ``dic.measure`` returns: one entry per point.
+
+    x, y : float64 (N,)  point positions actually used (snapped to pixel centres)
+    u, v : float64 (N,)  displacement, content at (x, y) in the reference is at (x+u, y+v)
+    zncc : float64 (N,)  correlation of the final match
+    ok : bool (N,)       True where ``status == Status.OK``
+    status : int8 (N,)   ``dic.status.Status`` code per point
+    ux, uy, vx, vy       displacement gradients (1st-order sub-pixel methods) or None
+    iterations           sub-pixel iterations (iterative methods) or None
+    evaluations          integer-search ZNCC evaluations per point, or None without a search
+    """
+    x: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    zncc: np.ndarray
+    ok: np.ndarray
+    status: np.ndarray
+    ux: np.ndarray = None
+    uy: np.ndarray = None
+    vx: np.ndarray = None
+    vy: np.ndarray = None
+    iterations: np.ndarray = None
+    evaluations: np.ndarray = None

@@ -1,0 +1,34 @@
+"""Per-point status codes.
+
+A point that cannot be measured carries a code saying why, in its own array;
+values such as ZNCC are NaN there, never a fake number.
+"""
+
+from enum import IntEnum
+
+
+class Status(IntEnum):
+    OK = 0
+    OUTSIDE_REFERENCE = 1   # the subset around the point leaves the reference image
+    FLAT_REFERENCE = 2      # no texture in the reference subset
+    OUTSIDE_TARGET = 3      # every candidate position leaves the deformed image
+    FLAT_TARGET = 4         # no texture where the subset lands in the deformed image
+    NOT_CONVERGED = 5       # iterative refinement hit its iteration cap or diverged
+    BAD_GUESS = 6           # the initial guess for this point is NaN or infinite
+    LOW_CORRELATION = 7     # best match below the ZNCC acceptance threshold
+
+    @property
+    def description(self):
+        return _DESCRIPTIONS[self]
+
+
+_DESCRIPTIONS = {
+    Status.OK: "measured",
+    Status.OUTSIDE_REFERENCE: "subset leaves the reference image",
+    Status.FLAT_REFERENCE: "reference subset has no texture",
+    Status.OUTSIDE_TARGET: "subset leaves the deformed image",
+    Status.FLAT_TARGET: "deformed subset has no texture",
+    Status.NOT_CONVERGED: "sub-pixel refinement did not converge",
+    Status.BAD_GUESS: "initial guess is not finite",
+    Status.LOW_CORRELATION: "best ZNCC below the acceptance threshold",
+}

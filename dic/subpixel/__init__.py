@@ -1,0 +1,1 @@
+"""Sub-pixel refinement methods, one module per method."""

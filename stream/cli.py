@@ -1,0 +1,186 @@
+"""The ``livedic`` command line.
+
+Every failure caused by input (files, options, cameras) ends with one line on
+stderr and exit code 2; set LIVEDIC_DEBUG=1 to see a traceback instead.
+"""
+
+import argparse
+import os
+import sys
+
+EXIT_BAD_INPUT = 2
+
+
+class UsageError(ValueError):
+    """Bad command-line input; the message is shown to the user as is."""
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "handler", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return args.handler(args) or 0
+    except KeyboardInterrupt:
+        print("livedic: interrupted", file=sys.stderr)
+        return 130
+    except Exception as error:  # noqa: BLE001 - turned into one line unless debugging
+        if os.environ.get("LIVEDIC_DEBUG"):
+            raise
+        kind = _error_kind(error)
+        print(f"livedic: error: {kind}{error}", file=sys.stderr)
+        return EXIT_BAD_INPUT if kind == "" else 1
+
+
+def _error_kind(error):
+    from acquire.base import SourceError
+    if isinstance(error, (ValueError, SourceError, FileNotFoundError, PermissionError, IsADirectoryError)):
+        return ""
+    return f"internal {type(error).__name__}: "
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="livedic", description="Real-time digital image correlation: measure, track, record, replay.")
+    commands = parser.add_subparsers(metavar="COMMAND")
+
+    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+
+    measure = commands.add_parser("measure", help="displacements of points between two images")
+    measure.add_argument("reference", metavar="REF", help="reference image (8/16-bit grey PNG or TIFF)")
+    measure.add_argument("deformed", metavar="DEF", help="deformed image, same size")
+    where = measure.add_mutually_exclusive_group(required=True)
+    where.add_argument("--grid", type=int, metavar="STEP", help="points on a grid every STEP pixels")
+    where.add_argument("--points", metavar="FILE.csv", help="CSV with header x,y")
+    _add_method_options(measure, SEARCH_METHODS, SUBPIXEL_METHODS)
+    measure.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
+    measure.set_defaults(handler=_cmd_measure)
+
+    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed")
+    bench_commands = bench.add_subparsers(metavar="BENCH")
+    paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
+    paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
+    paper.add_argument("-o", "--output", default="results/paper", metavar="DIR", help="results folder")
+    paper.set_defaults(handler=_cmd_bench_paper)
+    speed = bench_commands.add_parser("speed", help="points per second per method on a 1024x1024 image")
+    speed.add_argument("--points", type=int, default=10_000, help="number of points (default 10000)")
+    speed.add_argument("--size", type=int, default=1024, help="image side in pixels (default 1024)")
+    speed.add_argument("--repeat", type=int, default=3, help="timed repetitions, best kept (default 3)")
+    speed.add_argument("--quick", action="store_true", help="fewer points and methods, for CI")
+    speed.set_defaults(handler=_cmd_bench_speed)
+    return parser
+
+
+def _add_method_options(parser, searches, subpixels, *, subpixel_default="improved-surface-fit"):
+    parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
+    parser.add_argument("--search", default="improved-wso", metavar="NAME",
+                        help=f"integer search: {', '.join(searches)} (default improved-wso)")
+    parser.add_argument("--subpixel", default=subpixel_default, metavar="NAME",
+                        help=f"sub-pixel method: {', '.join(subpixels)} (default {subpixel_default})")
+    parser.add_argument("--radius", type=int, default=16, metavar="R", help="search radius, pixels (default 16)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
+
+
+def _cmd_measure(args):
+    import numpy as np
+
+    from acquire.image_io import read_grey_image
+    from dic import measure
+    from stream.csv_output import write_csv
+
+    reference, note_ref = read_grey_image(args.reference)
+    deformed, note_def = read_grey_image(args.deformed)
+    for note in (note_ref, note_def):
+        if note:
+            print(f"livedic: note: {note}", file=sys.stderr)
+    if reference.shape != deformed.shape:
+        raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
+                         f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
+    if args.grid is not None:
+        points = grid_points(reference.shape, args.grid, args.subset)
+    else:
+        points = read_points_csv(args.points)
+    result = measure(reference, deformed, points, subset=args.subset, search=args.search,
+                     subpixel=args.subpixel, radius=args.radius, seed=args.seed)
+    columns = {"x": result.x, "y": result.y, "u": result.u, "v": result.v,
+               "zncc": result.zncc, "ok": result.ok, "status": result.status.astype(np.int64)}
+    for name in ("ux", "uy", "vx", "vy", "iterations", "evaluations"):
+        value = getattr(result, name)
+        if value is not None:
+            columns[name] = value
+    write_csv(args.output, columns)
+    n_ok = int(result.ok.sum())
+    if args.output not in (None, "-"):
+        print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
+    return 0
+
+
+def grid_points(shape, step, subset):
+    """(x, y) points every ``step`` pixels over the region where a subset fits, centred in the image."""
+    import numpy as np
+
+    if step is None or step <= 0:
+        raise UsageError(f"grid step must be a positive number of pixels, got {step}")
+    if subset < 3 or subset % 2 == 0:
+        raise UsageError(f"subset must be an odd integer >= 3, got {subset}")
+    half = subset // 2
+    height, width = shape
+    if width < subset or height < subset:
+        raise UsageError(f"subset {subset} is larger than the image ({width}x{height}): use a smaller subset")
+
+    def axis(length):
+        span = length - 1 - 2 * half
+        count = span // step + 1
+        start = half + (span - (count - 1) * step) // 2
+        return start + step * np.arange(count)
+
+    xs, ys = np.meshgrid(axis(width), axis(height))
+    return np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
+
+
+def read_points_csv(path):
+    """Points from a CSV whose header names columns x and y (other columns ignored)."""
+    import numpy as np
+
+    try:
+        with open(path, newline="") as handle:
+            lines = [line.strip() for line in handle if line.strip()]
+    except FileNotFoundError:
+        raise UsageError(f"points file {path} does not exist") from None
+    except (UnicodeDecodeError, IsADirectoryError, PermissionError) as error:
+        raise UsageError(f"cannot read points file {path}: {error.__class__.__name__}") from None
+    if not lines:
+        raise UsageError(f"points file {path} is empty: it needs a header line 'x,y' and one point per line")
+    header = [name.strip().lower() for name in lines[0].split(",")]
+    if "x" not in header or "y" not in header:
+        raise UsageError(f"points file {path} has header {lines[0]!r}: it must name columns x and y")
+    ix, iy = header.index("x"), header.index("y")
+    points = []
+    for number, line in enumerate(lines[1:], start=2):
+        fields = line.split(",")
+        try:
+            points.append((float(fields[ix]), float(fields[iy])))
+        except (ValueError, IndexError):
+            raise UsageError(f"points file {path}, line {number}: {line!r} is not a number pair x,y") from None
+    if not points:
+        raise UsageError(f"points file {path} has a header but no points")
+    xy = np.array(points)
+    if not np.all(np.isfinite(xy)):
+        raise UsageError(f"points file {path} contains NaN or infinite coordinates")
+    return xy
+
+
+def _cmd_bench_paper(args):
+    from bench.paper import run_paper_benchmark
+    return run_paper_benchmark(args.output, quick=args.quick)
+
+
+def _cmd_bench_speed(args):
+    from bench.speed import run_speed_benchmark
+    return run_speed_benchmark(n_points=args.points, size=args.size, repeat=args.repeat, quick=args.quick)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
