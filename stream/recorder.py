@@ -1,0 +1,635 @@
+"""Record a session to MCAP: raw frames, per-frame DIC results, events and session metadata.
+
+A tensile test cannot be repeated, so the recorder is built to lose as little as
+possible when things go wrong:
+
+* **Process killed (SIGKILL, crash, power cut of the program).** MCAP chunks are
+  closed by the recorder itself, never left to grow: a chunk is written out when
+  it reaches ``chunk_bytes``, when a message of the other class arrives (image
+  chunks and data chunks are kept apart), and at the latest ``flush_interval_s``
+  after its first message, from a background thread if the caller has gone quiet.
+  Closing a chunk uses the public ``mcap.writer.Writer.flush()``, which writes the
+  chunk and its message indexes and flushes the Python buffer to the kernel: from
+  then on the data survives the death of the process. ``os.fsync`` runs every
+  ``fsync_interval_s`` in the background thread (on a duplicate descriptor, so the
+  tracking loop never waits for the disk); it protects against an OS crash or power
+  loss, which SIGKILL does not need. With the defaults every frame whose
+  ``write_frame`` returned more than ~0.4 s before a kill is recoverable; an image
+  of ``chunk_bytes`` or more (1 MP mono8 with the default 1 MiB) is in the kernel
+  when ``write_frame`` returns. (The background thread needs the GIL: a caller that
+  holds it for seconds, e.g. in a non-``nogil`` numba kernel, delays that flush.)
+* **Disk full or any write error.** The recorder stops: ``error`` holds one line
+  saying why, ``on_error(message)`` is called once, later writes are dropped and
+  counted (``frames_dropped`` ...), and nothing is ever raised into the caller's
+  loop again. Everything in chunks closed before the error stays readable by
+  ``acquire.mcap_replay`` (the file has no summary; readers fall back to the
+  recovery scan and ``acquire.mcap_replay.recover`` rewrites it indexed).
+
+Writes are thread safe (frames from the acquisition thread, results from the
+tracker). Arguments are validated before anything is written: a wrong call raises
+``ValueError``/``TypeError`` at once, which shows up on the first frame.
+
+Examples
+--------
+>>> import numpy as np, tempfile, os
+>>> from acquire.base import Frame
+>>> path = os.path.join(tempfile.mkdtemp(), "session.mcap")
+>>> with Recorder(path, {"source_uri": "synthetic://"}) as rec:
+...     rec.write_frame(Frame(0, 1_000, np.zeros((4, 6), np.uint8), "Mono8"))
+...     rec.write_results(0, 1_000, [7], [2.0], [1.0], [0.1], [-0.2], [0.99], [True])
+True
+True
+>>> rec.frames_written, rec.error
+(1, None)
+"""
+
+import logging
+import os
+import threading
+import time
+from collections import Counter
+from collections.abc import Mapping
+from datetime import datetime, timezone
+
+import numpy as np
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
+
+from stream import recording_schema as rs
+
+__all__ = ["ChunkedWriter", "Recorder", "software_version"]
+
+log = logging.getLogger(__name__)
+
+_U64 = 1 << 64
+_NEVER = 1 << 62                 # mcap's own size-triggered chunking is switched off
+_RESULT_EXTRAS = rs.OPTIONAL_ARRAYS + rs.RESULT_SCALARS
+
+
+def software_version():
+    """The installed livedic version, or "unknown"."""
+    try:
+        from importlib.metadata import version
+        return version("livedic")
+    except Exception:  # noqa: BLE001 - metadata is best effort
+        return "unknown"
+
+
+class ChunkedWriter:
+    """An mcap ``Writer`` whose chunks are closed by livedic, not by mcap.
+
+    Messages are added with a ``kind`` ("image" or "data"); a chunk holds one kind
+    only, so an indexed reader can fetch the results without reading any image.
+    Also used by ``acquire.mcap_replay.recover``.
+    """
+
+    def __init__(self, stream, *, chunk_bytes, compression, library):
+        codec = {None: CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
+        self.stream = stream
+        self.writer = Writer(stream, chunk_size=_NEVER, compression=codec[compression],
+                             index_types=IndexType.ALL, use_chunking=True, enable_crcs=True)
+        self.writer.start(profile="", library=library)
+        self.chunk_bytes = chunk_bytes
+        self.open_kind = None
+        self.open_bytes = 0
+        self.open_since = 0.0
+        self.open_counts = Counter()
+        self.durable_counts = Counter()
+        self._schemas = {}
+
+    def register(self, topic, schema_name, schema_data, *, schema_encoding="protobuf",
+                 message_encoding="protobuf", metadata=None):
+        key = (schema_name, schema_encoding, schema_data)
+        schema_id = self._schemas.get(key)
+        if schema_id is None:
+            schema_id = self.writer.register_schema(schema_name, schema_encoding, schema_data)
+            self._schemas[key] = schema_id
+        return self.writer.register_channel(topic, message_encoding, schema_id, dict(metadata or {}))
+
+    def add(self, kind, channel_id, log_time, data, *, publish_time=0, sequence=0, count_as=None):
+        if self.open_kind is not None and self.open_kind != kind:
+            self.close_chunk()
+        self.writer.add_message(channel_id=channel_id, log_time=log_time, data=data,
+                                publish_time=publish_time, sequence=sequence)
+        if self.open_kind is None:
+            self.open_since = time.monotonic()
+            self.open_kind = kind
+        self.open_bytes += len(data) + 31
+        if count_as:
+            self.open_counts[count_as] += 1
+        if self.open_bytes >= self.chunk_bytes:
+            self.close_chunk()
+
+    def age(self):
+        """Seconds since the first message of the open chunk (0 when none is open)."""
+        return time.monotonic() - self.open_since if self.open_kind is not None else 0.0
+
+    def close_chunk(self):
+        self.writer.flush()                  # finalise chunk + indexes, flush stream to the kernel
+        self.durable_counts.update(self.open_counts)
+        self.open_counts.clear()
+        self.open_kind = None
+        self.open_bytes = 0
+
+    def finish(self):
+        self.close_chunk()
+        self.writer.finish()
+        self.stream.flush()
+
+
+class Recorder:
+    """Write a livedic session to an MCAP file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.mcap`` file to create. An existing file is never replaced unless
+        ``overwrite=True`` (a recording of a test that cannot be repeated is precious).
+    session_metadata : dict
+        Source URI, camera settings, ROI, points, method and parameters ... Stored as
+        the MCAP Metadata record ``livedic.session`` (string->string; non-string values
+        as JSON) and as the first message on ``/livedic/session``. ``software_version``,
+        ``start_time`` (ISO 8601, UTC) and ``start_time_ns`` are added when missing.
+    chunk_bytes : int
+        Close a chunk once it holds this many bytes (default 1 MiB).
+    compression : None or "lz4"
+        Chunk compression (zstd is accepted but too slow for live 1 MP frames).
+    flush_interval_s : float
+        Longest time a message waits in an open chunk (default 0.25 s).
+    fsync_interval_s : float or None
+        Background ``os.fsync`` period (default 1 s); None disables it.
+    on_error : callable, optional
+        ``on_error(message)``, called once when recording stops on an error, from the
+        thread that hit it (a writer, or the recorder's background thread), outside the
+        recorder's lock.
+    overwrite : bool
+        Allow replacing an existing file.
+    start_time_ns : int, optional
+        Log time of the session message, in the frame clock. By default the session
+        message is written just before the first message, with that message's log time
+        (the first frame's timestamp), so that it shares the frames' clock whatever it
+        is; the Metadata record is on disk from the start either way.
+
+    Attributes
+    ----------
+    error : str or None
+        Why recording stopped early (one line), None while all is well.
+    frames_written, results_written, events_written : int
+        Messages accepted.
+    frames_durable : int
+        Frames in chunks handed to the kernel (they survive a kill of this process).
+    frames_dropped, results_dropped, events_dropped : int
+        Writes refused after a stop or close.
+    bytes_written : int
+        File size handed to the kernel so far.
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    OSError
+        The file cannot be created or its first records cannot be written.
+    """
+
+    def __init__(self, path, session_metadata, *, chunk_bytes=1 << 20, compression=None,
+                 flush_interval_s=0.25, fsync_interval_s=1.0, on_error=None, overwrite=False,
+                 start_time_ns=None):
+        if not isinstance(session_metadata, Mapping):
+            raise TypeError(f"session_metadata must be a dict, got {type(session_metadata).__name__}")
+        if not isinstance(chunk_bytes, (int, np.integer)) or chunk_bytes <= 0:
+            raise ValueError(f"chunk_bytes must be a positive integer, got {chunk_bytes!r}")
+        if compression not in (None, "lz4", "zstd"):
+            raise ValueError(f"compression must be None or 'lz4', got {compression!r}")
+        if not flush_interval_s or flush_interval_s <= 0:
+            raise ValueError(f"flush_interval_s must be > 0, got {flush_interval_s!r}")
+        if fsync_interval_s is not None and fsync_interval_s <= 0:
+            raise ValueError(f"fsync_interval_s must be > 0 or None, got {fsync_interval_s!r}")
+        self.path = os.fspath(path)
+        self.error = None
+        self.frames_written = self.results_written = self.events_written = 0
+        self.frames_dropped = self.results_dropped = self.events_dropped = 0
+        self.bytes_written = 0
+        self._on_error = on_error
+        self._flush_interval_s = float(flush_interval_s)
+        self._fsync_interval_s = fsync_interval_s
+        self._lock = threading.RLock()
+        self._closed = False
+        self._stop = threading.Event()
+        self._thread = None
+        self._sync_fd = None
+        self._event_count = 0
+        self._notify_pending = False
+        wall_ns = time.time_ns()
+        self._start_ns = None if start_time_ns is None else _log_time(start_time_ns, "start_time_ns")
+        self._start_mono = time.monotonic_ns()
+        self._session_payload = None         # until written: the session message waits for the clock
+        self._last_frame = None              # (timestamp_ns, monotonic_ns) of the last frame
+
+        metadata = dict(session_metadata)
+        metadata.setdefault("software_version", software_version())
+        metadata.setdefault("start_time", datetime.now(timezone.utc).isoformat())
+        metadata.setdefault("start_time_ns", wall_ns if self._start_ns is None else self._start_ns)
+        metadata[rs.FORMAT_KEY] = rs.FORMAT_VERSION
+        strings = rs.metadata_to_strings(metadata)
+
+        try:
+            self._file = open(self.path, "wb" if overwrite else "xb")
+        except FileExistsError:
+            raise FileExistsError(f"{self.path} exists: choose a new name or pass overwrite=True") from None
+        try:
+            library = f"livedic/{software_version()} {LIBRARY_IDENTIFIER}"
+            self._cw = ChunkedWriter(self._file, chunk_bytes=int(chunk_bytes), compression=compression,
+                                      library=library)
+            self._ch_image = self._cw.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA,
+                                               rs.schema_data(rs.RAW_IMAGE_SCHEMA))
+            self._ch_info = self._cw.register(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA,
+                                              rs.schema_data(rs.FRAME_INFO_SCHEMA))
+            self._ch_results = self._cw.register(rs.TOPIC_RESULTS, rs.FRAME_RESULTS_SCHEMA,
+                                                 rs.schema_data(rs.FRAME_RESULTS_SCHEMA))
+            self._ch_events = self._cw.register(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA,
+                                                rs.schema_data(rs.EVENT_SCHEMA))
+            self._ch_session = self._cw.register(rs.TOPIC_SESSION, rs.SESSION_SCHEMA,
+                                                 rs.schema_data(rs.SESSION_SCHEMA))
+            self._cw.writer.add_metadata(rs.METADATA_NAME, strings)
+            self._session_payload = rs.Session(metadata=strings).SerializeToString()
+            if self._start_ns is not None:
+                self._write_session(self._start_ns)
+            self._cw.close_chunk()               # header + metadata record reach the kernel now
+            if fsync_interval_s is not None:
+                os.fsync(self._file.fileno())
+            self.bytes_written = self._file.tell()
+        except BaseException:
+            self._file.close()
+            try:
+                os.remove(self.path)
+            except OSError:
+                pass
+            raise
+        if fsync_interval_s is not None:
+            self._sync_fd = os.dup(self._file.fileno())
+        self._last_sync = time.monotonic()
+        self._synced_bytes = self.bytes_written
+        self._thread = threading.Thread(target=self._background, name="livedic-recorder", daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ public API
+
+    @property
+    def frames_durable(self):
+        return self._cw.durable_counts["frame"]
+
+    @property
+    def closed(self):
+        return self._closed
+
+    def write_frame(self, frame):
+        """Record ``frame`` (an ``acquire.base.Frame``) on ``/camera/image``.
+
+        The image becomes a ``foxglove.RawImage`` (mono8 for uint8, mono16 for uint16)
+        with log time ``frame.timestamp_ns`` and MCAP sequence ``frame.index mod 2**32``.
+        A ``/camera/frame_info`` message goes with it when the frame has metadata, a pixel
+        format other than Mono8/Mono16 (e.g. Mono12), or an index >= 2**32.
+
+        Returns
+        -------
+        bool
+            True if written, False if dropped because recording has stopped.
+        """
+        if self.error is not None or self._closed:
+            with self._lock:
+                self.frames_dropped += 1
+            return False
+        image = frame.image
+        encoding = rs.image_encoding(image)
+        timestamp_ns = _log_time(frame.timestamp_ns, "frame.timestamp_ns")
+        index = int(frame.index)
+        if index < 0:
+            raise ValueError(f"frame.index must be >= 0, got {index}")
+        payload = rs.encode_raw_image(image, timestamp_ns)
+        canonical = rs.DEFAULT_PIXEL_FORMAT[np.dtype("u1") if encoding == "mono8" else np.dtype("u2")]
+        info = None
+        if frame.metadata or frame.pixel_format != canonical or index >= 1 << 32:
+            info = rs.FrameInfo(frame_index=index, timestamp_ns=timestamp_ns, pixel_format=str(frame.pixel_format),
+                                metadata_json=rs.to_json(dict(frame.metadata)) if frame.metadata else "")
+            info = info.SerializeToString()
+        written = True
+        with self._lock:
+            if self.error is not None or self._closed:
+                self.frames_dropped += 1
+                return False
+            try:
+                now = time.time_ns()
+                sequence = index & 0xFFFFFFFF
+                self._write_session(timestamp_ns)
+                if info is not None:
+                    self._cw.add("image", self._ch_info, timestamp_ns, info, publish_time=now, sequence=sequence)
+                self._cw.add("image", self._ch_image, timestamp_ns, payload, publish_time=now,
+                             sequence=sequence, count_as="frame")
+                self.frames_written += 1
+                self._last_frame = (timestamp_ns, time.monotonic_ns())
+                self._after_write()
+            except Exception as error:  # noqa: BLE001 - any write failure stops recording, never the loop
+                self._fail(error, "write_frame")
+                written = False
+        self._notify()
+        return written
+
+    def write_results(self, frame_index, timestamp_ns, point_ids, x, y, u, v, zncc, ok, **extra):
+        """Record one frame's DIC results on ``/dic/results`` (``livedic.FrameResults``).
+
+        Parameters
+        ----------
+        frame_index : int
+        timestamp_ns : int
+            The frame's timestamp; also the message log time.
+        point_ids : array_like of int, shape (N,)
+        x, y : array_like of float, shape (N,)
+            Point positions in the reference image (px; x along columns, y along rows).
+        u, v : array_like of float, shape (N,)
+            Displacement along x and y (px).
+        zncc : array_like of float, shape (N,)
+        ok : array_like of bool, shape (N,)
+        **extra
+            Optional arrays ``ux, uy, vx, vy`` (float), ``status`` (int), ``iterations``
+            (int), each shape (N,), and scalars ``method`` (str), ``processing_ns``,
+            ``latency_ns``, ``reference_frame_index``, ``dropped_frames`` (int).
+
+        Returns
+        -------
+        bool
+            True if written, False if dropped because recording has stopped.
+
+        Raises
+        ------
+        TypeError
+            Unknown keyword.
+        ValueError
+            Arrays of different lengths or not 1-D, ids or counts out of range.
+        """
+        if self.error is not None or self._closed:
+            with self._lock:
+                self.results_dropped += 1
+            return False
+        unknown = sorted(set(extra) - set(_RESULT_EXTRAS))
+        if unknown:
+            raise TypeError(f"write_results() got unexpected keyword(s) {', '.join(unknown)}; "
+                            f"known: {', '.join(_RESULT_EXTRAS)}")
+        timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
+        frame_index = int(frame_index)
+        if not 0 <= frame_index < _U64:
+            raise ValueError(f"frame_index must be >= 0, got {frame_index}")
+        values = {"frame_index": frame_index, "timestamp_ns": timestamp_ns}
+        arrays = {"point_id": point_ids, "x": x, "y": y, "u": u, "v": v, "zncc": zncc, "ok": ok}
+        arrays.update({name: extra[name] for name in rs.OPTIONAL_ARRAYS if extra.get(name) is not None})
+        length = None
+        for name, value in arrays.items():
+            array = _as_1d(value, "point_ids" if name == "point_id" else name)
+            if length is None:
+                length = array.size
+            elif array.size != length:
+                raise ValueError(f"write_results: {name} has {array.size} entries but point_ids has {length}")
+            values[name] = _convert(array, name)
+        for name in rs.RESULT_SCALARS:
+            value = extra.get(name)
+            if value is None:
+                continue
+            if name == "method":
+                values[name] = str(value)
+                continue
+            value = int(value)
+            if name in ("reference_frame_index", "dropped_frames") and value < 0:
+                raise ValueError(f"write_results: {name} must be >= 0, got {value}")
+            limit = 1 << 32 if name == "dropped_frames" else 1 << 63
+            if not -limit <= value < limit:
+                raise ValueError(f"write_results: {name}={value} is out of range")
+            values[name] = value
+        payload = rs.encode_results(values)
+        written = True
+        with self._lock:
+            if self.error is not None or self._closed:
+                self.results_dropped += 1
+                return False
+            try:
+                self._write_session(timestamp_ns)
+                self._cw.add("data", self._ch_results, timestamp_ns, payload, publish_time=time.time_ns(),
+                             sequence=frame_index & 0xFFFFFFFF, count_as="results")
+                self.results_written += 1
+                self._after_write()
+            except Exception as error:  # noqa: BLE001
+                self._fail(error, "write_results")
+                written = False
+        self._notify()
+        return written
+
+    def write_event(self, kind, message, *, level="info", timestamp_ns=None):
+        """Record a note on ``/livedic/events`` (``livedic.Event``).
+
+        Parameters
+        ----------
+        kind : str
+            Short machine-readable kind: "drop", "camera_lost", "recording_stopped", "note" ...
+        message : str
+            One line for people.
+        level : {"info", "warning", "error"}
+        timestamp_ns : int, optional
+            In the frame clock. By default: the last frame's timestamp plus the host time
+            elapsed since it was written (``start_time_ns`` plus elapsed before any frame).
+
+        Returns
+        -------
+        bool
+            True if written, False if dropped because recording has stopped.
+        """
+        if self.error is not None or self._closed:
+            with self._lock:
+                self.events_dropped += 1
+            return False
+        if level not in rs.EVENT_LEVELS:
+            raise ValueError(f"level must be one of {', '.join(rs.EVENT_LEVELS)}, got {level!r}")
+        written = True
+        with self._lock:
+            if self.error is not None or self._closed:
+                self.events_dropped += 1
+                return False
+            if timestamp_ns is None:
+                if self._last_frame is not None:
+                    base_ns, base_mono = self._last_frame
+                    timestamp_ns = base_ns + (time.monotonic_ns() - base_mono)
+                elif self._start_ns is not None:
+                    timestamp_ns = self._start_ns + (time.monotonic_ns() - self._start_mono)
+                else:
+                    timestamp_ns = time.time_ns()
+            timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
+            payload = rs.Event(timestamp_ns=timestamp_ns, kind=str(kind), message=str(message),
+                               level=level).SerializeToString()
+            try:
+                self._write_session(timestamp_ns)
+                self._event_count += 1
+                self._cw.add("data", self._ch_events, timestamp_ns, payload, publish_time=time.time_ns(),
+                             sequence=self._event_count & 0xFFFFFFFF, count_as="event")
+                self.events_written += 1
+                self._after_write()
+            except Exception as error:  # noqa: BLE001
+                self._fail(error, "write_event")
+                written = False
+        self._notify()
+        return written
+
+    def flush(self):
+        """Close the open chunk and fsync now. Never raises; returns False if recording has stopped."""
+        written = True
+        with self._lock:
+            if self.error is not None or self._closed:
+                return False
+            try:
+                self._cw.close_chunk()
+                self.bytes_written = self._file.tell()
+                os.fsync(self._file.fileno())
+            except Exception as error:  # noqa: BLE001
+                self._fail(error, "flush")
+                written = False
+        self._notify()
+        return written
+
+    def close(self):
+        """Finish the file (last chunk, summary, index, footer), fsync and close it.
+
+        Idempotent and never raises: a failure on the way sets ``error`` (and calls
+        ``on_error``) and leaves a file the recovering reader can read.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+        with self._lock:
+            if self.error is None:
+                try:
+                    self._write_session(time.time_ns())
+                    self._cw.finish()
+                    self.bytes_written = self._file.tell()
+                    if self._fsync_interval_s is not None:
+                        os.fsync(self._file.fileno())
+                except Exception as error:  # noqa: BLE001
+                    self._fail(error, "close")
+            self._close_file()
+        self._notify()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __repr__(self):
+        state = "closed" if self._closed else ("stopped" if self.error else "recording")
+        return (f"Recorder({self.path!r}, {state}, frames={self.frames_written}, "
+                f"bytes={self.bytes_written})")
+
+    # ------------------------------------------------------------------ internals
+
+    def _write_session(self, log_time):
+        """The ``/livedic/session`` message, once, before any other message (frame clock)."""
+        if self._session_payload is not None:
+            payload, self._session_payload = self._session_payload, None
+            self._cw.add("data", self._ch_session, log_time, payload, publish_time=time.time_ns())
+
+    def _after_write(self):
+        if self._cw.age() >= self._flush_interval_s:
+            self._cw.close_chunk()
+        if self._cw.open_kind is None:
+            self.bytes_written = self._file.tell()
+
+    def _background(self):
+        """Close chunks that have waited too long and fsync periodically (owns ``_sync_fd``)."""
+        try:
+            self._background_loop()
+            self._notify()
+        finally:
+            if self._sync_fd is not None:
+                try:
+                    os.close(self._sync_fd)
+                except OSError:
+                    pass
+                self._sync_fd = None
+
+    def _background_loop(self):
+        period = min(self._flush_interval_s / 2, 0.1)
+        while not self._stop.wait(period):
+            with self._lock:
+                if self.error is not None or self._closed:
+                    return
+                try:
+                    if self._cw.age() >= self._flush_interval_s:
+                        self._cw.close_chunk()
+                        self.bytes_written = self._file.tell()
+                except Exception as error:  # noqa: BLE001
+                    self._fail(error, "background flush")
+                    return
+                target = self.bytes_written
+            if (self._sync_fd is not None and target > self._synced_bytes
+                    and time.monotonic() - self._last_sync >= self._fsync_interval_s):
+                try:
+                    os.fsync(self._sync_fd)  # outside the lock: writers never wait for the disk
+                except OSError as error:
+                    with self._lock:
+                        self._fail(error, "fsync")
+                    return
+                self._synced_bytes = target
+                self._last_sync = time.monotonic()
+
+    def _fail(self, error, during):
+        if self.error is not None:
+            return
+        if isinstance(error, OSError) and error.strerror:
+            reason = error.strerror
+        else:
+            reason = f"{type(error).__name__}: {error}" if str(error) else type(error).__name__
+        self.error = (f"recording stopped: cannot write {self.path} ({reason}) in {during}; "
+                      f"the {self.frames_durable} frames before it are safe, later writes are dropped")
+        log.error(self.error)
+        self._close_file()
+        self._notify_pending = self._on_error is not None
+
+    def _notify(self):
+        """Call ``on_error`` once, outside the lock (so the callback may call ``close``)."""
+        with self._lock:
+            pending, self._notify_pending = self._notify_pending, False
+        if pending:
+            try:
+                self._on_error(self.error)
+            except Exception:  # noqa: BLE001 - a broken callback must not break the caller's loop
+                log.exception("Recorder on_error callback failed")
+
+    def _close_file(self):
+        try:
+            self._file.close()
+        except Exception:  # noqa: BLE001 - buffered bytes that cannot be written are lost anyway
+            pass
+
+
+def _log_time(value, name):
+    value = int(value)
+    if not 0 <= value < _U64:
+        raise ValueError(f"{name} must be in [0, 2**64) ns for MCAP, got {value}")
+    return value
+
+
+def _as_1d(value, name):
+    array = np.asarray(value)
+    if array.ndim != 1:
+        raise ValueError(f"write_results: {name} must be 1-D, got shape {array.shape}")
+    return array
+
+
+def _convert(array, name):
+    dtype = rs.RESULT_DTYPES.get(name, np.dtype(np.float64))
+    name = "point_ids" if name == "point_id" else name          # the argument's name, for messages
+    if dtype == np.uint32 and array.dtype != np.uint32:
+        if array.size and (array.dtype.kind not in "iub" or array.min() < 0 or array.max() >= 1 << 32):
+            raise ValueError(f"write_results: {name} must be integers in [0, 2**32)")
+    elif dtype == np.int32 and array.dtype != np.int32:
+        if array.size and (array.dtype.kind not in "iub" or array.min() < -(1 << 31) or array.max() >= 1 << 31):
+            raise ValueError(f"write_results: {name} must be 32-bit integers")
+    return array.astype(dtype, copy=False)

@@ -1,0 +1,294 @@
+"""Reading recordings: replay, truncated files, recover(), bad input, fuzzing."""
+
+import faulthandler
+import os
+import signal
+import struct
+import time
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from acquire.base import Frame, SourceError
+from acquire.mcap_replay import (McapSource, RecordingError, RecordingSourceError, inspect_recording,
+                                 iter_results, read_events, read_results, read_session, recover)
+from stream.recorder import Recorder
+
+T0 = 1_700_000_000_000_000_000
+
+
+@pytest.fixture(autouse=True)
+def _hang_guard():
+    """Every test here is bounded: a hang dumps the stacks and ends the run after 60 s."""
+    faulthandler.dump_traceback_later(60, exit=True)
+    yield
+    faulthandler.cancel_dump_traceback_later()
+
+
+def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20):
+    rng = np.random.default_rng(7)
+    images = [rng.integers(0, 200, size=shape, dtype=dtype) for _ in range(n)]
+    with Recorder(path, {"source_uri": "synthetic://", "points": [[1, 2]]}, chunk_bytes=chunk_bytes) as rec:
+        for i, image in enumerate(images):
+            rec.write_frame(Frame(i, T0 + i * dt_ns, image, "Mono8" if dtype == np.uint8 else "Mono16"))
+            rec.write_results(i, T0 + i * dt_ns, [1, 2], [3.0, 4.0], [5.0, 6.0], [0.1 * i, 0.0], [0.0, -0.1 * i],
+                              [0.99, 0.5], [True, False])
+        rec.write_event("recording_stopped", "end of test")
+    return images
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "small.mcap"
+    images = _record(path, shape=(48, 64))
+    return path, images
+
+
+def _plain_mcap(path):
+    from mcap.writer import Writer
+    with open(path, "wb") as f:
+        writer = Writer(f)
+        writer.start(profile="", library="some-robot")
+        schema = writer.register_schema("pose", "jsonschema", b"{}")
+        channel = writer.register_channel("/robot/pose", "json", schema)
+        for i in range(3):
+            writer.add_message(channel, log_time=i, data=b'{"x": 1}', publish_time=i)
+        writer.finish()
+
+
+def _one_line_error(call, error_type=RecordingError):
+    with pytest.raises(error_type) as caught:
+        call()
+    message = str(caught.value)
+    assert "\n" not in message and message
+    return message
+
+
+# ----------------------------------------------------------------------------- replay
+
+def test_replay_as_fast_as_possible_gives_every_frame_in_order(recording):
+    path, images = recording
+    with McapSource(path) as source:
+        assert source.settings["recorded_source_uri"] == "synthetic://"
+        frames = list(source)
+    assert [f.index for f in frames] == list(range(len(images)))
+    assert all(np.array_equal(f.image, im) for f, im in zip(frames, images))
+    assert all(isinstance(f, Frame) and f.pixel_format == "Mono8" for f in frames)
+
+
+def test_realtime_replay_follows_the_recorded_pace(tmp_path):
+    path = tmp_path / "paced.mcap"
+    _record(path, n=6, dt_ns=60_000_000)                   # 5 gaps of 60 ms
+    arrivals = []
+    start = time.monotonic()
+    for frame in McapSource(path, realtime=True):
+        arrivals.append((frame.index, time.monotonic() - start))
+    assert [i for i, _ in arrivals] == list(range(6))
+    assert arrivals[-1][1] >= 0.8 * 0.3                    # loose: never faster than recorded
+    fast = time.monotonic()
+    list(McapSource(path))
+    assert time.monotonic() - fast < arrivals[-1][1] + 5   # and the fast mode is not paced (generous bound)
+
+
+def test_close_stops_iteration(recording):
+    path, _ = recording
+    source = McapSource(path)
+    seen = []
+    for frame in source:
+        seen.append(frame.index)
+        source.close()
+    assert seen == [0]
+
+
+def test_results_events_and_session(recording):
+    path, _ = recording
+    results = read_results(path)
+    assert [r.frame_index for r in results] == list(range(6))
+    assert np.array_equal(results[3].u, [0.30000000000000004, 0.0]) and results[3].ok.tolist() == [True, False]
+    assert [r.frame_index for r in iter_results(path)] == list(range(6))
+    assert [(e.kind, e.message) for e in read_events(path)] == [("recording_stopped", "end of test")]
+    assert read_session(path)["points"] == [[1, 2]]
+
+
+def test_read_results_uses_the_index_and_skips_image_chunks(tmp_path):
+    """Corrupt an image chunk of an indexed file: results still read (never touched), replay reports it."""
+    path = tmp_path / "r.mcap"
+    _record(path, n=4, shape=(64, 64))
+    data = bytearray(path.read_bytes())
+    third = -1
+    for _ in range(3):                                    # the third RawImage's encoding string ...
+        third = data.find(b"mono8", third + 1)
+    data[third + 100] ^= 0xFF                             # ... is followed by its pixels
+    path.write_bytes(bytes(data))
+    assert len(read_results(path)) == 4
+    message = _one_line_error(lambda: list(McapSource(path)), RecordingSourceError)
+    assert str(path) in message and "corrupt" in message and "CRC" in message
+
+
+# ----------------------------------------------------------------------------- truncated / recover
+
+@pytest.mark.parametrize("keep", [0.7, 0.5, 0.25])
+def test_truncated_file_reads_with_a_note(tmp_path, recording, caplog, keep):
+    path, images = recording
+    cut = tmp_path / "cut.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[:int(len(data) * keep)])
+    frames = list(McapSource(cut))
+    assert [f.index for f in frames] == list(range(len(frames)))
+    assert all(np.array_equal(f.image, images[f.index]) for f in frames)
+    assert f"{cut} is truncated (the recording did not finish" in caplog.text
+    info = inspect_recording(cut)
+    assert info.truncated and not info.indexed and info.frames == len(frames)
+    assert read_session(cut)["source_uri"] == "synthetic://"
+    results = read_results(cut)
+    assert [r.frame_index for r in results] == list(range(len(results)))
+
+
+def test_lost_index_only_is_a_note_and_loses_nothing(tmp_path, recording, caplog):
+    path, images = recording
+    cut = tmp_path / "noindex.mcap"
+    cut.write_bytes(path.read_bytes()[:-50])              # footer and the end of the summary gone
+    assert len(list(McapSource(cut))) == len(images)
+    assert "no index" in caplog.text and "record by record" in caplog.text
+    info = inspect_recording(cut)
+    assert not info.truncated and not info.indexed and "no index" in info.note
+
+
+def test_recover_rewrites_a_complete_indexed_file(tmp_path, recording):
+    path, images = recording
+    cut, fixed = tmp_path / "cut.mcap", tmp_path / "fixed.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[:int(len(data) * 0.8)])
+    expected = [f.index for f in McapSource(cut)]
+    summary = recover(cut, fixed)
+    assert summary["truncated"] and summary["frames"] == len(expected) and summary["dst"] == str(fixed)
+    assert "truncated" in summary["note"]
+    info = inspect_recording(fixed)
+    assert info.indexed and not info.truncated and info.note == ""
+    assert [f.index for f in McapSource(fixed)] == expected
+    assert read_session(fixed) == read_session(path)
+    assert len(read_results(fixed)) == summary["results"]
+
+    before = fixed.read_bytes()
+    assert "already exists" in _one_line_error(lambda: recover(cut, fixed))
+    assert fixed.read_bytes() == before
+    assert "source itself" in _one_line_error(lambda: recover(cut, cut))
+    assert recover(cut, fixed, overwrite=True)["frames"] == len(expected)
+    assert not [p for p in os.listdir(tmp_path) if ".partial-" in p]
+
+
+def test_recover_skips_a_corrupt_chunk_that_strict_readers_reject(tmp_path):
+    path, fixed = tmp_path / "bad.mcap", tmp_path / "fixed.mcap"
+    _record(path, n=5, shape=(32, 32))
+    data = bytearray(path.read_bytes())
+    data = data[:len(data) - 4000]                        # drop the summary: force the recovery scan
+    second_image = data.find(b"mono8", data.find(b"mono8") + 1)
+    data[second_image + 100] ^= 0x55                     # inside frame 1's pixels
+    path.write_bytes(bytes(data))
+    message = _one_line_error(lambda: list(McapSource(path)), RecordingSourceError)
+    assert "corrupt" in message and "recover" in message
+    summary = recover(path, fixed)
+    assert summary["corrupt_chunks"] == 1
+    assert 1 not in [f.index for f in McapSource(fixed)]
+    assert [f.index for f in McapSource(fixed)][:1] == [0]
+
+
+# ----------------------------------------------------------------------------- bad input
+
+def test_bad_inputs_give_one_clean_line(tmp_path, recording):
+    good = recording[0].read_bytes()
+    cases = {
+        "missing.mcap": None,
+        "empty.mcap": b"",
+        "random.mcap": np.random.default_rng(0).integers(0, 256, 5000, dtype=np.uint8).tobytes(),
+        "magic_only.mcap": good[:8],
+        "header_cut.mcap": good[:20],
+        "text.mcap": b"hello, I am a CSV file\n1,2,3\n",
+    }
+    expected = {"missing.mcap": "does not exist", "empty.mcap": "empty", "random.mcap": "not an MCAP file",
+                "magic_only.mcap": "truncated inside the MCAP header", "header_cut.mcap": "truncated inside",
+                "text.mcap": "not an MCAP file"}
+    for name, content in cases.items():
+        path = tmp_path / name
+        if content is not None:
+            path.write_bytes(content)
+        for reader in (read_session, read_results, read_events, inspect_recording,
+                       lambda p: recover(p, tmp_path / "out.mcap")):
+            message = _one_line_error(lambda: reader(path))
+            assert str(path) in message and expected[name] in message, message
+        message = _one_line_error(lambda: McapSource(path), RecordingSourceError)
+        assert expected[name] in message
+    assert "directory" in _one_line_error(lambda: read_session(tmp_path))
+
+
+def test_mcap_from_another_program_is_named_as_such(tmp_path):
+    path = tmp_path / "x.mcap"
+    _plain_mcap(path)
+    message = _one_line_error(lambda: McapSource(path), SourceError)
+    assert message == f"{path} was not written by livedic (no /camera/image RawImage channel)"
+    for reader in (read_session, read_results, read_events):
+        assert _one_line_error(lambda: reader(path)) == message
+    assert isinstance(pytest.raises(ValueError, McapSource, path).value, SourceError)
+    assert inspect_recording(path).message_counts == {"/robot/pose": 3}   # still inspectable
+
+
+# ----------------------------------------------------------------------------- fuzz
+
+class _Hang(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _Hang("reader took more than 5 s")
+
+
+def _exercise(path, tmp_dir):
+    """Every public reader on ``path``; only RecordingError may come out."""
+    for call in (lambda: list(McapSource(path)), lambda: read_results(path), lambda: read_events(path),
+                 lambda: read_session(path), lambda: inspect_recording(path),
+                 lambda: recover(path, tmp_dir / "fuzz_out.mcap", overwrite=True)):
+        try:
+            call()
+        except RecordingError:
+            pass
+
+
+@pytest.fixture(scope="module")
+def fuzz_bases(tmp_path_factory):
+    base = tmp_path_factory.mktemp("fuzz")
+    complete = base / "complete.mcap"
+    _record(complete, n=3, shape=(6, 8), chunk_bytes=256)
+    data = complete.read_bytes()
+    return base, [data, data[:int(len(data) * 0.7)]]         # indexed and truncated variants
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.integers(0, 1), data=st.data())
+def test_fuzzed_recordings_fail_cleanly(fuzz_bases, which, data):
+    base, variants = fuzz_bases
+    raw = bytearray(variants[which])
+    for _ in range(data.draw(st.integers(1, 4), label="mutations")):
+        kind = data.draw(st.sampled_from(["flip", "byte", "cut", "insert", "delete", "length"]), label="kind")
+        at = data.draw(st.integers(0, max(len(raw) - 1, 0)), label="at")
+        if kind == "flip" and raw:
+            raw[at] ^= 1 << data.draw(st.integers(0, 7))
+        elif kind == "byte" and raw:
+            raw[at] = data.draw(st.integers(0, 255))
+        elif kind == "cut":
+            del raw[at:]
+        elif kind == "insert":
+            raw[at:at] = data.draw(st.binary(min_size=1, max_size=16))
+        elif kind == "delete":
+            del raw[at:at + data.draw(st.integers(1, 64))]
+        elif kind == "length" and len(raw) >= at + 8:       # a huge or odd record length field
+            raw[at:at + 8] = struct.pack("<Q", data.draw(st.sampled_from([0, 1, 2**31, 2**63, 2**64 - 1])))
+    path = base / "fuzzed.mcap"
+    path.write_bytes(bytes(raw))
+    previous = signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, 5.0)
+    try:
+        _exercise(path, base)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
