@@ -1,0 +1,907 @@
+"""GenICam cameras (GigE Vision, USB3 Vision, Aravis's Fake camera) through Aravis 0.8 and gi.
+
+URIs: ``aravis:`` opens the first camera found, ``aravis:DEVICE_ID`` a given
+one (its Aravis id, serial number, physical id or, for GigE, IP address).
+Options ride in a query string (``aravis:Fake_1?exposure_us=2000&roi=0,0,640,480``)
+or as keyword arguments of :func:`open_uri`; see ``AravisCamera.OPTIONS``.
+``livedic cameras`` lists ids with :func:`list_cameras`.
+
+Zero copy on the hot path: the stream owns a pool of numpy arrays wrapped by
+``Aravis.Buffer.new_full``, so the camera writes straight into them. A
+``Frame.image`` is a view of one such array, *lent* to the consumer: the
+buffer goes back to the camera (``push_buffer``) when the last reference to
+the image (or any view of it) is dropped. Holding frames therefore holds
+buffers; when the consumer holds nearly all of them the pool grows (up to
+``4 * n_buffers``, with a warning), then frames are copied out (counted in
+``settings["frames_copied"]``) rather than starving the camera. ``copy=True``
+always hands out copies and re-queues at once.
+
+Settings are declared in ``AravisCamera.SETTINGS`` (CRAPPY style): each is
+checked against the camera's bounds, applied, then READ BACK; ``settings``
+reports what the camera actually uses next to what was asked.
+
+A lost camera (no complete frame for ``timeout_s``, default
+``max(1 s, 3 frame periods + exposure)``, or GigE control lost) raises
+``SourceError`` naming the camera and the stream counters. Teardown stops
+acquisition, then drops the stream, then the camera, in that order (the
+process can abort at exit otherwise); an ``atexit`` hook closes sources the
+caller forgot. After a loss the GigE teardown waits on register-write
+timeouts (about 7 s in Aravis 0.8.26), so it runs in a background
+(non-daemon) thread and ``close()`` returns at once.
+"""
+
+import atexit
+import contextlib
+import ctypes
+import logging
+import math
+import threading
+import time
+import weakref
+from dataclasses import dataclass
+from typing import Callable
+from urllib.parse import parse_qsl
+
+import numpy as np
+
+from acquire.base import Frame, FrameSource, SourceError
+
+__all__ = ["AravisCamera", "list_cameras", "open_uri", "parse_uri", "load_aravis",
+           "SUPPORTED_PIXEL_FORMATS", "SCHEME"]
+
+log = logging.getLogger("livedic.acquire.aravis")
+
+SCHEME = "aravis"
+
+# GenICam PFNC codes of the formats livedic reads; Mono12 is unpacked, stored in uint16.
+SUPPORTED_PIXEL_FORMATS = {
+    "Mono8": (0x01080001, np.uint8),
+    "Mono12": (0x01100005, np.uint16),
+    "Mono16": (0x01100007, np.uint16),
+}
+_FORMAT_BY_CODE = {code: (name, dtype) for name, (code, dtype) in SUPPORTED_PIXEL_FORMATS.items()}
+
+_POP_SLICE_US = 100_000          # wait for buffers in 100 ms slices so close() is honoured quickly
+_MIN_FREE_BUFFERS = 2           # grow the pool when the consumer leaves fewer buffers than this
+_FIRST_FRAME_EXTRA_S = 2.0       # start-up allowance added to timeout_s for the first frame
+_GV_ID_WRAP = 65535              # GigE Vision 16-bit block ids go 65535 -> 1 (0 is skipped)
+
+# In-process Fake devices: device id -> attach(arv_camera) -> keep-alive object.
+# ``acquire.fake_genicam.InProcessFakeCamera`` registers here so that opening
+# ``aravis:Fake_1`` serves its images; the keep-alive (the ctypes fill callback)
+# is released only after the stream and camera are gone.
+FAKE_FILL_HOOKS: dict = {}
+
+_OPEN_SOURCES = weakref.WeakSet()
+_TEARDOWN_THREADS = []
+_ARAVIS = None
+
+
+# --------------------------------------------------------------------------- #
+# Loading Aravis
+# --------------------------------------------------------------------------- #
+
+def load_aravis():
+    """Import ``gi.repository.Aravis`` 0.8 (and GLib) once; ``SourceError`` with the fix if missing."""
+    global _ARAVIS
+    if _ARAVIS is None:
+        try:
+            import gi
+            gi.require_version("Aravis", "0.8")
+            from gi.repository import Aravis, GLib
+        except (ImportError, ValueError) as error:
+            raise SourceError(
+                f"Aravis 0.8 is not importable from this Python ({error}): run "
+                "'scripts/install_system.sh .venv' (Debian packages gir1.2-aravis-0.8, python3-gi "
+                "and a link to Debian's gi in the venv)") from error
+        _ARAVIS = (Aravis, GLib)
+    return _ARAVIS
+
+
+def _gerror_message(error):
+    return getattr(error, "message", None) or str(error)
+
+
+# --------------------------------------------------------------------------- #
+# Listing cameras and parsing URIs
+# --------------------------------------------------------------------------- #
+
+def list_cameras(*, include_fake=False):
+    """Cameras Aravis can see now (GigE discovery takes about 1 s).
+
+    Parameters
+    ----------
+    include_fake : bool
+        Also list Aravis's in-process ``Fake_1`` camera (enables the Fake interface).
+
+    Returns
+    -------
+    list of dict
+        One per camera: ``id`` (what ``aravis:ID`` takes), ``vendor``, ``model``,
+        ``serial``, ``protocol`` (``GigEVision``, ``USB3Vision``, ``Fake``),
+        ``interface`` (``gige``, ``usb3``, ``fake``), ``address`` (IP for GigE),
+        ``physical_id`` (MAC for GigE), ``uri``.
+    """
+    Aravis, _ = load_aravis()
+    if include_fake:
+        Aravis.enable_interface("Fake")
+    Aravis.update_device_list()
+    cameras = []
+    for i in range(Aravis.get_n_devices()):
+        protocol = Aravis.get_device_protocol(i) or ""
+        device_id = Aravis.get_device_id(i)
+        cameras.append({
+            "id": device_id,
+            "vendor": Aravis.get_device_vendor(i),
+            "model": Aravis.get_device_model(i),
+            "serial": Aravis.get_device_serial_nbr(i),
+            "protocol": protocol,
+            "interface": _interface_name(protocol),
+            "address": Aravis.get_device_address(i),
+            "physical_id": Aravis.get_device_physical_id(i),
+            "uri": f"{SCHEME}:{device_id}",
+        })
+    return cameras
+
+
+def _interface_name(protocol):
+    return {"GigEVision": "gige", "USB3Vision": "usb3", "Fake": "fake"}.get(protocol, (protocol or "?").lower())
+
+
+def parse_uri(uri):
+    """Split ``aravis:[DEVICE_ID][?key=value&...]`` into ``(device_id or None, {key: str})``."""
+    if not isinstance(uri, str) or not uri[:len(SCHEME) + 1].lower() == SCHEME + ":":
+        raise SourceError(f"not an Aravis URI: {uri!r} (expected 'aravis:' or 'aravis:DEVICE_ID')")
+    rest = uri[len(SCHEME) + 1:]
+    device, _, query = rest.partition("?")
+    if device.startswith("//"):
+        device = device[2:]
+    options = {}
+    if query:
+        for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=False):
+            options[key] = value
+    return (device or None), options
+
+
+def open_uri(uri, **options):
+    """Open an ``aravis:`` URI; keyword options override those in the query string."""
+    device_id, query = parse_uri(uri)
+    merged = {**query, **options}
+    return AravisCamera(device_id, uri=uri, **merged)
+
+
+# --------------------------------------------------------------------------- #
+# Option parsing (strings from URIs, values from Python)
+# --------------------------------------------------------------------------- #
+
+def _as_float(name, value):
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise SourceError(f"option {name}={value!r} is not a number") from None
+    if not math.isfinite(number):
+        raise SourceError(f"option {name}={value!r} must be finite")
+    return number
+
+
+def _as_int(name, value):
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise SourceError(f"option {name}={value!r} is not an integer") from None
+    if not number.is_integer():
+        raise SourceError(f"option {name}={value!r} is not an integer")
+    return int(number)
+
+
+def _as_bool(name, value):
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off", ""):
+        return False
+    raise SourceError(f"option {name}={value!r} is not a boolean (use 1/0, true/false)")
+
+
+def _as_roi(name, value):
+    if isinstance(value, str):
+        parts = [p for p in value.replace("x", ",").replace(" ", ",").split(",") if p]
+    else:
+        try:
+            parts = list(value)
+        except TypeError:
+            parts = [value]
+    if len(parts) != 4:
+        raise SourceError(f"option {name}={value!r} must be 4 integers x,y,w,h")
+    x, y, w, h = (_as_int(name, p) for p in parts)
+    if x < 0 or y < 0 or w <= 0 or h <= 0:
+        raise SourceError(f"option {name}={value!r}: need x >= 0, y >= 0, w > 0, h > 0")
+    return (x, y, w, h)
+
+
+def _as_pixel_format(name, value):
+    text = str(value).strip()
+    for known in SUPPORTED_PIXEL_FORMATS:
+        if text.lower() == known.lower():
+            return known
+    raise SourceError(f"pixel format {text!r} is not supported: livedic reads "
+                      f"{', '.join(SUPPORTED_PIXEL_FORMATS)} (Mono12 unpacked, stored in uint16)")
+
+
+# --------------------------------------------------------------------------- #
+# Declared settings
+# --------------------------------------------------------------------------- #
+
+@dataclass(frozen=True)
+class Setting:
+    """A camera setting: parsed, checked against bounds, applied, then read back."""
+    name: str
+    parse: Callable
+    apply: Callable      # apply(source, value) -> None, raises SourceError with bounds
+    read: Callable       # read(source) -> value actually in use
+    doc: str
+
+
+def _check_range(name, value, low, high, unit):
+    if not (low <= value <= high):
+        raise SourceError(f"{name}={value:g} is outside this camera's range [{low:g}, {high:g}] {unit}".rstrip())
+
+
+def _apply_pixel_format(source, value):
+    cam = source._camera
+    offered = list(cam.dup_available_pixel_formats_as_strings() or [])
+    if value not in offered:
+        usable = [f for f in SUPPORTED_PIXEL_FORMATS if f in offered]
+        raise SourceError(
+            f"pixel format {value} is not offered by camera {source._label}: supported here "
+            f"{', '.join(usable) or 'none of ' + ', '.join(SUPPORTED_PIXEL_FORMATS)} "
+            f"(camera offers {', '.join(offered) or 'nothing'})")
+    source._call(f"set pixel_format={value}", cam.set_pixel_format_from_string, value)
+
+
+def _read_pixel_format(source):
+    return source._camera.get_pixel_format_as_string()
+
+
+def _apply_roi(source, value):
+    cam = source._camera
+    x, y, w, h = value
+    sensor = cam.get_sensor_size()
+    wb, hb = cam.get_width_bounds(), cam.get_height_bounds()
+    problems = []
+    if not (wb.min <= w <= wb.max):
+        problems.append(f"width {w} not in [{wb.min}, {wb.max}]")
+    if not (hb.min <= h <= hb.max):
+        problems.append(f"height {h} not in [{hb.min}, {hb.max}]")
+    if x + w > sensor.width or y + h > sensor.height:
+        problems.append(f"x + w = {x + w}, y + h = {y + h} exceed the sensor {sensor.width}x{sensor.height}")
+    if problems:
+        raise SourceError(f"roi={value} does not fit camera {source._label}: {'; '.join(problems)}")
+    # Offsets first to 0 so a larger width fits, then size, then offsets (what set_region does).
+    source._call(f"set roi={value}", cam.set_region, x, y, w, h)
+
+
+def _read_roi(source):
+    region = source._camera.get_region()
+    return (region.x, region.y, region.width, region.height)
+
+
+def _apply_exposure(source, value):
+    cam = source._camera
+    if not cam.is_exposure_time_available():
+        raise SourceError(f"camera {source._label} has no exposure time control")
+    if cam.is_exposure_auto_available():
+        Aravis, _ = load_aravis()
+        source._call("exposure auto off", cam.set_exposure_time_auto, Aravis.Auto.OFF)
+    bounds = cam.get_exposure_time_bounds()
+    _check_range("exposure_us", value, bounds.min, bounds.max, "us")
+    source._call(f"set exposure_us={value:g}", cam.set_exposure_time, float(value))
+
+
+def _read_exposure(source):
+    cam = source._camera
+    return cam.get_exposure_time() if cam.is_exposure_time_available() else None
+
+
+def _apply_gain(source, value):
+    cam = source._camera
+    if not cam.is_gain_available():
+        raise SourceError(f"camera {source._label} has no gain control")
+    if cam.is_gain_auto_available():
+        Aravis, _ = load_aravis()
+        source._call("gain auto off", cam.set_gain_auto, Aravis.Auto.OFF)
+    bounds = cam.get_gain_bounds()
+    _check_range("gain_db", value, bounds.min, bounds.max, "dB")
+    source._call(f"set gain_db={value:g}", cam.set_gain, float(value))
+
+
+def _read_gain(source):
+    cam = source._camera
+    return cam.get_gain() if cam.is_gain_available() else None
+
+
+def _apply_frame_rate(source, value):
+    cam = source._camera
+    if not cam.is_frame_rate_available():
+        raise SourceError(f"camera {source._label} has no frame rate control")
+    bounds = cam.get_frame_rate_bounds()
+    _check_range("frame_rate", value, bounds.min, bounds.max, "fps")
+    source._call(f"set frame_rate={value:g}", cam.set_frame_rate, float(value))
+
+
+def _read_frame_rate(source):
+    cam = source._camera
+    return cam.get_frame_rate() if cam.is_frame_rate_available() else None
+
+
+def _apply_packet_size(source, value):
+    cam = source._camera
+    if not cam.is_gv_device():
+        raise SourceError("packet_size applies to GigE Vision cameras only")
+    source._call(f"set packet_size={value}", cam.gv_set_packet_size, int(value))
+
+
+def _read_packet_size(source):
+    cam = source._camera
+    return cam.gv_get_packet_size() if cam.is_gv_device() else None
+
+
+class AravisCamera(FrameSource):
+    """A GenICam camera through Aravis, yielding ``Frame`` objects (zero copy).
+
+    Parameters
+    ----------
+    device_id : str or None
+        Aravis device id (``livedic cameras``), serial, physical id or GigE IP
+        address; ``None`` opens the first camera found.
+    exposure_us, gain_db, frame_rate : float, optional
+        Applied (auto modes switched off) and read back; ``None`` leaves the camera's value.
+    roi : (x, y, w, h) or "x,y,w,h", optional
+        Sensor region; the camera may round to its increments (read back).
+    pixel_format : {"Mono8", "Mono12", "Mono16"}, optional
+        ``None`` keeps the camera's format if supported, else sets Mono8.
+    packet_size : int, optional
+        GigE Vision packet size in bytes (jumbo frames need the NIC MTU).
+    n_buffers : int
+        Buffers in the pool (default 10); frames held by the consumer hold buffers.
+    timeout_s : float, optional
+        No complete frame for this long means the camera is lost
+        (default ``max(1, 3 / frame_rate + exposure)``).
+    copy : bool
+        Hand out copies and re-queue each buffer at once (default False: zero copy).
+
+    Raises
+    ------
+    SourceError
+        Aravis missing, unknown device (the message lists available ids),
+        unsupported pixel format (lists the supported ones), a setting out of
+        the camera's range, or the camera lost while streaming.
+    """
+
+    SETTINGS = (
+        Setting("pixel_format", _as_pixel_format, _apply_pixel_format, _read_pixel_format,
+                "Mono8, Mono12 (uint16) or Mono16"),
+        Setting("roi", _as_roi, _apply_roi, _read_roi, "sensor region x,y,w,h in pixels"),
+        Setting("packet_size", _as_int, _apply_packet_size, _read_packet_size, "GigE packet size, bytes"),
+        Setting("exposure_us", _as_float, _apply_exposure, _read_exposure, "exposure time, microseconds"),
+        Setting("gain_db", _as_float, _apply_gain, _read_gain, "analog gain, dB"),
+        Setting("frame_rate", _as_float, _apply_frame_rate, _read_frame_rate, "frames per second"),
+    )
+    # Other options: how the stream behaves rather than what the camera does.
+    OPTIONS = {s.name: s.doc for s in SETTINGS} | {
+        "n_buffers": "buffers in the pool (default 10)",
+        "timeout_s": "seconds without a frame before the camera counts as lost",
+        "copy": "1 to copy frames out of the pool (default 0: zero copy)",
+    }
+
+    def __init__(self, device_id=None, *, uri=None, n_buffers=10, timeout_s=None, copy=False, **settings):
+        unknown = sorted(set(settings) - {s.name for s in self.SETTINGS})
+        if unknown:
+            raise SourceError(f"unknown aravis option(s) {', '.join(unknown)}; known: {', '.join(self.OPTIONS)}")
+        requested = {}
+        for setting in self.SETTINGS:
+            value = settings.get(setting.name)
+            if value is not None and value != "":
+                requested[setting.name] = setting.parse(setting.name, value)
+        self._requested = requested
+        self._n_buffers = _as_int("n_buffers", n_buffers)
+        if self._n_buffers < 2:
+            raise SourceError(f"n_buffers={self._n_buffers}: need at least 2")
+        self._max_buffers = 4 * self._n_buffers
+        self._timeout_option = None if timeout_s in (None, "") else _as_float("timeout_s", timeout_s)
+        if self._timeout_option is not None and self._timeout_option <= 0:
+            raise SourceError(f"timeout_s={timeout_s}: must be > 0")
+        self._copy = _as_bool("copy", copy)
+        self.uri = uri or f"{SCHEME}:{device_id or ''}"
+
+        self._lock = threading.RLock()          # guards camera/stream calls and teardown
+        self._recycle_lock = threading.RLock()  # guards push_buffer from lease finalizers
+        self._camera = None
+        self._device = None
+        self._stream = None
+        self._stream_alive = False
+        self._keepalive = None
+        self._lost_handler = None
+        self._control_lost = False
+        self._lost = False
+        self._closed = False
+        self._closing = False
+        self._started = False
+        self._pool = {}        # hash(buffer) -> (numpy array, Aravis.Buffer)
+        self._n_leased = 0
+        self._payload = 0
+        self._grow_warned = False
+        self._notes = []
+        self._frames = 0
+        self._dropped = 0
+        self._incomplete = 0
+        self._copied = 0
+        self._last_status = None
+        self._first_id = None
+        self._last_id = None
+        self._index = -1
+        self._label = device_id or "(first camera)"
+        self._info = {}
+        self._applied = {}
+        try:
+            self._open(device_id)
+        except BaseException as error:
+            self._teardown(background=False)
+            _, GLib = load_aravis()
+            if isinstance(error, GLib.Error):
+                message = f"camera {self._label}: {_gerror_message(error)}"
+                error = None
+                raise SourceError(message) from None
+            raise
+        _OPEN_SOURCES.add(self)
+
+    # ----------------------------------------------------------------- open
+    def _call(self, what, function, *args):
+        """Call an Aravis function; a GLib.Error becomes a SourceError naming the camera and step."""
+        _, GLib = load_aravis()
+        try:
+            return function(*args)
+        except GLib.Error as error:
+            message = f"camera {self._label}: {what} failed: {_gerror_message(error)}"
+        # No gi object may stay referenced from the traceback's frames: whoever keeps the
+        # exception would keep the camera alive and finalize it later, in some other thread.
+        function = args = None
+        raise SourceError(message)
+
+    def _open(self, device_id):
+        Aravis, GLib = load_aravis()
+        fake = device_id is not None and device_id.lower().startswith("fake")
+        if fake:
+            Aravis.enable_interface("Fake")
+        try:
+            self._camera = Aravis.Camera.new(device_id)
+        except GLib.Error as error:
+            self._camera = None
+            try:
+                available = list_cameras(include_fake=fake)
+            except Exception:  # noqa: BLE001 - the open error is the one to report
+                available = []
+            ids = ", ".join(f"{c['id']} ({c['protocol']}, {c['address']})" for c in available) or "none found"
+            if device_id is None:
+                raise SourceError(
+                    f"no GenICam camera found by Aravis ({_gerror_message(error)}): check power and cable; "
+                    "a GigE camera must be on this computer's subnet; 'livedic cameras' lists what is seen") from None
+            raise SourceError(f"camera '{device_id}' not found ({_gerror_message(error)}); available: {ids}") from None
+
+        cam = self._camera
+        self._device = cam.get_device()
+        protocol = "GigEVision" if cam.is_gv_device() else "USB3Vision" if cam.is_uv_device() else "Fake"
+        address = None
+        if cam.is_gv_device():
+            try:
+                address = self._device.get_device_address()
+                if hasattr(address, "get_address"):  # a GInetSocketAddress: drop the GVCP port
+                    address = address.get_address()
+                address = address.to_string()
+            except Exception:  # noqa: BLE001 - informative only
+                address = None
+        vendor, model, serial = cam.get_vendor_name(), cam.get_model_name(), cam.get_device_serial_number()
+        info = {
+            # the id it was opened with, else Aravis's "vendor-model-serial" naming
+            "device_id": device_id or f"{vendor}-{model}-{serial}",
+            "vendor": vendor,
+            "model": model,
+            "serial": serial,
+            "protocol": protocol,
+            "interface": _interface_name(protocol),
+            "address": address,
+        }
+        sensor = cam.get_sensor_size()
+        info["sensor_size"] = [sensor.width, sensor.height]
+        self._info = info
+        self._label = f"{info['device_id']} ({vendor} {model} #{serial}, {protocol})"
+        self._wrap16 = protocol == "GigEVision"
+
+        hook = FAKE_FILL_HOOKS.get(device_id) if device_id else None
+        if hook is not None:
+            self._keepalive = hook(cam)
+
+        # pixel format: default keeps a supported current one, else Mono8
+        requested = dict(self._requested)
+        if "pixel_format" not in requested:
+            current = cam.get_pixel_format_as_string()
+            if current not in SUPPORTED_PIXEL_FORMATS:
+                requested["pixel_format"] = "Mono8"
+                self._note(f"camera pixel format was {current}; set to Mono8")
+        for setting in self.SETTINGS:
+            if setting.name in requested:
+                setting.apply(self, requested[setting.name])
+        for setting in self.SETTINGS:
+            self._applied[setting.name] = setting.read(self)
+        pixel_format = self._applied["pixel_format"]
+        if pixel_format not in SUPPORTED_PIXEL_FORMATS:
+            raise SourceError(f"camera {self._label} streams {pixel_format}, not one of "
+                              f"{', '.join(SUPPORTED_PIXEL_FORMATS)}")
+        for name, asked in requested.items():
+            got = self._applied.get(name)
+            if got is None:
+                continue
+            if isinstance(asked, float) and not math.isclose(asked, got, rel_tol=1e-3, abs_tol=1e-6):
+                self._note(f"{name}: asked {asked:g}, camera set {got:g}")
+            elif isinstance(asked, tuple) and tuple(got) != asked:
+                self._note(f"{name}: asked {asked}, camera set {tuple(got)}")
+
+        frame_rate = self._applied.get("frame_rate") or 0.0
+        exposure_s = (self._applied.get("exposure_us") or 0.0) * 1e-6
+        if self._timeout_option is not None:
+            self._timeout_s = self._timeout_option
+        else:
+            period = 3.0 / frame_rate if frame_rate > 0 else 1.0
+            self._timeout_s = max(1.0, period + exposure_s)
+
+        if cam.is_gv_device():
+            self._lost_handler = self._device.connect("control-lost", self._on_control_lost)
+
+        self._stream = self._call("create stream", cam.create_stream, None, None)
+        if self._stream is None:
+            raise SourceError(f"camera {self._label}: Aravis could not create a stream")
+        self._stream_alive = True
+        self._payload = int(cam.get_payload())
+        for _ in range(self._n_buffers):
+            self._add_buffer()
+
+    def _note(self, text):
+        self._notes.append(text)
+        log.info("%s: %s", self._label, text)
+
+    def _on_control_lost(self, *_args):
+        self._control_lost = True
+
+    def _add_buffer(self):
+        Aravis, _ = load_aravis()
+        array = np.empty(self._payload, np.uint8)
+        buffer = Aravis.Buffer.new_full(self._payload, array.ctypes.data, None, None)
+        self._pool[hash(buffer)] = (array, buffer)
+        self._stream.push_buffer(buffer)
+
+    # ------------------------------------------------------------- settings
+    @property
+    def settings(self):
+        """What the camera actually uses (read back), what was asked, and stream counters."""
+        out = {"source": SCHEME, "uri": self.uri, **self._info}
+        out.update({k: (list(v) if isinstance(v, tuple) else v) for k, v in self._applied.items()})
+        out["requested"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self._requested.items()}
+        out.update({
+            "n_buffers": len(self._pool) or self._n_buffers,
+            "payload_bytes": self._payload,
+            "timeout_s": getattr(self, "_timeout_s", None),
+            "copy": self._copy,
+            "frames_delivered": self._frames,
+            "frames_dropped": self._dropped,
+            "incomplete_buffers": self._incomplete,
+            "frames_copied": self._copied,
+            "stream": self.stream_statistics(),
+            "notes": list(self._notes),
+        })
+        return out
+
+    def stream_statistics(self):
+        """Aravis stream counters: completed, failures, underruns, missing/resent packets (GigE)."""
+        with self._recycle_lock:
+            stream = self._stream if self._stream_alive else None
+            if stream is None:
+                return dict(getattr(self, "_last_stats", {}))
+            return self._stats(stream)
+
+    def _stats(self, stream):
+        Aravis, _ = load_aravis()
+        completed, failures, underruns = Aravis.Stream.get_statistics(stream)
+        stats = {"n_completed": int(completed), "n_failures": int(failures), "n_underruns": int(underruns),
+                 "n_missing_packets": 0, "n_resent_packets": 0}
+        if self._wrap16:
+            stats["n_missing_packets"] = int(stream.get_info_uint64_by_name("n_missing_packets"))
+            stats["n_resent_packets"] = int(stream.get_info_uint64_by_name("n_resent_packets"))
+        self._last_stats = stats
+        return stats
+
+    # ------------------------------------------------------------ streaming
+    def __iter__(self):
+        return _FrameIterator(self)
+
+    def _start(self):
+        with self._lock:
+            if not self._started and self._camera is not None and not self._closed:
+                self._call("start acquisition", self._camera.start_acquisition)
+                self._started = True
+                self._progress_t = time.monotonic()
+                self._waiting_first = True
+
+    def _next_frame(self):
+        """The next complete frame, ``None`` once closed; ``SourceError`` when the camera is lost."""
+        Aravis, _ = load_aravis()
+        success = Aravis.BufferStatus.SUCCESS
+        error = None
+        while error is None:
+            if self._closing or self._closed:
+                return None
+            if self._control_lost:
+                error = self._lost_error("GigE control channel lost (heartbeat unanswered)")
+                break
+            with self._lock:
+                stream = self._stream
+                if stream is None:
+                    return None
+                if len(self._pool) - self._n_leased < _MIN_FREE_BUFFERS:
+                    self._grow_pool()  # the consumer holds (almost) every buffer
+                buffer = stream.timeout_pop_buffer(_POP_SLICE_US)
+                now = time.monotonic()
+                limit = self._timeout_s + (_FIRST_FRAME_EXTRA_S if self._waiting_first else 0.0)
+                if buffer is None:
+                    if now - self._progress_t > limit:
+                        error = self._lost_error(f"no frame for {now - self._progress_t:.1f} s")
+                    continue
+                if buffer.get_status() != success:
+                    self._incomplete += 1
+                    status = buffer.get_status()
+                    self._last_status = getattr(status, "value_nick", str(status))
+                    stream.push_buffer(buffer)
+                    if now - self._progress_t > limit:
+                        error = self._lost_error(f"no complete frame for {now - self._progress_t:.1f} s")
+                    continue
+                self._progress_t = now
+                self._waiting_first = False
+                return self._make_frame(buffer, stream)
+        # As in _call: drop gi references before raising (the traceback keeps this frame).
+        stream = buffer = None
+        raise error
+
+    def _grow_pool(self):
+        """Add a buffer when the consumer holds almost all of them (up to the cap)."""
+        if len(self._pool) >= self._max_buffers:
+            return  # at the cap: _make_frame hands out copies instead of leases
+        if not self._grow_warned:
+            log.warning("%s: the consumer holds %d of %d buffers; growing the pool (max %d, then frames "
+                        "are copied)", self._label, self._n_leased, len(self._pool), self._max_buffers)
+            self._grow_warned = True
+        with self._recycle_lock:
+            if self._stream_alive:
+                self._add_buffer()
+
+    def _lost_error(self, why):
+        self._lost = True
+        stats = self.stream_statistics()
+        status = f", last incomplete buffer status {self._last_status}" if self._last_status else ""
+        hint = ("check power, cable and network (is the camera still on the same subnet?)"
+                if self._info.get("protocol") == "GigEVision" else "check power and cable")
+        return SourceError(
+            f"camera {self._label} lost: {why} (timeout_s={self._timeout_s:g}); stream: "
+            f"{stats.get('n_completed', 0)} completed, {stats.get('n_failures', 0)} failed, "
+            f"{stats.get('n_underruns', 0)} underruns, {stats.get('n_missing_packets', 0)} missing packets, "
+            f"{self._incomplete} incomplete buffers{status}; {hint}, or raise timeout_s for slow triggers")
+
+    def _frame_index(self, frame_id):
+        if self._first_id is None:
+            self._first_id = frame_id
+            self._last_id = frame_id
+            self._index = 0
+            return 0, 0
+        delta = frame_id - self._last_id
+        if delta <= 0:
+            if self._wrap16 and frame_id < 65536 and self._last_id < 65536:
+                delta = (frame_id - self._last_id) % _GV_ID_WRAP or _GV_ID_WRAP
+            else:
+                delta = 1  # the camera restarted its counter: no way to count what was lost
+        self._last_id = frame_id
+        self._index += delta
+        return self._index, delta - 1
+
+    def _make_frame(self, buffer, stream):
+        key = hash(buffer)
+        array, _ = self._pool[key]
+        code = buffer.get_image_pixel_format()
+        name, dtype = _FORMAT_BY_CODE.get(code, (None, None))
+        if name is None:
+            stream.push_buffer(buffer)
+            raise SourceError(f"camera {self._label} sent pixel format 0x{code:08x}, not one of "
+                              f"{', '.join(SUPPORTED_PIXEL_FORMATS)}")
+        width, height = buffer.get_image_width(), buffer.get_image_height()
+        itemsize = np.dtype(dtype).itemsize
+        x_padding = buffer.get_image_padding()[0] if hasattr(buffer, "get_image_padding") else 0
+        row_bytes = width * itemsize + x_padding
+        if row_bytes * height > self._payload:
+            stream.push_buffer(buffer)
+            raise SourceError(f"camera {self._label} sent a {width}x{height} {name} image larger than "
+                              f"the {self._payload}-byte buffers")
+        frame_id = buffer.get_frame_id()
+        timestamp = buffer.get_timestamp()
+        system_ts = buffer.get_system_timestamp()
+        index, dropped = self._frame_index(frame_id)
+        self._dropped += dropped
+        stats = self._stats(stream)
+        must_copy = not self._copy and len(self._pool) - self._n_leased < _MIN_FREE_BUFFERS
+        if must_copy:
+            # Pool at its cap and the consumer keeps every frame: copy rather than starve the camera.
+            self._copied += 1
+            if self._copied == 1:
+                log.warning("%s: all %d buffers are held by the consumer: copying frames from now on while "
+                            "that lasts (copy the frames you keep, or open with copy=1)", self._label, len(self._pool))
+        if self._copy or must_copy:
+            flat = array[: row_bytes * height]
+            image = np.ndarray((height, width), dtype, flat, 0, (row_bytes, itemsize)).copy()
+            stream.push_buffer(buffer)
+        else:
+            lease = _lease_type(self._payload).from_address(array.ctypes.data)
+            lease.owner = self
+            lease.buffer = buffer
+            lease.array = array
+            with self._recycle_lock:
+                self._n_leased += 1
+            image = np.ndarray((height, width), dtype, lease, 0, (row_bytes, itemsize))
+        self._frames += 1
+        metadata = {"frame_id": int(frame_id), "system_timestamp_ns": int(system_ts),
+                    "dropped_before": int(dropped), "stream": stats}
+        return Frame(index=index, timestamp_ns=int(timestamp or system_ts), image=image,
+                     pixel_format=name, metadata=metadata)
+
+    def _recycle(self, buffer):
+        with self._recycle_lock:
+            self._n_leased -= 1
+            if self._stream_alive and self._stream is not None:
+                self._stream.push_buffer(buffer)
+
+    # ------------------------------------------------------------- teardown
+    def close(self):
+        """Stop acquisition, drop the stream then the camera. Safe to call twice, from any thread."""
+        if self._closed:
+            return
+        self._closing = True
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            _OPEN_SOURCES.discard(self)
+            self._teardown(background=self._lost)
+
+    def _teardown(self, *, background):
+        with self._recycle_lock:
+            stream, camera, device = self._stream, self._camera, self._device
+            if stream is not None:
+                try:
+                    self._stats(stream)  # keep the final counters for settings
+                except Exception:  # noqa: BLE001 - informative only
+                    pass
+            self._stream_alive = False
+            self._stream = None
+            self._camera = None
+            self._device = None
+        pool, self._pool = self._pool, {}
+        handler, self._lost_handler = self._lost_handler, None
+        keepalive, self._keepalive = self._keepalive, None
+        stop = self._started and not self._lost
+        label = self._label
+        objects = [stream, camera, device, keepalive, pool]
+        del stream, camera, device, keepalive, pool
+
+        def work():
+            stream, camera, device, keepalive, pool = objects
+            objects.clear()
+            if camera is not None and stop:
+                try:
+                    camera.stop_acquisition()
+                except Exception as error:  # noqa: BLE001 - teardown goes on
+                    log.warning("%s: stop acquisition failed: %s", label, _gerror_message(error))
+            if device is not None and handler is not None:
+                try:
+                    device.disconnect(handler)
+                except Exception:  # noqa: BLE001
+                    pass
+            # Order matters: the stream (its thread writes into the pool and, for the
+            # in-process Fake camera, calls the fill callback), then the camera, then
+            # the device, then the fill callback and the pool memory.
+            del stream
+            del camera
+            del device
+            del keepalive
+            del pool
+
+        if background and any(o is not None for o in objects[:2]):
+            def run():
+                try:
+                    work()
+                finally:
+                    with contextlib.suppress(ValueError):
+                        _TEARDOWN_THREADS.remove(threading.current_thread())
+            thread = threading.Thread(target=run, name="livedic-aravis-teardown", daemon=False)
+            _TEARDOWN_THREADS.append(thread)
+            thread.start()
+        else:
+            work()
+
+    def __del__(self):
+        try:
+            if not self._closed and self._camera is not None:
+                self.close()
+        except Exception:  # noqa: BLE001 - never raise from a finalizer
+            pass
+
+    def __repr__(self):
+        state = "closed" if self._closed else "open"
+        return f"<AravisCamera {self._label} {state}>"
+
+
+class _FrameIterator:
+    """Iterator over an AravisCamera that keeps no reference to the frames it returned.
+
+    (A generator would hold its last frame, and so one buffer, until the next ``next``.)
+    """
+
+    def __init__(self, source):
+        self._source = source
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        source = self._source
+        if source._closed:
+            raise StopIteration
+        source._start()
+        frame = source._next_frame()
+        if frame is None:
+            raise StopIteration
+        return frame
+
+
+# --------------------------------------------------------------------------- #
+# Buffer leases: the numpy view's base object; dropping it re-queues the buffer.
+# --------------------------------------------------------------------------- #
+
+_LEASE_TYPES = {}
+
+
+def _lease_del(self):
+    owner = getattr(self, "owner", None)
+    if owner is not None:
+        self.owner = None
+        try:
+            owner._recycle(self.buffer)
+        except Exception:  # noqa: BLE001 - a finalizer must not raise
+            pass
+
+
+def _lease_type(nbytes):
+    """A ctypes byte array type over an existing pool array, whose finalizer re-queues its buffer."""
+    lease = _LEASE_TYPES.get(nbytes)
+    if lease is None:
+        lease = type("BufferLease", (ctypes.c_uint8 * nbytes,), {"__del__": _lease_del})
+        _LEASE_TYPES[nbytes] = lease
+    return lease
+
+
+@atexit.register
+def _close_all_at_exit():
+    """Close sources left open, in the right order, before the interpreter tears modules down."""
+    for source in list(_OPEN_SOURCES):
+        try:
+            source.close()
+        except Exception:  # noqa: BLE001
+            pass
+    for thread in list(_TEARDOWN_THREADS):
+        thread.join(timeout=15)

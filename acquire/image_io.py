@@ -1,0 +1,165 @@
+"""Read one 8- or 16-bit grey image file (PNG, TIFF, anything OpenCV decodes) with clear errors.
+
+Shared by the ``images:`` source and the ``livedic measure`` command. DIC needs
+the camera's grey levels untouched, so nothing is rescaled: 8-bit files give
+``uint8`` arrays, 16-bit files ``uint16``. Colour files are converted to grey
+(with a note for the caller to show once). Everything else — a missing,
+empty, truncated or corrupt file, float, 32-bit or signed pixels — raises
+``ValueError`` whose message is one line naming the file and the problem.
+
+OpenCV (``cv2.imdecode`` with ``IMREAD_UNCHANGED``) returns ``None`` rather than
+raising for files it cannot decode, including truncated PNG and TIFF files
+(checked with OpenCV 5.0: PNG stops with "input buffer is incomplete", TIFF
+with a directory/strip read error); the cause is then worked out here from
+the file's signature so the message says *truncated or corrupt PNG* rather
+than *unreadable*.
+"""
+
+import os
+
+import numpy as np
+
+__all__ = ["read_grey_image", "SIGNATURES"]
+
+# File signatures, used to name the format in error messages.
+SIGNATURES = (
+    (b"\x89PNG\r\n\x1a\n", "PNG"),
+    (b"II*\x00", "TIFF"),
+    (b"MM\x00*", "TIFF"),
+    (b"II+\x00", "BigTIFF"),
+    (b"MM\x00+", "BigTIFF"),
+    (b"\xff\xd8\xff", "JPEG"),
+    (b"BM", "BMP"),
+)
+
+_SAVE_AS = "save as 8- or 16-bit grey"
+
+
+def _format_of(data):
+    for signature, name in SIGNATURES:
+        if data.startswith(signature):
+            return name
+    return None
+
+
+def _fail(path, problem):
+    raise ValueError(f"{path}: {problem}")
+
+
+def _decode(data):
+    """``cv2.imdecode(..., IMREAD_UNCHANGED)`` with OpenCV's own stderr warnings silenced."""
+    import cv2
+
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    previous = None
+    if logging is not None:
+        try:
+            previous = logging.getLogLevel()
+            logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+        except Exception:  # noqa: BLE001 - logging control is cosmetic
+            logging = None
+    try:
+        return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error as error:  # some decoders raise instead of returning None
+        return str(error).strip().splitlines()[-1] if str(error).strip() else "decoder error"
+    finally:
+        if logging is not None and previous is not None:
+            logging.setLogLevel(previous)
+
+
+def read_grey_image(path):
+    """Read an 8- or 16-bit grey image file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        PNG or TIFF file (any format OpenCV decodes is accepted).
+
+    Returns
+    -------
+    image : ndarray, shape (H, W), uint8 or uint16
+        The grey levels as stored in the file (no rescaling).
+    note : str or None
+        A one-line note when the file needed converting (colour to grey,
+        alpha dropped), for the caller to show once; ``None`` otherwise.
+
+    Raises
+    ------
+    ValueError
+        One line ``"<path>: <problem>"``: the file is missing, a directory,
+        unreadable, empty, truncated or corrupt, not an image, or holds float,
+        32-bit or signed pixels.
+
+    Examples
+    --------
+    >>> import cv2, numpy as np, tempfile, os
+    >>> name = os.path.join(tempfile.mkdtemp(), "a.png")
+    >>> _ = cv2.imwrite(name, np.full((4, 5), 7, np.uint16))
+    >>> image, note = read_grey_image(name)
+    >>> image.dtype, image.shape, note
+    (dtype('uint16'), (4, 5), None)
+    """
+    import cv2
+
+    name = os.fspath(path)
+    try:
+        with open(name, "rb") as file:
+            data = file.read()
+    except FileNotFoundError:
+        _fail(name, "file not found")
+    except IsADirectoryError:
+        _fail(name, "is a directory, not an image file")
+    except PermissionError:
+        _fail(name, "cannot read the file: permission denied")
+    except OSError as error:
+        _fail(name, f"cannot read the file: {error.strerror or error}")
+    if not data:
+        _fail(name, "empty file (0 bytes)")
+
+    kind = _format_of(data)
+    decoded = _decode(data)
+    if decoded is None or isinstance(decoded, str):
+        detail = f" ({decoded})" if isinstance(decoded, str) else ""
+        if kind is None:
+            _fail(name, f"not an image OpenCV can read (unknown format, {len(data)} bytes){detail}")
+        _fail(name, f"truncated or corrupt {kind} file, OpenCV could not decode it{detail}")
+    image = decoded
+    if kind == "PNG" and b"IEND" not in data[-64:]:
+        _fail(name, "truncated PNG file (no IEND chunk at the end)")
+    if image.size == 0 or image.ndim < 2:
+        _fail(name, f"image has no pixels (shape {image.shape})")
+
+    note = None
+    if image.ndim == 3:
+        channels = image.shape[2]
+        if channels == 1:
+            image = image[:, :, 0]
+        elif channels in (3, 4):
+            if image.dtype.kind == "f" or image.dtype.itemsize > 2 or image.dtype.kind == "i":
+                pass  # reported below, before any conversion
+            else:
+                code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
+                image = cv2.cvtColor(image, code)
+                note = (f"{name}: colour image ({channels} channels) converted to grey "
+                        f"(0.299 R + 0.587 G + 0.114 B{', alpha dropped' if channels == 4 else ''}); "
+                        f"save grey images to avoid this")
+        elif channels == 2:
+            image = np.ascontiguousarray(image[:, :, 0])
+            note = f"{name}: grey + alpha image: alpha channel dropped"
+        else:
+            _fail(name, f"{channels}-channel images are not supported: {_SAVE_AS}")
+
+    dtype = image.dtype
+    if dtype.kind == "f":
+        _fail(name, f"{dtype.itemsize * 8}-bit float images are not supported: {_SAVE_AS}")
+    if dtype.kind == "b":
+        _fail(name, f"1-bit (bilevel) images are not supported: {_SAVE_AS}")
+    if dtype.itemsize > 2:
+        _fail(name, f"{dtype.itemsize * 8}-bit integer images are not supported: {_SAVE_AS}")
+    if dtype.kind == "i":
+        _fail(name, f"signed {dtype.itemsize * 8}-bit images are not supported: {_SAVE_AS} (unsigned)")
+    if dtype not in (np.uint8, np.uint16):
+        _fail(name, f"pixel type {dtype} is not supported: {_SAVE_AS}")
+    if image.ndim != 2:
+        _fail(name, f"unexpected image shape {image.shape}: {_SAVE_AS}")
+    return np.ascontiguousarray(image), note

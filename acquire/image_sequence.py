@@ -1,0 +1,173 @@
+"""``images:GLOB`` — a folder or glob of 8/16-bit grey PNG/TIFF files, in natural order.
+
+``images:run1/frame_*.tif`` yields frame_2 before frame_10 (natural sort: digit
+runs compare as numbers). ``images:run1`` (a folder) takes every PNG/TIFF in it.
+The path after ``images:`` is taken verbatim (``?`` and ``*`` are glob wildcards),
+so options go as keyword arguments of :func:`open_uri`, never in the URI.
+
+Files are read one at a time by :func:`acquire.image_io.read_grey_image`: a
+missing, corrupt, truncated, float or 32-bit file raises ``SourceError`` naming
+it when its turn comes; so does a file whose size or bit depth differs from the
+first. Colour files are converted to grey with a note logged once.
+Timestamps are ``index / frame_rate`` (default 1 fps): files carry no capture time.
+"""
+
+import glob
+import logging
+import os
+import re
+import time
+
+from acquire.base import Frame, FrameSource, SourceError
+from acquire.image_io import read_grey_image
+
+__all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
+
+log = logging.getLogger("livedic.acquire.images")
+
+SCHEME = "images"
+IMAGE_EXTENSIONS = (".png", ".tif", ".tiff")
+_DIGITS = re.compile(r"(\d+)")
+
+
+def natural_key(path):
+    """Sort key where digit runs compare as numbers: frame_2 < frame_10 (case-insensitive)."""
+    parts = _DIGITS.split(os.fspath(path).lower())
+    return [(0, int(part), part) if part.isdigit() else (1, 0, part) for part in parts]
+
+
+def _find(pattern):
+    expanded = os.path.expanduser(pattern)
+    if os.path.isdir(expanded):
+        names = [os.path.join(expanded, n) for n in os.listdir(expanded)
+                 if n.lower().endswith(IMAGE_EXTENSIONS)]
+        names = [n for n in names if os.path.isfile(n)]
+    else:
+        names = [n for n in glob.glob(expanded, recursive=True) if not os.path.isdir(n)]
+    return sorted(names, key=natural_key)
+
+
+class ImageSequence(FrameSource):
+    """Frames from image files in natural order.
+
+    Parameters
+    ----------
+    pattern : str
+        A glob (``run/frame_*.png``, ``**`` recursive) or a folder (all PNG/TIFF files in it).
+    frame_rate : float
+        Sets timestamps (``index / frame_rate``) and, with ``realtime``, the pace.
+    realtime : bool
+        Deliver frames at ``frame_rate`` like a live camera instead of as fast as possible.
+    loop : bool
+        Start again after the last file (for demos); indices keep counting.
+
+    Raises
+    ------
+    SourceError
+        No file matches; later, a file that cannot be read as an 8/16-bit grey
+        image or whose size/bit depth differs from the first.
+    """
+
+    OPTIONS = {"frame_rate": "frames per second for timestamps (default 1)",
+               "realtime": "1 to deliver at frame_rate", "loop": "1 to repeat forever"}
+
+    def __init__(self, pattern, *, frame_rate=1.0, realtime=False, loop=False, uri=None):
+        self.pattern = os.fspath(pattern)
+        self.uri = uri or f"{SCHEME}:{self.pattern}"
+        try:
+            self.frame_rate = float(frame_rate)
+        except (TypeError, ValueError):
+            raise SourceError(f"frame_rate={frame_rate!r} is not a number") from None
+        if not self.frame_rate > 0:
+            raise SourceError(f"frame_rate={frame_rate!r} must be > 0")
+        self.realtime = _as_bool(realtime)
+        self.loop = _as_bool(loop)
+        self.files = _find(self.pattern)
+        if not self.files:
+            raise SourceError(f"no image files match '{self.pattern}' (give a glob such as "
+                              f"'frames/img_*.png' or a folder of PNG/TIFF files)")
+        self.notes = []
+        self._first = None  # (shape, dtype, name) of the first image
+        self._closed = False
+
+    @property
+    def settings(self):
+        out = {"source": SCHEME, "uri": self.uri, "pattern": self.pattern, "n_files": len(self.files),
+               "first_file": self.files[0], "last_file": self.files[-1], "frame_rate": self.frame_rate,
+               "realtime": self.realtime, "loop": self.loop, "notes": list(self.notes)}
+        if self._first is not None:
+            shape, dtype, _ = self._first
+            out.update({"width": shape[1], "height": shape[0],
+                        "pixel_format": "Mono8" if dtype.itemsize == 1 else "Mono16"})
+        return out
+
+    def _read(self, path):
+        try:
+            image, note = read_grey_image(path)
+        except ValueError as error:
+            raise SourceError(str(error)) from None
+        if note and note not in self.notes:
+            if not self.notes:
+                log.warning("%s (further files may be converted too)", note)
+            self.notes.append(note)
+        if self._first is None:
+            self._first = (image.shape, image.dtype, path)
+        else:
+            shape, dtype, first = self._first
+            if image.shape != shape or image.dtype != dtype:
+                raise SourceError(
+                    f"{path}: {image.shape[1]}x{image.shape[0]} {image.dtype} differs from the first image "
+                    f"{first} ({shape[1]}x{shape[0]} {dtype}): every image must have the same size and bit depth")
+        return image, note
+
+    def __iter__(self):
+        index = 0
+        start = time.monotonic()
+        while not self._closed:
+            for path in self.files:
+                if self._closed:
+                    return
+                image, note = self._read(path)
+                timestamp_ns = round(index * 1e9 / self.frame_rate)
+                if self.realtime:
+                    delay = start + timestamp_ns * 1e-9 - time.monotonic()
+                    if delay > 0:
+                        time.sleep(delay)
+                metadata = {"path": path}
+                if note:
+                    metadata["note"] = note
+                yield Frame(index=index, timestamp_ns=timestamp_ns, image=image,
+                            pixel_format="Mono8" if image.dtype.itemsize == 1 else "Mono16", metadata=metadata)
+                index += 1
+            if not self.loop:
+                return
+
+    def close(self):
+        self._closed = True
+
+    def __len__(self):
+        return len(self.files)
+
+
+def _as_bool(value):
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off", ""):
+        return False
+    raise SourceError(f"{value!r} is not a boolean (use 1/0, true/false)")
+
+
+def open_uri(uri, **options):
+    """``images:PATTERN`` -> :class:`ImageSequence`; options as keywords (``frame_rate``, ``realtime``, ``loop``)."""
+    if uri[:len(SCHEME) + 1].lower() != SCHEME + ":":
+        raise SourceError(f"not an images URI: {uri!r} (expected 'images:GLOB' or 'images:FOLDER')")
+    pattern = uri[len(SCHEME) + 1:]
+    if not pattern:
+        raise SourceError("images: needs a glob or folder, e.g. 'images:frames/img_*.png'")
+    unknown = sorted(set(options) - set(ImageSequence.OPTIONS))
+    if unknown:
+        raise SourceError(f"unknown images option(s) {', '.join(unknown)}; known: {', '.join(ImageSequence.OPTIONS)}")
+    return ImageSequence(pattern, uri=uri, **options)
