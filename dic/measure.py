@@ -21,6 +21,8 @@ _SUBPIXEL = {
     "icgn": ("dic.subpixel.icgn", 3),
 }
 SUBPIXEL_METHODS = tuple(_SUBPIXEL)
+# Sub-pixel methods that run a stochastic optimiser and so take the seed.
+_SEEDED_SUBPIXEL = ("surface-fit", "improved-surface-fit")
 
 
 def measure(reference, deformed, points, *, subset=21, search="improved-wso",
@@ -125,7 +127,10 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
                            evaluations=evaluations)
 
     method = importlib.import_module(module_name)
-    refined = method.refine(reference, deformed, xs, ys, u0, v0, status, half, **(subpixel_options or {}))
+    options = dict(subpixel_options or {})
+    if subpixel in _SEEDED_SUBPIXEL:
+        options.setdefault("seed", seed)
+    refined = method.refine(reference, deformed, xs, ys, u0, v0, status, half, **options)
     ok_mask = refined.status == Status.OK
     return Measurement(x=xs.astype(np.float64), y=ys.astype(np.float64), u=refined.u, v=refined.v,
                        zncc=refined.zncc, ok=ok_mask, status=refined.status,

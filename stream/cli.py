@@ -58,6 +58,16 @@ def build_parser():
     measure.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
     measure.set_defaults(handler=_cmd_measure)
 
+    cameras = commands.add_parser("cameras", help="list GenICam cameras (GigE Vision, USB3 Vision) Aravis can see")
+    cameras.add_argument("--fake", action="store_true", help="also list Aravis's in-process fake camera")
+    cameras.set_defaults(handler=_cmd_cameras)
+
+    recover = commands.add_parser("recover", help="rewrite a crashed recording into a complete, indexed MCAP")
+    recover.add_argument("recording", metavar="FILE.mcap", help="recording cut short (crash, power loss, kill)")
+    recover.add_argument("-o", "--output", required=True, metavar="FIXED.mcap", help="new file to write")
+    recover.add_argument("--overwrite", action="store_true", help="replace FIXED.mcap if it exists")
+    recover.set_defaults(handler=_cmd_recover)
+
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
@@ -170,6 +180,32 @@ def read_points_csv(path):
     if not np.all(np.isfinite(xy)):
         raise UsageError(f"points file {path} contains NaN or infinite coordinates")
     return xy
+
+
+def _cmd_cameras(args):
+    from acquire.aravis import list_cameras
+
+    cameras = list_cameras(include_fake=args.fake)
+    if not cameras:
+        print("no GenICam camera found (GigE cameras must be on this computer's subnet; "
+              "USB3 cameras need read access to the device)", file=sys.stderr)
+        return 0
+    print(f"{'URI':40s} {'vendor':16s} {'model':20s} {'serial':14s} {'protocol':11s} address")
+    for camera in cameras:
+        print(f"{camera['uri']:40s} {camera['vendor'] or '':16s} {camera['model'] or '':20s} "
+              f"{camera['serial'] or '':14s} {camera['protocol']:11s} {camera.get('address') or ''}")
+    return 0
+
+
+def _cmd_recover(args):
+    from acquire.mcap_replay import recover
+
+    summary = recover(args.recording, args.output, overwrite=args.overwrite)
+    state = "was cut short" if summary["truncated"] else "was complete"
+    print(f"livedic: {args.recording} {state}; wrote {args.output} with {summary['frames']} frames, "
+          f"{summary['results']} result sets and {summary['events']} events"
+          + (f" ({summary['note']})" if summary.get("note") else ""), file=sys.stderr)
+    return 0
 
 
 def _cmd_bench_paper(args):

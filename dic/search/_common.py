@@ -1,0 +1,224 @@
+"""Plumbing shared by the integer-pixel searches.
+
+* ``search_boxes``: the integer box each point may search, and the status of
+  points that cannot be searched at all (vectorised, Python side).
+* ``begin_point`` / ``finish_point``: per-point prologue and epilogue used inside
+  every method's ``prange`` kernel (reference subset, flat checks, outputs).
+* ``fitness``: ZNCC at an integer displacement through a per-point cache, so each
+  method can report distinct evaluations and total calls.
+* ``hill_climb``: 8-neighbour ascent on the integer grid (the improved WSO's
+  "three-step search" polish, also used to recentre sub-pixel fits).
+* ``resolve_options``: checks a method's options dict against its defaults.
+
+Positions are absolute integer displacements (u, v); the search box of a point
+is ``[ulo, uhi] x [vlo, vhi]`` and its cache is a (vhi-vlo+1, uhi-ulo+1) array
+holding NaN where a position has not been evaluated.
+"""
+
+import numbers
+
+import numpy as np
+from numba import njit
+
+from dic.correlation import prepare_reference_subset, zncc_at_integer
+from dic.status import Status
+
+OK = np.int8(Status.OK)
+OUTSIDE_REFERENCE = np.int8(Status.OUTSIDE_REFERENCE)
+FLAT_REFERENCE = np.int8(Status.FLAT_REFERENCE)
+OUTSIDE_TARGET = np.int8(Status.OUTSIDE_TARGET)
+FLAT_TARGET = np.int8(Status.FLAT_TARGET)
+NOT_CONVERGED = np.int8(Status.NOT_CONVERGED)
+BAD_GUESS = np.int8(Status.BAD_GUESS)
+
+# A guess beyond this many pixels is treated as "far outside", before it is cast
+# to int64 (avoids overflow on absurd guesses such as 1e300).
+_FAR = 1 << 40
+
+
+def search_boxes(shape, xs, ys, guess_u, guess_v, half, radius, margin):
+    """Integer search box per point and the status of points that cannot be searched.
+
+    Parameters
+    ----------
+    shape : (H, W)
+        Image shape (reference and deformed are the same size).
+    xs, ys : ndarray of int64, shape (N,)
+        Snapped point positions.
+    guess_u, guess_v : ndarray of float64, shape (N,)
+        Initial guess; NaN/inf rows get ``Status.BAD_GUESS``.
+    half, radius, margin : int
+        Subset half-width, search radius around ``round(guess)``, extra pixels the
+        target subset must keep from the image edge (for later interpolation).
+
+    Returns
+    -------
+    ulo, uhi, vlo, vhi : ndarray of int64, shape (N,)
+        Inclusive box bounds (absolute displacements).
+    cu, cv : ndarray of int64, shape (N,)
+        The rounded guess (0 where it is not finite).
+    status : ndarray of int8, shape (N,)
+        ``OUTSIDE_REFERENCE`` > ``BAD_GUESS`` > ``OUTSIDE_TARGET`` (empty box) > OK.
+        The kernels later add ``FLAT_REFERENCE`` (which outranks ``BAD_GUESS``)
+        and ``FLAT_TARGET``.
+    """
+    height, width = shape
+    xs = np.asarray(xs, dtype=np.int64)
+    ys = np.asarray(ys, dtype=np.int64)
+    gu = np.asarray(guess_u, dtype=np.float64)
+    gv = np.asarray(guess_v, dtype=np.float64)
+    finite = np.isfinite(gu) & np.isfinite(gv)
+    cu = np.floor(np.clip(np.where(finite, gu, 0.0), -_FAR, _FAR) + 0.5).astype(np.int64)
+    cv = np.floor(np.clip(np.where(finite, gv, 0.0), -_FAR, _FAR) + 0.5).astype(np.int64)
+    reach = half + margin
+    ulo = np.maximum(cu - radius, reach - xs)
+    uhi = np.minimum(cu + radius, width - 1 - reach - xs)
+    vlo = np.maximum(cv - radius, reach - ys)
+    vhi = np.minimum(cv + radius, height - 1 - reach - ys)
+    status = np.zeros(xs.shape[0], dtype=np.int8)
+    status[(ulo > uhi) | (vlo > vhi)] = OUTSIDE_TARGET
+    status[~finite] = BAD_GUESS
+    inside_ref = (xs - half >= 0) & (ys - half >= 0) & (xs + half < width) & (ys + half < height)
+    status[~inside_ref] = OUTSIDE_REFERENCE
+    # Empty or unusable boxes become a harmless 1x1 box so kernels can allocate.
+    bad = status != OK
+    ulo[bad] = 0
+    uhi[bad] = 0
+    vlo[bad] = 0
+    vhi[bad] = 0
+    return ulo, uhi, vlo, vhi, cu, cv, status
+
+
+@njit(cache=True)
+def round_half_up(x):
+    """Nearest integer to float ``x``, halves rounded up (``floor(x + 0.5)``), as int64."""
+    return np.int64(np.floor(x + 0.5))
+
+
+@njit(cache=True)
+def begin_point(reference, x, y, half, fhat, status, i):
+    """Prepare the reference subset of point ``i``; True if it should be searched.
+
+    Writes ``FLAT_REFERENCE`` into ``status[i]`` for a textureless subset (this
+    outranks a bad guess or an empty box: the point is unmeasurable either way).
+    """
+    if status[i] == OUTSIDE_REFERENCE:
+        return False
+    if prepare_reference_subset(reference, x, y, half, fhat) == 0.0:
+        status[i] = FLAT_REFERENCE
+        return False
+    return status[i] == OK
+
+
+@njit(cache=True)
+def new_cache(ulo, uhi, vlo, vhi):
+    """Evaluation cache for a box: NaN = not evaluated yet."""
+    return np.full((vhi - vlo + 1, uhi - ulo + 1), np.nan)
+
+
+@njit(cache=True)
+def fitness(fhat, target, x, y, half, u, v, ulo, vlo, cache, counts):
+    """ZNCC at integer (u, v) (inside the box), cached; counts[0] distinct, counts[1] calls."""
+    counts[1] += 1
+    c = cache[v - vlo, u - ulo]
+    if np.isnan(c):
+        c = zncc_at_integer(fhat, target, x, y, half, u, v)
+        cache[v - vlo, u - ulo] = c
+        counts[0] += 1
+    return c
+
+
+@njit(cache=True)
+def hill_climb(fhat, target, x, y, half, u, v, ulo, uhi, vlo, vhi, cache, counts):
+    """8-neighbour ascent from (u, v) inside the box; returns the local maximum (u, v, zncc).
+
+    Each step evaluates the in-box neighbours of the centre and moves to the best
+    one if it beats the centre (ties keep the centre); it stops when the centre is
+    the best of its neighbourhood. ZNCC rises strictly at each move, so it ends.
+    """
+    best = fitness(fhat, target, x, y, half, u, v, ulo, vlo, cache, counts)
+    for _ in range((uhi - ulo + 1) * (vhi - vlo + 1)):
+        bu = u
+        bv = v
+        bc = best
+        for dv in range(-1, 2):
+            nv = v + dv
+            if nv < vlo or nv > vhi:
+                continue
+            for du in range(-1, 2):
+                nu = u + du
+                if (du == 0 and dv == 0) or nu < ulo or nu > uhi:
+                    continue
+                c = fitness(fhat, target, x, y, half, nu, nv, ulo, vlo, cache, counts)
+                if c > bc:
+                    bu = nu
+                    bv = nv
+                    bc = c
+        if bu == u and bv == v:
+            break
+        u = bu
+        v = bv
+        best = bc
+    return u, v, best
+
+
+@njit(cache=True)
+def finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out_calls):
+    """Write one point's result; a best match on a flat target (ZNCC -1) is ``FLAT_TARGET``."""
+    out_evals[i] = counts[0]
+    out_calls[i] = counts[1]
+    if c == -1.0:
+        status[i] = FLAT_TARGET
+        return
+    out_u[i] = u
+    out_v[i] = v
+    out_c[i] = c
+
+
+def new_outputs(n):
+    """Output arrays of a search kernel: u, v, zncc, evaluations, calls."""
+    return (np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.full(n, np.nan),
+            np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
+
+
+def resolve_options(method, options, defaults, checks):
+    """Merge ``options`` into ``defaults`` after checking names and values.
+
+    ``checks`` maps option name -> (predicate, description). Raises ValueError
+    naming the valid options (unknown name) or the expected value (bad value).
+    """
+    merged = dict(defaults)
+    for name, value in (options or {}).items():
+        if name not in defaults:
+            valid = ", ".join(sorted(defaults)) or "none"
+            raise ValueError(f"unknown option {name!r} for {method!r}: valid options are {valid}")
+        predicate, description = checks[name]
+        if not predicate(value):
+            raise ValueError(f"option {name!r} of {method!r} must be {description}, got {value!r}")
+        merged[name] = value
+    return merged
+
+
+def is_int_at_least(low):
+    return lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= low
+
+
+def is_real_in(low, high, low_open=False, high_open=False):
+    def check(v):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(v):
+            return False
+        above = v > low if low_open else v >= low
+        below = v < high if high_open else v <= high
+        return above and below
+    return check
+
+
+def is_bool(v):
+    return isinstance(v, (bool, np.bool_))
+
+
+def seed_to_uint(seed):
+    """Seed as np.uint64 (any Python int, negative ones wrap)."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
+        raise ValueError(f"seed must be an integer, got {seed!r}")
+    return np.uint64(int(seed) % (1 << 64))
