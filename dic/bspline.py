@@ -1,0 +1,425 @@
+"""Bicubic B-spline interpolation of images: prefilter once, evaluate anywhere.
+
+An image is interpolated by the cubic B-spline ``s(x, y) = sum_jk c[j, k] b3(x - k) b3(y - j)``
+whose coefficients ``c`` make ``s`` pass through every pixel value. The
+coefficients come from the recursive prefilter of Unser (1999), one causal and
+one anti-causal pass per axis with the pole ``z = sqrt(3) - 2`` and gain 6,
+mirror ("whole-sample symmetric") boundary conditions. After that one O(H W)
+pass, a value costs 16 multiply-adds (4 x-weights times 4 y-weights), and the
+spline's analytic derivative gives the gradient at no extra loads. It
+reproduces the samples and every cubic polynomial exactly, and has a far lower
+sub-pixel bias than bicubic convolution (Schreier, Braasch & Sutton 2000,
+DOI 10.1117/1.1314593), which is why IC-GN and Newton-Raphson use it.
+
+The coefficients are stored with ``PAD`` mirrored pixels on every side, so a
+point anywhere in ``[0, W-1] x [0, H-1]`` is evaluated without a bounds check
+per tap; kernels receive the padded array and add ``PAD`` to image coordinates.
+
+``sample_shift`` fills a whole subset at a pure (sub-pixel) shift separably,
+the inner loop of IC-GN's translation steps; the affine sampler fused with the
+IC-GN sums lives in ``dic.subpixel.icgn``. Both are written so LLVM vectorises
+them (8 float32 lanes on AVX2) with plain vector loads, and both use unsigned
+indices so numba emits no negative-index fix-up that would block that.
+The flat coefficient buffer carries ``SLACK`` zero rows before and after the
+padded coefficients, so vector lanes that run past a subset row (or that are
+computed and then discarded) never read outside it.
+
+References
+----------
+M. Unser, "Splines: a perfect fit for signal and image processing", IEEE Signal
+Processing Magazine 16(6):22-38 (1999), :DOI:`10.1109/79.799930`.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+POLE = np.sqrt(3.0) - 2.0  # z of the cubic B-spline prefilter
+GAIN = 6.0                 # (1 - z)(1 - 1/z)
+PAD = 3                    # mirrored coefficient pixels on each side (2 needed by the taps, 1 spare)
+SLACK = 2                  # zero rows before and after the padded coefficients in the flat buffer
+# |z|**k < 1e-17 beyond this many terms: the causal initial sum is exact in float64.
+_HORIZON = int(np.ceil(np.log(1e-17) / np.log(abs(POLE))))
+
+
+@dataclass(frozen=True)
+class BSplineCoefficients:
+    """Prefiltered coefficients of one image.
+
+    coefficients : ndarray, shape (H + 2 PAD, W + 2 PAD), float32 or float64
+        B-spline coefficients, image pixel (row, col) at [row + PAD, col + PAD],
+        mirrored into the padding.
+    shape : (H, W)
+        Shape of the image they interpolate; the valid domain is
+        ``0 <= x <= W - 1``, ``0 <= y <= H - 1``.
+    flat : ndarray, shape ((H + 2 PAD + 2 SLACK) * (W + 2 PAD),)
+        The buffer behind ``coefficients`` with ``SLACK`` zero rows before and
+        after, raveled: what the vectorised kernels index.
+    origin : int
+        Index in ``flat`` of ``coefficients[0, 0]``.
+    """
+    coefficients: np.ndarray
+    shape: tuple
+    flat: np.ndarray
+    origin: int
+
+
+# ---------------------------------------------------------------------------
+# prefilter kernels
+
+
+@njit(cache=True, inline="always")
+def _causal_init(line, n, z):
+    """c+[0] for mirror boundaries: the truncated sum, or the exact periodic one for short lines."""
+    if n > _HORIZON:
+        zk = 1.0
+        acc = 0.0
+        for k in range(_HORIZON):
+            acc += zk * line[k]
+            zk *= z
+        return acc
+    if n == 1:
+        return line[0]
+    z2n = z ** (2 * n - 2)
+    acc = line[0] + z ** (n - 1) * line[n - 1]
+    zk = z
+    for k in range(1, n - 1):
+        acc += (zk + z2n / zk) * line[k]
+        zk *= z
+    return acc / (1.0 - z2n)
+
+
+@njit(cache=True, parallel=True)
+def _filter_rows(src, out):
+    """Prefilter each row of ``src`` (H, W) into the interior of padded ``out``."""
+    z = POLE
+    height, width = src.shape
+    for r in prange(height):
+        line = np.empty(width)
+        for k in range(width):
+            line[k] = src[r, k]
+        if width == 1:
+            out[r + PAD, PAD] = line[0]
+            continue
+        # causal pass: c+[k] = s[k] + z c+[k-1]
+        prev = _causal_init(line, width, z)
+        line[0] = prev
+        for k in range(1, width):
+            prev = line[k] + z * prev
+            line[k] = prev
+        # anti-causal pass: c-[k] = z (c-[k+1] - c+[k])
+        prev = (z / (z * z - 1.0)) * (line[width - 1] + z * line[width - 2])
+        line[width - 1] = prev
+        for k in range(width - 2, -1, -1):
+            prev = z * (prev - line[k])
+            line[k] = prev
+        for k in range(width):
+            out[r + PAD, k + PAD] = GAIN * line[k]
+
+
+@njit(cache=True, parallel=True)
+def _filter_columns(out, height, width):
+    """Prefilter the columns of the interior of padded ``out`` in place, 64 columns per task."""
+    z = POLE
+    block = 64
+    n_blocks = (width + block - 1) // block
+    for b in prange(n_blocks):
+        c0 = b * block
+        c1 = min(c0 + block, width)
+        nb = c1 - c0
+        acc = np.zeros(nb)
+        buf = np.empty((height, nb))
+        for r in range(height):
+            for k in range(nb):
+                buf[r, k] = out[r + PAD, c0 + k + PAD]
+        if height == 1:
+            continue
+        if height > _HORIZON:
+            zk = 1.0
+            for r in range(_HORIZON):
+                for k in range(nb):
+                    acc[k] += zk * buf[r, k]
+                zk *= z
+        else:
+            col = np.empty(height)
+            for k in range(nb):
+                for r in range(height):
+                    col[r] = buf[r, k]
+                acc[k] = _causal_init(col, height, z)
+        for k in range(nb):
+            buf[0, k] = acc[k]
+        for r in range(1, height):
+            for k in range(nb):
+                buf[r, k] += z * buf[r - 1, k]
+        scale = z / (z * z - 1.0)
+        for k in range(nb):
+            buf[height - 1, k] = scale * (buf[height - 1, k] + z * buf[height - 2, k])
+        for r in range(height - 2, -1, -1):
+            for k in range(nb):
+                buf[r, k] = z * (buf[r + 1, k] - buf[r, k])
+        for r in range(height):
+            for k in range(nb):
+                out[r + PAD, c0 + k + PAD] = GAIN * buf[r, k]
+
+
+@njit(cache=True)
+def _mirror_pad(out, height, width):
+    """Fill the PAD border of ``out`` with the whole-sample mirror of the interior."""
+    for r in range(PAD, PAD + height):
+        for k in range(1, PAD + 1):
+            out[r, PAD - k] = out[r, PAD + min(k, width - 1)]
+            out[r, PAD + width - 1 + k] = out[r, PAD + max(width - 1 - k, 0)]
+    for k in range(1, PAD + 1):
+        src_top = PAD + min(k, height - 1)
+        src_bottom = PAD + max(height - 1 - k, 0)
+        for c in range(out.shape[1]):
+            out[PAD - k, c] = out[src_top, c]
+            out[PAD + height - 1 + k, c] = out[src_bottom, c]
+
+
+def prefilter(image, dtype=np.float32):
+    """B-spline coefficients of ``image``.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W)
+        Grey image, any real dtype.
+    dtype : {np.float32, np.float64}
+        Storage of the coefficients. float32 halves memory traffic; its
+        rounding (about 1e-7 relative) is far below image noise.
+
+    Returns
+    -------
+    BSplineCoefficients
+        Padded coefficients (see the module notes).
+
+    Examples
+    --------
+    >>> img = np.add.outer(np.arange(5.0), np.arange(6.0) ** 2)     # 5 x 6, cubic in x
+    >>> c = prefilter(img, dtype=np.float64)
+    >>> round(float(interpolate(c, np.array([2.0]), np.array([3.0]))[0]), 9)    # a sample: reproduced
+    7.0
+    """
+    image = np.asarray(image)
+    if image.ndim != 2:
+        raise ValueError(f"image must be 2-D (H, W), got shape {image.shape}")
+    dtype = np.dtype(dtype)
+    if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"coefficients are stored as float32 or float64, got {dtype}")
+    height, width = image.shape
+    src = np.ascontiguousarray(image, dtype=np.float32 if image.dtype == np.float32 else np.float64)
+    buffer = np.empty((height + 2 * PAD + 2 * SLACK, width + 2 * PAD), dtype=dtype)
+    buffer[:SLACK] = 0.0
+    buffer[-SLACK:] = 0.0
+    out = buffer[SLACK:-SLACK]
+    _filter_rows(src, out)
+    _filter_columns(out, height, width)
+    _mirror_pad(out, height, width)
+    return BSplineCoefficients(out, (height, width), buffer.reshape(-1), SLACK * buffer.shape[1])
+
+
+# ---------------------------------------------------------------------------
+# evaluation kernels (coordinates are image coordinates; the padded array is passed)
+
+
+@njit(cache=True, inline="always")
+def weights(t):
+    """Cubic B-spline weights of taps -1, 0, 1, 2 for a fraction t in [0, 1)."""
+    s = 1.0 - t
+    t2 = t * t
+    t3 = t2 * t
+    w0 = s * s * s * (1.0 / 6.0)
+    w3 = t3 * (1.0 / 6.0)
+    w1 = 2.0 / 3.0 - t2 + 0.5 * t3
+    w2 = 1.0 - w0 - w1 - w3
+    return w0, w1, w2, w3
+
+
+@njit(cache=True, inline="always")
+def derivative_weights(t):
+    """d/dt of ``weights(t)``."""
+    s = 1.0 - t
+    d0 = -0.5 * s * s
+    d3 = 0.5 * t * t
+    d1 = 1.5 * t * t - 2.0 * t
+    d2 = -d0 - d1 - d3
+    return d0, d1, d2, d3
+
+
+@njit(cache=True)
+def inside(height, width, x, y):
+    """True if (x, y) lies in the domain [0, W-1] x [0, H-1] where the spline is defined."""
+    return x >= 0.0 and y >= 0.0 and x <= width - 1.0 and y <= height - 1.0
+
+
+@njit(cache=True)
+def value_at(coeffs, x, y):
+    """Spline value at image point (x, y); the caller guarantees ``inside``."""
+    xp = x + PAD
+    yp = y + PAD
+    ix = int(xp)
+    iy = int(yp)
+    wx0, wx1, wx2, wx3 = weights(xp - ix)
+    wy0, wy1, wy2, wy3 = weights(yp - iy)
+    acc = 0.0
+    for m in range(4):
+        row = iy - 1 + m
+        r = (wx0 * coeffs[row, ix - 1] + wx1 * coeffs[row, ix]
+             + wx2 * coeffs[row, ix + 1] + wx3 * coeffs[row, ix + 2])
+        if m == 0:
+            acc += wy0 * r
+        elif m == 1:
+            acc += wy1 * r
+        elif m == 2:
+            acc += wy2 * r
+        else:
+            acc += wy3 * r
+    return acc
+
+
+@njit(cache=True)
+def value_gradient_at(coeffs, x, y):
+    """(value, d/dx, d/dy) of the spline at image point (x, y); the caller guarantees ``inside``."""
+    xp = x + PAD
+    yp = y + PAD
+    ix = int(xp)
+    iy = int(yp)
+    tx = xp - ix
+    ty = yp - iy
+    wx0, wx1, wx2, wx3 = weights(tx)
+    wy0, wy1, wy2, wy3 = weights(ty)
+    dx0, dx1, dx2, dx3 = derivative_weights(tx)
+    dy0, dy1, dy2, dy3 = derivative_weights(ty)
+    val = 0.0
+    gx = 0.0
+    gy = 0.0
+    for m in range(4):
+        row = iy - 1 + m
+        c0 = coeffs[row, ix - 1]
+        c1 = coeffs[row, ix]
+        c2 = coeffs[row, ix + 1]
+        c3 = coeffs[row, ix + 2]
+        r = wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3
+        rd = dx0 * c0 + dx1 * c1 + dx2 * c2 + dx3 * c3
+        if m == 0:
+            wy, dy = wy0, dy0
+        elif m == 1:
+            wy, dy = wy1, dy1
+        elif m == 2:
+            wy, dy = wy2, dy2
+        else:
+            wy, dy = wy3, dy3
+        val += wy * r
+        gx += wy * rd
+        gy += dy * r
+    return val, gx, gy
+
+
+@njit(cache=True, parallel=True)
+def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, out_v, out_gx, out_gy):
+    for i in prange(xs.shape[0]):
+        x = xs[i]
+        y = ys[i]
+        if not inside(height, width, x, y):
+            out_v[i] = np.nan
+            out_gx[i] = np.nan
+            out_gy[i] = np.nan
+        elif want_gradient:
+            out_v[i], out_gx[i], out_gy[i] = value_gradient_at(coeffs, x, y)
+        else:
+            out_v[i] = value_at(coeffs, x, y)
+
+
+def interpolate(image_or_coeffs, x, y, *, gradient=False):
+    """Bicubic B-spline value (and gradient) at arbitrary points.
+
+    Parameters
+    ----------
+    image_or_coeffs : ndarray, shape (H, W), or BSplineCoefficients
+        An image (prefiltered here, float64) or coefficients from ``prefilter``.
+    x, y : array_like, same shape
+        Image coordinates: x along columns, y along rows, pixel centres at integers.
+    gradient : bool
+        Also return the analytic derivatives d/dx and d/dy.
+
+    Returns
+    -------
+    values : ndarray of float64, shape of x
+        NaN where the point lies outside ``[0, W-1] x [0, H-1]``.
+    gx, gy : ndarray of float64, shape of x
+        Only with ``gradient=True``.
+    """
+    if not isinstance(image_or_coeffs, BSplineCoefficients):
+        image_or_coeffs = prefilter(image_or_coeffs, dtype=np.float64)
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+    shape = x.shape
+    xs = np.ascontiguousarray(x.ravel())
+    ys = np.ascontiguousarray(y.ravel())
+    out_v = np.empty(xs.shape[0])
+    out_gx = np.empty(xs.shape[0])
+    out_gy = np.empty(xs.shape[0])
+    height, width = image_or_coeffs.shape
+    # NaN coordinates fail every comparison in ``inside`` and come back NaN.
+    _interpolate_batch(image_or_coeffs.coefficients, height, width, xs, ys, gradient, out_v, out_gx, out_gy)
+    if gradient:
+        return out_v.reshape(shape), out_gx.reshape(shape), out_gy.reshape(shape)
+    return out_v.reshape(shape)
+
+
+# ---------------------------------------------------------------------------
+# subset samplers (the IC-GN inner loop)
+
+_FASTMATH = {"contract", "reassoc"}  # FMA contraction and reordering only: no NaN/inf assumptions
+_F32 = np.float32
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def sample_shift(flat, origin, stride, x, y, half, tmp, out, out_stride):
+    """Spline values of the subset shifted as a whole to centre (x, y), separably.
+
+    ``out[(dy + half) * out_stride + dx + half] = s(x + dx, y + dy)`` for dx, dy in
+    [-half, half]: every sample shares the fractional offset, so 4 x-taps per
+    pixel of side + 3 rows, then 4 y-taps. Entries of ``out`` beyond ``side`` in
+    each row get ``tmp``'s, which the caller keeps at zero.
+
+    flat : float (rows * stride,) raveled coefficient buffer, padded coefficient [0, 0] at ``origin``
+    tmp : float32 ((side + 3) * out_stride,) scratch, zero beyond ``side`` in each row
+    out : float32 (side * out_stride,)
+    The caller guarantees the subset lies in the spline domain.
+    """
+    side = 2 * half + 1
+    xp = x - half + PAD
+    yp = y - half + PAD
+    ix = int(np.floor(xp))
+    iy = int(np.floor(yp))
+    wx0, wx1, wx2, wx3 = weights(xp - ix)
+    wy0, wy1, wy2, wy3 = weights(yp - iy)
+    a0 = _F32(wx0)
+    a1 = _F32(wx1)
+    a2 = _F32(wx2)
+    a3 = _F32(wx3)
+    # whole vectors of 8 along the row, the last one overlapping (same values written twice)
+    body = (side // 8) * 8 if side >= 8 else side
+    tail = side - 8 if (side >= 8 and body < side) else side
+    for r in range(side + 3):
+        base = np.uint64(origin + (iy - 1 + r) * stride + ix - 1)
+        tu = np.uint64(r * out_stride)
+        for i in range(body):
+            o = base + np.uint64(i)
+            tmp[tu + np.uint64(i)] = (a0 * flat[o] + a1 * flat[o + np.uint64(1)]
+                                      + a2 * flat[o + np.uint64(2)] + a3 * flat[o + np.uint64(3)])
+        for i in range(tail, side):
+            o = base + np.uint64(i)
+            tmp[tu + np.uint64(i)] = (a0 * flat[o] + a1 * flat[o + np.uint64(1)]
+                                      + a2 * flat[o + np.uint64(2)] + a3 * flat[o + np.uint64(3)])
+    b0 = _F32(wy0)
+    b1 = _F32(wy1)
+    b2 = _F32(wy2)
+    b3 = _F32(wy3)
+    s1 = np.uint64(out_stride)
+    s2 = np.uint64(2 * out_stride)
+    s3 = np.uint64(3 * out_stride)
+    for k in range(side * out_stride):
+        ku = np.uint64(k)
+        out[ku] = b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + s2] + b3 * tmp[ku + s3]

@@ -1,0 +1,107 @@
+import numpy as np
+import pytest
+
+from dic.bspline import PAD, BSplineCoefficients, interpolate, prefilter, sample_shift
+from tests.conftest import blurred_noise
+
+
+def _cubic(x, y):
+    return 3.0 + 0.5 * x - 0.25 * y + 0.02 * x * x - 0.01 * x * y + 0.003 * y * y \
+        + 4e-4 * x ** 3 - 2e-4 * x * x * y + 1e-4 * x * y * y - 3e-4 * y ** 3
+
+
+def _cubic_gradient(x, y):
+    gx = 0.5 + 0.04 * x - 0.01 * y + 1.2e-3 * x * x - 4e-4 * x * y + 1e-4 * y * y
+    gy = -0.25 - 0.01 * x + 0.006 * y - 2e-4 * x * x + 2e-4 * x * y - 9e-4 * y * y
+    return gx, gy
+
+
+@pytest.mark.parametrize("dtype, tol", [(np.float64, 1e-9), (np.float32, 2e-5)])
+def test_reproduces_samples_at_integer_positions(dtype, tol):
+    image = blurred_noise((37, 53), seed=2).astype(np.float64)
+    coeffs = prefilter(image, dtype=dtype)
+    rows, cols = np.mgrid[0:37, 0:53]
+    values = interpolate(coeffs, cols, rows)
+    # exact up to the storage precision of the coefficients, the borders included
+    assert np.max(np.abs(values - image)) <= tol * np.max(np.abs(image))
+
+
+def test_reproduces_cubic_polynomials_and_their_gradient():
+    rows, cols = np.mgrid[0:64, 0:64].astype(np.float64)
+    image = _cubic(cols, rows)
+    coeffs = prefilter(image, dtype=np.float64)
+    rng = np.random.default_rng(0)
+    # away from the mirror boundary (its effect decays as 0.268^distance)
+    x = rng.uniform(20, 43, 500)
+    y = rng.uniform(20, 43, 500)
+    values, gx, gy = interpolate(coeffs, x, y, gradient=True)
+    ex, ey = _cubic_gradient(x, y)
+    np.testing.assert_allclose(values, _cubic(x, y), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(gx, ex, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(gy, ey, rtol=0, atol=1e-9)
+
+
+def test_quartic_is_not_reproduced():
+    """The test above can fail: a degree-4 term is outside the cubic spline space."""
+    rows, cols = np.mgrid[0:64, 0:64].astype(np.float64)
+    image = 1e-3 * (cols - 30.3) ** 4
+    coeffs = prefilter(image, dtype=np.float64)
+    x = np.array([31.5, 32.25])
+    y = np.array([30.0, 30.0])
+    assert np.max(np.abs(interpolate(coeffs, x, y) - 1e-3 * (x - 30.3) ** 4)) > 1e-5
+
+
+def test_matches_scipy_spline_with_mirror_boundaries():
+    ndimage = pytest.importorskip("scipy.ndimage")
+    image = blurred_noise((30, 41), seed=5).astype(np.float64)
+    coeffs = prefilter(image, dtype=np.float64)
+    interior = coeffs.coefficients[PAD:-PAD, PAD:-PAD]
+    np.testing.assert_allclose(interior, ndimage.spline_filter(image, order=3, mode="mirror"), atol=1e-9)
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0, 40, 300)
+    y = rng.uniform(0, 29, 300)
+    expected = ndimage.map_coordinates(image, [y, x], order=3, mode="mirror")
+    np.testing.assert_allclose(interpolate(coeffs, x, y), expected, atol=1e-9)
+
+
+def test_outside_domain_and_nan_give_nan():
+    image = blurred_noise((20, 25), seed=1)
+    coeffs = prefilter(image)
+    x = np.array([-0.01, 24.0, 24.01, 3.0, np.nan])
+    y = np.array([5.0, 19.0, 5.0, -1.0, 5.0])
+    values = interpolate(coeffs, x, y)
+    assert np.isnan(values[[0, 2, 3, 4]]).all()
+    assert np.isfinite(values[1])
+
+
+def test_coefficient_buffer_layout():
+    image = blurred_noise((12, 17), seed=3)
+    coeffs = prefilter(image)
+    assert isinstance(coeffs, BSplineCoefficients)
+    assert coeffs.coefficients.dtype == np.float32
+    assert coeffs.coefficients.shape == (12 + 2 * PAD, 17 + 2 * PAD)
+    stride = coeffs.coefficients.shape[1]
+    view = coeffs.flat[coeffs.origin:coeffs.origin + coeffs.coefficients.size].reshape(coeffs.coefficients.shape)
+    np.testing.assert_array_equal(view, coeffs.coefficients)
+    assert np.all(coeffs.flat[:coeffs.origin] == 0) and coeffs.origin >= stride
+    # mirrored padding: coefficient -k equals coefficient k
+    np.testing.assert_array_equal(coeffs.coefficients[PAD:-PAD, PAD - 1], coeffs.coefficients[PAD:-PAD, PAD + 1])
+    with pytest.raises(ValueError, match="2-D"):
+        prefilter(np.zeros(5))
+
+
+@pytest.mark.parametrize("half", [3, 10, 12])
+def test_separable_shift_sampler_matches_pointwise_interpolation(half):
+    image = blurred_noise((60, 70), seed=4)
+    coeffs = prefilter(image)
+    side = 2 * half + 1
+    lanes = -(-side // 8) * 8
+    tmp = np.zeros((side + 3) * lanes, dtype=np.float32)
+    out = np.zeros(side * lanes, dtype=np.float32)
+    x, y = 31.37, 28.81
+    sample_shift(coeffs.flat, coeffs.origin, coeffs.coefficients.shape[1], x, y, half, tmp, out, lanes)
+    got = out.reshape(side, lanes)
+    dy, dx = np.mgrid[-half:half + 1, -half:half + 1]
+    expected = interpolate(prefilter(image, dtype=np.float64), x + dx, y + dy)
+    np.testing.assert_allclose(got[:, :side], expected, rtol=0, atol=2e-4 * np.abs(expected).max())
+    assert np.all(got[:, side:] == 0)
