@@ -48,6 +48,12 @@ def build_parser():
 
     from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
 
+    from stream.run import add_run_arguments, run_session
+
+    run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
+    add_run_arguments(run)
+    run.set_defaults(handler=run_session)
+
     measure = commands.add_parser("measure", help="displacements of points between two images")
     measure.add_argument("reference", metavar="REF", help="reference image (8/16-bit grey PNG or TIFF)")
     measure.add_argument("deformed", metavar="DEF", help="deformed image, same size")
@@ -67,6 +73,23 @@ def build_parser():
     recover.add_argument("-o", "--output", required=True, metavar="FIXED.mcap", help="new file to write")
     recover.add_argument("--overwrite", action="store_true", help="replace FIXED.mcap if it exists")
     recover.set_defaults(handler=_cmd_recover)
+
+    from stream.replay import add_replay_arguments
+
+    replay = commands.add_parser("replay", help="re-run tracking offline on a recording's frames (CSV out)",
+                                 description="Track a recording's frames again. Options not given are the "
+                                             "recorded ones; with them the numbers equal the recorded ones "
+                                             "exactly. Truncated recordings replay what can be recovered.")
+    add_replay_arguments(replay)
+    replay.set_defaults(handler=_cmd_replay)
+
+    export = commands.add_parser("export", help="write a recording's results as CSV (P0 trace, fields, events)",
+                                 description="Write DIR/p0_trace.csv, DIR/fields.csv, DIR/events.csv and "
+                                             "DIR/session.json from a recording (complete or truncated).")
+    export.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
+    export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
+    export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
+    export.set_defaults(handler=_cmd_export)
 
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed")
     bench_commands = bench.add_subparsers(metavar="BENCH")
@@ -206,6 +229,16 @@ def _cmd_recover(args):
           f"{summary['results']} result sets and {summary['events']} events"
           + (f" ({summary['note']})" if summary.get("note") else ""), file=sys.stderr)
     return 0
+
+
+def _cmd_replay(args):
+    from stream.replay import replay_command
+    return replay_command(args)
+
+
+def _cmd_export(args):
+    from stream.export import export_command
+    return export_command(args)
 
 
 def _cmd_bench_paper(args):

@@ -1,0 +1,787 @@
+"""Simulated cameras with exactly known motion: a tensile test and plain translations.
+
+URIs (options after ``?``, joined with ``&``; every option is optional)::
+
+    synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0
+    synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0
+
+Options of both models
+
+========  ==========================================================  ===================
+frames    number of frames (>= 2), frame 0 is the undeformed reference  300 / 100
+fps       frame rate of the simulated camera, frames per second       50
+size      WIDTHxHEIGHT in pixels (each >= 64)                          1024x1024 / 512x512
+bit       8 (Mono8, uint8) or 12 (Mono12, uint16 below 4096)          8
+noise     camera noise, standard deviation in 8-bit grey levels       1.0
+          (scaled by 4095/255 for 12 bit); 0 for none
+seed      seed of the speckle pattern, grip jitter and noise          0
+radius    speckle radius R in px (Zhou-Goodson exp(-d^2/R^2))         4
+pace      1: deliver at ``fps`` in real time; 0: as fast as read      1
+========  ==========================================================  ===================
+
+``synthetic:tensile`` adds ``strain`` (uniform plastic strain when the neck
+starts, default 0.05) and ``neck`` (extra peak strain of the neck in the last
+frame, default 0.15). ``synthetic:translate`` adds ``du``, ``dv`` (shift per
+frame in px, default 0.3 and -0.2) and ``jump=F:U:V`` (from frame F on, add a
+sudden extra shift (U, V) px; default none). ``synthetic:`` alone is the tensile test.
+
+The simulator renders ahead; delivery is paced. Every frame of the test is
+rendered into memory before the first frame is delivered (``prepare``; about
+50 ms per 1024 x 1024 frame on one core here, so ~15 s for the default 300
+frames), then frames are handed out at ``fps`` from memory,
+so the rate a consumer sees is the camera's, not the renderer's. Frame
+timestamps are the simulated camera clock, ``index * 1e9 / fps`` ns.
+
+The tensile test
+----------------
+A dog-bone coupon filmed face-on, pulled along y (image rows, the vertical
+axis): a speckled gauge section of width 0.4 W between two wider shoulders
+(0.7 W) joined by smooth fillets, on a darker, untextured background, so a
+region of interest must be chosen. The bottom grip line (image bottom row) is
+fixed up to a small rigid motion; the top grip pulls upward (negative v). The
+axial engineering strain along the specimen is
+
+    e_yy(Y) = e_el(t) [a + (1 - a) g(Y)] + e_pl(t) g(Y) + e_n(t) sech^2((Y - Y_n) / s)
+
+with ``g`` a smooth box that is 1 over the gauge section and 0 in the
+shoulders, ``a`` = gauge/shoulder width (the shoulders strain less
+elastically, as stress = force / area) and a neck at ``Y_n`` = 0.06 H above
+the centre, of width ``s`` = 0.07 H (FWHM 0.12 H, a diffuse neck about a third
+of the gauge width long). The plastic zone's ends have the fillets' width
+(0.035 H). Schedule over the normalised time
+``tau = i / (frames - 1)``: elastic loading to ``e_el`` = 0.004 at tau = 0.15,
+uniform plastic strain growing linearly to ``strain`` at tau = 0.6, then the
+neck grows quadratically to ``neck`` at tau = 1 while the rest unloads
+elastically by 20 %. The displacement is the exact integral,
+``V(Y) = -int_Y^{Y_b} e_yy`` (closed form with tanh and log cosh), and the
+lateral contraction is ``U = -(0.3 e_el(...) + 0.5 (e_pl g + e_n sech^2)) (X - X_c)``
+(Poisson ratio 0.3 elastic, 0.5 plastic). Rigid motion: both grips drift by
+a fraction of a pixel over the test and jitter by 0.03 px per frame
+(seeded), and the top grip drifts sideways by 0.4 px, a small shear. The
+model keeps ``y`` a function of ``Y`` alone, so each image row is the
+reference sampled along one horizontal line at affinely mapped columns: the
+inverse map is solved per row (Newton, to 1e-12 px) and the Zhou-Goodson sum
+of the ``dic.speckle`` pattern is evaluated there exactly (same centres, same
+5R cutoff as ``SpecklePattern.intensity``; no image interpolation). Intensity:
+white paint darkened by the speckle, ``full * (0.06 + 0.88 exp(-I))``, a
+pointwise map that keeps the motion exact.
+
+Exact truth is the displacement of material points. A subset-based method with
+a first-order shape function cannot follow the curvature of the field inside a
+subset, so where the strain changes fast (the neck's flanks late in the test)
+it shows a systematic error of up to ~0.1 px at 1024 x 1024 with 21 px subsets
+(~0.25 px at 512 x 512): that is the method's, not the truth's.
+
+``truth(frame_index, x, y)`` gives the exact (u, v) of reference points and
+``Frame.metadata["truth"]`` holds the same for that frame as a callable
+``truth(x, y) -> (u, v)``. Paced frames also carry
+``metadata["capture_monotonic_ns"]``: when the simulated camera produced the
+frame, on the host's ``time.monotonic_ns`` clock (a consumer that holds the GIL
+can make the frame *arrive* later than that; latency is honest from capture).
+"""
+
+import math
+import threading
+import time
+import urllib.parse
+
+import numpy as np
+from numba import njit, prange
+
+from acquire.base import Frame, FrameSource, SourceError
+
+MODELS = ("tensile", "translate")
+_FULL_SCALE = {8: 255, 12: 4095}
+_PIXEL_FORMAT = {8: "Mono8", 12: "Mono12"}
+# Memory cap for the frames rendered ahead.
+MAX_RENDER_BYTES = 4 << 30
+# Speckles per pixel: the paper's 1000 spots on 256 x 256.
+SPECKLE_DENSITY = 1000.0 / 65536.0
+# Paint model: pixel = full * (PAINT_FLOOR + PAINT_GAIN * exp(-I)), I the Zhou-Goodson sum.
+PAINT_FLOOR = 0.06
+PAINT_GAIN = 0.88
+BACKGROUND_LEVEL = 0.10
+
+_COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True}
+TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15)
+TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3, dv=-0.2, jump=None)
+
+
+# --------------------------------------------------------------------------- #
+# URI parsing
+# --------------------------------------------------------------------------- #
+
+def _usage():
+    return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
+            "&strain=0.05&neck=0.15, or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
+            "(same common options)")
+
+
+def parse_synthetic_uri(uri):
+    """Split ``synthetic:MODEL?k=v&...`` into (model, {option: text}); raises SourceError."""
+    if not isinstance(uri, str) or not uri.startswith("synthetic:"):
+        raise SourceError(f"not a synthetic source URI: {uri!r}; use {_usage()}")
+    rest = uri[len("synthetic:"):]
+    model, _, query = rest.partition("?")
+    model = model.strip("/") or "tensile"
+    if model not in MODELS:
+        raise SourceError(f"unknown synthetic model {model!r} in {uri!r}: choose one of {', '.join(MODELS)} "
+                          f"(e.g. {_usage()})")
+    options = {}
+    if query:
+        for part in query.split("&"):
+            if not part:
+                continue
+            key, sep, value = part.partition("=")
+            if not sep:
+                raise SourceError(f"option {part!r} in {uri!r} has no value: write NAME=VALUE, e.g. frames=300")
+            options[urllib.parse.unquote(key).strip()] = urllib.parse.unquote(value).strip()
+    return model, options
+
+
+def _convert_options(model, raw):
+    """Typed options for ``model`` from text or Python values; SourceError names the bad one."""
+    defaults = TENSILE_DEFAULTS if model == "tensile" else TRANSLATE_DEFAULTS
+    unknown = sorted(set(raw) - set(defaults))
+    if unknown:
+        raise SourceError(f"unknown option(s) {', '.join(unknown)} for synthetic:{model}: valid options are "
+                          f"{', '.join(sorted(defaults))}")
+    out = dict(defaults)
+    for key, value in raw.items():
+        if value is None:
+            continue
+        try:
+            out[key] = _CONVERTERS[key](value)
+        except (TypeError, ValueError) as error:
+            raise SourceError(f"synthetic:{model} option {key}={value!r}: {error}") from None
+    return out
+
+
+def _to_int(low):
+    def convert(value):
+        if isinstance(value, bool):
+            raise ValueError("expected an integer")
+        number = int(value) if not isinstance(value, str) else int(value.strip())
+        if number < low:
+            raise ValueError(f"must be an integer >= {low}")
+        return number
+    return convert
+
+
+def _to_float(low=None, low_open=False):
+    def convert(value):
+        if isinstance(value, bool):
+            raise ValueError("expected a number")
+        number = float(value)
+        if not math.isfinite(number):
+            raise ValueError("must be a finite number")
+        if low is not None and (number < low or (low_open and number == low)):
+            raise ValueError(f"must be {'>' if low_open else '>='} {low}")
+        return number
+    return convert
+
+
+def _to_size(value):
+    if isinstance(value, str):
+        parts = value.lower().split("x")
+        if len(parts) != 2:
+            raise ValueError("write WIDTHxHEIGHT, e.g. 1024x1024")
+        width, height = int(parts[0]), int(parts[1])
+    else:
+        width, height = (int(v) for v in value)
+    if width < 64 or height < 64:
+        raise ValueError("width and height must be >= 64 px")
+    return (width, height)
+
+
+def _to_bit(value):
+    bit = int(value)
+    if bit not in _FULL_SCALE:
+        raise ValueError("bit depth must be 8 or 12")
+    return bit
+
+
+def _to_bool(value):
+    if isinstance(value, str):
+        text = value.strip().lower()
+        if text in ("1", "true", "yes", "on"):
+            return True
+        if text in ("0", "false", "no", "off"):
+            return False
+        raise ValueError("write 1 or 0")
+    return bool(value)
+
+
+def _to_jump(value):
+    if value is None or value == "":
+        return None
+    if isinstance(value, str):
+        parts = value.split(":")
+        if len(parts) != 3:
+            raise ValueError("write FRAME:U:V, e.g. 40:6:0")
+        frame, u, v = int(parts[0]), float(parts[1]), float(parts[2])
+    else:
+        frame, u, v = value
+        frame, u, v = int(frame), float(u), float(v)
+    if frame < 1 or not (math.isfinite(u) and math.isfinite(v)):
+        raise ValueError("the jump frame must be >= 1 and U, V finite")
+    return (frame, u, v)
+
+
+_CONVERTERS = {
+    "frames": _to_int(2), "fps": _to_float(0.0, low_open=True), "size": _to_size, "bit": _to_bit,
+    "noise": _to_float(0.0), "seed": _to_int(0), "radius": _to_float(0.5), "pace": _to_bool,
+    "strain": _to_float(0.0), "neck": _to_float(0.0), "du": _to_float(), "dv": _to_float(), "jump": _to_jump,
+}
+
+
+# --------------------------------------------------------------------------- #
+# The tensile model (pure maths, no pixels)
+# --------------------------------------------------------------------------- #
+
+def _logcosh(z):
+    a = np.abs(z)
+    return a + np.log1p(np.exp(-2.0 * a)) - math.log(2.0)
+
+
+def _sech2(z):
+    return 1.0 / np.cosh(np.clip(z, -350.0, 350.0)) ** 2
+
+
+class TensileModel:
+    """Exact Lagrangian displacement of a dog-bone coupon under tension (see module notes).
+
+    Parameters
+    ----------
+    shape : tuple of int, (H, W)
+        Image size, rows and columns.
+    frames : int
+        Frames of the test; frame 0 is the undeformed reference, the last one the deepest neck.
+    strain : float
+        Uniform plastic strain reached when the neck starts.
+    neck : float
+        Extra peak strain at the centre of the neck in the last frame.
+    seed : int
+        Seed of the grip jitter.
+
+    Attributes
+    ----------
+    x_centre, y_neck, neck_width, gauge_top, gauge_bottom, gauge_half, shoulder_half, y_grip : float
+        Geometry in reference pixels (``y_grip`` is the fixed bottom grip line).
+    """
+
+    NU_ELASTIC = 0.3
+    NU_PLASTIC = 0.5
+    YIELD_STRAIN = 0.004
+    TAU_YIELD = 0.15
+    TAU_NECK = 0.6
+    UNLOAD = 0.2           # elastic strain lost outside the neck once it forms (fraction)
+    JITTER_PX = 0.03       # grip jitter, standard deviation per frame and axis
+    DRIFT_PX = (0.25, 0.15)  # (u, v) drift of both grips over the whole test
+    SHEAR_PX = -0.4        # extra sideways drift of the top grip over the whole test
+
+    def __init__(self, shape, frames, *, strain=0.05, neck=0.15, seed=0):
+        H, W = int(shape[0]), int(shape[1])
+        self.shape = (H, W)
+        self.frames = int(frames)
+        self.plastic_strain = float(strain)
+        self.neck_strain = float(neck)
+        self.seed = int(seed)
+        self.x_centre = (W - 1) / 2.0
+        self.gauge_half = 0.20 * W
+        self.shoulder_half = 0.35 * W
+        self.gauge_top = 0.18 * H
+        self.gauge_bottom = 0.82 * H
+        self.fillet = 0.035 * H        # tanh width of the gauge/shoulder transition (outline)
+        self.box_edge = 0.035 * H      # tanh width of the plastic zone's ends (as the fillet)
+        self.y_neck = 0.44 * H         # neck centre: 0.06 H above the image centre
+        self.neck_width = 0.07 * H     # s in sech^2((Y - Y_n) / s)
+        self.y_grip = H - 1.0
+        self.area_ratio = self.gauge_half / self.shoulder_half
+        rng = np.random.default_rng([self.seed, 2024])
+        jitter = rng.normal(0.0, self.JITTER_PX, size=(self.frames, 2))
+        jitter[0] = 0.0
+        self._jitter = jitter
+
+    # -- schedule ---------------------------------------------------------
+    def tau(self, i):
+        return i / max(self.frames - 1, 1)
+
+    def state(self, i):
+        """Strains and rigid motion of frame ``i`` (a dict of floats)."""
+        tau = self.tau(i)
+        if tau <= self.TAU_YIELD:
+            e_el = self.YIELD_STRAIN * tau / self.TAU_YIELD
+            e_pl = 0.0
+            e_n = 0.0
+            phase = "elastic"
+        elif tau <= self.TAU_NECK:
+            e_el = self.YIELD_STRAIN
+            e_pl = self.plastic_strain * (tau - self.TAU_YIELD) / (self.TAU_NECK - self.TAU_YIELD)
+            e_n = 0.0
+            phase = "plastic"
+        else:
+            s = (tau - self.TAU_NECK) / (1.0 - self.TAU_NECK)
+            e_el = self.YIELD_STRAIN * (1.0 - self.UNLOAD * s)
+            e_pl = self.plastic_strain
+            e_n = self.neck_strain * s * s
+            phase = "necking"
+        u_r = self.DRIFT_PX[0] * tau + self._jitter[i, 0]
+        v_r = self.DRIFT_PX[1] * tau + self._jitter[i, 1]
+        return {"frame": int(i), "tau": tau, "phase": phase, "e_el": e_el, "e_pl": e_pl, "e_neck": e_n,
+                "u_rigid": u_r, "v_rigid": v_r, "shear_top": self.SHEAR_PX * tau}
+
+    # -- 1-D profiles -----------------------------------------------------
+    def _box(self, Y):
+        d = self.box_edge
+        return 0.5 * (np.tanh((Y - self.gauge_top) / d) - np.tanh((Y - self.gauge_bottom) / d))
+
+    def _box_integral(self, Y):
+        d = self.box_edge
+        return 0.5 * d * (_logcosh((Y - self.gauge_top) / d) - _logcosh((Y - self.gauge_bottom) / d))
+
+    def half_width(self, Y):
+        """Half-width of the undeformed coupon at reference row Y (px)."""
+        f = self.fillet
+        shoulder = 1.0 + 0.5 * (np.tanh((self.gauge_top - Y) / f) + np.tanh((Y - self.gauge_bottom) / f))
+        return self.gauge_half + (self.shoulder_half - self.gauge_half) * shoulder
+
+    def strain_yy(self, i, Y):
+        """Exact axial engineering strain dV/dY at reference rows Y for frame ``i``."""
+        st = self.state(i)
+        Y = np.asarray(Y, dtype=np.float64)
+        a = self.area_ratio
+        g = self._box(Y)
+        return (st["e_el"] * (a + (1.0 - a) * g) + st["e_pl"] * g
+                + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width))
+
+    def _antiderivative(self, st, Y):
+        a = self.area_ratio
+        G = self._box_integral(Y)
+        s = self.neck_width
+        return (st["e_el"] * (a * Y + (1.0 - a) * G) + st["e_pl"] * G
+                + st["e_neck"] * s * np.tanh((Y - self.y_neck) / s))
+
+    def _lateral(self, st, Y):
+        """L(Y): lateral contraction factor, dU/dX = -L."""
+        a = self.area_ratio
+        g = self._box(Y)
+        return (self.NU_ELASTIC * st["e_el"] * (a + (1.0 - a) * g)
+                + self.NU_PLASTIC * (st["e_pl"] * g + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width)))
+
+    def _axial(self, st, Y):
+        """V(Y) without rigid motion: minus the stretch of the material between Y and the grip."""
+        return -(self._antiderivative(st, self.y_grip) - self._antiderivative(st, Y))
+
+    def _shear(self, st, Y):
+        return st["shear_top"] * (self.y_grip - Y) / self.y_grip
+
+    def displacement(self, i, X, Y):
+        """Exact (U, V) of reference points (X, Y) in frame ``i`` (float64 arrays, broadcast)."""
+        X, Y = np.broadcast_arrays(np.asarray(X, dtype=np.float64), np.asarray(Y, dtype=np.float64))
+        st = self.state(i)
+        U = st["u_rigid"] + self._shear(st, Y) - self._lateral(st, Y) * (X - self.x_centre)
+        V = st["v_rigid"] + self._axial(st, Y)
+        return U, V
+
+    def inverse_rows(self, i, rows):
+        """For deformed rows y: the reference row Y and the column map X = alpha + beta * x.
+
+        Solves ``y = Y + V(Y)`` by safeguarded Newton to 1e-12 px, then inverts the
+        row's affine column map ``x = X + U(X, Y)``.
+        """
+        st = self.state(i)
+        y = np.asarray(rows, dtype=np.float64)
+        Y = y - st["v_rigid"] - self._axial(st, y)   # fixed-point start
+        for _ in range(50):
+            residual = Y + st["v_rigid"] + self._axial(st, Y) - y
+            slope = 1.0 + self.strain_yy(i, Y)
+            Y = Y - residual / slope
+            if np.max(np.abs(residual)) < 1e-12:
+                break
+        else:  # pragma: no cover - the map is monotone with slope >= 1
+            raise SourceError("tensile model: could not invert the axial displacement")
+        L = self._lateral(st, Y)
+        offset = st["u_rigid"] + self._shear(st, Y)
+        # x = X + offset - L (X - xc)  ->  X = xc + (x - offset - xc) / (1 - L)
+        beta = 1.0 / (1.0 - L)
+        alpha = self.x_centre - (offset + self.x_centre) * beta
+        return Y, alpha, beta
+
+    def nominal_strain(self, i):
+        """Mean axial strain over the gauge section (what an extensometer would read)."""
+        st = self.state(i)
+        top, bottom = self.gauge_top, self.gauge_bottom
+        return float((self._antiderivative(st, bottom) - self._antiderivative(st, top)) / (bottom - top))
+
+
+class FrameTruth:
+    """Exact displacement of reference points in one frame: ``truth(x, y) -> (u, v)`` arrays."""
+
+    def __init__(self, function, frame_index, description):
+        self._function = function
+        self.frame_index = int(frame_index)
+        self.description = description
+
+    def __call__(self, x, y):
+        return self._function(self.frame_index, x, y)
+
+    def __repr__(self):
+        return f"FrameTruth({self.description}, frame={self.frame_index})"
+
+
+# --------------------------------------------------------------------------- #
+# Rendering kernels
+# --------------------------------------------------------------------------- #
+
+@njit(cache=True)
+def _row_intensity(xs, ys, inv_r, reach2, delta, q, Yr, a, b, lo, hi, c_lo, c_hi, acc):
+    """acc[c - c_lo] = sum_k exp(-((a + b c - x_k)^2 + (Yr - y_k)^2) / R^2) over |d| < reach.
+
+    Centres k in [lo, hi) (those within reach of the row). Along the row the
+    Gaussian is stepped by the exact recurrence g(c+1) = g(c) s(c),
+    s(c+1) = s(c) q with q = exp(-2 delta^2), delta = b / R: two exp per spot,
+    relative rounding drift below 1e-14 over a spot's width.
+    """
+    for c in range(c_hi - c_lo):
+        acc[c] = 0.0
+    inv_r2 = inv_r * inv_r
+    for k in range(lo, hi):
+        dy = ys[k] - Yr
+        d2y = dy * dy
+        if d2y >= reach2:
+            continue
+        half = math.sqrt(reach2 - d2y)
+        xk = xs[k]
+        # columns with (a + b c - xk)^2 < half^2
+        first = max(int(math.floor((xk - half - a) / b)) + 1, c_lo)
+        last = min(int(math.ceil((xk + half - a) / b)) - 1, c_hi - 1)
+        if last < first:
+            continue
+        t = (a + b * first - xk) * inv_r
+        g = math.exp(-(t * t + d2y * inv_r2))
+        step = math.exp(-(2.0 * t * delta + delta * delta))
+        for c in range(first - c_lo, last - c_lo + 1):
+            acc[c] += g
+            g *= step
+            step *= q
+
+
+@njit(cache=True, parallel=True)
+def _render_rows(xs, ys, radius, reach, Y, alpha, beta, col_lo, col_hi, out):
+    """Zhou-Goodson intensity sampled at X = alpha_r + beta_r c, Y = Y_r (float64 out, (H, W)).
+
+    ``ys`` sorted ascending; only columns col_lo[r] <= c < col_hi[r] are written.
+    Equal (to rounding) to ``SpecklePattern.intensity`` at the same points.
+    """
+    H, W = out.shape
+    inv_r = 1.0 / radius
+    reach2 = reach * reach
+    for r in prange(H):
+        c_lo, c_hi = col_lo[r], col_hi[r]
+        if c_hi <= c_lo:
+            continue
+        delta = beta[r] * inv_r
+        lo = np.searchsorted(ys, Y[r] - reach)
+        hi = np.searchsorted(ys, Y[r] + reach, side="right")
+        _row_intensity(xs, ys, inv_r, reach2, delta, math.exp(-2.0 * delta * delta), Y[r], alpha[r], beta[r],
+                       lo, hi, c_lo, c_hi, out[r, c_lo:c_hi])
+
+
+@njit(cache=True, parallel=True)
+def _render_specimen(xs, ys, radius, reach, Y, alpha, beta, left, right, background, full, floor, gain, out):
+    """Grey image (float32 out, (H, W)) of the coupon: painted speckle inside [left, right], background outside.
+
+    Each row r: background[r] everywhere, blended towards the paint
+    ``full (floor + gain exp(-I))`` by the pixel's coverage of the specimen
+    (1 px linear ramp at the deformed edges ``left[r]``, ``right[r]``).
+    """
+    H, W = out.shape
+    inv_r = 1.0 / radius
+    reach2 = reach * reach
+    for r in prange(H):
+        bg = background[r]
+        for c in range(W):
+            out[r, c] = bg
+        c_lo = max(int(math.floor(left[r])) - 1, 0)
+        c_hi = min(int(math.ceil(right[r])) + 2, W)
+        if c_hi <= c_lo:
+            continue
+        acc = np.empty(c_hi - c_lo)
+        delta = beta[r] * inv_r
+        lo = np.searchsorted(ys, Y[r] - reach)
+        hi = np.searchsorted(ys, Y[r] + reach, side="right")
+        _row_intensity(xs, ys, inv_r, reach2, delta, math.exp(-2.0 * delta * delta), Y[r], alpha[r], beta[r],
+                       lo, hi, c_lo, c_hi, acc)
+        for c in range(c_lo, c_hi):
+            cover = min(c - left[r], right[r] - c) + 0.5
+            if cover <= 0.0:
+                continue
+            if cover > 1.0:
+                cover = 1.0
+            paint = full * (floor + gain * math.exp(-acc[c - c_lo]))
+            out[r, c] = bg + cover * (paint - bg)
+
+
+@njit(cache=True, parallel=True)
+def _quantise_into(image, noise, sigma, full, out):
+    """out = rint(clip(image + sigma * noise, 0, full)) (noise may be empty for none)."""
+    H, W = image.shape
+    with_noise = noise.shape[0] == H
+    for r in prange(H):
+        for c in range(W):
+            value = image[r, c]
+            if with_noise:
+                value += sigma * noise[r, c]
+            if value < 0.0:
+                value = 0.0
+            elif value > full:
+                value = full
+            out[r, c] = np.rint(value)
+
+
+def _paint(intensity, full):
+    """Grey level of speckled paint for the Zhou-Goodson intensity (float)."""
+    return full * (PAINT_FLOOR + PAINT_GAIN * np.exp(-intensity))
+
+
+def _quantise(image, bit, noise_sigma, noise_seed):
+    """Add camera noise (seeded), clip and round to Mono8 / Mono12."""
+    full = _FULL_SCALE[bit]
+    out = np.empty(image.shape, dtype=np.uint8 if bit == 8 else np.uint16)
+    if noise_sigma > 0.0:
+        noise = np.random.default_rng(noise_seed).standard_normal(image.shape, dtype=np.float32)
+    else:
+        noise = np.empty((0, 0), dtype=np.float32)
+    _quantise_into(np.ascontiguousarray(image, dtype=np.float32), noise, np.float32(noise_sigma),
+                   np.float32(full), out)
+    return out
+
+
+# --------------------------------------------------------------------------- #
+# Sources
+# --------------------------------------------------------------------------- #
+
+class _PrerenderedSource(FrameSource):
+    """Renders every frame ahead (``prepare``), then delivers them paced at ``fps``."""
+
+    model_name = ""
+
+    def __init__(self, options, uri):
+        self.options = options
+        self.uri = uri
+        width, height = options["size"]
+        self.shape = (height, width)
+        self.frames = options["frames"]
+        self.fps = options["fps"]
+        self.bit = options["bit"]
+        self.pixel_format = _PIXEL_FORMAT[self.bit]
+        nbytes = self.frames * width * height * (1 if self.bit == 8 else 2)
+        if nbytes > MAX_RENDER_BYTES:
+            raise SourceError(
+                f"{uri}: {self.frames} frames of {width}x{height} at {self.bit} bit need "
+                f"{nbytes / 2**30:.1f} GiB rendered ahead (limit {MAX_RENDER_BYTES / 2**30:.0f} GiB): "
+                "lower frames= or size=")
+        self._images = None
+        self._lock = threading.Lock()
+        self._closed = False
+        self.render_seconds = None
+        from dic.speckle import SpecklePattern
+        self.pattern = SpecklePattern(self.shape, density=SPECKLE_DENSITY, radius=options["radius"],
+                                      seed=options["seed"], margin=self._pattern_margin())
+
+    def _pattern_margin(self):
+        return None
+
+    @property
+    def full_scale(self):
+        return _FULL_SCALE[self.bit]
+
+    def _noise_sigma(self):
+        return self.options["noise"] * self.full_scale / 255.0
+
+    def prepare(self, progress=None):
+        """Render all frames into memory (idempotent); ``progress(done, total)`` after each."""
+        with self._lock:
+            if self._images is not None:
+                return
+            start = time.perf_counter()
+            images = []
+            for i in range(self.frames):
+                if self._closed:
+                    raise SourceError(f"{self.uri}: closed while rendering")
+                images.append(self._render(i))
+                if progress is not None:
+                    progress(i + 1, self.frames)
+            self._images = images
+            self.render_seconds = time.perf_counter() - start
+
+    def frame_metadata(self, i):
+        return {"synthetic": self.model_name,
+                "truth": FrameTruth(self.truth, i, f"synthetic:{self.model_name}")}
+
+    def __iter__(self):
+        self.prepare()
+        period_ns = 1e9 / self.fps
+        start_ns = time.monotonic_ns()
+        for i, image in enumerate(self._images):
+            if self._closed:
+                return
+            metadata = self.frame_metadata(i)
+            if self.options["pace"]:
+                due = start_ns + int(round(i * period_ns))
+                wait = due - time.monotonic_ns()
+                if wait > 0:
+                    time.sleep(wait / 1e9)
+                metadata["capture_monotonic_ns"] = due
+            yield Frame(index=i, timestamp_ns=int(round(i * period_ns)), image=image,
+                        pixel_format=self.pixel_format, metadata=metadata)
+
+    def close(self):
+        self._closed = True
+
+    @property
+    def settings(self):
+        width, height = self.options["size"]
+        settings = {key: value for key, value in self.options.items() if key != "size"}
+        settings.update({"model": self.model_name, "width": width, "height": height,
+                         "pixel_format": self.pixel_format, "uri": self.uri,
+                         "delivery": "rendered ahead, paced at fps" if self.options["pace"]
+                         else "rendered ahead, as fast as read"})
+        return settings
+
+
+class SyntheticTensileSource(_PrerenderedSource):
+    """Simulated tensile test of a speckled dog-bone coupon (module notes), exact truth.
+
+    Parameters
+    ----------
+    uri : str, optional
+        ``synthetic:tensile?...``; keyword options override the URI's.
+    **options
+        frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, strain, neck.
+
+    Attributes
+    ----------
+    model : TensileModel
+    suggested_roi : tuple of int, (x, y, w, h)
+        The gauge section, inset so subsets stay on the specimen while it narrows.
+    """
+
+    model_name = "tensile"
+
+    def __init__(self, uri="synthetic:tensile", **options):
+        model, raw = parse_synthetic_uri(uri)
+        if model != "tensile":
+            raise SourceError(f"{uri!r} is not a tensile URI: use synthetic:tensile?...")
+        raw.update({k: v for k, v in options.items() if v is not None})
+        opts = _convert_options("tensile", raw)
+        self.model = TensileModel((opts["size"][1], opts["size"][0]), opts["frames"], strain=opts["strain"],
+                                  neck=opts["neck"], seed=opts["seed"])
+        super().__init__(opts, uri)
+        self._rows = np.arange(self.shape[0], dtype=np.float64)
+        H = self.shape[0]
+        self._background = BACKGROUND_LEVEL * (1.0 + 0.15 * (self._rows / H - 0.5))
+        self._xs = np.ascontiguousarray(self.pattern.centres[:, 0])
+        self._ys = np.ascontiguousarray(self.pattern.centres[:, 1])
+
+    @property
+    def suggested_roi(self):
+        m = self.model
+        inset = 0.15 * m.gauge_half + 8.0
+        x0 = int(math.ceil(m.x_centre - m.gauge_half + inset))
+        x1 = int(math.floor(m.x_centre + m.gauge_half - inset))
+        y0 = int(math.ceil(m.gauge_top))
+        y1 = int(math.floor(m.gauge_bottom))
+        return (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+
+    def truth(self, frame_index, x, y):
+        """Exact (u, v) at reference points (x, y) in frame ``frame_index``."""
+        if not 0 <= frame_index < self.frames:
+            raise ValueError(f"frame index {frame_index} outside 0..{self.frames - 1}")
+        return self.model.displacement(frame_index, x, y)
+
+    def frame_metadata(self, i):
+        meta = super().frame_metadata(i)
+        st = self.model.state(i)
+        meta.update({"phase": st["phase"], "nominal_strain": self.model.nominal_strain(i)})
+        return meta
+
+    def _render(self, i):
+        full = float(self.full_scale)
+        Y, alpha, beta = self.model.inverse_rows(i, self._rows)
+        hw = self.model.half_width(Y)
+        # Deformed columns of the specimen edges on each row (X = xc -+ hw).
+        left = (self.model.x_centre - hw - alpha) / beta
+        right = (self.model.x_centre + hw - alpha) / beta
+        image = np.empty(self.shape, dtype=np.float32)
+        _render_specimen(self._xs, self._ys, float(self.pattern.radius), float(self.pattern.cutoff_px),
+                         Y, alpha, beta, left, right, full * self._background, full, PAINT_FLOOR, PAINT_GAIN,
+                         image)
+        return _quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
+
+
+class SyntheticTranslateSource(_PrerenderedSource):
+    """Speckle over the whole image, shifted by ``(du, dv)`` px per frame plus an optional jump.
+
+    ``truth(i, x, y)`` is the same (u, v) for every point: ``(i du, i dv)``, plus
+    ``(U, V)`` from frame F on when ``jump=F:U:V``.
+    """
+
+    model_name = "translate"
+
+    def __init__(self, uri="synthetic:translate", **options):
+        model, raw = parse_synthetic_uri(uri)
+        if model != "translate":
+            raise SourceError(f"{uri!r} is not a translate URI: use synthetic:translate?...")
+        raw.update({k: v for k, v in options.items() if v is not None})
+        opts = _convert_options("translate", raw)
+        self._opts_for_margin = opts
+        super().__init__(opts, uri)
+
+    def _pattern_margin(self):
+        opts = self._opts_for_margin
+        n = opts["frames"] - 1
+        extent = max(abs(opts["du"]), abs(opts["dv"])) * n
+        if opts["jump"] is not None:
+            extent += max(abs(opts["jump"][1]), abs(opts["jump"][2]))
+        reach = 5.0 * opts["radius"]
+        return math.ceil(reach) + 16 + math.ceil(extent)
+
+    def shift(self, frame_index):
+        """(u, v) of every point in frame ``frame_index``."""
+        u = frame_index * self.options["du"]
+        v = frame_index * self.options["dv"]
+        jump = self.options["jump"]
+        if jump is not None and frame_index >= jump[0]:
+            u += jump[1]
+            v += jump[2]
+        return u, v
+
+    def truth(self, frame_index, x, y):
+        if not 0 <= frame_index < self.frames:
+            raise ValueError(f"frame index {frame_index} outside 0..{self.frames - 1}")
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        u, v = self.shift(frame_index)
+        return np.full(x.shape, u), np.full(y.shape, v)
+
+    @property
+    def suggested_roi(self):
+        H, W = self.shape
+        margin = 32
+        return (margin, margin, W - 2 * margin, H - 2 * margin)
+
+    def _render(self, i):
+        from dic.speckle import render
+        u, v = self.shift(i)
+        intensity = render(self.pattern, (u, v) if (u or v) else None, bit_depth=None)
+        image = _paint(intensity, float(self.full_scale)).astype(np.float32)
+        return _quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
+
+
+def open_synthetic(uri, **options):
+    """The source named by ``uri``: ``synthetic:``, ``synthetic:tensile?...`` or ``synthetic:translate?...``."""
+    model, _ = parse_synthetic_uri(uri)
+    if model == "translate":
+        return SyntheticTranslateSource(uri, **options)
+    return SyntheticTensileSource(uri, **options)

@@ -1,0 +1,125 @@
+"""A bounded, thread-safe frame queue with an explicit drop policy.
+
+The camera side never waits: when the queue is full, ``put`` drops a frame
+instead of blocking, counts it, and returns at once (CRAPPY's ``Link`` does
+the same on Linux). Two policies:
+
+``"drop-oldest"`` (default)
+    Evict the oldest queued frame and queue the new one, so the consumer
+    always works on the newest frames (a live monitor wants "now").
+``"drop-newest"``
+    Keep the queue as it is and discard the incoming frame, so the consumer
+    sees an unbroken run of older frames followed by a gap.
+
+Either way ``dropped`` counts every discarded frame and ``dropped_indices``
+keeps the frame indices of the most recent ones (bounded).
+
+A third policy, ``"block"``, makes ``put`` wait for room instead: for sources
+where waiting loses nothing (a recording or image files replayed as fast as
+they can be read, an unpaced simulator). Never use it for a live camera.
+"""
+
+import collections
+import threading
+
+DROP_OLDEST = "drop-oldest"
+DROP_NEWEST = "drop-newest"
+BLOCK = "block"
+DROP_POLICIES = (DROP_OLDEST, DROP_NEWEST, BLOCK)
+
+
+class QueueClosed(Exception):
+    """``get`` on a queue that is closed and empty: no frame will ever come."""
+
+
+class FrameQueue:
+    """Bounded FIFO between the acquisition thread and the tracker.
+
+    Parameters
+    ----------
+    maxsize : int
+        Frames held at most (>= 1).
+    policy : str
+        ``"drop-oldest"`` or ``"drop-newest"``: which frame goes when full;
+        ``"block"``: wait for room (files, not cameras).
+
+    Notes
+    -----
+    ``put`` never blocks (except with ``"block"``). ``get`` blocks until a frame arrives, the timeout
+    passes (returns None) or the queue is closed and drained (raises
+    ``QueueClosed``). ``close`` wakes every waiting ``get``.
+    """
+
+    def __init__(self, maxsize=4, policy=DROP_OLDEST):
+        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
+            raise ValueError(f"queue size must be a positive integer number of frames, got {maxsize!r}")
+        if policy not in DROP_POLICIES:
+            raise ValueError(f"unknown drop policy {policy!r}: choose one of {', '.join(DROP_POLICIES)}")
+        self.maxsize = maxsize
+        self.policy = policy
+        self._items = collections.deque()
+        self._cond = threading.Condition()
+        self._closed = False
+        self.put_count = 0
+        self.dropped = 0
+        self.dropped_indices = collections.deque(maxlen=1000)
+        self.max_depth = 0
+
+    def put(self, item):
+        """Queue ``item``; returns the item dropped to make room (or ``item`` itself), else None.
+
+        Raises ``QueueClosed`` if the queue was closed.
+        """
+        with self._cond:
+            if self.policy == BLOCK:
+                while len(self._items) >= self.maxsize and not self._closed:
+                    self._cond.wait()
+            if self._closed:
+                raise QueueClosed("frame queue is closed")
+            self.put_count += 1
+            victim = None
+            if len(self._items) >= self.maxsize:
+                if self.policy == DROP_OLDEST:
+                    victim = self._items.popleft()
+                    self._items.append(item)
+                else:
+                    victim = item
+                self.dropped += 1
+                self.dropped_indices.append(_index_of(victim))
+            else:
+                self._items.append(item)
+            self.max_depth = max(self.max_depth, len(self._items))
+            self._cond.notify_all()
+            return victim
+
+    def get(self, timeout=None):
+        """The oldest queued item; None after ``timeout`` seconds; ``QueueClosed`` once closed and empty."""
+        with self._cond:
+            if not self._items and not self._closed:
+                self._cond.wait(timeout)
+            if self._items:
+                item = self._items.popleft()
+                self._cond.notify_all()   # room for a blocked put
+                return item
+            if self._closed:
+                raise QueueClosed("frame queue is closed and empty")
+            return None
+
+    def close(self):
+        """No more frames will be put; waiting and later ``get`` calls drain what is left, then raise."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    @property
+    def closed(self):
+        return self._closed
+
+    def __len__(self):
+        with self._cond:
+            return len(self._items)
+
+
+def _index_of(item):
+    frame = getattr(item, "frame", item)
+    return getattr(frame, "index", None)

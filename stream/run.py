@@ -1,0 +1,591 @@
+"""``livedic run``: acquire, track, record and display a live session.
+
+Wiring (one producer thread, one consumer loop)::
+
+    source --(acquisition thread)--> FrameQueue --(main thread)--> Tracker --> recorder results
+                    |                 (drops counted)                    \\--> Rerun logger
+                    \\--> recorder frames (every frame, dropped or not)    \\--> progress bar
+
+With no options it runs the simulated tensile test (``synthetic:tensile``),
+tracks about 1,000 points over the gauge section, records into
+``recordings/session-YYYYmmdd-HHMMSS.mcap``, shows the session in Rerun (or
+saves a .rrd next to the recording when there is no display), and prints a
+summary: frames, fps, POI/s, latency p50/p99, drops and, for synthetic
+sources, the error against the exact displacement.
+
+Ctrl-C (SIGINT) or SIGTERM stops acquisition, tracks what is already queued,
+and closes the recording properly.
+
+The lead wires it into ``stream.cli``::
+
+    run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
+    add_run_arguments(run)
+    run.set_defaults(handler=run_session)
+"""
+
+import json
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from datetime import datetime
+
+import numpy as np
+
+DEFAULT_SOURCE = "synthetic:tensile"
+DEFAULT_POINTS = 1000
+RECORDINGS_DIR = "recordings"
+
+
+def add_run_arguments(parser):
+    """Add the ``livedic run`` options to an ``argparse`` (sub)parser."""
+    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
+                        help="frame source (default synthetic:tensile): synthetic:[tensile|translate][?opts], "
+                             "aravis:[ID], v4l2:/dev/videoN, video:FILE, images:GLOB, mcap:FILE")
+    parser.add_argument("--frames", type=int, metavar="N",
+                        help="stop after N frames (synthetic: also the length of the test; default 300)")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--roi", metavar="X,Y,W,H",
+                       help="region of interest for the point grid (default: the specimen gauge section for "
+                            "synthetic:tensile, else the whole image)")
+    where.add_argument("--points", metavar="FILE.csv",
+                       help="track these points (CSV with header x,y) instead of a grid")
+    parser.add_argument("--step", type=int, metavar="S",
+                        help="grid step in pixels (default: about --n-points points over the ROI)")
+    parser.add_argument("--n-points", type=int, default=DEFAULT_POINTS, metavar="N",
+                        help=f"points wanted when --step is not given (default {DEFAULT_POINTS})")
+    parser.add_argument("--p0", metavar="X,Y", help="the traced point P0 (default: the ROI centre)")
+    parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
+    parser.add_argument("--search", default="improved-wso", metavar="NAME",
+                        help=f"integer search seeded by the previous frame: {', '.join(SEARCH_METHODS)} "
+                             "(default improved-wso; none = start the sub-pixel method from the previous result)")
+    parser.add_argument("--subpixel", default="icgn", metavar="NAME",
+                        help=f"sub-pixel method: {', '.join(SUBPIXEL_METHODS)} (default icgn)")
+    parser.add_argument("--seed-radius", type=int, default=2, metavar="R",
+                        help="search radius around the previous result, pixels (default 2: covers 1.5 px of "
+                             "motion between two frames; faster motion is caught by the re-find search)")
+    parser.add_argument("--refind-radius", type=int, default=16, metavar="R",
+                        help="search radius for re-finding lost points, pixels (default 16)")
+    parser.add_argument("--refind-zncc", type=float, default=0.8, metavar="Z",
+                        help="re-find points whose ZNCC falls below Z (default 0.8)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
+    record = parser.add_mutually_exclusive_group()
+    record.add_argument("--record", metavar="FILE.mcap",
+                        help=f"recording file (default {RECORDINGS_DIR}/session-YYYYmmdd-HHMMSS.mcap)")
+    record.add_argument("--no-record", action="store_true", help="do not record")
+    parser.add_argument("--viewer", nargs="+", default=["spawn"], metavar="MODE",
+                        help="spawn | connect [URL] | save FILE.rrd | none (default spawn; without a display "
+                             "the stream is saved next to the recording)")
+    parser.add_argument("--queue", type=int, default=4, metavar="N", help="frames the queue holds (default 4)")
+    parser.add_argument("--drop", choices=("auto", "oldest", "newest", "block"), default="auto",
+                        help="when the queue is full: drop the oldest queued frame, drop the newest, or block "
+                             "(wait; for files only). Default auto: oldest for cameras and paced sources, "
+                             "block for recordings, files and the unpaced simulator")
+    parser.add_argument("--image-max-side", type=int, default=512, metavar="PX",
+                        help="camera image shown in Rerun downsampled to at most PX pixels a side (default 512)")
+    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
+                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+    parser.add_argument("--threads", type=int, default=1, metavar="N",
+                        help="numba threads for rendering and tracking (default 1: the other core serves "
+                             "acquisition, recording and display, and parallel regions stall when cores are shared)")
+    parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
+    return parser
+
+
+# ----------------------------------------------------------------------------- argument helpers
+
+def _ints(text, count, what, example):
+    try:
+        values = [int(round(float(part))) for part in str(text).split(",")]
+    except ValueError:
+        values = []
+    if len(values) != count:
+        raise ValueError(f"{what} must be {count} comma-separated numbers, e.g. {example}; got {text!r}")
+    return values
+
+
+def _floats(text, count, what, example):
+    try:
+        values = [float(part) for part in str(text).split(",")]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{what} must be {count} comma-separated numbers, e.g. {example}; got {text!r}")
+    return values
+
+
+def _check_args(args):
+    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    if args.frames is not None and args.frames < 1:
+        raise ValueError(f"--frames must be >= 1, got {args.frames}")
+    if args.subset < 3 or args.subset % 2 == 0:
+        raise ValueError(f"--subset must be an odd integer >= 3, got {args.subset}")
+    if args.search not in SEARCH_METHODS:
+        raise ValueError(f"unknown search method {args.search!r}: choose one of {', '.join(SEARCH_METHODS)}")
+    if args.subpixel not in SUBPIXEL_METHODS:
+        raise ValueError(f"unknown sub-pixel method {args.subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
+    if args.subpixel == "none":
+        raise ValueError("--subpixel none gives integer displacements only: choose a sub-pixel method (e.g. icgn)")
+    if args.step is not None and args.step < 1:
+        raise ValueError(f"--step must be a positive number of pixels, got {args.step}")
+    if args.n_points < 1:
+        raise ValueError(f"--n-points must be >= 1, got {args.n_points}")
+    for name in ("seed_radius", "refind_radius"):
+        if getattr(args, name) < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0")
+    if not -1.0 <= args.refind_zncc <= 1.0:
+        raise ValueError(f"--refind-zncc must be between -1 and 1, got {args.refind_zncc}")
+    import numba
+    if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {args.threads}")
+    if args.queue < 1:
+        raise ValueError(f"--queue must be >= 1 frame, got {args.queue}")
+    if args.image_max_side < 16:
+        raise ValueError(f"--image-max-side must be >= 16 pixels, got {args.image_max_side}")
+    if args.record is not None and not args.record.endswith(".mcap"):
+        raise ValueError(f"--record file {args.record!r} must end in .mcap")
+    if args.record is not None and os.path.exists(args.record):
+        raise ValueError(f"--record file {args.record} exists: choose a new name (recordings are never overwritten)")
+    roi = _ints(args.roi, 4, "--roi", "100,50,400,800") if args.roi else None
+    if roi is not None and (roi[2] <= 0 or roi[3] <= 0):
+        raise ValueError(f"--roi width and height must be positive, got {args.roi!r}")
+    p0 = _floats(args.p0, 2, "--p0", "512,400") if args.p0 else None
+    return roi, p0
+
+
+def _session_stem():
+    return os.path.join(RECORDINGS_DIR, "session-" + datetime.now().strftime("%Y%m%d-%H%M%S"))
+
+
+def _unique(path):
+    """``path`` or ``path`` with -2, -3 ... before the extension if it exists."""
+    if not os.path.exists(path):
+        return path
+    stem, ext = os.path.splitext(path)
+    k = 2
+    while os.path.exists(f"{stem}-{k}{ext}"):
+        k += 1
+    return f"{stem}-{k}{ext}"
+
+
+# ----------------------------------------------------------------------------- progress bar
+
+class ProgressBar:
+    """One line on stderr, redrawn at most ``hz`` times a second; silent when disabled."""
+
+    def __init__(self, total=None, *, enabled=True, stream=None, hz=8.0, width=24):
+        self.total = total
+        self.enabled = enabled
+        self.stream = stream or sys.stderr
+        self.period = 1.0 / hz
+        self.width = width
+        self._last = 0.0
+        self._shown = False
+        self.last_text = ""
+
+    def update(self, done, text="", force=False):
+        if not self.enabled:
+            return
+        self.last_text = text
+        now = time.monotonic()
+        if not force and now - self._last < self.period:
+            return
+        self._last = now
+        if self.total:
+            filled = int(self.width * min(done / self.total, 1.0))
+            bar = f"[{'#' * filled}{'.' * (self.width - filled)}] {done}/{self.total}"
+        else:
+            bar = f"{done}"
+        self.stream.write(f"\r{bar} {text}\033[K")
+        self.stream.flush()
+        self._shown = True
+
+    def close(self):
+        if self.enabled and self._shown:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._shown = False
+
+
+# ----------------------------------------------------------------------------- points
+
+def _read_points(path):
+    from stream.cli import read_points_csv
+    return read_points_csv(path)
+
+
+def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
+    """Tracked points with P0 first: ``(points (N, 2), roi used, step used)``.
+
+    P0 is ``p0`` or the ROI centre, snapped to a pixel; a grid point on the same
+    pixel is not repeated.
+    """
+    from dic.tracking import grid_in_roi, step_for_count
+    height, width = shape
+    if roi is None:
+        roi = (0, 0, width, height)
+    if points is None:
+        if step is None:
+            step = step_for_count(roi, n_points, subset)
+        grid = grid_in_roi(shape, roi, step, subset)
+    else:
+        grid = np.asarray(points, dtype=np.float64)
+    if p0 is None:
+        x, y, w, h = roi
+        p0 = (x + (w - 1) / 2.0, y + (h - 1) / 2.0)
+    p0 = np.floor(np.asarray(p0, dtype=np.float64) + 0.5)
+    if not (0 <= p0[0] < width and 0 <= p0[1] < height):
+        raise ValueError(f"P0 ({p0[0]:g}, {p0[1]:g}) is outside the {width}x{height} image")
+    same = np.all(np.floor(grid + 0.5) == p0[None, :], axis=1)
+    grid = grid[~same]
+    return np.vstack([p0[None, :], grid]), tuple(int(v) for v in roi), step
+
+
+# ----------------------------------------------------------------------------- the session
+
+def _warm_up(args):
+    """Compile the numba kernels on a tiny image before the camera starts (cached: ~0.5 s later)."""
+    from dic.tracking import Tracker
+    rng = np.random.default_rng(0)
+    import cv2
+    image = cv2.GaussianBlur(rng.uniform(0, 255, (96, 96)).astype(np.float32), (0, 0), 2.0)
+    shifted = np.roll(image, (1, 2), axis=(0, 1))
+    tracker = Tracker(image, [(48.0, 48.0), (40.0, 52.0)], subset=min(args.subset, 31), search=args.search,
+                      subpixel=args.subpixel, seed_radius=args.seed_radius, refind_radius=8,
+                      refind_zncc=args.refind_zncc, seed=args.seed)
+    tracker.track(image)
+    tracker.track(shifted)
+    tracker.track(np.roll(image, (9, -7), axis=(0, 1)))   # exercises the re-find path
+
+
+class _Interrupt:
+    """SIGINT/SIGTERM -> a stop request (installed only in the main thread)."""
+
+    def __init__(self, on_signal):
+        self.on_signal = on_signal
+        self.received = None
+        self._previous = {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum, _frame):
+        if self.received is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt   # a second Ctrl-C: give up on the clean stop
+        self.received = signal.Signals(signum).name
+        self.on_signal()
+
+    def __exit__(self, *exc):
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        return False
+
+
+def run_session(args):
+    """Run ``livedic run`` with parsed ``args`` (see ``add_run_arguments``); returns the exit code.
+
+    Raises
+    ------
+    ValueError
+        Bad options (one line, for the CLI to print).
+    SourceError
+        The source cannot be opened or failed during the session (raised after the
+        recording is closed and the summary printed).
+    """
+    from stream.rerun_log import parse_viewer
+
+    roi_arg, p0_arg = _check_args(args)
+    given_points = _read_points(args.points) if args.points else None
+    stem = _session_stem()
+    record_path = None if args.no_record else (args.record or _unique(stem + ".mcap"))
+    viewer_mode, viewer_target, viewer_note = parse_viewer(
+        args.viewer, os.path.splitext(record_path)[0] + ".rrd" if record_path else _unique(stem + ".rrd"))
+    show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
+
+    def say(message):
+        if show_progress:
+            sys.stderr.write("\r\033[K")
+        print(f"livedic: {message}", file=sys.stderr, flush=True)
+
+    import numba
+    previous_threads = numba.get_num_threads()
+    numba.set_num_threads(args.threads)
+    try:
+        return _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target, viewer_note,
+                    show_progress, stem, say)
+    finally:
+        numba.set_num_threads(previous_threads)
+
+
+def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target, viewer_note, show_progress,
+         stem, say):
+    from acquire.base import SourceError
+    from acquire.sources import open_source, parse_scheme
+    from dic.tracking import Tracker
+    from stream.acquisition import AcquisitionThread
+    from stream.frame_queue import FrameQueue
+    from stream.rerun_log import RerunLogger
+    from stream.tracker_loop import TrackerLoop
+
+    scheme = parse_scheme(args.source)
+    options = {}
+    if scheme == "synthetic" and args.frames is not None and "frames=" not in args.source:
+        options["frames"] = max(args.frames, 2)
+    source = open_source(args.source, **options)
+    recorder = None
+    logger = None
+    acquisition = None
+    try:
+        _warm_up(args)
+        total = args.frames
+        if getattr(source, "frames", None) and isinstance(source.frames, int):
+            total = min(total, source.frames) if total else source.frames
+        if hasattr(source, "prepare"):
+            bar = ProgressBar(source.frames, enabled=show_progress)
+            started = time.perf_counter()
+            source.prepare(progress=lambda done, n: bar.update(done, "rendering the simulated test"))
+            bar.close()
+            say(f"simulator: {source.frames} frames rendered ahead in {time.perf_counter() - started:.1f} s; "
+                f"delivery paced at {source.fps:g} fps")
+        roi = roi_arg if roi_arg is not None else (None if given_points is not None else _default_roi(source))
+        policy = _drop_policy(args.drop, source, scheme)
+
+        settings = _safe_settings(source)
+        metadata = {
+            "command": "livedic run", "source_uri": args.source, "source_settings": settings,
+            "roi": list(roi) if roi else "full image", "step": args.step, "n_points_wanted": args.n_points,
+            "points_file": args.points, "p0": p0_arg if p0_arg else "ROI centre", "subset": args.subset,
+            "search": args.search, "subpixel": args.subpixel, "seed_radius": args.seed_radius,
+            "refind_radius": args.refind_radius, "refind_zncc": args.refind_zncc, "seed": args.seed,
+            "queue_size": args.queue, "drop_policy": policy, "point_ids": "P0 is point 0",
+            "threads": args.threads,
+        }
+        if record_path:
+            # The simulator's clock starts at 0 ns; cameras keep the recorder's default (Unix time).
+            recorder = _open_recorder(record_path, metadata, say, start_time_ns=0 if scheme == "synthetic" else None)
+        if viewer_note:
+            say(viewer_note)
+        logger = RerunLogger(viewer_mode, viewer_target, recording_name=os.path.basename(stem),
+                             image_max_side=args.image_max_side)
+
+        session = {}
+
+        def make_tracker(frame):
+            points, roi_used, step_used = build_points(
+                frame.image.shape, roi=roi, step=args.step, n_points=args.n_points, subset=args.subset,
+                p0=p0_arg, points=given_points)
+            tracker = Tracker(frame.image, points, subset=args.subset, search=args.search, subpixel=args.subpixel,
+                              seed_radius=args.seed_radius, refind_radius=args.refind_radius,
+                              refind_zncc=args.refind_zncc, seed=args.seed)
+            session.update(points=points, roi=roi_used, step=step_used, shape=frame.image.shape)
+            note = (f"reference frame {frame.index}: {len(points)} points"
+                    + (f", grid step {step_used} px over ROI {','.join(map(str, roi_used))}" if given_points is None
+                       else f" from {args.points}")
+                    + f"; P0 = point 0 at ({points[0, 0]:g}, {points[0, 1]:g})")
+            has_truth = callable((frame.metadata or {}).get("truth"))
+            logger.start(image_shape=frame.image.shape, roi=roi_used, p0_index=0, points=points,
+                         has_truth=has_truth, title=f"livedic run: {args.source}", source_settings=settings)
+            logger.event(note)
+            if recorder is not None:
+                recorder.write_event("note", note)
+            return tracker
+
+        queue = FrameQueue(args.queue, policy)
+        on_frame = (lambda item: recorder.write_frame(_for_recording(item.frame))) if recorder is not None else None
+        acquisition = AcquisitionThread(source, queue, max_frames=args.frames, on_frame=on_frame)
+        stop_event = threading.Event()
+        bar = ProgressBar(total, enabled=show_progress)
+        method = f"{args.search}+{args.subpixel}"
+
+        def record_results(result, stats):
+            m = result.measurement
+            frame = result.frame
+            recorder.write_results(
+                frame.index, frame.timestamp_ns, np.arange(m.u.size, dtype=np.uint32), m.x, m.y, m.u, m.v,
+                m.zncc, m.ok, ux=m.ux, uy=m.uy, vx=m.vx, vy=m.vy, status=m.status.astype(np.int32),
+                iterations=m.iterations, method=method, processing_ns=result.processing_ns,
+                latency_ns=result.latency_ns, reference_frame_index=loop.reference_frame.index,
+                dropped_frames=result.dropped_since_last)
+            if result.dropped_since_last:
+                recorder.write_event("drop", f"{result.dropped_since_last} frame(s) dropped by the queue before "
+                                     f"frame {frame.index} (total {result.dropped_total})", level="warning")
+
+        def progress(result, stats):
+            text = (f"{stats.fps:5.1f} fps  latency p50 {stats.latency_ms(50):5.1f} ms  "
+                    f"drops {result.dropped_total}")
+            if math.isfinite(result.error_rms_px):
+                text += f"  error {result.error_rms_px:.3f} px"
+            bar.update(acquisition.frames, text)
+
+        sinks = []
+        if recorder is not None:
+            sinks.append(record_results)
+        if logger.enabled:
+            sinks.append(logger)
+        sinks.append(progress)
+        loop = TrackerLoop(queue, make_tracker, sinks=sinks, stop_event=stop_event)
+
+        def request_stop():
+            acquisition.stop()
+
+        with _Interrupt(request_stop) as interrupt:
+            acquisition.start()
+            try:
+                loop.run()
+            finally:
+                acquisition.stop()
+                queue.close()          # frees a put blocked on a full queue ("block" policy)
+                acquisition.join(timeout=10.0)
+        bar.update(acquisition.frames, bar.last_text, force=True)
+        bar.close()
+        stats = loop.stats
+        for sink, error in loop.sink_errors:
+            name = "recording" if sink is record_results else "Rerun display" if sink is logger else "progress"
+            say(f"warning: {name} stopped during the session: {type(error).__name__}: {error}")
+            if recorder is not None and sink is not record_results:
+                recorder.write_event("note", f"{name} stopped: {error}", level="warning")
+        if interrupt.received:
+            say(f"stopped on {interrupt.received}; the recording is closed properly")
+            if recorder is not None:
+                recorder.write_event("note", f"session stopped on {interrupt.received}")
+        if acquisition.error is not None and recorder is not None:
+            recorder.write_event("camera_lost", str(acquisition.error), level="error")
+            logger.event(f"source failed: {acquisition.error}", level="error")
+
+        summary = stats.summary()
+        summary.update(source=args.source, method=method, acquired=acquisition.frames,
+                       lost_upstream=_lost_upstream(acquisition), stopped_by=interrupt.received,
+                       recording=record_path if recorder is not None else None,
+                       rerun=f"{viewer_mode} {viewer_target}" if viewer_target else viewer_mode,
+                       points_shape=list(session.get("shape", ())), roi=list(session.get("roi", ())) or None,
+                       step=session.get("step"), viewer_log_ms_per_frame=(
+                           1e3 * logger.log_seconds / logger.frames_logged if logger.frames_logged else None))
+        text = format_summary(summary, stats, session, recorder)
+        logger.log_summary("```\n" + text + "\n```")
+    finally:
+        if acquisition is not None and acquisition.is_alive():
+            acquisition.stop()
+            acquisition.join(timeout=10.0)
+        elif acquisition is None:
+            source.close()
+        if recorder is not None:
+            recorder.close()
+        if logger is not None:
+            logger.close()
+    if recorder is not None and recorder.error:
+        say(f"warning: recording stopped early: {recorder.error}")
+    print(text, flush=True)
+    if args.summary_json:
+        with open(args.summary_json, "w") as handle:
+            json.dump(summary, handle, indent=2, default=str)
+    if acquisition.error is not None:
+        raise acquisition.error if isinstance(acquisition.error, SourceError) else SourceError(str(acquisition.error))
+    if stats.frames == 0:
+        raise SourceError(f"{args.source} delivered no frame")
+    return 0
+
+
+def _default_roi(source):
+    """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
+    roi = getattr(source, "suggested_roi", None)
+    if roi is not None:
+        return tuple(int(v) for v in roi)
+    session = getattr(source, "session", None)
+    if isinstance(session, dict) and isinstance(session.get("roi"), (list, tuple)) and len(session["roi"]) == 4:
+        return tuple(int(v) for v in session["roi"])
+    return None
+
+
+def _drop_policy(choice, source, scheme):
+    """Queue policy: as chosen, or (auto) drop the oldest for live sources and block for files."""
+    from stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST
+    if choice != "auto":
+        return {"oldest": DROP_OLDEST, "newest": DROP_NEWEST, "block": BLOCK}[choice]
+    if scheme in ("aravis", "v4l2"):
+        return DROP_OLDEST
+    if scheme == "synthetic":
+        return DROP_OLDEST if source.options.get("pace", True) else BLOCK
+    return DROP_OLDEST if getattr(source, "realtime", False) else BLOCK
+
+
+# Per-process keys that mean nothing in a recording (the host's monotonic clock).
+_VOLATILE_METADATA = ("capture_monotonic_ns",)
+
+
+def _for_recording(frame):
+    """``frame`` without the per-process metadata keys (same image, no copy)."""
+    metadata = frame.metadata
+    if not isinstance(metadata, dict) or not any(key in metadata for key in _VOLATILE_METADATA):
+        return frame
+    import dataclasses
+    kept = {k: v for k, v in metadata.items() if k not in _VOLATILE_METADATA}
+    return dataclasses.replace(frame, metadata=kept)
+
+
+def _safe_settings(source):
+    try:
+        settings = dict(source.settings)
+    except Exception as error:  # noqa: BLE001 - settings are informative only
+        settings = {"settings_error": f"{type(error).__name__}: {error}"}
+    return settings
+
+
+def _open_recorder(path, metadata, say, start_time_ns=None):
+    try:
+        from stream.recorder import Recorder
+    except ImportError as error:
+        say(f"warning: not recording ({error}); use --no-record to silence this")
+        return None
+    directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)
+    return Recorder(path, metadata, start_time_ns=start_time_ns,
+                    on_error=lambda message: say(f"warning: recording stopped: {message}"))
+
+
+def _lost_upstream(acquisition):
+    """Frames the source skipped (gaps in its frame indices), not counting queue drops."""
+    if acquisition.first_index is None:
+        return 0
+    return max(0, (acquisition.last_index - acquisition.first_index + 1) - acquisition.frames)
+
+
+def format_summary(summary, stats, session, recorder):
+    """The end-of-run text (plain, a few aligned lines)."""
+    def num(value, fmt):
+        return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
+
+    lines = [f"livedic run: {summary['source']}  ({summary['method']})"]
+    lines.append(f"  frames     {summary['frames']} tracked of {summary['acquired']} acquired; "
+                 f"{summary['dropped']} dropped by the queue, {summary['lost_upstream']} lost upstream")
+    points = session.get("points")
+    if points is not None:
+        lines.append(f"  points     {len(points)} (P0 at {points[0, 0]:g}, {points[0, 1]:g}); "
+                     f"{num(100 * summary['ok_fraction'], '.1f')} % ok; {summary['refound']} re-found")
+    lines.append(f"  rate       {num(summary['fps'], '.1f')} fps, {num(summary['poi_per_s'], ',.0f')} POI/s")
+    lines.append(f"  latency    p50 {num(summary['latency_p50_ms'], '.1f')} ms, "
+                 f"p99 {num(summary['latency_p99_ms'], '.1f')} ms from frame {summary['latency_from']} to result "
+                 f"(tracking p50 {num(summary['processing_p50_ms'], '.1f')} ms, "
+                 f"p99 {num(summary['processing_p99_ms'], '.1f')} ms)")
+    extra = f"reference set-up {num(summary['setup_ms'], '.0f')} ms"
+    if summary.get("delivery_delay_p99_ms") is not None:
+        extra += f"; frame delivery delay p99 {num(summary['delivery_delay_p99_ms'], '.1f')} ms"
+    if summary.get("viewer_log_ms_per_frame") is not None:
+        extra += f"; Rerun logging {num(summary['viewer_log_ms_per_frame'], '.1f')} ms/frame"
+    lines.append(f"             {extra}")
+    if summary.get("error_rms_px") is not None:
+        lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
+                     f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
+    if recorder is not None:
+        size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
+        lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
+                     f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
+    lines.append(f"  rerun      {summary['rerun']}")
+    if summary.get("stopped_by"):
+        lines.append(f"  stopped    on {summary['stopped_by']}")
+    return "\n".join(lines)

@@ -1,0 +1,264 @@
+"""The consumer side of a live session: queue -> tracker -> sinks, with running statistics.
+
+One linear loop (the Rerun examples' shape): take the next frame, track it,
+time it, hand the result to each sink (recorder, Rerun logger, progress bar),
+update the statistics. The first frame becomes the reference: the tracker is
+built from it (``make_tracker(frame)``) and it is reported with zero
+displacement. The loop ends when the queue is closed and drained (source
+finished, failed or stopped), when ``stop_event`` is set, or after
+``max_frames`` results.
+
+Timing, all on the host's monotonic clock:
+
+* **latency** = results ready - frame arrival in the acquisition thread
+  (queue wait + tracking), per frame; when the source says when it captured the
+  frame on this clock (``Frame.metadata["capture_monotonic_ns"]``, the paced
+  simulator does) latency counts from that capture instead, so a delivery held
+  up by the tracker (numba kernels hold the GIL, and the acquisition thread
+  needs it to hand a frame over) is not hidden; that hold-up is reported as
+  ``delivery delay``. The reference frame is left out of the latency statistics
+  (it pays for building the tracker) and its setup time is reported on its own;
+* **processing** = time inside ``Tracker.track``;
+* **fps** = frames tracked / (last result - first arrival);
+* **POI/s** = points tracked per second of that same wall time.
+
+A sink that raises is switched off and its error kept in ``sink_errors`` (a
+broken viewer must not stop a measurement); the caller decides what to do.
+"""
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stream.frame_queue import QueueClosed
+
+# A capture time further than this before arrival is not trusted (another clock, another process).
+_MAX_DELIVERY_NS = 10_000_000_000
+
+
+@dataclass
+class FrameResult:
+    """What the loop hands to sinks for one frame."""
+    frame: object                 # acquire.base.Frame
+    arrival_ns: int               # time.monotonic_ns() when acquisition got it
+    done_ns: int                  # results ready
+    processing_ns: int            # inside Tracker.track
+    measurement: object           # dic.result.Measurement
+    is_reference: bool
+    frames_done: int              # results so far, this one included
+    dropped_total: int            # frames the queue has dropped so far
+    dropped_since_last: int       # ... since the previous result
+    queue_depth: int              # frames waiting after this one was taken
+    refind_attempts: int = 0
+    refound: int = 0
+    error_rms_px: float = float("nan")   # against the truth (synthetic sources), ok points
+    error_max_px: float = float("nan")
+    capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
+
+    @property
+    def origin_ns(self):
+        """Where latency starts: capture when known (and earlier than arrival), else arrival."""
+        if self.capture_ns is None:
+            return self.arrival_ns
+        return min(self.capture_ns, self.arrival_ns)
+
+    @property
+    def latency_ns(self):
+        return self.done_ns - self.origin_ns
+
+    @property
+    def delivery_delay_ns(self):
+        """Arrival in the acquisition thread - capture (None when the source gives no capture time)."""
+        return None if self.capture_ns is None else self.arrival_ns - self.capture_ns
+
+
+@dataclass
+class SessionStats:
+    """Running statistics of a session (see module notes for definitions)."""
+    n_points: int = 0
+    frames: int = 0
+    dropped: int = 0
+    first_arrival_ns: int = None
+    last_done_ns: int = None
+    setup_ns: int = 0
+    points_tracked: int = 0
+    points_ok: int = 0
+    refound: int = 0
+    latencies_ns: list = field(default_factory=list)
+    processing_ns: list = field(default_factory=list)
+    delivery_delays_ns: list = field(default_factory=list)
+    latency_from: str = "arrival"
+    error_sq_sum: float = 0.0
+    error_count: int = 0
+    error_max: float = float("nan")
+    truth_frames: int = 0
+
+    @property
+    def elapsed_s(self):
+        if self.first_arrival_ns is None or self.last_done_ns is None:
+            return 0.0
+        return (self.last_done_ns - self.first_arrival_ns) / 1e9
+
+    @property
+    def fps(self):
+        elapsed = self.elapsed_s
+        return (self.frames - 1) / elapsed if elapsed > 0 and self.frames > 1 else float("nan")
+
+    @property
+    def poi_per_s(self):
+        elapsed = self.elapsed_s
+        return self.points_tracked / elapsed if elapsed > 0 else float("nan")
+
+    def latency_ms(self, percentile):
+        if not self.latencies_ns:
+            return float("nan")
+        return float(np.percentile(np.asarray(self.latencies_ns), percentile)) / 1e6
+
+    def delivery_delay_ms(self, percentile):
+        if not self.delivery_delays_ns:
+            return float("nan")
+        return float(np.percentile(np.asarray(self.delivery_delays_ns), percentile)) / 1e6
+
+    def processing_ms(self, percentile):
+        if not self.processing_ns:
+            return float("nan")
+        return float(np.percentile(np.asarray(self.processing_ns), percentile)) / 1e6
+
+    @property
+    def error_rms_px(self):
+        return float(np.sqrt(self.error_sq_sum / self.error_count)) if self.error_count else float("nan")
+
+    @property
+    def ok_fraction(self):
+        return self.points_ok / self.points_tracked if self.points_tracked else float("nan")
+
+    def summary(self):
+        """Plain dict of the headline numbers (JSON-friendly)."""
+        return {
+            "frames": self.frames, "points": self.n_points, "elapsed_s": self.elapsed_s, "fps": self.fps,
+            "poi_per_s": self.poi_per_s, "latency_p50_ms": self.latency_ms(50), "latency_p99_ms": self.latency_ms(99),
+            "latency_max_ms": self.latency_ms(100), "processing_p50_ms": self.processing_ms(50),
+            "processing_p99_ms": self.processing_ms(99), "latency_from": self.latency_from,
+            "delivery_delay_p99_ms": self.delivery_delay_ms(99) if self.delivery_delays_ns else None,
+            "setup_ms": self.setup_ns / 1e6, "dropped": self.dropped,
+            "ok_fraction": self.ok_fraction, "refound": self.refound,
+            "error_rms_px": self.error_rms_px if self.truth_frames else None,
+            "error_max_px": self.error_max if self.truth_frames else None,
+        }
+
+
+class TrackerLoop:
+    """Consume ``queue`` until it ends; see module notes.
+
+    Parameters
+    ----------
+    queue : FrameQueue
+        Holds ``stream.acquisition.QueuedFrame`` items.
+    make_tracker : callable
+        ``make_tracker(first_frame) -> dic.tracking.Tracker`` (built on the reference).
+    sinks : sequence of callables
+        ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order.
+    stop_event : threading.Event, optional
+        Set to end the loop after the current frame.
+    max_frames : int, optional
+        End after this many results.
+    poll_s : float
+        How often to look at ``stop_event`` while waiting for a frame.
+    """
+
+    def __init__(self, queue, make_tracker, *, sinks=(), stop_event=None, max_frames=None, poll_s=0.05):
+        self.queue = queue
+        self.make_tracker = make_tracker
+        self.sinks = list(sinks)
+        self.stop_event = stop_event or threading.Event()
+        self.max_frames = max_frames
+        self.poll_s = poll_s
+        self.tracker = None
+        self.stats = SessionStats()
+        self.sink_errors = []
+        self.reference_frame = None
+        self.ended_by = None
+
+    def run(self):
+        """Run to the end; returns the ``SessionStats``."""
+        last_dropped = 0
+        while True:
+            if self.stop_event.is_set():
+                self.ended_by = "stop"
+                break
+            if self.max_frames is not None and self.stats.frames >= self.max_frames:
+                self.ended_by = "limit"
+                break
+            try:
+                item = self.queue.get(timeout=self.poll_s)
+            except QueueClosed:
+                self.ended_by = "source"
+                break
+            if item is None:
+                continue
+            frame = item.frame
+            stats = self.stats
+            if stats.first_arrival_ns is None:
+                stats.first_arrival_ns = item.arrival_ns
+            is_reference = self.tracker is None
+            t0 = time.monotonic_ns()
+            if is_reference:
+                self.tracker = self.make_tracker(frame)
+                self.reference_frame = frame
+                stats.n_points = self.tracker.n_points
+            measurement = self.tracker.track(frame.image)
+            done = time.monotonic_ns()
+            if is_reference:
+                stats.setup_ns = done - t0
+            dropped = self.queue.dropped
+            capture = frame.metadata.get("capture_monotonic_ns") if isinstance(frame.metadata, dict) else None
+            if capture is not None and not 0 <= item.arrival_ns - int(capture) < _MAX_DELIVERY_NS:
+                capture = None    # not from this process's clock (e.g. copied from a recording)
+            result = FrameResult(frame=frame, arrival_ns=item.arrival_ns, done_ns=done, processing_ns=done - t0,
+                                 measurement=measurement, is_reference=is_reference, frames_done=stats.frames + 1,
+                                 dropped_total=dropped, dropped_since_last=dropped - last_dropped,
+                                 queue_depth=len(self.queue),
+                                 refind_attempts=self.tracker.last_refind_attempts,
+                                 refound=int(self.tracker.last_refound.sum()),
+                                 capture_ns=int(capture) if capture is not None else None)
+            last_dropped = dropped
+            self._update(result)
+            for sink in list(self.sinks):
+                try:
+                    sink(result, stats)
+                except Exception as error:  # noqa: BLE001 - keep measuring, report later
+                    self.sinks.remove(sink)
+                    self.sink_errors.append((sink, error))
+        self.stats.dropped = self.queue.dropped
+        return self.stats
+
+    def _update(self, result):
+        stats = self.stats
+        m = result.measurement
+        stats.frames += 1
+        stats.last_done_ns = result.done_ns
+        stats.dropped = result.dropped_total
+        tracked = int(self.tracker.trackable.sum())
+        stats.points_tracked += tracked
+        stats.points_ok += int(m.ok.sum())
+        stats.refound += result.refound
+        if not result.is_reference:
+            stats.latencies_ns.append(result.latency_ns)
+            stats.processing_ns.append(result.processing_ns)
+            if result.capture_ns is not None:
+                stats.delivery_delays_ns.append(result.delivery_delay_ns)
+                stats.latency_from = "capture"
+        truth = result.frame.metadata.get("truth") if isinstance(result.frame.metadata, dict) else None
+        if callable(truth) and m.ok.any():   # a replayed recording holds only its text form
+            tu, tv = truth(m.x[m.ok], m.y[m.ok])
+            err = np.hypot(m.u[m.ok] - tu, m.v[m.ok] - tv)
+            result.error_rms_px = float(np.sqrt(np.mean(err * err)))
+            result.error_max_px = float(err.max())
+            if not result.is_reference:
+                stats.truth_frames += 1
+                stats.error_sq_sum += float(np.sum(err * err))
+                stats.error_count += int(err.size)
+                if not stats.error_max >= result.error_max_px:
+                    stats.error_max = result.error_max_px

@@ -1,0 +1,127 @@
+"""Tracker: seeded frame-to-frame tracking against a reference, re-finding, grids."""
+
+import numpy as np
+import pytest
+
+from acquire.synthetic import SyntheticTranslateSource
+from dic.status import Status
+from dic.tracking import Tracker, grid_in_roi, step_for_count
+
+
+def _translate_frames(query):
+    source = SyntheticTranslateSource(f"synthetic:translate?pace=0&{query}")
+    with source:
+        return source, list(source)
+
+
+def _errors(frame, m):
+    tu, tv = frame.metadata["truth"](m.x, m.y)
+    return np.hypot(m.u - tu, m.v - tv)
+
+
+# --------------------------------------------------------------------------- grids
+
+def test_grid_stays_in_roi_and_image_and_is_centred():
+    points = grid_in_roi((200, 300), (40, 30, 101, 80), 10, 21)
+    x, y = points[:, 0], points[:, 1]
+    assert x.min() - 10 >= 40 and x.max() + 10 <= 140 and y.min() - 10 >= 30 and y.max() + 10 <= 109
+    assert np.all(np.diff(np.unique(x)) == 10) and np.all(np.diff(np.unique(y)) == 10)
+    assert abs((x.min() - 40) - (140 - x.max())) <= 1       # centred
+    clipped = grid_in_roi((100, 100), (-50, -50, 400, 400), 20, 11)   # ROI beyond the image: clipped to it
+    assert clipped.min() >= 5 and clipped.max() <= 94
+    assert len(grid_in_roi((64, 64), None, 8, 21)) == 36      # centres 10..53 hold 6 steps of 8
+
+
+@pytest.mark.parametrize("roi, step, subset, words", [
+    ((0, 0, 10, 10), 5, 21, "cannot hold"), ((0, 0, 50, 50), 0, 21, "step"),
+    ((0, 0, 50, 50), 5, 20, "odd"), ((0, 0, -5, 50), 5, 21, "positive"), ((0, 0, 5), 5, 21, "four"),
+])
+def test_bad_grid_raises(roi, step, subset, words):
+    with pytest.raises(ValueError, match=words):
+        grid_in_roi((100, 100), roi, step, subset)
+
+
+def test_step_for_count_gives_about_the_wanted_number():
+    roi = (346, 185, 332, 655)
+    step = step_for_count(roi, 1000, 21)
+    assert 800 <= len(grid_in_roi((1024, 1024), roi, step, 21)) <= 1250
+
+
+# --------------------------------------------------------------------------- tracking
+
+@pytest.mark.parametrize("search, subpixel", [("improved-wso", "icgn"), ("none", "icgn"),
+                                              ("improved-wso", "improved-surface-fit")])
+def test_follows_a_translation_sequence(search, subpixel):
+    source, frames = _translate_frames("frames=16&size=160x160&du=0.35&dv=-0.2&noise=1")
+    points = grid_in_roi(source.shape, source.suggested_roi, 16, 21)
+    tracker = Tracker(frames[0].image, points, search=search, subpixel=subpixel)
+    first = tracker.track(frames[0].image)
+    assert first.ok.all() and np.allclose(first.u, 0, atol=0.005) and np.allclose(first.v, 0, atol=0.005)
+    for frame in frames[1:]:
+        m = tracker.track(frame.image)
+        assert m.ok.all()
+        assert np.max(_errors(frame, m)) < 0.05
+    assert tracker.frames_tracked == len(frames)
+
+
+def test_refinds_points_after_a_jump():
+    """A 14 px jump is far beyond the 2 px seed box: the wide search must bring the points back."""
+    source, frames = _translate_frames("frames=14&size=224x224&du=0.2&dv=0.1&jump=10:14:-6&noise=1")
+    points = grid_in_roi(source.shape, (56, 56, 112, 112), 16, 21)
+    tracker = Tracker(frames[0].image, points, seed_radius=2, refind_radius=20)
+    for frame in frames[:10]:
+        tracker.track(frame.image)
+        assert tracker.last_refind_attempts <= 2
+    m = tracker.track(frames[10].image)
+    assert tracker.last_refound.sum() >= 0.8 * len(points)
+    assert m.ok.all() and np.max(_errors(frames[10], m)) < 0.05
+    for frame in frames[11:]:
+        m = tracker.track(frame.image)
+        assert m.ok.all() and np.max(_errors(frame, m)) < 0.05
+        assert tracker.last_refind_attempts == 0      # back to cheap seeded tracking
+
+
+def test_points_without_texture_are_reported_never_searched():
+    source, frames = _translate_frames("frames=3&size=128x128&du=0.5&dv=0&noise=0")
+    reference = frames[0].image.copy()
+    reference[:, :40] = 100                        # a flat band (no speckle)
+    moved = frames[1].image.copy()
+    moved[:, :40] = 100
+    tracker = Tracker(reference, [(20.0, 64.0), (80.0, 64.0), (3.0, 3.0)])
+    assert tracker.trackable.tolist() == [False, True, False]
+    m = tracker.track(moved)
+    assert m.status[0] == Status.FLAT_REFERENCE and m.status[2] == Status.OUTSIDE_REFERENCE
+    assert m.ok.tolist() == [False, True, False] and np.isnan(m.u[0])
+    assert abs(m.u[1] - 0.5) < 0.05 and tracker.last_refind_attempts == 0
+
+
+def test_icgn_window_grows_with_large_displacements():
+    """IC-GN reads only a window of each frame; a displacement beyond its room re-prepares a bigger one."""
+    source, frames = _translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
+    points = grid_in_roi(source.shape, (100, 100, 56, 56), 14, 21)
+    tracker = Tracker(frames[0].image, points, seed_radius=3)
+    start = tracker.window
+    assert start[1] - start[0] < 256
+    for frame in frames[1:]:
+        m = tracker.track(frame.image)
+        assert m.ok.all() and np.max(_errors(frame, m)) < 0.05
+    grown = tracker.window
+    assert (grown[1] - grown[0]) > (start[1] - start[0])
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"search": "bogus"}, "unknown search"), ({"subpixel": "bogus"}, "unknown sub-pixel"),
+    ({"subset": 8}, "odd"), ({"seed_radius": -1}, "radius"), ({"refind_zncc": "high"}, "refind_zncc"),
+    ({"refind_search": "none"}, "re-find search"), ({"refind_fallback": "bogus"}, "fallback"),
+])
+def test_bad_arguments_raise(kwargs, words):
+    image = np.random.default_rng(0).uniform(0, 255, (64, 64))
+    with pytest.raises(ValueError, match=words):
+        Tracker(image, [(32, 32)], **kwargs)
+
+
+def test_frame_of_another_size_raises():
+    image = np.random.default_rng(0).uniform(0, 255, (64, 64))
+    tracker = Tracker(image, [(32, 32)], search="none")
+    with pytest.raises(ValueError, match="frames must keep the size"):
+        tracker.track(image[:60])

@@ -1,0 +1,380 @@
+"""Live pipeline: frame queue, acquisition thread, tracker loop, URI dispatch, ``livedic run`` end to end."""
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from acquire.base import Frame, FrameSource, SourceError
+from acquire.sources import open_source, parse_scheme
+from acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
+from stream.acquisition import AcquisitionThread, QueuedFrame
+from stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
+from stream.run import add_run_arguments, build_points, run_session
+from stream.tracker_loop import TrackerLoop
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _item(i):
+    return QueuedFrame(Frame(i, i * 1000, np.zeros((2, 2), np.uint8), "Mono8"), i)
+
+
+class ListSource(FrameSource):
+    """Frames 0..n-1 (optionally failing after ``fail_after``), records whether it was closed."""
+
+    def __init__(self, n, *, fail_after=None, error=None, period_s=0.0):
+        self.n, self.fail_after, self.error, self.period_s = n, fail_after, error, period_s
+        self.closed = False
+
+    def __iter__(self):
+        for i in range(self.n):
+            if self.fail_after is not None and i == self.fail_after:
+                raise self.error
+            if self.period_s:
+                time.sleep(self.period_s)
+            yield Frame(i, i * 1_000_000, np.full((4, 4), i % 256, np.uint8), "Mono8")
+
+    def close(self):
+        self.closed = True
+
+
+# --------------------------------------------------------------------------- frame queue
+
+def test_drop_oldest_keeps_the_newest_and_counts():
+    queue = FrameQueue(3, DROP_OLDEST)
+    victims = [queue.put(_item(i)) for i in range(10)]
+    assert queue.dropped == 7 and queue.put_count == 10
+    assert [v.frame.index for v in victims if v is not None] == list(range(7))
+    assert [queue.get().frame.index for _ in range(3)] == [7, 8, 9]
+    assert list(queue.dropped_indices) == list(range(7))
+
+
+def test_drop_newest_keeps_the_oldest_and_counts():
+    queue = FrameQueue(3, DROP_NEWEST)
+    for i in range(10):
+        queue.put(_item(i))
+    assert queue.dropped == 7
+    assert [queue.get().frame.index for _ in range(3)] == [0, 1, 2]
+
+
+def test_block_policy_waits_for_room_and_close_releases_it():
+    queue = FrameQueue(2, BLOCK)
+    queue.put(_item(0))
+    queue.put(_item(1))
+    done = []
+    producer = threading.Thread(target=lambda: done.append(queue.put(_item(2))))
+    producer.start()
+    time.sleep(0.05)
+    assert not done                                  # waiting for room
+    assert queue.get().frame.index == 0
+    producer.join(1.0)
+    assert done == [None] and queue.dropped == 0 and len(queue) == 2
+    blocked = threading.Thread(target=lambda: pytest.raises(QueueClosed, queue.put, _item(3)))
+    blocked.start()
+    time.sleep(0.05)
+    queue.close()
+    blocked.join(1.0)
+    assert not blocked.is_alive()
+
+
+def test_get_times_out_then_drains_and_raises_after_close():
+    queue = FrameQueue(2)
+    start = time.monotonic()
+    assert queue.get(timeout=0.05) is None
+    assert time.monotonic() - start >= 0.04
+    queue.put(_item(1))
+    queue.close()
+    assert queue.get().frame.index == 1
+    with pytest.raises(QueueClosed):
+        queue.get(timeout=1.0)
+    with pytest.raises(QueueClosed):
+        queue.put(_item(2))
+
+
+def test_close_wakes_a_waiting_consumer():
+    queue = FrameQueue(2)
+    outcome = []
+
+    def consume():
+        try:
+            queue.get(timeout=5.0)
+        except QueueClosed:
+            outcome.append("closed")
+
+    thread = threading.Thread(target=consume)
+    thread.start()
+    time.sleep(0.05)
+    queue.close()
+    thread.join(1.0)
+    assert outcome == ["closed"]
+
+
+def test_bad_queue_settings_raise():
+    with pytest.raises(ValueError, match="positive"):
+        FrameQueue(0)
+    with pytest.raises(ValueError, match="drop policy"):
+        FrameQueue(2, "drop-random")
+
+
+@pytest.mark.parametrize("policy", [DROP_OLDEST, DROP_NEWEST])
+def test_slow_consumer_never_blocks_the_producer(policy):
+    """Producer at ~1 kHz, consumer at ~100 Hz: every frame is either consumed, dropped or left over."""
+    queue = FrameQueue(4, policy)
+    produced, consumed, put_times = 300, [], []
+
+    def produce():
+        for i in range(produced):
+            t = time.perf_counter()
+            queue.put(_item(i))
+            put_times.append(time.perf_counter() - t)
+            time.sleep(0.001)
+        queue.close()
+
+    def consume():
+        while True:
+            try:
+                item = queue.get(timeout=1.0)
+            except QueueClosed:
+                return
+            if item is not None:
+                consumed.append(item.frame.index)
+                time.sleep(0.01)
+
+    threads = [threading.Thread(target=produce), threading.Thread(target=consume)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+    assert len(consumed) + queue.dropped == produced
+    assert queue.dropped > produced / 2
+    assert consumed == sorted(consumed)
+    assert max(put_times) < 0.05       # put never waits for the consumer
+    if policy == DROP_OLDEST:
+        assert consumed[-1] == produced - 1      # the newest frame is always processed
+
+
+# --------------------------------------------------------------------------- acquisition thread
+
+def test_acquisition_surfaces_a_source_error():
+    source = ListSource(10, fail_after=3, error=SourceError("camera lost: cable unplugged"))
+    queue = FrameQueue(8)
+    thread = AcquisitionThread(source, queue)
+    thread.start()
+    thread.join(5)
+    assert not thread.is_alive()
+    assert isinstance(thread.error, SourceError) and "cable" in str(thread.error)
+    assert thread.finished_reason == "error" and thread.frames == 3
+    assert source.closed and queue.closed
+    assert [queue.get().frame.index for _ in range(3)] == [0, 1, 2]
+    with pytest.raises(SourceError, match="cable"):
+        thread.raise_error()
+
+
+def test_acquisition_wraps_an_unexpected_exception():
+    thread = AcquisitionThread(ListSource(5, fail_after=1, error=ZeroDivisionError("boom")), FrameQueue(4))
+    thread.start()
+    thread.join(5)
+    assert isinstance(thread.error, SourceError) and "ZeroDivisionError" in str(thread.error)
+
+
+def test_acquisition_stops_on_request_and_at_the_limit():
+    source = ListSource(10_000, period_s=0.002)
+    queue = FrameQueue(4)
+    seen = []
+    thread = AcquisitionThread(source, queue, on_frame=lambda item: seen.append(item.arrival_ns))
+    thread.start()
+    time.sleep(0.1)
+    thread.stop()
+    thread.join(2)
+    assert not thread.is_alive() and thread.finished_reason == "stopped" and source.closed and queue.closed
+    assert 5 < thread.frames < 10_000 and len(seen) >= thread.frames
+    assert seen == sorted(seen)
+    limited = AcquisitionThread(ListSource(100), FrameQueue(200), max_frames=7)
+    limited.start()
+    limited.join(2)
+    assert limited.frames == 7 and limited.finished_reason == "limit"
+    assert (limited.first_index, limited.last_index) == (0, 6)
+
+
+# --------------------------------------------------------------------------- tracker loop
+
+def test_tracker_loop_tracks_times_and_scores_against_the_truth():
+    from dic.tracking import Tracker
+    source = SyntheticTranslateSource("synthetic:translate?frames=12&size=128x128&du=0.3&dv=0.2&pace=0")
+    queue = FrameQueue(32)
+    acquisition = AcquisitionThread(source, queue)
+    seen = []
+
+    def make_tracker(frame):
+        points, _, _ = build_points(frame.image.shape, roi=(32, 32, 64, 64), step=16, n_points=0, subset=21)
+        return Tracker(frame.image, points)
+
+    loop = TrackerLoop(queue, make_tracker, sinks=[lambda result, stats: seen.append(result)])
+    acquisition.start()
+    stats = loop.run()
+    acquisition.join(5)
+    assert stats.frames == 12 and loop.ended_by == "source" and loop.reference_frame.index == 0
+    assert seen[0].is_reference and not seen[1].is_reference
+    assert len(stats.latencies_ns) == 11 and all(lat > 0 for lat in stats.latencies_ns)
+    assert stats.error_rms_px < 0.02 and stats.error_max < 0.06 and stats.truth_frames == 11
+    summary = stats.summary()
+    assert summary["points"] == 10 and summary["dropped"] == 0
+    assert summary["latency_p99_ms"] >= summary["latency_p50_ms"]
+    assert seen[-1].error_rms_px < 0.05
+
+
+def test_a_failing_sink_is_switched_off_not_fatal():
+    from dic.tracking import Tracker
+    source = SyntheticTranslateSource("synthetic:translate?frames=4&size=96x96&pace=0")
+    queue = FrameQueue(8)
+    acquisition = AcquisitionThread(source, queue)
+
+    def broken(result, stats):
+        raise OSError("viewer went away")
+
+    loop = TrackerLoop(queue, lambda f: Tracker(f.image, [(48.0, 48.0)]), sinks=[broken])
+    acquisition.start()
+    stats = loop.run()
+    assert stats.frames == 4 and len(loop.sink_errors) == 1 and "viewer" in str(loop.sink_errors[0][1])
+
+
+# --------------------------------------------------------------------------- URI dispatch
+
+def test_open_source_dispatches_on_the_scheme(tmp_path):
+    source = open_source("synthetic:translate?frames=2&size=64x64")
+    assert isinstance(source, SyntheticTranslateSource)
+    assert isinstance(open_source("synthetic:", frames=3, size=(96, 96)), SyntheticTensileSource)
+    assert parse_scheme("recordings/x.mcap") == "mcap" and parse_scheme("VIDEO:a.mkv") == "video"
+    with pytest.raises(SourceError, match="valid sources: synthetic"):
+        open_source("webcam:0")
+    with pytest.raises(SourceError, match="no scheme"):
+        open_source("frames/*.png")
+    with pytest.raises(SourceError, match="empty"):
+        open_source("  ")
+    with pytest.raises(SourceError, match="needs a recording"):
+        open_source("mcap:")
+    with pytest.raises(SourceError, match="realtime"):
+        open_source(f"mcap:{tmp_path / 'a.mcap'}?speed=2")
+    with pytest.raises(SourceError):
+        open_source(f"mcap:{tmp_path / 'missing.mcap'}")
+    with pytest.raises(SourceError):
+        open_source(f"images:{tmp_path / 'nothing_here_*.png'}")
+
+
+# --------------------------------------------------------------------------- livedic run
+
+def _parse(argv):
+    parser = argparse.ArgumentParser()
+    add_run_arguments(parser)
+    return parser.parse_args(argv)
+
+
+def test_run_session_end_to_end(tmp_path, capsys):
+    from rerun.chunk import RrdReader
+    rrd = tmp_path / "session.rrd"
+    mcap = tmp_path / "session.mcap"
+    summary_path = tmp_path / "summary.json"
+    args = _parse(["--source", "synthetic:tensile?size=192x256&fps=25&noise=0.5", "--frames", "40",
+                   "--n-points", "60", "--viewer", "save", str(rrd), "--record", str(mcap),
+                   "--summary-json", str(summary_path), "--progress", "off"])
+    assert run_session(args) == 0
+    out = capsys.readouterr().out
+    assert "frames" in out and "POI/s" in out and "p99" in out and "against the truth" in out
+    summary = json.loads(summary_path.read_text())
+    assert summary["acquired"] == 40 and summary["frames"] + summary["dropped"] == 40
+    assert summary["frames"] >= 10 and 40 <= summary["points"] <= 90
+    assert summary["error_rms_px"] < 0.05 and summary["error_max_px"] < 0.3 and summary["ok_fraction"] > 0.97
+    assert summary["fps"] > 0 and summary["latency_p50_ms"] > 0 and summary["poi_per_s"] > 0
+    assert summary["rerun"] == f"save {rrd}" and summary["recording"] == str(mcap)
+    # Rerun: the entities are there, and P0's u and v were logged for every tracked frame.
+    store = RrdReader(str(rrd)).stream().collect()
+    text = str(store.summary())
+    for path in ("/camera/image", "/camera/field_u", "/camera/field_v", "/camera/p0", "/p0", "/quality",
+                 "/perf/throughput", "/perf/latency", "/perf/drops", "/error", "/legend/u/bar", "/summary"):
+        assert f"{path} " in text, path
+    p0_rows = [row for c in RrdReader(str(rrd)).stream().to_chunks()
+               if str(c.entity_path) == "/p0" and not c.is_static
+               for row in c.to_record_batch().column("Scalars:scalars").to_pylist()]
+    assert len(p0_rows) == summary["frames"] and all(len(row) == 2 for row in p0_rows)   # u and v per frame
+    # The recording holds every acquired frame and one result per tracked frame, P0 first.
+    from acquire.mcap_replay import inspect_recording, read_events, read_results
+    info = inspect_recording(str(mcap))
+    assert info.indexed and not info.truncated and info.frames == 40
+    results = read_results(str(mcap))
+    assert len(results) == summary["frames"] and results[0].frame_index == 0
+    assert results[-1].point_id[0] == 0 and results[-1].method == "improved-wso+icgn"
+    assert any(event.kind == "note" and "P0" in event.message for event in read_events(str(mcap)))
+    # Replaying the recording tracks every frame (files block instead of dropping) over the recorded ROI.
+    replay_json = tmp_path / "replay.json"
+    args = _parse(["--source", f"mcap:{mcap}", "--frames", "12", "--no-record", "--viewer", "none",
+                   "--progress", "off", "--summary-json", str(replay_json)])
+    assert run_session(args) == 0
+    replay = json.loads(replay_json.read_text())
+    assert replay["frames"] == 12 and replay["dropped"] == 0 and replay["roi"] == summary["roi"]
+    assert replay["ok_fraction"] > 0.97 and replay["error_rms_px"] is None
+
+
+def test_run_session_options_are_checked(tmp_path):
+    for argv, words in ((["--subset", "20"], "odd"), (["--roi", "1,2,3"], "4 comma"),
+                        (["--record", str(tmp_path / "x.txt")], ".mcap"), (["--viewer", "save", "x.png"], ".rrd"),
+                        (["--viewer", "show"], "viewer mode"), (["--search", "magic"], "unknown search"),
+                        (["--subpixel", "none"], "sub-pixel")):
+        extra = [] if "--record" in argv else ["--no-record"]
+        with pytest.raises(ValueError, match=words):
+            run_session(_parse(argv + extra + ["--progress", "off"]))
+    with pytest.raises(SourceError, match="valid sources"):
+        run_session(_parse(["--source", "camera:1", "--no-record", "--viewer", "none"]))
+
+
+def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_path, monkeypatch):
+    import stream.run as run_module
+    from acquire import sources
+
+    def failing(uri, **options):
+        return ListSource(30, fail_after=12, error=SourceError("camera lost after 12 frames"), period_s=0.002)
+
+    monkeypatch.setattr(sources, "open_source", failing)
+    mcap = tmp_path / "lost.mcap"
+    args = _parse(["--source", "aravis:Fake_1", "--record", str(mcap), "--viewer", "none", "--progress", "off",
+                   "--roi", "0,0,4,4", "--subset", "3", "--step", "1"])
+    with pytest.raises(SourceError, match="camera lost"):
+        run_module.run_session(args)
+    from acquire.mcap_replay import inspect_recording, read_events
+    assert inspect_recording(str(mcap)).frames == 12
+    assert any(e.kind == "camera_lost" for e in read_events(str(mcap)))
+
+
+def test_sigint_stops_cleanly_and_finalises_the_recording(tmp_path):
+    mcap = tmp_path / "interrupted.mcap"
+    code = (f"import sys; sys.path.insert(0, {REPO!r}); "
+            "import argparse; from stream.run import add_run_arguments, run_session; "
+            "p = argparse.ArgumentParser(); add_run_arguments(p); "
+            "sys.exit(run_session(p.parse_args(sys.argv[1:])))")
+    process = subprocess.Popen(
+        [sys.executable, "-c", code, "--source", "synthetic:tensile?size=128x128&fps=20", "--frames", "400",
+         "--n-points", "20", "--record", str(mcap), "--viewer", "none", "--progress", "off"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=str(tmp_path))
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not mcap.exists():
+            time.sleep(0.1)
+        time.sleep(1.5)
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, err
+    assert "stopped on SIGINT" in err and "stopped    on SIGINT" in out
+    from acquire.mcap_replay import inspect_recording, read_results
+    info = inspect_recording(str(mcap))
+    assert info.indexed and not info.truncated and 5 < info.frames < 400
+    assert len(read_results(str(mcap))) >= 5
