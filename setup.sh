@@ -43,6 +43,6 @@ say "installing livedic and its dependencies into $venv"
 case "$mode" in
   install) say "done: activate with 'source $venv/bin/activate' or call $venv/bin/livedic" ;;
   test) exec "$venv/bin/python" -m pytest -q ;;
-  run) exec "$venv/bin/livedic" bench paper --quick ;;
+  run) exec "$venv/bin/livedic" run ;;
   *) say "unknown mode '$mode': use run, test or install"; exit 2 ;;
 esac

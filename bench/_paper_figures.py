@@ -142,7 +142,7 @@ def draw_all(results, cfg, out):
 def _fig09(plt, block, sigma, cfg):
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
     for ax, key, title in ((axes[0], "success_pct", "(a) success = exhaustive-search argmax"),
-                           (axes[1], "truth_pct", "(b) success = within 0.5 px of the true (d, d)")):
+                           (axes[1], "truth_pct", "(b) success = within 0.5 px of the true shift")):
         for method in SEARCHES + (REFERENCE_SEARCH,):
             rows = [r for r in block["rows"] if r["method"] == method]
             if not rows or (method == REFERENCE_SEARCH and key == "success_pct"):
@@ -151,7 +151,7 @@ def _fig09(plt, block, sigma, cfg):
             if method == REFERENCE_SEARCH:
                 style.update(ls=":", lw=1.0, label="exhaustive (reference)")
             ax.plot([r["displacement"] for r in rows], [r[key] for r in rows], **style)
-        ax.set_xlabel("displacement d (translation (d, d)), px")
+        ax.set_xlabel("displacement magnitude d (eight compass directions), px")
         ax.set_title(title)
         ax.set_xticks(list(cfg.int_displacements))
     axes[0].set_ylabel("search success rate, %")

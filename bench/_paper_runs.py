@@ -15,6 +15,7 @@ import numpy as np
 SEARCHES = ("coarse-fine", "pso", "wso", "improved-wso")
 REFERENCE_SEARCH = "exhaustive"
 # Sub-pixel methods compared in Figs 11/12 and Table 1.
+QUANTISATION_SD = 1.0 / np.sqrt(12.0)
 SUBPIXELS = ("surface-fit", "gradient", "newton-raphson", "improved-surface-fit", "icgn")
 SUBPIXEL_MODULES = {
     "surface-fit": "dic.subpixel.surface_fit",
@@ -208,11 +209,26 @@ def integer_points(cfg):
     return grid_points(lo, hi, cfg.int_step)
 
 
+_COMPASS = ((1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1))
+
+
+def compass_shift(d, index):
+    """Integer (u, v) of length about ``d`` in the ``index``-th of eight compass directions.
+
+    Axis directions give (+-d, 0) or (0, +-d); diagonals (+-r, +-r) with r = round(d / sqrt 2).
+    """
+    cx, cy = _COMPASS[index % len(_COMPASS)]
+    step = d if cx == 0 or cy == 0 else max(1, int(round(d / np.sqrt(2.0))))
+    return float(cx * step), float(cy * step)
+
+
 def run_integer(cfg, images, sigma, log):
     """Success rate, time and evaluations of every integer search, per displacement.
 
-    Each displacement d in ``cfg.int_displacements`` is the diagonal translation
-    (u, v) = (d, d) of ``cfg.int_patterns`` patterns, points on ``integer_points``.
+    Each displacement magnitude d in ``cfg.int_displacements`` translates each of
+    ``cfg.int_patterns`` patterns by an integer shift of about that length in one
+    of eight compass directions (``compass_shift``), so every true shift lies
+    inside the +-radius box whatever its direction; points on ``integer_points``.
     Returns {"rows": [per (method, d) dict], "points_per_pair": n}.
     """
     from dic.search import integer_search
@@ -224,7 +240,8 @@ def run_integer(cfg, images, sigma, log):
     for k, d in enumerate(cfg.int_displacements):
         t0 = time.perf_counter()
         for p in range(cfg.int_patterns):
-            reference, deformed = images.pair(p, (d, d), sigma, ("int", p, d))
+            du, dv = compass_shift(d, p)
+            reference, deformed = images.pair(p, (du, dv), sigma, ("int", p, d))
             seed = cfg.seed + 1000 * p + k
             kwargs = dict(subset=cfg.subset, radius=cfg.search_radius, seed=seed)
             results = {}
@@ -247,7 +264,7 @@ def run_integer(cfg, images, sigma, log):
                 acc["n"] += int(valid.sum())
                 acc["failed"] += int((valid & (res.status != 0)).sum())
                 acc["success"] += int((ok & (res.u == ex.u) & (res.v == ex.v)).sum())
-                acc["truth"] += int((ok & (np.abs(res.u - d) <= 0.5) & (np.abs(res.v - d) <= 0.5)).sum())
+                acc["truth"] += int((ok & (np.abs(res.u - du) <= 0.5) & (np.abs(res.v - dv) <= 0.5)).sum())
                 acc["evaluations"] += int(res.evaluations[valid].sum())
                 acc["calls"] += int(res.calls[valid].sum())
         images.forget_clean()
@@ -360,6 +377,8 @@ def run_subpixel(cfg, images, sigma, log, *, repeats=1):
     fit = {}
     fit_targets = [s for s in cfg.sub_displacements if any(abs(s - t) < 1e-9 for t in cfg.fit_displacements)]
     predictions = {}
+    # Noise-free integer images still carry rounding noise: uniform, SD 1/sqrt(12) grey level per image.
+    prediction_sigma = sigma if sigma > 0 else (QUANTISATION_SD if cfg.bit_depth is not None else 0.0)
     t_all = time.perf_counter()
     for k, s in enumerate(cfg.sub_displacements):
         for p in range(cfg.sub_patterns):
@@ -367,9 +386,9 @@ def run_subpixel(cfg, images, sigma, log, *, repeats=1):
             start = integer_search(reference, deformed, points, method=REFERENCE_SEARCH, subset=cfg.subset,
                                    radius=cfg.start_radius)
             ref32, def32 = as_float_image(reference), as_float_image(deformed)
-            if sigma > 0 and p not in predictions:
+            if prediction_sigma > 0 and p not in predictions:
                 clean = images.render(p, None, 0.0, ())
-                predictions[p] = icgn_noise_prediction(clean, points, half, sigma)
+                predictions[p] = icgn_noise_prediction(clean, points, half, prediction_sigma)
             best = {m: np.inf for m in SUBPIXELS}
             out = {}
             for r in range(repeats):
@@ -422,7 +441,7 @@ def run_subpixel(cfg, images, sigma, log, *, repeats=1):
                   stage_time_s=times, stage_us_per_point={m: 1e6 * t / max(n_refined, 1) for m, t in times.items()},
                   failed_methods=guard.failed)
     if predictions and per_point:
-        result["icgn_noise"] = _noise_check(cfg, per_point, predictions, sigma)
+        result["icgn_noise"] = _noise_check(cfg, per_point, predictions, prediction_sigma)
     return result
 
 

@@ -90,7 +90,7 @@ def _causal_init(line, n, z):
     return acc / (1.0 - z2n)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _filter_rows(src, out):
     """Prefilter each row of ``src`` (H, W) into the interior of padded ``out``."""
     z = POLE
@@ -118,7 +118,7 @@ def _filter_rows(src, out):
             out[r + PAD, k + PAD] = GAIN * line[k]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _filter_columns(out, height, width):
     """Prefilter the columns of the interior of padded ``out`` in place, 64 columns per task."""
     z = POLE
@@ -316,7 +316,7 @@ def value_gradient_at(coeffs, x, y):
     return val, gx, gy
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, out_v, out_gx, out_gy):
     for i in prange(xs.shape[0]):
         x = xs[i]

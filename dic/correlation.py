@@ -105,7 +105,7 @@ def subset_inside(shape0, shape1, cx, cy, reach):
     return cx - reach >= 0 and cy - reach >= 0 and cx + reach < shape1 and cy + reach < shape0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _zncc_batch(reference, target, xs, ys, us, vs, half, out_c, out_status):
     n_side = 2 * half + 1
     for i in prange(xs.shape[0]):

@@ -71,7 +71,7 @@ def diff2_y(image, r, c):
     return float(image[r, c] - image[r - 1, c])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _gradient_batch(image, fourth, gx, gy):
     """Fill gx, gy (H, W) with the gradients of ``image`` (H, W)."""
     h, w = image.shape

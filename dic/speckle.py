@@ -299,7 +299,7 @@ def _window(centre, reach, n):
     return lo, max(hi - lo + 1, 0)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _splat_translation(xs, ys, u, v, radius, reach, integrate, out):
     """Add the spots centred at (xs + u, ys + v) into ``out`` (H, W).
 
@@ -436,7 +436,7 @@ def _accumulate(candx, candy, n_cand, X, Y, n_pix, weight, inv_r2, cut2, acc):
             acc[i] += e if t < cut2 else 0.0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _gather_tiles(kind, p, table, Xa, Ya, weight, nodes, weights, gx, gy, start, ncx, ncy, x0, y0, cell,
                   inv_r2, cut2, reach, lo_x, hi_x, lo_y, hi_y, out, excess):
     """out[r, c] += sum_q w_q I(X_q, Y_q) over _TILE x _TILE pixel tiles.
@@ -535,7 +535,7 @@ def _gather_tiles(kind, p, table, Xa, Ya, weight, nodes, weights, gx, gy, start,
         excess[ty] = worst
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _to_grey(image, scale, noise, full, out):
     """out = round(clip(scale * image + noise, 0, full)); ``noise`` is (H, W) or (0, 0) for none."""
     H, W = image.shape
@@ -548,7 +548,7 @@ def _to_grey(image, scale, noise, full, out):
             out[r, c] = np.rint(min(max(g, 0.0), full))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _invert_1d_table(coords, A, k, phase, table, ok):
     """table[j] = t solving t + A sin(k t + phase) = coords[j]; ok[j] its success flag."""
     for j in prange(coords.shape[0]):

@@ -49,7 +49,7 @@ def _search_one(fhat, target, x, y, half, cu, cv, ulo, uhi, vlo, vhi, step, cach
     return bu, bv, bc
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, cus, cvs, half, step, status,
            out_u, out_v, out_c, out_evals, out_calls):
     """Search every point; arrays (N,), status updated in place."""

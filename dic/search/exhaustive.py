@@ -30,7 +30,7 @@ def _search_one(fhat, target, x, y, half, ulo, uhi, vlo, vhi, cache, counts):
     return bu, bv, bc
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, half, status,
            out_u, out_v, out_c, out_evals, out_calls):
     """Search every point; arrays (N,), status updated in place."""

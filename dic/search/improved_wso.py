@@ -418,7 +418,7 @@ def _search_one(fhat, target, x, y, half, ulo, uhi, vlo, vhi, n, n_iter, mu, p_m
     return round_half_up(pbest[g, 0]), round_half_up(pbest[g, 1]), pfit[g]
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, half, seed, n, n_iter, mu, p_min, p_max, a1, a2,
            sd_tol, tent_a, polish, boundary, sd_of, stall, vmax, method, starts, source, sep, status,
            out_u, out_v, out_c, out_evals, out_calls):

@@ -103,7 +103,7 @@ def _search_one(fhat, target, x, y, half, ulo, uhi, vlo, vhi, n, n_iter, c1, c2,
     return round_half_up(pbest[g, 0]), round_half_up(pbest[g, 1]), pfit[g]
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, half, seed, n, n_iter, c1, c2, w_start, w_end,
            v_frac, patience, status, out_u, out_v, out_c, out_evals, out_calls):
     """Search every point; arrays (N,), status updated in place."""

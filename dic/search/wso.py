@@ -195,7 +195,7 @@ def _search_one(fhat, target, x, y, half, cu, cv, ulo, uhi, vlo, vhi, n, n_iter,
     return cu + round_half_up(gbest[0]), cv + round_half_up(gbest[1]), gbest_fit
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, cus, cvs, half, seed, n, n_iter, paper, fix_gbest,
            mu, status, out_u, out_v, out_c, out_evals, out_calls):
     """Search every point; arrays (N,), status updated in place."""

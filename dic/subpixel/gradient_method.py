@@ -145,7 +145,7 @@ def _gradient_one(reference, deformed, x0, y0, half, u0, v0, fourth):
     return _OK, iu + du, iv + dv, zncc
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _gradient_batch(reference, deformed, xs, ys, half, u0, v0, fourth, status, out_u, out_v, out_zncc):
     for i in prange(xs.shape[0]):
         out_u[i] = np.nan

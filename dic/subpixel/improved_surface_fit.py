@@ -220,7 +220,7 @@ def _refine_one(reference, target, x, y, u0, v0, half, spacing, m, L, ix, ph, lr
     return OK
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, u0s, v0s, half, spacing, m, L, ix, ph, lr, rr, wts, n_pop, n_iter, sd_tol,
            seed, status, out_u, out_v, out_c, out_evals):
     """Refine every point with status OK; arrays (N,), status updated in place.

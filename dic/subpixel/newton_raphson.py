@@ -279,7 +279,7 @@ def _nr_one(coeffs, height, width, x0, y0, half, ftilde, fnorm, p, order, projec
     return _NOT_CONVERGED, zncc, max_iterations
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _nr_batch(reference, coeffs, xs, ys, half, params, status, order, projected, max_iterations, tolerance,
               out_zncc, out_iter):
     """Refine every point whose status is OK; params (N, 6) in/out, status (N,) in/out."""

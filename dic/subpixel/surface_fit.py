@@ -71,7 +71,7 @@ def _refine_one(reference, target, x, y, u0, v0, half, max_moves, fhat, out):
     return OK
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, parallel=True, nogil=True)
 def _batch(reference, target, xs, ys, u0s, v0s, half, max_moves, status, out_u, out_v, out_c):
     """Refine every point with status OK; arrays (N,), status updated in place."""
     side = 2 * half + 1
