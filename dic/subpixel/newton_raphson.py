@@ -47,7 +47,7 @@ Part 2. Improved digital image correlation", Exp. Mech. 38:86-92 (1998),
 import numpy as np
 from numba import njit, prange
 
-from dic.bspline import PAD, derivative_weights, prefilter, weights
+from dic.bspline import PAD, prefilter, value_gradient_at
 from dic.result import SubpixelResult
 from dic.status import Status
 from dic.validation import as_image, check_same_shape
@@ -130,36 +130,7 @@ def _nr_sums(coeffs, x0, y0, half, ftilde, p, acc, r):
             dx = float(i - half)
             xw = bx + (1.0 + ux) * dx
             yw = by + vx * dx
-            ix = int(xw)
-            iy = int(yw)
-            tx = xw - ix
-            ty = yw - iy
-            wx0, wx1, wx2, wx3 = weights(tx)
-            wy0, wy1, wy2, wy3 = weights(ty)
-            dx0, dx1, dx2, dx3 = derivative_weights(tx)
-            dy0, dy1, dy2, dy3 = derivative_weights(ty)
-            g = 0.0
-            gx = 0.0
-            gy = 0.0
-            for m in range(4):
-                row = iy - 1 + m
-                c0 = coeffs[row, ix - 1]
-                c1 = coeffs[row, ix]
-                c2 = coeffs[row, ix + 1]
-                c3 = coeffs[row, ix + 2]
-                rv = wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3
-                rd = dx0 * c0 + dx1 * c1 + dx2 * c2 + dx3 * c3
-                if m == 0:
-                    wy, dw = wy0, dy0
-                elif m == 1:
-                    wy, dw = wy1, dy1
-                elif m == 2:
-                    wy, dw = wy2, dy2
-                else:
-                    wy, dw = wy3, dy3
-                g += wy * rv
-                gx += wy * rd
-                gy += dw * rv
+            g, gx, gy = value_gradient_at(coeffs, xw - PAD, yw - PAD)
             ft = ftilde[k]
             k += 1
             acc[0] += g

@@ -1,0 +1,527 @@
+"""``livedic replay``: re-run tracking offline on a recording's frames.
+
+``livedic replay FILE.mcap [-o OUT.csv] [method options] [--all-frames]``
+
+The recorded frames are tracked again with a ``dic.tracking.Tracker`` built the way
+``livedic run`` builds it. Every option that is not given is taken from the
+recording's session metadata (``subset``, ``search``, ``subpixel``, ``seed_radius``,
+``refind_radius``, ``refind_zncc``, ``seed``; the point grid from ``roi``, ``step``,
+``n_points_wanted``, ``p0``), so with no options the replay repeats the live run.
+
+Which frames are tracked matters for exactness. A live run may drop frames when
+the tracker falls behind, and each frame starts from the result of the previous
+*processed* frame; so by default the replay tracks exactly the frames that have
+recorded results (``/dic/results``), in the recorded order, against the recorded
+reference frame, with the recorded points (the ``x, y`` of the results). With
+the recorded parameters its ``u, v, zncc, ok`` are then bit-for-bit the recorded
+ones. ``--all-frames`` tracks every recorded frame from the reference on, also
+those the live run dropped (the numbers then differ where frames were dropped, as
+the seeds differ). Changed parameters keep the recorded frame set unless
+``--all-frames`` is given; point options (``--roi``, ``--points``, ``--step``,
+``--n-points``, ``--p0``) rebuild the points on the reference frame as ``run`` does.
+
+The output CSV (``-o``, default stdout) is in long format, one row per frame and
+point: ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for
+first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``; numbers at full
+precision (they read back as the same float64). At the end a line on stderr says
+whether the replay equals the recording, e.g. ``replay matches the recording
+exactly: 300 frames x 1059 points``, or by how much it differs.
+
+Truncated recordings (crash, kill, disk full) are replayed on what can be recovered.
+"""
+
+import argparse
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
+                           read_session_or_note, reader_notes, result_columns, say)
+
+METHOD_KEYS = ("subset", "search", "subpixel", "seed_radius", "refind_radius", "refind_zncc", "seed")
+_INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
+
+
+def add_replay_arguments(parser):
+    """Add the ``livedic replay`` arguments to an ``argparse`` (sub)parser."""
+    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
+    parser.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
+    method = parser.add_argument_group("method options (default: the recorded value)")
+    method.add_argument("--subset", type=int, metavar="N", help="odd subset side, pixels")
+    method.add_argument("--search", metavar="NAME", help=f"integer search: {', '.join(SEARCH_METHODS)}")
+    method.add_argument("--subpixel", metavar="NAME",
+                        help=f"sub-pixel method: {', '.join(m for m in SUBPIXEL_METHODS if m != 'none')}")
+    method.add_argument("--seed-radius", type=int, metavar="R", help="search radius around the previous result, px")
+    method.add_argument("--refind-radius", type=int, metavar="R", help="search radius for re-finding lost points, px")
+    method.add_argument("--refind-zncc", type=float, metavar="Z", help="re-find points whose ZNCC falls below Z")
+    method.add_argument("--seed", type=int, help="seed of the stochastic searches")
+    points = parser.add_argument_group("point options (default: the recorded points)")
+    where = points.add_mutually_exclusive_group()
+    where.add_argument("--roi", metavar="X,Y,W,H", help="grid over this region of interest")
+    where.add_argument("--points", metavar="FILE.csv", help="track these points (CSV with header x,y)")
+    points.add_argument("--step", type=int, metavar="S", help="grid step in pixels")
+    points.add_argument("--n-points", type=int, metavar="N", help="points wanted when --step is not given")
+    points.add_argument("--p0", metavar="X,Y", help="the traced point P0 (point 0)")
+    parser.add_argument("--all-frames", action="store_true",
+                        help="track every recorded frame from the reference on, also those the live run dropped "
+                             "(default: exactly the frames with recorded results, in order: the replay then "
+                             "equals the recording bit for bit)")
+    parser.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1)")
+    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
+                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+    return parser
+
+
+# ----------------------------------------------------------------------------- parameters
+
+def run_defaults():
+    """The ``livedic run`` defaults of the method options (and ``n_points``)."""
+    from stream.run import add_run_arguments
+    parser = add_run_arguments(argparse.ArgumentParser(add_help=False))
+    return {key: parser.get_default(key) for key in METHOD_KEYS + ("n_points",)}
+
+
+def _recorded_value(key, value):
+    """``value`` as the type of ``key``, or None when it is missing or of the wrong type."""
+    if isinstance(value, bool) or value is None:
+        return None
+    if key in _INT_KEYS:
+        if isinstance(value, (int, np.integer)):
+            return int(value)
+        if isinstance(value, float) and value.is_integer():
+            return int(value)
+        return None
+    if key == "refind_zncc":
+        return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
+    return value if isinstance(value, str) and value else None
+
+
+def resolve_parameters(metadata, given, method_text=""):
+    """(parameters used, recorded parameters found, notes).
+
+    ``given``: the user's values (None = not given). A recorded value is taken
+    from the session metadata, else for search/sub-pixel from the results' method
+    text ("search+subpixel"), else ``livedic run``'s default (with a note).
+    """
+    defaults = run_defaults()
+    from_method = {}
+    if isinstance(method_text, str) and method_text.count("+") == 1:
+        from_method = dict(zip(("search", "subpixel"), method_text.split("+")))
+    used, recorded, notes = {}, {}, []
+    for key in METHOD_KEYS:
+        value = _recorded_value(key, metadata.get(key))
+        if value is None:
+            value = _recorded_value(key, from_method.get(key))
+        if value is not None:
+            recorded[key] = value
+        if given.get(key) is not None:
+            used[key] = given[key]
+        elif value is not None:
+            used[key] = value
+        else:
+            used[key] = defaults[key]
+            notes.append(f"the recording does not say which {key} it used: using livedic run's default "
+                         f"{defaults[key]}")
+    return used, recorded, notes
+
+
+def check_parameters(params, threads=None):
+    """ValueError (one line, as ``livedic run`` words it) for a bad method parameter."""
+    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    if params["subset"] < 3 or params["subset"] % 2 == 0:
+        raise ValueError(f"--subset must be an odd integer >= 3, got {params['subset']}")
+    if params["search"] not in SEARCH_METHODS:
+        raise ValueError(f"unknown search method {params['search']!r}: choose one of {', '.join(SEARCH_METHODS)}")
+    if params["subpixel"] not in SUBPIXEL_METHODS:
+        raise ValueError(f"unknown sub-pixel method {params['subpixel']!r}: "
+                         f"choose one of {', '.join(SUBPIXEL_METHODS)}")
+    if params["subpixel"] == "none":
+        raise ValueError("--subpixel none gives integer displacements only: choose a sub-pixel method (e.g. icgn)")
+    for name in ("seed_radius", "refind_radius"):
+        if params[name] < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {params[name]}")
+    if not -1.0 <= params["refind_zncc"] <= 1.0:
+        raise ValueError(f"--refind-zncc must be between -1 and 1, got {params['refind_zncc']}")
+    if threads is not None:
+        import numba
+        if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+            raise ValueError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {threads}")
+
+
+def _numbers(text, count, what, example):
+    try:
+        values = [float(part) for part in str(text).split(",")]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{what} must be {count} comma-separated numbers, e.g. {example}; got {text!r}")
+    return values
+
+
+@dataclass
+class PointOptions:
+    """The user's point options (None = not given)."""
+    roi: str = None
+    points: str = None
+    step: int = None
+    n_points: int = None
+    p0: str = None
+
+    @property
+    def given(self):
+        return any(value is not None for value in (self.roi, self.points, self.step, self.n_points, self.p0))
+
+    def check(self):
+        if self.roi is not None:
+            roi = [int(round(v)) for v in _numbers(self.roi, 4, "--roi", "100,50,400,800")]
+            if roi[2] <= 0 or roi[3] <= 0:
+                raise ValueError(f"--roi width and height must be positive, got {self.roi!r}")
+        if self.p0 is not None:
+            _numbers(self.p0, 2, "--p0", "512,400")
+        if self.step is not None and self.step < 1:
+            raise ValueError(f"--step must be a positive number of pixels, got {self.step}")
+        if self.n_points is not None and self.n_points < 1:
+            raise ValueError(f"--n-points must be >= 1, got {self.n_points}")
+
+
+def _list_of_numbers(value, count):
+    if isinstance(value, (list, tuple)) and len(value) == count and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+        return [float(v) for v in value]
+    return None
+
+
+def build_replay_points(shape, metadata, subset, options, recorded_xy):
+    """Points (P0 first) for ``options`` given on the command line, as ``livedic run`` builds them.
+
+    What the user did not give comes from the session metadata (ROI, step, points
+    wanted, P0); a recording made from a points file keeps its recorded points.
+    """
+    from stream.cli import read_points_csv
+    from stream.run import build_points
+    defaults = run_defaults()
+    given_points = None
+    if options.points is not None:
+        given_points = read_points_csv(options.points)
+    elif options.roi is None and options.step is None and options.n_points is None \
+            and metadata.get("points_file") not in (None, ""):
+        if recorded_xy is None:
+            raise ValueError(f"the recording tracked points from {metadata['points_file']}: give --points FILE.csv")
+        given_points = recorded_xy
+    roi = None
+    if options.roi is not None:
+        roi = [int(round(v)) for v in _numbers(options.roi, 4, "--roi", "100,50,400,800")]
+    else:
+        recorded_roi = _list_of_numbers(metadata.get("roi"), 4)
+        roi = [int(v) for v in recorded_roi] if recorded_roi else None
+    if options.step is not None:
+        step = options.step
+    elif options.roi is not None or options.n_points is not None:
+        step = None
+    else:
+        step = _recorded_value("subset", metadata.get("step"))     # an int or None (then from n_points)
+    n_points = options.n_points
+    if n_points is None:
+        n_points = _recorded_value("subset", metadata.get("n_points_wanted")) or defaults["n_points"]
+    p0 = _numbers(options.p0, 2, "--p0", "512,400") if options.p0 is not None \
+        else _list_of_numbers(metadata.get("p0"), 2)
+    points, _, _ = build_points(shape, roi=roi, step=step, n_points=n_points, subset=subset, p0=p0,
+                                points=given_points)
+    return points
+
+
+# ----------------------------------------------------------------------------- the replay
+
+@dataclass
+class ReplayReport:
+    """What a replay did and how it compares with the recording."""
+    path: str
+    params: dict
+    recorded_params: dict
+    changed: list                    # (name, recorded value or None, value used)
+    all_frames: bool = False
+    frames: int = 0                  # frames tracked (the reference included)
+    points: int = 0
+    recorded_frames: int = 0         # result sets in the recording
+    missing_frames: int = 0          # recorded result sets whose image is not in the file
+    extra_frames: int = 0            # frames tracked without recorded results (--all-frames)
+    skipped_before_reference: int = 0
+    same_points: bool = False
+    compared_frames: int = 0
+    mismatched_frames: int = 0
+    max_du: float = 0.0
+    max_dv: float = 0.0
+    max_dzncc: float = 0.0
+    ok_differs: int = 0              # point-frames whose ok differs
+    nan_differs: int = 0             # point-frames where one side is NaN and the other is not
+    seconds: float = 0.0
+    recorded_version: str = ""
+    notes: list = field(default_factory=list)
+
+    @property
+    def truncated(self):
+        return any("truncated" in note for note in self.notes)
+
+    @property
+    def exact(self):
+        """Every recorded frame that could be replayed is bit-for-bit equal (u, v, zncc, ok)."""
+        return self.same_points and self.compared_frames > 0 and self.mismatched_frames == 0 \
+            and self.compared_frames == self.recorded_frames - self.missing_frames
+
+    def verdict(self):
+        """One line for people: equal, or by how much it differs."""
+        changes = ", ".join(f"{name} {'?' if old is None else old} -> {new}" for name, old, new in self.changed)
+        size = f"{self.compared_frames} frames x {self.points} points"
+        if self.recorded_frames == 0:
+            return "the recording holds no results to compare with"
+        if not self.same_points:
+            return "the points differ from the recorded ones (point options given): not compared with the recording"
+        if self.compared_frames == 0:
+            return "no replayed frame has recorded results: not compared with the recording"
+        if self.exact:
+            if changes:
+                return f"replay with changed parameters ({changes}) still equals the recording exactly: {size}"
+            return f"replay matches the recording exactly: {size}"
+        text = (f"replay differs from the recording on {self.mismatched_frames} of {size}: max difference "
+                f"{_g(self.max_du)} px in u, {_g(self.max_dv)} px in v, {_g(self.max_dzncc)} in zncc; "
+                f"ok differs at {self.ok_differs} and NaN at {self.nan_differs} point-frames")
+        if changes:
+            return text + f" (changed parameters: {changes})"
+        if self.all_frames and self.extra_frames:
+            return text + (f" ({self.extra_frames} frames the live run dropped were tracked too, so later frames "
+                           f"start from other seeds)")
+        from stream.recorder import software_version
+        version = software_version()
+        if self.recorded_version and self.recorded_version != version:
+            return text + (f" with the recorded parameters: recorded with livedic {self.recorded_version}, "
+                           f"replayed with {version}")
+        return text + " with the recorded parameters"
+
+
+def _g(value):
+    return f"{value:.3g}"
+
+
+def _same_bits(a, b):
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    return (a.view(np.uint64) == b.view(np.uint64)) | (np.isnan(a) & np.isnan(b))
+
+
+def _compare(report, measurement, recorded):
+    if len(recorded.u) != len(measurement.u) or not np.array_equal(recorded.x, measurement.x) \
+            or not np.array_equal(recorded.y, measurement.y):
+        report.compared_frames += 1
+        report.mismatched_frames += 1
+        return
+    report.compared_frames += 1
+    same = np.asarray(measurement.ok, dtype=bool) == np.asarray(recorded.ok, dtype=bool)
+    report.ok_differs += int((~same).sum())
+    for name in ("u", "v", "zncc"):
+        a = np.asarray(getattr(measurement, name), dtype=np.float64)
+        b = np.asarray(getattr(recorded, name), dtype=np.float64)
+        same &= _same_bits(a, b)
+        report.nan_differs += int((np.isnan(a) != np.isnan(b)).sum())
+        both = np.isfinite(a) & np.isfinite(b)
+        if both.any():
+            attribute = {"u": "max_du", "v": "max_dv", "zncc": "max_dzncc"}[name]
+            setattr(report, attribute, max(getattr(report, attribute), float(np.max(np.abs(a[both] - b[both])))))
+    if not same.all():
+        report.mismatched_frames += 1
+
+
+def replay(path, given=None, *, point_options=None, all_frames=False, on_result=None, progress=None,
+           threads=1):
+    """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
+
+    Parameters
+    ----------
+    path : str
+        A livedic recording (complete or truncated).
+    given : dict, optional
+        Method parameters to use instead of the recorded ones (``METHOD_KEYS``; None = recorded).
+    point_options : PointOptions, optional
+        Rebuild the points (default: the recorded ones).
+    all_frames : bool
+        Track every frame from the reference on, not only those with recorded results.
+    on_result : callable, optional
+        ``on_result(frame, measurement, point_ids)`` for each tracked frame, in order.
+    progress : callable, optional
+        ``progress(frames_done)``.
+    threads : int
+        numba threads while tracking.
+
+    Raises
+    ------
+    ValueError
+        Bad parameters, or a recording that is missing, not MCAP, not livedic,
+        corrupt, or holds nothing to replay (``RecordingError`` is a ValueError).
+    SourceError
+        The frames cannot be read (``RecordingSourceError``).
+    """
+    from acquire.mcap_replay import McapSource, iter_results
+    from dic.tracking import Tracker
+
+    path = os.fspath(path)
+    point_options = point_options or PointOptions()
+    point_options.check()
+    with reader_notes() as notes:
+        metadata, session_note = read_session_or_note(path)
+        results = list(iter_results(path))
+        params, recorded_params, param_notes = resolve_parameters(
+            metadata, given or {}, results[0].method if results else "")
+        check_parameters(params, threads)
+        notes.extend(param_notes)
+        if session_note:
+            notes.append(session_note)
+        changed = [(key, recorded_params.get(key), params[key]) for key in METHOD_KEYS
+                   if (given or {}).get(key) is not None and recorded_params.get(key) != params[key]]
+        report = ReplayReport(path=path, params=params, recorded_params=recorded_params, changed=changed,
+                              all_frames=all_frames, recorded_frames=len(results),
+                              recorded_version=str(metadata.get("software_version", "")), notes=notes)
+        if not results and not all_frames:
+            raise ValueError(f"{path} holds no tracking results (/dic/results) to replay: pass --all-frames to "
+                             f"track every recorded frame from the first one")
+        recorded = {}
+        for result in results:
+            recorded.setdefault((int(result.frame_index), int(result.timestamp_ns)), result)
+        reference_key = reference_index = None
+        recorded_xy = recorded_ids = None
+        if results:
+            first = results[0]
+            recorded_xy = np.column_stack([np.asarray(first.x, dtype=np.float64),
+                                           np.asarray(first.y, dtype=np.float64)])
+            recorded_ids = np.asarray(first.point_id)
+            if int(first.reference_frame_index) == int(first.frame_index):
+                reference_key = (int(first.frame_index), int(first.timestamp_ns))
+            else:
+                reference_index = int(first.reference_frame_index)
+                notes.append(f"the first recorded results are for frame {first.frame_index}, not for the reference "
+                             f"frame {reference_index}: the replay tracks the reference frame first, as live")
+        import numba
+        previous_threads = numba.get_num_threads()
+        numba.set_num_threads(threads)
+        tracker = None
+        point_ids = None
+        seen = set()
+        started = time.perf_counter()
+        try:
+            with McapSource(path) as source:
+                for frame in source:
+                    key = (int(frame.index), int(frame.timestamp_ns))
+                    if tracker is None:
+                        if (reference_key is not None and key != reference_key) or \
+                                (reference_index is not None and key[0] != reference_index):
+                            report.skipped_before_reference += 1
+                            continue
+                        if point_options.given or recorded_xy is None:
+                            points = build_replay_points(frame.image.shape, metadata, params["subset"],
+                                                         point_options, recorded_xy)
+                            point_ids = np.arange(len(points), dtype=np.uint32)
+                        else:
+                            points, point_ids = recorded_xy, recorded_ids
+                        tracker = Tracker(frame.image, points, subset=params["subset"], search=params["search"],
+                                          subpixel=params["subpixel"], seed_radius=params["seed_radius"],
+                                          refind_radius=params["refind_radius"],
+                                          refind_zncc=params["refind_zncc"], seed=params["seed"])
+                        report.points = tracker.n_points
+                        report.same_points = recorded_xy is not None and recorded_xy.shape == (tracker.n_points, 2) \
+                            and np.array_equal(recorded_xy[:, 0], tracker.x) \
+                            and np.array_equal(recorded_xy[:, 1], tracker.y)
+                    elif not all_frames and key not in recorded:
+                        continue
+                    measurement = tracker.track(frame.image)
+                    report.frames += 1
+                    match = recorded.get(key)
+                    if match is not None and key not in seen:
+                        seen.add(key)
+                        if report.same_points:
+                            _compare(report, measurement, match)
+                    else:
+                        report.extra_frames += 1
+                    if on_result is not None:
+                        on_result(frame, measurement, point_ids)
+                    if progress is not None:
+                        progress(report.frames)
+        finally:
+            numba.set_num_threads(previous_threads)
+        report.seconds = time.perf_counter() - started
+        if tracker is None:
+            what = f"reference frame {reference_key[0] if reference_key else reference_index}" if results \
+                else "frame"
+            raise ValueError(f"{path} holds no image of the {what} (/camera/image): nothing to replay")
+        report.missing_frames = len(recorded) - len(seen)
+        if report.missing_frames:
+            notes.append(f"{report.missing_frames} recorded result set(s) have no image in the file and were "
+                         f"not replayed")
+        if report.skipped_before_reference:
+            notes.append(f"{report.skipped_before_reference} frame(s) recorded before the reference frame were "
+                         f"skipped")
+    report.notes = list(notes)
+    return report
+
+
+# ----------------------------------------------------------------------------- the command
+
+def replay_command(args):
+    """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
+    from stream.run import ProgressBar
+
+    check_output_csv(args.output, args.recording)
+    given = {key: getattr(args, key) for key in METHOD_KEYS}
+    options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0)
+    to_file = args.output not in (None, "-")
+    show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
+    bar = ProgressBar(None, enabled=show_progress)
+    state = {"header": None}
+
+    def write_rows(out):
+        def on_result(frame, m, point_ids):
+            extras = {"status": np.asarray(m.status, dtype=np.int64)}
+            for name in ("ux", "uy", "vx", "vy", "iterations"):
+                value = getattr(m, name)
+                if value is not None:
+                    extras[name] = value
+            if state["header"] is None:
+                state["header"] = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras]
+                out.write(",".join(state["header"]) + "\n")
+            columns = result_columns(frame.index, frame.timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc,
+                                     m.ok, extras)
+            out.write(csv_rows(columns, len(m.u)))
+        return on_result
+
+    def progress(done):
+        bar.update(done, "frames replayed")
+
+    try:
+        if to_file:
+            with StagedFile(args.output) as out:
+                report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
+                                on_result=write_rows(out), progress=progress, threads=args.threads)
+                out.commit()
+        else:
+            report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
+                            on_result=write_rows(sys.stdout), progress=progress, threads=args.threads)
+            sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())        # keep Python's exit flush quiet
+        bar.close()
+        say("output closed early (broken pipe); replay stopped")
+        return 1
+    finally:
+        bar.close()
+    for note in report.notes:
+        say(f"note: {note}")
+    rate = f"{1e3 * report.seconds / report.frames:.0f} ms/frame" if report.frames else ""
+    where = f"; wrote {args.output}" if to_file else ""
+    frames_text = "every recorded frame from the reference on" if args.all_frames else "the recorded frame set"
+    say(f"replayed {report.frames} frames x {report.points} points ({frames_text}; "
+        f"{report.params['search']}+{report.params['subpixel']}) in {report.seconds:.1f} s ({rate}){where}")
+    say(report.verdict())
+    return 0

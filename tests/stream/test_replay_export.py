@@ -1,0 +1,281 @@
+"""``livedic replay`` and ``livedic export``: exact replay, other methods, dropped frames, truncated files,
+the CSV files, bad input, and the sample shipped in recordings/."""
+
+import csv
+import json
+import os
+
+import numpy as np
+import pytest
+
+from acquire.mcap_replay import read_results, read_session
+from stream.cli import main
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
+LEADING = ["frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok"]
+
+
+@pytest.fixture(autouse=True)
+def _no_debug(monkeypatch):
+    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """A small session recorded by ``livedic run`` in-process (unpaced: every frame tracked)."""
+    path = tmp_path_factory.mktemp("session") / "session.mcap"
+    code = main(["run", "--source", "synthetic:tensile?size=128x256&frames=12&noise=0.5&pace=0",
+                 "--record", str(path), "--viewer", "none", "--n-points", "60", "--progress", "off"])
+    assert code == 0 and path.exists()
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def dropped(tmp_path_factory):
+    """A recording whose live run 'dropped' frames 3, 6 and 7: all images, results only for the others."""
+    from dic.speckle import SpecklePattern, render
+    from dic.tracking import Tracker
+    from acquire.base import Frame
+    from stream.recorder import Recorder
+    from stream.run import build_points
+
+    path = tmp_path_factory.mktemp("dropped") / "dropped.mcap"
+    pattern = SpecklePattern((128, 160), n_speckles=400, seed=3)
+    images = [render(pattern, (0.3 * i, -0.2 * i), noise_sigma=0.5, noise_seed=i) for i in range(10)]
+    params = {"subset": 21, "search": "improved-wso", "subpixel": "icgn", "seed_radius": 2,
+              "refind_radius": 16, "refind_zncc": 0.8, "seed": 0}
+    metadata = dict(params, command="livedic run", source_uri="test:dropped", roi="full image", step=24,
+                    n_points_wanted=30, points_file=None, p0="ROI centre", point_ids="P0 is point 0")
+    points, _, _ = build_points(images[0].shape, roi=None, step=24, n_points=30, subset=21)
+    tracker = Tracker(images[0], points, **params)
+    tracked = [0, 1, 2, 4, 5, 8, 9]
+    with Recorder(str(path), metadata, start_time_ns=0) as recorder:
+        for i, image in enumerate(images):
+            recorder.write_frame(Frame(i, i * 20_000_000, image, "Mono8"))
+            if i in tracked:
+                m = tracker.track(image)
+                recorder.write_results(i, i * 20_000_000, np.arange(m.u.size, dtype=np.uint32), m.x, m.y, m.u,
+                                       m.v, m.zncc, m.ok, ux=m.ux, uy=m.uy, vx=m.vx, vy=m.vy,
+                                       status=m.status.astype(np.int32), iterations=m.iterations,
+                                       method="improved-wso+icgn", reference_frame_index=0,
+                                       dropped_frames={4: 1, 8: 2}.get(i, 0))
+    return str(path), tracked
+
+
+def _rows(path):
+    with open(path, newline="") as handle:
+        reader = csv.reader(handle)
+        header = next(reader)
+        return header, [dict(zip(header, row)) for row in reader]
+
+
+def _column(rows, name):
+    return np.array([float(row[name]) for row in rows])
+
+
+def _bits_equal(a, b):
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return bool(np.all((a.view(np.uint64) == b.view(np.uint64)) | (np.isnan(a) & np.isnan(b))))
+
+
+def _assert_equals_recorded(rows, results):
+    """The CSV rows hold exactly the recorded results, frame by frame, bit for bit."""
+    frames = [int(row["frame"]) for row in rows]
+    assert sorted(set(frames)) == [r.frame_index for r in results]
+    for result in results:
+        part = [row for row in rows if int(row["frame"]) == result.frame_index]
+        assert [int(row["point_id"]) for row in part] == result.point_id.tolist()
+        assert {int(row["timestamp_ns"]) for row in part} == {result.timestamp_ns}
+        for name in ("x", "y", "u", "v", "zncc"):
+            assert _bits_equal(_column(part, name), getattr(result, name)), (result.frame_index, name)
+        assert np.array_equal(_column(part, "ok").astype(bool), result.ok)
+
+
+def _one_error_line(err):
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("livedic: error: ") and "Traceback" not in err, err
+    return lines[0]
+
+
+# --------------------------------------------------------------------------- replay
+
+def test_replay_with_the_recorded_parameters_equals_the_recording_bit_for_bit(recording, tmp_path, capsys):
+    capsys.readouterr()
+    out = tmp_path / "replay.csv"
+    assert main(["replay", recording, "-o", str(out), "--progress", "off"]) == 0
+    err = capsys.readouterr().err
+    results = read_results(recording)
+    n = results[0].u.size
+    assert f"replay matches the recording exactly: {len(results)} frames x {n} points" in err
+    header, rows = _rows(out)
+    assert header[:9] == LEADING and header[9:] == ["status", "ux", "uy", "vx", "vy", "iterations"]
+    assert len(rows) == len(results) * n
+    _assert_equals_recorded(rows, results)
+    assert not [name for name in os.listdir(tmp_path) if name.startswith(".livedic-")]
+
+
+def test_replay_with_another_subpixel_method_runs_and_differs(recording, capsys):
+    capsys.readouterr()
+    assert main(["replay", recording, "--subpixel", "gradient", "--progress", "off"]) == 0   # CSV on stdout
+    captured = capsys.readouterr()
+    assert "subpixel icgn -> gradient" in captured.err and "differs from the recording" in captured.err
+    lines = captured.out.splitlines()
+    assert lines[0].split(",")[:9] == LEADING
+    rows = [dict(zip(lines[0].split(","), line.split(","))) for line in lines[1:]]
+    results = read_results(recording)
+    last = results[-1]
+    part = [row for row in rows if int(row["frame"]) == last.frame_index]
+    u, v = _column(part, "u"), _column(part, "v")
+    assert len(part) == last.u.size and not _bits_equal(u, last.u)
+    ok = np.isfinite(u) & np.isfinite(last.u)
+    assert ok.mean() > 0.9
+    assert np.median(np.abs(u[ok] - last.u[ok])) < 0.5 and np.median(np.abs(v[ok] - last.v[ok])) < 0.5
+
+
+def test_replay_tracks_the_recorded_frame_set_or_every_frame(dropped, tmp_path, capsys):
+    path, tracked = dropped
+    capsys.readouterr()
+    out = tmp_path / "replay.csv"
+    assert main(["replay", path, "-o", str(out), "--progress", "off"]) == 0
+    err = capsys.readouterr().err
+    assert f"replay matches the recording exactly: {len(tracked)} frames x" in err
+    _, rows = _rows(out)
+    _assert_equals_recorded(rows, read_results(path))
+    everything = tmp_path / "all.csv"
+    assert main(["replay", path, "--all-frames", "-o", str(everything), "--progress", "off"]) == 0
+    err = capsys.readouterr().err
+    assert "replayed 10 frames" in err
+    _, rows = _rows(everything)
+    assert sorted({int(row["frame"]) for row in rows}) == list(range(10))
+    assert np.mean([row["ok"] == "1" for row in rows]) > 0.95
+
+
+def test_replay_of_a_truncated_recording_uses_the_recovered_frames(recording, tmp_path, capsys):
+    half = tmp_path / "half.mcap"
+    data = open(recording, "rb").read()
+    half.write_bytes(data[:len(data) // 2])
+    recovered = read_results(str(half))
+    assert 0 < len(recovered) < len(read_results(recording))
+    capsys.readouterr()
+    out = tmp_path / "half.csv"
+    assert main(["replay", str(half), "-o", str(out), "--progress", "off"]) == 0
+    err = capsys.readouterr().err
+    assert "truncated" in err and f"replay matches the recording exactly: {len(recovered)} frames" in err
+    _, rows = _rows(out)
+    _assert_equals_recorded(rows, recovered)
+
+
+# --------------------------------------------------------------------------- export
+
+def test_export_writes_the_four_files_and_refuses_to_overwrite(recording, tmp_path, capsys):
+    target = tmp_path / "export"
+    capsys.readouterr()
+    assert main(["export", recording, "-o", str(target)]) == 0
+    assert sorted(os.listdir(target)) == ["events.csv", "fields.csv", "p0_trace.csv", "session.json"]
+    results = read_results(recording)
+    n = results[0].u.size
+    header, trace = _rows(target / "p0_trace.csv")
+    assert header == ["frame", "timestamp_ns", "time_s", "x", "y", "u", "v", "zncc", "ok"]
+    assert [int(row["frame"]) for row in trace] == [r.frame_index for r in results]
+    for name in ("x", "y", "u", "v", "zncc"):       # P0 is point 0 (session metadata "P0 is point 0")
+        assert _bits_equal(_column(trace, name), [getattr(r, name)[r.point_id == 0][0] for r in results])
+    assert _column(trace, "time_s")[0] == 0.0
+    assert np.allclose(_column(trace, "time_s"), [(r.timestamp_ns - results[0].timestamp_ns) / 1e9 for r in results])
+    header, fields = _rows(target / "fields.csv")
+    assert header[:9] == LEADING and len(fields) == len(results) * n
+    _assert_equals_recorded(fields, results)
+    header, events = _rows(target / "events.csv")
+    assert header[:4] == ["time", "kind", "level", "message"] and any("P0" in row["message"] for row in events)
+    session = json.loads((target / "session.json").read_text())
+    recorded = read_session(recording)
+    assert session["subpixel"] == recorded["subpixel"] == "icgn" and session["roi"] == recorded["roi"]
+    assert session["livedic.export"]["truncated"] is False and session["livedic.export"]["p0_id"] == 0
+
+    before = {name: (target / name).read_bytes() for name in os.listdir(target)}
+    capsys.readouterr()
+    assert main(["export", recording, "-o", str(target)]) == 2
+    assert "--overwrite" in _one_error_line(capsys.readouterr().err)
+    assert {name: (target / name).read_bytes() for name in os.listdir(target)} == before
+    assert main(["export", recording, "-o", str(target), "--overwrite"]) == 0
+    assert sorted(os.listdir(target)) == ["events.csv", "fields.csv", "p0_trace.csv", "session.json"]
+
+
+def test_export_of_a_truncated_recording_says_so(recording, tmp_path, capsys):
+    half = tmp_path / "half.mcap"
+    data = open(recording, "rb").read()
+    half.write_bytes(data[:len(data) // 2])
+    capsys.readouterr()
+    assert main(["export", str(half), "-o", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "note:" in err and "truncated" in err
+    session = json.loads((tmp_path / "out" / "session.json").read_text())
+    assert session["livedic.export"]["truncated"] is True
+    _, trace = _rows(tmp_path / "out" / "p0_trace.csv")
+    assert len(trace) == len(read_results(str(half))) > 0
+
+
+# --------------------------------------------------------------------------- bad input
+
+def _foreign_mcap(path):
+    from mcap.writer import Writer
+    with open(path, "wb") as handle:
+        writer = Writer(handle)
+        writer.start(profile="", library="another-program")
+        schema = writer.register_schema("Temperature", "jsonschema", b"{}")
+        channel = writer.register_channel("/temperature", "json", schema)
+        writer.add_message(channel, log_time=1, data=b'{"c": 21.5}', publish_time=1)
+        writer.finish()
+
+
+@pytest.mark.parametrize("case", ["missing", "text", "foreign", "export-onto-a-file", "replay-onto-the-recording",
+                                  "bad-method", "missing-points-file"])
+def test_bad_input_is_one_line_and_exit_2(case, recording, tmp_path, capsys):
+    text = tmp_path / "notes.mcap"
+    text.write_text("frame,u,v\n1,2,3\n")
+    foreign = tmp_path / "foreign.mcap"
+    _foreign_mcap(foreign)
+    existing = tmp_path / "existing.csv"
+    existing.write_text("keep me\n")
+    out = tmp_path / "out.csv"
+    argvs = {
+        "missing": [["replay", str(tmp_path / "nope.mcap")], ["export", str(tmp_path / "nope.mcap"), "-o",
+                                                              str(tmp_path / "d")]],
+        "text": [["replay", str(text), "-o", str(out)], ["export", str(text), "-o", str(tmp_path / "d")]],
+        "foreign": [["replay", str(foreign)], ["export", str(foreign), "-o", str(tmp_path / "d")]],
+        "export-onto-a-file": [["export", recording, "-o", str(existing)]],
+        "replay-onto-the-recording": [["replay", recording, "-o", recording]],
+        "bad-method": [["replay", recording, "--subpixel", "magic", "-o", str(out)],
+                       ["replay", recording, "--subset", "20"]],
+        "missing-points-file": [["replay", recording, "--points", str(tmp_path / "nope.csv"), "-o", str(out)]],
+    }[case]
+    words = {"missing": "does not exist", "text": "not an MCAP file", "foreign": "not written by livedic",
+             "export-onto-a-file": "existing file", "replay-onto-the-recording": ".mcap",
+             "bad-method": "", "missing-points-file": "does not exist"}[case]
+    size = os.path.getsize(recording)
+    for argv in argvs:
+        capsys.readouterr()
+        assert main(argv + (["--progress", "off"] if argv[0] == "replay" else [])) == 2, argv
+        assert words in _one_error_line(capsys.readouterr().err)
+    assert existing.read_text() == "keep me\n" and os.path.getsize(recording) == size
+    assert not out.exists() and not (tmp_path / "d").exists()
+    assert not [name for name in os.listdir(tmp_path) if name.startswith(".livedic-")]
+
+
+# --------------------------------------------------------------------------- the shipped sample
+
+def test_the_shipped_sample_replays_exactly_and_exports(tmp_path, capsys):
+    assert os.path.getsize(SAMPLE) < 5_000_000
+    readme = open(os.path.join(REPO, "recordings", "README.md")).read()
+    assert "livedic run --source" in readme and "sample-tensile.mcap" in readme
+    session = read_session(SAMPLE)
+    assert session["command"] == "livedic run" and "tensile" in session["source_uri"]
+    results = read_results(SAMPLE)
+    capsys.readouterr()
+    assert main(["replay", SAMPLE, "-o", str(tmp_path / "replay.csv"), "--progress", "off"]) == 0
+    assert (f"replay matches the recording exactly: {len(results)} frames x {results[0].u.size} points"
+            in capsys.readouterr().err)
+    assert main(["export", SAMPLE, "-o", str(tmp_path / "export")]) == 0
+    _, trace = _rows(tmp_path / "export" / "p0_trace.csv")
+    assert len(trace) == len(results) and all(row["ok"] == "1" for row in trace)
+    assert float(trace[-1]["v"]) < -0.5      # the top grip pulls upward: P0 moves up by the end of the test
