@@ -17,6 +17,8 @@ noise     camera noise, standard deviation in 8-bit grey levels       1.0
 seed      seed of the speckle pattern, grip jitter and noise          0
 radius    speckle radius R in px (Zhou-Goodson exp(-d^2/R^2))         4
 pace      1: deliver at ``fps`` in real time; 0: as fast as read      1
+loop      K >= 2: render only K frames of the test and cycle through  0 (off)
+          them forward and back (see below); 0: render every frame
 ========  ==========================================================  ===================
 
 ``synthetic:tensile`` adds ``strain`` (uniform plastic strain when the neck
@@ -31,6 +33,14 @@ rendered into memory before the first frame is delivered (``prepare``; about
 frames), then frames are handed out at ``fps`` from memory,
 so the rate a consumer sees is the camera's, not the renderer's. Frame
 timestamps are the simulated camera clock, ``index * 1e9 / fps`` ns.
+
+Long runs (soak tests): with ``loop=K`` (K < frames) only K frames are
+rendered, the test's schedule spanning those K frames, and the ``frames``
+delivered frames cycle through them forward and back, 0, 1 ... K-1, K-2 ... 1,
+0, 1 ... (a cyclic load-unload test, so the motion between two frames stays
+small). Frame indices and timestamps keep increasing; ``truth(i, ...)`` and
+the frame metadata are those of the rendered frame ``rendered_index(i)``.
+Memory is K frames, whatever ``frames`` is.
 
 The tensile test
 ----------------
@@ -102,7 +112,7 @@ PAINT_FLOOR = 0.06
 PAINT_GAIN = 0.88
 BACKGROUND_LEVEL = 0.10
 
-_COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True}
+_COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0}
 TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15)
 TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3, dv=-0.2, jump=None)
 
@@ -113,7 +123,7 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 
 def _usage():
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
-            "&strain=0.05&neck=0.15, or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
+            "&loop=0&strain=0.05&neck=0.15, or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
             "(same common options)")
 
 
@@ -154,7 +164,16 @@ def _convert_options(model, raw):
             out[key] = _CONVERTERS[key](value)
         except (TypeError, ValueError) as error:
             raise SourceError(f"synthetic:{model} option {key}={value!r}: {error}") from None
+    if out["loop"] == 1:
+        raise SourceError(f"synthetic:{model} option loop=1: must be 0 (off) or the number of frames to "
+                          "render and cycle through (>= 2)")
     return out
+
+
+def _rendered_count(options):
+    """Frames actually rendered: ``loop`` when it is on and below ``frames``, else ``frames``."""
+    loop = options["loop"]
+    return min(loop, options["frames"]) if loop else options["frames"]
 
 
 def _to_int(low):
@@ -230,7 +249,7 @@ def _to_jump(value):
 
 _CONVERTERS = {
     "frames": _to_int(2), "fps": _to_float(0.0, low_open=True), "size": _to_size, "bit": _to_bit,
-    "noise": _to_float(0.0), "seed": _to_int(0), "radius": _to_float(0.5), "pace": _to_bool,
+    "noise": _to_float(0.0), "seed": _to_int(0), "radius": _to_float(0.5), "pace": _to_bool, "loop": _to_int(0),
     "strain": _to_float(0.0), "neck": _to_float(0.0), "du": _to_float(), "dv": _to_float(), "jump": _to_jump,
 }
 
@@ -573,15 +592,16 @@ class _PrerenderedSource(FrameSource):
         width, height = options["size"]
         self.shape = (height, width)
         self.frames = options["frames"]
+        self.rendered_frames = _rendered_count(options)
         self.fps = options["fps"]
         self.bit = options["bit"]
         self.pixel_format = _PIXEL_FORMAT[self.bit]
-        nbytes = self.frames * width * height * (1 if self.bit == 8 else 2)
+        nbytes = self.rendered_frames * width * height * (1 if self.bit == 8 else 2)
         if nbytes > MAX_RENDER_BYTES:
             raise SourceError(
-                f"{uri}: {self.frames} frames of {width}x{height} at {self.bit} bit need "
+                f"{uri}: {self.rendered_frames} frames of {width}x{height} at {self.bit} bit need "
                 f"{nbytes / 2**30:.1f} GiB rendered ahead (limit {MAX_RENDER_BYTES / 2**30:.0f} GiB): "
-                "lower frames= or size=")
+                "lower frames= or size=, or render fewer and cycle them with loop=K")
         self._images = None
         self._lock = threading.Lock()
         self._closed = False
@@ -601,20 +621,36 @@ class _PrerenderedSource(FrameSource):
         return self.options["noise"] * self.full_scale / 255.0
 
     def prepare(self, progress=None):
-        """Render all frames into memory (idempotent); ``progress(done, total)`` after each."""
+        """Render the frames into memory (idempotent); ``progress(done, total)`` after each.
+
+        ``rendered_frames`` of them: all ``frames``, or ``loop`` when cycling.
+        """
         with self._lock:
             if self._images is not None:
                 return
             start = time.perf_counter()
             images = []
-            for i in range(self.frames):
+            for i in range(self.rendered_frames):
                 if self._closed:
                     raise SourceError(f"{self.uri}: closed while rendering")
                 images.append(self._render(i))
                 if progress is not None:
-                    progress(i + 1, self.frames)
+                    progress(i + 1, self.rendered_frames)
             self._images = images
             self.render_seconds = time.perf_counter() - start
+
+    def rendered_index(self, i):
+        """The rendered frame delivered as frame ``i``: ``i``, or its place in the forward-back cycle (loop)."""
+        k = self.rendered_frames
+        if k >= self.frames:
+            return i
+        m = i % (2 * (k - 1))
+        return m if m < k else 2 * (k - 1) - m
+
+    def _check_index(self, frame_index):
+        if not 0 <= frame_index < self.frames:
+            raise ValueError(f"frame index {frame_index} outside 0..{self.frames - 1}")
+        return self.rendered_index(frame_index)
 
     def frame_metadata(self, i):
         return {"synthetic": self.model_name,
@@ -624,7 +660,8 @@ class _PrerenderedSource(FrameSource):
         self.prepare()
         period_ns = 1e9 / self.fps
         start_ns = time.monotonic_ns()
-        for i, image in enumerate(self._images):
+        for i in range(self.frames):
+            image = self._images[self.rendered_index(i)]
             if self._closed:
                 return
             metadata = self.frame_metadata(i)
@@ -648,6 +685,8 @@ class _PrerenderedSource(FrameSource):
                          "pixel_format": self.pixel_format, "uri": self.uri,
                          "delivery": "rendered ahead, paced at fps" if self.options["pace"]
                          else "rendered ahead, as fast as read"})
+        if self.rendered_frames < self.frames:
+            settings["delivery"] += f"; {self.rendered_frames} rendered frames cycled forward and back"
         return settings
 
 
@@ -676,7 +715,7 @@ class SyntheticTensileSource(_PrerenderedSource):
             raise SourceError(f"{uri!r} is not a tensile URI: use synthetic:tensile?...")
         raw.update({k: v for k, v in options.items() if v is not None})
         opts = _convert_options("tensile", raw)
-        self.model = TensileModel((opts["size"][1], opts["size"][0]), opts["frames"], strain=opts["strain"],
+        self.model = TensileModel((opts["size"][1], opts["size"][0]), _rendered_count(opts), strain=opts["strain"],
                                   neck=opts["neck"], seed=opts["seed"])
         super().__init__(opts, uri)
         self._rows = np.arange(self.shape[0], dtype=np.float64)
@@ -697,14 +736,13 @@ class SyntheticTensileSource(_PrerenderedSource):
 
     def truth(self, frame_index, x, y):
         """Exact (u, v) at reference points (x, y) in frame ``frame_index``."""
-        if not 0 <= frame_index < self.frames:
-            raise ValueError(f"frame index {frame_index} outside 0..{self.frames - 1}")
-        return self.model.displacement(frame_index, x, y)
+        return self.model.displacement(self._check_index(frame_index), x, y)
 
     def frame_metadata(self, i):
         meta = super().frame_metadata(i)
-        st = self.model.state(i)
-        meta.update({"phase": st["phase"], "nominal_strain": self.model.nominal_strain(i)})
+        j = self.rendered_index(i)
+        st = self.model.state(j)
+        meta.update({"phase": st["phase"], "nominal_strain": self.model.nominal_strain(j)})
         return meta
 
     def _render(self, i):
@@ -741,7 +779,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
 
     def _pattern_margin(self):
         opts = self._opts_for_margin
-        n = opts["frames"] - 1
+        n = _rendered_count(opts) - 1
         extent = max(abs(opts["du"]), abs(opts["dv"])) * n
         if opts["jump"] is not None:
             extent += max(abs(opts["jump"][1]), abs(opts["jump"][2]))
@@ -759,10 +797,9 @@ class SyntheticTranslateSource(_PrerenderedSource):
         return u, v
 
     def truth(self, frame_index, x, y):
-        if not 0 <= frame_index < self.frames:
-            raise ValueError(f"frame index {frame_index} outside 0..{self.frames - 1}")
+        j = self._check_index(frame_index)
         x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-        u, v = self.shift(frame_index)
+        u, v = self.shift(j)
         return np.full(x.shape, u), np.full(y.shape, v)
 
     @property

@@ -109,6 +109,7 @@ def _cases(quick):
         ("icgn (from guess)", "seeded", "none", "icgn", 0),
         ("improved-wso r2 + icgn", "seeded", "improved-wso", "icgn", 2),
         ("improved-wso r2 + improved-surface-fit", "seeded", "improved-wso", "improved-surface-fit", 2),
+        ("exhaustive r2 + improved-surface-fit", "seeded", "exhaustive", "improved-surface-fit", 2),
         ("improved-wso r2 + surface-fit", "seeded", "improved-wso", "surface-fit", 2),
         ("improved-wso r2 + gradient", "seeded", "improved-wso", "gradient", 2),
         ("improved-wso r2 + newton-raphson", "seeded", "improved-wso", "newton-raphson", 2),

@@ -1,0 +1,359 @@
+"""``livedic bench soak``: a long session through the full pipeline; memory and frame accounting.
+
+Setup (issue 4): 20,000 frames of the simulated tensile test through the same
+parts as ``livedic run``: the acquisition thread, the bounded queue (4 frames,
+drop the oldest, as for a camera), the tracker (1,000 points, subset 21,
+improved-wso + IC-GN by default, options parsed by the real ``livedic run``
+parser) and the recorder (every frame and every result into an MCAP file in a
+temporary folder, deleted afterwards unless ``keep``). No viewer.
+
+The source is ``synthetic:tensile?...&loop=K``: only K frames (default 200)
+are rendered and the 20,000 delivered frames cycle through them forward and
+back (a cyclic load-unload test, frame indices and timestamps increasing), so
+memory does not grow with the length of the run and every frame still has an
+exact truth. Default 512x512 Mono8 at 50 fps paced: 20,000 frames take 400 s
+and write 5.2 GB (1 MP would be 21 GB; ``size`` changes it).
+
+Memory: the resident set (VmRSS in /proc/self/status) is sampled before the
+pipeline starts (kernels compiled, frames rendered), after a warm-up of
+``warmup_frames`` tracked frames (first-touch allocations of the tracker,
+queue and recorder), every ``progress_every`` frames, and at the end. Growth
+is end against after-warm-up; a least-squares slope over the samples shows a
+trend that a single end point could hide.
+
+Accounting: frames produced by the source (counted where it yields them),
+frames recorded (read back from the MCAP file with ``acquire.mcap_replay``),
+frames tracked and frames dropped by the queue. Every produced frame is
+accounted for when recorded == produced and tracked + dropped == produced.
+"""
+
+import math
+import os
+import shutil
+import tempfile
+import threading
+import time
+
+DEFAULT_FRAMES = 20_000
+DEFAULT_SIZE = 512
+DEFAULT_LOOP = 200
+RSS_GROWTH_LIMIT = 0.05
+
+
+def rss_mb(field="VmRSS"):
+    """The process's resident set (or another /proc/self/status field) in MB; nan where unavailable."""
+    try:
+        with open("/proc/self/status") as handle:
+            for line in handle:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return float("nan")
+
+
+def _load():
+    try:
+        return "load average " + ", ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "load average n/a"
+
+
+def _deep_size(obj, seen=None):
+    """Rough bytes held by ``obj`` and what it references (dicts, lists, dataclass fields)."""
+    import sys
+    seen = set() if seen is None else seen
+    if id(obj) in seen:
+        return 0
+    seen.add(id(obj))
+    size = sys.getsizeof(obj)
+    if isinstance(obj, dict):
+        size += sum(_deep_size(k, seen) + _deep_size(v, seen) for k, v in obj.items())
+    elif isinstance(obj, (list, tuple, set)):
+        size += sum(_deep_size(v, seen) for v in obj)
+    elif hasattr(obj, "__dict__"):
+        size += _deep_size(vars(obj), seen)
+    return size
+
+
+def mcap_index_memory(recorder):
+    """(chunks, estimated MB) the mcap writer keeps in memory to write the file's summary, or None.
+
+    The writer holds one ``ChunkIndex`` per chunk written until ``finish``; the
+    recorder closes a chunk whenever images and data alternate, so about two per
+    frame. Reads private attributes of mcap's ``Writer``: best effort only.
+    """
+    try:
+        indices = recorder._cw.writer._Writer__chunk_indices
+        sample = indices[-200:]
+        seen = set()          # objects shared between indexes (small ints, strings) counted once
+        per_chunk = sum(_deep_size(index, seen) for index in sample) / max(len(sample), 1)
+        return len(indices), len(indices) * per_chunk / 1e6
+    except Exception:  # noqa: BLE001 - a diagnostic, never a failure
+        return None
+
+
+class CountingSource:
+    """Wraps a frame source and counts the frames it yields (what the source produced)."""
+
+    def __init__(self, source):
+        self.source = source
+        self.produced = 0
+
+    def __iter__(self):
+        for frame in self.source:
+            self.produced += 1
+            yield frame
+
+    def close(self):
+        self.source.close()
+
+    def __getattr__(self, name):
+        return getattr(self.source, name)
+
+
+def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_points=1000, subpixel="icgn",
+                       search="improved-wso", loop=DEFAULT_LOOP, queue=4, threads=1, keep=False, directory=None,
+                       progress_every=1000, warmup_frames=200, max_wall_s=None, log=print):
+    """Run the soak, print progress and the verdicts; returns a result dict.
+
+    Parameters
+    ----------
+    frames : int
+        Frames the source produces (default 20,000).
+    size : int
+        Square image side in pixels (default 512: 20,000 frames record 5.2 GB).
+    fps : float
+        Paced rate of the simulated camera.
+    loop : int
+        Frames rendered and cycled forward and back (``loop=`` option of the simulator).
+    keep : bool
+        Keep the recording (its path is printed); otherwise it is deleted.
+    directory : str, optional
+        Where the recording goes (default: a new temporary folder).
+    max_wall_s : float, optional
+        Safety stop: end acquisition after this long (default 3 x the paced duration + 120 s).
+    log : callable
+        Receives each output line.
+
+    Returns
+    -------
+    dict
+        produced, recorded, recorded_written, results_recorded, tracked, dropped, rss_* (MB),
+        rss_growth, rss_samples [(frames, MB)], passed_rss, passed_accounting, lines, recording (path or None).
+    """
+    import numba
+    import numpy as np
+
+    from acquire.mcap_replay import inspect_recording
+    from acquire.synthetic import SyntheticTensileSource
+    from dic.tracking import Tracker
+    from stream import recording_schema as rs
+    from stream.acquisition import AcquisitionThread
+    from stream.cli import build_parser
+    from stream.frame_queue import DROP_OLDEST, FrameQueue
+    from stream.recorder import Recorder
+    from stream.run import _check_args, _for_recording, _warm_up, build_points
+    from stream.tracker_loop import TrackerLoop
+
+    if frames < 2:
+        raise ValueError(f"--frames must be >= 2, got {frames}")
+    printed = []
+
+    def say(text=""):
+        printed.append(text)
+        log(text)
+
+    loop = max(2, min(loop, frames))
+    warmup_frames = max(1, min(warmup_frames, frames // 10))     # short runs: a tenth of the frames
+    uri = f"synthetic:tensile?size={size}x{size}&fps={fps:g}&frames={frames}&loop={loop}"
+    workdir = directory or tempfile.mkdtemp(prefix="livedic-bench-soak-")
+    os.makedirs(workdir, exist_ok=True)
+    record_path = os.path.join(workdir, f"soak-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.mcap")
+    args = build_parser().parse_args(
+        ["run", "--source", uri, "--viewer", "none", "--progress", "off", "--n-points", str(n_points),
+         "--search", search, "--subpixel", subpixel, "--queue", str(queue), "--drop", "oldest",
+         "--threads", str(threads), "--record", record_path])
+    _check_args(args)
+    paced_s = frames / fps
+    max_wall_s = max_wall_s or 3.0 * paced_s + 120.0
+    say(f"livedic bench soak: {frames} frames, {uri}")
+    say(f"  {size}x{size} Mono8 ({size * size * frames / 1e9:.1f} GB of frames to record), {loop} rendered frames "
+        f"cycled forward and back, paced at {fps:g} fps ({paced_s:.0f} s); {n_points} points wanted, subset "
+        f"{args.subset}, {search} + {subpixel}; queue {queue} drop-oldest; recording into {record_path}"
+        f"{' (kept)' if keep else ' (deleted afterwards)'}; viewer none; {threads} numba thread(s)")
+    say(f"  machine: {os.cpu_count()} CPU cores; {_load()} at start")
+
+    previous_threads = numba.get_num_threads()
+    numba.set_num_threads(args.threads)
+    recorder = None
+    acquisition = None
+    result = {}
+    started = time.perf_counter()
+    try:
+        _warm_up(args)
+        source = SyntheticTensileSource(uri)
+        t0 = time.perf_counter()
+        source.prepare()
+        say(f"  rendered {source.rendered_frames} frames in {time.perf_counter() - t0:.1f} s (before the clock)")
+        roi = tuple(int(v) for v in source.suggested_roi)
+        counting = CountingSource(source)
+        metadata = {"command": "livedic bench soak", "source_uri": uri, "source_settings": dict(source.settings),
+                    "roi": list(roi), "n_points_wanted": n_points, "subset": args.subset, "search": search,
+                    "subpixel": subpixel, "seed_radius": args.seed_radius, "refind_radius": args.refind_radius,
+                    "refind_zncc": args.refind_zncc, "seed": args.seed, "queue_size": queue,
+                    "drop_policy": DROP_OLDEST, "point_ids": "P0 is point 0", "threads": threads}
+        errors = []
+        recorder = Recorder(record_path, metadata, start_time_ns=0, on_error=errors.append)
+        frame_queue = FrameQueue(queue, DROP_OLDEST)
+        acquisition = AcquisitionThread(counting, frame_queue,
+                                        on_frame=lambda item: recorder.write_frame(_for_recording(item.frame)))
+        method = f"{search}+{subpixel}"
+        session = {}
+
+        def make_tracker(frame):
+            points, _, _ = build_points(frame.image.shape, roi=roi, step=None, n_points=n_points,
+                                        subset=args.subset)
+            session["points"] = len(points)
+            return Tracker(frame.image, points, subset=args.subset, search=search, subpixel=subpixel,
+                           seed_radius=args.seed_radius, refind_radius=args.refind_radius,
+                           refind_zncc=args.refind_zncc, seed=args.seed)
+
+        def record_results(res, stats):          # what ``livedic run`` records for each result
+            m = res.measurement
+            frame = res.frame
+            recorder.write_results(
+                frame.index, frame.timestamp_ns, np.arange(m.u.size, dtype=np.uint32), m.x, m.y, m.u, m.v,
+                m.zncc, m.ok, ux=m.ux, uy=m.uy, vx=m.vx, vy=m.vy, status=m.status.astype(np.int32),
+                iterations=m.iterations, method=method, processing_ns=res.processing_ns,
+                latency_ns=res.latency_ns, reference_frame_index=loop_.reference_frame.index,
+                dropped_frames=res.dropped_since_last)
+            if res.dropped_since_last:
+                recorder.write_event("drop", f"{res.dropped_since_last} frame(s) dropped by the queue before "
+                                     f"frame {frame.index} (total {res.dropped_total})", level="warning")
+
+        samples = []          # (frames tracked, RSS MB) after the warm-up
+        block = {"start": time.perf_counter(), "frames": 0, "err_sq": 0.0, "err_n": 0}
+        marks = {}
+
+        def monitor(res, stats):
+            if math.isfinite(res.error_rms_px) and not res.is_reference:
+                block["err_sq"] += res.error_rms_px ** 2
+                block["err_n"] += 1
+            if stats.frames == warmup_frames:
+                marks["rss_warm"] = rss_mb()
+                marks["warm_frames"] = stats.frames
+                samples.append((stats.frames, marks["rss_warm"]))
+            produced = counting.produced
+            if stats.frames == 1:
+                say(f"  reference frame {res.frame.index}: {session.get('points', 0)} points, set-up "
+                    f"{res.processing_ns / 1e6:.0f} ms, RSS {rss_mb():.1f} MB")
+                block.update(start=time.perf_counter(), frames=1)
+                return
+            if produced // progress_every > block.get("shown", 0):
+                block["shown"] = produced // progress_every
+                now = time.perf_counter()
+                rss = rss_mb()
+                if stats.frames > warmup_frames:
+                    samples.append((stats.frames, rss))
+                span = now - block["start"]
+                tracked = stats.frames - block["frames"]
+                lat = stats.latencies_ns[-max(tracked, 1):]
+                p99 = np.percentile(np.asarray(lat), 99) / 1e6 if lat else float("nan")
+                err = math.sqrt(block["err_sq"] / block["err_n"]) if block["err_n"] else float("nan")
+                say(f"  {produced:>6d}/{frames} produced  {stats.frames:>6d} tracked  "
+                    f"{frame_queue.dropped:>5d} dropped  {recorder.frames_written:>6d} recorded  "
+                    f"{(tracked / span if span > 0 else float('nan')):5.1f} fps  latency p99 {p99:6.1f} ms  "
+                    f"error {err:.4f} px  RSS {rss:7.1f} MB  {time.perf_counter() - started:5.0f} s")
+                block.update(start=now, frames=stats.frames, err_sq=0.0, err_n=0)
+
+        loop_ = TrackerLoop(frame_queue, make_tracker, sinks=[record_results, monitor])
+        rss_before = rss_mb()
+        timer = threading.Timer(max_wall_s, acquisition.stop)
+        timer.daemon = True
+        acquisition.start()
+        timer.start()
+        try:
+            loop_.run()
+        finally:
+            timer.cancel()
+            acquisition.stop()
+            frame_queue.close()
+            acquisition.join(timeout=30.0)
+        stats = loop_.stats
+        rss_end = rss_mb()
+        samples.append((stats.frames, rss_end))
+        index_memory = mcap_index_memory(recorder)
+        recorder.close()
+        rss_closed = rss_mb()
+        wall = time.perf_counter() - started
+        for sink, error in loop_.sink_errors:
+            say(f"  warning: sink {getattr(sink, '__name__', sink)} stopped: {type(error).__name__}: {error}")
+        if acquisition.error is not None:
+            say(f"  warning: the source failed: {acquisition.error}")
+        if acquisition.finished_reason == "stopped":
+            say(f"  warning: stopped by the safety timer after {max_wall_s:.0f} s")
+        if recorder.error or errors:
+            say(f"  warning: {recorder.error or errors[0]}")
+
+        t0 = time.perf_counter()
+        info = inspect_recording(record_path)
+        readback_s = time.perf_counter() - t0
+        recorded = info.frames
+        results_recorded = info.message_counts.get(rs.TOPIC_RESULTS, 0)
+        produced = counting.produced
+        tracked, dropped = stats.frames, frame_queue.dropped
+        rss_warm = marks.get("rss_warm", rss_before)
+        growth = (rss_end - rss_warm) / rss_warm if rss_warm else float("nan")
+        after = [(n, mb) for n, mb in samples if n >= marks.get("warm_frames", 0)]
+        slope = None
+        if len({n for n, _ in after}) >= 3:
+            slope = float(np.polyfit([n for n, _ in after], [mb for _, mb in after], 1)[0]) * 10_000
+        size_gb = os.path.getsize(record_path) / 1e9
+
+        summary = stats.summary()
+        say("")
+        say(f"soak: {produced} frames in {wall:.0f} s ({_load()} at end)")
+        say(f"  frames   produced {produced} | recorded {recorded} (read back from the MCAP, {size_gb:.2f} GB, "
+            f"{readback_s:.0f} s; recorder counted {recorder.frames_written}) | tracked {tracked} "
+            f"(results recorded {results_recorded}) | dropped {dropped}")
+        say(f"  rate     {summary['fps']:.1f} fps tracked, latency p50 {summary['latency_p50_ms']:.1f} ms, "
+            f"p99 {summary['latency_p99_ms']:.1f} ms, tracking p50 {summary['processing_p50_ms']:.1f} ms, "
+            f"{session.get('points', 0)} points, error RMS "
+            f"{summary['error_rms_px'] if summary['error_rms_px'] is not None else float('nan'):.4f} px")
+        say(f"  RSS      start {rss_warm:.1f} MB (after {marks.get('warm_frames', 0)} frames of warm-up), end "
+            f"{rss_end:.1f} MB, growth {100 * growth:+.2f} %; before the pipeline started {rss_before:.1f} MB, "
+            f"after closing the recording {rss_closed:.1f} MB, peak {rss_mb('VmHWM'):.1f} MB"
+            + (f"; trend {slope:+.2f} MB per 10,000 frames ({len(after)} samples)" if slope is not None else ""))
+        if index_memory is not None:
+            say(f"  where    the mcap writer holds {index_memory[0]} chunk indexes in memory until the file is "
+                f"closed (~{index_memory[1]:.1f} MB, for the summary); the session statistics keep 3 numbers per "
+                f"tracked frame (~{3 * 36 * tracked / 1e6:.1f} MB)")
+        passed_rss = bool(growth < RSS_GROWTH_LIMIT)
+        accounted = recorded == produced and tracked + dropped == produced
+        say(f"{'PASS' if passed_rss else 'FAIL'}  RSS growth < {100 * RSS_GROWTH_LIMIT:.0f} %: {100 * growth:+.2f} % "
+            f"({rss_warm:.1f} -> {rss_end:.1f} MB)")
+        say(f"{'PASS' if accounted else 'FAIL'}  every produced frame accounted for: recorded {recorded} "
+            f"{'==' if recorded == produced else '!='} produced {produced}; tracked {tracked} + dropped {dropped} "
+            f"= {tracked + dropped} {'==' if tracked + dropped == produced else '!='} produced {produced}")
+        result = dict(produced=produced, recorded=recorded, recorded_written=recorder.frames_written,
+                      results_recorded=results_recorded, tracked=tracked, dropped=dropped, rss_before=rss_before,
+                      rss_start=rss_warm, rss_end=rss_end, rss_growth=growth, rss_samples=samples,
+                      rss_trend_mb_per_10k=slope, mcap_index=index_memory, passed_rss=passed_rss,
+                      passed_accounting=accounted,
+                      wall_s=wall, summary=summary, recording=record_path if keep else None)
+    finally:
+        numba.set_num_threads(previous_threads)
+        if acquisition is not None and acquisition.is_alive():
+            acquisition.stop()
+            acquisition.join(timeout=10.0)
+        if recorder is not None and not recorder.closed:
+            recorder.close()
+        if keep:
+            say(f"  recording kept: {record_path}")
+        elif directory is None:
+            shutil.rmtree(workdir, ignore_errors=True)
+        elif os.path.exists(record_path):
+            os.remove(record_path)
+    result["lines"] = printed
+    return result

@@ -1,0 +1,116 @@
+"""``livedic bench live`` and ``livedic bench soak``: plumbing and accounting (no timing asserted).
+
+Also the simulator's ``loop=K`` option the soak relies on (render K frames,
+cycle them forward and back).
+"""
+
+import numpy as np
+import pytest
+
+from acquire.base import SourceError
+from acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
+from bench.live import HEADER
+from bench.soak import run_soak_benchmark
+from stream.cli import build_parser, main
+
+
+# --------------------------------------------------------------------------- synthetic loop=K
+
+def test_loop_cycles_rendered_frames_forward_and_back_with_increasing_index():
+    source = SyntheticTensileSource("synthetic:tensile?frames=12&loop=4&size=96x96&fps=40&pace=0")
+    assert source.frames == 12 and source.rendered_frames == 4
+    with source:
+        frames = list(source)
+    assert [f.index for f in frames] == list(range(12))
+    assert [f.timestamp_ns for f in frames] == [i * 25_000_000 for i in range(12)]
+    cycle = [0, 1, 2, 3, 2, 1, 0, 1, 2, 3, 2, 1]
+    assert [source.rendered_index(i) for i in range(12)] == cycle
+    assert len(source._images) == 4
+    for frame, j in zip(frames, cycle):
+        np.testing.assert_array_equal(frame.image, frames[j].image)
+        x, y = np.array([40.0, 50.0]), np.array([30.0, 60.0])
+        np.testing.assert_array_equal(frame.metadata["truth"](x, y)[1], source.truth(j, x, y)[1])
+    # The schedule spans the rendered frames: the last rendered one is the end of the test.
+    assert frames[3].metadata["phase"] == "necking" and frames[6].metadata["phase"] == "elastic"
+    assert "cycled forward and back" in source.settings["delivery"] and source.settings["loop"] == 4
+    with pytest.raises(ValueError, match="outside"):
+        source.truth(12, 1.0, 1.0)
+
+
+def test_loop_is_off_by_default_and_bounds_memory():
+    plain = SyntheticTensileSource("synthetic:tensile?frames=5&size=96x96&pace=0")
+    assert plain.rendered_frames == 5 and plain.options["loop"] == 0
+    assert [plain.rendered_index(i) for i in range(5)] == [0, 1, 2, 3, 4]
+    assert SyntheticTensileSource("synthetic:tensile?frames=5&loop=9&size=96x96").rendered_frames == 5
+    # 100,000 frames of 4096x4096 would be 1.6 TB rendered ahead; looping over 3 of them is 48 MB.
+    big = open_synthetic("synthetic:tensile?frames=100000&size=4096x4096&loop=3")
+    assert big.frames == 100_000 and big.rendered_frames == 3
+    with pytest.raises(SourceError, match="loop"):
+        open_synthetic("synthetic:tensile?loop=1")
+    translate = SyntheticTranslateSource("synthetic:translate?frames=9&loop=3&size=96x96&du=0.5&dv=0&pace=0")
+    assert [float(translate.truth(i, 0.0, 0.0)[0]) for i in range(9)] == [0, 0.5, 1, 0.5, 0, 0.5, 1, 0.5, 0]
+
+
+# --------------------------------------------------------------------------- bench live
+
+def test_cli_wires_bench_live_and_soak():
+    parser = build_parser()
+    live = parser.parse_args(["bench", "live", "--quick", "--frames", "20", "--fps", "40"])
+    assert live.quick and live.frames == 20 and live.fps == 40 and live.handler.__name__ == "_cmd_bench_live"
+    soak = parser.parse_args(["bench", "soak", "--frames", "300", "--size", "128", "--keep"])
+    assert soak.frames == 300 and soak.size == 128 and soak.keep and soak.handler.__name__ == "_cmd_bench_soak"
+    assert parser.parse_args(["bench", "soak"]).frames == 20_000
+
+
+def test_quick_live_benchmark_prints_its_table_and_the_target_line(capsys):
+    assert main(["bench", "live", "--quick", "--frames", "12"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert lines[0].startswith("livedic bench live: synthetic:tensile 512x512 Mono8, 12 frames per case")
+    assert "CPU cores" in lines[1] and "load average" in lines[1]
+    assert HEADER in lines
+    start = lines.index(HEADER) + 2
+    rows = lines[start:start + 5]
+    labels = ["improved-surface-fit ", "icgn ", "icgn (no-record)", "icgn (search none)", "icgn (unpaced)"]
+    for row, label in zip(rows, labels):
+        assert label in row and "failed" not in row, row
+        assert row.split()[0].isdigit()          # the actual number of points
+    target = [line for line in lines if "target 1,000 points IC-GN >= 50 fps" in line]
+    assert len(target) == 1 and target[0][:4] in ("PASS", "FAIL") and "quick mode" in target[0]
+    assert "improved-wso + IC-GN, recording on" in target[0]
+    variant = [line for line in lines if "target 1,000 points IC-GN --search none >= 50 fps" in line]
+    assert len(variant) == 1 and variant[0][:4] in ("PASS", "FAIL")
+    assert "rendering the simulated frames (before the clock" in out
+    assert "what limits it:" in out and "1,000 points IC-GN: tracking p50" in out
+    assert "error in" not in out
+
+
+# --------------------------------------------------------------------------- bench soak
+
+def test_tiny_soak_accounts_for_every_frame(tmp_path):
+    lines = []
+    result = run_soak_benchmark(frames=300, size=128, fps=100.0, n_points=100, loop=40, directory=str(tmp_path),
+                                progress_every=100, warmup_frames=50, log=lines.append)
+    assert result["produced"] == 300
+    assert result["recorded"] == result["produced"] == result["recorded_written"]
+    assert result["tracked"] + result["dropped"] == result["produced"]
+    assert result["results_recorded"] == result["tracked"]
+    assert result["passed_accounting"] is True
+    assert result["rss_start"] > 0 and result["rss_end"] > 0 and np.isfinite(result["rss_growth"])
+    text = "\n".join(lines)
+    assert "PASS  every produced frame accounted for: recorded 300 == produced 300" in text
+    assert ("PASS  RSS growth < 5 %" in text) or ("FAIL  RSS growth < 5 %" in text)
+    assert sum("/300 produced" in line for line in lines) == 3          # progress every 100 frames
+    assert list(tmp_path.iterdir()) == []                               # recording deleted
+
+
+def test_soak_command_keeps_the_recording_on_request(tmp_path, capsys):
+    code = main(["bench", "soak", "--frames", "40", "--size", "128", "--fps", "200", "--points", "30", "--loop", "10",
+                 "--dir", str(tmp_path), "--keep"])
+    out = capsys.readouterr().out
+    assert "every produced frame accounted for: recorded 40 == produced 40" in out
+    kept = list(tmp_path.glob("soak-*.mcap"))
+    assert len(kept) == 1 and f"recording kept: {kept[0]}" in out
+    from acquire.mcap_replay import inspect_recording
+    assert inspect_recording(str(kept[0])).frames == 40
+    assert code in (0, 1)          # 1 only if the (timing-dependent) RSS check failed on a 40-frame run
