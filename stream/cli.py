@@ -91,7 +91,7 @@ def build_parser():
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
     export.set_defaults(handler=_cmd_export)
 
-    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed")
+    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
     paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
