@@ -28,6 +28,7 @@ broken viewer must not stop a measurement); the caller decides what to do.
 
 import threading
 import time
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -86,9 +87,11 @@ class SessionStats:
     points_tracked: int = 0
     points_ok: int = 0
     refound: int = 0
-    latencies_ns: list = field(default_factory=list)
-    processing_ns: list = field(default_factory=list)
-    delivery_delays_ns: list = field(default_factory=list)
+    # Per tracked frame, as packed 64-bit integers (8 bytes each, not a Python int object and
+    # a list slot): a long session keeps these for its percentiles.
+    latencies_ns: array = field(default_factory=lambda: array("q"))
+    processing_ns: array = field(default_factory=lambda: array("q"))
+    delivery_delays_ns: array = field(default_factory=lambda: array("q"))
     latency_from: str = "arrival"
     error_sq_sum: float = 0.0
     error_count: int = 0
@@ -114,17 +117,17 @@ class SessionStats:
     def latency_ms(self, percentile):
         if not self.latencies_ns:
             return float("nan")
-        return float(np.percentile(np.asarray(self.latencies_ns), percentile)) / 1e6
+        return float(np.percentile(np.array(self.latencies_ns, np.int64), percentile)) / 1e6
 
     def delivery_delay_ms(self, percentile):
         if not self.delivery_delays_ns:
             return float("nan")
-        return float(np.percentile(np.asarray(self.delivery_delays_ns), percentile)) / 1e6
+        return float(np.percentile(np.array(self.delivery_delays_ns, np.int64), percentile)) / 1e6
 
     def processing_ms(self, percentile):
         if not self.processing_ns:
             return float("nan")
-        return float(np.percentile(np.asarray(self.processing_ns), percentile)) / 1e6
+        return float(np.percentile(np.array(self.processing_ns, np.int64), percentile)) / 1e6
 
     @property
     def error_rms_px(self):

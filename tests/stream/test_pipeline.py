@@ -231,6 +231,30 @@ def test_tracker_loop_tracks_times_and_scores_against_the_truth():
     assert seen[-1].error_rms_px < 0.05
 
 
+def test_session_stats_keep_per_frame_numbers_packed_with_the_same_percentiles():
+    from array import array
+    from stream.tracker_loop import SessionStats
+    stats = SessionStats()
+    assert np.isnan(stats.latency_ms(50)) and np.isnan(stats.processing_ms(99))
+    assert np.isnan(stats.delivery_delay_ms(99)) and stats.summary()["delivery_delay_p99_ms"] is None
+    rng = np.random.default_rng(1)
+    values = [int(v) for v in rng.integers(1, 10**10, 1001)]     # ns, beyond 32 bits
+    for v in values:
+        stats.latencies_ns.append(v)
+        stats.processing_ns.append(v // 3)
+        stats.delivery_delays_ns.append(v % 1_000_000)
+    for name in ("latencies_ns", "processing_ns", "delivery_delays_ns"):
+        packed = getattr(stats, name)
+        assert isinstance(packed, array) and packed.itemsize == 8 and len(packed) == 1001
+    for q in (0, 50, 99, 100):                                    # what a list of Python ints gave
+        assert stats.latency_ms(q) == float(np.percentile(np.asarray(values), q)) / 1e6
+        assert stats.processing_ms(q) == float(np.percentile(np.asarray([v // 3 for v in values]), q)) / 1e6
+        assert stats.delivery_delay_ms(q) == \
+            float(np.percentile(np.asarray([v % 1_000_000 for v in values]), q)) / 1e6
+    assert stats.latencies_ns[-2:].tolist() == values[-2:]
+    assert SessionStats().latencies_ns is not stats.latencies_ns
+
+
 def test_a_failing_sink_is_switched_off_not_fatal():
     from dic.tracking import Tracker
     source = SyntheticTranslateSource("synthetic:translate?frames=4&size=96x96&pace=0")
