@@ -423,3 +423,17 @@ def sample_shift(flat, origin, stride, x, y, half, tmp, out, out_stride):
     for k in range(side * out_stride):
         ku = np.uint64(k)
         out[ku] = b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + s2] + b3 * tmp[ku + s3]
+
+
+@njit(cache=True)
+def warped_subset_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
+    """True if the warped subset (an affine image of a square: check its corners) lies in the spline domain."""
+    for sy in range(2):
+        dy = -half if sy == 0 else half
+        for sx in range(2):
+            dx = -half if sx == 0 else half
+            xw = x0 + u + (1.0 + ux) * dx + uy * dy
+            yw = y0 + v + vx * dx + (1.0 + vy) * dy
+            if not (xw >= 0.0 and yw >= 0.0 and xw <= width - 1.0 and yw <= height - 1.0):
+                return False
+    return True

@@ -86,7 +86,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift
+from dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
 from dic.gradient import diff4_x, diff4_y
 from dic.result import SubpixelResult
 from dic.status import Status
@@ -428,20 +428,6 @@ def prepare_target(deformed):
 # iteration kernels
 
 
-@njit(cache=True)
-def _corners_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
-    """True if the warped subset (an affine image of a square: check its corners) lies in the spline domain."""
-    for sy in range(2):
-        dy = -half if sy == 0 else half
-        for sx in range(2):
-            dx = -half if sx == 0 else half
-            xw = x0 + u + (1.0 + ux) * dx + uy * dy
-            yw = y0 + v + vx * dx + (1.0 + vy) * dy
-            if not (xw >= 0.0 and yw >= 0.0 and xw <= width - 1.0 and yw <= height - 1.0):
-                return False
-    return True
-
-
 @njit(cache=True, fastmath=_FASTMATH)
 def _sums_shift(g, fhat, fx, fy):
     """(sum g, g^2, fhat g, fx g, fy g) in float64 over a padded subset (pad entries are 0)."""
@@ -647,7 +633,7 @@ def _icgn_one(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, n
     tt2 = step_tol * step_tol
     shifted = False
     for _ in range(steps):
-        if not _corners_inside(height, width, x0, y0, half, u, 0.0, 0.0, v, 0.0, 0.0):
+        if not warped_subset_inside(height, width, x0, y0, half, u, 0.0, 0.0, v, 0.0, 0.0):
             return _OUTSIDE_TARGET, zncc, iterations
         sample_shift(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
         sg, sgg, sfg, a0, b0 = _sums_shift(g, fhat, fx, fy)
@@ -680,7 +666,7 @@ def _icgn_one(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, n
     tol2 = tolerance * tolerance
     converged = False
     for _ in range(max_iterations):
-        if not _corners_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
+        if not warped_subset_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
             return _OUTSIDE_TARGET, zncc, iterations
         _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx, lane_mask,
                      kx, ky, run_mask, sums)

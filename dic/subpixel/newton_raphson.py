@@ -47,7 +47,7 @@ Part 2. Improved digital image correlation", Exp. Mech. 38:86-92 (1998),
 import numpy as np
 from numba import njit, prange
 
-from dic.bspline import PAD, prefilter, value_gradient_at
+from dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
 from dic.result import SubpixelResult
 from dic.status import Status
 from dic.validation import as_image, check_same_shape
@@ -90,19 +90,6 @@ def _solve_spd(a, b, k, out):
         for m in range(i + 1, k):
             s -= low[m, i] * out[m]
         out[i] = s / low[i, i]
-    return True
-
-
-@njit(cache=True)
-def _corners_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
-    for sy in range(2):
-        dy = -half if sy == 0 else half
-        for sx in range(2):
-            dx = -half if sx == 0 else half
-            xw = x0 + u + (1.0 + ux) * dx + uy * dy
-            yw = y0 + v + vx * dx + (1.0 + vy) * dy
-            if not (xw >= 0.0 and yw >= 0.0 and xw <= width - 1.0 and yw <= height - 1.0):
-                return False
     return True
 
 
@@ -184,7 +171,7 @@ def _nr_one(coeffs, height, width, x0, y0, half, ftilde, fnorm, p, order, projec
     zncc = np.nan
     k = 6 if order == 1 else 2
     for it in range(1, max_iterations + 1):
-        if not _corners_inside(height, width, x0, y0, half, p[0], p[1], p[2], p[3], p[4], p[5]):
+        if not warped_subset_inside(height, width, x0, y0, half, p[0], p[1], p[2], p[3], p[4], p[5]):
             return _OUTSIDE_TARGET, zncc, it - 1
         _nr_sums(coeffs, x0, y0, half, ftilde, p, acc, row)
         mean = acc[0] / n
