@@ -227,6 +227,17 @@ def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
     height, width = shape
     if roi is None:
         roi = (0, 0, width, height)
+    x, y, w, h = roi
+    if x < 0 or y < 0 or x + w > width or y + h > height:
+        raise ValueError(f"ROI {x},{y},{w},{h} extends beyond the {width}x{height} image: "
+                         f"give X,Y,W,H with X+W <= {width} and Y+H <= {height}")
+    if points is not None:
+        xy = np.asarray(points, dtype=np.float64)
+        outside = (xy[:, 0] < 0) | (xy[:, 1] < 0) | (xy[:, 0] > width - 1) | (xy[:, 1] > height - 1)
+        if outside.any():
+            bad = xy[np.argmax(outside)]
+            raise ValueError(f"{int(outside.sum())} of the given points lie outside the {width}x{height} image "
+                             f"(first: {bad[0]:g},{bad[1]:g}): keep 0 <= x <= {width - 1} and 0 <= y <= {height - 1}")
     if points is None:
         if step is None:
             step = step_for_count(roi, n_points, subset)
@@ -234,7 +245,6 @@ def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
     else:
         grid = np.asarray(points, dtype=np.float64)
     if p0 is None:
-        x, y, w, h = roi
         p0 = (x + (w - 1) / 2.0, y + (h - 1) / 2.0)
     p0 = np.floor(np.asarray(p0, dtype=np.float64) + 0.5)
     if not (0 <= p0[0] < width and 0 <= p0[1] < height):

@@ -1,0 +1,42 @@
+"""``livedic run`` turns every bad option, URI or file into one line on stderr and exit code 2."""
+
+import subprocess
+import sys
+
+import pytest
+
+SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--roi", "0,0,5000,100"], "ROI 0,0,5000,100 extends beyond"),
+    (["--roi", "10,10,-5,20"], "--roi width and height must be positive"),
+    (["--roi", "1,2,3"], "--roi must be 4 comma-separated numbers"),
+    (["--subset", "20"], "--subset must be an odd integer"),
+    (["--step", "0"], "--step must be a positive number"),
+    (["--frames", "0"], "--frames must be >= 1"),
+    (["--search", "foo"], "unknown search method"),
+    (["--subpixel", "bar"], "unknown sub-pixel method"),
+    (["--source", "synthetic:nope"], "unknown synthetic model"),
+    (["--source", "bogus://x"], "unknown source scheme"),
+    (["--source", "synthetic:tensile?fps=abc"], "option fps"),
+    (["--source", "images:/nonexistent/*.png"], "no image files match"),
+    (["--source", "mcap:/nonexistent.mcap"], "does not exist"),
+    (["--points", "/nonexistent.csv"], "does not exist"),
+])
+def test_bad_run_input_is_one_line_and_exit_2(extra, message):
+    argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", SMALL, *extra]
+    done = subprocess.run([sys.executable, "-m", "stream.cli", *argv], capture_output=True, text=True, timeout=120)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
+    assert done.returncode == 2, done.stderr
+    assert len(errors) == 1 and message in errors[0], done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_points_outside_the_image_are_a_clear_error(tmp_path):
+    points = tmp_path / "points.csv"
+    points.write_text("x,y\n40,60\n500,20\n")
+    argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", SMALL, "--points", str(points)]
+    done = subprocess.run([sys.executable, "-m", "stream.cli", *argv], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "1 of the given points lie outside the 96x160 image (first: 500,20)" in done.stderr
