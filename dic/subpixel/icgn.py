@@ -88,6 +88,7 @@ from numba import njit, prange
 
 from dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
 from dic.gradient import diff4_x, diff4_y
+from dic.linalg import cholesky_lower
 from dic.result import SubpixelResult
 from dic.status import Status
 from dic.validation import as_image, check_same_shape
@@ -162,19 +163,9 @@ def _invert_spd(a, out, low, linv):
     k = a.shape[0]
     for i in range(k):
         for j in range(k):
-            low[i, j] = 0.0
             linv[i, j] = 0.0
-    for i in range(k):
-        for j in range(i + 1):
-            s = a[i, j]
-            for m in range(j):
-                s -= low[i, m] * low[j, m]
-            if i == j:
-                if not (s > 1e-12 * a[i, i]) or not (a[i, i] > 0.0):
-                    return False
-                low[i, i] = np.sqrt(s)
-            else:
-                low[i, j] = s / low[j, j]
+    if not cholesky_lower(a, k, low):
+        return False
     # inverse of the lower factor, then out = L^-T L^-1
     for i in range(k):
         linv[i, i] = 1.0 / low[i, i]

@@ -48,6 +48,7 @@ import numpy as np
 from numba import njit, prange
 
 from dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
+from dic.linalg import cholesky_lower
 from dic.result import SubpixelResult
 from dic.status import Status
 from dic.validation import as_image, check_same_shape
@@ -68,17 +69,8 @@ _CHUNK = 16
 def _solve_spd(a, b, k, out):
     """Solve a[:k, :k] x = b[:k] (symmetric positive definite) by Cholesky; False if singular."""
     low = np.zeros((6, 6))
-    for i in range(k):
-        for j in range(i + 1):
-            s = a[i, j]
-            for m in range(j):
-                s -= low[i, m] * low[j, m]
-            if i == j:
-                if not (s > 1e-12 * a[i, i]) or not (a[i, i] > 0.0):
-                    return False
-                low[i, i] = np.sqrt(s)
-            else:
-                low[i, j] = s / low[j, j]
+    if not cholesky_lower(a, k, low):
+        return False
     y = np.zeros(6)
     for i in range(k):
         s = b[i]
