@@ -10,6 +10,10 @@ class SourceError(RuntimeError):
     """A source could not be opened or stopped delivering frames; the message says what to do."""
 
 
+class SourceLost(SourceError):
+    """A source that had delivered frames failed mid-session (``livedic run`` exits 3, recording kept)."""
+
+
 @dataclass(frozen=True)
 class Frame:
     """One image from a source.

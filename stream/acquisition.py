@@ -6,14 +6,47 @@ a slow tracker makes the queue drop frames, never the camera wait. When the
 source ends, fails or a stop is requested the thread closes the source and
 the queue; a failure is kept in ``error`` for the main thread to raise, so
 a lost camera ends the session with a message instead of a silent hang.
+
+With ``reconnect`` (``livedic run --reconnect``) a source that fails mid-run
+is closed and reopened every ``retry_s`` until it delivers again, the
+session goes on with the same reference, queue and recording. Frames after
+a reconnection are renumbered and re-timed to continue the session's
+sequence (a power-cycled camera restarts its frame counter and its clock;
+the recording and the results need increasing indices and times); the
+camera's own values stay in ``metadata["source_index"]`` and
+``metadata["source_timestamp_ns"]``. A camera that comes back with another
+image size or pixel format cannot continue the session: that ends it with
+an error.
 """
 
+import dataclasses
 import threading
 import time
 from dataclasses import dataclass
 
 from acquire.base import Frame, SourceError
 from stream.frame_queue import QueueClosed
+
+
+@dataclass(frozen=True)
+class Reconnect:
+    """How to bring a lost source back.
+
+    reopen : callable
+        ``reopen() -> FrameSource``, an opened source (raises ``SourceError`` while it cannot).
+    retry_s : float
+        Seconds between attempts.
+    timeout_s : float or None
+        Give up (end the session with the loss as its error) after this long; None waits
+        until a stop is requested.
+    on_event : callable, optional
+        ``on_event(kind, message, level)`` from the acquisition thread: ``"camera_lost"``,
+        ``"camera_waiting"`` (about every 10 s), ``"camera_reconnected"``, ``"camera_gave_up"``.
+    """
+    reopen: object
+    retry_s: float = 1.0
+    timeout_s: float = None
+    on_event: object = None
 
 
 @dataclass(frozen=True)
@@ -37,6 +70,8 @@ class AcquisitionThread(threading.Thread):
     on_frame : callable, optional
         ``on_frame(queued_frame)`` called in this thread before each put (e.g. to record
         every frame, dropped or not); an exception there stops acquisition and is kept in ``error``.
+    reconnect : Reconnect, optional
+        Reopen a source that fails mid-run instead of ending (see the module notes).
 
     Attributes
     ----------
@@ -49,9 +84,19 @@ class AcquisitionThread(threading.Thread):
         ``Frame.index`` of the first and latest of them (gaps = frames lost upstream).
     finished_reason : str
         ``"end"`` (source exhausted), ``"limit"`` (max_frames), ``"stopped"`` or ``"error"``.
+    reconnects : int
+        Times the source came back after a loss.
+    outage_s : float
+        Seconds without frames (last frame before a loss to reconnection or stop), summed
+        over the losses; updated when each one ends.
+    losses : list of str
+        The messages of the failures that were waited out (or are being waited out).
+    waiting : bool
+        True while the source is lost and being reopened.
     """
 
-    def __init__(self, source, queue, *, max_frames=None, on_frame=None, name="livedic-acquisition"):
+    def __init__(self, source, queue, *, max_frames=None, on_frame=None, reconnect=None,
+                 name="livedic-acquisition"):
         super().__init__(name=name, daemon=True)
         self.source = source
         self.queue = queue
@@ -62,7 +107,14 @@ class AcquisitionThread(threading.Thread):
         self.first_index = None
         self.last_index = None
         self.finished_reason = None
+        self.reconnect = reconnect
+        self.reconnects = 0
+        self.outage_s = 0.0
+        self.losses = []
+        self.waiting = False
         self._stop_requested = threading.Event()
+        self._continuity = None          # (index offset, timestamp offset) after a reconnection
+        self._last = None                # (index, timestamp_ns, arrival_ns, shape, dtype, pixel format)
 
     def stop(self):
         """Ask the thread to stop after the frame it is waiting for (does not block)."""
@@ -78,29 +130,20 @@ class AcquisitionThread(threading.Thread):
             if self.max_frames is not None and self.max_frames <= 0:
                 reason = "limit"
                 return
-            for frame in self.source:
-                arrival_ns = time.monotonic_ns()
-                if self._stop_requested.is_set():
-                    reason = "stopped"
-                    break
-                item = QueuedFrame(frame, arrival_ns)
-                if self.on_frame is not None:
-                    self.on_frame(item)
+            while True:
                 try:
-                    self.queue.put(item)
-                except QueueClosed:
-                    reason = "stopped"
+                    reason = self._pump()
                     break
-                self.frames += 1
-                if self.first_index is None:
-                    self.first_index = frame.index
-                self.last_index = frame.index
-                if self.max_frames is not None and self.frames >= self.max_frames:
-                    reason = "limit"
-                    break
-                if self._stop_requested.is_set():
-                    reason = "stopped"
-                    break
+                except SourceError as error:
+                    if self.reconnect is None or isinstance(error, _Incompatible) or self._last is None:
+                        raise   # (a source that never delivered is a bad URI or setting, not a lost camera)
+                    outcome = self._wait_for_source(error)
+                    if outcome == "stopped":
+                        reason = "stopped"
+                        break
+                    if outcome == "gave up":
+                        raise SourceError(f"{error}; not back within --reconnect-timeout "
+                                          f"{self.reconnect.timeout_s:g} s") from error
         except SourceError as error:
             self.error = error
             reason = "error"
@@ -112,14 +155,117 @@ class AcquisitionThread(threading.Thread):
         finally:
             self.finished_reason = reason
             try:
-                self.source.close()
+                if self.source is not None:
+                    self.source.close()
             except Exception as error:  # noqa: BLE001 - keep the first error, report a close failure otherwise
                 if self.error is None:
                     self.error = SourceError(f"closing the frame source failed: {type(error).__name__}: {error}")
                     self.finished_reason = "error"
             self.queue.close()
 
+    def _pump(self):
+        """Move frames from the source to the queue; returns the finish reason."""
+        for frame in self.source:
+            arrival_ns = time.monotonic_ns()
+            if self._stop_requested.is_set():
+                return "stopped"
+            frame = self._continue_session(frame, arrival_ns)
+            item = QueuedFrame(frame, arrival_ns)
+            if self.on_frame is not None:
+                self.on_frame(item)
+            try:
+                self.queue.put(item)
+            except QueueClosed:
+                return "stopped"
+            self.frames += 1
+            if self.first_index is None:
+                self.first_index = frame.index
+            self.last_index = frame.index
+            self._last = (frame.index, frame.timestamp_ns, arrival_ns, frame.image.shape, frame.image.dtype,
+                          frame.pixel_format)
+            if self.max_frames is not None and self.frames >= self.max_frames:
+                return "limit"
+            if self._stop_requested.is_set():
+                return "stopped"
+        return "end"
+
+    def _continue_session(self, frame, arrival_ns):
+        """After a reconnection: check the image matches, then renumber and re-time the frame."""
+        if self._continuity is None:
+            return frame
+        if self._continuity == "pending":
+            last_index, last_ts, last_arrival, shape, dtype, pixel_format = self._last
+            if (frame.image.shape, frame.image.dtype, frame.pixel_format) != (shape, dtype, pixel_format):
+                height, width = frame.image.shape[:2]
+                raise _Incompatible(
+                    f"the source came back with {width}x{height} {frame.pixel_format} images but the session "
+                    f"started with {shape[1]}x{shape[0]} {pixel_format}: start a new session")
+            gap_ns = max(arrival_ns - last_arrival, 1)
+            self._continuity = (last_index + 1 - frame.index, last_ts + gap_ns - frame.timestamp_ns)
+        index_offset, time_offset = self._continuity
+        metadata = dict(frame.metadata) if isinstance(frame.metadata, dict) else {}
+        metadata.update(source_index=frame.index, source_timestamp_ns=frame.timestamp_ns)
+        return dataclasses.replace(frame, index=frame.index + index_offset,
+                                   timestamp_ns=frame.timestamp_ns + time_offset, metadata=metadata)
+
+    def _wait_for_source(self, error):
+        """Close the failed source and reopen it until it works: "back", "stopped" or "gave up"."""
+        policy = self.reconnect
+        lost_at = time.monotonic()
+        message = str(error)
+        self.losses.append(message)
+        self.waiting = True
+        self._event("camera_lost", f"{message}; reconnecting every {policy.retry_s:g} s "
+                    + (f"for up to {policy.timeout_s:g} s" if policy.timeout_s else "until stopped"), "error")
+        source, self.source = self.source, None
+        try:
+            source.close()
+        except Exception:  # noqa: BLE001 - the source is gone anyway
+            pass
+        attempts = 0
+        last_note = lost_at
+        try:
+            while not self._stop_requested.wait(policy.retry_s if attempts else 0.0):
+                now = time.monotonic()
+                if policy.timeout_s is not None and now - lost_at > policy.timeout_s:
+                    self._event("camera_gave_up", f"the source did not come back within {policy.timeout_s:g} s "
+                                f"({attempts} attempts)", "error")
+                    return "gave up"
+                attempts += 1
+                try:
+                    self.source = policy.reopen()
+                except SourceError as retry_error:
+                    if now - last_note >= 10.0:
+                        last_note = now
+                        self._event("camera_waiting", f"still waiting for the source after {now - lost_at:.0f} s: "
+                                    f"{retry_error}", "warning")
+                    continue
+                self.reconnects += 1
+                self._continuity = "pending"
+                self._event("camera_reconnected", f"source back after {time.monotonic() - lost_at:.1f} s "
+                            f"({attempts} attempt(s)); the session continues from frame {self._last[0] + 1}",
+                            "warning")
+                return "back"
+            self._event("note", "session stopped while waiting for the source", "warning")
+            return "stopped"
+        finally:
+            # Counted from the last frame received, not from the detection: the frames missed.
+            self.outage_s += (time.monotonic_ns() - self._last[2]) / 1e9
+            self.waiting = False
+
+    def _event(self, kind, message, level):
+        callback = self.reconnect.on_event if self.reconnect is not None else None
+        if callback is not None:
+            try:
+                callback(kind, message, level)
+            except Exception:  # noqa: BLE001 - a broken reporter must not stop acquisition
+                pass
+
     def raise_error(self):
         """Raise the source failure in the calling thread, if there was one."""
         if self.error is not None:
             raise self.error
+
+
+class _Incompatible(SourceError):
+    """A reconnected source whose images cannot continue the session."""

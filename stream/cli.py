@@ -1,14 +1,18 @@
 """The ``livedic`` command line.
 
 Every failure caused by input (files, options, cameras) ends with one line on
-stderr and exit code 2; set LIVEDIC_DEBUG=1 to see a traceback instead.
+stderr and exit code 2; a camera lost mid-session (recording kept) with exit
+code 3; set LIVEDIC_DEBUG=1 to see a traceback instead.
 """
 
 import argparse
 import os
+import signal
 import sys
+import threading
 
 EXIT_BAD_INPUT = 2
+EXIT_SOURCE_LOST = 3
 
 
 class UsageError(ValueError):
@@ -18,6 +22,10 @@ class UsageError(ValueError):
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
+    if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
+        # A file-size limit (ulimit -f) must fail a write with EFBIG, which stops a recording
+        # cleanly, rather than kill livedic (and the measurement) with SIGXFSZ.
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     if not getattr(args, "handler", None):
         parser.print_help()
         return EXIT_BAD_INPUT
@@ -29,9 +37,35 @@ def main(argv=None):
     except Exception as error:  # noqa: BLE001 - turned into one line unless debugging
         if os.environ.get("LIVEDIC_DEBUG"):
             raise
+        from acquire.base import SourceLost
         kind = _error_kind(error)
         print(f"livedic: error: {kind}{error}", file=sys.stderr)
+        if isinstance(error, SourceLost):
+            return EXIT_SOURCE_LOST
         return EXIT_BAD_INPUT if kind == "" else 1
+
+
+def entry_point():
+    """The ``livedic`` console script: ``main()``, then exit without waiting for a dead camera.
+
+    After a GigE camera is lost, Aravis's teardown of it waits on register writes
+    that time out (about 7 s in Aravis 0.8) in a background thread, which would hold
+    the process open after the summary. By then every file of ours is closed and
+    synced, so the process ends at once instead (``os._exit``, after flushing the
+    standard streams). ``main()`` itself never does this: tests and scripts call it.
+    """
+    code = main()
+    aravis = sys.modules.get("acquire.aravis")
+    pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
+    for thread in pending:
+        thread.join(timeout=0.5)
+    if any(thread.is_alive() for thread in pending):
+        import logging
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _error_kind(error):
@@ -297,4 +331,4 @@ def _cmd_bench_soak(args):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(entry_point())

@@ -14,7 +14,10 @@ summary: frames, fps, POI/s, latency p50/p99, drops and, for synthetic
 sources, the error against the exact displacement.
 
 Ctrl-C (SIGINT) or SIGTERM stops acquisition, tracks what is already queued,
-and closes the recording properly.
+and closes the recording properly. A camera lost mid-run ends the session
+(recording closed, summary, ``SourceLost``) or, with ``--reconnect``, is
+reopened until it is back while the session, its reference and its recording
+stay open (``stream.acquisition.Reconnect``).
 
 The lead wires it into ``stream.cli``::
 
@@ -92,6 +95,13 @@ def add_run_arguments(parser):
                         help="numba threads for rendering and tracking (default 1: the other core serves "
                              "acquisition, recording and display, and parallel regions stall when cores are shared)")
     parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
+    parser.add_argument("--reconnect", action="store_true",
+                        help="cameras (aravis:, v4l2:): when the camera is lost, keep the session and the recording "
+                             "open and reopen it every second until it is back (or Ctrl-C); the session then goes on "
+                             "with the same reference and points")
+    parser.add_argument("--reconnect-timeout", type=float, metavar="S",
+                        help="with --reconnect: give up after S seconds without the camera (default: wait until "
+                             "stopped)")
     return parser
 
 
@@ -153,6 +163,11 @@ def _check_args(args):
     if roi is not None and (roi[2] <= 0 or roi[3] <= 0):
         raise ValueError(f"--roi width and height must be positive, got {args.roi!r}")
     p0 = _floats(args.p0, 2, "--p0", "512,400") if args.p0 else None
+    if args.reconnect_timeout is not None:
+        if not args.reconnect:
+            raise ValueError("--reconnect-timeout needs --reconnect")
+        if not (math.isfinite(args.reconnect_timeout) and args.reconnect_timeout > 0):
+            raise ValueError(f"--reconnect-timeout must be a positive number of seconds, got {args.reconnect_timeout}")
     return roi, p0
 
 
@@ -305,8 +320,11 @@ def run_session(args):
     ValueError
         Bad options (one line, for the CLI to print).
     SourceError
-        The source cannot be opened or failed during the session (raised after the
-        recording is closed and the summary printed).
+        The source cannot be opened, or failed before its first frame.
+    SourceLost
+        The source failed mid-session (and, with ``--reconnect``, did not come back
+        within ``--reconnect-timeout``); raised after the recording is closed and the
+        summary printed.
     """
     from stream.rerun_log import parse_viewer
 
@@ -335,15 +353,17 @@ def run_session(args):
 
 def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target, viewer_note, show_progress,
          stem, say):
-    from acquire.base import SourceError
+    from acquire.base import SourceError, SourceLost
     from acquire.sources import open_source, parse_scheme
     from dic.tracking import Tracker
-    from stream.acquisition import AcquisitionThread
+    from stream.acquisition import AcquisitionThread, Reconnect
     from stream.frame_queue import FrameQueue
     from stream.rerun_log import RerunLogger
     from stream.tracker_loop import TrackerLoop
 
     scheme = parse_scheme(args.source)
+    if args.reconnect and scheme not in _CAMERA_SCHEMES:
+        raise ValueError(f"--reconnect applies to cameras (aravis:, v4l2:); {args.source} is a {scheme} source")
     options = {}
     if scheme == "synthetic" and args.frames is not None and "frames=" not in args.source:
         options["frames"] = max(args.frames, 2)
@@ -357,12 +377,15 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
         if getattr(source, "frames", None) and isinstance(source.frames, int):
             total = min(total, source.frames) if total else source.frames
         if hasattr(source, "prepare"):
-            bar = ProgressBar(source.frames, enabled=show_progress)
+            rendered = getattr(source, "rendered_frames", source.frames)
+            bar = ProgressBar(rendered, enabled=show_progress)
             started = time.perf_counter()
             source.prepare(progress=lambda done, n: bar.update(done, "rendering the simulated test"))
             bar.close()
-            say(f"simulator: {source.frames} frames rendered ahead in {time.perf_counter() - started:.1f} s; "
-                f"delivery paced at {source.fps:g} fps")
+            cycling = f", cycled to make {source.frames}" if rendered != source.frames else ""
+            pacing = f"delivery paced at {source.fps:g} fps" if source.options.get("pace", True) else "delivery unpaced"
+            say(f"simulator: {rendered} frames rendered ahead in {time.perf_counter() - started:.1f} s{cycling}; "
+                f"{pacing}")
         roi = roi_arg if roi_arg is not None else (None if given_points is not None else _default_roi(source))
         policy = _drop_policy(args.drop, source, scheme)
 
@@ -374,11 +397,17 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             "search": args.search, "subpixel": args.subpixel, "seed_radius": args.seed_radius,
             "refind_radius": args.refind_radius, "refind_zncc": args.refind_zncc, "seed": args.seed,
             "queue_size": args.queue, "drop_policy": policy, "point_ids": "P0 is point 0",
-            "threads": args.threads,
+            "threads": args.threads, "reconnect": args.reconnect, "reconnect_timeout_s": args.reconnect_timeout,
         }
         if record_path:
             # The simulator's clock starts at 0 ns; cameras keep the recorder's default (Unix time).
-            recorder = _open_recorder(record_path, metadata, say, start_time_ns=0 if scheme == "synthetic" else None)
+            def recording_stopped(message):
+                say(f"warning: {message}")        # the recorder's message starts "recording stopped: ..."
+                if logger is not None:
+                    logger.event(message, level="error")
+
+            recorder = _open_recorder(record_path, metadata, say, on_error=recording_stopped,
+                                      start_time_ns=0 if scheme == "synthetic" else None)
         if viewer_note:
             say(viewer_note)
         logger = RerunLogger(viewer_mode, viewer_target, recording_name=os.path.basename(stem),
@@ -408,7 +437,19 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
 
         queue = FrameQueue(args.queue, policy)
         on_frame = (lambda item: recorder.write_frame(_for_recording(item.frame))) if recorder is not None else None
-        acquisition = AcquisitionThread(source, queue, max_frames=args.frames, on_frame=on_frame)
+
+        def source_event(kind, message, level):
+            say(("warning: " if level != "info" else "") + message)
+            logger.event(message, level=level)
+            if recorder is not None:
+                recorder.write_event(kind, message, level=level)
+
+        reconnect = None
+        if args.reconnect:
+            reconnect = Reconnect(reopen=lambda: open_source(args.source, **options), retry_s=1.0,
+                                  timeout_s=args.reconnect_timeout, on_event=source_event)
+        acquisition = AcquisitionThread(source, queue, max_frames=args.frames, on_frame=on_frame,
+                                        reconnect=reconnect)
         stop_event = threading.Event()
         bar = ProgressBar(total, enabled=show_progress)
         method = f"{args.search}+{args.subpixel}"
@@ -429,6 +470,8 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
         def progress(result, stats):
             text = (f"{stats.fps:5.1f} fps  latency p50 {stats.latency_ms(50):5.1f} ms  "
                     f"drops {result.dropped_total}")
+            if acquisition.reconnects:
+                text += f"  reconnected {acquisition.reconnects}x"
             if math.isfinite(result.error_rms_px):
                 text += f"  error {result.error_rms_px:.3f} px"
             bar.update(acquisition.frames, text)
@@ -464,13 +507,17 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             say(f"stopped on {interrupt.received}; the recording is closed properly")
             if recorder is not None:
                 recorder.write_event("note", f"session stopped on {interrupt.received}")
-        if acquisition.error is not None and recorder is not None:
-            recorder.write_event("camera_lost", str(acquisition.error), level="error")
+        if acquisition.error is not None:
+            if recorder is not None:
+                recorder.write_event("camera_lost", str(acquisition.error), level="error")
             logger.event(f"source failed: {acquisition.error}", level="error")
 
         summary = stats.summary()
         summary.update(source=args.source, method=method, acquired=acquisition.frames,
                        lost_upstream=_lost_upstream(acquisition), stopped_by=interrupt.received,
+                       source_losses=list(acquisition.losses), reconnects=acquisition.reconnects,
+                       outage_s=round(acquisition.outage_s, 3),
+                       source_error=str(acquisition.error) if acquisition.error is not None else None,
                        recording=record_path if recorder is not None else None,
                        rerun=f"{viewer_mode} {viewer_target}" if viewer_target else viewer_mode,
                        points_shape=list(session.get("shape", ())), roi=list(session.get("roi", ())) or None,
@@ -488,17 +535,21 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             recorder.close()
         if logger is not None:
             logger.close()
-    if recorder is not None and recorder.error:
-        say(f"warning: recording stopped early: {recorder.error}")
     print(text, flush=True)
     if args.summary_json:
         with open(args.summary_json, "w") as handle:
             json.dump(summary, handle, indent=2, default=str)
     if acquisition.error is not None:
+        if acquisition.frames:
+            # It had delivered: not bad input but a loss mid-session (the CLI's exit code 3).
+            raise SourceLost(str(acquisition.error)) from acquisition.error
         raise acquisition.error if isinstance(acquisition.error, SourceError) else SourceError(str(acquisition.error))
     if stats.frames == 0:
         raise SourceError(f"{args.source} delivered no frame")
     return 0
+
+
+_CAMERA_SCHEMES = ("aravis", "v4l2")
 
 
 def _default_roi(source):
@@ -546,7 +597,7 @@ def _safe_settings(source):
     return settings
 
 
-def _open_recorder(path, metadata, say, start_time_ns=None):
+def _open_recorder(path, metadata, say, *, on_error, start_time_ns=None):
     try:
         from stream.recorder import Recorder
     except ImportError as error:
@@ -554,8 +605,7 @@ def _open_recorder(path, metadata, say, start_time_ns=None):
         return None
     directory = os.path.dirname(os.path.abspath(path))
     os.makedirs(directory, exist_ok=True)
-    return Recorder(path, metadata, start_time_ns=start_time_ns,
-                    on_error=lambda message: say(f"warning: recording stopped: {message}"))
+    return Recorder(path, metadata, start_time_ns=start_time_ns, on_error=on_error)
 
 
 def _lost_upstream(acquisition):
@@ -593,8 +643,16 @@ def format_summary(summary, stats, session, recorder):
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
     if recorder is not None:
         size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
-        lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
-                     f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
+        if recorder.error:
+            lines.append(f"  recording  {recorder.path} STOPPED EARLY: {recorder.frames_durable} frames kept "
+                         f"({size / 1e6:.0f} MB); see the warning above")
+        else:
+            lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
+                         f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
+    if summary.get("source_losses"):
+        losses = len(summary["source_losses"])
+        lines.append(f"  camera     lost {losses} time(s), back {summary['reconnects']} time(s); "
+                     f"{summary['outage_s']:.1f} s without frames")
     lines.append(f"  rerun      {summary['rerun']}")
     if summary.get("stopped_by"):
         lines.append(f"  stopped    on {summary['stopped_by']}")

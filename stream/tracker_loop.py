@@ -29,7 +29,7 @@ broken viewer must not stop a measurement); the caller decides what to do.
 import threading
 import time
 from array import array
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -209,7 +209,9 @@ class TrackerLoop:
             t0 = time.monotonic_ns()
             if is_reference:
                 self.tracker = self.make_tracker(frame)
-                self.reference_frame = frame
+                # A copy: a camera frame's image is a buffer lent by the camera's pool, and the
+                # reference is kept for the whole session.
+                self.reference_frame = replace(frame, image=frame.image.copy())
                 stats.n_points = self.tracker.n_points
             measurement = self.tracker.track(frame.image)
             done = time.monotonic_ns()

@@ -1,4 +1,5 @@
-"""Fixtures for the acquisition tests: time limits, Aravis, fake cameras, displacement checks.
+"""Fixtures for the acquisition tests: physical camera, displacement checks (time limits and
+Aravis are in tests/conftest.py).
 
 The Aravis fake cameras are not hardware: tests using them always run and
 FAIL (not skip) when Aravis is missing, with the command that installs it.
@@ -6,53 +7,10 @@ Only tests marked ``camera`` (a physical camera) are skipped unless
 ``LIVEDIC_CAMERA`` names one.
 """
 
-import faulthandler
 import os
-import signal
-import sys
-import threading
 
 import numpy as np
 import pytest
-
-
-def pytest_configure(config):
-    config.addinivalue_line("markers", "time_limit(seconds): fail the test after this many seconds "
-                                       "(tests/acquire, default 60)")
-
-
-@pytest.fixture
-def time_limit(request):
-    """Bound one test's duration: soft (SIGALRM -> TimeoutError), then hard (faulthandler exits)."""
-    marker = request.node.get_closest_marker("time_limit")
-    seconds = float(marker.args[0]) if marker else 60.0
-    if not hasattr(signal, "SIGALRM") or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def expire(_signum, _frame):
-        raise TimeoutError(f"{request.node.name} exceeded its {seconds:g} s time limit")
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    faulthandler.dump_traceback_later(seconds + 30, exit=True, file=sys.stderr)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-        faulthandler.cancel_dump_traceback_later()
-
-
-@pytest.fixture(scope="session")
-def aravis():
-    """``(Aravis, GLib)``; fails with the install command when Aravis is not importable."""
-    from acquire.aravis import load_aravis
-    from acquire.base import SourceError
-    try:
-        return load_aravis()
-    except SourceError as error:
-        pytest.fail(f"Aravis is required for the fake-camera tests: {error}", pytrace=False)
 
 
 def integer_displacements(reference, image, points, radius):

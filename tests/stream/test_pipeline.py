@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from acquire.base import Frame, FrameSource, SourceError
+from acquire.base import Frame, FrameSource, SourceError, SourceLost
 from acquire.sources import open_source, parse_scheme
 from acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
 from stream.acquisition import AcquisitionThread, QueuedFrame
@@ -204,6 +204,116 @@ def test_acquisition_stops_on_request_and_at_the_limit():
     assert (limited.first_index, limited.last_index) == (0, 6)
 
 
+# --------------------------------------------------------------------------- reconnection
+
+class Reopener:
+    """Hands out sources in turn: an exception instance is raised, a source is returned."""
+
+    def __init__(self, *outcomes):
+        self.outcomes = list(outcomes)
+        self.calls = 0
+
+    def __call__(self):
+        self.calls += 1
+        outcome = self.outcomes.pop(0)
+        if isinstance(outcome, BaseException):
+            raise outcome
+        return outcome
+
+
+def _run_acquisition(source, reconnect, *, max_frames=None, timeout=10):
+    from stream.acquisition import Reconnect
+    queue = FrameQueue(1000, BLOCK)
+    events = []
+    policy = Reconnect(reopen=reconnect, retry_s=0.01, on_event=lambda *e: events.append(e)) \
+        if callable(reconnect) else reconnect
+    if isinstance(policy, Reconnect) and policy.on_event is None:
+        policy = Reconnect(reopen=policy.reopen, retry_s=policy.retry_s, timeout_s=policy.timeout_s,
+                           on_event=lambda *e: events.append(e))
+    thread = AcquisitionThread(source, queue, reconnect=policy, max_frames=max_frames)
+    thread.start()
+    thread.join(timeout)
+    assert not thread.is_alive()
+    frames = []
+    while True:
+        try:
+            frames.append(queue.get(timeout=0).frame)
+        except QueueClosed:
+            break
+    return thread, frames, events
+
+
+def test_reconnect_continues_the_session_with_increasing_indices_and_times():
+    first = ListSource(10, fail_after=6, error=SourceError("camera lost: no frame for 1.0 s"))
+    back = ListSource(5)                       # a power-cycled camera: counter and clock start again
+    reopen = Reopener(SourceError("camera not found"), SourceError("camera not found"), back)
+    thread, frames, events = _run_acquisition(first, reopen)
+    assert thread.error is None and thread.finished_reason == "end"
+    assert first.closed and back.closed and reopen.calls == 3
+    assert [f.index for f in frames] == list(range(11))
+    times = [f.timestamp_ns for f in frames]
+    assert all(b > a for a, b in zip(times, times[1:]))
+    assert [f.metadata.get("source_index") for f in frames[6:]] == list(range(5))
+    assert [f.metadata.get("source_timestamp_ns") for f in frames[6:]] == [i * 1_000_000 for i in range(5)]
+    assert np.array_equal(frames[8].image, np.full((4, 4), 2, np.uint8))      # the camera's frame 2
+    assert thread.reconnects == 1 and len(thread.losses) == 1 and thread.outage_s > 0
+    assert [e[0] for e in events] == ["camera_lost", "camera_reconnected"]
+    assert "no frame for 1.0 s" in events[0][1] and "continues from frame 6" in events[1][1]
+    assert thread.frames == 11 and (thread.first_index, thread.last_index) == (0, 10)
+
+
+def test_reconnect_counts_frames_against_the_limit_across_losses():
+    sources = [ListSource(100, fail_after=4, error=SourceError("lost")) for _ in range(3)]
+    thread, frames, events = _run_acquisition(sources[0], Reopener(*sources[1:]), max_frames=10)
+    assert thread.finished_reason == "limit" and thread.reconnects == 2
+    assert [f.index for f in frames] == list(range(10))
+    assert [f.metadata["source_index"] for f in frames[4:]] == [0, 1, 2, 3, 0, 1]
+
+
+def test_reconnect_refuses_a_camera_that_comes_back_with_other_images():
+    class Bigger(ListSource):
+        def __iter__(self):
+            yield Frame(0, 0, np.zeros((8, 8), np.uint8), "Mono8")
+
+    thread, frames, events = _run_acquisition(ListSource(5, fail_after=2, error=SourceError("lost")),
+                                              Reopener(Bigger(1)))
+    assert thread.finished_reason == "error" and len(frames) == 2
+    assert "came back with 8x8 Mono8 images but the session started with 4x4 Mono8" in str(thread.error)
+
+
+def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
+    from stream.acquisition import Reconnect
+    policy = Reconnect(reopen=Reopener(*[SourceError("camera not found")] * 1000), retry_s=0.01, timeout_s=0.2)
+    thread, frames, events = _run_acquisition(ListSource(5, fail_after=3, error=SourceError("cable pulled")), policy)
+    assert thread.finished_reason == "error" and len(frames) == 3
+    assert "cable pulled" in str(thread.error) and "not back within --reconnect-timeout 0.2 s" in str(thread.error)
+    assert [e[0] for e in events] == ["camera_lost", "camera_gave_up"]
+    assert 0.2 <= thread.outage_s < 2.0
+
+
+def test_reconnect_waits_until_stopped_and_a_stop_ends_cleanly():
+    from stream.acquisition import Reconnect
+    queue = FrameQueue(100)
+    reopen = Reopener(*[SourceError("camera not found")] * 10_000)
+    thread = AcquisitionThread(ListSource(5, fail_after=3, error=SourceError("lost")), queue,
+                               reconnect=Reconnect(reopen=reopen, retry_s=0.01))
+    thread.start()
+    deadline = time.monotonic() + 5
+    while reopen.calls < 5 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert thread.is_alive() and thread.waiting and not queue.closed
+    thread.stop()
+    thread.join(2)
+    assert not thread.is_alive() and thread.finished_reason == "stopped" and thread.error is None
+    assert queue.closed and thread.losses == ["lost"]
+
+
+def test_no_reconnect_for_a_source_that_never_delivered():
+    thread, frames, events = _run_acquisition(ListSource(5, fail_after=0, error=SourceError("bad exposure")),
+                                              Reopener(ListSource(5)))
+    assert thread.finished_reason == "error" and "bad exposure" in str(thread.error) and not frames and not events
+
+
 # --------------------------------------------------------------------------- tracker loop
 
 def test_tracker_loop_tracks_times_and_scores_against_the_truth():
@@ -369,11 +479,52 @@ def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_pat
     mcap = tmp_path / "lost.mcap"
     args = _parse(["--source", "aravis:Fake_1", "--record", str(mcap), "--viewer", "none", "--progress", "off",
                    "--roi", "0,0,4,4", "--subset", "3", "--step", "1"])
-    with pytest.raises(SourceError, match="camera lost"):
+    with pytest.raises(SourceLost, match="camera lost"):
         run_module.run_session(args)
     from acquire.mcap_replay import inspect_recording, read_events
     assert inspect_recording(str(mcap)).frames == 12
     assert any(e.kind == "camera_lost" for e in read_events(str(mcap)))
+
+
+def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monkeypatch):
+    import stream.run as run_module
+    from acquire import sources
+
+    opened = []
+
+    def camera(uri, **options):
+        if len(opened) == 1:
+            opened.append("refused")
+            raise SourceError("camera 'Fake_1' not found")
+        source = ListSource(40 if opened else 12, fail_after=None if opened else 8,
+                            error=SourceError("camera lost: no frame for 1.0 s"), period_s=0.002)
+        opened.append(source)
+        return source
+
+    monkeypatch.setattr(sources, "open_source", camera)
+    mcap, summary = tmp_path / "reconnected.mcap", tmp_path / "summary.json"
+    args = _parse(["--source", "aravis:Fake_1", "--record", str(mcap), "--viewer", "none", "--progress", "off",
+                   "--roi", "0,0,4,4", "--subset", "3", "--step", "1", "--reconnect", "--frames", "30",
+                   "--drop", "block", "--summary-json", str(summary)])
+    assert run_module.run_session(args) == 0
+    from acquire.mcap_replay import McapSource, read_events, read_results
+    with McapSource(str(mcap)) as replay:
+        recorded = [(frame.index, frame.timestamp_ns) for frame in replay]
+    assert [index for index, _ in recorded] == list(range(30))
+    assert all(b[1] > a[1] for a, b in zip(recorded, recorded[1:]))
+    assert [r.frame_index for r in read_results(str(mcap))] == list(range(30))
+    kinds = [e.kind for e in read_events(str(mcap))]
+    assert kinds.index("camera_lost") < kinds.index("camera_reconnected")
+    data = json.loads(summary.read_text())
+    assert data["reconnects"] == 1 and data["source_losses"] == ["camera lost: no frame for 1.0 s"]
+    assert data["source_error"] is None and data["frames"] == 30
+
+
+def test_reconnect_is_refused_for_files_and_simulators():
+    with pytest.raises(ValueError, match="--reconnect applies to cameras"):
+        run_session(_parse(["--source", "synthetic:tensile", "--reconnect", "--no-record", "--viewer", "none"]))
+    with pytest.raises(ValueError, match="needs --reconnect"):
+        run_session(_parse(["--reconnect-timeout", "5", "--no-record", "--viewer", "none"]))
 
 
 def test_sigint_stops_cleanly_and_finalises_the_recording(tmp_path):
