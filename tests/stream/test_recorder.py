@@ -1,13 +1,16 @@
-"""Recorder: round trip, format compatibility, crash safety (SIGKILL), disk full (RLIMIT_FSIZE)."""
+"""Recorder: round trip, format compatibility, chunk layout, threads, crash safety (SIGKILL), disk full
+(RLIMIT_FSIZE)."""
 
 import faulthandler
 import json
+import math
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 
 import numpy as np
@@ -75,7 +78,7 @@ def test_round_trip_is_bit_exact(tmp_path, dtype, pixel_format, compression):
         assert rec.write_event("drop", "1 frame dropped (queue full)", level="warning")
         rec.write_event("recording_stopped", "operator stopped")
     assert rec.error is None and rec.frames_written == 7 and rec.results_written == 7
-    assert rec.frames_durable == 7 and rec.bytes_written == os.path.getsize(path)
+    assert rec.frames_durable == 7 and rec.results_durable == 7 and rec.bytes_written == os.path.getsize(path)
 
     with McapSource(path) as source:
         frames = list(source)
@@ -303,6 +306,103 @@ def test_idle_recorder_flushes_in_the_background(tmp_path):
         rec.close()
 
 
+# ----------------------------------------------------------------------------- chunk layout
+
+def _chunk_kinds(path):
+    """Per chunk of an indexed file, in file order: the set of topics it holds."""
+    from mcap.reader import make_reader
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    return [{summary.channels[cid].topic for cid in c.message_index_offsets} for c in chunks]
+
+
+_IMAGE_TOPICS = {rs.TOPIC_IMAGE, rs.TOPIC_FRAME_INFO}
+
+
+def test_chunks_hold_one_kind_are_few_and_follow_the_age_bound(tmp_path):
+    """Images and data (results, events, session) never share a chunk, yet frames and results that
+    alternate do not cost a chunk each; nothing waits unwritten longer than flush_interval_s.
+
+    A hand-driven clock makes the bound exact: 64 frames a second (dt = 1/64 s, exact in binary),
+    flush_interval_s = 0.25 s = 16 frames. After each frame's writes the oldest unwritten message is
+    younger than 16 frames, so at most 16 frames and 16 results are not yet durable."""
+    path = tmp_path / "layout.mcap"
+    dt, flush = 1 / 64, 0.25
+    image = _frames(1, np.uint8, (128, 256))[0]                       # 32 KiB
+    n = 200
+    big = {k: np.resize(v, n) for k, v in _results(0).items()}       # ~9 KB of results a frame
+    big["point_ids"] = np.arange(n)
+    clock = [0.0]
+    frames = 150
+    with Recorder(path, {"source_uri": "x"}, chunk_bytes=256 << 10, flush_interval_s=flush) as rec:
+        rec._cw.clock = lambda: clock[0]
+        lags = []
+        for i in range(frames):
+            clock[0] += dt
+            assert rec.write_frame(Frame(i, T0 + i, image, "Mono8"))
+            assert rec.write_results(i, T0 + i, **big)
+            if i % 40 == 39:
+                assert rec.write_event("note", f"frame {i}")
+            lags.append((i + 1 - rec.frames_durable, i + 1 - rec.results_durable))
+            assert rec.frames_durable >= rec.results_durable          # a frame is on disk before its results
+    chunks = rec.chunks_written
+    assert max(f for f, _ in lags) <= round(flush / dt) and max(r for _, r in lags) <= round(flush / dt), lags
+    assert max(r for _, r in lags) >= round(flush / dt) - 1           # results do wait (they are not per frame)
+    kinds = _chunk_kinds(path)
+    assert len(kinds) == chunks
+    assert all(k <= _IMAGE_TOPICS or not k & _IMAGE_TOPICS for k in kinds), kinds
+    assert kinds[0] == {rs.TOPIC_SESSION}                              # the session message is first, alone
+    # 32 KiB images fill a 256 KiB chunk every 8 frames, results (~9 KB) age out every 16 frames: one data
+    # chunk and at most two image chunks per 16 frames (the data write closes the open image chunk early).
+    assert chunks <= 1 + 3 * math.ceil(frames / 16) + 2, chunks
+    assert chunks < 0.25 * frames
+    assert [r.frame_index for r in read_results(path)] == list(range(frames))
+    assert [f.index for f in McapSource(path)] == list(range(frames))
+    assert len(read_events(path)) == frames // 40
+
+
+def test_writes_from_several_threads(tmp_path):
+    """Frames from one thread, results and events from another, flushes from the background thread and a
+    third caller: everything is recorded once, in order per channel, and no chunk mixes the kinds (pending
+    results fill a 16 KiB chunk every two frames, mostly while an image chunk is open)."""
+    path = tmp_path / "threads.mcap"
+    n = 300
+    images = _frames(4, np.uint8, (64, 64))
+    errors = []
+    with Recorder(path, {}, chunk_bytes=16 << 10, flush_interval_s=0.01) as rec:
+        def frames():
+            for i in range(n):
+                rec.write_frame(Frame(i, T0 + i * 1000, images[i % 4], "Mono8"))
+                if i % 50 == 0:
+                    time.sleep(0.005)
+
+        def results():
+            for i in range(n):
+                rec.write_results(i, T0 + i * 1000, **_results(i, n_points=200))    # ~9 KB
+                if i % 30 == 0:
+                    rec.write_event("note", str(i))
+
+        def flusher():
+            for _ in range(20):
+                errors.append(rec.flush() is not True)
+                time.sleep(0.002)
+
+        threads = [threading.Thread(target=f) for f in (frames, results, flusher)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert rec.error is None and not any(errors)
+    assert rec.frames_written == rec.frames_durable == n and rec.results_written == rec.results_durable == n
+    assert [f.index for f in McapSource(path)] == list(range(n))
+    assert [r.frame_index for r in read_results(path)] == list(range(n))
+    assert [e.message for e in read_events(path)] == [str(i) for i in range(0, n, 30)]
+    kinds = _chunk_kinds(path)
+    assert len(kinds) == rec.chunks_written
+    assert all(k <= _IMAGE_TOPICS or not k & _IMAGE_TOPICS for k in kinds)
+
+
 # ----------------------------------------------------------------------------- SIGKILL
 
 _KILL_CHILD = """
@@ -328,6 +428,8 @@ _KILL_CHILD = """
 
 
 def test_sigkill_loses_nothing_older_than_a_second(tmp_path):
+    """Every frame, and its results, whose writes returned more than 1 s before a SIGKILL is recoverable
+    (the recorder's bound is flush_interval_s + ~0.1 s; the idle spell leaves only the background flush)."""
     path, marker, fixed = tmp_path / "killed.mcap", tmp_path / "marker.txt", tmp_path / "fixed.mcap"
     child = _run_child(_KILL_CHILD, path, marker)
     try:
@@ -354,7 +456,10 @@ def test_sigkill_loses_nothing_older_than_a_second(tmp_path):
     frames = {f.index: f for f in McapSource(path)}
     assert must_survive <= set(frames), sorted(must_survive - set(frames))
     assert all(int(frames[i].image[0, 0]) == i % 256 for i in frames)
-    assert must_survive <= {r.frame_index for r in read_results(path)}
+    results = {r.frame_index: r for r in read_results(path)}          # each frame's results, written after it
+    assert must_survive <= set(results), sorted(must_survive - set(results))
+    assert all(r.point_id.tolist() == [i] and r.u.tolist() == [0.5] for i, r in results.items())
+    assert set(results) <= set(frames)                                   # results never ahead of their frames
     info = inspect_recording(path)
     assert info.truncated and "truncated" in info.note
     summary = recover(path, fixed)
@@ -362,7 +467,7 @@ def test_sigkill_loses_nothing_older_than_a_second(tmp_path):
     assert inspect_recording(fixed).indexed
     assert [f.index for f in McapSource(fixed)] == sorted(frames)
     print(f"SIGKILL: {len(completed)} frames completed, {len(must_survive)} more than 1 s before the kill, "
-          f"{len(frames)} recovered")
+          f"{len(frames)} frames and {len(results)} results recovered")
 
 
 # ----------------------------------------------------------------------------- disk full
@@ -373,15 +478,19 @@ _FULL_CHILD = """
     from acquire.base import Frame
     from stream.recorder import Recorder
 
-    path, limit = sys.argv[1], int(sys.argv[2])
+    path, limit, dt, flush = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)           # get EFBIG instead of being killed
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
     calls, raised, results = [], [], []
     def on_error(message):                                  # a callback may close the recorder
         calls.append(message)
         rec.close()
-    rec = Recorder(path, {"source_uri": "test://full"}, on_error=on_error, chunk_bytes=64 << 10)
+    rec = Recorder(path, {"source_uri": "test://full"}, on_error=on_error, chunk_bytes=64 << 10,
+                   flush_interval_s=flush)
+    clock = [0.0]
+    rec._cw.clock = lambda: clock[0]                        # one frame every dt seconds, whatever the machine
     for i in range(120):
+        clock[0] += dt
         image = np.full((128, 256), i % 251, np.uint8)
         try:
             results.append(rec.write_frame(Frame(i, 10**18 + i, image, "Mono8")))
@@ -392,14 +501,21 @@ _FULL_CHILD = """
     rec.flush()
     rec.close()
     print(json.dumps({"error": rec.error, "calls": calls, "raised": raised, "accepted": sum(results),
-                      "durable": rec.frames_durable, "dropped": rec.frames_dropped,
+                      "written": rec.frames_written, "durable": rec.frames_durable, "dropped": rec.frames_dropped,
+                      "results_written": rec.results_written, "results_durable": rec.results_durable,
                       "results_dropped": rec.results_dropped}))
 """
 
 
 def test_disk_full_stops_recording_cleanly(tmp_path):
+    """The file may grow to 1 MB: ~30 frames of 32 KiB. Frames come every dt = 0.25 s of the recorder's
+    clock (driven by the child) and flush_interval_s = 1 s, so data waits at most 4 frames: when the
+    disk fills, the results on disk lag the durable frames by at most flush_interval_s / dt + 1 = 5
+    frames (the results of the frames written within flush_interval_s before the failure, which were
+    still waiting in memory, are lost with the chunk that could not be written)."""
     path, fixed = tmp_path / "full.mcap", tmp_path / "fixed.mcap"
-    child = _run_child(_FULL_CHILD, path, 1_000_000)
+    dt, flush = 0.25, 1.0
+    child = _run_child(_FULL_CHILD, path, 1_000_000, dt, flush)
     stdout, stderr = child.communicate(timeout=60)
     assert child.returncode == 0, stderr
     report = json.loads(stdout.strip().splitlines()[-1])
@@ -407,16 +523,21 @@ def test_disk_full_stops_recording_cleanly(tmp_path):
     error = report["error"]
     assert error and "\n" not in error and "File too large" in error and str(path) in error
     assert report["calls"] == [error]
-    assert 0 < report["durable"] <= report["accepted"] < 120
-    assert report["dropped"] == 120 - report["accepted"] and report["results_dropped"] > 0
+    assert 0 < report["durable"] <= report["accepted"] == report["written"] < 120
+    assert report["dropped"] == 120 - report["accepted"]                 # every call counted once
+    assert report["results_dropped"] == 120 - report["results_written"] > 0
     assert os.path.getsize(path) <= 1_000_000
 
     frames = list(McapSource(path))       # a chunk whose index records failed is still readable: >=
     assert report["durable"] <= len(frames) <= report["accepted"]
     assert [f.index for f in frames] == list(range(len(frames)))
     assert all(int(f.image[0, 0]) == f.index % 251 for f in frames)
-    assert len(read_results(path)) >= report["durable"] - 1
+    results = [r.frame_index for r in read_results(path)]
+    assert results == list(range(len(results)))
+    assert report["results_durable"] <= len(results) <= report["durable"]  # results follow their frames
+    lag = round(flush / dt) + 1
+    assert report["durable"] - len(results) <= lag, (report, len(results))
     assert read_session(path)["source_uri"] == "test://full"
     assert recover(path, fixed)["frames"] == len(frames)
-    print(f"disk full: {report['accepted']} frames accepted, {report['durable']} durable, {len(frames)} read back; "
-          f"{error}")
+    print(f"disk full: {report['accepted']} frames accepted, {report['durable']} durable, {len(frames)} read back, "
+          f"{len(results)} results read back (bound: >= {report['durable'] - lag}); {error}")

@@ -32,6 +32,31 @@ def recording(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
+def killed(tmp_path_factory):
+    """A recording by ``livedic run`` cut short as a kill during a write leaves it.
+
+    The run is paced (30 frames at 25 fps, 1.2 s), so the recorder writes its chunks as a live session
+    does: images when a chunk fills or ages, results together every ``flush_interval_s`` (0.25 s), not
+    with every frame. The file is then cut in the middle of its last image chunk: every chunk before
+    the cut (several data chunks among them) is whole, the results written after it are lost."""
+    from mcap.reader import make_reader
+
+    folder = tmp_path_factory.mktemp("killed")
+    path = folder / "paced.mcap"
+    code = main(["run", "--source", "synthetic:tensile?size=128x256&frames=30&fps=25&noise=0.5",
+                 "--record", str(path), "--viewer", "none", "--n-points", "60", "--progress", "off"])
+    assert code == 0
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    image_ids = {cid for cid, ch in summary.channels.items() if ch.topic == "/camera/image"}
+    last = max((c for c in summary.chunk_indexes if set(c.message_index_offsets) & image_ids),
+               key=lambda c: c.chunk_start_offset)
+    cut = folder / "killed.mcap"
+    cut.write_bytes(path.read_bytes()[:last.chunk_start_offset + last.chunk_length // 2])
+    return str(path), str(cut)
+
+
+@pytest.fixture(scope="module")
 def dropped(tmp_path_factory):
     """A recording whose live run 'dropped' frames 3, 6 and 7: all images, results only for the others."""
     from dic.speckle import SpecklePattern, render
@@ -151,15 +176,14 @@ def test_replay_tracks_the_recorded_frame_set_or_every_frame(dropped, tmp_path, 
     assert np.mean([row["ok"] == "1" for row in rows]) > 0.95
 
 
-def test_replay_of_a_truncated_recording_uses_the_recovered_frames(recording, tmp_path, capsys):
-    half = tmp_path / "half.mcap"
-    data = open(recording, "rb").read()
-    half.write_bytes(data[:len(data) // 2])
-    recovered = read_results(str(half))
-    assert 0 < len(recovered) < len(read_results(recording))
+def test_replay_of_a_truncated_recording_uses_the_recovered_frames(killed, tmp_path, capsys):
+    full, half = killed
+    recovered = read_results(half)
+    assert 0 < len(recovered) < len(read_results(full))
+    assert [r.frame_index for r in recovered] == [r.frame_index for r in read_results(full)][:len(recovered)]
     capsys.readouterr()
     out = tmp_path / "half.csv"
-    assert main(["replay", str(half), "-o", str(out), "--progress", "off"]) == 0
+    assert main(["replay", half, "-o", str(out), "--progress", "off"]) == 0
     err = capsys.readouterr().err
     assert "truncated" in err and f"replay matches the recording exactly: {len(recovered)} frames" in err
     _, rows = _rows(out)
@@ -201,18 +225,18 @@ def test_export_writes_the_four_files_and_refuses_to_overwrite(recording, tmp_pa
     assert sorted(os.listdir(target)) == ["events.csv", "fields.csv", "p0_trace.csv", "session.json"]
 
 
-def test_export_of_a_truncated_recording_says_so(recording, tmp_path, capsys):
-    half = tmp_path / "half.mcap"
-    data = open(recording, "rb").read()
-    half.write_bytes(data[:len(data) // 2])
+def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
+    full, half = killed
     capsys.readouterr()
-    assert main(["export", str(half), "-o", str(tmp_path / "out")]) == 0
+    assert main(["export", half, "-o", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert "note:" in err and "truncated" in err
     session = json.loads((tmp_path / "out" / "session.json").read_text())
     assert session["livedic.export"]["truncated"] is True
     _, trace = _rows(tmp_path / "out" / "p0_trace.csv")
-    assert len(trace) == len(read_results(str(half))) > 0
+    recovered = read_results(half)
+    assert 0 < len(trace) == len(recovered) < len(read_results(full))
+    assert [int(row["frame"]) for row in trace] == [r.frame_index for r in recovered]
 
 
 # --------------------------------------------------------------------------- bad input
