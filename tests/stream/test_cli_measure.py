@@ -104,3 +104,28 @@ def test_colour_images_are_converted_with_a_note(image_pair, tmp_path, capsys):
     assert code == 0
     assert "note" in captured.err
     assert all(row["ok"] == "1" for row in _rows(captured.out))
+
+
+@pytest.mark.parametrize("fill", [0, 255], ids=["flat-black", "saturated"])
+def test_flat_or_saturated_region_flags_its_points_and_the_rest_is_measured(tmp_path, capsys, fill):
+    """Paint the left third of both images uniform: points there are not ok, with a status; the others exact."""
+    pattern = SpecklePattern((120, 150), n_speckles=280, seed=5)
+    reference, deformed = render(pattern, None, bit_depth=8), render(pattern, SHIFT, bit_depth=8)
+    reference[:, :50] = fill
+    deformed[:, :50] = fill
+    paths = [str(tmp_path / "ref.png"), str(tmp_path / "def.png")]
+    for path, image in zip(paths, (reference, deformed)):
+        assert cv2.imwrite(path, image)
+    code = main(["measure", *paths, "--grid", "20", "--subpixel", "icgn", "--radius", "4"])
+    out = capsys.readouterr().out
+    assert code == 0
+    rows = _rows(out)
+    inside = [r for r in rows if float(r["x"]) + 10 < 50]        # the whole subset is uniform
+    outside = [r for r in rows if float(r["x"]) - 10 > 50 + 3]  # clear of the edge, shift included
+    assert inside and outside
+    assert all(r["ok"] == "0" and r["u"] == "nan" for r in inside)
+    from dic.status import Status
+    assert {int(r["status"]) for r in inside} == {int(Status.FLAT_REFERENCE)}
+    for row in outside:
+        assert row["ok"] == "1"
+        assert abs(float(row["u"]) - SHIFT[0]) < 0.02 and abs(float(row["v"]) - SHIFT[1]) < 0.02

@@ -527,7 +527,8 @@ def test_reconnect_is_refused_for_files_and_simulators():
         run_session(_parse(["--reconnect-timeout", "5", "--no-record", "--viewer", "none"]))
 
 
-def test_sigint_stops_cleanly_and_finalises_the_recording(tmp_path):
+@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_signal):
     mcap = tmp_path / "interrupted.mcap"
     code = (f"import sys; sys.path.insert(0, {REPO!r}); "
             "import argparse; from stream.run import add_run_arguments, run_session; "
@@ -542,13 +543,14 @@ def test_sigint_stops_cleanly_and_finalises_the_recording(tmp_path):
         while time.monotonic() < deadline and not mcap.exists():
             time.sleep(0.1)
         time.sleep(1.5)
-        process.send_signal(signal.SIGINT)
+        process.send_signal(stop_signal)
         out, err = process.communicate(timeout=30)
     finally:
         if process.poll() is None:
             process.kill()
     assert process.returncode == 0, err
-    assert "stopped on SIGINT" in err and "stopped    on SIGINT" in out
+    name = signal.Signals(stop_signal).name
+    assert f"stopped on {name}" in err and f"stopped    on {name}" in out
     from acquire.mcap_replay import inspect_recording, read_results
     info = inspect_recording(str(mcap))
     assert info.indexed and not info.truncated and 5 < info.frames < 400
