@@ -21,7 +21,9 @@ folder deleted afterwards), no viewer. The numbers come from the session's
 Three extra rows for IC-GN at 1,000 points: ``--no-record`` (what the
 recording costs), ``--search none`` (IC-GN started from the previous frame's
 result, no integer search; lost points are still re-found by the re-find
-search: what the seeding search costs) and an unpaced source (``pace=0``:
+search: what the seeding search costs; with IC-GN the default improved-WSO
+seed search runs only for the points IC-GN leaves doubtful, see
+``dic.tracking``) and an unpaced source (``pace=0``:
 frames as fast as the pipeline takes them, the queue blocks instead of
 dropping) whose fps is the highest rate this machine sustains with recording.
 
@@ -226,9 +228,10 @@ def explain_limits(rows, fps):
     if target and unseeded and target["summary"] and unseeded["summary"]:
         t, n = target["summary"], unseeded["summary"]
         if t.get("processing_p50_ms") is not None and n.get("processing_p50_ms") is not None:
-            lines.append(f"  seeding search: improved-wso r2 + IC-GN takes {t['processing_p50_ms']:.1f} ms per frame "
-                         f"(p50), IC-GN from the previous result alone (--search none) {n['processing_p50_ms']:.1f} ms: "
-                         f"the integer search costs {t['processing_p50_ms'] - n['processing_p50_ms']:.1f} ms; error "
+            lines.append(f"  seeding search: improved-wso r2 (run only for points IC-GN from the previous result leaves "
+                         f"doubtful) + IC-GN takes {t['processing_p50_ms']:.1f} ms per frame (p50), IC-GN from the "
+                         f"previous result alone (--search none) {n['processing_p50_ms']:.1f} ms: the integer search "
+                         f"costs {t['processing_p50_ms'] - n['processing_p50_ms']:.1f} ms; error "
                          f"RMS {_num(t.get('error_rms_px'), '.4f')} vs {_num(n.get('error_rms_px'), '.4f')} px, "
                          f"re-found points {t.get('refound')} vs {n.get('refound')}")
     unpaced = by_key.get((TARGET_POINTS, TARGET_METHOD, True, False))

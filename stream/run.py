@@ -64,7 +64,8 @@ def add_run_arguments(parser):
     parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
     parser.add_argument("--search", default="improved-wso", metavar="NAME",
                         help=f"integer search seeded by the previous frame: {', '.join(SEARCH_METHODS)} "
-                             "(default improved-wso; none = start the sub-pixel method from the previous result)")
+                             "(default improved-wso; with icgn or newton-raphson it runs only for the points the "
+                             "sub-pixel method, started from the previous result, leaves doubtful; none = never)")
     parser.add_argument("--subpixel", default="icgn", metavar="NAME",
                         help=f"sub-pixel method: {', '.join(SUBPIXEL_METHODS)} (default icgn)")
     parser.add_argument("--seed-radius", type=int, default=2, metavar="R",

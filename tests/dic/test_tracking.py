@@ -81,6 +81,29 @@ def test_refinds_points_after_a_jump():
         assert tracker.last_refind_attempts == 0      # back to cheap seeded tracking
 
 
+def test_seeded_search_runs_only_for_doubtful_points_with_icgn():
+    """IC-GN from the previous result for all; the seed box only where that is doubtful (an 8.5 px jump)."""
+    source, frames = _translate_frames("frames=7&size=224x224&du=0.2&dv=0.1&jump=4:8:-3&noise=1")
+    points = grid_in_roi(source.shape, (56, 56, 112, 112), 16, 21)
+    tracker = Tracker(frames[0].image, points, search="improved-wso", seed_radius=10, refind_radius=20)
+    plain = Tracker(frames[0].image, points, search="none", seed_radius=10, refind_radius=20)
+    surface = Tracker(frames[0].image, points, search="improved-wso", subpixel="improved-surface-fit", seed_radius=10)
+    for k, frame in enumerate(frames):
+        m = tracker.track(frame.image)
+        assert m.ok.all() and np.max(_errors(frame, m)) < 0.05
+        assert tracker.last_refind_attempts == 0          # the seed box was enough: no wide search
+        if k == 4:
+            assert tracker.last_seed_searches >= 0.5 * len(points)
+        else:
+            assert tracker.last_seed_searches == 0
+            reference = plain.track(frame.image)
+            assert np.array_equal(m.u, reference.u) and np.array_equal(m.v, reference.v)
+        surface.track(frame.image)
+        assert surface.last_seed_searches == len(points)  # surface fits need the integer peak every frame
+        if k == 4:
+            break
+
+
 def test_points_without_texture_are_reported_never_searched():
     source, frames = _translate_frames("frames=3&size=128x128&du=0.5&dv=0&noise=0")
     reference = frames[0].image.copy()
