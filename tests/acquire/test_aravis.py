@@ -270,7 +270,7 @@ def test_teardown_leaves_no_crash_at_interpreter_exit(gige):
 
 @pytest.mark.time_limit(40)
 def test_killed_gige_camera_raises_source_error_quickly(gige):
-    """SIGKILL the simulator mid-stream: SourceError within ~1-2 s, close() does not block.
+    """SIGKILL the simulator mid-stream: SourceError within a second, close() does not block.
 
     Runs last among the GigE tests: it frees the loopback GVCP port held by the shared fake.
     """
@@ -289,7 +289,7 @@ def test_killed_gige_camera_raises_source_error_quickly(gige):
         closing = time.monotonic() - started
     text = str(caught.value)
     assert "#LDKILL" in text and "lost" in text and "no frame for" in text and "completed" in text, text
-    assert waited < 2.0, f"lost camera detected after {waited:.2f} s"
+    assert waited < 1.0, f"lost camera detected after {waited:.2f} s (the issue asks for less than a second)"
     assert closing < 0.5, f"close() blocked {closing:.2f} s"
     # the slow GigE teardown (register writes time out) runs in the background: wait for it here
     for thread in list(aravis_module._TEARDOWN_THREADS):

@@ -101,8 +101,8 @@ def test_killed_camera_ends_the_run_with_exit_3_and_a_complete_recording(tmp_pat
     errors = [line for line in err.splitlines() if line.startswith("livedic: error:")]
     assert len(errors) == 1 and "lost: no frame for" in errors[0] and f"#{SERIAL}" in errors[0], err
     assert "Traceback" not in err
-    # Detected within ~1 s, and the process does not wait on Aravis's ~7 s teardown of the dead camera.
-    assert exited_after < 6.0, f"livedic exited {exited_after:.1f} s after the camera was killed"
+    # Detected within a second, and the process does not wait on Aravis's ~7 s teardown of the dead camera.
+    assert exited_after < 4.0, f"livedic exited {exited_after:.1f} s after the camera was killed"
     info = inspect_recording(str(record))
     assert info.indexed and not info.truncated, info     # closed cleanly: summary and index written
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -121,7 +121,7 @@ def test_reconnect_waits_for_the_camera_and_continues_the_same_session(tmp_path)
         process = livedic_run(tmp_path, *camera_options(fake, record), "--reconnect", "--frames", "150")
         wait_for_served(fake, 45)
         fake.kill()
-        time.sleep(2.0)                       # livedic notices (~1 s) and retries while the camera is off
+        time.sleep(2.0)                       # livedic notices (< 1 s) and retries while the camera is off
         fake.stop()
         fake = GigEFakeCamera(MOTION, serial=SERIAL).start()     # the camera is back (power-cycled)
         out, err = process.communicate(timeout=90)
