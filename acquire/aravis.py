@@ -45,6 +45,7 @@ from urllib.parse import parse_qsl
 import numpy as np
 
 from acquire.base import Frame, FrameSource, SourceError
+from acquire.options import as_bool, as_float, as_int
 
 __all__ = ["AravisCamera", "list_cameras", "open_uri", "parse_uri", "load_aravis",
            "SUPPORTED_PIXEL_FORMATS", "SCHEME"]
@@ -177,37 +178,6 @@ def open_uri(uri, **options):
 # Option parsing (strings from URIs, values from Python)
 # --------------------------------------------------------------------------- #
 
-def _as_float(name, value):
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise SourceError(f"option {name}={value!r} is not a number") from None
-    if not math.isfinite(number):
-        raise SourceError(f"option {name}={value!r} must be finite")
-    return number
-
-
-def _as_int(name, value):
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise SourceError(f"option {name}={value!r} is not an integer") from None
-    if not number.is_integer():
-        raise SourceError(f"option {name}={value!r} is not an integer")
-    return int(number)
-
-
-def _as_bool(name, value):
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("0", "false", "no", "off", ""):
-        return False
-    raise SourceError(f"option {name}={value!r} is not a boolean (use 1/0, true/false)")
-
-
 def _as_roi(name, value):
     if isinstance(value, str):
         parts = [p for p in value.replace("x", ",").replace(" ", ",").split(",") if p]
@@ -218,7 +188,7 @@ def _as_roi(name, value):
             parts = [value]
     if len(parts) != 4:
         raise SourceError(f"option {name}={value!r} must be 4 integers x,y,w,h")
-    x, y, w, h = (_as_int(name, p) for p in parts)
+    x, y, w, h = (as_int(name, p) for p in parts)
     if x < 0 or y < 0 or w <= 0 or h <= 0:
         raise SourceError(f"option {name}={value!r}: need x >= 0, y >= 0, w > 0, h > 0")
     return (x, y, w, h)
@@ -388,10 +358,10 @@ class AravisCamera(FrameSource):
         Setting("pixel_format", _as_pixel_format, _apply_pixel_format, _read_pixel_format,
                 "Mono8, Mono12 (uint16) or Mono16"),
         Setting("roi", _as_roi, _apply_roi, _read_roi, "sensor region x,y,w,h in pixels"),
-        Setting("packet_size", _as_int, _apply_packet_size, _read_packet_size, "GigE packet size, bytes"),
-        Setting("exposure_us", _as_float, _apply_exposure, _read_exposure, "exposure time, microseconds"),
-        Setting("gain_db", _as_float, _apply_gain, _read_gain, "analog gain, dB"),
-        Setting("frame_rate", _as_float, _apply_frame_rate, _read_frame_rate, "frames per second"),
+        Setting("packet_size", as_int, _apply_packet_size, _read_packet_size, "GigE packet size, bytes"),
+        Setting("exposure_us", as_float, _apply_exposure, _read_exposure, "exposure time, microseconds"),
+        Setting("gain_db", as_float, _apply_gain, _read_gain, "analog gain, dB"),
+        Setting("frame_rate", as_float, _apply_frame_rate, _read_frame_rate, "frames per second"),
     )
     # Other options: how the stream behaves rather than what the camera does.
     OPTIONS = {s.name: s.doc for s in SETTINGS} | {
@@ -410,14 +380,14 @@ class AravisCamera(FrameSource):
             if value is not None and value != "":
                 requested[setting.name] = setting.parse(setting.name, value)
         self._requested = requested
-        self._n_buffers = _as_int("n_buffers", n_buffers)
+        self._n_buffers = as_int("n_buffers", n_buffers)
         if self._n_buffers < 2:
             raise SourceError(f"n_buffers={self._n_buffers}: need at least 2")
         self._max_buffers = 4 * self._n_buffers
-        self._timeout_option = None if timeout_s in (None, "") else _as_float("timeout_s", timeout_s)
+        self._timeout_option = None if timeout_s in (None, "") else as_float("timeout_s", timeout_s)
         if self._timeout_option is not None and self._timeout_option <= 0:
             raise SourceError(f"timeout_s={timeout_s}: must be > 0")
-        self._copy = _as_bool("copy", copy)
+        self._copy = as_bool("copy", copy)
         self.uri = uri or f"{SCHEME}:{device_id or ''}"
 
         self._lock = threading.RLock()          # guards camera/stream calls and teardown

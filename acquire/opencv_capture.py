@@ -29,6 +29,7 @@ from urllib.parse import parse_qsl
 import numpy as np
 
 from acquire.base import Frame, FrameSource, SourceError
+from acquire.options import as_bool, as_float, as_int
 
 __all__ = ["OpenCVCapture", "VideoFile", "V4L2Camera", "open_uri", "GREY_PIXEL_FORMATS"]
 
@@ -281,7 +282,7 @@ class VideoFile(OpenCVCapture):
         path = os.path.expanduser(os.fspath(path))
         if os.path.isdir(path):
             raise SourceError(f"video source {path}: is a directory, not a video file (use images: for a folder)")
-        super().__init__(path, api=cv2.CAP_FFMPEG, kind="video", realtime=_as_bool(realtime), uri=uri)
+        super().__init__(path, api=cv2.CAP_FFMPEG, kind="video", realtime=as_bool("realtime", realtime), uri=uri)
 
     def _describe_stream(self):
         info = super()._describe_stream()
@@ -332,12 +333,12 @@ class V4L2Camera(OpenCVCapture):
             self._requested["fourcc"] = text.ljust(4)
         for name, value in (("width", width), ("height", height)):
             if value not in (None, ""):
-                self._requested[name] = _positive_int(value, "width/height")
+                self._requested[name] = as_int(name, value, low=1)
         for name in ("frame_rate", "exposure_us"):
             if name in self._requested:
-                self._requested[name] = _positive_float(self._requested[name], name)
+                self._requested[name] = as_float(name, self._requested[name], low=0, low_open=True)
         if "gain" in self._requested:
-            self._requested["gain"] = _finite_float(self._requested["gain"], "gain")
+            self._requested["gain"] = as_float("gain", self._requested["gain"])
         super().__init__(device, api=cv2.CAP_V4L2 if api is None else api, kind="v4l2", uri=uri)
 
     def _open_failure(self):
@@ -384,47 +385,6 @@ class V4L2Camera(OpenCVCapture):
         out = super().settings
         out["requested"] = dict(self._requested)
         return out
-
-
-def _positive_int(value, name):
-    try:
-        number = int(float(value))
-    except (TypeError, ValueError):
-        raise SourceError(f"{name}={value!r} is not an integer") from None
-    if number <= 0:
-        raise SourceError(f"{name}={value!r} must be > 0")
-    return number
-
-
-def _positive_float(value, name):
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise SourceError(f"{name}={value!r} is not a number") from None
-    if not (math.isfinite(number) and number > 0):
-        raise SourceError(f"{name}={value!r} must be > 0")
-    return number
-
-
-def _finite_float(value, name):
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise SourceError(f"{name}={value!r} is not a number") from None
-    if not math.isfinite(number):
-        raise SourceError(f"{name}={value!r} must be finite")
-    return number
-
-
-def _as_bool(value):
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("0", "false", "no", "off", ""):
-        return False
-    raise SourceError(f"{value!r} is not a boolean (use 1/0, true/false)")
 
 
 def open_uri(uri, **options):

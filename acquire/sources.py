@@ -91,10 +91,5 @@ def _open_mcap(uri, options):
     unknown = sorted(set(merged) - {"realtime"})
     if unknown:
         raise SourceError(f"unknown mcap option(s) {', '.join(unknown)}: the only option is realtime=0|1")
-    realtime = merged.get("realtime", False)
-    if isinstance(realtime, str):
-        text = realtime.strip().lower()
-        if text not in ("0", "1", "true", "false", "yes", "no", ""):
-            raise SourceError(f"mcap option realtime={realtime!r}: write 0 or 1")
-        realtime = text in ("1", "true", "yes")
-    return McapSource(path, realtime=bool(realtime))
+    from acquire.options import as_bool
+    return McapSource(path, realtime=as_bool("realtime", merged.get("realtime", False)))

@@ -94,11 +94,13 @@ import math
 import threading
 import time
 import urllib.parse
+from functools import partial
 
 import numpy as np
 from numba import njit, prange
 
 from acquire.base import Frame, FrameSource, SourceError
+from acquire.options import parse_bool, parse_number
 
 MODELS = ("tensile", "translate")
 _FULL_SCALE = {8: 255, 12: 4095}
@@ -176,30 +178,6 @@ def _rendered_count(options):
     return min(loop, options["frames"]) if loop else options["frames"]
 
 
-def _to_int(low):
-    def convert(value):
-        if isinstance(value, bool):
-            raise ValueError("expected an integer")
-        number = int(value) if not isinstance(value, str) else int(value.strip())
-        if number < low:
-            raise ValueError(f"must be an integer >= {low}")
-        return number
-    return convert
-
-
-def _to_float(low=None, low_open=False):
-    def convert(value):
-        if isinstance(value, bool):
-            raise ValueError("expected a number")
-        number = float(value)
-        if not math.isfinite(number):
-            raise ValueError("must be a finite number")
-        if low is not None and (number < low or (low_open and number == low)):
-            raise ValueError(f"must be {'>' if low_open else '>='} {low}")
-        return number
-    return convert
-
-
 def _to_size(value):
     if isinstance(value, str):
         parts = value.lower().split("x")
@@ -220,17 +198,6 @@ def _to_bit(value):
     return bit
 
 
-def _to_bool(value):
-    if isinstance(value, str):
-        text = value.strip().lower()
-        if text in ("1", "true", "yes", "on"):
-            return True
-        if text in ("0", "false", "no", "off"):
-            return False
-        raise ValueError("write 1 or 0")
-    return bool(value)
-
-
 def _to_jump(value):
     if value is None or value == "":
         return None
@@ -247,10 +214,13 @@ def _to_jump(value):
     return (frame, u, v)
 
 
+_INT = partial(parse_number, integer=True)
 _CONVERTERS = {
-    "frames": _to_int(2), "fps": _to_float(0.0, low_open=True), "size": _to_size, "bit": _to_bit,
-    "noise": _to_float(0.0), "seed": _to_int(0), "radius": _to_float(0.5), "pace": _to_bool, "loop": _to_int(0),
-    "strain": _to_float(0.0), "neck": _to_float(0.0), "du": _to_float(), "dv": _to_float(), "jump": _to_jump,
+    "frames": partial(_INT, low=2), "fps": partial(parse_number, low=0, low_open=True), "size": _to_size,
+    "bit": _to_bit, "noise": partial(parse_number, low=0), "seed": partial(_INT, low=0),
+    "radius": partial(parse_number, low=0.5), "pace": parse_bool, "loop": partial(_INT, low=0),
+    "strain": partial(parse_number, low=0), "neck": partial(parse_number, low=0), "du": parse_number,
+    "dv": parse_number, "jump": _to_jump,
 }
 
 

@@ -123,5 +123,7 @@ def test_v4l2_uri_and_errors():
         open_uri("v4l2:/dev/video97?exposure=3")
     with pytest.raises(SourceError, match="fourcc='TOOLONG' must be 1 to 4 characters"):
         open_uri("v4l2:/dev/video97", fourcc="TOOLONG")
-    with pytest.raises(SourceError, match="width/height='-3' must be > 0"):
+    with pytest.raises(SourceError, match="option width='-3': must be >= 1"):
         open_uri("v4l2:/dev/video97?width=-3")
+    with pytest.raises(SourceError, match="option frame_rate='fast': not a number"):
+        open_uri("v4l2:/dev/video97?frame_rate=fast")

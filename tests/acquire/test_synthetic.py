@@ -177,3 +177,19 @@ def test_measured_strain_peaks_at_the_neck():
     assert m.ok.mean() > 0.9
     peak = m.y[m.ok][np.argmax(m.vy[m.ok])]
     assert abs(peak - model.y_neck) <= 12
+
+
+def test_option_parsing_is_shared_by_every_source():
+    """One set of rules (acquire.options) for synthetic, mcap, v4l2 and aravis options."""
+    from acquire.options import as_bool, as_float, as_int, parse_number
+    assert as_int("seed", "18446744073709551615", low=0) == 2**64 - 1          # exact, not via float
+    assert as_int("frames", "300.0") == 300 and as_float("fps", " 50 ") == 50.0
+    assert [as_bool("pace", v) for v in ("1", "yes", "On", "0", "false", "", True)] == [True] * 3 + [False] * 3 + [True]
+    for call, words in ((lambda: as_int("frames", "2.5"), "option frames='2.5': not an integer"),
+                        (lambda: as_float("fps", "nan"), "option fps='nan': must be finite"),
+                        (lambda: as_float("fps", 0, low=0, low_open=True), "option fps=0: must be > 0"),
+                        (lambda: as_bool("pace", "maybe"), "option pace='maybe': not a boolean")):
+        with pytest.raises(SourceError, match=words):
+            call()
+    with pytest.raises(ValueError, match="expected a number"):
+        parse_number(True)
