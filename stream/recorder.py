@@ -431,9 +431,7 @@ class Recorder:
             True if accepted (counted in ``*_written``), False if dropped (counted in
             ``*_dropped``) because recording has stopped, or stopped on this write.
         """
-        if self.error is not None or self._closed:
-            with self._lock:
-                self.frames_dropped += 1
+        if self._refused("frames"):
             return False
         image = frame.image
         encoding = rs.image_encoding(image)
@@ -448,29 +446,17 @@ class Recorder:
             info = rs.FrameInfo(frame_index=index, timestamp_ns=timestamp_ns, pixel_format=str(frame.pixel_format),
                                 metadata_json=rs.to_json(dict(frame.metadata)) if frame.metadata else "")
             info = info.SerializeToString()
-        written = False
-        with self._lock:
-            if self.error is not None or self._closed:
-                self.frames_dropped += 1
-                return False
-            try:
-                now = time.time_ns()
-                sequence = index & 0xFFFFFFFF
-                self._write_session(timestamp_ns)
-                if info is not None:
-                    self._cw.add("image", self._ch_info, timestamp_ns, info, publish_time=now, sequence=sequence)
-                self._cw.add("image", self._ch_image, timestamp_ns, payload, publish_time=now,
-                             sequence=sequence, count_as="frame")
-                self.frames_written += 1
-                written = True
-                self._last_frame = (timestamp_ns, time.monotonic_ns())
-                self._after_write()
-            except Exception as error:  # noqa: BLE001 - any write failure stops recording, never the loop
-                self._fail(error, "write_frame")
-                if not written:
-                    self.frames_dropped += 1
-        self._notify()
-        return written
+
+        def add():
+            now = time.time_ns()
+            sequence = index & 0xFFFFFFFF
+            if info is not None:
+                self._cw.add("image", self._ch_info, timestamp_ns, info, publish_time=now, sequence=sequence)
+            self._cw.add("image", self._ch_image, timestamp_ns, payload, publish_time=now,
+                         sequence=sequence, count_as="frame")
+            self._last_frame = (timestamp_ns, time.monotonic_ns())
+
+        return self._write("frames", "write_frame", timestamp_ns, add)
 
     def write_results(self, frame_index, timestamp_ns, point_ids, x, y, u, v, zncc, ok, **extra):
         """Record one frame's DIC results on ``/dic/results`` (``livedic.FrameResults``).
@@ -505,9 +491,7 @@ class Recorder:
         ValueError
             Arrays of different lengths or not 1-D, ids or counts out of range.
         """
-        if self.error is not None or self._closed:
-            with self._lock:
-                self.results_dropped += 1
+        if self._refused("results"):
             return False
         unknown = sorted(set(extra) - set(_RESULT_EXTRAS))
         if unknown:
@@ -543,24 +527,9 @@ class Recorder:
                 raise ValueError(f"write_results: {name}={value} is out of range")
             values[name] = value
         payload = rs.encode_results(values)
-        written = False
-        with self._lock:
-            if self.error is not None or self._closed:
-                self.results_dropped += 1
-                return False
-            try:
-                self._write_session(timestamp_ns)
-                self._cw.add("data", self._ch_results, timestamp_ns, payload, publish_time=time.time_ns(),
-                             sequence=frame_index & 0xFFFFFFFF, count_as="results")
-                self.results_written += 1
-                written = True
-                self._after_write()
-            except Exception as error:  # noqa: BLE001
-                self._fail(error, "write_results")
-                if not written:
-                    self.results_dropped += 1
-        self._notify()
-        return written
+        return self._write("results", "write_results", timestamp_ns, lambda: self._cw.add(
+            "data", self._ch_results, timestamp_ns, payload, publish_time=time.time_ns(),
+            sequence=frame_index & 0xFFFFFFFF, count_as="results"))
 
     def write_event(self, kind, message, *, level="info", timestamp_ns=None):
         """Record a note on ``/livedic/events`` (``livedic.Event``).
@@ -582,42 +551,28 @@ class Recorder:
             True if accepted (counted in ``*_written``), False if dropped (counted in
             ``*_dropped``) because recording has stopped, or stopped on this write.
         """
-        if self.error is not None or self._closed:
-            with self._lock:
-                self.events_dropped += 1
+        if self._refused("events"):
             return False
         if level not in rs.EVENT_LEVELS:
             raise ValueError(f"level must be one of {', '.join(rs.EVENT_LEVELS)}, got {level!r}")
-        written = False
-        with self._lock:
-            if self.error is not None or self._closed:
-                self.events_dropped += 1
-                return False
-            if timestamp_ns is None:
-                if self._last_frame is not None:
-                    base_ns, base_mono = self._last_frame
-                    timestamp_ns = base_ns + (time.monotonic_ns() - base_mono)
-                elif self._start_ns is not None:
-                    timestamp_ns = self._start_ns + (time.monotonic_ns() - self._start_mono)
-                else:
-                    timestamp_ns = time.time_ns()
-            timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
-            payload = rs.Event(timestamp_ns=timestamp_ns, kind=str(kind), message=str(message),
-                               level=level).SerializeToString()
-            try:
-                self._write_session(timestamp_ns)
-                self._event_count += 1
-                self._cw.add("data", self._ch_events, timestamp_ns, payload, publish_time=time.time_ns(),
-                             sequence=self._event_count & 0xFFFFFFFF, count_as="event")
-                self.events_written += 1
-                written = True
-                self._after_write()
-            except Exception as error:  # noqa: BLE001
-                self._fail(error, "write_event")
-                if not written:
-                    self.events_dropped += 1
-        self._notify()
-        return written
+        if timestamp_ns is None:
+            last_frame = self._last_frame      # one tuple, replaced whole: safe to read without the lock
+            if last_frame is not None:
+                timestamp_ns = last_frame[0] + (time.monotonic_ns() - last_frame[1])
+            elif self._start_ns is not None:
+                timestamp_ns = self._start_ns + (time.monotonic_ns() - self._start_mono)
+            else:
+                timestamp_ns = time.time_ns()
+        timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
+        payload = rs.Event(timestamp_ns=timestamp_ns, kind=str(kind), message=str(message),
+                           level=level).SerializeToString()
+
+        def add():
+            self._event_count += 1
+            self._cw.add("data", self._ch_events, timestamp_ns, payload, publish_time=time.time_ns(),
+                         sequence=self._event_count & 0xFFFFFFFF, count_as="event")
+
+        return self._write("events", "write_event", timestamp_ns, add)
 
     def flush(self):
         """Write the open image chunk and the pending data, and fsync now. Never raises; False if stopped."""
@@ -673,6 +628,32 @@ class Recorder:
                 f"bytes={self.bytes_written})")
 
     # ------------------------------------------------------------------ internals
+
+    def _refused(self, what):
+        """True (and counted in ``{what}_dropped``) once recording has stopped: skip the encoding."""
+        if self.error is None and not self._closed:
+            return False
+        with self._lock:
+            setattr(self, f"{what}_dropped", getattr(self, f"{what}_dropped") + 1)
+        return True
+
+    def _write(self, what, during, timestamp_ns, add):
+        """Run ``add()`` under the lock unless recording has stopped; count it in ``{what}_written``
+        or ``{what}_dropped``; a failure stops recording (never raised). Returns True if written."""
+        written = False
+        with self._lock:
+            if self.error is None and not self._closed:
+                try:
+                    self._write_session(timestamp_ns)
+                    add()
+                    written = True
+                    self._after_write()
+                except Exception as error:  # noqa: BLE001 - any write failure stops recording, never the loop
+                    self._fail(error, during)
+            counter = f"{what}_written" if written else f"{what}_dropped"
+            setattr(self, counter, getattr(self, counter) + 1)
+        self._notify()
+        return written
 
     def _write_session(self, log_time):
         """The ``/livedic/session`` message, once, before any other message (frame clock)."""
