@@ -22,6 +22,18 @@ class Status(IntEnum):
         return _DESCRIPTIONS[self]
 
 
+# The same codes as plain ints for numba kernels (a module-level int is a compile-time constant
+# there, an IntEnum member is not): kernel modules import these rather than write the numbers.
+OK = int(Status.OK)
+OUTSIDE_REFERENCE = int(Status.OUTSIDE_REFERENCE)
+FLAT_REFERENCE = int(Status.FLAT_REFERENCE)
+OUTSIDE_TARGET = int(Status.OUTSIDE_TARGET)
+FLAT_TARGET = int(Status.FLAT_TARGET)
+NOT_CONVERGED = int(Status.NOT_CONVERGED)
+BAD_GUESS = int(Status.BAD_GUESS)
+LOW_CORRELATION = int(Status.LOW_CORRELATION)
+
+
 _DESCRIPTIONS = {
     Status.OK: "measured",
     Status.OUTSIDE_REFERENCE: "subset leaves the reference image",

@@ -48,19 +48,14 @@ import numpy as np
 from numba import njit, prange
 
 from dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
+from dic.correlation import FLAT_VARIANCE as _FLAT
 from dic.linalg import cholesky_lower
 from dic.result import SubpixelResult
-from dic.status import Status
+from dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
+                        NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
+                        OUTSIDE_TARGET as _OUTSIDE_TARGET, Status)
 from dic.validation import as_image, check_same_shape
 
-_FLAT = 1e-10
-_OK = 0
-_OUTSIDE_REFERENCE = 1
-_FLAT_REFERENCE = 2
-_OUTSIDE_TARGET = 3
-_FLAT_TARGET = 4
-_NOT_CONVERGED = 5
-_BAD_GUESS = 6
 _MAX_GRADIENT = 1.0  # |ux|.. beyond this the iteration is declared diverged
 _CHUNK = 16
 
