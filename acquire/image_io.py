@@ -3,7 +3,8 @@
 Shared by the ``images:`` source and the ``livedic measure`` command. DIC needs
 the camera's grey levels untouched, so nothing is rescaled: 8-bit files give
 ``uint8`` arrays, 16-bit files ``uint16``. Colour files are converted to grey
-(with a note for the caller to show once). Everything else — a missing,
+(with a note for the caller to show once); a colour file whose channels are all equal (a
+palette TIFF or PNG of grey entries) is a grey image and needs no note. Everything else — a missing,
 empty, truncated or corrupt file, float, 32-bit or signed pixels — raises
 ``ValueError`` whose message is one line naming the file and the problem.
 
@@ -44,6 +45,12 @@ def _format_of(data):
 
 def _fail(path, problem):
     raise ValueError(f"{path}: {problem}")
+
+
+def _channels_equal(image):
+    """True when every channel of ``image`` (H, W, C) equals the first: grey stored as colour."""
+    first = image[:, :, 0]
+    return all(np.array_equal(first, image[:, :, k]) for k in range(1, image.shape[2]))
 
 
 def _decode(data):
@@ -137,6 +144,12 @@ def read_grey_image(path):
         elif channels in (3, 4):
             if image.dtype.kind == "f" or image.dtype.itemsize > 2 or image.dtype.kind == "i":
                 pass  # reported below, before any conversion
+            elif _channels_equal(image[:, :, :3]):
+                # A grey image stored as colour: a palette (indexed) TIFF or PNG whose entries are all
+                # grey decodes to three equal channels. Its grey levels are exact: no conversion, no note.
+                image = np.ascontiguousarray(image[:, :, 0])
+                if channels == 4:
+                    note = f"{name}: grey + alpha image: alpha channel dropped"
             else:
                 code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
                 image = cv2.cvtColor(image, code)

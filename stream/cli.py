@@ -93,9 +93,16 @@ def build_parser():
     measure.add_argument("deformed", metavar="DEF", help="deformed image, same size")
     where = measure.add_mutually_exclusive_group(required=True)
     where.add_argument("--grid", type=int, metavar="STEP", help="points on a grid every STEP pixels")
-    where.add_argument("--points", metavar="FILE.csv", help="CSV with header x,y")
+    where.add_argument("--points", metavar="FILE.csv",
+                       help="CSV with header x,y (other columns are carried through to the output)")
     _add_method_options(measure, SEARCH_METHODS, SUBPIXEL_METHODS)
-    measure.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
+    measure.add_argument("-o", "--output", metavar="OUT.csv",
+                         help="output CSV (default: stdout): x,y,u,v,zncc,ok,status, then the method's columns, "
+                              "then the points file's other columns (e.g. id, label)")
+    measure.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
+                         help="say on stderr how long a measurement has run once it takes over 1.5 s: on = one "
+                              "line redrawn in place; auto (default) = that on a terminal, else a line every 15 s; "
+                              "off = nothing")
     measure.set_defaults(handler=_cmd_measure)
 
     cameras = commands.add_parser("cameras", help="list GenICam cameras (GigE Vision, USB3 Vision) Aravis can see")
@@ -178,9 +185,11 @@ def _cmd_measure(args):
     import numpy as np
 
     from acquire.image_io import read_grey_image
-    from dic import measure
-    from stream.csv_output import write_csv
+    from stream.csv_output import check_output_file, write_csv
 
+    to_file = args.output not in (None, "-")
+    if to_file:
+        check_output_file(args.output, "-o")          # before the images are read and the work is done
     reference, note_ref = read_grey_image(args.reference)
     deformed, note_def = read_grey_image(args.deformed)
     for note in (note_ref, note_def):
@@ -189,23 +198,106 @@ def _cmd_measure(args):
     if reference.shape != deformed.shape:
         raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
                          f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
+    extras = {}
     if args.grid is not None:
         points = grid_points(reference.shape, args.grid, args.subset)
     else:
-        points = read_points_csv(args.points)
-    result = measure(reference, deformed, points, subset=args.subset, search=args.search,
-                     subpixel=args.subpixel, radius=args.radius, seed=args.seed)
+        points, extras = read_points_table(args.points)
+    progress = None
+    if args.progress != "off":
+        in_place = args.progress == "on" or sys.stderr.isatty()
+        progress = MeasureProgress(len(points), f"{args.search} + {args.subpixel}", in_place=in_place)
+    result = measure_with_progress(reference, deformed, points, subset=args.subset, search=args.search,
+                                   subpixel=args.subpixel, radius=args.radius, seed=args.seed, progress=progress)
     columns = {"x": result.x, "y": result.y, "u": result.u, "v": result.v,
                "zncc": result.zncc, "ok": result.ok, "status": result.status.astype(np.int64)}
     for name in ("ux", "uy", "vx", "vy", "iterations", "evaluations"):
         value = getattr(result, name)
         if value is not None:
             columns[name] = value
+    for name, values in extras.items():              # the points file's own columns, after ours
+        columns[name if name not in columns else f"points_{name}"] = np.array(values, dtype=object)
     write_csv(args.output, columns)
     n_ok = int(result.ok.sum())
-    if args.output not in (None, "-"):
+    if to_file:
         print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
     return 0
+
+
+class MeasureProgress:
+    """Progress of one long ``dic.measure`` call on stderr: nothing for the first ``after_s`` seconds.
+
+    ``in_place``: one line redrawn (a terminal); otherwise a line every ``every_s``
+    seconds (logs). The measurement is one call (see ``measure_with_progress``),
+    so the line says how long it has run, not how far it is.
+    """
+
+    def __init__(self, n_points, method, *, in_place=True, after_s=1.5, every_s=15.0, stream=None):
+        self.n_points = n_points
+        self.method = method
+        self.in_place = in_place
+        self.after_s = after_s
+        self.every_s = every_s
+        self.stream = stream or sys.stderr
+        self.lines = 0
+        self._last_line_s = None
+
+    def tick(self, elapsed_s):
+        """Called about every 0.25 s while the measurement runs."""
+        if elapsed_s < self.after_s:
+            return
+        text = f"livedic: measuring {self.n_points:,} points ({self.method}): {elapsed_s:.0f} s"
+        if self.in_place:
+            self.stream.write(f"\r{text}\033[K")
+        elif self._last_line_s is None or elapsed_s - self._last_line_s >= self.every_s:
+            self.stream.write(text + "\n")
+            self._last_line_s = elapsed_s
+        else:
+            return
+        self.stream.flush()
+        self.lines += 1
+
+    def done(self, elapsed_s):
+        if self.lines:
+            end = f"livedic: measured {self.n_points:,} points ({self.method}) in {elapsed_s:.1f} s"
+            self.stream.write(f"\r{end}\033[K\n" if self.in_place else end + "\n")
+            self.stream.flush()
+
+
+def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=0.25, **method):
+    """``dic.measure(reference, deformed, points, **method)``, showing ``progress`` while it runs.
+
+    The measurement is one ``dic.measure`` call, run in a worker thread (its
+    kernels release the GIL) while this thread reports progress and stays
+    responsive to Ctrl-C. It is not split into chunks of points: the stochastic
+    searches (PSO, WSO, improved WSO) and surface fits seed each point's random
+    stream with its index in the call, so chunks would give other numbers than one
+    call. The result is therefore exactly ``dic.measure``'s.
+    """
+    import time
+
+    from dic import measure
+
+    outcome = {}
+
+    def work():
+        try:
+            outcome["result"] = measure(reference, deformed, points, **method)
+        except BaseException as error:  # noqa: BLE001 - handed to the calling thread
+            outcome["error"] = error
+
+    worker = threading.Thread(target=work, name="livedic-measure", daemon=True)
+    started = time.monotonic()
+    worker.start()
+    while worker.is_alive():
+        worker.join(tick_s)
+        if progress is not None and worker.is_alive():
+            progress.tick(time.monotonic() - started)
+    if progress is not None:
+        progress.done(time.monotonic() - started)
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["result"]
 
 
 def grid_points(shape, step, subset):
@@ -232,35 +324,61 @@ def grid_points(shape, step, subset):
 
 
 def read_points_csv(path):
-    """Points from a CSV whose header names columns x and y (other columns ignored)."""
+    """Points from a CSV whose header names columns x and y (other columns ignored); (N, 2) float64."""
+    return read_points_table(path)[0]
+
+
+def read_points_table(path):
+    """Points and the file's other columns from a CSV whose header names columns x and y.
+
+    Returns
+    -------
+    xy : ndarray, shape (N, 2), float64
+    extras : dict
+        Every other column of the header, in file order: name (as written) -> list of N strings
+        (empty where a line is short).
+
+    Raises
+    ------
+    UsageError
+        A missing, unreadable or empty file, no x and y in the header, a line whose x or y is
+        not a number, or NaN/infinite coordinates.
+    """
+    import csv
+
     import numpy as np
 
     try:
         with open(path, newline="") as handle:
-            lines = [line.strip() for line in handle if line.strip()]
+            rows = [row for row in csv.reader(handle) if any(field.strip() for field in row)]
     except FileNotFoundError:
         raise UsageError(f"points file {path} does not exist") from None
-    except (UnicodeDecodeError, IsADirectoryError, PermissionError) as error:
+    except (UnicodeDecodeError, IsADirectoryError, PermissionError, csv.Error) as error:
         raise UsageError(f"cannot read points file {path}: {error.__class__.__name__}") from None
-    if not lines:
+    if not rows:
         raise UsageError(f"points file {path} is empty: it needs a header line 'x,y' and one point per line")
-    header = [name.strip().lower() for name in lines[0].split(",")]
+    names = [name.strip() for name in rows[0]]
+    header = [name.lower() for name in names]
     if "x" not in header or "y" not in header:
-        raise UsageError(f"points file {path} has header {lines[0]!r}: it must name columns x and y")
+        raise UsageError(f"points file {path} has header {','.join(rows[0])!r}: it must name columns x and y")
     ix, iy = header.index("x"), header.index("y")
+    extra_columns = [(k, name) for k, name in enumerate(names) if k not in (ix, iy) and name]
     points = []
-    for number, line in enumerate(lines[1:], start=2):
-        fields = line.split(",")
+    extras = {name: [] for _, name in extra_columns}
+    for number, fields in enumerate(rows[1:], start=2):
         try:
             points.append((float(fields[ix]), float(fields[iy])))
         except (ValueError, IndexError):
-            raise UsageError(f"points file {path}, line {number}: {line!r} is not a number pair x,y") from None
+            raise UsageError(f"points file {path}, line {number}: {','.join(fields)!r} is not a number pair "
+                             f"x,y") from None
+        for k, name in extra_columns:
+            extras[name].append(fields[k].strip() if k < len(fields) else "")
     if not points:
         raise UsageError(f"points file {path} has a header but no points")
     xy = np.array(points)
     if not np.all(np.isfinite(xy)):
         raise UsageError(f"points file {path} contains NaN or infinite coordinates")
-    return xy
+    return xy, extras
 
 
 def _cmd_cameras(args):

@@ -1,21 +1,230 @@
-"""Writing result tables as CSV without ever leaving a half-written file."""
+"""Output files of livedic: checked before any work starts, written atomically, never half-written.
 
+Every file livedic writes for the user (``measure -o``, ``replay -o``, ``export -o``,
+``run --summary-json``) goes through ``AtomicFile``: the text is written to a
+temporary file beside the target and renamed into place when complete, with the
+permissions a plain ``open(path, "w")`` would give (``0666 & ~umask``), so an
+error or an interruption never leaves a partial file and all commands create
+files alike.
+
+``check_output_file`` and ``check_output_folder`` say, before a session or a
+measurement starts, whether an output can be written at all (a missing or
+read-only folder, a folder where a file is wanted, a file where a folder is
+wanted): the problem is an ``OutputError`` (a ``ValueError``, so the command
+line turns it into one line and exit code 2) instead of an ``OSError`` after
+minutes of work.
+"""
+
+import csv
+import io
+import json
+import math
 import os
 import sys
 import tempfile
 
 import numpy as np
 
+_TEMP_PREFIX = ".livedic-"
+
+
+class OutputError(ValueError):
+    """An output path that cannot be written; the message is one line for the user."""
+
+
+# ----------------------------------------------------------------------------- checks before the work
+
+def _nearest_existing(path):
+    """``path`` or the nearest ancestor of it that exists (absolute)."""
+    current = os.path.abspath(path)
+    while not os.path.lexists(current):
+        parent = os.path.dirname(current)
+        if parent == current:
+            break
+        current = parent
+    return current
+
+
+def _probe_folder(folder, what, path):
+    """OutputError unless a file can be created in the existing folder ``folder``.
+
+    A real file is created and removed: permission bits alone do not tell (root
+    ignores them, a read-only mount or a full quota does not show in them).
+    """
+    if not os.path.isdir(folder):
+        raise OutputError(f"cannot write {what} {path}: {folder} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=_TEMP_PREFIX, suffix=".probe", dir=folder)
+    except PermissionError:
+        raise OutputError(f"cannot write {what} {path}: folder {folder} is not writable (permission denied); "
+                          f"choose another folder") from None
+    except OSError as error:
+        raise OutputError(f"cannot write {what} {path}: folder {folder} is not writable "
+                          f"({error.strerror or error}); choose another folder") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def check_output_file(path, what, *, create_folders=False):
+    """Raise ``OutputError`` unless ``path`` can be written as a (new or replaced) file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    what : str
+        How the user named it, for the message (e.g. ``"-o"``, ``"--summary-json"``).
+    create_folders : bool
+        The writer creates missing folders (then the nearest existing one must be writable).
+    """
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise OutputError(f"{what} {path} is a folder: give a file name, e.g. "
+                          f"{os.path.join(path, _example_name(what))}")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.lexists(folder):
+        if not create_folders:
+            raise OutputError(f"cannot write {what} {path}: folder {folder} does not exist")
+        _probe_folder(_nearest_existing(folder), what, path)
+        return
+    _probe_folder(folder, what, path)
+    if os.path.lexists(path) and not os.access(path, os.W_OK):
+        # os.replace would succeed (it needs the folder only), but replacing a file the
+        # user protected is not what they asked for.
+        raise OutputError(f"cannot write {what} {path}: the file is read-only")
+
+
+def check_output_folder(path, what):
+    """Raise ``OutputError`` unless ``path`` is (or can be created as) a folder that files can be written in."""
+    path = os.fspath(path)
+    if os.path.lexists(path) and not os.path.isdir(path):
+        raise OutputError(f"{what} {path} is an existing file: give a folder (it is created if missing)")
+    _probe_folder(_nearest_existing(path), what, path)
+
+
+def _example_name(what):
+    return {"--summary-json": "summary.json", "--record": "session.mcap", "--viewer save": "session.rrd"}.get(
+        what, "out.csv")
+
+
+# ----------------------------------------------------------------------------- atomic files
+
+def current_umask():
+    """The process umask, read without changing it where the system allows (Linux: /proc)."""
+    try:
+        with open("/proc/self/status") as handle:
+            for line in handle:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)        # elsewhere: set and restore (not thread-safe, but only as a fallback)
+    os.umask(mask)
+    return mask
+
+
+class AtomicFile:
+    """A text file written under a temporary name beside ``path``; ``commit()`` renames it into place.
+
+    The file gets the permissions ``open(path, "w")`` would give it (``0666 & ~umask``;
+    ``tempfile.mkstemp`` alone makes 0600). ``discard()``, or leaving the ``with``
+    block on an error, removes the temporary file.
+
+    Raises
+    ------
+    OutputError
+        The folder does not exist, or ``path`` is a folder.
+    """
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        if os.path.isdir(self.path):
+            raise OutputError(f"{self.path} is a folder: give a file name")
+        directory = os.path.dirname(os.path.abspath(self.path))
+        if not os.path.isdir(directory):
+            raise OutputError(f"cannot write {self.path}: folder {directory} does not exist")
+        fd, self.tmp = tempfile.mkstemp(prefix=_TEMP_PREFIX, suffix=".partial", dir=directory)
+        try:
+            os.fchmod(fd, 0o666 & ~current_umask())
+            self.handle = os.fdopen(fd, "w", newline="")
+        except BaseException:
+            os.close(fd)
+            os.unlink(self.tmp)
+            raise
+
+    def write(self, text):
+        self.handle.write(text)
+
+    def commit(self):
+        """Flush, close and rename into place."""
+        self.handle.close()
+        try:
+            os.replace(self.tmp, self.path)
+        except IsADirectoryError:
+            # A folder of that name appeared since the check: say so without the temporary name.
+            self.discard()
+            raise OutputError(f"{self.path} is a folder: give a file name") from None
+        self.tmp = None
+
+    def discard(self):
+        if not self.handle.closed:
+            self.handle.close()
+        if self.tmp is not None and os.path.exists(self.tmp):
+            os.unlink(self.tmp)
+        self.tmp = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, *exc):
+        if exc_type is not None or self.tmp is not None:
+            self.discard()
+        return False
+
+
+def write_text_atomic(path, text):
+    """Write ``text`` to ``path`` through an ``AtomicFile``."""
+    with AtomicFile(path) as out:
+        out.write(text)
+        out.commit()
+
+
+# ----------------------------------------------------------------------------- JSON
+
+def json_text(value, *, indent=2):
+    """``value`` as strict JSON text: NaN and infinities become ``null`` (JSON has no NaN),
+    numpy scalars and arrays become numbers and lists, anything else unknown its ``str``."""
+    return json.dumps(_json_ready(value), indent=indent, allow_nan=False) + "\n"
+
+
+def _json_ready(value):
+    if isinstance(value, dict):
+        return {str(key): _json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return _json_ready(value.tolist())
+    if isinstance(value, np.generic):
+        return _json_ready(value.item())
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    return str(value)
+
+
+# ----------------------------------------------------------------------------- CSV tables
 
 def write_csv(path, columns):
     """Write ``columns`` (ordered name -> 1-D array) as CSV to ``path``, or stdout when path is None/'-'.
 
-    The file is written to a temporary name beside ``path`` and renamed into
-    place, so an error or interruption never leaves a partial file.
+    Numbers get 6 decimals (``nan`` for NaN), booleans 1/0, integers as they are,
+    text (object or string arrays) as given, quoted where CSV needs it. The file
+    is written through ``AtomicFile``.
     """
     names = list(columns)
     arrays = [np.asarray(columns[name]) for name in names]
-    lines = [",".join(names)]
+    lines = [",".join(_quoted(name) for name in names)]
     formatters = [_formatter(a) for a in arrays]
     for row in range(len(arrays[0]) if arrays else 0):
         lines.append(",".join(fmt(a[row]) for fmt, a in zip(formatters, arrays)))
@@ -23,18 +232,16 @@ def write_csv(path, columns):
     if path in (None, "-"):
         sys.stdout.write(text)
         return
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise ValueError(f"cannot write {path}: folder {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=".livedic-", suffix=".csv", dir=directory)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_text_atomic(path, text)
+
+
+def _quoted(text):
+    text = str(text)
+    if any(c in text for c in ',"\n\r'):
+        buffer = io.StringIO()
+        csv.writer(buffer, lineterminator="").writerow([text])
+        return buffer.getvalue()
+    return text
 
 
 def _formatter(array):
@@ -42,4 +249,6 @@ def _formatter(array):
         return lambda value: "1" if value else "0"
     if array.dtype.kind in "iu":
         return lambda value: str(int(value))
+    if array.dtype.kind in "OUS":
+        return _quoted
     return lambda value: "nan" if not np.isfinite(value) else f"{value:.6f}"

@@ -35,17 +35,17 @@ used by ``stream.replay``.
 
 import csv
 import io
-import json
 import logging
 import math
 import os
 import re
 import sys
-import tempfile
 from contextlib import contextmanager
 from datetime import datetime, timezone
 
 import numpy as np
+
+from stream.csv_output import AtomicFile, OutputError, check_output_file, check_output_folder, json_text
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
 EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
@@ -102,65 +102,22 @@ def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, ex
 
 # ----------------------------------------------------------------------------- files
 
-class StagedFile:
-    """A text file written under a temporary name beside ``path``; ``commit()`` renames it into place.
-
-    ``discard()`` (or leaving the ``with`` block on an error) removes the temporary file.
-    """
-
-    def __init__(self, path):
-        self.path = os.fspath(path)
-        directory = os.path.dirname(os.path.abspath(self.path))
-        if not os.path.isdir(directory):
-            raise ValueError(f"cannot write {self.path}: folder {directory} does not exist")
-        fd, self.tmp = tempfile.mkstemp(prefix=".livedic-", suffix=".partial", dir=directory)
-        os.chmod(self.tmp, 0o666 & ~_umask())           # mkstemp makes 0600; give the usual permissions
-        self.handle = os.fdopen(fd, "w", newline="")
-
-    def write(self, text):
-        self.handle.write(text)
-
-    def commit(self):
-        self.handle.close()
-        os.replace(self.tmp, self.path)
-        self.tmp = None
-
-    def discard(self):
-        if not self.handle.closed:
-            self.handle.close()
-        if self.tmp is not None and os.path.exists(self.tmp):
-            os.unlink(self.tmp)
-        self.tmp = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, *exc):
-        if exc_type is not None:
-            self.discard()
-        return False
+# The atomic writer shared by every output of livedic (kept under its old name for callers).
+StagedFile = AtomicFile
 
 
 def check_output_csv(output, recording):
-    """Refuse an output path that would destroy the recording or cannot be a file (ValueError)."""
+    """Refuse an output path that would destroy the recording or cannot be written (``OutputError``)."""
     if output in (None, "-"):
         return
     if os.path.isdir(output):
-        raise ValueError(f"-o {output} is a folder: give a file name, e.g. {os.path.join(output, 'replay.csv')}")
+        raise OutputError(f"-o {output} is a folder: give a file name, e.g. {os.path.join(output, 'replay.csv')}")
     if output.lower().endswith(".mcap"):
-        raise ValueError(f"-o {output} ends in .mcap: the output is CSV (e.g. replay.csv); "
-                         f"recordings are never written over")
+        raise OutputError(f"-o {output} ends in .mcap: the output is CSV (e.g. replay.csv); "
+                          f"recordings are never written over")
     if os.path.exists(output) and os.path.exists(recording) and os.path.samefile(output, recording):
-        raise ValueError(f"-o {output} is the recording itself: choose another file")
-    directory = os.path.dirname(os.path.abspath(output))
-    if not os.path.isdir(directory):
-        raise ValueError(f"cannot write {output}: folder {directory} does not exist")
-
-
-def _umask():
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+        raise OutputError(f"-o {output} is the recording itself: choose another file")
+    check_output_file(output, "-o")
 
 
 # ----------------------------------------------------------------------------- recording helpers
@@ -242,8 +199,7 @@ def export_recording(path, directory, *, overwrite=False):
     from acquire.mcap_replay import iter_results, read_events
 
     path, directory = os.fspath(path), os.fspath(directory)
-    if os.path.exists(directory) and not os.path.isdir(directory):
-        raise ValueError(f"-o {directory} is an existing file: give a folder (it is created if missing)")
+    check_output_folder(directory, "-o")
     targets = {name: os.path.join(directory, name) for name in EXPORT_FILES}
     existing = [name for name, target in targets.items() if os.path.lexists(target)]
     if existing and not overwrite:
@@ -320,8 +276,7 @@ def export_recording(path, directory, *, overwrite=False):
                 "frames_with_results": frames, "points": points, "events": len(events),
                 "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
                 "truncated": truncated, "notes": list(notes)}
-            staged["session.json"].write(json.dumps(session, indent=2, default=_json_default, allow_nan=True)
-                                         + "\n")
+            staged["session.json"].write(json_text(session))
             for name in EXPORT_FILES:
                 staged[name].commit()
         except BaseException:
@@ -336,14 +291,6 @@ def export_recording(path, directory, *, overwrite=False):
     return {"directory": directory, "files": [targets[name] for name in EXPORT_FILES], "frames": frames,
             "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
             "truncated": truncated, "notes": list(notes)}
-
-
-def _json_default(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return str(value)
 
 
 def _plural(count, word):

@@ -96,14 +96,157 @@ def test_bad_files_give_one_line_and_exit_2(image_pair, tmp_path, capsys):
 
 
 def test_colour_images_are_converted_with_a_note(image_pair, tmp_path, capsys):
-    grey = cv2.imread(image_pair["ref", 8], cv2.IMREAD_UNCHANGED)
+    grey = cv2.imread(image_pair["ref", 8], cv2.IMREAD_UNCHANGED).astype(np.float64)
     colour = tmp_path / "colour.png"
-    cv2.imwrite(str(colour), np.dstack([grey] * 3))
+    tinted = [np.clip(grey * k, 0, 255).astype(np.uint8) for k in (0.8, 1.0, 1.1)]   # B, G, R differ: colour
+    cv2.imwrite(str(colour), np.dstack(tinted))
     code = main(["measure", str(colour), image_pair["def", 8], "--grid", "40", "--subpixel", "icgn", "--radius", "3"])
     captured = capsys.readouterr()
     assert code == 0
-    assert "note" in captured.err
+    assert "colour image (3 channels) converted" in captured.err
     assert all(row["ok"] == "1" for row in _rows(captured.out))
+
+
+@pytest.mark.parametrize("fmt", ["TIFF", "PNG"])
+def test_a_grey_palette_image_is_read_as_grey_without_a_note(image_pair, tmp_path, capsys, fmt):
+    """DIC Challenge images come as palette TIFFs whose entries are all grey: a grey image, exact, no note."""
+    from PIL import Image
+    grey = cv2.imread(image_pair["ref", 8], cv2.IMREAD_UNCHANGED)
+    palette = Image.frombytes("P", grey.shape[::-1], grey.tobytes())
+    palette.putpalette([level for level in range(256) for _ in range(3)])   # entry k = grey k
+    path = tmp_path / f"palette.{fmt.lower()}"
+    palette.save(path, format=fmt)
+    assert Image.open(path).mode == "P"
+    from acquire.image_io import read_grey_image
+    image, note = read_grey_image(path)
+    assert note is None and image.dtype == np.uint8 and np.array_equal(image, grey)
+    code = main(["measure", str(path), image_pair["def", 8], "--grid", "40", "--subpixel", "icgn", "--radius", "3"])
+    captured = capsys.readouterr()
+    assert code == 0 and "note" not in captured.err and "converted" not in captured.err
+
+
+def test_points_file_columns_are_carried_to_the_end_of_each_row(image_pair, tmp_path):
+    points = tmp_path / "points.csv"
+    points.write_text('id,x,label,y\n7,60,"gauge, left",60\n8,70.4,right,50\n9,2,corner,2\n')
+    out = tmp_path / "out.csv"
+    assert main(["measure", image_pair["ref", 8], image_pair["def", 8], "--points", str(points), "--search",
+                 "exhaustive", "--subpixel", "icgn", "--radius", "3", "-o", str(out)]) == 0
+    with open(out, newline="") as handle:
+        reader = csv.reader(handle)
+        header = next(reader)
+        rows = list(reader)
+    assert header[:6] == ["x", "y", "u", "v", "zncc", "ok"] and header[-2:] == ["id", "label"]
+    assert "status" in header and header.index("status") < header.index("id")
+    assert [(row[0], row[1], row[-2], row[-1]) for row in rows] == [
+        ("60.000000", "60.000000", "7", "gauge, left"), ("70.000000", "50.000000", "8", "right"),
+        ("2.000000", "2.000000", "9", "corner")]
+
+
+def _unwritable_folder(tmp_path, variant):
+    """Read-only (0555: not for root, who ignores permissions) or 'under' a regular file (root too)."""
+    if variant == "read-only":
+        import os
+        if os.geteuid() == 0:
+            pytest.skip("root ignores permission bits; the under-a-file variant covers root")
+        folder = tmp_path / "read-only"
+        folder.mkdir()
+        folder.chmod(0o555)
+        return folder
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("a file, not a folder\n")
+    return blocker
+
+
+@pytest.mark.parametrize("variant", ["read-only", "under-a-file"])
+def test_an_unwritable_output_fails_before_the_measurement_with_one_line(variant, tmp_path, capsys):
+    folder = _unwritable_folder(tmp_path, variant)
+    try:
+        # The images do not exist: the output is checked first, so its problem is the one reported.
+        code = main(["measure", str(tmp_path / "missing-ref.png"), str(tmp_path / "missing-def.png"), "--grid",
+                     "20", "-o", str(folder / "out.csv")])
+        err = capsys.readouterr().err
+    finally:
+        if folder.is_dir():
+            folder.chmod(0o755)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("livedic: error: cannot write -o ") and "internal" not in err
+    assert "not writable" in lines[0] or "not a folder" in lines[0]
+
+
+def test_output_to_a_folder_names_the_folder_not_a_temporary_file(image_pair, tmp_path, capsys):
+    code = main(["measure", image_pair["ref", 8], image_pair["def", 8], "--grid", "40", "-o", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and f"-o {tmp_path} is a folder: give a file name" in err and ".livedic-" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_output_file_gets_the_usual_permissions(image_pair, tmp_path):
+    """Like replay and export: 0666 & ~umask (mkstemp alone would give 0600)."""
+    import os
+    from stream.csv_output import current_umask
+    out = tmp_path / "out.csv"
+    previous = os.umask(0o022)
+    try:
+        assert current_umask() == 0o022
+        assert main(["measure", image_pair["ref", 8], image_pair["def", 8], "--grid", "40", "-o", str(out)]) == 0
+    finally:
+        os.umask(previous)
+    assert out.stat().st_mode & 0o777 == 0o644
+    assert not [name for name in os.listdir(tmp_path) if name.startswith(".livedic-")]
+
+
+def test_a_long_measurement_shows_progress_and_gives_the_same_numbers(image_pair, monkeypatch):
+    """The progress line comes while dic.measure runs (here: until the line has been drawn), and the result
+    is exactly one dic.measure call's."""
+    import threading
+
+    import dic
+    from acquire.image_io import read_grey_image
+    from stream.cli import MeasureProgress, grid_points, measure_with_progress
+
+    reference, _ = read_grey_image(image_pair["ref", 8])
+    deformed, _ = read_grey_image(image_pair["def", 8])
+    points = grid_points(reference.shape, 9, 21)
+    method = dict(subset=21, search="improved-wso", subpixel="improved-surface-fit", radius=6, seed=3)
+    direct = dic.measure(reference, deformed, points, **method)
+    drawn = threading.Event()
+    real = dic.measure
+
+    def slow_measure(*args, **kwargs):
+        result = real(*args, **kwargs)
+        assert drawn.wait(30), "no progress line while the measurement ran"
+        return result
+
+    class Recording(MeasureProgress):
+        def tick(self, elapsed_s):
+            super().tick(elapsed_s)
+            if self.lines:
+                drawn.set()
+
+    monkeypatch.setattr(dic, "measure", slow_measure)
+    stream = io.StringIO()
+    progress = Recording(len(points), "improved-wso + improved-surface-fit", in_place=True, after_s=0.0,
+                         stream=stream)
+    result = measure_with_progress(reference, deformed, points, progress=progress, tick_s=0.01, **method)
+    text = stream.getvalue()
+    assert f"measuring {len(points):,} points (improved-wso + improved-surface-fit)" in text
+    assert f"measured {len(points):,} points" in text
+    for name in ("x", "y", "u", "v", "zncc", "ok", "status"):
+        assert np.array_equal(getattr(result, name), getattr(direct, name), equal_nan=name not in ("ok", "status"))
+
+
+def test_progress_stays_quiet_for_short_measurements():
+    from stream.cli import MeasureProgress
+    stream = io.StringIO()
+    progress = MeasureProgress(10, "m", in_place=False, after_s=1.5, every_s=15.0, stream=stream)
+    for elapsed in (0.25, 0.5, 1.0, 1.25):
+        progress.tick(elapsed)
+    progress.done(1.3)
+    assert stream.getvalue() == ""
+    for elapsed in (1.5, 2.0, 10.0, 16.5, 17.0):      # a log gets a line now and then, not every tick
+        progress.tick(elapsed)
+    assert stream.getvalue().count("\n") == 2
 
 
 @pytest.mark.parametrize("fill", [0, 255], ids=["flat-black", "saturated"])
