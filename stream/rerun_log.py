@@ -6,9 +6,16 @@ Entity tree (paths are the constants below)::
                         factor when larger than ``image_max_side``)
     camera/roi          the region of interest (static box)
     camera/p0           the traced point P0 at its current position
-    camera/field_u      u at every point, drawn at its current position, colour-mapped
+    camera/field_u      u at every ok point, drawn at its current position, colour-mapped
     camera/field_v      v, the same way
-    legend/u, legend/v  colour bars: a static gradient image plus per-frame end labels (px)
+    camera/lost         hollow red squares at the points that are not ok (status other than OK), at
+                        their last measured position
+    camera/low_zncc     hollow yellow squares at ok points whose ZNCC is below ``low_zncc``
+    legend/u, legend/v  colour bars: an image with the gradient over a white strip with the limits
+                        drawn in black (text in the image reads the same in the light and dark themes)
+    colour_scale/u, colour_scale/v
+                        the colour limits [low, high] (px), logged when they change
+    tracking            text: "lost: L of N points, low ZNCC (< T): K", logged when it changes
     p0                  P0's displacement, two series [u, v] (px), against the 'frame' and 'time'
                         timelines (and P0's position on the image, camera/p0)
     quality             [ZNCC mean, ZNCC min] over ok points and the fraction of points ok
@@ -17,10 +24,30 @@ Entity tree (paths are the constants below)::
     perf/drops          [frames dropped so far, queue depth]
     error               [RMS, max] error against the truth (px; synthetic sources only)
 
-Related values share one entity as a multi-series ``Scalars`` (one log call
-each: a scalar costs ~0.15 ms to log, about as much as an image).
     events              text log (drops, re-found points, source errors, notes)
     summary             the final summary (text document)
+
+Related values share one entity as a multi-series ``Scalars`` (one log call
+each: a scalar costs ~0.15 ms to log, about as much as an image).
+
+Point size: each field point is a disc of radius s/sqrt(2), where s, the
+typical spacing of the points, is the median over (up to 128 sampled) points of
+the distance to the second-nearest distinct point. The second neighbour, not the
+first, so a pair such as P0 one pixel beside a grid point does not shrink the
+discs; the median ignores isolated points; duplicates are dropped first. The
+discs cover a square grid of step s with no gaps, and most of an irregular point
+set. The radius is capped at 1/20 of the image side.
+
+Colour scale (the same rule for u and v, each with its own limits): with
+``color_range=(lo, hi)`` the limits are fixed. Otherwise they start at
+[-0.05, +0.05] px, so the noise of the reference frame shows as one colour,
+and only grow: when the 0.5th/99.5th percentile of a frame's values (ok points;
+the percentiles keep a stray point from stretching the scale for the rest of
+the test) leaves them, the limit that was passed moves out to the next "nice"
+value (1, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 times a power of ten). They never
+shrink, so a colour means the same displacement for as long as possible, and
+they are not forced to be symmetric: zero sits where the 0 tick shows. Values
+outside the limits take the end colours.
 
 Timelines: ``frame`` (frame index) and ``time`` (seconds since the first frame,
 camera clock). A default blueprint lays the views out.
@@ -60,6 +87,11 @@ FIELD_U = "camera/field_u"
 FIELD_V = "camera/field_v"
 LEGEND_U = "legend/u"
 LEGEND_V = "legend/v"
+LOST = "camera/lost"
+LOW_ZNCC = "camera/low_zncc"
+LIMITS_U = "colour_scale/u"
+LIMITS_V = "colour_scale/v"
+TRACKING = "tracking"
 P0 = "p0"
 QUALITY = "quality"
 THROUGHPUT = "perf/throughput"
@@ -72,8 +104,17 @@ SUMMARY = "summary"
 TIMELINE_FRAME = "frame"
 TIMELINE_TIME = "time"
 
-_BAR_WIDTH = 256
-_BAR_HEIGHT = 20
+MIN_COLOUR_LIMIT_PX = 0.05       # the automatic scale starts at +-this, so reference-frame noise is one colour
+_NICE_MANTISSAS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+_LIMIT_PERCENTILES = (0.5, 99.5)
+_SPACING_QUERIES = 128           # points sampled to estimate the typical spacing (once per point set)
+_BAR_WIDTH = 340
+_BAR_MARGIN = 10
+_BAR_GRADIENT_HEIGHT = 24
+_BAR_TEXT_HEIGHT = 34
+_LOST_COLOUR = (230, 0, 0)
+_LOW_ZNCC_COLOUR = (255, 220, 0)
+_MARKER_DRAW_ORDER = 40.0        # above the field discs (Points2D default 30)
 _SERIES_STYLE = {
     P0: (["u (px)", "v (px)"], [(230, 80, 60), (60, 120, 230)]),
     QUALITY: (["ZNCC mean", "ZNCC min", "fraction ok"], [(40, 160, 90), (200, 140, 30), (120, 120, 120)]),
@@ -81,6 +122,8 @@ _SERIES_STYLE = {
     LATENCY: (["latency (ms)", "tracking (ms)"], [(200, 50, 50), (80, 80, 200)]),
     DROPS: (["dropped frames", "queue depth"], [(200, 40, 40), (110, 110, 110)]),
     ERROR: (["RMS error (px)", "max error (px)"], [(130, 60, 170), (220, 120, 200)]),
+    LIMITS_U: (["u low (px)", "u high (px)"], [(48, 18, 59), (122, 4, 3)]),
+    LIMITS_V: (["v low (px)", "v high (px)"], [(48, 18, 59), (122, 4, 3)]),
 }
 
 
@@ -138,6 +181,103 @@ def colormap_lut():
     return cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)[:, 0, ::-1].copy()
 
 
+def nice_ceil(value):
+    """The smallest "nice" number (1, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 times a power of ten) >= ``value`` > 0."""
+    exponent = np.floor(np.log10(value))
+    for mantissa in _NICE_MANTISSAS:
+        candidate = mantissa * 10.0 ** exponent
+        if candidate >= value * (1 - 1e-9):   # 0.3 / 0.1 and friends land a rounding error above a mantissa
+            return float(f"{candidate:.3g}")
+    return float(f"{10.0 ** (exponent + 1):.3g}")
+
+
+def grow_limits(limits, values):
+    """Automatic colour limits after a frame: ``limits`` (lo < 0 < hi) widened to cover ``values``.
+
+    The 0.5th/99.5th percentiles of the finite ``values`` are covered; an end that
+    must move goes out to the next nice number. The result contains ``limits``.
+    """
+    lo, hi = limits
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return lo, hi
+    low, high = np.percentile(values, _LIMIT_PERCENTILES)
+    if low < lo:
+        lo = -nice_ceil(-low)
+    if high > hi:
+        hi = nice_ceil(high)
+    return float(lo), float(hi)
+
+
+def typical_spacing(x, y):
+    """Typical distance between neighbouring points (see the module notes), or None for fewer than 2 points.
+
+    The median, over up to ``_SPACING_QUERIES`` points spread through the set, of
+    the distance to the second-nearest distinct point (nearest for 2 points).
+    """
+    positions = np.column_stack([np.asarray(x, float), np.asarray(y, float)])
+    positions = np.unique(positions[np.isfinite(positions).all(axis=1)], axis=0)
+    count = len(positions)
+    if count < 2:
+        return None
+    extent = positions.max(axis=0) - positions.min(axis=0)
+    axis = int(extent[1] > extent[0])        # search along the longer side: fewer points per window
+    positions = positions[np.argsort(positions[:, axis], kind="stable")]
+    along = positions[:, axis]
+    neighbour = min(2, count - 1)            # index 0 of the sorted distances is the query itself
+    # a first window: the spacing of a grid with this many points over the bounding box
+    start_window = max(np.sqrt(max(extent[0], 1.0) * max(extent[1], 1.0) / count), 1e-6)
+    distances = []
+    for q in np.unique(np.linspace(0, count - 1, min(count, _SPACING_QUERIES)).astype(np.int64)):
+        query, window = positions[q], start_window
+        while True:      # points outside the window along ``axis`` are farther than ``window``
+            first = np.searchsorted(along, query[axis] - window, side="left")
+            last = np.searchsorted(along, query[axis] + window, side="right")
+            d2 = ((positions[first:last] - query) ** 2).sum(axis=1)
+            if last - first > neighbour:
+                kth = np.partition(d2, neighbour)[neighbour]
+                if kth <= window * window or last - first == count:
+                    distances.append(kth)
+                    break
+            window *= 2.0
+    return float(np.sqrt(np.median(distances)))
+
+
+def colour_bar_image(lut, lo, hi):
+    """RGB colour bar: the gradient from ``lo`` to ``hi`` over a white strip with the limits and 0 in black.
+
+    White margins left and right keep the labels of two bars side by side apart.
+    """
+    import cv2
+    bar = np.full((_BAR_GRADIENT_HEIGHT + _BAR_TEXT_HEIGHT, _BAR_WIDTH, 3), 255, dtype=np.uint8)
+    first, last = _BAR_MARGIN, _BAR_WIDTH - 1 - _BAR_MARGIN          # the gradient's end columns
+    columns = np.arange(last - first + 1)
+    bar[:_BAR_GRADIENT_HEIGHT, first:last + 1] = lut[(columns * lut.shape[0]) // columns.size][None, :, :]
+    font, font_scale, thickness = cv2.FONT_HERSHEY_SIMPLEX, 0.62, 2
+    baseline_y = _BAR_GRADIENT_HEIGHT + _BAR_TEXT_HEIGHT - 7
+    black = (0, 0, 0)
+
+    def tick(x):
+        cv2.line(bar, (x, _BAR_GRADIENT_HEIGHT), (x, _BAR_GRADIENT_HEIGHT + 5), black, 2)
+
+    def text_width(text):
+        return cv2.getTextSize(text, font, font_scale, thickness)[0][0]
+
+    left, right = f"{_fmt(lo)} px", f"{_fmt(hi)} px"
+    left_end, right_start = first + text_width(left), last + 1 - text_width(right)
+    cv2.putText(bar, left, (first, baseline_y), font, font_scale, black, thickness, cv2.LINE_AA)
+    cv2.putText(bar, right, (right_start, baseline_y), font, font_scale, black, thickness, cv2.LINE_AA)
+    tick(first)
+    tick(last)
+    if lo < 0 < hi:
+        zero_x = first + int(round((0 - lo) / (hi - lo) * (last - first)))
+        tick(zero_x)
+        half = text_width("0") // 2
+        if left_end + 6 < zero_x - half and zero_x + half + 6 < right_start:    # only where it does not overlap
+            cv2.putText(bar, "0", (zero_x - half, baseline_y), font, font_scale, black, thickness, cv2.LINE_AA)
+    return bar
+
+
 def _port_open(host, port, timeout=0.2):
     try:
         with socket.create_connection((host, port), timeout=timeout):
@@ -179,15 +319,29 @@ class RerunLogger:
         Log the camera image every this many frames (fields and scalars are logged every frame).
     flush_interval_s : float
         Seconds between flushes of the stream (done by a background thread).
+    color_range : (float, float) or None
+        Fixed colour limits (lo, hi) in px for u and v; None: the automatic scale (module notes).
+    low_zncc : float
+        Ok points whose ZNCC is below this are counted and marked as "low ZNCC" (default: the
+        tracker's default ``refind_zncc``).
 
     Raises
     ------
     ValueError
-        A viewer that cannot be started or reached.
+        A viewer that cannot be started or reached, or a colour range that is not two finite numbers
+        with lo < hi.
     """
 
     def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
-                 image_every=1, flush_interval_s=1.0):
+                 image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8):
+        if color_range is not None:
+            lo, hi = (float(value) for value in color_range)
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise ValueError(f"colour range {lo:g},{hi:g}: give LO,HI with LO below HI, both finite "
+                                 f"(e.g. --color-range -2,2)")
+            color_range = (lo, hi)
+        self.color_range = color_range
+        self.low_zncc = float(low_zncc)
         self.mode = mode
         self.target = target
         self.image_max_side = int(image_max_side)
@@ -202,7 +356,16 @@ class RerunLogger:
         self._done_times = deque()
         self._t0_ns = None
         self._p0 = None
-        self._tick_labels = {}
+        start_limits = color_range or (-MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_PX)
+        self.colour_limits = {LEGEND_U: start_limits, LEGEND_V: start_limits}   # what the bars show now
+        self._limits_logged = {}
+        self._radius_key = None
+        self._radius = 4.0
+        self._image_side = None
+        self._last_u = self._last_v = None       # last ok displacement per point, to place lost markers
+        self._flagged_shown = {LOST: False, LOW_ZNCC: False}
+        self._tracking_text = None
+        self._first_bar = (None, None)           # (limits, image) drawn by start()
         self.log_seconds = 0.0
         self.frames_logged = 0
         if mode == "none":
@@ -252,9 +415,12 @@ class RerunLogger:
             x, y, w, h = roi
             rec.log(CAMERA_ROI, rr.Boxes2D(mins=[[x / scale - 0.5, y / scale - 0.5]], sizes=[[w / scale, h / scale]],
                                            colors=[(255, 200, 0)], labels=["ROI"]), static=True)
-        bar = np.repeat(self._lut[None, :, :], _BAR_HEIGHT, axis=0)
-        for legend in (LEGEND_U, LEGEND_V):
-            rec.log(f"{legend}/bar", rr.Image(bar), static=True)
+        self._image_side = max(height, width)
+        # drawn now: OpenCV's first text call takes ~30 ms, which would land on the first frame
+        self._first_bar = (self.colour_limits[LEGEND_U], colour_bar_image(self._lut, *self.colour_limits[LEGEND_U]))
+        if self.color_range is not None:      # fixed: static; automatic: logged with the first frame
+            for legend in (LEGEND_U, LEGEND_V):
+                self._log_limits(legend, static=True)
         lines = [f"# {title or 'livedic session'}", "",
                  f"{len(points) if points is not None else 0} points; camera image shown at 1/{scale} scale."]
         if source_settings:
@@ -285,14 +451,15 @@ class RerunLogger:
 
     def _make_blueprint(self, has_truth):
         import rerun.blueprint as rrb
-        field = "$origin/image", "$origin/p0"
+        field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
         images = rrb.Horizontal(
             rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi"]),
             rrb.Spatial2DView(name="u (px)", origin=CAMERA, contents=[*field, f"/{FIELD_U}"]),
             rrb.Spatial2DView(name="v (px)", origin=CAMERA, contents=[*field, f"/{FIELD_V}"]),
         )
         legends = rrb.Horizontal(
-            rrb.TextDocumentView(name="session", origin=SUMMARY),
+            rrb.Vertical(rrb.TextDocumentView(name="tracking", origin=TRACKING),
+                         rrb.TextDocumentView(name="session", origin=SUMMARY), row_shares=[1, 2]),
             rrb.Spatial2DView(name="u colour scale (px)", origin=LEGEND_U),
             rrb.Spatial2DView(name="v colour scale (px)", origin=LEGEND_V),
         )
@@ -330,26 +497,27 @@ class RerunLogger:
             rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
         ok = m.ok
         scale = float(self._scale)
-        px = (m.x + np.where(ok, m.u, 0.0)) / scale
-        py = (m.y + np.where(ok, m.v, 0.0)) / scale
+        last_u, last_v = self._last_displacement(m)
+        px = (m.x + last_u) / scale
+        py = (m.y + last_v) / scale
         radius = self._point_radius(m) / scale
         for path, legend, values in ((FIELD_U, LEGEND_U, m.u), (FIELD_V, LEGEND_V, m.v)):
             good = ok & np.isfinite(values)
-            colours, lo, hi = self._colours(values, good)
-            rec.log(path, rr.Points2D(np.column_stack([px[good], py[good]]), colors=colours, radii=radius))
-            labels = [f"{_fmt(lo)} px", _fmt(0.5 * (lo + hi)), f"{_fmt(hi)} px"]
-            if labels != self._tick_labels.get(legend):      # 3 significant digits: changes now and then
-                self._tick_labels[legend] = labels
-                rec.log(f"{legend}/ticks", rr.Points2D(
-                    [[0, _BAR_HEIGHT + 2], [_BAR_WIDTH / 2, _BAR_HEIGHT + 2], [_BAR_WIDTH - 1, _BAR_HEIGHT + 2]],
-                    labels=labels, radii=0.5, colors=[(255, 255, 255)], show_labels=True))
+            if self.color_range is None:
+                self.colour_limits[legend] = grow_limits(self.colour_limits[legend], values[good])
+            if self._limits_logged.get(legend) != self.colour_limits[legend]:
+                self._log_limits(legend)
+            rec.log(path, rr.Points2D(np.column_stack([px[good], py[good]]), radii=radius,
+                                      colors=self._colours(values[good], *self.colour_limits[legend])))
+        self._log_flagged(m, px, py, radius)
         p0 = self._p0
         if p0 is not None and 0 <= p0 < m.u.size:
             if ok[p0]:
                 rec.log(P0, rr.Scalars([float(m.u[p0]), float(m.v[p0])]))
-            rec.log(CAMERA_P0, rr.Points2D([[px[p0], py[p0]]], labels=["P0"], radii=max(3.0, 2 * radius),
+            # a negative radius is in UI points: the same size at any zoom
+            rec.log(CAMERA_P0, rr.Points2D([[px[p0], py[p0]]], labels=["P0"], radii=-4.0,
                                            colors=[(255, 0, 255) if ok[p0] else (128, 128, 128)],
-                                           show_labels=True))
+                                           show_labels=True, draw_order=_MARKER_DRAW_ORDER + 1))
         nan = float("nan")
         zncc_ok = m.zncc[ok]
         rec.log(QUALITY, rr.Scalars([float(np.mean(zncc_ok)) if zncc_ok.size else nan,
@@ -391,24 +559,67 @@ class RerunLogger:
             image = cv2.resize(image, (w // self._scale, h // self._scale), interpolation=cv2.INTER_AREA)
         return image
 
-    @staticmethod
-    def _point_radius(m):
-        """Half the typical spacing between points, so the coloured dots tile the field."""
-        if m.x.size < 2:
-            return 4.0
-        xs = np.unique(m.x)
-        ys = np.unique(m.y)
-        steps = [np.min(np.diff(a)) for a in (xs, ys) if a.size > 1]
-        return 0.5 * float(min(steps)) if steps else 4.0
+    def _point_radius(self, m):
+        """Disc radius (image px) so the coloured discs cover the field: the typical spacing / sqrt(2).
 
-    def _colours(self, values, good):
-        if not good.any():
-            return np.zeros((0, 3), dtype=np.uint8), float("nan"), float("nan")
-        v = values[good]
-        lo, hi = float(v.min()), float(v.max())
-        span = hi - lo if hi > lo else 1.0
-        index = np.clip(((v - lo) / span * 255.0).astype(np.int64), 0, 255)
-        return self._lut[index], lo, hi
+        Computed once per point set (the points' reference positions do not change).
+        """
+        key = (m.x.size, float(m.x[0]), float(m.y[0]), float(m.x[-1]), float(m.y[-1])) if m.x.size else None
+        if key != self._radius_key:
+            spacing = typical_spacing(m.x, m.y)
+            radius = 4.0 * self._scale if spacing is None else spacing / np.sqrt(2.0)
+            if self._image_side:
+                radius = min(radius, self._image_side / 20.0)
+            self._radius_key, self._radius = key, max(radius, 0.5 * self._scale)   # >= 1 display px across
+        return self._radius
+
+    def _colours(self, values, lo, hi):
+        """(N, 3) uint8 colours of ``values`` on the scale [lo, hi] (outside: the end colours)."""
+        top = self._lut.shape[0] - 1
+        index = np.clip((values - lo) * (top / (hi - lo)) + 0.5, 0, top).astype(np.int64)
+        return self._lut[index]
+
+    def _log_limits(self, legend, static=False):
+        """The colour bar image with its labels and the numeric limits, for ``legend``."""
+        rr = self.rr
+        lo, hi = self.colour_limits[legend]
+        limits, bar = self._first_bar
+        if limits != (lo, hi):
+            bar = colour_bar_image(self._lut, lo, hi)
+        self.rec.log(f"{legend}/bar", rr.Image(bar), static=static)
+        self.rec.log(LIMITS_U if legend == LEGEND_U else LIMITS_V, rr.Scalars([lo, hi]), static=static)
+        self._limits_logged[legend] = (lo, hi)
+
+    def _last_displacement(self, m):
+        """Displacement per point, the last ok one where a point is not ok now (0 before its first)."""
+        ok = m.ok & np.isfinite(m.u) & np.isfinite(m.v)
+        if self._last_u is None or self._last_u.shape != m.u.shape:
+            self._last_u, self._last_v = np.zeros(m.u.shape), np.zeros(m.v.shape)
+        np.copyto(self._last_u, m.u, where=ok)
+        np.copyto(self._last_v, m.v, where=ok)
+        return self._last_u, self._last_v
+
+    def _log_flagged(self, m, px, py, radius):
+        """Squares at lost and low-ZNCC points, and the counts as text (each logged only when it changes)."""
+        rr, rec = self.rr, self.rec
+        lost = ~m.ok
+        low = m.ok & (m.zncc < self.low_zncc)
+        half_size = max(0.5 * radius, 2.0)      # squares of ~0.7 spacing: neighbours stay apart
+        for path, flagged, colour in ((LOST, lost, _LOST_COLOUR), (LOW_ZNCC, low, _LOW_ZNCC_COLOUR)):
+            if flagged.any():
+                centers = np.column_stack([px[flagged], py[flagged]])
+                # half_sizes sets the number of boxes (one value would draw one box)
+                rec.log(path, rr.Boxes2D(centers=centers, half_sizes=np.full(centers.shape, half_size), radii=-1.0,
+                                         colors=[colour], draw_order=_MARKER_DRAW_ORDER))
+                self._flagged_shown[path] = True
+            elif self._flagged_shown[path]:
+                rec.log(path, rr.Clear(recursive=False))
+                self._flagged_shown[path] = False
+        text = (f"lost: {int(lost.sum())} of {lost.size} points, "
+                f"low ZNCC (< {self.low_zncc:g}): {int(low.sum())}")
+        if text != self._tracking_text:
+            self._tracking_text = text
+            rec.log(TRACKING, rr.TextDocument(text))
 
     def _rates(self, result, m):
         """Frame rate and POI/s over the last second of results."""

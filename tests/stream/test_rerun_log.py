@@ -109,7 +109,8 @@ def test_saved_recording_holds_every_entity_and_p0_series(tmp_path):
     logger.close()
     text = _store_summary(path)
     for entity in (rerun_log.CAMERA_IMAGE, rerun_log.CAMERA_ROI, rerun_log.CAMERA_P0, rerun_log.FIELD_U,
-                   rerun_log.FIELD_V, f"{rerun_log.LEGEND_U}/bar", f"{rerun_log.LEGEND_V}/ticks", rerun_log.P0,
+                   rerun_log.FIELD_V, f"{rerun_log.LEGEND_U}/bar", f"{rerun_log.LEGEND_V}/bar", rerun_log.LIMITS_U,
+                   rerun_log.LIMITS_V, rerun_log.LOST, rerun_log.TRACKING, rerun_log.P0,
                    rerun_log.QUALITY, rerun_log.THROUGHPUT, rerun_log.LATENCY, rerun_log.DROPS, rerun_log.ERROR,
                    rerun_log.EVENTS, rerun_log.SUMMARY):
         assert f"/{entity} " in text, entity
@@ -124,10 +125,12 @@ def test_saved_recording_holds_every_entity_and_p0_series(tmp_path):
 
 def test_colour_scale_and_display_image():
     logger = RerunLogger("save", "unused.rrd")
-    values = np.array([-1.0, 0.0, 3.0, np.nan])
-    colours, lo, hi = logger._colours(values, np.isfinite(values))
-    assert (lo, hi) == (-1.0, 3.0) and colours.shape == (3, 3) and colours.dtype == np.uint8
-    assert not np.array_equal(colours[0], colours[2])
+    lut = rerun_log.colormap_lut()
+    colours = logger._colours(np.array([-5.0, -1.0, 1.0, 3.0, 9.0]), -1.0, 3.0)
+    assert colours.shape == (5, 3) and colours.dtype == np.uint8
+    np.testing.assert_array_equal(colours[[0, 1]], lut[[0, 0]])          # at and below the low limit
+    np.testing.assert_array_equal(colours[[3, 4]], lut[[255, 255]])      # at and above the high limit
+    np.testing.assert_array_equal(colours[2], lut[128])                  # halfway
     logger._scale = 2
     shown = logger._display_image(np.full((8, 12), 4095, np.uint16), "Mono12")
     assert shown.dtype == np.uint8 and shown.shape == (4, 6) and shown.max() == 255
