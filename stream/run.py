@@ -26,19 +26,24 @@ The lead wires it into ``stream.cli``::
     run.set_defaults(handler=run_session)
 """
 
-import json
+import enum
 import math
 import os
 import signal
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from datetime import datetime
 
 import numpy as np
 
 DEFAULT_SOURCE = "synthetic:tensile"
 DEFAULT_POINTS = 1000
+# Points a live session tracks at most unless --max-points says otherwise: 20,000 points take ~140 MB in
+# the tracker and ~0.15 s a frame on one core (IC-GN, 1 MP), a few frames a second; --step 1 on 1 MP
+# (198,120 points) took 2.8 GB, dropped half the frames and lost a fifth of the points (issue 8).
+DEFAULT_MAX_POINTS = 20_000
 RECORDINGS_DIR = "recordings"
 
 
@@ -60,7 +65,13 @@ def add_run_arguments(parser):
                         help="grid step in pixels (default: about --n-points points over the ROI)")
     parser.add_argument("--n-points", type=int, default=DEFAULT_POINTS, metavar="N",
                         help=f"points wanted when --step is not given (default {DEFAULT_POINTS})")
-    parser.add_argument("--p0", metavar="X,Y", help="the traced point P0 (default: the ROI centre)")
+    parser.add_argument("--p0", metavar="X,Y",
+                        help="the traced point P0 (default: the best-textured point near the ROI centre, never on a "
+                             "hole or background; a given P0 on weak texture is warned about)")
+    parser.add_argument("--max-points", type=int, default=DEFAULT_MAX_POINTS, metavar="N",
+                        help=f"refuse to start with more than N points (default {DEFAULT_MAX_POINTS:,}: about "
+                             f"{DEFAULT_MAX_POINTS * 7 // 1000} MB of tracker memory and a few frames a second on one "
+                             "core); raise it for slow tests on a big machine")
     parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
     parser.add_argument("--search", default="improved-wso", metavar="NAME",
                         help=f"integer search seeded by the previous frame: {', '.join(SEARCH_METHODS)} "
@@ -144,6 +155,8 @@ def _check_args(args):
         raise ValueError(f"--step must be a positive number of pixels, got {args.step}")
     if args.n_points < 1:
         raise ValueError(f"--n-points must be >= 1, got {args.n_points}")
+    if args.max_points < 1:
+        raise ValueError(f"--max-points must be >= 1, got {args.max_points}")
     for name in ("seed_radius", "refind_radius"):
         if getattr(args, name) < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0")
@@ -270,6 +283,189 @@ def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
     return np.vstack([p0[None, :], grid]), tuple(int(v) for v in roi), step
 
 
+# ----------------------------------------------------------------------------- P0 on the specimen
+
+# Texture is the gradient energy |grad I|^2 (grey levels^2/px^2): its sum over a subset (SSSIG) sets the
+# noise of a DIC measurement there. "Local" texture is its mean over 9x9 px, about a speckle and its gap.
+_LOCAL_WINDOW = 9
+# A pixel is flat where its local texture is below this share of the ROI's 75th percentile: a hole, the
+# background or a saturated patch (Sample 12's hole: 0.3 % of it), not the gaps between speckles.
+P0_FLAT_LEVEL = 0.02
+# A P0 subset is weak when more than this share of it is flat, or when its texture (mean over the subset)
+# is below P0_WEAK_TEXTURE times the ROI's median: its trace may follow a hole, an edge or background.
+P0_FLAT_SHARE = 0.25
+P0_WEAK_TEXTURE = 0.25
+
+
+class P0Reason(enum.Enum):
+    """How P0 was chosen."""
+    BEST_NEAR_CENTRE = "best-textured point near the ROI centre"
+    MOVED_OFF_WEAK_CENTRE = "the ROI centre has no specimen texture: best-textured point nearest to it"
+    NO_TEXTURE = "no textured subset in the ROI: the ROI centre"
+    GIVEN = "given with --p0"
+
+
+@dataclass(frozen=True)
+class P0Choice:
+    """Where P0 is and why (see ``choose_p0``).
+
+    xy : (x, y) pixel centre of P0
+    reason : P0Reason
+    relative_texture : P0's subset texture over the ROI's median subset texture (NaN: no texture at all)
+    flat_share : share of P0's subset that is flat (hole, background, saturation)
+    centre : the ROI centre, pixel
+    centre_weak : whether the ROI centre's subset is weak
+    radius : the search radius around the centre that found P0 (px; 0 when given)
+    """
+    xy: tuple
+    reason: P0Reason
+    relative_texture: float
+    flat_share: float
+    centre: tuple
+    centre_weak: bool
+    radius: int = 0
+
+    @property
+    def weak(self):
+        """P0's subset is partly flat or has little texture: its trace may be wrong."""
+        return self.flat_share > P0_FLAT_SHARE or not (self.relative_texture >= P0_WEAK_TEXTURE)
+
+    def _quality(self):
+        texture = "n/a" if not math.isfinite(self.relative_texture) else f"{self.relative_texture:.2f}x"
+        return f"texture {texture} the ROI's median, {100 * self.flat_share:.0f} % of its subset flat"
+
+    def describe(self):
+        """Which point, and why, for the session's note."""
+        x, y = self.xy
+        cx, cy = self.centre
+        if self.reason is P0Reason.GIVEN:
+            return f"P0 = point 0 at ({x:g}, {y:g}), given with --p0 ({self._quality()})"
+        if self.reason is P0Reason.NO_TEXTURE:
+            return (f"P0 = point 0 at the ROI centre ({x:g}, {y:g}): the ROI has no textured subset (a blank or "
+                    f"out-of-focus image?)")
+        if self.reason is P0Reason.MOVED_OFF_WEAK_CENTRE:
+            return (f"P0 = point 0 at ({x:g}, {y:g}): the ROI centre ({cx:g}, {cy:g}) is not on specimen texture "
+                    f"(a hole, an edge or background), so P0 is the best-textured point within {self.radius} px "
+                    f"of it ({self._quality()})")
+        return (f"P0 = point 0 at ({x:g}, {y:g}), the best-textured point within {self.radius} px of the ROI "
+                f"centre ({cx:g}, {cy:g}) ({self._quality()})")
+
+    def warning(self):
+        """A line for the user when P0 is weak, else None."""
+        if not self.weak:
+            return None
+        x, y = self.xy
+        if self.reason is P0Reason.GIVEN:
+            return (f"P0 ({x:g}, {y:g}) given with --p0 is on weak texture ({self._quality()}): its trace may be "
+                    f"wrong; leave out --p0 to let livedic choose a point on the speckle")
+        return f"P0 ({x:g}, {y:g}) is on weak texture ({self._quality()}): its trace may be wrong"
+
+
+def _texture_maps(image, roi, subset):
+    """Maps over ``roi`` grown by a subset, indexed [row - y0, column - x0]: (floor, texture, flat, x0, y0).
+
+    floor: the weakest local texture in and around each subset; texture: mean |grad I|^2 over each
+    subset; flat: share of each subset that is flat.
+    """
+    import cv2
+    height, width = image.shape
+    x, y, w, h = roi
+    grow = int(subset)
+    x0, y0 = max(x - grow, 0), max(y - grow, 0)
+    x1, y1 = min(x + w + grow, width), min(y + h + grow, height)
+    crop = np.ascontiguousarray(image[y0:y1, x0:x1], dtype=np.float32)
+    gx = cv2.Sobel(crop, cv2.CV_32F, 1, 0, ksize=1, borderType=cv2.BORDER_REPLICATE) * 0.5
+    gy = cv2.Sobel(crop, cv2.CV_32F, 0, 1, ksize=1, borderType=cv2.BORDER_REPLICATE) * 0.5
+    energy = gx * gx + gy * gy
+    local = cv2.boxFilter(energy, -1, (_LOCAL_WINDOW, _LOCAL_WINDOW), borderType=cv2.BORDER_REPLICATE)
+    inner = local[y - y0:y - y0 + h, x - x0:x - x0 + w]
+    level = float(np.percentile(inner[::2, ::2], 75)) if inner.size else 0.0
+    size = (int(subset), int(subset))
+    flat = cv2.boxFilter((local <= P0_FLAT_LEVEL * level).astype(np.float32), -1, size,
+                         borderType=cv2.BORDER_REPLICATE)
+    # The weakest local texture around each subset, grown by the local window: the 9x9 means just inside a
+    # hole still see its edge (strong), so only the grown window reaches the flat inside of a hole the
+    # subset touches.
+    grown = int(subset) + _LOCAL_WINDOW - 1
+    floor = cv2.erode(local, np.ones((grown, grown), np.uint8), borderType=cv2.BORDER_REPLICATE)
+    texture = cv2.boxFilter(energy, -1, size, borderType=cv2.BORDER_REPLICATE)
+    return floor, texture, flat, x0, y0
+
+
+def choose_p0(image, roi, subset, p0=None):
+    """P0 on the specimen: the best-textured point near the ROI centre, or the given ``p0`` assessed.
+
+    Without ``p0``: among the pixel centres within a radius of the ROI centre whose
+    subset fits in the image, the one whose subset is textured best throughout (the
+    largest minimum of the 9x9-px mean |grad I|^2 within the subset; a subset that
+    touches a hole, the specimen's edge or background has ~0 there); the radius starts
+    at one subset and doubles until a subset with at least ``P0_WEAK_TEXTURE`` times
+    the ROI's median of that is found. The ROI centre is often on a hole or on
+    background (an open-hole specimen, a wide ROI): those are never chosen. With
+    ``p0`` the point is kept and only assessed (``P0Choice.weak``).
+
+    Parameters
+    ----------
+    image : ndarray (H, W)
+        The reference frame.
+    roi : tuple (x, y, w, h) or None
+        None: the whole image.
+    subset : int
+        Odd subset side, pixels.
+    p0 : (x, y), optional
+        A given P0 (snapped to a pixel centre).
+
+    Returns
+    -------
+    P0Choice
+    """
+    height, width = image.shape
+    x, y, w, h = roi if roi is not None else (0, 0, width, height)
+    half = int(subset) // 2
+    centre = (float(np.floor(x + (w - 1) / 2.0 + 0.5)), float(np.floor(y + (h - 1) / 2.0 + 0.5)))
+    floor, texture, flat, x0, y0 = _texture_maps(image, (x, y, w, h), subset)
+    rows, cols = floor.shape
+    # Candidates: pixel centres of the ROI whose subset lies inside the image.
+    cx_lo, cx_hi = max(x, half), min(x + w - 1, width - 1 - half)
+    cy_lo, cy_hi = max(y, half), min(y + h - 1, height - 1 - half)
+    inside = np.zeros(floor.shape, dtype=bool)
+    if cx_lo <= cx_hi and cy_lo <= cy_hi:
+        inside[cy_lo - y0:cy_hi - y0 + 1, cx_lo - x0:cx_hi - x0 + 1] = True
+    typical_texture = float(np.median(texture[inside][::3])) if inside.any() else 0.0
+    typical_floor = float(np.median(floor[inside][::3])) if inside.any() else 0.0
+
+    def assess(xy):
+        col, row = int(xy[0]) - x0, int(xy[1]) - y0
+        if not (0 <= row < rows and 0 <= col < cols) or typical_texture <= 0:
+            return float("nan"), 1.0
+        return float(texture[row, col]) / typical_texture, float(flat[row, col])
+
+    def weak(xy):
+        relative, flat_share = assess(xy)
+        return flat_share > P0_FLAT_SHARE or not (relative >= P0_WEAK_TEXTURE)
+
+    centre_weak = weak(centre)
+    if p0 is not None:
+        xy = (float(np.floor(p0[0] + 0.5)), float(np.floor(p0[1] + 0.5)))
+        return P0Choice(xy, P0Reason.GIVEN, *assess(xy), centre, centre_weak)
+    if not inside.any() or typical_floor <= 0:
+        return P0Choice(centre, P0Reason.NO_TEXTURE, *assess(centre), centre, centre_weak)
+    row_index, col_index = np.nonzero(inside)
+    distance2 = (col_index + x0 - centre[0]) ** 2 + (row_index + y0 - centre[1]) ** 2
+    scores = floor[row_index, col_index]
+    radius = max(int(subset), 1)
+    limit = np.sqrt(float(distance2.max()))
+    while True:
+        near = np.flatnonzero(distance2 <= radius * radius)
+        if near.size and (scores[near].max() >= P0_WEAK_TEXTURE * typical_floor or radius >= limit):
+            break
+        radius *= 2
+    best = near[int(np.argmax(scores[near]))]        # the first of equals in row-major order: deterministic
+    xy = (float(col_index[best] + x0), float(row_index[best] + y0))
+    reason = P0Reason.MOVED_OFF_WEAK_CENTRE if centre_weak else P0Reason.BEST_NEAR_CENTRE
+    return P0Choice(xy, reason, *assess(xy), centre, centre_weak, radius)
+
+
 # ----------------------------------------------------------------------------- the session
 
 def _warm_up(args):
@@ -287,13 +483,32 @@ def _warm_up(args):
     tracker.track(np.roll(image, (9, -7), axis=(0, 1)))   # exercises the re-find path
 
 
-class _Interrupt:
-    """SIGINT/SIGTERM -> a stop request (installed only in the main thread)."""
+class _StoppedBeforeStart(Exception):
+    """A stop signal arrived before the session started (nothing was recorded)."""
 
-    def __init__(self, on_signal):
-        self.on_signal = on_signal
+    def __init__(self, signal_name):
+        super().__init__(signal_name)
+        self.signal_name = signal_name
+
+
+class _Interrupt:
+    """SIGINT/SIGTERM over the whole of ``livedic run`` (installed only in the main thread).
+
+    Before the session starts (opening the source, compiling the kernels, rendering the
+    simulated test, waiting for the first frame, opening the outputs) a signal ends the
+    run at once: the handler raises ``_StoppedBeforeStart``. Once ``session_started``
+    is called it is a stop request instead (``on_signal``): acquisition stops, the
+    queued frames are tracked and the recording is closed properly. A second Ctrl-C
+    gives up at once (``KeyboardInterrupt``).
+    """
+
+    def __init__(self):
+        self.on_signal = None
         self.received = None
         self._previous = {}
+
+    def session_started(self, on_signal):
+        self.on_signal = on_signal
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
@@ -302,9 +517,13 @@ class _Interrupt:
         return self
 
     def _handle(self, signum, _frame):
+        name = signal.Signals(signum).name
+        if self.on_signal is None:
+            self.received = name
+            raise _StoppedBeforeStart(name)
         if self.received is not None and signum == signal.SIGINT:
             raise KeyboardInterrupt   # a second Ctrl-C: give up on the clean stop
-        self.received = signal.Signals(signum).name
+        self.received = name
         self.on_signal()
 
     def __exit__(self, *exc):
@@ -313,13 +532,117 @@ class _Interrupt:
         return False
 
 
+class _FirstFrameAhead:
+    """A source whose first frame has been read already; iterating yields it, then the rest.
+
+    The first frame gives the image size, so the points (``--roi``, ``--p0``, ``--points``,
+    their number) are checked and P0 is placed before any output is opened: bad input
+    leaves no file behind.
+
+    Raises
+    ------
+    SourceError
+        The source ends (or fails) before its first frame.
+    """
+
+    def __init__(self, source, uri):
+        from acquire.base import SourceError
+        self.source = source
+        self._frames = iter(source)
+        try:
+            self.frame = next(self._frames)
+        except StopIteration:
+            raise SourceError(f"{uri} delivered no frame") from None
+
+    def __iter__(self):
+        yield self.frame
+        yield from self._frames
+
+    @property
+    def settings(self):
+        return self.source.settings
+
+    def close(self):
+        self.source.close()
+
+
+def _check_outputs(args, record_path, viewer_mode, viewer_target):
+    """``OutputError`` (one line) for an output that cannot be written, before anything starts."""
+    from stream.csv_output import check_output_file
+    if record_path:
+        check_output_file(record_path, "--record" if args.record else "recording (--record FILE.mcap or "
+                          "--no-record to change)", create_folders=True)
+    if viewer_mode == "save":
+        check_output_file(viewer_target, "--viewer save", create_folders=True)
+    if args.summary_json:
+        check_output_file(args.summary_json, "--summary-json")
+
+
+def check_viewer_reachable(url, timeout_s=1.0):
+    """ValueError (one line) unless something accepts TCP connections at ``url``'s host and port.
+
+    ``--viewer connect URL`` with no viewer there would otherwise run the whole session
+    while the Rerun SDK retries in the background, and end with a flush timeout.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    from stream.rerun_log import DEFAULT_PORT
+    try:
+        parts = urlsplit(url)
+        host = parts.hostname or "127.0.0.1"
+        port = parts.port or (443 if parts.scheme.endswith("https") else DEFAULT_PORT)
+    except ValueError as error:
+        raise ValueError(f"--viewer connect {url}: not a valid URL ({error})") from None
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            pass
+    except OSError as error:
+        reason = "connection refused" if isinstance(error, ConnectionRefusedError) else \
+            (error.strerror or type(error).__name__)
+        raise ValueError(f"--viewer connect {url}: no Rerun viewer is listening at {host}:{port} ({reason}); "
+                         f"start one (rerun --bind 127.0.0.1 --port {port}), or use --viewer spawn, "
+                         f"--viewer save FILE.rrd or --viewer none") from None
+
+
+# Tracker memory per point, measured with IC-GN and the seeded search on 1 MP: 5,184 points 31 MB,
+# 40,401 points 280 MB (reference subset, gradients, Hessian and per-point state): ~7 KB.
+_TRACKER_BYTES_PER_POINT = 7_000
+# One point's share of a recorded result set: x, y, u, v, zncc, ux, uy, vx, vy (float64), point id,
+# status, iterations and ok.
+_RESULT_BYTES_PER_POINT = 90
+
+
+def _size(n_bytes):
+    return f"{n_bytes / 1e9:.1f} GB" if n_bytes >= 1e9 else f"{n_bytes / 1e6:.0f} MB"
+
+
+def check_point_count(n_points, max_points, *, how, frames=None, recording=True):
+    """ValueError (one line, with the cost) when ``n_points`` is more than ``max_points``."""
+    if n_points <= max_points:
+        return
+    cost = f"about {_size(n_points * _TRACKER_BYTES_PER_POINT)} of memory"
+    if frames and recording:
+        cost += f" and {_size(n_points * _RESULT_BYTES_PER_POINT * frames)} of results recorded over {frames} frames"
+    raise ValueError(f"{how} gives {n_points:,} points, more than livedic run tracks live (--max-points "
+                     f"{max_points:,}; {cost}, and frames are dropped when tracking takes longer than a frame "
+                     f"period): use a larger --step, fewer --n-points or a smaller --roi, or raise --max-points")
+
+
 def run_session(args):
     """Run ``livedic run`` with parsed ``args`` (see ``add_run_arguments``); returns the exit code.
+
+    Everything that can be checked before the session is: options, every output
+    (``--record``, ``--viewer save``, ``--summary-json``: writable?), a ``--viewer
+    connect`` viewer (listening?), then, on the first frame, the points (``--roi``,
+    ``--p0``, ``--points`` inside the image, no more than ``--max-points``) and P0
+    (placed on the specimen's texture, or a warning when the given one is weak). Only
+    then are the recording and the Rerun stream opened, so bad input leaves no file.
 
     Raises
     ------
     ValueError
-        Bad options (one line, for the CLI to print).
+        Bad options or an output that cannot be written (one line, for the CLI to print).
     SourceError
         The source cannot be opened, or failed before its first frame.
     SourceLost
@@ -335,6 +658,9 @@ def run_session(args):
     record_path = None if args.no_record else (args.record or _unique(stem + ".mcap"))
     viewer_mode, viewer_target, viewer_note = parse_viewer(
         args.viewer, os.path.splitext(record_path)[0] + ".rrd" if record_path else _unique(stem + ".rrd"))
+    _check_outputs(args, record_path, viewer_mode, viewer_target)
+    if viewer_mode == "connect":
+        check_viewer_reachable(viewer_target)
     show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
 
     def say(message):
@@ -346,18 +672,28 @@ def run_session(args):
     previous_threads = numba.get_num_threads()
     numba.set_num_threads(args.threads)
     try:
-        return _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target, viewer_note,
-                    show_progress, stem, say)
+        with _Interrupt() as interrupt:
+            return _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target,
+                        viewer_note, show_progress, stem, say, interrupt)
     finally:
         numba.set_num_threads(previous_threads)
 
 
+def _points_how(args, step):
+    if args.points:
+        return f"--points {args.points}"
+    if args.step is not None:
+        return f"--step {args.step}"
+    return f"--n-points {args.n_points} (grid step {step} px)"
+
+
 def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target, viewer_note, show_progress,
-         stem, say):
+         stem, say, interrupt):
     from acquire.base import SourceError, SourceLost
     from acquire.sources import open_source, parse_scheme
     from dic.tracking import Tracker
     from stream.acquisition import AcquisitionThread, Reconnect
+    from stream.csv_output import json_text, write_text_atomic
     from stream.frame_queue import FrameQueue
     from stream.rerun_log import RerunLogger
     from stream.tracker_loop import TrackerLoop
@@ -368,21 +704,29 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
     options = {}
     if scheme == "synthetic" and args.frames is not None and "frames=" not in args.source:
         options["frames"] = max(args.frames, 2)
-    source = open_source(args.source, **options)
+    source = None
     recorder = None
     logger = None
     acquisition = None
+    phase = "opening the source"
     try:
+        source = open_source(args.source, **options)
+        phase = "compiling the tracking kernels"
         _warm_up(args)
+        if viewer_mode != "none":
+            import rerun  # noqa: F401 - imported now, not between the first frame and the next
         total = args.frames
         if getattr(source, "frames", None) and isinstance(source.frames, int):
             total = min(total, source.frames) if total else source.frames
         if hasattr(source, "prepare"):
+            phase = "rendering the simulated test"
             rendered = getattr(source, "rendered_frames", source.frames)
             bar = ProgressBar(rendered, enabled=show_progress)
             started = time.perf_counter()
-            source.prepare(progress=lambda done, n: bar.update(done, "rendering the simulated test"))
-            bar.close()
+            try:
+                source.prepare(progress=lambda done, n: bar.update(done, "rendering the simulated test"))
+            finally:
+                bar.close()
             cycling = f", cycled to make {source.frames}" if rendered != source.frames else ""
             pacing = f"delivery paced at {source.fps:g} fps" if source.options.get("pace", True) else "delivery unpaced"
             say(f"simulator: {rendered} frames rendered ahead in {time.perf_counter() - started:.1f} s{cycling}; "
@@ -390,16 +734,29 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
         roi = roi_arg if roi_arg is not None else (None if given_points is not None else _default_roi(source))
         policy = _drop_policy(args.drop, source, scheme)
 
+        # The first frame: its size checks the points before any output exists.
+        phase = "waiting for the first frame"
+        ahead = _FirstFrameAhead(source, args.source)
+        phase = "checking the points"
+        first = ahead.frame
+        preview, _, preview_step = build_points(first.image.shape, roi=roi, step=args.step, n_points=args.n_points,
+                                                subset=args.subset, p0=p0_arg, points=given_points)
+        check_point_count(len(preview), args.max_points, how=_points_how(args, preview_step), frames=total,
+                          recording=record_path is not None)
+        p0_choice = choose_p0(first.image, roi, args.subset, p0=p0_arg)
+
         settings = _safe_settings(source)
         metadata = {
             "command": "livedic run", "source_uri": args.source, "source_settings": settings,
             "roi": list(roi) if roi else "full image", "step": args.step, "n_points_wanted": args.n_points,
-            "points_file": args.points, "p0": p0_arg if p0_arg else "ROI centre", "subset": args.subset,
+            "points_file": args.points, "p0": list(p0_choice.xy), "p0_choice": p0_choice.describe(),
+            "subset": args.subset,
             "search": args.search, "subpixel": args.subpixel, "seed_radius": args.seed_radius,
             "refind_radius": args.refind_radius, "refind_zncc": args.refind_zncc, "seed": args.seed,
             "queue_size": args.queue, "drop_policy": policy, "point_ids": "P0 is point 0",
             "threads": args.threads, "reconnect": args.reconnect, "reconnect_timeout_s": args.reconnect_timeout,
         }
+        phase = "opening the outputs"
         if record_path:
             # The simulator's clock starts at 0 ns; cameras keep the recorder's default (Unix time).
             def recording_stopped(message):
@@ -413,13 +770,14 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             say(viewer_note)
         logger = RerunLogger(viewer_mode, viewer_target, recording_name=os.path.basename(stem),
                              image_max_side=args.image_max_side)
+        p0_warning = p0_choice.warning()
 
         session = {}
 
         def make_tracker(frame):
             points, roi_used, step_used = build_points(
                 frame.image.shape, roi=roi, step=args.step, n_points=args.n_points, subset=args.subset,
-                p0=p0_arg, points=given_points)
+                p0=p0_choice.xy, points=given_points)
             tracker = Tracker(frame.image, points, subset=args.subset, search=args.search, subpixel=args.subpixel,
                               seed_radius=args.seed_radius, refind_radius=args.refind_radius,
                               refind_zncc=args.refind_zncc, seed=args.seed)
@@ -427,13 +785,18 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             note = (f"reference frame {frame.index}: {len(points)} points"
                     + (f", grid step {step_used} px over ROI {','.join(map(str, roi_used))}" if given_points is None
                        else f" from {args.points}")
-                    + f"; P0 = point 0 at ({points[0, 0]:g}, {points[0, 1]:g})")
+                    + f"; {p0_choice.describe()}")
             has_truth = callable((frame.metadata or {}).get("truth"))
             logger.start(image_shape=frame.image.shape, roi=roi_used, p0_index=0, points=points,
                          has_truth=has_truth, title=f"livedic run: {args.source}", source_settings=settings)
             logger.event(note)
             if recorder is not None:
                 recorder.write_event("note", note)
+            if p0_warning:
+                say(f"warning: {p0_warning}")
+                logger.event(p0_warning, level="warning")
+                if recorder is not None:
+                    recorder.write_event("p0_weak", p0_warning, level="warning")
             return tracker
 
         queue = FrameQueue(args.queue, policy)
@@ -449,7 +812,7 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
         if args.reconnect:
             reconnect = Reconnect(reopen=lambda: open_source(args.source, **options), retry_s=1.0,
                                   timeout_s=args.reconnect_timeout, on_event=source_event)
-        acquisition = AcquisitionThread(source, queue, max_frames=args.frames, on_frame=on_frame,
+        acquisition = AcquisitionThread(ahead, queue, max_frames=args.frames, on_frame=on_frame,
                                         reconnect=reconnect)
         stop_event = threading.Event()
         bar = ProgressBar(total, enabled=show_progress)
@@ -468,6 +831,25 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
                 recorder.write_event("drop", f"{result.dropped_since_last} frame(s) dropped by the queue before "
                                      f"frame {frame.index} (total {result.dropped_total})", level="warning")
 
+        p0_watch = {"warned": False}
+
+        def watch_p0(result, stats):
+            """Warn once when P0 is lost or its ZNCC falls below --refind-zncc: its trace is then doubtful."""
+            if p0_watch["warned"] or result.is_reference:
+                return
+            m = result.measurement
+            ok, zncc = bool(m.ok[0]), float(m.zncc[0])
+            if ok and zncc >= args.refind_zncc:
+                return
+            p0_watch["warned"] = True
+            what = "P0 was lost" if not ok else \
+                f"P0's ZNCC fell to {zncc:.2f} (below --refind-zncc {args.refind_zncc:g})"
+            message = f"{what} at frame {result.frame.index}: its trace may be wrong from there"
+            say(f"warning: {message}")
+            logger.event(message, level="warning")
+            if recorder is not None:
+                recorder.write_event("p0_weak", message, level="warning")
+
         def progress(result, stats):
             text = (f"{stats.fps:5.1f} fps  latency p50 {stats.latency_ms(50):5.1f} ms  "
                     f"drops {result.dropped_total}")
@@ -482,25 +864,23 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             sinks.append(record_results)
         if logger.enabled:
             sinks.append(logger)
+        sinks.append(watch_p0)
         sinks.append(progress)
         loop = TrackerLoop(queue, make_tracker, sinks=sinks, stop_event=stop_event)
 
-        def request_stop():
+        interrupt.session_started(acquisition.stop)
+        acquisition.start()
+        try:
+            loop.run()
+        finally:
             acquisition.stop()
-
-        with _Interrupt(request_stop) as interrupt:
-            acquisition.start()
-            try:
-                loop.run()
-            finally:
-                acquisition.stop()
-                queue.close()          # frees a put blocked on a full queue ("block" policy)
-                acquisition.join(timeout=10.0)
+            queue.close()          # frees a put blocked on a full queue ("block" policy)
+            acquisition.join(timeout=10.0)
         bar.update(acquisition.frames, bar.last_text, force=True)
         bar.close()
         stats = loop.stats
         for sink, error in loop.sink_errors:
-            name = "recording" if sink is record_results else "Rerun display" if sink is logger else "progress"
+            name = {record_results: "recording", logger: "Rerun display", watch_p0: "P0 check"}.get(sink, "progress")
             say(f"warning: {name} stopped during the session: {type(error).__name__}: {error}")
             if recorder is not None and sink is not record_results:
                 recorder.write_event("note", f"{name} stopped: {error}", level="warning")
@@ -522,32 +902,61 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
                        recording=record_path if recorder is not None else None,
                        rerun=f"{viewer_mode} {viewer_target}" if viewer_target else viewer_mode,
                        points_shape=list(session.get("shape", ())), roi=list(session.get("roi", ())) or None,
-                       step=session.get("step"), viewer_log_ms_per_frame=(
+                       step=session.get("step"), p0=list(p0_choice.xy), p0_choice=p0_choice.reason.name,
+                       p0_weak=p0_choice.weak, viewer_log_ms_per_frame=(
                            1e3 * logger.log_seconds / logger.frames_logged if logger.frames_logged else None))
         text = format_summary(summary, stats, session, recorder)
-        logger.log_summary("```\n" + text + "\n```")
+        try:
+            logger.log_summary("```\n" + text + "\n```")
+        except Exception as error:  # noqa: BLE001 - the viewer is a display: the summary still goes out
+            say(f"warning: the Rerun viewer did not take the summary: {type(error).__name__}: {error}")
+    except _StoppedBeforeStart as stop:
+        # Nothing was tracked: what was opened is closed below; a recording with no session is removed
+        # (it is this run's own file: --record refuses an existing one, the default name is unique).
+        interrupt.session_started(lambda: None)       # a further signal now changes nothing
+        if recorder is not None:
+            _close_quietly(recorder.close, "recording", say)
+            recorder = None
+        if phase == "opening the outputs" and record_path:
+            _remove_quietly(record_path)
+        say(f"stopped on {stop.signal_name} while {phase}, before the session started: nothing was recorded")
+        return 0
     finally:
         if acquisition is not None and acquisition.is_alive():
             acquisition.stop()
             acquisition.join(timeout=10.0)
-        elif acquisition is None:
-            source.close()
+        elif acquisition is None and source is not None:
+            _close_quietly(source.close, "frame source", say)
         if recorder is not None:
             recorder.close()
         if logger is not None:
-            logger.close()
+            _close_quietly(logger.close, "Rerun stream", say)
     print(text, flush=True)
     if args.summary_json:
-        with open(args.summary_json, "w") as handle:
-            json.dump(summary, handle, indent=2, default=str)
+        write_text_atomic(args.summary_json, json_text(summary))
     if acquisition.error is not None:
         if acquisition.frames:
             # It had delivered: not bad input but a loss mid-session (the CLI's exit code 3).
             raise SourceLost(str(acquisition.error)) from acquisition.error
         raise acquisition.error if isinstance(acquisition.error, SourceError) else SourceError(str(acquisition.error))
-    if stats.frames == 0:
+    if stats.frames == 0 and not interrupt.received:
         raise SourceError(f"{args.source} delivered no frame")
     return 0
+
+
+def _close_quietly(close, what, say):
+    """``close()``; a failure is one warning line (the session's outcome and summary still go out)."""
+    try:
+        close()
+    except Exception as error:  # noqa: BLE001 - closing a display or a source must not hide the summary
+        say(f"warning: closing the {what} failed: {type(error).__name__}: {error}")
+
+
+def _remove_quietly(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
 
 
 _CAMERA_SCHEMES = ("aravis", "v4l2")

@@ -47,6 +47,30 @@ def test_colour_is_converted_to_grey_with_a_note(tmp_path, ext, channels):
     assert note.startswith(f"{path}: colour image ({channels} channels) converted to grey")
 
 
+@pytest.mark.parametrize("ext", ["png", "tif"])
+def test_grey_stored_as_colour_is_grey_without_a_note(tmp_path, ext):
+    """Equal channels (a palette of grey entries decodes to them) are a grey image: exact, no note;
+    with an alpha channel only the alpha is mentioned."""
+    from PIL import Image
+    palette = Image.frombytes("P", GREY8.shape[::-1], GREY8.tobytes())
+    palette.putpalette([level for level in range(256) for _ in range(3)])
+    path = tmp_path / f"palette.{ext}"
+    palette.save(path)
+    assert Image.open(path).mode == "P"
+    image, note = read_grey_image(path)
+    assert note is None and image.dtype == np.uint8 and np.array_equal(image, GREY8)
+    image, note = read_grey_image(write(tmp_path / f"rgb.{ext}", np.dstack([GREY8] * 3)))
+    assert note is None and np.array_equal(image, GREY8)
+    alpha = np.dstack([GREY8] * 3 + [np.full_like(GREY8, 255)])
+    image, note = read_grey_image(write(tmp_path / f"rgba.{ext}", alpha))
+    assert np.array_equal(image, GREY8) and note.endswith(": grey + alpha image: alpha channel dropped")
+    tinted = Image.frombytes("P", GREY8.shape[::-1], GREY8.tobytes())
+    tinted.putpalette([c for level in range(256) for c in (level, level, 255 - level)])   # a colour palette
+    tinted.save(tmp_path / f"tinted.{ext}")
+    _, note = read_grey_image(tmp_path / f"tinted.{ext}")
+    assert "colour image (3 channels) converted to grey" in note
+
+
 def test_16bit_colour_keeps_16_bits(tmp_path):
     colour16 = RNG.integers(0, 65536, (20, 30, 3), dtype=np.uint16)
     result, note = read_grey_image(write(tmp_path / "c16.png", colour16))

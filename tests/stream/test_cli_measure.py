@@ -2,6 +2,7 @@
 
 import csv
 import io
+import os
 
 import cv2
 import numpy as np
@@ -142,24 +143,41 @@ def test_points_file_columns_are_carried_to_the_end_of_each_row(image_pair, tmp_
         ("2.000000", "2.000000", "9", "corner")]
 
 
-def _unwritable_folder(tmp_path, variant):
-    """Read-only (0555: not for root, who ignores permissions) or 'under' a regular file (root too)."""
+def _unwritable_folder(tmp_path, variant, monkeypatch):
+    """A folder where no file can be created: read-only (0555; root ignores permission bits, so skipped for
+    root), permission denied as the system says it (simulated where it matters, in the only call that
+    creates files, so it runs as root too), or a path 'under' a regular file (fails for root too)."""
     if variant == "read-only":
-        import os
         if os.geteuid() == 0:
-            pytest.skip("root ignores permission bits; the under-a-file variant covers root")
+            pytest.skip("root ignores permission bits; the denied and under-a-file variants cover root")
         folder = tmp_path / "read-only"
         folder.mkdir()
         folder.chmod(0o555)
+        return folder
+    if variant == "denied":
+        import tempfile
+
+        import stream.csv_output
+        folder = tmp_path / "denied"
+        folder.mkdir()
+        real = tempfile.mkstemp
+
+        def mkstemp(*args, dir=None, **kwargs):
+            if dir is not None and os.path.abspath(dir) == str(folder):
+                raise PermissionError(13, "Permission denied", str(folder))
+            return real(*args, dir=dir, **kwargs)
+
+        monkeypatch.setattr(stream.csv_output.tempfile, "mkstemp", mkstemp)
         return folder
     blocker = tmp_path / "file.txt"
     blocker.write_text("a file, not a folder\n")
     return blocker
 
 
-@pytest.mark.parametrize("variant", ["read-only", "under-a-file"])
-def test_an_unwritable_output_fails_before_the_measurement_with_one_line(variant, tmp_path, capsys):
-    folder = _unwritable_folder(tmp_path, variant)
+@pytest.mark.parametrize("variant", ["read-only", "denied", "under-a-file"])
+def test_an_unwritable_output_fails_before_the_measurement_with_one_line(variant, tmp_path, capsys,
+                                                                         monkeypatch):
+    folder = _unwritable_folder(tmp_path, variant, monkeypatch)
     try:
         # The images do not exist: the output is checked first, so its problem is the one reported.
         code = main(["measure", str(tmp_path / "missing-ref.png"), str(tmp_path / "missing-def.png"), "--grid",
@@ -183,7 +201,6 @@ def test_output_to_a_folder_names_the_folder_not_a_temporary_file(image_pair, tm
 
 def test_output_file_gets_the_usual_permissions(image_pair, tmp_path):
     """Like replay and export: 0666 & ~umask (mkstemp alone would give 0600)."""
-    import os
     from stream.csv_output import current_umask
     out = tmp_path / "out.csv"
     previous = os.umask(0o022)
