@@ -125,16 +125,35 @@ def test_bad_queue_settings_raise():
 
 
 @pytest.mark.parametrize("policy", [DROP_OLDEST, DROP_NEWEST])
+def test_a_stalled_consumer_never_blocks_the_producer(policy):
+    """No consumer at all: every put on the full queue returns at once (a dropping put never waits), so the
+    producer finishes; a put that waited for room would hang here until the join's limit."""
+    queue = FrameQueue(4, policy)
+    finished = threading.Event()
+
+    def produce():
+        for i in range(300):
+            queue.put(_item(i))
+        finished.set()
+
+    producer = threading.Thread(target=produce, daemon=True)
+    producer.start()
+    producer.join(30)                  # a liveness limit for slow machines, not a timing measurement
+    assert finished.is_set(), "put waited for a consumer that never came"
+    assert queue.dropped == 296 and len(queue) == 4 and queue.put_count == 300
+    kept = [queue.get().frame.index for _ in range(4)]
+    assert kept == ([296, 297, 298, 299] if policy == DROP_OLDEST else [0, 1, 2, 3])
+
+
+@pytest.mark.parametrize("policy", [DROP_OLDEST, DROP_NEWEST])
 def test_slow_consumer_never_blocks_the_producer(policy):
     """Producer at ~1 kHz, consumer at ~100 Hz: every frame is either consumed, dropped or left over."""
     queue = FrameQueue(4, policy)
-    produced, consumed, put_times = 300, [], []
+    produced, consumed = 300, []
 
     def produce():
         for i in range(produced):
-            t = time.perf_counter()
             queue.put(_item(i))
-            put_times.append(time.perf_counter() - t)
             time.sleep(0.001)
         queue.close()
 
@@ -154,9 +173,8 @@ def test_slow_consumer_never_blocks_the_producer(policy):
     for t in threads:
         t.join(10)
     assert len(consumed) + queue.dropped == produced
-    assert queue.dropped > produced / 2
+    assert queue.dropped > 0 and len(consumed) >= 4      # the slow consumer could not take everything
     assert consumed == sorted(consumed)
-    assert max(put_times) < 0.05       # put never waits for the consumer
     if policy == DROP_OLDEST:
         assert consumed[-1] == produced - 1      # the newest frame is always processed
 
@@ -191,9 +209,11 @@ def test_acquisition_stops_on_request_and_at_the_limit():
     seen = []
     thread = AcquisitionThread(source, queue, on_frame=lambda item: seen.append(item.arrival_ns))
     thread.start()
-    time.sleep(0.1)
+    deadline = time.monotonic() + 30          # waits for frames, however slow the machine
+    while thread.frames <= 5 and time.monotonic() < deadline:
+        time.sleep(0.01)
     thread.stop()
-    thread.join(2)
+    thread.join(10)
     assert not thread.is_alive() and thread.finished_reason == "stopped" and source.closed and queue.closed
     assert 5 < thread.frames < 10_000 and len(seen) >= thread.frames
     assert seen == sorted(seen)
@@ -288,7 +308,7 @@ def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
     assert thread.finished_reason == "error" and len(frames) == 3
     assert "cable pulled" in str(thread.error) and "not back within --reconnect-timeout 0.2 s" in str(thread.error)
     assert [e[0] for e in events] == ["camera_lost", "camera_gave_up"]
-    assert 0.2 <= thread.outage_s < 2.0
+    assert 0.2 <= thread.outage_s < 10      # at least the timeout; the upper bound is the join's limit
 
 
 def test_reconnect_waits_until_stopped_and_a_stop_ends_cleanly():
@@ -416,15 +436,17 @@ def test_run_session_end_to_end(tmp_path, capsys):
     rrd = tmp_path / "session.rrd"
     mcap = tmp_path / "session.mcap"
     summary_path = tmp_path / "summary.json"
+    # Paced like a camera, but the queue blocks instead of dropping: every frame is tracked on any machine
+    # (how many a slow machine would drop is not what this test is about; the queue tests cover drops).
     args = _parse(["--source", "synthetic:tensile?size=192x256&fps=25&noise=0.5", "--frames", "40",
-                   "--n-points", "60", "--viewer", "save", str(rrd), "--record", str(mcap),
+                   "--n-points", "60", "--viewer", "save", str(rrd), "--record", str(mcap), "--drop", "block",
                    "--summary-json", str(summary_path), "--progress", "off"])
     assert run_session(args) == 0
     out = capsys.readouterr().out
     assert "frames" in out and "POI/s" in out and "p99" in out and "against the truth" in out
     summary = json.loads(summary_path.read_text())
-    assert summary["acquired"] == 40 and summary["frames"] + summary["dropped"] == 40
-    assert summary["frames"] >= 10 and 40 <= summary["points"] <= 90
+    assert summary["acquired"] == 40 and summary["frames"] == 40 and summary["dropped"] == 0
+    assert 40 <= summary["points"] <= 90
     assert summary["error_rms_px"] < 0.05 and summary["error_max_px"] < 0.3 and summary["ok_fraction"] > 0.97
     assert summary["fps"] > 0 and summary["latency_p50_ms"] > 0 and summary["poi_per_s"] > 0
     assert summary["rerun"] == f"save {rrd}" and summary["recording"] == str(mcap)
@@ -529,6 +551,9 @@ def test_reconnect_is_refused_for_files_and_simulators():
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_signal):
+    """The signal goes once the progress bar shows 10 frames acquired (not after a fixed time: a slow
+    machine takes longer to get there), in the middle of a 400-frame session."""
+    import re
     mcap = tmp_path / "interrupted.mcap"
     code = (f"import sys; sys.path.insert(0, {REPO!r}); "
             "import argparse; from stream.run import add_run_arguments, run_session; "
@@ -536,22 +561,37 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
             "sys.exit(run_session(p.parse_args(sys.argv[1:])))")
     process = subprocess.Popen(
         [sys.executable, "-c", code, "--source", "synthetic:tensile?size=128x128&fps=20", "--frames", "400",
-         "--n-points", "20", "--record", str(mcap), "--viewer", "none", "--progress", "off"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=str(tmp_path))
+         "--n-points", "20", "--roi", "0,0,128,128", "--record", str(mcap), "--viewer", "none", "--progress", "on"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=str(tmp_path))
+    err = bytearray()
+    going = threading.Event()
+
+    def read_stderr():
+        while True:
+            chunk = process.stderr.read1(256)
+            if not chunk:
+                return
+            err.extend(chunk)
+            done = re.findall(rb"\] (\d+)/400 +[\d.]+ fps", bytes(err[-400:]))      # the session's bar
+            if done and int(done[-1]) >= 10:
+                going.set()
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not mcap.exists():
-            time.sleep(0.1)
-        time.sleep(1.5)
+        assert going.wait(120), bytes(err).decode(errors="replace")
         process.send_signal(stop_signal)
-        out, err = process.communicate(timeout=30)
+        out = process.stdout.read().decode()
+        process.wait(60)
+        reader.join(10)
     finally:
         if process.poll() is None:
             process.kill()
-    assert process.returncode == 0, err
+    text = bytes(err).decode(errors="replace")
+    assert process.returncode == 0, text
     name = signal.Signals(stop_signal).name
-    assert f"stopped on {name}" in err and f"stopped    on {name}" in out
+    assert f"stopped on {name}" in text and f"stopped    on {name}" in out
     from acquire.mcap_replay import inspect_recording, read_results
     info = inspect_recording(str(mcap))
-    assert info.indexed and not info.truncated and 5 < info.frames < 400
-    assert len(read_results(str(mcap))) >= 5
+    assert info.indexed and not info.truncated and 10 <= info.frames < 400
+    assert 1 <= len(read_results(str(mcap))) <= info.frames
