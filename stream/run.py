@@ -713,8 +713,15 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
         source = open_source(args.source, **options)
         phase = "compiling the tracking kernels"
         _warm_up(args)
+        # Imported now (~0.5 s together), not between the first frame and the next: frames that come
+        # meanwhile queue up and a paced source delivers them late, in a burst.
         if viewer_mode != "none":
-            import rerun  # noqa: F401 - imported now, not between the first frame and the next
+            import rerun  # noqa: F401
+        if record_path:
+            try:
+                import stream.recorder  # noqa: F401
+            except ImportError:
+                pass                    # _open_recorder says so
         total = args.frames
         if getattr(source, "frames", None) and isinstance(source.frames, int):
             total = min(total, source.frames) if total else source.frames
