@@ -9,7 +9,7 @@ from dic.result import Measurement
 from dic.status import Status
 from dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
-SEARCH_METHODS = ("exhaustive", "coarse-fine", "pso", "wso", "improved-wso", "none")
+SEARCH_METHODS = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso", "none")
 
 # Sub-pixel method -> (module, extra pixels its interpolation/fit needs beyond the subset).
 _SUBPIXEL = {

@@ -3,6 +3,7 @@
 Methods (``SEARCH_METHODS``), one module each:
 
 * ``"exhaustive"`` -- every position of the box (:mod:`dic.search.exhaustive`); the truth.
+* ``"fft-cc"`` -- the same ZNCC map as exhaustive, computed by FFT (:mod:`dic.search.fft_cc`).
 * ``"coarse-fine"`` -- lattice of step ``step`` then the full fine window (:mod:`dic.search.coarse_fine`).
 * ``"pso"`` -- inertia-weight particle swarm (:mod:`dic.search.pso`).
 * ``"wso"`` -- original White Shark Optimizer, ``variant="code"|"paper"`` (:mod:`dic.search.wso`).
@@ -28,14 +29,16 @@ the improved WSO on this 2-core machine.
 import numpy as np
 
 from dic.result import IntegerSearchResult
-from dic.search import coarse_fine, exhaustive, improved_wso, pso, wso
+from dic.search import coarse_fine, exhaustive, fft_cc, improved_wso, pso, wso
 from dic.search._common import new_outputs, resolve_options, search_boxes, seed_to_uint
+from dic.search.pyramid import levels_for, pyramid_search
 from dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
-SEARCH_METHODS = ("exhaustive", "coarse-fine", "pso", "wso", "improved-wso")
+SEARCH_METHODS = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso")
 
 _MODULES = {
     "exhaustive": exhaustive,
+    "fft-cc": fft_cc,
     "coarse-fine": coarse_fine,
     "pso": pso,
     "wso": wso,
@@ -107,7 +110,11 @@ def search_points(reference, deformed, xs, ys, guess_u, guess_v, half, radius, m
     ulo, uhi, vlo, vhi, cu, cv, status = search_boxes(deformed.shape, xs, ys, guess_u, guess_v, int(half),
                                                       int(radius), int(margin))
     outputs = new_outputs(xs.shape[0])
-    if xs.shape[0]:
+    levels = levels_for(int(radius), params["top_radius"], int(half), deformed.shape) if params.get("pyramid") else 0
+    if xs.shape[0] and levels:
+        pyramid_search(module, reference, deformed, xs, ys, ulo, uhi, vlo, vhi, int(half), status, seed, params,
+                       outputs, (cu, cv), levels=levels, top_radius=params["top_radius"])
+    elif xs.shape[0]:
         module.run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, int(half), status, seed, params, outputs,
                    (cu, cv))
     u, v, zncc, evaluations, calls = outputs

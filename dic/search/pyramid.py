@@ -1,0 +1,240 @@
+"""Coarse-to-fine image pyramid for an integer search over a large box.
+
+A stochastic search must land a sample in the narrow zone where the true
+correlation peak beats the side lobes (about 25 px^2 for speckle of R = 4 px
+and a 21 px subset); its chance falls with the box area, so a swarm tuned at
+radius 10 misses at radius 32 (``dic.search.improved_wso`` has the numbers).
+Halving the images halves the box side and widens the peak relative to it.
+``pyramid_search`` therefore:
+
+1. builds Burt-Adelson pyramids of both images (5-tap binomial filter, then
+   every second pixel; level l pixel (i, j) is level 0 pixel (2^l i, 2^l j));
+2. runs the given search (the improved WSO) at the top level ``L``, the
+   smallest level at which the box radius is at most ``top_radius``, with the
+   same subset *side* in coarse pixels (as pyramidal Lucas-Kanade keeps its
+   window), so the coarse subset sees 2^L times the area: a more distinctive
+   pattern, and the speckle's fine detail averaged away with the noise;
+3. at each finer level, climbs (8-neighbour hill climb, ``dic.search._common``)
+   from twice the coarser result, which is right to +-1 coarse pixel, to the
+   local ZNCC maximum; at level 0 inside the original box.
+
+Near the image border a coarse subset of that side may not fit with its whole
+box: there the subset shrinks (to no less than the level-0 subset's footprint
+and 7 x 7), and a point that fits no coarse level with the top level's box
+starts lower: searched exhaustively at the highest level it fits (its box
+there is larger than ``top_radius``), or by the plain search at level 0. The
+image must never clip a level's box: a clipped box may exclude the true match,
+and the climbs below would then polish a side lobe. Evaluations of every level
+count in ``evaluations`` (each costs the same: one subset's ZNCC).
+
+References
+----------
+P. J. Burt and E. H. Adelson, "The Laplacian pyramid as a compact image code",
+IEEE Trans. Commun. 31(4):532-540 (1983), :DOI:`10.1109/TCOM.1983.1095851`.
+"""
+
+import numpy as np
+from numba import njit, prange
+
+from dic.search import exhaustive
+from dic.search._common import begin_point, hill_climb, new_cache, new_outputs
+from dic.status import FLAT_TARGET, OK, OUTSIDE_TARGET
+
+# Smallest subset half-width used on a coarse level (a 7 x 7 subset).
+MIN_COARSE_HALF = 3
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def _reduce(image, out):
+    """Burt-Adelson REDUCE: 5-tap binomial filter along both axes, keep every second pixel (mirror edges)."""
+    height, width = image.shape
+    oh, ow = out.shape
+    rows = np.empty((height, ow), dtype=np.float32)
+    for r in prange(height):
+        for j in range(ow):
+            c = 2 * j
+            acc = 0.0
+            for m in range(-2, 3):
+                k = c + m
+                if k < 0:
+                    k = -k
+                elif k >= width:
+                    k = 2 * (width - 1) - k
+                w = 6.0 if m == 0 else (4.0 if m * m == 1 else 1.0)
+                acc += w * image[r, max(min(k, width - 1), 0)]
+            rows[r, j] = acc / 16.0
+    for i in prange(oh):
+        c = 2 * i
+        for j in range(ow):
+            acc = 0.0
+            for m in range(-2, 3):
+                k = c + m
+                if k < 0:
+                    k = -k
+                elif k >= height:
+                    k = 2 * (height - 1) - k
+                w = 6.0 if m == 0 else (4.0 if m * m == 1 else 1.0)
+                acc += w * rows[max(min(k, height - 1), 0), j]
+            out[i, j] = acc / 16.0
+
+
+def build_pyramid(image, levels):
+    """``[image, image/2, ..., image/2^levels]`` as float32 arrays (level l has ceil(H / 2^l) rows)."""
+    out = [np.ascontiguousarray(image, dtype=np.float32)]
+    for _ in range(levels):
+        previous = out[-1]
+        coarse = np.empty(((previous.shape[0] + 1) // 2, (previous.shape[1] + 1) // 2), dtype=np.float32)
+        _reduce(previous, coarse)
+        out.append(coarse)
+    return out
+
+
+def levels_for(radius, top_radius, half, shape):
+    """Pyramid levels so that the box radius at the top is <= ``top_radius`` (0: no pyramid).
+
+    Capped so that the top level still holds a subset and its search box.
+    """
+    levels = 0
+    while (radius >> levels) > top_radius:
+        levels += 1
+    while levels > 0 and min(shape) / 2 ** levels < 2 * half + 1 + 2:
+        levels -= 1
+    return levels
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def _climb(reference, target, xs, ys, start_u, start_v, ulo, uhi, vlo, vhi, halves, status, out_u, out_v, out_c,
+           out_evals, out_calls):
+    """Hill climb to the local ZNCC maximum from (start_u, start_v) inside each point's box.
+
+    ``halves`` (N,): subset half-width per point (coarse levels shrink it at the image border).
+    """
+    for i in prange(xs.shape[0]):
+        half = halves[i]
+        side = 2 * half + 1
+        fhat = np.empty(side * side)
+        if not begin_point(reference, xs[i], ys[i], half, fhat, status, i):
+            continue
+        cache = new_cache(ulo[i], uhi[i], vlo[i], vhi[i])
+        counts = np.zeros(2, dtype=np.int64)
+        u0 = min(max(start_u[i], ulo[i]), uhi[i])
+        v0 = min(max(start_v[i], vlo[i]), vhi[i])
+        u, v, c = hill_climb(fhat, target, xs[i], ys[i], half, u0, v0, ulo[i], uhi[i], vlo[i], vhi[i], cache, counts)
+        out_evals[i] += counts[0]
+        out_calls[i] += counts[1]
+        if c == -1.0:
+            status[i] = FLAT_TARGET
+            continue
+        out_u[i] = u
+        out_v[i] = v
+        out_c[i] = c
+
+
+def min_half(half, level):
+    """Smallest coarse subset half-width at ``level``: it still covers the level-0 subset, and is >= 3."""
+    return max(int(np.ceil(((2 * half + 1) / 2 ** level - 1) / 2)), MIN_COARSE_HALF)
+
+
+def _geometry(shape, xs, ys, ulo, uhi, vlo, vhi, level, half):
+    """A level's point positions, box covering the level-0 box, and the largest subset half-width that fits.
+
+    The half-width is ``half`` where the subset and the whole box fit in the
+    level's image, else the largest that does (possibly < 0: nothing fits).
+    """
+    scale = 1 << level
+    height, width = shape
+    lx = np.floor(xs / scale + 0.5).astype(np.int64)
+    ly = np.floor(ys / scale + 0.5).astype(np.int64)
+    lo_u = np.floor_divide(ulo, scale)
+    hi_u = -np.floor_divide(-uhi, scale)
+    lo_v = np.floor_divide(vlo, scale)
+    hi_v = -np.floor_divide(-vhi, scale)
+    room = np.minimum.reduce([lx, width - 1 - lx, ly, height - 1 - ly, lx + lo_u, width - 1 - (lx + hi_u),
+                              ly + lo_v, height - 1 - (ly + hi_v)])
+    return lx, ly, lo_u, hi_u, lo_v, hi_v, np.minimum(room, half)
+
+
+def pyramid_search(module, reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs,
+                   centre, *, levels, top_radius):
+    """Coarse-to-fine search (module notes): ``module.run`` at the top level, hill climbs below.
+
+    Same contract as a search module's ``run`` (boxes, status and outputs of
+    level 0), plus the number of ``levels`` (>= 1) and the ``top_radius`` the
+    search proper is used up to.
+    """
+    out_u, out_v, out_c, out_evals, out_calls = outputs
+    refs = build_pyramid(reference, levels)
+    defs = build_pyramid(deformed, levels)
+    todo = np.flatnonzero(status == OK)
+    # per point: the highest level where a subset covering the level-0 one fits with the whole box;
+    # an image edge must not clip the box, or the true match could lie outside it
+    top = np.zeros(xs.shape[0], dtype=np.int64)
+    geometry = {}
+    for level in range(1, levels + 1):
+        geometry[level] = _geometry(refs[level].shape, xs, ys, ulo, uhi, vlo, vhi, level, half)
+        fits = geometry[level][6] >= min_half(half, level)
+        top[todo[fits[todo]]] = level
+    candidate_u = np.zeros(xs.shape[0], dtype=np.int64)
+    candidate_v = np.zeros(xs.shape[0], dtype=np.int64)
+    for level in range(levels, 0, -1):
+        lx, ly, lo_u, hi_u, lo_v, hi_v, halves = geometry[level]
+        ref, tar = refs[level], defs[level]
+        start = todo[top[todo] == level]
+        # the search proper where its box is small; a point that the image edge kept from the top
+        # level has a larger box here, and is searched exhaustively (rare: near the border only)
+        small = np.maximum(hi_u - lo_u, hi_v - lo_v) <= 2 * top_radius
+        for h in np.unique(halves[start]):
+            for use_module in (True, False):
+                group = start[(halves[start] == h) & (small[start] == use_module)]
+                if not group.size:
+                    continue
+                st = np.zeros(group.size, dtype=np.int8)
+                level_out = new_outputs(group.size)
+                scale = 1 << level
+                centre_level = (np.floor(centre[0][group] / scale + 0.5).astype(np.int64),
+                                np.floor(centre[1][group] / scale + 0.5).astype(np.int64))
+                (module if use_module else exhaustive).run(
+                    ref, tar, lx[group], ly[group], lo_u[group], hi_u[group], lo_v[group], hi_v[group], int(h), st,
+                    seed, params, level_out, centre_level)
+                _take(level_out, st, group, candidate_u, candidate_v, out_evals, out_calls, top)
+        below = todo[top[todo] > level]
+        if below.size:
+            # the coarser answer is right to +-1 coarse pixel: climb from twice it
+            level_out = new_outputs(below.size)
+            st = np.where(halves[below] >= 1, OK, OUTSIDE_TARGET).astype(np.int8)
+            _climb(ref, tar, lx[below], ly[below], 2 * candidate_u[below], 2 * candidate_v[below], lo_u[below],
+                   hi_u[below], lo_v[below], hi_v[below], np.maximum(halves[below], 1), st, *level_out)
+            _take(level_out, st, below, candidate_u, candidate_v, out_evals, out_calls, top)
+    # level 0: points that never fitted a coarse level (or failed there) run the plain search; the others climb
+    plain = todo[top[todo] == 0]
+    refined = todo[top[todo] > 0]
+    for idx, run in ((plain, "plain"), (refined, "climb")):
+        if not idx.size:
+            continue
+        st = status[idx].copy()
+        part = new_outputs(idx.size)
+        if run == "plain":
+            module.run(reference, deformed, xs[idx], ys[idx], ulo[idx], uhi[idx], vlo[idx], vhi[idx], half, st,
+                       seed, params, part, (centre[0][idx], centre[1][idx]))
+        else:
+            _climb(reference, deformed, xs[idx], ys[idx], 2 * candidate_u[idx], 2 * candidate_v[idx], ulo[idx],
+                   uhi[idx], vlo[idx], vhi[idx], np.full(idx.size, half, dtype=np.int64), st, *part)
+        part_u, part_v, part_c, part_evals, part_calls = part
+        out_evals[idx] += part_evals
+        out_calls[idx] += part_calls
+        status[idx] = st
+        done = st == OK
+        out_u[idx[done]] = part_u[done]
+        out_v[idx[done]] = part_v[done]
+        out_c[idx[done]] = part_c[done]
+
+
+def _take(level_out, level_status, idx, candidate_u, candidate_v, out_evals, out_calls, top):
+    """Keep a level's answers; points that failed there drop to a plain search at level 0."""
+    u, v, _, evals, calls = level_out
+    out_evals[idx] += evals
+    out_calls[idx] += calls
+    good = level_status == OK
+    candidate_u[idx[good]] = u[good]
+    candidate_v[idx[good]] = v[good]
+    top[idx[~good]] = 0
