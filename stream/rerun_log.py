@@ -170,7 +170,7 @@ def parse_viewer(values, default_save_path):
     if mode == "spawn" and not has_display():
         return "save", str(default_save_path), (f"no display ($DISPLAY and $WAYLAND_DISPLAY are unset): "
                                                 f"saving the Rerun stream to {default_save_path} instead "
-                                                f"(open it later with: rerun {default_save_path})")
+                                                f"(open it later with: rerun --bind 127.0.0.1 {default_save_path})")
     return mode, None, None
 
 

@@ -69,7 +69,9 @@ def test_spawn_without_a_display_saves_with_a_note(monkeypatch, tmp_path):
     monkeypatch.setattr(sys, "platform", "linux")
     mode, target, note = parse_viewer(["spawn"], str(tmp_path / "s.rrd"))
     assert (mode, target) == ("save", str(tmp_path / "s.rrd"))
-    assert "no display" in note and "rerun " in note
+    assert "no display" in note
+    # the hint opens the file with a viewer on loopback only (plain "rerun FILE" listens on every interface)
+    assert f"rerun --bind 127.0.0.1 {target}" in note
 
 
 @pytest.mark.parametrize("words, message", [
