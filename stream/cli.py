@@ -19,9 +19,31 @@ class UsageError(ValueError):
     """Bad command-line input; the message is shown to the user as is."""
 
 
+# Options whose value may start with a minus sign and a digit ("-2,2"), which argparse would
+# otherwise take for an option and answer "expected one argument".
+_SIGNED_LIST_OPTIONS = ("--color-range",)
+
+
+def _attach_signed_values(argv):
+    """``--color-range -2,2`` -> ``--color-range=-2,2`` (argparse reads "-2.5" but not "-2,2" as a value)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    joined = []
+    i = 0
+    while i < len(argv):
+        word = argv[i]
+        if (word in _SIGNED_LIST_OPTIONS and i + 1 < len(argv) and len(argv[i + 1]) > 1
+                and argv[i + 1][0] == "-" and (argv[i + 1][1].isdigit() or argv[i + 1][1] == ".")):
+            joined.append(f"{word}={argv[i + 1]}")
+            i += 2
+            continue
+        joined.append(word)
+        i += 1
+    return joined
+
+
 def main(argv=None):
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_attach_signed_values(argv))
     if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
         # A file-size limit (ulimit -f) must fail a write with EFBIG, which stops a recording
         # cleanly, rather than kill livedic (and the measurement) with SIGXFSZ.

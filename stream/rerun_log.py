@@ -39,7 +39,7 @@ discs cover a square grid of step s with no gaps, and most of an irregular point
 set. The radius is capped at 1/20 of the image side.
 
 Colour scale (the same rule for u and v, each with its own limits): with
-``color_range=(lo, hi)`` the limits are fixed. Otherwise they start at
+``color_range=(lo, hi)`` (``livedic run --color-range LO,HI``) the limits are fixed. Otherwise they start at
 [-0.05, +0.05] px, so the noise of the reference frame shows as one colour,
 and only grow: when the 0.5th/99.5th percentile of a frame's values (ok points;
 the percentiles keep a stray point from stretching the scale for the rest of

@@ -99,6 +99,10 @@ def add_run_arguments(parser):
                         help="when the queue is full: drop the oldest queued frame, drop the newest, or block "
                              "(wait; for files only). Default auto: oldest for cameras and paced sources, "
                              "block for recordings, files and the unpaced simulator")
+    parser.add_argument("--color-range", metavar="LO,HI",
+                        help="fixed colour limits of the u and v fields in the viewer, px (e.g. -2,2). Default: "
+                             "automatic, starting at -0.05,0.05 and only growing, to round numbers, to cover the "
+                             "0.5-99.5 percentiles of the ok points")
     parser.add_argument("--image-max-side", type=int, default=512, metavar="PX",
                         help="camera image shown in Rerun downsampled to at most PX pixels a side (default 512)")
     parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
@@ -139,6 +143,22 @@ def _floats(text, count, what, example):
     return values
 
 
+def parse_color_range(text):
+    """``--color-range`` "LO,HI" -> (lo, hi) in px, or None when not given.
+
+    Raises
+    ------
+    ValueError
+        Not two finite comma-separated numbers, or LO not below HI.
+    """
+    if text is None:
+        return None
+    lo, hi = _floats(text, 2, "--color-range", "-2,2")
+    if not lo < hi:
+        raise ValueError(f"--color-range {text}: LO must be below HI, e.g. -2,2")
+    return lo, hi
+
+
 def _check_args(args):
     from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
     if args.frames is not None and args.frames < 1:
@@ -177,6 +197,7 @@ def _check_args(args):
     if roi is not None and (roi[2] <= 0 or roi[3] <= 0):
         raise ValueError(f"--roi width and height must be positive, got {args.roi!r}")
     p0 = _floats(args.p0, 2, "--p0", "512,400") if args.p0 else None
+    parse_color_range(getattr(args, "color_range", None))
     if args.reconnect_timeout is not None:
         if not args.reconnect:
             raise ValueError("--reconnect-timeout needs --reconnect")
@@ -776,7 +797,8 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
         if viewer_note:
             say(viewer_note)
         logger = RerunLogger(viewer_mode, viewer_target, recording_name=os.path.basename(stem),
-                             image_max_side=args.image_max_side)
+                             image_max_side=args.image_max_side, color_range=parse_color_range(args.color_range),
+                             low_zncc=args.refind_zncc)
         p0_warning = p0_choice.warning()
 
         session = {}

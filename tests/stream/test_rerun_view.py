@@ -198,3 +198,32 @@ def test_lost_and_low_zncc_points_are_marked_and_counted(tmp_path):
     assert texts[0] == [f"lost: 0 of {n} points, low ZNCC (< 0.8): 0"]
     assert texts[2] == [f"lost: 3 of {n} points, low ZNCC (< 0.8): 2"]
     assert texts[3] == texts[0]
+
+
+# --------------------------------------------------------------------------- through livedic run
+
+def test_run_passes_color_range_and_refind_zncc_to_the_view(tmp_path, monkeypatch):
+    """``--color-range -2,2`` (a value starting with a minus sign, as typed) fixes both colour scales;
+    the low-ZNCC markers use ``--refind-zncc``."""
+    from stream.cli import main
+    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
+    path = tmp_path / "view.rrd"
+    assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "5", "--progress", "off",
+                 "--no-record", "--viewer", "save", str(path), "--color-range", "-2,2",
+                 "--refind-zncc", "0.95"]) == 0
+    assert _rows(path, f"/{rerun_log.LIMITS_U}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
+    assert _rows(path, f"/{rerun_log.LIMITS_V}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
+    assert len(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions")) == 5
+    texts = _rows(path, f"/{rerun_log.TRACKING}", "TextDocument:text")
+    assert texts and all("low ZNCC (< 0.95)" in text[0] for text in texts.values())
+
+
+def test_run_without_color_range_uses_the_automatic_scale(tmp_path, monkeypatch):
+    from stream.cli import main
+    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
+    path = tmp_path / "auto.rrd"
+    assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "3", "--progress", "off",
+                 "--no-record", "--viewer", "save", str(path)]) == 0
+    limits = _rows(path, f"/{rerun_log.LIMITS_U}", "Scalars:scalars")
+    assert "static" not in limits and limits[0] == [-0.05, 0.05]
+    assert _rows(path, f"/{rerun_log.TRACKING}", "TextDocument:text")[0][0].endswith("low ZNCC (< 0.8): 0")

@@ -23,6 +23,11 @@ SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
     (["--source", "images:/nonexistent/*.png"], "no image files match"),
     (["--source", "mcap:/nonexistent.mcap"], "does not exist"),
     (["--points", "/nonexistent.csv"], "does not exist"),
+    (["--color-range", "2,-2"], "--color-range 2,-2: LO must be below HI"),
+    (["--color-range", "-1,-1"], "--color-range -1,-1: LO must be below HI"),
+    (["--color-range", "-2"], "--color-range must be 2 comma-separated numbers"),
+    (["--color-range", "-2,x"], "--color-range must be 2 comma-separated numbers"),
+    (["--color-range=-inf,2"], "--color-range must be 2 comma-separated numbers"),
 ])
 def test_bad_run_input_is_one_line_and_exit_2(extra, message):
     argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", SMALL, *extra]
