@@ -29,8 +29,10 @@ possible when things go wrong:
   kernel survives the death of the process, so every message (frame, results,
   event) whose write returned more than ``flush_interval_s`` + ~0.1 s (~0.35 s with
   the defaults) before the kill is recoverable by ``acquire.mcap_replay``; the test
-  kills a recording process and requires every frame and its results written more
-  than 1 s before. ``os.fsync`` runs every ``fsync_interval_s`` in the background
+  kills a recording process and requires every message counted in ``frames_durable``
+  / ``results_durable`` to survive, no more than ``flush_interval_s`` of the writer's
+  frames ever waiting, and the background flush to write what waits when the writer
+  goes quiet. ``os.fsync`` runs every ``fsync_interval_s`` in the background
   thread (on a duplicate descriptor, outside the lock, so the tracking loop never
   waits for the disk); it protects against an OS crash or power loss, which SIGKILL
   does not need. (The background thread needs the GIL: a caller that holds it for

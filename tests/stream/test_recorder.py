@@ -2,6 +2,7 @@
 (RLIMIT_FSIZE)."""
 
 import faulthandler
+import inspect
 import json
 import math
 import os
@@ -411,53 +412,79 @@ _KILL_CHILD = """
     from acquire.base import Frame
     from stream.recorder import Recorder
 
-    path, marker = sys.argv[1], sys.argv[2]
+    path, marker, pause = sys.argv[1], sys.argv[2], float(sys.argv[3])
     rec = Recorder(path, {"source_uri": "test://sigkill"})
     image = np.zeros((96, 128), np.uint8)
     with open(marker, "w", buffering=1) as out:
-        i = 0
+        i, idled = 0, False
         while True:
             image[:] = i % 256
             stamp = time.time_ns()
             rec.write_frame(Frame(i, stamp, image, "Mono8"))
             rec.write_results(i, stamp, [i], [1.0], [2.0], [0.5], [-0.5], [0.9], [True])
-            out.write(f"{i} {time.monotonic()}\\n")           # frame i completed at this time
+            # frame i's writes returned; what the recorder counts as handed to the kernel at this moment
+            out.write(f"{i} {rec.frames_durable} {rec.results_durable}\\n")
             i += 1
-            time.sleep(1.5 if i == 40 else 0.01)             # an idle spell: only the background flush runs
+            if not idled and i >= 40 and (rec.frames_durable < i or rec.results_durable < i):
+                # an idle spell while frames wait in memory: only the background flush can write them
+                idled, quiet_since = True, time.monotonic()
+                while rec.frames_durable < i or rec.results_durable < i:
+                    time.sleep(0.01)
+                out.write(f"idle {i} {time.monotonic() - quiet_since:.3f}\\n")
+            time.sleep(pause)
 """
 
 
-def test_sigkill_loses_nothing_older_than_a_second(tmp_path):
-    """Every frame, and its results, whose writes returned more than 1 s before a SIGKILL is recoverable
-    (the recorder's bound is flush_interval_s + ~0.1 s; the idle spell leaves only the background flush)."""
+def test_sigkill_loses_nothing_the_recorder_counted_durable(tmp_path):
+    """SIGKILL a recording process: every frame, and its results, that the recorder had handed to the
+    kernel (``frames_durable``, ``results_durable``) is recoverable, and nothing waits in memory longer
+    than ``flush_interval_s`` (0.25 s) of the writer's own pace, whatever the machine's load:
+
+    * while frames come, each write checks the age of what waits, so with at least ``pause`` between
+      frames no more than flush_interval_s / pause frames (+1 for rounding) are ever waiting;
+    * when the caller goes quiet (the idle spell), the background flush writes the rest by itself.
+    """
     path, marker, fixed = tmp_path / "killed.mcap", tmp_path / "marker.txt", tmp_path / "fixed.mcap"
-    child = _run_child(_KILL_CHILD, path, marker)
+    pause = 0.01
+    flush_interval_s = inspect.signature(Recorder).parameters["flush_interval_s"].default     # the child's
+    child = _run_child(_KILL_CHILD, path, marker, pause)
     try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
+        deadline = time.monotonic() + 60                     # a guard against a hang, not a timing
+        while True:
             lines = marker.read_text().splitlines() if marker.exists() else []
-            if len(lines) > 200:                             # past the idle spell and >1 s into phase two
+            if len(lines) > 200:                             # past the idle spell, with frames waiting again
                 break
             assert child.poll() is None, child.communicate()
+            assert time.monotonic() < deadline, f"the child wrote only {len(lines)} lines in 60 s: {lines[-3:]}"
             time.sleep(0.05)
-        kill_time = time.monotonic()
         child.send_signal(signal.SIGKILL)
     finally:
         child.kill()
         child.communicate()
-    completed = {}
-    for line in marker.read_text().splitlines():
+    counts, idle = [], []
+    for line in marker.read_text().splitlines():             # every line was written before the kill
         parts = line.split()
-        if len(parts) == 2:
-            completed[int(parts[0])] = float(parts[1])
-    must_survive = {i for i, t in completed.items() if t < kill_time - 1.0}
-    assert len(must_survive) > 60, "the child wrote too little to test anything"
+        if len(parts) == 3 and parts[0].isdigit():
+            counts.append(tuple(int(part) for part in parts))
+        elif len(parts) == 3 and parts[0] == "idle":
+            idle.append((int(parts[1]), float(parts[2])))
+    assert [frame for frame, _, _ in counts] == list(range(len(counts)))
+    assert len(idle) == 1, "the idle spell did not end: the background flush did not write what waited"
+    quiet_at = idle[0][0]                                   # frames written when the writer went quiet
+    assert min(counts[quiet_at - 1][1:]) < quiet_at <= min(counts[quiet_at][1:])
+    most_waiting = int(flush_interval_s / pause) + 1
+    for frame, frames_durable, results_durable in counts:
+        assert frame + 1 - frames_durable <= most_waiting, (frame, frames_durable)
+        assert frame + 1 - results_durable <= most_waiting, (frame, results_durable)
+    frames_durable = max(durable for _, durable, _ in counts)
+    results_durable = max(durable for _, _, durable in counts)
+    assert frames_durable > 60 and results_durable > 60, "the child wrote too little to test anything"
 
     frames = {f.index: f for f in McapSource(path)}
-    assert must_survive <= set(frames), sorted(must_survive - set(frames))
+    assert set(range(frames_durable)) <= set(frames), sorted(set(range(frames_durable)) - set(frames))
     assert all(int(frames[i].image[0, 0]) == i % 256 for i in frames)
     results = {r.frame_index: r for r in read_results(path)}          # each frame's results, written after it
-    assert must_survive <= set(results), sorted(must_survive - set(results))
+    assert set(range(results_durable)) <= set(results), sorted(set(range(results_durable)) - set(results))
     assert all(r.point_id.tolist() == [i] and r.u.tolist() == [0.5] for i, r in results.items())
     assert set(results) <= set(frames)                                   # results never ahead of their frames
     info = inspect_recording(path)
@@ -466,8 +493,8 @@ def test_sigkill_loses_nothing_older_than_a_second(tmp_path):
     assert summary["truncated"] and summary["frames"] == len(frames)
     assert inspect_recording(fixed).indexed
     assert [f.index for f in McapSource(fixed)] == sorted(frames)
-    print(f"SIGKILL: {len(completed)} frames completed, {len(must_survive)} more than 1 s before the kill, "
-          f"{len(frames)} frames and {len(results)} results recovered")
+    print(f"SIGKILL: {len(counts)} frames written, {frames_durable} counted durable, {len(frames)} frames and "
+          f"{len(results)} results recovered; the background flush wrote the idle spell's frames in {idle[0][1]:.2f} s")
 
 
 # ----------------------------------------------------------------------------- disk full

@@ -13,6 +13,7 @@ import resource
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -41,6 +42,49 @@ def livedic_run(tmp_path, *options, preexec_fn=None):
 def camera_options(fake, record):
     return ["--source", f"{fake.uri}?roi=0,0,{SHAPE[1]},{SHAPE[0]}&frame_rate=30&packet_size=9000",
             "--record", str(record), "--n-points", "60"]
+
+
+class ChildOutput:
+    """A child's stdout and stderr read as they come, each stderr line with the time it arrived."""
+
+    def __init__(self, process):
+        self.process = process
+        self.stdout_lines = []
+        self.stderr_lines = []                 # (time.monotonic(), line)
+        self._readers = [threading.Thread(target=self._read, args=(process.stdout, self.stdout_lines, False)),
+                         threading.Thread(target=self._read, args=(process.stderr, self.stderr_lines, True))]
+        for reader in self._readers:
+            reader.daemon = True
+            reader.start()
+
+    @staticmethod
+    def _read(stream, into, stamped):
+        for line in stream:
+            into.append((time.monotonic(), line) if stamped else line)
+
+    def stderr(self):
+        return "".join(line for _, line in list(self.stderr_lines))
+
+    def arrival(self, text):
+        """When the first stderr line containing ``text`` arrived, or None."""
+        return next((at for at, line in list(self.stderr_lines) if text in line), None)
+
+    def wait_for(self, text, timeout_s):
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.arrival(text) is not None:
+                return
+            assert self.process.poll() is None, f"livedic ended before saying {text!r}:\n{self.stderr()}"
+            time.sleep(0.05)
+        raise AssertionError(f"livedic did not say {text!r} within {timeout_s:g} s:\n{self.stderr()}")
+
+    def finish(self, timeout_s):
+        """Wait for the exit (the time limit only guards against a hang); (exit time, stdout, stderr)."""
+        self.process.wait(timeout=timeout_s)
+        exited_at = time.monotonic()
+        for reader in self._readers:
+            reader.join(timeout=10)
+        return exited_at, "".join(self.stdout_lines), self.stderr()
 
 
 def wait_for_served(fake, frames, timeout_s=60.0):
@@ -88,12 +132,11 @@ def test_killed_camera_ends_the_run_with_exit_3_and_a_complete_recording(tmp_pat
     record = tmp_path / "lost.mcap"
     with GigEFakeCamera(MOTION, serial=SERIAL) as fake:
         process = livedic_run(tmp_path, *camera_options(fake, record))
+        output = ChildOutput(process)
         try:
             wait_for_served(fake, 45)
             fake.kill()
-            killed = time.monotonic()
-            out, err = process.communicate(timeout=60)
-            exited_after = time.monotonic() - killed
+            exited_at, out, err = output.finish(timeout_s=60)
         finally:
             if process.poll() is None:
                 process.kill()
@@ -101,8 +144,12 @@ def test_killed_camera_ends_the_run_with_exit_3_and_a_complete_recording(tmp_pat
     errors = [line for line in err.splitlines() if line.startswith("livedic: error:")]
     assert len(errors) == 1 and "lost: no frame for" in errors[0] and f"#{SERIAL}" in errors[0], err
     assert "Traceback" not in err
-    # Detected within a second, and the process does not wait on Aravis's ~7 s teardown of the dead camera.
-    assert exited_after < 4.0, f"livedic exited {exited_after:.1f} s after the camera was killed"
+    # The error line comes after the recording is closed and the summary printed; then livedic exits
+    # without waiting on Aravis's teardown of the dead camera (~7 s of register-write timeouts, in a
+    # background thread). What is left takes well under a second; 3 s tells it from the ~7 s wait even
+    # on a loaded machine. (How fast the loss is detected is tested in tests/acquire/test_aravis.py.)
+    after_error = exited_at - output.arrival("livedic: error:")
+    assert after_error < 3.0, f"livedic exited {after_error:.1f} s after its last line: it waited for the camera"
     info = inspect_recording(str(record))
     assert info.indexed and not info.truncated, info     # closed cleanly: summary and index written
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -119,12 +166,13 @@ def test_reconnect_waits_for_the_camera_and_continues_the_same_session(tmp_path)
     process = None
     try:
         process = livedic_run(tmp_path, *camera_options(fake, record), "--reconnect", "--frames", "150")
+        output = ChildOutput(process)
         wait_for_served(fake, 45)
         fake.kill()
-        time.sleep(2.0)                       # livedic notices (< 1 s) and retries while the camera is off
+        output.wait_for("reconnecting every 1 s", timeout_s=30)   # livedic noticed; it retries while the camera is off
         fake.stop()
         fake = GigEFakeCamera(MOTION, serial=SERIAL).start()     # the camera is back (power-cycled)
-        out, err = process.communicate(timeout=90)
+        _, out, err = output.finish(timeout_s=90)
     finally:
         if process is not None and process.poll() is None:
             process.kill()
