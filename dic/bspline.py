@@ -39,6 +39,11 @@ POLE = np.sqrt(3.0) - 2.0  # z of the cubic B-spline prefilter
 GAIN = 6.0                 # (1 - z)(1 - 1/z)
 PAD = 3                    # mirrored coefficient pixels on each side (2 needed by the taps, 1 spare)
 SLACK = 2                  # zero rows before and after the padded coefficients in the flat buffer
+# A warped subset must keep this many pixels from the image edge: the taps reach 1 px left and
+# 2 px right of a sample, and the mirror boundary condition of the prefilter still weighs
+# 0.27^k on coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
+# and integer searches keep the same margin so they never return a peak there.
+INTERPOLATION_MARGIN = 3
 # |z|**k < 1e-17 beyond this many terms: the causal initial sum is exact in float64.
 _HORIZON = int(np.ceil(np.log(1e-17) / np.log(abs(POLE))))
 
@@ -427,13 +432,17 @@ def sample_shift(flat, origin, stride, x, y, half, tmp, out, out_stride):
 
 @njit(cache=True)
 def warped_subset_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
-    """True if the warped subset (an affine image of a square: check its corners) lies in the spline domain."""
+    """True if the warped subset (an affine image of a square: check its corners) keeps
+    ``INTERPOLATION_MARGIN`` px from the image edges."""
+    lo = float(INTERPOLATION_MARGIN)
+    right = width - 1.0 - INTERPOLATION_MARGIN
+    bottom = height - 1.0 - INTERPOLATION_MARGIN
     for sy in range(2):
         dy = -half if sy == 0 else half
         for sx in range(2):
             dx = -half if sx == 0 else half
             xw = x0 + u + (1.0 + ux) * dx + uy * dy
             yw = y0 + v + vx * dx + (1.0 + vy) * dy
-            if not (xw >= 0.0 and yw >= 0.0 and xw <= width - 1.0 and yw <= height - 1.0):
+            if not (xw >= lo and yw >= lo and xw <= right and yw <= bottom):
                 return False
     return True

@@ -39,6 +39,7 @@ class SubpixelResult:
     status : int8 (N,)
     ux, uy, vx, vy : float64 (N,) or None   displacement gradients (1st-order methods)
     iterations : int64 (N,) or None          iterations used (iterative methods)
+    evaluations : int64 (N,) or None         ZNCC evaluations of the integer search that started it
     """
     u: np.ndarray
     v: np.ndarray
@@ -49,6 +50,7 @@ class SubpixelResult:
     vx: np.ndarray = None
     vy: np.ndarray = None
     iterations: np.ndarray = None
+    evaluations: np.ndarray = None
 
 
 @dataclass

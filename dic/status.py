@@ -16,6 +16,8 @@ class Status(IntEnum):
     NOT_CONVERGED = 5       # iterative refinement hit its iteration cap or diverged
     BAD_GUESS = 6           # the initial guess for this point is NaN or infinite
     LOW_CORRELATION = 7     # best match below the ZNCC acceptance threshold
+    POOR_TEXTURE = 8        # too little texture, or texture in one direction only, to pin the match
+    OUTLIER = 9             # disagrees with its neighbours (normalised median test)
 
     @property
     def description(self):
@@ -32,6 +34,8 @@ FLAT_TARGET = int(Status.FLAT_TARGET)
 NOT_CONVERGED = int(Status.NOT_CONVERGED)
 BAD_GUESS = int(Status.BAD_GUESS)
 LOW_CORRELATION = int(Status.LOW_CORRELATION)
+POOR_TEXTURE = int(Status.POOR_TEXTURE)
+OUTLIER = int(Status.OUTLIER)
 
 
 _DESCRIPTIONS = {
@@ -43,4 +47,6 @@ _DESCRIPTIONS = {
     Status.NOT_CONVERGED: "sub-pixel refinement did not converge",
     Status.BAD_GUESS: "initial guess is not finite",
     Status.LOW_CORRELATION: "best ZNCC below the acceptance threshold",
+    Status.POOR_TEXTURE: "subset has too little texture, or texture in one direction only",
+    Status.OUTLIER: "displacement disagrees with the neighbouring points",
 }

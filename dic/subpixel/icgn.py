@@ -732,7 +732,7 @@ def _scratch(half, lanes):
 def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
                 sum_jf, sum_f, params, status, order, max_iterations, tolerance, translation_iterations,
                 translation_tolerance, out_zncc, out_iter):
-    """Refine every point whose ``status`` is OK; params (N, 6) in/out, status (N,) in/out."""
+    """Refine every point whose ``status`` is OK; params (N, 6) in/out, status (N,) in/out, order (N,)."""
     npts = xs.shape[0]
     n_chunks = (npts + _CHUNK - 1) // _CHUNK
     for c in prange(n_chunks):
@@ -750,7 +750,7 @@ def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, 
                 status[i] = _BAD_GUESS
                 continue
             st, zn, it = _icgn_one(flat, origin, stride, height, width, xs[i], ys[i], half, fhat[i], fx[i], fy[i],
-                                   norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], params[i], order,
+                                   norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], params[i], order[i],
                                    max_iterations, tolerance, translation_iterations, translation_tolerance,
                                    scratch)
             status[i] = st
@@ -790,10 +790,11 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
         Start displacement gradients (e.g. the previous frame's result); zero if omitted.
     status : ndarray of int8, shape (N,), optional
         Refine only where OK (combined with ``ref_prep.status``); other codes are copied through.
-    order : {1, 0}
+    order : {1, 0} or ndarray of int, shape (N,)
         Shape function: 1 (default) affine, p = (u, ux, uy, v, vx, vy); 0 rigid
         shift (u, v), the translation steps alone iterated to ``tolerance``
-        (start gradients ignored; ``ux..vy`` are then None).
+        (start gradients ignored; ``ux..vy`` are then None). Per point: a 0/1
+        array, ``ux..vy`` then NaN at the order-0 points.
     max_iterations : int
         Cap on the iterations of the chosen order. OpenCorr uses 10; with noise
         sigma = 2 on the paper's speckle that flags 0.35 % of points NOT_CONVERGED
@@ -829,15 +830,18 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
                          f"{ref_prep.shape[1]}x{ref_prep.shape[0]}: both images must have the same size")
     if target_coeffs.coefficients.dtype != np.float32:
         raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
-    if order not in (0, 1):
-        raise ValueError(f"order must be 0 (shift) or 1 (affine), got {order!r}")
+    npts = ref_prep.xs.shape[0]
+    per_point = np.ndim(order) > 0
+    orders = np.asarray(order).astype(np.int64) if per_point else np.full(npts, order, dtype=np.int64)
+    if orders.shape != (npts,) or not np.all((orders == 0) | (orders == 1)) or \
+            (not per_point and order not in (0, 1)):
+        raise ValueError(f"order must be 0 (shift) or 1 (affine), or one of them per point, got {order!r}")
     if int(max_iterations) < 1:
         raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
     if int(translation_iterations) < 0:
         raise ValueError(f"translation_iterations must be >= 0, got {translation_iterations}")
     if not (tolerance > 0 and translation_tolerance > 0):
         raise ValueError(f"tolerances must be > 0, got {tolerance} and {translation_tolerance}")
-    npts = ref_prep.xs.shape[0]
     params = np.empty((npts, 6))
     params[:, 0] = _as_start(u0, npts, "u0", np.nan)
     params[:, 1] = _as_start(ux0, npts, "ux0", 0.0)
@@ -845,8 +849,7 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     params[:, 3] = _as_start(v0, npts, "v0", np.nan)
     params[:, 4] = _as_start(vx0, npts, "vx0", 0.0)
     params[:, 5] = _as_start(vy0, npts, "vy0", 0.0)
-    if order == 0:
-        params[:, [1, 2, 4, 5]] = 0.0
+    params[np.ix_(orders == 0, [1, 2, 4, 5])] = 0.0
     st = ref_prep.status.copy()
     if status is not None:
         status = np.asarray(status)
@@ -859,12 +862,13 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     _icgn_batch(target_coeffs.flat, target_coeffs.origin, target_coeffs.coefficients.shape[1], height, width,
                 ref_prep.xs, ref_prep.ys, ref_prep.half, ref_prep.lanes, ref_prep.fhat, ref_prep.fx, ref_prep.fy,
                 ref_prep.norm, ref_prep.hinv, ref_prep.hinv0, ref_prep.sum_j, ref_prep.sum_jf, ref_prep.sum_f,
-                params, st, int(order), int(max_iterations), float(tolerance), int(translation_iterations),
+                params, st, orders, int(max_iterations), float(tolerance), int(translation_iterations),
                 float(translation_tolerance), out_zncc, out_iter)
     ok = st == Status.OK
     params[~ok] = np.nan
     grads = {}
-    if order == 1:
+    if per_point or order == 1:
+        params[np.ix_(orders == 0, [1, 2, 4, 5])] = np.nan
         grads = dict(ux=params[:, 1].copy(), uy=params[:, 2].copy(), vx=params[:, 4].copy(), vy=params[:, 5].copy())
     return SubpixelResult(u=params[:, 0].copy(), v=params[:, 3].copy(), zncc=np.where(ok, out_zncc, np.nan),
                           status=st, iterations=out_iter, **grads)
