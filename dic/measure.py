@@ -4,8 +4,13 @@ import importlib
 
 import numpy as np
 
+from dic import quality
+from dic.bspline import INTERPOLATION_MARGIN
 from dic.correlation import snap_points
-from dic.result import Measurement
+from dic.neighbours import neighbour_graph
+from dic.quality import Gates
+from dic.reliability_guided import ICGN_OPTIONS
+from dic.result import Measurement, SubpixelResult
 from dic.status import Status
 from dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
@@ -16,9 +21,9 @@ _SUBPIXEL = {
     "none": (None, 0),
     "surface-fit": ("dic.subpixel.surface_fit", 1),
     "gradient": ("dic.subpixel.gradient_method", 2),
-    "newton-raphson": ("dic.subpixel.newton_raphson", 3),
+    "newton-raphson": ("dic.subpixel.newton_raphson", INTERPOLATION_MARGIN),
     "improved-surface-fit": ("dic.subpixel.improved_surface_fit", 3),
-    "icgn": ("dic.subpixel.icgn", 3),
+    "icgn": ("dic.subpixel.icgn", INTERPOLATION_MARGIN),
 }
 SUBPIXEL_METHODS = tuple(_SUBPIXEL)
 # Sub-pixel methods that run a stochastic optimiser and so take the seed.
@@ -27,7 +32,7 @@ _SEEDED_SUBPIXEL = ("surface-fit", "improved-surface-fit")
 
 def measure(reference, deformed, points, *, subset=21, search="improved-wso",
             subpixel="improved-surface-fit", radius=16, guess=None, seed=0,
-            search_options=None, subpixel_options=None):
+            search_options=None, subpixel_options=None, guided=True, gates=Gates()):
     """Displacement of each point from ``reference`` to ``deformed``.
 
     Parameters
@@ -44,23 +49,35 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     subpixel : str
         Sub-pixel method: one of ``SUBPIXEL_METHODS``.
     radius : int
-        Integer search radius around the guess, pixels.
+        Integer search radius (around the guess, or around 0 without one), pixels.
     guess : array_like, shape (2,) or (N, 2), optional
-        Initial (u, v) per point (e.g. the previous frame's result); zero if omitted.
-        Rows with NaN are flagged ``Status.BAD_GUESS``.
+        Initial (u, v) per point (e.g. the previous frame's result). Rows with NaN
+        are flagged ``Status.BAD_GUESS``. Without a guess the measurement is
+        reliability-guided (``guided``).
     seed : int
         Seed of the stochastic searches (PSO, WSO); the same seed gives the same result.
     search_options, subpixel_options : dict, optional
         Method parameters passed through (see each method's module).
+    guided : bool
+        Without a guess: measure a few seeds over the full radius and propagate
+        to neighbours (``dic.reliability_guided``), instead of searching every
+        point over the full radius (``False``). Ignored with a guess or
+        ``search="none"``.
+    gates : dic.quality.Gates or None
+        Quality gates (``dic.quality``): a point is ok only if it passes them.
+        None returns the solver's own status (for callers that gate themselves).
 
     Returns
     -------
     Measurement
         ``x, y, u, v, zncc, ok, status`` per point, plus ``ux, uy, vx, vy`` for
-        first-order methods (``newton-raphson``, ``icgn``), ``iterations`` for
-        iterative ones and ``evaluations`` (ZNCC evaluations of the search).
-        Content at (x, y) in the reference is found at (x + u, y + v) in the
-        deformed image; u is along x (columns), v along y (rows).
+        first-order methods (``newton-raphson``, ``icgn``; NaN where the subset
+        was too poorly textured for a first-order warp and a translation was
+        fitted), ``iterations`` for iterative ones and ``evaluations`` (ZNCC
+        evaluations of the search). Content at (x, y) in the reference is found
+        at (x + u, y + v) in the deformed image; u is along x (columns), v along
+        y (rows). ``u, v`` (and gradients) are NaN where ``ok`` is False; ``zncc``
+        keeps the value that was judged.
 
     Raises
     ------
@@ -81,16 +98,63 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
         raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
     if subpixel not in _SUBPIXEL:
         raise ValueError(f"unknown sub-pixel method {subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
+    if gates is not None and not isinstance(gates, Gates):
+        raise ValueError(f"gates must be a dic.quality.Gates or None, got {gates!r}")
     reference = as_image(reference, "reference")
     deformed = as_image(deformed, "deformed")
     check_same_shape(reference, deformed)
     half = check_subset(subset, reference.shape)
     radius = check_radius(radius)
     xy = as_points(points)
-    start = as_guess(guess, xy.shape[0])
     xs, ys = snap_points(xy)
-    module_name, margin = _SUBPIXEL[subpixel]
+    from dic.subpixel import icgn
+    icgn_options = dict(subpixel_options or {}) if subpixel == "icgn" else {}
+    # IC-GN's reference data also give the texture gates (dic.quality.texture)
+    prep = icgn.prepare_reference(reference, xs, ys, half, hessian=icgn_options.pop("hessian", "projected"))
+    texture = quality.texture(prep)
+    thresholds = gates or Gates()
+    translation_only = texture.translation_only(thresholds) if subpixel in _FIRST_ORDER else None
+    graph = neighbour_graph(np.column_stack([xs, ys]).astype(np.float64))
+    if guess is None and guided and search != "none" and xs.shape[0]:
+        poor = texture.poor(thresholds)
+        raw = _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
+                      icgn_options, thresholds, texture, poor, translation_only, graph)
+    else:
+        start = as_guess(guess, xs.shape[0])
+        raw = _solve(reference, deformed, prep, start, search, subpixel, radius, seed, search_options,
+                     subpixel_options, icgn_options, translation_only)
+    status = raw.status
+    if gates is not None:
+        gradients = None if raw.ux is None else (raw.ux, raw.uy, raw.vx, raw.vy)
+        status = quality.gate_status(status, raw.zncc, xs, ys, raw.u, raw.v, graph, gates, gradients=gradients,
+                                     poor_texture=texture.poor(gates))
+    return _finish(xs, ys, raw, status, translation_only)
 
+
+_FIRST_ORDER = ("icgn", "newton-raphson")
+
+
+def _finish(xs, ys, raw, status, translation_only):
+    """The Measurement: NaN displacements (and gradients) wherever the status is not OK."""
+    ok = status == Status.OK
+
+    def masked(values, also=None):
+        if values is None:
+            return None
+        bad = ~ok if also is None else ~ok | also
+        return np.where(bad, np.nan, values)
+
+    grads = {name: masked(getattr(raw, name), translation_only) for name in ("ux", "uy", "vx", "vy")}
+    return Measurement(x=xs.astype(np.float64), y=ys.astype(np.float64), u=masked(raw.u), v=masked(raw.v),
+                       zncc=raw.zncc, ok=ok, status=status, iterations=raw.iterations,
+                       evaluations=raw.evaluations, **grads)
+
+
+def _solve(reference, deformed, prep, start, search, subpixel, radius, seed, search_options, subpixel_options,
+           icgn_options, translation_only):
+    """Search around ``start`` (unless ``search == "none"``), then the sub-pixel method; no gates."""
+    xs, ys, half = prep.xs, prep.ys, prep.half
+    module_name, margin = _SUBPIXEL[subpixel]
     if search == "none":
         u0 = start[:, 0].copy()
         v0 = start[:, 1].copy()
@@ -109,10 +173,18 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
         status = found.status.copy()
         zncc = found.zncc
         evaluations = found.evaluations
+    return _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, search == "none", subpixel, seed,
+                   subpixel_options, icgn_options, translation_only)
 
+
+def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_guess, subpixel, seed,
+            subpixel_options, icgn_options, translation_only, gradients=None):
+    """The sub-pixel stage from integer (or float) starts; first-order methods fit a translation where told."""
+    xs, ys, half = prep.xs, prep.ys, prep.half
+    module_name, _ = _SUBPIXEL[subpixel]
     if module_name is None:
         ok_mask = status == Status.OK
-        if search == "none":
+        if from_guess:
             from dic.correlation import _zncc_batch
             zncc = np.full(xs.shape[0], np.nan)
             st = np.zeros(xs.shape[0], dtype=np.int8)
@@ -120,22 +192,80 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
                         np.where(ok_mask, v0, 0).astype(np.int64), half, zncc, st)
             status = np.where(ok_mask, st, status).astype(np.int8)
             ok_mask = status == Status.OK
-        u = np.where(ok_mask, u0, np.nan)
-        v = np.where(ok_mask, v0, np.nan)
-        return Measurement(x=xs.astype(np.float64), y=ys.astype(np.float64), u=u, v=v,
-                           zncc=np.where(ok_mask, zncc, np.nan), ok=ok_mask, status=status,
-                           evaluations=evaluations)
-
+        return SubpixelResult(u=np.where(ok_mask, u0, np.nan), v=np.where(ok_mask, v0, np.nan),
+                              zncc=np.where(ok_mask, zncc, np.nan), status=status, evaluations=evaluations)
     method = importlib.import_module(module_name)
-    options = dict(subpixel_options or {})
+    options = dict(icgn_options) if subpixel == "icgn" else dict(subpixel_options or {})
     if subpixel in _SEEDED_SUBPIXEL:
         options.setdefault("seed", seed)
-    refined = method.refine(reference, deformed, xs, ys, u0, v0, status, half, **options)
-    ok_mask = refined.status == Status.OK
-    return Measurement(x=xs.astype(np.float64), y=ys.astype(np.float64), u=refined.u, v=refined.v,
-                       zncc=refined.zncc, ok=ok_mask, status=refined.status,
-                       ux=refined.ux, uy=refined.uy, vx=refined.vx, vy=refined.vy,
-                       iterations=refined.iterations, evaluations=evaluations)
+    if gradients is not None:
+        for name, values in gradients.items():
+            options.setdefault(f"{name}0", values)
+    if subpixel == "icgn":
+        coefficients = method.prepare_target(deformed)
+
+        def run(st, **extra):
+            return method.refine_prepared(prep, coefficients, u0, v0, status=st, **{**options, **extra})
+    else:
+        def run(st, **extra):
+            return method.refine(reference, deformed, xs, ys, u0, v0, st, half, **{**options, **extra})
+    if translation_only is None or not translation_only.any() or options.get("order", 1) == 0:
+        refined = run(status)
+    else:
+        # one call per shape-function order; the other order's points are masked out of each
+        first = run(np.where(translation_only, Status.BAD_GUESS, status).astype(np.int8))
+        shift = run(np.where(translation_only, status, Status.BAD_GUESS).astype(np.int8), order=0)
+        refined = first
+        for name in ("u", "v", "zncc", "status", "iterations"):
+            values = getattr(refined, name)
+            if values is not None:
+                values[translation_only] = getattr(shift, name)[translation_only]
+    refined.evaluations = evaluations
+    return refined
+
+
+def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
+            icgn_options, gates, texture, poor, translation_only, graph):
+    """Reliability-guided measurement (``dic.reliability_guided``), then the chosen sub-pixel method."""
+    from dic.reliability_guided import guided_icgn
+    from dic.search import search_points
+    from dic.subpixel import icgn
+
+    xs, ys, half = prep.xs, prep.ys, prep.half
+    coeffs = icgn.prepare_target(deformed)
+    options = dict(icgn_options)
+    order = np.where(texture.translation_only(gates), 0, options.pop("order", 1))
+
+    def full_search(idx):
+        zero = np.zeros(idx.size)
+        found = search_points(reference, deformed, xs[idx], ys[idx], zero, zero, half, radius, search, seed=seed,
+                              margin=INTERPOLATION_MARGIN, options=search_options)
+        return found.u, found.v, found.status, found.evaluations
+
+    def outliers(params, ok):
+        flagged, _ = quality.median_test(xs, ys, params[:, 0], params[:, 3], ok, graph,
+                                         gradients=(params[:, 1], params[:, 2], params[:, 4], params[:, 5]),
+                                         epsilon=gates.outlier_epsilon, threshold=gates.outlier_threshold)
+        return flagged
+
+    params, status, zncc, iterations, evaluations = guided_icgn(
+        prep, coeffs, full_search, graph, order=order, accept=gates.min_zncc, energy=texture.energy,
+        active=~poor, options={k: v for k, v in options.items() if k in ICGN_OPTIONS}, repair=outliers)
+    if subpixel == "icgn":
+        return SubpixelResult(u=params[:, 0], v=params[:, 3], zncc=zncc, status=status, ux=params[:, 1],
+                              uy=params[:, 2], vx=params[:, 4], vy=params[:, 5], iterations=iterations,
+                              evaluations=evaluations)
+    # other methods refine from the guided integer position (and gradients, for Newton-Raphson)
+    ok = status == Status.OK
+    u0 = np.where(ok, np.floor(params[:, 0] + 0.5), 0.0)
+    v0 = np.where(ok, np.floor(params[:, 3] + 0.5), 0.0)
+    gradients = None
+    if subpixel == "newton-raphson":
+        u0, v0 = np.where(ok, params[:, 0], 0.0), np.where(ok, params[:, 3], 0.0)
+        gradients = {name: np.where(ok, params[:, c], 0.0) for name, c in (("ux", 1), ("uy", 2), ("vx", 4), ("vy", 5))}
+    return _refine(reference, deformed, prep, u0, v0, status.copy(), np.where(ok, zncc, np.nan), evaluations,
+                   subpixel == "none", subpixel, seed, subpixel_options, icgn_options, translation_only,
+                   gradients=gradients)
 
 
 def _start_status(shape, xs, ys, u0, v0, half, margin):

@@ -40,7 +40,11 @@ reported with their status every frame and never searched.
 
 import numpy as np
 
+from dic import quality
+from dic.bspline import INTERPOLATION_MARGIN
 from dic.correlation import snap_points
+from dic.neighbours import neighbour_graph
+from dic.quality import Gates
 from dic.result import Measurement
 from dic.status import Status
 from dic.validation import as_image, as_points, check_radius, check_subset
@@ -60,8 +64,6 @@ _ITERATIVE = ("icgn", "newton-raphson")
 # extra border that keeps the B-spline prefilter's edge effects (pole 2 - sqrt(3): 0.27^12 < 1e-6) away.
 _WINDOW_ALLOWANCE = 48
 _FILTER_GUARD = 12
-# Margin the integer search leaves for the B-spline / bicubic interpolation of the sub-pixel stage.
-_SUBPIXEL_MARGIN = 3
 
 
 def grid_in_roi(shape, roi, step, subset):
@@ -196,6 +198,11 @@ class Tracker:
         Options of the sub-pixel method; for ``"icgn"`` the default cap is
         ``max_iterations=ICGN_MAX_ITERATIONS`` (50): a few subsets need far more
         than IC-GN's own default of 10.
+    gates : dic.quality.Gates
+        Quality gates applied to every frame's result, as in ``dic.measure``:
+        a point is ok only if it passes them (``POOR_TEXTURE`` points are never
+        tracked; ``OUTLIER`` points are re-found first, and flagged if they
+        still disagree with their neighbours).
 
     Attributes
     ----------
@@ -228,7 +235,7 @@ class Tracker:
     def __init__(self, reference_image, points, *, subset=21, search="improved-wso", subpixel="icgn",
                  seed_radius=2, refind_radius=16, refind_zncc=0.8, refind_drop=0.05, refind_gradient=0.1,
                  refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
-                 seed_search_options=None, subpixel_options=None):
+                 seed_search_options=None, subpixel_options=None, gates=Gates()):
         from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
         if search not in SEARCH_METHODS:
             raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
@@ -265,6 +272,9 @@ class Tracker:
         self.subpixel_options = dict(subpixel_options or {})
         if subpixel == "icgn":
             self.subpixel_options.setdefault("max_iterations", ICGN_MAX_ITERATIONS)
+        if not isinstance(gates, Gates):
+            raise ValueError(f"gates must be a dic.quality.Gates, got {gates!r}")
+        self.gates = gates
         xy = as_points(points)
         self._xs, self._ys = snap_points(xy)
         self.x = self._xs.astype(np.float64)
@@ -282,10 +292,19 @@ class Tracker:
         self._prep = None
         self._window = None
         self._allowance = 0
+        self._graph = neighbour_graph(np.column_stack([self.x, self.y]))
         if subpixel == "icgn":
             self._prepare_window(_WINDOW_ALLOWANCE)
             self._ref_status = np.where(self._ref_status != Status.OK, self._ref_status,
                                         self._prep.status).astype(np.int8)
+            texture = quality.texture(self._prep)
+        else:
+            from dic.subpixel.icgn import prepare_reference
+            texture = quality.texture(prepare_reference(self.reference, self._xs, self._ys, self.half))
+        poor = texture.poor(gates) & (self._ref_status == Status.OK)
+        self._ref_status[poor] = Status.POOR_TEXTURE
+        # first-order methods fit a translation where one or two speckles cannot pin a 6-parameter warp
+        self._order = np.where(texture.translation_only(gates), 0, 1)
         self.trackable = self._ref_status == Status.OK
         self.frames_tracked = 0
         self.last_refound = np.zeros(n, dtype=bool)
@@ -302,7 +321,7 @@ class Tracker:
         this window only, not on the whole image.
         """
         height, width = self.reference.shape
-        reach = self.half + _SUBPIXEL_MARGIN + _FILTER_GUARD + int(allowance)
+        reach = self.half + INTERPOLATION_MARGIN + _FILTER_GUARD + int(allowance)
         x0 = max(int(self._xs.min()) - reach, 0)
         y0 = max(int(self._ys.min()) - reach, 0)
         x1 = min(int(self._xs.max()) + reach + 1, width)
@@ -392,7 +411,7 @@ class Tracker:
         guess = np.column_stack([start_u, start_v])
         return measure(self.reference, target, points, subset=self.subset, search=search,
                        subpixel=self.subpixel, radius=radius, guess=guess, seed=self.seed,
-                       search_options=options, subpixel_options=self.subpixel_options or None)
+                       search_options=options, subpixel_options=self.subpixel_options or None, gates=None)
 
     def _measure_icgn(self, target, idx, start_u, start_v, search, radius, grads, options):
         from dic.subpixel.icgn import refine_prepared
@@ -409,7 +428,7 @@ class Tracker:
         else:
             from dic.search import search_points
             found = search_points(self.reference, target, self._xs[idx], self._ys[idx], start_u, start_v,
-                                  self.half, radius, search, seed=self.seed, margin=_SUBPIXEL_MARGIN,
+                                  self.half, radius, search, seed=self.seed, margin=INTERPOLATION_MARGIN,
                                   options=options)
             ok = found.status == Status.OK
             # Where the search confirms the start's integer pixel, keep the start's fraction.
@@ -425,6 +444,7 @@ class Tracker:
         full = {name: np.zeros(n_all) for name in grads}
         for name, values in grads.items():
             full[name][idx] = values
+        refine_options.setdefault("order", self._order)
         result = refine_prepared(self._prep, coeffs, u0, v0, full["ux"], full["uy"], full["vx"], full["vy"],
                                  status=status, **refine_options)
         ok = result.status[idx] == Status.OK
@@ -481,14 +501,16 @@ class Tracker:
                                       self.seed_radius, {k: g[doubtful] for k, g in grads.items()},
                                       self.seed_search_options)
                 self._keep_better(result, doubtful, again)
-        # Re-find the points that failed or lost correlation.
-        weak = self._weak(result)
+        # Re-find the points that failed, lost correlation or disagree with their neighbours.
+        weak = self._weak(result) | self._outliers(result)
         waiting = weak & (self._refind_skip > 0)
         self._refind_skip[waiting] -= 1
         weak &= ~waiting
         retry = np.flatnonzero(weak)
         self.last_refound = np.zeros(n, dtype=bool)
         self.last_refind_attempts = int(retry.size)
+        if retry.size and self._prep is not None:
+            retry = self._from_neighbours(result, retry, weak)
         for method in (self.refind_search, self.refind_fallback):
             if retry.size == 0 or method is None:
                 break
@@ -496,6 +518,7 @@ class Tracker:
             with np.errstate(invalid="ignore"):
                 still = ~result.ok[retry] | (result.zncc[retry] < self.refind_zncc)
             retry = retry[still]
+        self._gate(result)
         # Back off on points the wide search could not recover; reset on the others.
         recovered = self.last_refound | (result.ok & ~weak)
         self._refind_wait[recovered] = 0
@@ -507,6 +530,55 @@ class Tracker:
         self._target = None
         self._coeffs = None
         return result
+
+    def _outliers(self, result):
+        """Ok points that fail the normalised median test against their ok neighbours."""
+        flagged, _ = quality.median_test(self.x, self.y, result.u, result.v, result.ok, self._graph,
+                                         gradients=_gradients_of(result), epsilon=self.gates.outlier_epsilon,
+                                         threshold=self.gates.outlier_threshold)
+        return flagged
+
+    def _from_neighbours(self, result, retry, weak):
+        """IC-GN for the points ``retry`` from their best neighbour measured in this frame
+        (``dic.reliability_guided.propagate``); returns the points still to search."""
+        from dic.reliability_guided import propagate
+        solved = result.ok & ~weak
+        if not solved.any():
+            return retry
+        pending = np.zeros(self.n_points, dtype=bool)
+        pending[retry] = True
+        params = np.column_stack([result.u, result.ux, result.uy, result.v, result.vx, result.vy])
+        params = np.where(np.isfinite(params), params, 0.0)
+        accepted, params, status, zncc, iterations = propagate(
+            self._prep, self._target_coefficients(), self._graph, order=self._order,
+            accept=max(self.gates.min_zncc, self.refind_zncc), params=params, zncc=result.zncc, solved=solved,
+            pending=pending, options={k: v for k, v in self.subpixel_options.items()
+                                      if k in ("max_iterations", "tolerance")})
+        idx = np.flatnonzero(accepted)
+        if idx.size:
+            p = params[idx]
+            translation = self._order[idx] == 0
+            grads = {name: np.where(translation, np.nan, p[:, c]) for name, c in (("ux", 1), ("uy", 2), ("vx", 4),
+                                                                                  ("vy", 5))}
+            found = Measurement(x=self.x[idx], y=self.y[idx], u=p[:, 0], v=p[:, 3], zncc=zncc[idx],
+                                ok=np.ones(idx.size, dtype=bool), status=status[idx], iterations=iterations[idx],
+                                **grads)
+            self.last_refound[idx[self._keep_better(result, idx, found)]] = True
+        with np.errstate(invalid="ignore"):
+            still = ~result.ok[retry] | (result.zncc[retry] < self.refind_zncc)
+        return retry[still]
+
+    def _gate(self, result):
+        """The quality gates on the frame's result (in place): LOW_CORRELATION, OUTLIER; NaN where not ok."""
+        status = quality.gate_status(result.status, result.zncc, self.x, self.y, result.u, result.v, self._graph,
+                                     self.gates, gradients=_gradients_of(result))
+        result.status[:] = status
+        result.ok[:] = status == Status.OK
+        bad = ~result.ok
+        for name in ("u", "v", "ux", "uy", "vx", "vy"):
+            values = getattr(result, name)
+            if values is not None:
+                values[bad] = np.nan
 
     def _target_coefficients(self):
         """B-spline coefficients of the current frame on the IC-GN window (computed once per window)."""
@@ -596,6 +668,13 @@ class Tracker:
             if values is not None:
                 self._good_grad[name] = np.where(ok, values, self._good_grad[name])
         self._ever_good |= ok
+
+
+def _gradients_of(measurement):
+    """(ux, uy, vx, vy) of a first-order result, or None."""
+    if measurement.ux is None:
+        return None
+    return measurement.ux, measurement.uy, measurement.vx, measurement.vy
 
 
 def _take(measurement, mask):
