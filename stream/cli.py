@@ -103,6 +103,7 @@ def build_parser():
     commands = parser.add_subparsers(metavar="COMMAND")
 
     from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from dic.quality import MIN_ZNCC
 
     from stream.run import add_run_arguments, run_session
 
@@ -121,6 +122,13 @@ def build_parser():
     measure.add_argument("-o", "--output", metavar="OUT.csv",
                          help="output CSV (default: stdout): x,y,u,v,zncc,ok,status, then the method's columns, "
                               "then the points file's other columns (e.g. id, label)")
+    measure.add_argument("--min-zncc", type=float, default=MIN_ZNCC, metavar="Z",
+                         help=f"a point is ok only if its ZNCC is at least Z (default {MIN_ZNCC}, measured: no "
+                              "correct point of a low-contrast, noisy pair falls below it); the other quality gates "
+                              "(texture, neighbours, border) always apply")
+    measure.add_argument("--no-guided", dest="guided", action="store_false",
+                         help="search every point over the full radius instead of a few seeds whose results are "
+                              "propagated to their neighbours (reliability-guided, the default)")
     measure.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                          help="say on stderr how long a measurement has run once it takes over 1.5 s: on = one "
                               "line redrawn in place; auto (default) = that on a terminal, else a line every 15 s; "
@@ -229,8 +237,12 @@ def _cmd_measure(args):
     if args.progress != "off":
         in_place = args.progress == "on" or sys.stderr.isatty()
         progress = MeasureProgress(len(points), f"{args.search} + {args.subpixel}", in_place=in_place)
+    from dic.quality import Gates
+    if not -1.0 <= args.min_zncc <= 1.0:
+        raise UsageError(f"--min-zncc must be between -1 and 1, got {args.min_zncc}")
     result = measure_with_progress(reference, deformed, points, subset=args.subset, search=args.search,
-                                   subpixel=args.subpixel, radius=args.radius, seed=args.seed, progress=progress)
+                                   subpixel=args.subpixel, radius=args.radius, seed=args.seed, progress=progress,
+                                   guided=args.guided, gates=Gates(min_zncc=args.min_zncc))
     columns = {"x": result.x, "y": result.y, "u": result.u, "v": result.v,
                "zncc": result.zncc, "ok": result.ok, "status": result.status.astype(np.int64)}
     for name in ("ux", "uy", "vx", "vy", "iterations", "evaluations"):
