@@ -7,12 +7,12 @@ into NaN with its own ``dic.Status`` code; what passes every gate is ``ok``.
 
 1. **Correlation** (``LOW_CORRELATION``): ZNCC below ``min_zncc``. The default,
    ``MIN_ZNCC`` = 0.5, was chosen by measurement (``livedic bench validate``
-   prints it): on 8-bit pairs with a speckle contrast of 50 grey levels and
-   noise sigma = 3 (livedic's simulator and an FFT-filtered random pattern,
-   subset 21, IC-GN) the lowest ZNCC of a correct point (within 0.5 px) was
-   0.58; wrong matches found by a failed search score 0.2-0.55 on the DIC
-   Challenge images. ZNCC alone cannot separate the two on poor images, so
-   the other gates carry most of the weight.
+   prints it): on 8-bit pairs whose speckle spans 50 grey levels, with noise
+   sigma = 3 (livedic's simulator and an FFT-filtered random pattern, subset 21,
+   IC-GN), the lowest ZNCC of a correct point (within 0.5 px) was 0.73, with
+   room left for a dimmer specimen; wrong matches found by a failed search
+   score 0.2-0.55 on the DIC Challenge images. ZNCC alone cannot separate the
+   two on poor images, so the other gates carry much of the weight.
 2. **Texture** (``POOR_TEXTURE``), from the reference subset alone
    (``texture``): the squared gradient per pixel along the subset's weakest
    direction (the smaller eigenvalue of its structure tensor) below
@@ -264,7 +264,8 @@ _CHUNK = 256
 
 @njit(cache=True, parallel=True, nogil=True)
 def _local_gradients(x, y, u, v, ok, start, index, out):
-    """Robust plane gradients (du/dx, du/dy, dv/dx, dv/dy) per ok point into out (N, 4); NaN where unknown."""
+    """Robust plane gradients (du/dx, du/dy, dv/dx, dv/dy) into out (N, 4) for the ok points whose
+    row of ``out`` holds a NaN (rows without NaN are given gradients, kept); NaN where unknown."""
     n = u.shape[0]
     kmax = 1
     for i in range(n):
@@ -273,10 +274,13 @@ def _local_gradients(x, y, u, v, ok, start, index, out):
         weights = np.empty(kmax + 1)
         scratch = np.empty(kmax + 3)
         for i in range(c * _CHUNK, min((c + 1) * _CHUNK, n)):
-            for q in range(4):
-                out[i, q] = np.nan
             if not ok[i]:
                 continue
+            if np.isfinite(out[i, 0]) and np.isfinite(out[i, 1]) and np.isfinite(out[i, 2]) and \
+                    np.isfinite(out[i, 3]):
+                continue
+            for q in range(4):
+                out[i, q] = np.nan
             if _plane_gradient(x, y, u, ok, i, start, index, weights, scratch):
                 out[i, 0] = scratch[0]
                 out[i, 1] = scratch[1]
@@ -346,12 +350,12 @@ def median_test(x, y, u, v, ok, graph, *, gradients=None, epsilon=OUTLIER_EPSILO
     as64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
     x, y, u, v = as64(x), as64(y), as64(u), as64(v)
     ok = np.ascontiguousarray(ok, dtype=np.bool_)
-    estimated = np.empty((n, 4))
-    _local_gradients(x, y, u, v, ok, start, index, estimated)
-    if gradients is not None:
-        given = np.column_stack([as64(g) if g is not None else np.full(n, np.nan) for g in gradients])
-        estimated = np.where(np.isfinite(given), given, estimated)
-    grads = np.ascontiguousarray(np.nan_to_num(estimated, nan=0.0))
+    if gradients is None:
+        grads = np.full((n, 4), np.nan)
+    else:
+        grads = np.column_stack([as64(g) if g is not None else np.full(n, np.nan) for g in gradients])
+    _local_gradients(x, y, u, v, ok, start, index, grads)
+    grads = np.ascontiguousarray(np.nan_to_num(grads, nan=0.0))
     _median_test(x, y, u, v, grads, ok, start, index, float(epsilon), float(threshold), outlier, residual)
     return outlier, residual
 

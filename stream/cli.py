@@ -185,6 +185,17 @@ def build_parser():
     live.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1, as livedic run)")
     live.add_argument("--verbose", action="store_true", help="also print each session's own summary")
     live.set_defaults(handler=_cmd_bench_live)
+    validate = bench_commands.add_parser(
+        "validate", help="is every point marked ok right? wrong-but-ok points on other generators and the DIC "
+                         "Challenge sets", description="Counts the points dic.measure reports as ok that are more "
+                         "than 0.5 px from the truth (target: 0 in every row), on shifts up to 30 px from four "
+                         "pattern generators and, with --data, DIC Challenge Samples 3 and 12 and Stars 1/2. "
+                         "Exit code 1 if any row has one.")
+    validate.add_argument("--data", metavar="DIR",
+                          help="folder with dicc1_sample3_translation, dicc1_sample12_oht_cfrp and dicc2_star "
+                               "(e.g. ../shared/datasets); without it only the synthetic cases run")
+    validate.add_argument("--quick", action="store_true", help="fewer shifts, points and searches (minutes)")
+    validate.set_defaults(handler=_cmd_bench_validate)
     soak = bench_commands.add_parser("soak", help="20,000 frames through the full pipeline: RSS growth, frames "
                                                   "produced vs recorded vs tracked vs dropped")
     soak.add_argument("--frames", type=int, default=20_000, metavar="N", help="frames to produce (default 20000)")
@@ -470,6 +481,13 @@ def _cmd_bench_live(args):
     run_live_benchmark(quick=args.quick, frames=args.frames, fps=args.fps, threads=args.threads,
                        echo_sessions=args.verbose, log=lambda line: print(line, flush=True))
     return 0
+
+
+def _cmd_bench_validate(args):
+    from bench.validate import run_validate_benchmark
+    if args.data is not None and not os.path.isdir(args.data):
+        raise UsageError(f"--data {args.data} is not a folder: give the folder holding the DIC Challenge sets")
+    return run_validate_benchmark(data=args.data, quick=args.quick, log=lambda line: print(line, flush=True))
 
 
 def _cmd_bench_soak(args):
