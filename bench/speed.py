@@ -1,16 +1,23 @@
 """``livedic bench speed``: points per second per method on one large image pair.
 
 Setup: a 1024x1024 8-bit speckle image (paper density: 1000 speckles per
-256x256, radius 4 px), 10,000 points on a grid, subset 21. The deformation is
-a rigid shift plus a small homogeneous strain, rendered exactly. Two jobs:
+256x256, radius 4 px), points on a grid, subset 21. The deformation is a rigid
+shift plus a small homogeneous strain, rendered exactly. Two jobs, each with
+its own OpenCV baseline measured in the same run:
 
-* seeded: every point gets a guess within 2 px of its true displacement (what
-  a tracker has from the previous frame); searches use radius 2;
-* unseeded: guess (0, 0), search radius 16.
+* seeded (10,000 points, shift (5.3, -7.6)): every point gets a guess within
+  2 px of its true displacement (what a tracker has from the previous frame);
+  searches use radius 2. Baseline: ``calcOpticalFlowPyrLK`` (21x21, no
+  pyramid) from the same guess.
+* unseeded (8,281 points, shift (17.3, -9.6) px, no guess): ``dic.measure`` as
+  a user calls it, reliability-guided (a few seeds searched over radius 24,
+  then propagation), and the same with every point searched (``guided=False``).
+  Baseline: ``calcOpticalFlowPyrLK`` (21x21) with a 3-level pyramid
+  (``maxLevel=3``), the usual way to reach a large motion without a guess.
 
 Each method is timed after a warm-up call (numba compilation excluded), best of
-``repeat`` runs. OpenCV's pyramidal Lucas-Kanade (21x21 window, no pyramid,
-seeded with the same guess) runs on the same points as the familiar baseline.
+``repeat`` runs. "wrong ok" counts points more than 0.5 px off that the method
+reports as valid.
 Peak memory is the process's peak resident set during each method (VmHWM,
 reset before each method through /proc/self/clear_refs where the kernel allows).
 """
@@ -22,7 +29,9 @@ import time
 import numpy as np
 
 SEEDED_OFFSET_PX = 2.0
-UNSEEDED_RADIUS = 16
+UNSEEDED_SHIFT = (17.3, -9.6)
+UNSEEDED_POINTS = 8281
+UNSEEDED_RADIUS = 24
 
 
 def make_job(size=1024, n_points=10_000, subset=21, seed=0, shift=(5.3, -7.6)):
@@ -36,7 +45,7 @@ def make_job(size=1024, n_points=10_000, subset=21, seed=0, shift=(5.3, -7.6)):
     reference = render(pattern, bit_depth=8)
     deformed = render(pattern, displacement, bit_depth=8)
     half = subset // 2
-    margin = half + UNSEEDED_RADIUS + 12
+    margin = half + int(np.ceil(max(abs(shift[0]), abs(shift[1])))) + 12
     side = int(np.ceil(np.sqrt(n_points)))
     axis = np.linspace(margin, size - 1 - margin, side).round()
     xs, ys = np.meshgrid(axis, axis)
@@ -78,88 +87,112 @@ def _time_best(function, repeat):
 
 
 def _errors(u, v, ok, truth):
+    """RMSE of the valid points, the valid fraction, and how many valid points are more than 0.5 px off."""
     good = ok & np.isfinite(u) & np.isfinite(v)
     if not np.any(good):
-        return float("nan"), 0.0
+        return float("nan"), 0.0, 0
     du = u[good] - truth[good, 0]
     dv = v[good] - truth[good, 1]
-    return float(np.sqrt(np.mean(du * du + dv * dv))), float(good.mean())
+    error = np.sqrt(du * du + dv * dv)
+    return float(np.sqrt(np.mean(error * error))), float(good.mean()), int(np.sum(error > 0.5))
 
 
-def _lucas_kanade(reference, deformed, points, guess):
+def _lucas_kanade(reference, deformed, points, guess, levels=0):
     import cv2
 
     ref8 = reference if reference.dtype == np.uint8 else cv2.normalize(reference, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
     def8 = deformed if deformed.dtype == np.uint8 else cv2.normalize(deformed, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
     p0 = points.astype(np.float32).reshape(-1, 1, 2)
-    p1 = (points + guess).astype(np.float32).reshape(-1, 1, 2)
+    p1 = None if guess is None else (points + guess).astype(np.float32).reshape(-1, 1, 2)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.001)
+    flags = 0 if guess is None else cv2.OPTFLOW_USE_INITIAL_FLOW
 
     def run():
-        moved, found, _err = cv2.calcOpticalFlowPyrLK(ref8, def8, p0, p1.copy(), winSize=(21, 21), maxLevel=0,
-                                                      criteria=criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+        moved, found, _err = cv2.calcOpticalFlowPyrLK(ref8, def8, p0, None if p1 is None else p1.copy(),
+                                                      winSize=(21, 21), maxLevel=levels, criteria=criteria,
+                                                      flags=flags)
         displacement = moved.reshape(-1, 2) - points
         return displacement[:, 0], displacement[:, 1], found.ravel().astype(bool)
     return run
 
 
 def _cases(quick):
-    """(label, job, search, subpixel, radius, extra) rows, in print order."""
+    """(label, search, subpixel, radius, guided) rows per job, in print order."""
     seeded = [
-        ("icgn (from guess)", "seeded", "none", "icgn", 0),
-        ("improved-wso r2 + icgn", "seeded", "improved-wso", "icgn", 2),
-        ("improved-wso r2 + improved-surface-fit", "seeded", "improved-wso", "improved-surface-fit", 2),
-        ("exhaustive r2 + improved-surface-fit", "seeded", "exhaustive", "improved-surface-fit", 2),
-        ("improved-wso r2 + surface-fit", "seeded", "improved-wso", "surface-fit", 2),
-        ("improved-wso r2 + gradient", "seeded", "improved-wso", "gradient", 2),
-        ("improved-wso r2 + newton-raphson", "seeded", "improved-wso", "newton-raphson", 2),
+        ("icgn (from guess)", "none", "icgn", 0, False),
+        ("improved-wso r2 + icgn", "improved-wso", "icgn", 2, False),
+        ("improved-wso r2 + improved-surface-fit", "improved-wso", "improved-surface-fit", 2, False),
+        ("exhaustive r2 + improved-surface-fit", "exhaustive", "improved-surface-fit", 2, False),
+        ("improved-wso r2 + surface-fit", "improved-wso", "surface-fit", 2, False),
+        ("improved-wso r2 + gradient", "improved-wso", "gradient", 2, False),
+        ("improved-wso r2 + newton-raphson", "improved-wso", "newton-raphson", 2, False),
     ]
     unseeded = [
-        ("improved-wso r16 + improved-surface-fit", "unseeded", "improved-wso", "improved-surface-fit", UNSEEDED_RADIUS),
-        ("improved-wso r16 + icgn", "unseeded", "improved-wso", "icgn", UNSEEDED_RADIUS),
-        ("pso r16 + icgn", "unseeded", "pso", "icgn", UNSEEDED_RADIUS),
-        ("coarse-fine r16 + icgn", "unseeded", "coarse-fine", "icgn", UNSEEDED_RADIUS),
+        ("measure: improved-wso + icgn (guided)", "improved-wso", "icgn", UNSEEDED_RADIUS, True),
+        ("measure: fft-cc + icgn (guided)", "fft-cc", "icgn", UNSEEDED_RADIUS, True),
+        ("measure: improved-wso + improved-surface-fit", "improved-wso", "improved-surface-fit", UNSEEDED_RADIUS,
+         True),
+        ("improved-wso r24 + icgn, every point searched", "improved-wso", "icgn", UNSEEDED_RADIUS, False),
+        ("coarse-fine r24 + icgn, every point searched", "coarse-fine", "icgn", UNSEEDED_RADIUS, False),
     ]
     if quick:
-        return seeded[:3] + unseeded[:1]
-    return seeded + unseeded
+        return seeded[:3], unseeded[:1]
+    return seeded, unseeded
 
 
 def run_speed_benchmark(*, n_points=10_000, size=1024, repeat=3, quick=False, subset=21, seed=0):
-    """Print POI/s, RMSE and peak memory per method; return 0."""
+    """Print POI/s, RMSE, wrong-but-ok points and peak memory per method, with ratios to OpenCV; return 0."""
     import numba
 
     from dic import measure
     from dic.subpixel import icgn
 
+    unseeded_points = UNSEEDED_POINTS
     if quick:
-        n_points, size, repeat = min(n_points, 2_000), min(size, 512), 1
-    print(f"livedic bench speed: {size}x{size} 8-bit speckle, {n_points} points, subset {subset}, "
+        n_points, size, repeat, unseeded_points = min(n_points, 2_000), min(size, 512), 1, 2_025
+    print(f"livedic bench speed: {size}x{size} 8-bit speckle, subset {subset}, "
           f"{os.cpu_count()} CPU cores, numba {numba.__version__} ({numba.config.THREADING_LAYER} threading), "
           f"{platform.machine()}")
     started = time.perf_counter()
+    seeded_cases, unseeded_cases = _cases(quick)
+    header = (f"{'method':46s} {'POI/s':>10s} {'time s':>8s} {'RMSE px':>9s} {'ok %':>6s} {'wrong ok':>8s} "
+              f"{'peak MB':>8s}")
+    summaries = []
+
+    def run_job(title, reference, deformed, points, truth, baseline_label, baseline, rows):
+        print()
+        print(f"{title}: {len(points)} points")
+        print(header)
+        print("-" * len(header))
+        results = []
+
+        def report(label, seconds, result_errors, peak):
+            rmse, ok_fraction, wrong = result_errors
+            rate = len(points) / seconds
+            results.append(dict(method=label, poi_per_s=rate, seconds=seconds, rmse=rmse, ok=ok_fraction,
+                                wrong_ok=wrong, peak_mb=peak))
+            print(f"{label:46s} {rate:10.0f} {seconds:8.3f} {rmse:9.4f} {100 * ok_fraction:6.1f} {wrong:8d} "
+                  f"{peak:8.0f}", flush=True)
+
+        seconds, (u, v, ok), peak = _time_best(baseline, repeat)
+        report(baseline_label, seconds, _errors(u, v, ok, truth), peak)
+        for label, call in rows:
+            seconds, result, peak = _time_best(call, repeat)
+            report(label, seconds, _errors(result.u, result.v, result.ok, truth), peak)
+        base = results[0]
+        print(f"relative to {base['method']} (same run):")
+        for row in results[1:]:
+            print(f"  {row['method']:46s} {row['poi_per_s'] / base['poi_per_s']:6.2f} x throughput   "
+                  f"RMSE {row['rmse'] / base['rmse']:5.2f} x ({row['rmse']:.4f} vs {base['rmse']:.4f} px)")
+        summaries.append((title, results))
+        return results
+
+    # --- seeded
     reference, deformed, points, truth = make_job(size=size, n_points=n_points, subset=subset, seed=seed)
-    print(f"images rendered in {time.perf_counter() - started:.1f} s")
     rng = np.random.default_rng(seed)
     angle = rng.uniform(0, 2 * np.pi, len(points))
     offset = SEEDED_OFFSET_PX * np.sqrt(rng.uniform(0, 1, len(points)))
-    seeded_guess = truth + np.column_stack([offset * np.cos(angle), offset * np.sin(angle)])
-    guesses = {"seeded": seeded_guess, "unseeded": np.zeros_like(truth)}
-
-    rows = []
-    header = f"{'method':44s} {'job':9s} {'POI/s':>10s} {'time s':>8s} {'RMSE px':>9s} {'ok %':>6s} {'peak MB':>8s}"
-    print(header)
-    print("-" * len(header))
-
-    def report(label, job, seconds, rmse, ok_fraction, peak):
-        rate = len(points) / seconds
-        rows.append(dict(method=label, job=job, poi_per_s=rate, seconds=seconds, rmse=rmse, ok=ok_fraction, peak_mb=peak))
-        print(f"{label:44s} {job:9s} {rate:10.0f} {seconds:8.3f} {rmse:9.4f} {100 * ok_fraction:6.1f} {peak:8.0f}", flush=True)
-
-    lk_seconds, (lk_u, lk_v, lk_ok), lk_peak = _time_best(
-        _lucas_kanade(reference, deformed, points, seeded_guess), repeat)
-    report("opencv calcOpticalFlowPyrLK 21x21 L0", "seeded", lk_seconds, *_errors(lk_u, lk_v, lk_ok, truth), lk_peak)
-
+    guess = truth + np.column_stack([offset * np.cos(angle), offset * np.sin(angle)])
     half = subset // 2
     xs = points[:, 0].astype(np.int64)
     ys = points[:, 1].astype(np.int64)
@@ -169,25 +202,31 @@ def run_speed_benchmark(*, n_points=10_000, size=1024, repeat=3, quick=False, su
 
     def live_icgn():
         coefficients = icgn.prepare_target(def32)
-        return icgn.refine_prepared(prepared, coefficients, seeded_guess[:, 0].copy(), seeded_guess[:, 1].copy())
-    seconds, result, peak = _time_best(live_icgn, repeat)
-    report("icgn live (reference prepared once)", "seeded", seconds,
-           *_errors(result.u, result.v, result.status == 0, truth), peak)
+        return icgn.refine_prepared(prepared, coefficients, guess[:, 0].copy(), guess[:, 1].copy())
 
-    for label, job, search, subpixel, radius in _cases(quick):
-        guess = guesses[job]
-        def call(search=search, subpixel=subpixel, radius=radius, guess=guess):
-            return measure(reference, deformed, points, subset=subset, search=search, subpixel=subpixel,
-                           radius=radius, guess=guess, seed=seed)
-        seconds, result, peak = _time_best(call, repeat)
-        report(label, job, seconds, *_errors(result.u, result.v, result.ok, truth), peak)
+    def seeded_call(search, subpixel, radius):
+        return lambda: measure(reference, deformed, points, subset=subset, search=search, subpixel=subpixel,
+                               radius=radius, guess=guess, seed=seed)
 
-    by_name = {row["method"]: row for row in rows}
-    lk = by_name["opencv calcOpticalFlowPyrLK 21x21 L0"]
-    print()
-    print("throughput relative to OpenCV Lucas-Kanade on the same points (same run):")
-    for row in rows[1:]:
-        print(f"  {row['method']:44s} {row['poi_per_s'] / lk['poi_per_s']:6.2f} x   RMSE {row['rmse']:.4f} px vs LK {lk['rmse']:.4f} px")
+    live = ("icgn live (reference prepared once)", lambda: _Ok(live_icgn()))
+    seeded = run_job("seeded (guess within 2 px), shift (5.3, -7.6) px", reference, deformed, points, truth,
+                     "opencv calcOpticalFlowPyrLK 21x21 L0", _lucas_kanade(reference, deformed, points, guess),
+                     [live] + [(label, seeded_call(search, subpixel, radius))
+                               for label, search, subpixel, radius, _ in seeded_cases])
+    # --- unseeded
+    reference, deformed, points, truth = make_job(size=size, n_points=unseeded_points, subset=subset, seed=seed,
+                                                  shift=UNSEEDED_SHIFT)
+
+    def unseeded_call(search, subpixel, radius, guided):
+        return lambda: measure(reference, deformed, points, subset=subset, search=search, subpixel=subpixel,
+                               radius=radius, seed=seed, guided=guided)
+
+    run_job(f"unseeded (no guess), shift {UNSEEDED_SHIFT} px", reference, deformed, points, truth,
+            "opencv calcOpticalFlowPyrLK 21x21 L3 (pyramid)",
+            _lucas_kanade(reference, deformed, points, None, levels=3),
+            [(label, unseeded_call(search, subpixel, radius, guided))
+             for label, search, subpixel, radius, guided in unseeded_cases])
+    by_name = {row["method"]: row for row in seeded}
     improved = by_name.get("improved-wso r2 + improved-surface-fit")
     newton = by_name.get("improved-wso r2 + newton-raphson")
     if improved and newton:
@@ -195,3 +234,11 @@ def run_speed_benchmark(*, n_points=10_000, size=1024, repeat=3, quick=False, su
               f"{100 * improved['seconds'] / newton['seconds']:.1f} % (paper: 3.5 %)")
     print(f"total {time.perf_counter() - started:.0f} s")
     return 0
+
+
+class _Ok:
+    """A SubpixelResult seen as a Measurement (``ok`` from its status)."""
+
+    def __init__(self, result):
+        self.u, self.v = result.u, result.v
+        self.ok = result.status == 0

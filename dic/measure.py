@@ -211,6 +211,8 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
             return method.refine(reference, deformed, xs, ys, u0, v0, st, half, **{**options, **extra})
     if translation_only is None or not translation_only.any() or options.get("order", 1) == 0:
         refined = run(status)
+    elif subpixel == "icgn":
+        refined = run(status, order=np.where(translation_only, 0, 1))    # per-point shape function
     else:
         # one call per shape-function order; the other order's points are masked out of each
         first = run(np.where(translation_only, Status.BAD_GUESS, status).astype(np.int8))

@@ -44,38 +44,45 @@ from dic.status import FLAT_TARGET, OK, OUTSIDE_TARGET
 MIN_COARSE_HALF = 3
 
 
+@njit(cache=True, inline="always")
+def _mirror(k, n):
+    """Index k reflected into [0, n) (whole-sample symmetric, as the B-spline prefilter)."""
+    if k < 0:
+        k = -k
+    elif k >= n:
+        k = 2 * (n - 1) - k
+    return min(max(k, 0), n - 1)
+
+
 @njit(cache=True, parallel=True, nogil=True)
 def _reduce(image, out):
-    """Burt-Adelson REDUCE: 5-tap binomial filter along both axes, keep every second pixel (mirror edges)."""
+    """Burt-Adelson REDUCE: 5-tap binomial (1 4 6 4 1)/16 along both axes, every second pixel kept."""
     height, width = image.shape
     oh, ow = out.shape
     rows = np.empty((height, ow), dtype=np.float32)
+    inner_lo = 1                              # first output column whose taps 2j-2..2j+2 are all inside
+    inner_hi = max(min(ow, (width - 3) // 2 + 1), inner_lo)
     for r in prange(height):
         for j in range(ow):
             c = 2 * j
-            acc = 0.0
-            for m in range(-2, 3):
-                k = c + m
-                if k < 0:
-                    k = -k
-                elif k >= width:
-                    k = 2 * (width - 1) - k
-                w = 6.0 if m == 0 else (4.0 if m * m == 1 else 1.0)
-                acc += w * image[r, max(min(k, width - 1), 0)]
-            rows[r, j] = acc / 16.0
+            if inner_lo <= j < inner_hi:
+                rows[r, j] = (image[r, c - 2] + image[r, c + 2] + 4.0 * (image[r, c - 1] + image[r, c + 1])
+                              + 6.0 * image[r, c]) * 0.0625
+            else:
+                rows[r, j] = (image[r, _mirror(c - 2, width)] + image[r, _mirror(c + 2, width)]
+                              + 4.0 * (image[r, _mirror(c - 1, width)] + image[r, _mirror(c + 1, width)])
+                              + 6.0 * image[r, c]) * 0.0625
     for i in prange(oh):
         c = 2 * i
-        for j in range(ow):
-            acc = 0.0
-            for m in range(-2, 3):
-                k = c + m
-                if k < 0:
-                    k = -k
-                elif k >= height:
-                    k = 2 * (height - 1) - k
-                w = 6.0 if m == 0 else (4.0 if m * m == 1 else 1.0)
-                acc += w * rows[max(min(k, height - 1), 0), j]
-            out[i, j] = acc / 16.0
+        if c >= 2 and c + 2 < height:
+            for j in range(ow):
+                out[i, j] = (rows[c - 2, j] + rows[c + 2, j] + 4.0 * (rows[c - 1, j] + rows[c + 1, j])
+                             + 6.0 * rows[c, j]) * 0.0625
+        else:
+            m2, m1, p1, p2 = _mirror(c - 2, height), _mirror(c - 1, height), _mirror(c + 1, height), \
+                _mirror(c + 2, height)
+            for j in range(ow):
+                out[i, j] = (rows[m2, j] + rows[p2, j] + 4.0 * (rows[m1, j] + rows[p1, j]) + 6.0 * rows[c, j]) * 0.0625
 
 
 def build_pyramid(image, levels):

@@ -197,18 +197,18 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
     n = side * side
     flat = reference.reshape(-1)      # unsigned flat indices: no negative-index fix-up, loops vectorise
     wu = np.uint64(width)
+    # one pass for the sum and the sum of squares: the values are grey levels (<= 65535), so in
+    # float64 sum(f^2) - n mean^2 keeps ~6 significant digits where the subset has texture at all
     total = 0.0
+    total_sq = 0.0
     for dy in range(-half, half + 1):
         o = np.uint64((y + dy) * width + x - half)
         for i in range(side):
-            total += flat[o + np.uint64(i)]
+            f = np.float64(flat[o + np.uint64(i)])
+            total += f
+            total_sq += f * f
     mean = total / n
-    sq = 0.0
-    for dy in range(-half, half + 1):
-        o = np.uint64((y + dy) * width + x - half)
-        for i in range(side):
-            d = flat[o + np.uint64(i)] - mean
-            sq += d * d
+    sq = max(total_sq - total * mean, 0.0)
     if sq <= _FLAT * n * (1.0 + mean * mean):
         return _FLAT_REFERENCE, np.nan, 0.0
     norm = np.sqrt(sq)
@@ -217,6 +217,10 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
         mom[m] = 0.0
     sum_f = 0.0
     inv_norm = 1.0 / norm
+    # float32 arithmetic on the float32 image (8 lanes a vector); what is stored is float32 anyway
+    twelfth = _F32(1.0 / 12.0)
+    mean32 = _F32(mean)
+    inv_norm32 = _F32(inv_norm)
     for dy in range(-half, half + 1):
         r = y + dy
         k0 = (dy + half) * lanes
@@ -226,11 +230,11 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
             for i in range(side):
                 c = o + np.uint64(i)
                 k = ku + np.uint64(i)
-                fx[k] = np.float32(((flat[c - np.uint64(2)] - flat[c + np.uint64(2)])
-                                    + 8.0 * (flat[c + np.uint64(1)] - flat[c - np.uint64(1)])) * (1.0 / 12.0))
-                fy[k] = np.float32(((flat[c - 2 * wu] - flat[c + 2 * wu])
-                                    + 8.0 * (flat[c + wu] - flat[c - wu])) * (1.0 / 12.0))
-                fhat[k] = np.float32((flat[c] - mean) * inv_norm)
+                fx[k] = ((flat[c - np.uint64(2)] - flat[c + np.uint64(2)])
+                         + _F32(8.0) * (flat[c + np.uint64(1)] - flat[c - np.uint64(1)])) * twelfth
+                fy[k] = ((flat[c - 2 * wu] - flat[c + 2 * wu])
+                         + _F32(8.0) * (flat[c + wu] - flat[c - wu])) * twelfth
+                fhat[k] = (flat[c] - mean32) * inv_norm32
         else:
             for i in range(side):
                 c = x - half + i
