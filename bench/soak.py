@@ -155,6 +155,7 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     import numpy as np
 
     from acquire.mcap_replay import inspect_recording
+    from dic.quality import Gates
     from acquire.synthetic import SyntheticTensileSource
     from dic.tracking import Tracker
     from stream import recording_schema as rs
@@ -210,7 +211,8 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
         metadata = {"command": "livedic bench soak", "source_uri": uri, "source_settings": dict(source.settings),
                     "roi": list(roi), "n_points_wanted": n_points, "subset": args.subset, "search": search,
                     "subpixel": subpixel, "seed_radius": args.seed_radius, "refind_radius": args.refind_radius,
-                    "refind_zncc": args.refind_zncc, "seed": args.seed, "queue_size": queue,
+                    "refind_zncc": args.refind_zncc, "min_zncc": args.min_zncc, "seed": args.seed,
+                    "queue_size": queue,
                     "drop_policy": DROP_OLDEST, "point_ids": "P0 is point 0", "threads": threads}
         errors = []
         recorder = Recorder(record_path, metadata, start_time_ns=0, on_error=errors.append)
@@ -226,7 +228,7 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
             session["points"] = len(points)
             return Tracker(frame.image, points, subset=args.subset, search=search, subpixel=subpixel,
                            seed_radius=args.seed_radius, refind_radius=args.refind_radius,
-                           refind_zncc=args.refind_zncc, seed=args.seed)
+                           refind_zncc=args.refind_zncc, seed=args.seed, gates=Gates(min_zncc=args.min_zncc))
 
         def record_results(res, stats):          # what ``livedic run`` records for each result
             m = res.measurement

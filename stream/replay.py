@@ -56,6 +56,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dic.quality import Gates
+
 from stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
                            read_session_or_note, reader_notes, result_columns, say)
 
@@ -67,7 +69,7 @@ from stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_out
 ROUNDING_TOLERANCE_PX = 1e-4
 ROUNDING_TOLERANCE_ZNCC = 1e-6
 
-METHOD_KEYS = ("subset", "search", "subpixel", "seed_radius", "refind_radius", "refind_zncc", "seed")
+METHOD_KEYS = ("subset", "search", "subpixel", "seed_radius", "refind_radius", "refind_zncc", "min_zncc", "seed")
 _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
 
 
@@ -84,6 +86,7 @@ def add_replay_arguments(parser):
     method.add_argument("--seed-radius", type=int, metavar="R", help="search radius around the previous result, px")
     method.add_argument("--refind-radius", type=int, metavar="R", help="search radius for re-finding lost points, px")
     method.add_argument("--refind-zncc", type=float, metavar="Z", help="re-find points whose ZNCC falls below Z")
+    method.add_argument("--min-zncc", type=float, metavar="Z", help="a point is ok only if its ZNCC is at least Z")
     method.add_argument("--seed", type=int, help="seed of the stochastic searches")
     points = parser.add_argument_group("point options (default: the recorded points)")
     where = points.add_mutually_exclusive_group()
@@ -121,7 +124,7 @@ def _recorded_value(key, value):
         if isinstance(value, float) and value.is_integer():
             return int(value)
         return None
-    if key == "refind_zncc":
+    if key in ("refind_zncc", "min_zncc"):
         return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
     return value if isinstance(value, str) and value else None
 
@@ -170,8 +173,9 @@ def check_parameters(params, threads=None):
     for name in ("seed_radius", "refind_radius"):
         if params[name] < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {params[name]}")
-    if not -1.0 <= params["refind_zncc"] <= 1.0:
-        raise ValueError(f"--refind-zncc must be between -1 and 1, got {params['refind_zncc']}")
+    for name in ("refind_zncc", "min_zncc"):
+        if not -1.0 <= params[name] <= 1.0:
+            raise ValueError(f"--{name.replace('_', '-')} must be between -1 and 1, got {params[name]}")
     if threads is not None:
         import numba
         if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
@@ -503,7 +507,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
                         tracker = Tracker(frame.image, points, subset=params["subset"], search=params["search"],
                                           subpixel=params["subpixel"], seed_radius=params["seed_radius"],
                                           refind_radius=params["refind_radius"],
-                                          refind_zncc=params["refind_zncc"], seed=params["seed"])
+                                          refind_zncc=params["refind_zncc"], seed=params["seed"],
+                                          gates=Gates(min_zncc=params["min_zncc"]))
                         report.points = tracker.n_points
                         report.same_points = recorded_xy is not None and recorded_xy.shape == (tracker.n_points, 2) \
                             and np.array_equal(recorded_xy[:, 0], tracker.x) \

@@ -38,6 +38,8 @@ from datetime import datetime
 
 import numpy as np
 
+from dic.quality import MIN_ZNCC, Gates
+
 DEFAULT_SOURCE = "synthetic:tensile"
 DEFAULT_POINTS = 1000
 # Points a live session tracks at most unless --max-points says otherwise: 20,000 points take ~140 MB in
@@ -86,6 +88,9 @@ def add_run_arguments(parser):
                         help="search radius for re-finding lost points, pixels (default 16)")
     parser.add_argument("--refind-zncc", type=float, default=0.8, metavar="Z",
                         help="re-find points whose ZNCC falls below Z (default 0.8)")
+    parser.add_argument("--min-zncc", type=float, default=MIN_ZNCC, metavar="Z",
+                        help=f"a point is ok only if its ZNCC is at least Z (default {MIN_ZNCC}); the other quality "
+                             "gates (texture, neighbours, border) always apply")
     parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
     record = parser.add_mutually_exclusive_group()
     record.add_argument("--record", metavar="FILE.mcap",
@@ -182,6 +187,8 @@ def _check_args(args):
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0")
     if not -1.0 <= args.refind_zncc <= 1.0:
         raise ValueError(f"--refind-zncc must be between -1 and 1, got {args.refind_zncc}")
+    if not -1.0 <= args.min_zncc <= 1.0:
+        raise ValueError(f"--min-zncc must be between -1 and 1, got {args.min_zncc}")
     import numba
     if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
         raise ValueError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {args.threads}")
@@ -498,7 +505,7 @@ def _warm_up(args):
     shifted = np.roll(image, (1, 2), axis=(0, 1))
     tracker = Tracker(image, [(48.0, 48.0), (40.0, 52.0)], subset=min(args.subset, 31), search=args.search,
                       subpixel=args.subpixel, seed_radius=args.seed_radius, refind_radius=8,
-                      refind_zncc=args.refind_zncc, seed=args.seed)
+                      refind_zncc=args.refind_zncc, seed=args.seed, gates=Gates(min_zncc=args.min_zncc))
     tracker.track(image)
     tracker.track(shifted)
     tracker.track(np.roll(image, (9, -7), axis=(0, 1)))   # exercises the re-find path
@@ -780,7 +787,8 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             "points_file": args.points, "p0": list(p0_choice.xy), "p0_choice": p0_choice.describe(),
             "subset": args.subset,
             "search": args.search, "subpixel": args.subpixel, "seed_radius": args.seed_radius,
-            "refind_radius": args.refind_radius, "refind_zncc": args.refind_zncc, "seed": args.seed,
+            "refind_radius": args.refind_radius, "refind_zncc": args.refind_zncc, "min_zncc": args.min_zncc,
+            "seed": args.seed,
             "queue_size": args.queue, "drop_policy": policy, "point_ids": "P0 is point 0",
             "threads": args.threads, "reconnect": args.reconnect, "reconnect_timeout_s": args.reconnect_timeout,
         }
@@ -809,7 +817,7 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
                 p0=p0_choice.xy, points=given_points)
             tracker = Tracker(frame.image, points, subset=args.subset, search=args.search, subpixel=args.subpixel,
                               seed_radius=args.seed_radius, refind_radius=args.refind_radius,
-                              refind_zncc=args.refind_zncc, seed=args.seed)
+                              refind_zncc=args.refind_zncc, seed=args.seed, gates=Gates(min_zncc=args.min_zncc))
             session.update(points=points, roi=roi_used, step=step_used, shape=frame.image.shape)
             note = (f"reference frame {frame.index}: {len(points)} points"
                     + (f", grid step {step_used} px over ROI {','.join(map(str, roi_used))}" if given_points is None
