@@ -5,10 +5,12 @@ import os
 
 import numpy as np
 
-from bench._paper_runs import LABELS, REFERENCE_SEARCH, SEARCHES, SUBPIXELS
+from bench._paper_runs import LABELS, RADIUS_LABELS, RADIUS_SEARCHES, REFERENCE_SEARCH, SEARCHES, SUBPIXELS
 
 COLOURS = {
     "exhaustive": "0.45",
+    "fft-cc": "0.2",
+    "improved-wso (paper)": "tab:pink",
     "coarse-fine": "tab:blue",
     "pso": "tab:orange",
     "wso": "tab:green",
@@ -19,7 +21,8 @@ COLOURS = {
     "improved-surface-fit": "tab:red",
     "icgn": "tab:purple",
 }
-MARKERS = {"coarse-fine": "s", "pso": "^", "wso": "v", "improved-wso": "o", "exhaustive": "x",
+MARKERS = {"coarse-fine": "s", "pso": "^", "wso": "v", "improved-wso": "o", "exhaustive": "x", "fft-cc": "+",
+           "improved-wso (paper)": "P",
            "surface-fit": "s", "gradient": "^", "newton-raphson": "v", "improved-surface-fit": "o", "icgn": "D"}
 
 
@@ -121,6 +124,13 @@ def draw_all(results, cfg, out):
                        "measure_us_per_point", "measure_pct_of_nr", "paper_s", "paper_pct_of_nr"])
             save(_table1(plt, rows), "table1_time.png")
             written["table1"].append("table1_time.csv")
+
+    if "radius" in results:
+        write_csv(os.path.join(out, "fig_radius.csv"), results["radius"]["rows"],
+                  ["radius", "generator", "sigma", "method", "n", "success_pct", "misses", "evaluations",
+                   "us_per_point", "shift_u", "shift_v"])
+        save(_fig_radius(plt, results["radius"]["summary"]), "fig_radius.png")
+        written["fig"].append("fig_radius.csv")
 
     fields = [results[k] for k in ("field_clean", "field_noisy") if k in results]
     if fields:
@@ -375,4 +385,27 @@ def _fig12(plt, block):
     bar.set_label(f"u, px (true {s:g}); common scale")
     fig.suptitle(f"Fig 12: u field at translation ({s:g}, 0) px, {_noise_title(block['sigma'])}; "
                  f"{side} x {side} points. Top: common colour scale; bottom: each method's error on its own scale")
+    return fig
+
+
+def _fig_radius(plt, summary):
+    """Success (all generators and noise levels pooled) and evaluations per point against the search radius."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.8))
+    for method in RADIUS_SEARCHES:
+        rows = [r for r in summary if r["method"] == method]
+        if not rows:
+            continue
+        radii = [r["radius"] for r in rows]
+        style = dict(color=COLOURS.get(method, "k"), marker=MARKERS.get(method, "o"), label=RADIUS_LABELS[method])
+        left.plot(radii, [r["success_pct"] for r in rows], **style)
+        right.plot(radii, [r["evaluations"] for r in rows], **style)
+    left.set_xlabel("search radius (px)")
+    left.set_ylabel("success (% same integer as exhaustive)")
+    left.set_title("integer search success vs radius")
+    right.set_xlabel("search radius (px)")
+    right.set_ylabel("distinct ZNCC evaluations per point")
+    right.set_yscale("log")
+    right.set_title("cost vs radius")
+    right.legend(loc="upper left")
+    fig.suptitle("all generators (simulator R = 2, 4, 5, FFT noise, sparse dots, discs), noise-free and sigma = 2")
     return fig

@@ -529,3 +529,108 @@ def run_measure_timing(cfg, images, log):
                            max_abs_u=float(np.max(np.abs(err))) if err.size else float("nan"))
     return dict(methods=out, n_points=n, displacements=[round(s, 6) for s in displacements],
                 failed_methods=guard.failed)
+
+
+# --------------------------------------------------------------------------- radius study (beyond the paper)
+
+# Every search, plus the improved WSO as the paper describes it (no pyramid), at growing radii.
+RADIUS_SEARCHES = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso", "improved-wso (paper)")
+# The exhaustive search costs (2r + 1)^2 subset correlations a point: timed on this many points only.
+EXHAUSTIVE_SAMPLE = 64
+RADIUS_LABELS = {"exhaustive": "exhaustive", "fft-cc": "FFT-CC", "coarse-fine": "coarse-fine", "pso": "PSO",
+                 "wso": "WSO (original)", "improved-wso": "improved WSO (pyramid)",
+                 "improved-wso (paper)": "improved WSO (paper literal)"}
+RADIUS_GENERATORS = ("simulator R=4", "simulator R=2", "simulator R=5", "fft-filtered noise", "sparse dots",
+                     "hard discs R=3")
+
+
+def radius_pair(generator, size, shift, sigma, seed):
+    """Reference and deformed 8-bit images of one generator (``bench.patterns`` or ``dic.speckle``)."""
+    from bench import patterns
+    from dic.speckle import SpecklePattern, render
+
+    if generator.startswith("simulator"):
+        r = float(generator.split("R=")[1])
+        # the paper's coverage at any speckle size: 1000 speckles of R = 4 per 256^2
+        pattern = SpecklePattern((size, size), density=1000 / 256 ** 2 * (4.0 / r) ** 2, radius=r, seed=seed)
+        return (render(pattern, bit_depth=8, noise_sigma=sigma, noise_seed=noise_seed(seed, 1)),
+                render(pattern, shift, bit_depth=8, noise_sigma=sigma, noise_seed=noise_seed(seed, 2)))
+    make = {"fft-filtered noise": patterns.fft_blurred, "sparse dots": patterns.sparse_dots,
+            "hard discs R=3": lambda shape, s, seed: patterns.hard_discs(shape, s, radius=3.0, seed=seed)}[generator]
+    a, b = make((size, size), shift, seed=seed)
+    return (patterns.to_8bit(a, sigma, noise_seed(seed, 1)), patterns.to_8bit(b, sigma, noise_seed(seed, 2)))
+
+
+def run_radius(cfg, log):
+    """Success, evaluations and time of every integer search at radii ``cfg.radius_study`` (module notes).
+
+    Per generator, radius and noise level: one image pair of ``cfg.radius_size``
+    px shifted by a random direction and a magnitude of 0.2..0.9 x the radius,
+    points every ``cfg.radius_step`` px where the whole box fits. Success = the
+    integer of the exhaustive search over the same box (computed by FFT-CC, which
+    ``tests/dic/test_search.py`` shows identical), counted over the points where
+    that integer is the true shift rounded (a dot-free subset of a sparse pattern
+    has no right answer to find).
+    """
+    from dic.search import integer_search
+    from dic.search.improved_wso import PAPER_LITERAL
+
+    rows = []
+    guard = Guard(log)
+    for radius in cfg.radius_study:
+        t0 = time.perf_counter()
+        for g, generator in enumerate(cfg.radius_generators):
+            for sigma in (0.0, cfg.noise_sigma):
+                rng = np.random.default_rng(noise_seed("radius", radius, g, sigma))
+                angle = rng.uniform(0.0, 2.0 * np.pi)
+                magnitude = radius * rng.uniform(0.2, 0.9)
+                shift = (round(magnitude * np.cos(angle), 3), round(magnitude * np.sin(angle), 3))
+                reference, deformed = radius_pair(generator, cfg.radius_size, shift, sigma, cfg.seed + g)
+                half = cfg.subset // 2
+                points = grid_points(half + radius + 4, cfg.radius_size - 1 - half - radius - 4, cfg.radius_step)
+                kwargs = dict(subset=cfg.subset, radius=radius, seed=cfg.seed + radius)
+                truth, _ = guard.call("fft-cc", integer_search, reference, deformed, points, method="fft-cc",
+                                      **kwargs)
+                if truth is None:
+                    continue
+                # the true peak is one of the integers next to the shift (which, noise decides near .5)
+                real = (truth.status == 0) & (np.abs(truth.u - shift[0]) < 1.0) & (np.abs(truth.v - shift[1]) < 1.0)
+                for method in RADIUS_SEARCHES:
+                    options = PAPER_LITERAL if method == "improved-wso (paper)" else {}
+                    name = method.split(" ")[0]
+                    take = (slice(None, None, max(len(points) // EXHAUSTIVE_SAMPLE, 1)) if method == "exhaustive"
+                            else slice(None))
+                    found, elapsed = guard.call(method, integer_search, reference, deformed, points[take],
+                                                method=name, **kwargs, **options)
+                    if found is None:
+                        continue
+                    sel = real[take]
+                    hit = sel & (found.status == 0) & (found.u == truth.u[take]) & (found.v == truth.v[take])
+                    n = int(sel.sum())
+                    rows.append(dict(radius=radius, generator=generator, sigma=sigma, method=method, n=n,
+                                     success_pct=100.0 * hit.sum() / max(n, 1), misses=int(n - hit.sum()),
+                                     evaluations=float(found.evaluations[sel].mean()) if n else float("nan"),
+                                     us_per_point=1e6 * elapsed / len(points[take]), shift_u=shift[0],
+                                     shift_v=shift[1]))
+        iwso = [r for r in rows if r["radius"] == radius and r["method"] == "improved-wso"]
+        worst = min((r["success_pct"] for r in iwso), default=float("nan"))
+        log(f"  radius {radius:>2}: {len(cfg.radius_generators)} generators x 2 noise levels, improved WSO lowest "
+            f"success {worst:.2f} % ({time.perf_counter() - t0:.1f} s)")
+    return dict(rows=rows, failed_methods=guard.failed)
+
+
+def radius_summary(rows):
+    """Per (radius, method): searches, misses, success %, mean evaluations and time over generators and noise."""
+    out = []
+    for radius in sorted({r["radius"] for r in rows}):
+        for method in RADIUS_SEARCHES:
+            mine = [r for r in rows if r["radius"] == radius and r["method"] == method]
+            n = sum(r["n"] for r in mine)
+            if not n:
+                continue
+            out.append(dict(radius=radius, method=method, n=n, misses=sum(r["misses"] for r in mine),
+                            success_pct=100.0 * (n - sum(r["misses"] for r in mine)) / n,
+                            lowest_pct=min(r["success_pct"] for r in mine),
+                            evaluations=sum(r["evaluations"] * r["n"] for r in mine) / n,
+                            us_per_point=float(np.mean([r["us_per_point"] for r in mine]))))
+    return out

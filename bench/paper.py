@@ -71,6 +71,12 @@ class PaperConfig:
     fit_displacements: tuple = (0.2, 0.8)
     field_displacement: float = 0.5
     field_step: int = 4
+    # Radius study (not in the paper): every search at these radii on six pattern generators.
+    radius_study: tuple = (10, 16, 24, 32, 48)
+    radius_size: int = 512
+    radius_step: int = 7
+    radius_generators: tuple = ("simulator R=4", "simulator R=2", "simulator R=5", "fft-filtered noise",
+                                "sparse dots", "hard discs R=3")
 
     @classmethod
     def full(cls):
@@ -81,14 +87,16 @@ class PaperConfig:
         """Every figure and check with about a tenth of the points and coarser sweeps (CI, README)."""
         return cls(name="quick", int_patterns=1, int_step=17, int_displacements=tuple(range(1, 11)),
                    sub_displacements=_steps(0.1, 1.0, 0.1), sub_patterns=1, sub_step=16, timing_repeats=1,
-                   measure_every=3, fit_spacings=_steps(0.2, 2.0, 0.6), field_step=8)
+                   measure_every=3, fit_spacings=_steps(0.2, 2.0, 0.6), field_step=8, radius_size=384,
+                   radius_step=16, radius_generators=("simulator R=4", "sparse dots"))
 
     @classmethod
     def tiny(cls):
         """Plumbing check for the tests: every figure and check, a few dozen points each."""
         return cls(name="tiny", int_patterns=1, int_step=51, int_displacements=(1, 4, 7, 10),
                    sub_displacements=(0.2, 0.5, 0.8), sub_patterns=1, sub_step=24, timing_repeats=1,
-                   measure_every=3, fit_spacings=(0.2, 1.0, 2.0), field_step=24)
+                   measure_every=3, fit_spacings=(0.2, 1.0, 2.0), field_step=24, radius_study=(10, 32),
+                   radius_size=256, radius_step=40, radius_generators=("simulator R=4", "fft-filtered noise"))
 
 
 def run_paper_benchmark(output_dir, quick=False, *, config=None, log=None):
@@ -156,6 +164,18 @@ def run_paper_benchmark(output_dir, quick=False, *, config=None, log=None):
             value["cost"] = runs.cost_summary(value["rows"])
             results[f"integer_{_key(sigma)}"] = value
             _log_cost(log, value["cost"])
+
+    log(f"[radius study] every search at radii {', '.join(map(str, cfg.radius_study))} px, "
+        f"{len(cfg.radius_generators)} pattern generators, noise-free and sigma = {cfg.noise_sigma:g}")
+    value = stage("radius study", runs.run_radius, cfg, log)
+    note_failures("radius study", value)
+    if value is not None:
+        value["summary"] = runs.radius_summary(value["rows"])
+        results["radius"] = value
+        for row in value["summary"]:
+            log(f"  r = {row['radius']:>2} {runs.RADIUS_LABELS[row['method']]:<28} success {row['success_pct']:7.3f} % "
+                f"({row['misses']} misses in {row['n']})  {row['evaluations']:7.1f} evaluations  "
+                f"{row['us_per_point']:7.1f} us/pt")
 
     for sigma in sigmas:
         tag = _noise_tag(sigma)

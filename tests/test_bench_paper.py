@@ -13,10 +13,10 @@ import pytest
 from bench import _paper_runs as runs
 from bench.paper import PaperConfig, run_paper_benchmark
 
-FIGURES = ["fig09_success.png", "fig09_success_noise.png", "fig10_cost.png", "fig11_subpixel.png",
+FIGURES = ["fig09_success.png", "fig09_success_noise.png", "fig10_cost.png", "fig_radius.png", "fig11_subpixel.png",
            "fig11_subpixel_noise.png", "table1_time.png", "fig07_fitting_distance.png",
            "fig07_fitting_distance_noise.png", "fig12_u_field.png", "fig12_u_field_noise.png"]
-TABLES = ["fig09_success.csv", "fig10_cost.csv", "fig11_subpixel.csv", "fig11_icgn_noise_check.csv",
+TABLES = ["fig09_success.csv", "fig10_cost.csv", "fig_radius.csv", "fig11_subpixel.csv", "fig11_icgn_noise_check.csv",
           "table1_time.csv", "fig07_fitting_distance.csv", "fig12_u_field.csv", "results.json", "report.md"]
 
 
@@ -59,7 +59,7 @@ def test_report_embeds_every_figure_and_has_every_section(tiny_run):
 
 def test_accuracy_checks_are_all_evaluated(tiny_run):
     checks = tiny_run["results"]["checks"]
-    assert len(checks) == 8   # 5 targets of the issue, IC-GN on exact images (2), rounding-noise check
+    assert len(checks) == 9   # 5 targets of the issue, IC-GN on exact images (2), rounding-noise check, radius study
     assert all(c["result"] in ("PASS", "FAIL") for c in checks), checks
     for c in checks:
         assert f"**{c['result']}** {c['name']}" in tiny_run["report"]
