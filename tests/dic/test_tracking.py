@@ -148,3 +148,48 @@ def test_frame_of_another_size_raises():
     tracker = Tracker(image, [(32, 32)], search="none")
     with pytest.raises(ValueError, match="frames must keep the size"):
         tracker.track(image[:60])
+
+
+# --------------------------------------------------------------------------- quality gates while tracking
+
+def test_points_on_a_blank_background_are_never_ok_and_a_knock_is_not_trusted():
+    """The specimen (speckle) moves; the blank background beside it does not. Points on the background
+    are POOR_TEXTURE from the start; a point whose neighbours disagree after a sudden knock is
+    re-found from them, and every ok point is right (within 0.05 px)."""
+    from dic.speckle import SpecklePattern, render
+
+    pattern = SpecklePattern((200, 240), n_speckles=700, radius=4.0, seed=6)
+    rng = np.random.default_rng(2)
+
+    def frame(u, v):
+        image = 200.0 * render(pattern, (u, v), bit_depth=None)
+        image[:, 170:] = 60.0 + rng.normal(0, 1.0, (200, 70))      # static blank background on the right
+        return image
+
+    axis_x, axis_y = np.arange(30, 221, 12.0), np.arange(30, 171, 12.0)
+    points = np.column_stack([a.ravel() for a in np.meshgrid(axis_x, axis_y)])
+    background = points[:, 0] > 190
+    clear = points[:, 0] + 10 < 170 - 6                                 # subset clear of the edge, any motion
+    tracker = Tracker(frame(0, 0), points, subpixel="icgn")
+    assert np.all(tracker.track(frame(0, 0)).status[background] == Status.POOR_TEXTURE)
+    motion = [(0.3 * k, -0.2 * k) for k in range(1, 6)] + [(4.5, 3.2), (4.8, 3.0)]    # a knock at frame 6
+    for u, v in motion:
+        m = tracker.track(frame(u, v))
+        specimen = points[:, 0] + u < 150
+        err = np.hypot(m.u - u, m.v - v)
+        assert not m.ok[background].any()
+        assert np.all(err[m.ok & clear] < 0.05), (u, v)
+        assert m.ok[specimen].mean() > 0.95, (u, v)
+
+
+def test_gates_reject_a_wrong_but_converged_point():
+    """A point forced onto a wrong start (a side lobe) is flagged, not reported ok."""
+    source, frames = _translate_frames("frames=3&size=160x160&du=0.3&dv=-0.2&noise=1")
+    points = grid_in_roi(source.shape, source.suggested_roi, 14, 21)
+    tracker = Tracker(frames[0].image, points, search="none", subpixel="icgn", refind_fallback=None,
+                      refind_radius=0)
+    tracker.track(frames[1].image)
+    tracker._prev["u"][5] += 7.0          # as if the previous frame had gone wrong for this point
+    m = tracker.track(frames[2].image)
+    err = _errors(frames[2], m)
+    assert np.all(err[m.ok] < 0.05)
