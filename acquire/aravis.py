@@ -44,8 +44,8 @@ from urllib.parse import parse_qsl
 
 import numpy as np
 
-from acquire.base import Frame, FrameSource, SourceError
-from acquire.options import as_bool, as_float, as_int
+from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.acquire.options import as_bool, as_float, as_int
 
 __all__ = ["AravisCamera", "list_cameras", "open_uri", "parse_uri", "load_aravis",
            "SUPPORTED_PIXEL_FORMATS", "SCHEME"]

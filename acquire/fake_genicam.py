@@ -50,8 +50,8 @@ import time
 
 import numpy as np
 
-from acquire import aravis as _aravis
-from acquire.base import SourceError
+from livedic.acquire import aravis as _aravis
+from livedic.acquire.base import SourceError
 
 __all__ = ["SpeckleMotion", "InProcessFakeCamera", "GigEFakeCamera", "FillPattern", "GVCP_PORT"]
 
@@ -153,7 +153,7 @@ class SpeckleMotion:
         height, width = self.shape
         size = (height + 2 * margin, width + 2 * margin)
         if self.pattern == "dic":
-            from dic.speckle import SpecklePattern, render
+            from livedic.dic.speckle import SpecklePattern, render
             base = render(SpecklePattern(shape=size, radius=self.speckle_px, seed=self.seed),
                           displacement=(0.0, 0.0), bit_depth=self.bit_depth)
             return np.ascontiguousarray(base, self.dtype)
@@ -470,7 +470,7 @@ class GigEFakeCamera:
             env = dict(os.environ)
             env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
             self._process = subprocess.Popen(
-                [sys.executable, "-m", "acquire.fake_genicam", "--child"], stdin=subprocess.PIPE,
+                [sys.executable, "-m", "livedic.acquire.fake_genicam", "--child"], stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE, cwd=root, env=env, start_new_session=True)
             self._process.stdin.write(len(payload).to_bytes(8, "little") + payload)
             self._process.stdin.flush()

@@ -18,8 +18,8 @@ import os
 import re
 import time
 
-from acquire.base import Frame, FrameSource, SourceError
-from acquire.image_io import read_grey_image
+from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.acquire.image_io import read_grey_image
 
 __all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
 

@@ -44,8 +44,8 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from acquire.base import Frame, FrameSource, SourceError
-from stream import recording_schema as rs
+from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.stream import recording_schema as rs
 
 __all__ = ["McapSource", "RecordedEvent", "RecordedResults", "RecordingError", "RecordingInfo",
            "RecordingSourceError", "inspect_recording", "iter_results", "read_events", "read_results",
@@ -886,7 +886,7 @@ def recover(src, dst, *, overwrite=False, chunk_bytes=1 << 20, compression=None)
     """
     from mcap.writer import LIBRARY_IDENTIFIER
 
-    from stream.recorder import ChunkedWriter, software_version
+    from livedic.stream.recorder import ChunkedWriter, software_version
 
     src_path, dst_path = os.fspath(src), os.fspath(dst)
     if os.path.realpath(src_path) == os.path.realpath(dst_path) or (

@@ -28,8 +28,8 @@ from urllib.parse import parse_qsl
 
 import numpy as np
 
-from acquire.base import Frame, FrameSource, SourceError
-from acquire.options import as_bool, as_float, as_int
+from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.acquire.options import as_bool, as_float, as_int
 
 __all__ = ["OpenCVCapture", "VideoFile", "V4L2Camera", "open_uri", "GREY_PIXEL_FORMATS"]
 

@@ -12,7 +12,7 @@ Examples
 
 import math
 
-from acquire.base import SourceError
+from livedic.acquire.base import SourceError
 
 __all__ = ["parse_bool", "parse_number", "as_bool", "as_int", "as_float"]
 

@@ -17,7 +17,7 @@ override those in the query string. Malformed or unknown URIs raise
 
 from urllib.parse import parse_qsl
 
-from acquire.base import SourceError
+from livedic.acquire.base import SourceError
 
 SCHEMES = ("synthetic", "aravis", "v4l2", "video", "images", "mcap")
 
@@ -64,22 +64,22 @@ def open_source(uri, **options):
     scheme = parse_scheme(uri)
     uri = uri.strip()
     if scheme == "synthetic":
-        from acquire.synthetic import open_synthetic
+        from livedic.acquire.synthetic import open_synthetic
         return open_synthetic(uri, **options)
     if scheme == "aravis":
-        from acquire.aravis import open_uri
+        from livedic.acquire.aravis import open_uri
         return open_uri(uri, **options)
     if scheme in ("v4l2", "video"):
-        from acquire.opencv_capture import open_uri
+        from livedic.acquire.opencv_capture import open_uri
         return open_uri(uri, **options)
     if scheme == "images":
-        from acquire.image_sequence import open_uri
+        from livedic.acquire.image_sequence import open_uri
         return open_uri(uri, **options)
     return _open_mcap(uri, options)
 
 
 def _open_mcap(uri, options):
-    from acquire.mcap_replay import McapSource
+    from livedic.acquire.mcap_replay import McapSource
     path = uri[len("mcap:"):] if uri.lower().startswith("mcap:") else uri
     path, _, query = path.partition("?")
     if path.startswith("//"):
@@ -91,5 +91,5 @@ def _open_mcap(uri, options):
     unknown = sorted(set(merged) - {"realtime"})
     if unknown:
         raise SourceError(f"unknown mcap option(s) {', '.join(unknown)}: the only option is realtime=0|1")
-    from acquire.options import as_bool
+    from livedic.acquire.options import as_bool
     return McapSource(path, realtime=as_bool("realtime", merged.get("realtime", False)))

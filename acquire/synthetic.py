@@ -99,8 +99,8 @@ from functools import partial
 import numpy as np
 from numba import njit, prange
 
-from acquire.base import Frame, FrameSource, SourceError
-from acquire.options import parse_bool, parse_number
+from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.acquire.options import parse_bool, parse_number
 
 MODELS = ("tensile", "translate")
 _FULL_SCALE = {8: 255, 12: 4095}
@@ -576,7 +576,7 @@ class _PrerenderedSource(FrameSource):
         self._lock = threading.Lock()
         self._closed = False
         self.render_seconds = None
-        from dic.speckle import SpecklePattern
+        from livedic.dic.speckle import SpecklePattern
         self.pattern = SpecklePattern(self.shape, density=SPECKLE_DENSITY, radius=options["radius"],
                                       seed=options["seed"], margin=self._pattern_margin())
 
@@ -779,7 +779,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
         return (margin, margin, W - 2 * margin, H - 2 * margin)
 
     def _render(self, i):
-        from dic.speckle import render
+        from livedic.dic.speckle import render
         u, v = self.shift(i)
         intensity = render(self.pattern, (u, v) if (u or v) else None, bit_depth=None)
         image = _paint(intensity, float(self.full_scale)).astype(np.float32)

@@ -5,7 +5,7 @@ import os
 
 import numpy as np
 
-from bench._paper_runs import LABELS, RADIUS_LABELS, RADIUS_SEARCHES, REFERENCE_SEARCH, SEARCHES, SUBPIXELS
+from livedic.bench._paper_runs import LABELS, RADIUS_LABELS, RADIUS_SEARCHES, REFERENCE_SEARCH, SEARCHES, SUBPIXELS
 
 COLOURS = {
     "exhaustive": "0.45",

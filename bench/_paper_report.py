@@ -11,8 +11,8 @@ import os
 
 import numpy as np
 
-from bench._paper_figures import table1_rows
-from bench._paper_runs import LABELS, REFERENCE_SEARCH, SEARCHES, SUBPIXEL_MODULES, SUBPIXELS
+from livedic.bench._paper_figures import table1_rows
+from livedic.bench._paper_runs import LABELS, REFERENCE_SEARCH, SEARCHES, SUBPIXEL_MODULES, SUBPIXELS
 
 # The issue's accuracy targets.
 TARGET_IWSO_SUCCESS_PCT = 100.0
@@ -24,7 +24,7 @@ TARGET_NOISE_TOLERANCE = 0.10
 
 def write_all(results, cfg, out):
     """Write ``results.json`` and ``report.md``; return the PASS/FAIL lines."""
-    from bench.paper import save_json
+    from livedic.bench.paper import save_json
 
     checks = accuracy_checks(results)
     results["checks"] = checks
@@ -167,7 +167,7 @@ def _method_options():
     out = {}
     for method in (REFERENCE_SEARCH,) + SEARCHES:
         try:
-            module = importlib.import_module("dic.search." + method.replace("-", "_"))
+            module = importlib.import_module("livedic.dic.search." + method.replace("-", "_"))
             out[method] = dict(getattr(module, "DEFAULTS", {}))
         except Exception:  # noqa: BLE001 - reported as unknown
             out[method] = None
@@ -351,7 +351,7 @@ def _radius_section(results, cfg):
     block = results.get("radius")
     if not block:
         return ""
-    from bench._paper_runs import RADIUS_LABELS
+    from livedic.bench._paper_runs import RADIUS_LABELS
     rows = [[r["radius"], RADIUS_LABELS[r["method"]], r["n"], f"{r['success_pct']:.3f} %", f"{r['lowest_pct']:.2f} %",
              f"{r['evaluations']:.0f}", f"{r['us_per_point']:.0f}"] for r in block["summary"]]
     return ("## Radius study (beyond the paper): every search at radius 10-48 px\n\n"

@@ -18,11 +18,11 @@ REFERENCE_SEARCH = "exhaustive"
 QUANTISATION_SD = 1.0 / np.sqrt(12.0)
 SUBPIXELS = ("surface-fit", "gradient", "newton-raphson", "improved-surface-fit", "icgn")
 SUBPIXEL_MODULES = {
-    "surface-fit": "dic.subpixel.surface_fit",
-    "gradient": "dic.subpixel.gradient_method",
-    "newton-raphson": "dic.subpixel.newton_raphson",
-    "improved-surface-fit": "dic.subpixel.improved_surface_fit",
-    "icgn": "dic.subpixel.icgn",
+    "surface-fit": "livedic.dic.subpixel.surface_fit",
+    "gradient": "livedic.dic.subpixel.gradient_method",
+    "newton-raphson": "livedic.dic.subpixel.newton_raphson",
+    "improved-surface-fit": "livedic.dic.subpixel.improved_surface_fit",
+    "icgn": "livedic.dic.subpixel.icgn",
 }
 LABELS = {
     "exhaustive": "exhaustive",
@@ -67,7 +67,7 @@ class Images:
 
     def pattern(self, index):
         if index not in self._patterns:
-            from dic.speckle import SpecklePattern
+            from livedic.dic.speckle import SpecklePattern
             size = self.cfg.image_size
             self._patterns[index] = SpecklePattern((size, size), n_speckles=self.cfg.n_speckles,
                                                    radius=self.cfg.speckle_radius, seed=self.cfg.seed + index)
@@ -80,7 +80,7 @@ class Images:
         (the pattern's single factor, brightest reference pixel at 80 % of 255),
         noise added unrounded; 8/12/16: the simulator's rounded integer images.
         """
-        from dic.speckle import render
+        from livedic.dic.speckle import render
         pattern = self.pattern(index)
         cache_key = (index, displacement)
         if sigma == 0 and cache_key in self._clean:
@@ -157,9 +157,9 @@ def warm_up(cfg, log):
 
     Returns {method: error} for the methods that raised (they are skipped by the runs too).
     """
-    from dic import measure
-    from dic.search import integer_search
-    from dic.speckle import SpecklePattern, render
+    from livedic.dic import measure
+    from livedic.dic.search import integer_search
+    from livedic.dic.speckle import SpecklePattern, render
 
     start = time.perf_counter()
     pattern = SpecklePattern((96, 96), n_speckles=150, radius=cfg.speckle_radius, seed=12345)
@@ -231,7 +231,7 @@ def run_integer(cfg, images, sigma, log):
     inside the +-radius box whatever its direction; points on ``integer_points``.
     Returns {"rows": [per (method, d) dict], "points_per_pair": n}.
     """
-    from dic.search import integer_search
+    from livedic.dic.search import integer_search
 
     points = integer_points(cfg)
     methods = (REFERENCE_SEARCH,) + SEARCHES
@@ -365,7 +365,7 @@ def run_subpixel(cfg, images, sigma, log, *, repeats=1):
     within ``cfg.start_radius`` px (the same start for all methods); then each
     method's ``refine`` runs alone and is timed (best of ``repeats`` per pair).
     """
-    from dic.search import integer_search
+    from livedic.dic.search import integer_search
 
     points = subpixel_points(cfg, cfg.sub_step)
     half = cfg.subset // 2
@@ -470,7 +470,7 @@ def _noise_check(cfg, per_point, predictions, sigma):
 
 def run_field(cfg, images, sigma, log=None):
     """Fig 12: u over a dense grid of points at the translation (0.5, 0) px, per method."""
-    from dic.search import integer_search
+    from livedic.dic.search import integer_search
 
     s = cfg.field_displacement
     points = subpixel_points(cfg, cfg.field_step)
@@ -496,7 +496,7 @@ def run_measure_timing(cfg, images, log):
     Same pairs and points as the noise-free Fig 11 sweep (every
     ``cfg.measure_every``-th displacement), search radius ``cfg.search_radius``.
     """
-    from dic import measure
+    from livedic.dic import measure
 
     points = subpixel_points(cfg, cfg.sub_step)
     displacements = cfg.sub_displacements[::cfg.measure_every]
@@ -546,8 +546,8 @@ RADIUS_GENERATORS = ("simulator R=4", "simulator R=2", "simulator R=5", "fft-fil
 
 def radius_pair(generator, size, shift, sigma, seed):
     """Reference and deformed 8-bit images of one generator (``bench.patterns`` or ``dic.speckle``)."""
-    from bench import patterns
-    from dic.speckle import SpecklePattern, render
+    from livedic.bench import patterns
+    from livedic.dic.speckle import SpecklePattern, render
 
     if generator.startswith("simulator"):
         r = float(generator.split("R=")[1])
@@ -572,8 +572,8 @@ def run_radius(cfg, log):
     that integer is the true shift rounded (a dot-free subset of a sparse pattern
     has no right answer to find).
     """
-    from dic.search import integer_search
-    from dic.search.improved_wso import PAPER_LITERAL
+    from livedic.dic.search import integer_search
+    from livedic.dic.search.improved_wso import PAPER_LITERAL
 
     rows = []
     guard = Guard(log)

@@ -73,8 +73,8 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
 
     ``echo(text)`` receives what the session printed (its summary), when given.
     """
-    from stream.cli import build_parser
-    from stream.run import run_session
+    from livedic.stream.cli import build_parser
+    from livedic.stream.run import run_session
 
     tag = f"{n_points}-{search}-{subpixel}-{'rec' if record else 'norec'}-{'paced' if paced else 'unpaced'}"
     summary_path = os.path.join(workdir, f"{tag}.json")

@@ -120,9 +120,9 @@ def run_paper_benchmark(output_dir, quick=False, *, config=None, log=None):
         report and on the console; the other stages still ran). Accuracy checks
         that FAIL are reported in ``report.md``, not in the exit code.
     """
-    from bench import _paper_figures as figures
-    from bench import _paper_report as report
-    from bench import _paper_runs as runs
+    from livedic.bench import _paper_figures as figures
+    from livedic.bench import _paper_report as report
+    from livedic.bench import _paper_runs as runs
 
     cfg = config or (PaperConfig.quick() if quick else PaperConfig.full())
     log = log or _print
@@ -244,7 +244,7 @@ def _config_dict(cfg):
 
 
 def _log_cost(log, cost):
-    from bench._paper_runs import LABELS
+    from livedic.bench._paper_runs import LABELS
     for method, entry in cost.items():
         ratios = "  ".join(f"{entry[f'time_vs_{b}']:.2f}x {LABELS[b]}" for b in ("pso", "coarse-fine")
                            if f"time_vs_{b}" in entry)
@@ -253,7 +253,7 @@ def _log_cost(log, cost):
 
 
 def _log_subpixel(log, value):
-    from bench._paper_runs import LABELS, SUBPIXELS
+    from livedic.bench._paper_runs import LABELS, SUBPIXELS
     for method in SUBPIXELS:
         rows = [r for r in value["rows"] if r["method"] == method and r["n"]]
         if not rows:

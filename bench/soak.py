@@ -154,17 +154,17 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     import numba
     import numpy as np
 
-    from acquire.mcap_replay import inspect_recording
-    from dic.quality import Gates
-    from acquire.synthetic import SyntheticTensileSource
-    from dic.tracking import Tracker
-    from stream import recording_schema as rs
-    from stream.acquisition import AcquisitionThread
-    from stream.cli import build_parser
-    from stream.frame_queue import DROP_OLDEST, FrameQueue
-    from stream.recorder import Recorder
-    from stream.run import _check_args, _for_recording, _warm_up, build_points
-    from stream.tracker_loop import TrackerLoop
+    from livedic.acquire.mcap_replay import inspect_recording
+    from livedic.dic.quality import Gates
+    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.dic.tracking import Tracker
+    from livedic.stream import recording_schema as rs
+    from livedic.stream.acquisition import AcquisitionThread
+    from livedic.stream.cli import build_parser
+    from livedic.stream.frame_queue import DROP_OLDEST, FrameQueue
+    from livedic.stream.recorder import Recorder
+    from livedic.stream.run import _check_args, _for_recording, _warm_up, build_points
+    from livedic.stream.tracker_loop import TrackerLoop
 
     if frames < 2:
         raise ValueError(f"--frames must be >= 2, got {frames}")

@@ -36,7 +36,7 @@ UNSEEDED_RADIUS = 24
 
 def make_job(size=1024, n_points=10_000, subset=21, seed=0, shift=(5.3, -7.6)):
     """Reference, deformed, points, true (u, v) per point and the field parameters."""
-    from dic.speckle import SpecklePattern, affine, render
+    from livedic.dic.speckle import SpecklePattern, affine, render
 
     centre = ((size - 1) / 2.0, (size - 1) / 2.0)
     field = dict(u=shift[0], v=shift[1], ux=0.002, uy=0.0005, vx=-0.0005, vy=0.003)
@@ -144,8 +144,8 @@ def run_speed_benchmark(*, n_points=10_000, size=1024, repeat=3, quick=False, su
     """Print POI/s, RMSE, wrong-but-ok points and peak memory per method, with ratios to OpenCV; return 0."""
     import numba
 
-    from dic import measure
-    from dic.subpixel import icgn
+    from livedic.dic import measure
+    from livedic.dic.subpixel import icgn
 
     unseeded_points = UNSEEDED_POINTS
     if quick:

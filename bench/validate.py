@@ -45,8 +45,8 @@ def _grid(lo, hi, step):
 
 
 def _synthetic_pair(generator, shift, seed, *, contrast=None, noise=2.0):
-    from bench import patterns
-    from dic.speckle import SpecklePattern, render
+    from livedic.bench import patterns
+    from livedic.dic.speckle import SpecklePattern, render
 
     shape = (SIZE, SIZE)
     if generator == "simulator":
@@ -68,7 +68,7 @@ def _synthetic_pair(generator, shift, seed, *, contrast=None, noise=2.0):
 
 
 def _methods(quick):
-    from dic.measure import SEARCH_METHODS
+    from livedic.dic.measure import SEARCH_METHODS
     searches = [s for s in SEARCH_METHODS if s != "none"]
     if quick:
         searches = ["improved-wso", "pso"]
@@ -95,7 +95,7 @@ class _Table:
 
 
 def _synthetic(table, quick):
-    from dic import measure
+    from livedic.dic import measure
 
     generators = ("simulator", "fft-filtered", "sparse dots", "hard discs")
     shifts = SYNTHETIC_SHIFTS[:2] if quick else SYNTHETIC_SHIFTS
@@ -111,8 +111,8 @@ def _synthetic(table, quick):
 
 def low_contrast_floor(log, quick=False):
     """Lowest ZNCC of a correct (within 0.5 px) point on 50-grey-level, sigma-3 pairs (ZNCC gate off)."""
-    from dic import measure
-    from dic.quality import Gates
+    from livedic.dic import measure
+    from livedic.dic.quality import Gates
 
     lowest = 1.0
     points = _grid(40, SIZE - 41, 16 if quick else 8)
@@ -129,8 +129,8 @@ def low_contrast_floor(log, quick=False):
 
 
 def _sample3(table, data, methods):
-    from acquire.image_io import read_grey_image
-    from dic import measure
+    from livedic.acquire.image_io import read_grey_image
+    from livedic.dic import measure
 
     folder = os.path.join(data, "dicc1_sample3_translation", "images")
     reference = read_grey_image(os.path.join(folder, "Sample3 Reference.tif"))[0]
@@ -147,8 +147,8 @@ def _sample3(table, data, methods):
 
 
 def _sample12(table, data, methods):
-    from acquire.image_io import read_grey_image
-    from dic import measure
+    from livedic.acquire.image_io import read_grey_image
+    from livedic.dic import measure
 
     folder = os.path.join(data, "dicc1_sample12_oht_cfrp")
     images = sorted(glob.glob(os.path.join(folder, "images", "oht_cfrp_*.tiff")))
@@ -166,8 +166,8 @@ def _sample12(table, data, methods):
 
 
 def _stars(table, data, methods):
-    from acquire.image_io import read_grey_image
-    from dic import measure
+    from livedic.acquire.image_io import read_grey_image
+    from livedic.dic import measure
 
     folder = os.path.join(data, "dicc2_star")
     pairs = {"Star 1": ("star1_noisefree", "NoiseFree"), "Star 2": ("star2_noisy", "Noisy")}
@@ -191,7 +191,7 @@ def run_validate_benchmark(*, data=None, quick=False, log=print):
     import numba
     import platform
 
-    from dic.quality import MIN_ZNCC
+    from livedic.dic.quality import MIN_ZNCC
 
     started = time.perf_counter()
     log(f"livedic bench validate: {os.cpu_count()} CPU cores, numba {numba.__version__}, {platform.machine()}"

@@ -5,9 +5,9 @@ improved WSO), sub-pixel refinement (surface fit, gradient, Newton-Raphson,
 improved surface fit, IC-GN) and an exact speckle simulator. No I/O, no threads.
 """
 
-from dic.correlation import zncc
-from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
-from dic.result import Measurement
-from dic.status import Status
+from livedic.dic.correlation import zncc
+from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
+from livedic.dic.result import Measurement
+from livedic.dic.status import Status
 
 __all__ = ["measure", "zncc", "Measurement", "Status", "SEARCH_METHODS", "SUBPIXEL_METHODS"]

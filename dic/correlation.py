@@ -14,8 +14,8 @@ because ``sum(fhat) == 0`` the target mean cancels from the numerator.
 import numpy as np
 from numba import njit, prange
 
-from dic.status import Status
-from dic.validation import as_image, as_points, check_same_shape, check_subset
+from livedic.dic.status import Status
+from livedic.dic.validation import as_image, as_points, check_same_shape, check_subset
 
 # Relative variance below which a subset is "flat" (no texture to correlate).
 FLAT_VARIANCE = 1e-10

@@ -4,26 +4,26 @@ import importlib
 
 import numpy as np
 
-from dic import quality
-from dic.bspline import INTERPOLATION_MARGIN
-from dic.correlation import snap_points
-from dic.neighbours import neighbour_graph
-from dic.quality import Gates
-from dic.reliability_guided import ICGN_OPTIONS
-from dic.result import Measurement, SubpixelResult
-from dic.status import Status
-from dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
+from livedic.dic import quality
+from livedic.dic.bspline import INTERPOLATION_MARGIN
+from livedic.dic.correlation import snap_points
+from livedic.dic.neighbours import neighbour_graph
+from livedic.dic.quality import Gates
+from livedic.dic.reliability_guided import ICGN_OPTIONS
+from livedic.dic.result import Measurement, SubpixelResult
+from livedic.dic.status import Status
+from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
 SEARCH_METHODS = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso", "none")
 
 # Sub-pixel method -> (module, extra pixels its interpolation/fit needs beyond the subset).
 _SUBPIXEL = {
     "none": (None, 0),
-    "surface-fit": ("dic.subpixel.surface_fit", 1),
-    "gradient": ("dic.subpixel.gradient_method", 2),
-    "newton-raphson": ("dic.subpixel.newton_raphson", INTERPOLATION_MARGIN),
-    "improved-surface-fit": ("dic.subpixel.improved_surface_fit", 3),
-    "icgn": ("dic.subpixel.icgn", INTERPOLATION_MARGIN),
+    "surface-fit": ("livedic.dic.subpixel.surface_fit", 1),
+    "gradient": ("livedic.dic.subpixel.gradient_method", 2),
+    "newton-raphson": ("livedic.dic.subpixel.newton_raphson", INTERPOLATION_MARGIN),
+    "improved-surface-fit": ("livedic.dic.subpixel.improved_surface_fit", 3),
+    "icgn": ("livedic.dic.subpixel.icgn", INTERPOLATION_MARGIN),
 }
 SUBPIXEL_METHODS = tuple(_SUBPIXEL)
 # Sub-pixel methods that run a stochastic optimiser and so take the seed.
@@ -107,7 +107,7 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     radius = check_radius(radius)
     xy = as_points(points)
     xs, ys = snap_points(xy)
-    from dic.subpixel import icgn
+    from livedic.dic.subpixel import icgn
     icgn_options = dict(subpixel_options or {}) if subpixel == "icgn" else {}
     # IC-GN's reference data also give the texture gates (dic.quality.texture)
     prep = icgn.prepare_reference(reference, xs, ys, half, hessian=icgn_options.pop("hessian", "projected"))
@@ -165,7 +165,7 @@ def _solve(reference, deformed, prep, start, search, subpixel, radius, seed, sea
             # These methods work around an integer peak.
             u0, v0 = np.floor(u0 + 0.5), np.floor(v0 + 0.5)
     else:
-        from dic.search import search_points
+        from livedic.dic.search import search_points
         found = search_points(reference, deformed, xs, ys, start[:, 0], start[:, 1], half, radius,
                               search, seed=seed, margin=margin, options=search_options)
         u0 = found.u.astype(np.float64)
@@ -185,7 +185,7 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
     if module_name is None:
         ok_mask = status == Status.OK
         if from_guess:
-            from dic.correlation import _zncc_batch
+            from livedic.dic.correlation import _zncc_batch
             zncc = np.full(xs.shape[0], np.nan)
             st = np.zeros(xs.shape[0], dtype=np.int8)
             _zncc_batch(reference, deformed, xs, ys, np.where(ok_mask, u0, 0).astype(np.int64),
@@ -229,9 +229,9 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
 def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
             icgn_options, gates, texture, poor, translation_only, graph):
     """Reliability-guided measurement (``dic.reliability_guided``), then the chosen sub-pixel method."""
-    from dic.reliability_guided import guided_icgn
-    from dic.search import search_points
-    from dic.subpixel import icgn
+    from livedic.dic.reliability_guided import guided_icgn
+    from livedic.dic.search import search_points
+    from livedic.dic.subpixel import icgn
 
     xs, ys, half = prep.xs, prep.ys, prep.half
     coeffs = icgn.prepare_target(deformed)

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from dic.status import LOW_CORRELATION, OK, OUTLIER, POOR_TEXTURE
+from livedic.dic.status import LOW_CORRELATION, OK, OUTLIER, POOR_TEXTURE
 
 MIN_ZNCC = 0.5
 TEXTURE_FRACTION = 0.05

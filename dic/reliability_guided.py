@@ -41,8 +41,8 @@ measurement", Appl. Opt. 48(8):1535-1542 (2009), :DOI:`10.1364/AO.48.001535`.
 import numpy as np
 from numba import njit, prange
 
-from dic.status import LOW_CORRELATION, OK
-from dic.subpixel.icgn import _icgn_one, _scratch
+from livedic.dic.status import LOW_CORRELATION, OK
+from livedic.dic.subpixel.icgn import _icgn_one, _scratch
 
 SEEDS = 9
 MAX_TRIES = 3

@@ -40,14 +40,14 @@ reported with their status every frame and never searched.
 
 import numpy as np
 
-from dic import quality
-from dic.bspline import INTERPOLATION_MARGIN
-from dic.correlation import snap_points
-from dic.neighbours import neighbour_graph
-from dic.quality import Gates
-from dic.result import Measurement
-from dic.status import Status
-from dic.validation import as_image, as_points, check_radius, check_subset
+from livedic.dic import quality
+from livedic.dic.bspline import INTERPOLATION_MARGIN
+from livedic.dic.correlation import snap_points
+from livedic.dic.neighbours import neighbour_graph
+from livedic.dic.quality import Gates
+from livedic.dic.result import Measurement
+from livedic.dic.status import Status
+from livedic.dic.validation import as_image, as_points, check_radius, check_subset
 
 # IC-GN iteration cap used for tracking (dic.subpixel.icgn's own default is 10): measured here, a
 # few subsets of the tensile sequence need 16-40 iterations from the exact displacement with zero
@@ -236,7 +236,7 @@ class Tracker:
                  seed_radius=2, refind_radius=16, refind_zncc=0.8, refind_drop=0.05, refind_gradient=0.1,
                  refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
                  seed_search_options=None, subpixel_options=None, gates=Gates()):
-        from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+        from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
         if search not in SEARCH_METHODS:
             raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
         if subpixel not in SUBPIXEL_METHODS:
@@ -299,7 +299,7 @@ class Tracker:
                                         self._prep.status).astype(np.int8)
             texture = quality.texture(self._prep)
         else:
-            from dic.subpixel.icgn import prepare_reference
+            from livedic.dic.subpixel.icgn import prepare_reference
             texture = quality.texture(prepare_reference(self.reference, self._xs, self._ys, self.half))
         poor = texture.poor(gates) & (self._ref_status == Status.OK)
         self._ref_status[poor] = Status.POOR_TEXTURE
@@ -326,7 +326,7 @@ class Tracker:
         y0 = max(int(self._ys.min()) - reach, 0)
         x1 = min(int(self._xs.max()) + reach + 1, width)
         y1 = min(int(self._ys.max()) + reach + 1, height)
-        from dic.subpixel.icgn import prepare_reference
+        from livedic.dic.subpixel.icgn import prepare_reference
         window = np.ascontiguousarray(self.reference[y0:y1, x0:x1])
         self._prep = prepare_reference(window, self._xs - x0, self._ys - y0, self.half)
         self._window = (y0, y1, x0, x1)
@@ -353,7 +353,7 @@ class Tracker:
 
     def _reference_status(self):
         """OUTSIDE_REFERENCE / FLAT_REFERENCE per point, from the ZNCC of the reference with itself."""
-        from dic.correlation import _zncc_batch
+        from livedic.dic.correlation import _zncc_batch
         n = self._xs.shape[0]
         zncc = np.empty(n)
         status = np.empty(n, dtype=np.int8)
@@ -406,7 +406,7 @@ class Tracker:
         """Measure points ``idx`` from (start_u, start_v): search (unless "none") then sub-pixel."""
         if self._prep is not None:
             return self._measure_icgn(target, idx, start_u, start_v, search, radius, grads, options)
-        from dic.measure import measure
+        from livedic.dic.measure import measure
         points = np.column_stack([self.x[idx], self.y[idx]])
         guess = np.column_stack([start_u, start_v])
         return measure(self.reference, target, points, subset=self.subset, search=search,
@@ -414,7 +414,7 @@ class Tracker:
                        search_options=options, subpixel_options=self.subpixel_options or None, gates=None)
 
     def _measure_icgn(self, target, idx, start_u, start_v, search, radius, grads, options):
-        from dic.subpixel.icgn import refine_prepared
+        from livedic.dic.subpixel.icgn import refine_prepared
         n_all = self.n_points
         u0 = np.full(n_all, np.nan)
         v0 = np.full(n_all, np.nan)
@@ -426,7 +426,7 @@ class Tracker:
             status[idx] = Status.OK
             coeffs = self._target_coefficients()
         else:
-            from dic.search import search_points
+            from livedic.dic.search import search_points
             found = search_points(self.reference, target, self._xs[idx], self._ys[idx], start_u, start_v,
                                   self.half, radius, search, seed=self.seed, margin=INTERPOLATION_MARGIN,
                                   options=options)
@@ -541,7 +541,7 @@ class Tracker:
     def _from_neighbours(self, result, retry, weak):
         """IC-GN for the points ``retry`` from their best neighbour measured in this frame
         (``dic.reliability_guided.propagate``); returns the points still to search."""
-        from dic.reliability_guided import propagate
+        from livedic.dic.reliability_guided import propagate
         solved = result.ok & ~weak
         if not solved.any():
             return retry
@@ -583,7 +583,7 @@ class Tracker:
     def _target_coefficients(self):
         """B-spline coefficients of the current frame on the IC-GN window (computed once per window)."""
         if self._coeffs is None or self._coeffs[0] != self._window:
-            from dic.subpixel.icgn import prepare_target
+            from livedic.dic.subpixel.icgn import prepare_target
             y0, y1, x0, x1 = self._window
             self._coeffs = (self._window, prepare_target(np.ascontiguousarray(self._target[y0:y1, x0:x1])))
         return self._coeffs[1]

@@ -24,8 +24,8 @@ import threading
 import time
 from dataclasses import dataclass
 
-from acquire.base import Frame, SourceError
-from stream.frame_queue import QueueClosed
+from livedic.acquire.base import Frame, SourceError
+from livedic.stream.frame_queue import QueueClosed
 
 
 @dataclass(frozen=True)

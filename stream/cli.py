@@ -59,7 +59,7 @@ def main(argv=None):
     except Exception as error:  # noqa: BLE001 - turned into one line unless debugging
         if os.environ.get("LIVEDIC_DEBUG"):
             raise
-        from acquire.base import SourceLost
+        from livedic.acquire.base import SourceLost
         kind = _error_kind(error)
         print(f"livedic: error: {kind}{error}", file=sys.stderr)
         if isinstance(error, SourceLost):
@@ -77,7 +77,7 @@ def entry_point():
     standard streams). ``main()`` itself never does this: tests and scripts call it.
     """
     code = main()
-    aravis = sys.modules.get("acquire.aravis")
+    aravis = sys.modules.get("livedic.acquire.aravis")
     pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
     for thread in pending:
         thread.join(timeout=0.5)
@@ -91,7 +91,7 @@ def entry_point():
 
 
 def _error_kind(error):
-    from acquire.base import SourceError
+    from livedic.acquire.base import SourceError
     if isinstance(error, (ValueError, SourceError, FileNotFoundError, PermissionError, IsADirectoryError)):
         return ""
     return f"internal {type(error).__name__}: "
@@ -102,10 +102,10 @@ def build_parser():
         prog="livedic", description="Real-time digital image correlation: measure, track, record, replay.")
     commands = parser.add_subparsers(metavar="COMMAND")
 
-    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
-    from dic.quality import MIN_ZNCC
+    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic.quality import MIN_ZNCC
 
-    from stream.run import add_run_arguments, run_session
+    from livedic.stream.run import add_run_arguments, run_session
 
     run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
     add_run_arguments(run)
@@ -145,7 +145,7 @@ def build_parser():
     recover.add_argument("--overwrite", action="store_true", help="replace FIXED.mcap if it exists")
     recover.set_defaults(handler=_cmd_recover)
 
-    from stream.replay import add_replay_arguments
+    from livedic.stream.replay import add_replay_arguments
 
     replay = commands.add_parser("replay", help="re-run tracking offline on a recording's frames (CSV out)",
                                  description="Track a recording's frames again. Options not given are the "
@@ -225,8 +225,8 @@ def _add_method_options(parser, searches, subpixels, *, subpixel_default="improv
 def _cmd_measure(args):
     import numpy as np
 
-    from acquire.image_io import read_grey_image
-    from stream.csv_output import check_output_file, write_csv
+    from livedic.acquire.image_io import read_grey_image
+    from livedic.stream.csv_output import check_output_file, write_csv
 
     to_file = args.output not in (None, "-")
     if to_file:
@@ -248,7 +248,7 @@ def _cmd_measure(args):
     if args.progress != "off":
         in_place = args.progress == "on" or sys.stderr.isatty()
         progress = MeasureProgress(len(points), f"{args.search} + {args.subpixel}", in_place=in_place)
-    from dic.quality import Gates
+    from livedic.dic.quality import Gates
     if not -1.0 <= args.min_zncc <= 1.0:
         raise UsageError(f"--min-zncc must be between -1 and 1, got {args.min_zncc}")
     result = measure_with_progress(reference, deformed, points, subset=args.subset, search=args.search,
@@ -321,7 +321,7 @@ def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=
     """
     import time
 
-    from dic import measure
+    from livedic.dic import measure
 
     outcome = {}
 
@@ -427,7 +427,7 @@ def read_points_table(path):
 
 
 def _cmd_cameras(args):
-    from acquire.aravis import list_cameras
+    from livedic.acquire.aravis import list_cameras
 
     cameras = list_cameras(include_fake=args.fake)
     if not cameras:
@@ -442,7 +442,7 @@ def _cmd_cameras(args):
 
 
 def _cmd_recover(args):
-    from acquire.mcap_replay import recover
+    from livedic.acquire.mcap_replay import recover
 
     summary = recover(args.recording, args.output, overwrite=args.overwrite)
     state = "was cut short" if summary["truncated"] else "was complete"
@@ -453,27 +453,27 @@ def _cmd_recover(args):
 
 
 def _cmd_replay(args):
-    from stream.replay import replay_command
+    from livedic.stream.replay import replay_command
     return replay_command(args)
 
 
 def _cmd_export(args):
-    from stream.export import export_command
+    from livedic.stream.export import export_command
     return export_command(args)
 
 
 def _cmd_bench_paper(args):
-    from bench.paper import run_paper_benchmark
+    from livedic.bench.paper import run_paper_benchmark
     return run_paper_benchmark(args.output, quick=args.quick)
 
 
 def _cmd_bench_speed(args):
-    from bench.speed import run_speed_benchmark
+    from livedic.bench.speed import run_speed_benchmark
     return run_speed_benchmark(n_points=args.points, size=args.size, repeat=args.repeat, quick=args.quick)
 
 
 def _cmd_bench_live(args):
-    from bench.live import run_live_benchmark
+    from livedic.bench.live import run_live_benchmark
     if args.frames is not None and args.frames < 2:
         raise UsageError(f"--frames must be >= 2, got {args.frames}")
     if not args.fps > 0:
@@ -484,14 +484,14 @@ def _cmd_bench_live(args):
 
 
 def _cmd_bench_validate(args):
-    from bench.validate import run_validate_benchmark
+    from livedic.bench.validate import run_validate_benchmark
     if args.data is not None and not os.path.isdir(args.data):
         raise UsageError(f"--data {args.data} is not a folder: give the folder holding the DIC Challenge sets")
     return run_validate_benchmark(data=args.data, quick=args.quick, log=lambda line: print(line, flush=True))
 
 
 def _cmd_bench_soak(args):
-    from bench.soak import run_soak_benchmark
+    from livedic.bench.soak import run_soak_benchmark
     if args.frames < 2 or args.size < 64 or not args.fps > 0 or args.points < 1 or args.loop < 2:
         raise UsageError("--frames >= 2, --size >= 64, --fps > 0, --points >= 1 and --loop >= 2 please")
     result = run_soak_benchmark(frames=args.frames, size=args.size, fps=args.fps, n_points=args.points,

@@ -45,7 +45,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from stream.csv_output import AtomicFile, OutputError, check_output_file, check_output_folder, json_text
+from livedic.stream.csv_output import AtomicFile, OutputError, check_output_file, check_output_folder, json_text
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
 EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
@@ -54,7 +54,7 @@ EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
 EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json")
 EXPORT_KEY = "livedic.export"
 
-_READER_LOGGER = "acquire.mcap_replay"
+_READER_LOGGER = "livedic.acquire.mcap_replay"
 
 
 # ----------------------------------------------------------------------------- CSV text
@@ -165,7 +165,7 @@ def p0_point_id(metadata):
 
 def read_session_or_note(path):
     """(session metadata dict, note or ""): a recording without metadata gives {} and a note."""
-    from acquire.mcap_replay import RecordingError, read_session
+    from livedic.acquire.mcap_replay import RecordingError, read_session
     try:
         return read_session(path), ""
     except RecordingError as error:
@@ -196,7 +196,7 @@ def export_recording(path, directory, *, overwrite=False):
         ``directory`` is a file, a target exists without ``overwrite``, or the
         recording is missing, not MCAP, not livedic, or corrupt (``RecordingError``).
     """
-    from acquire.mcap_replay import iter_results, read_events
+    from livedic.acquire.mcap_replay import iter_results, read_events
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")

@@ -80,7 +80,7 @@ from datetime import datetime, timezone
 import numpy as np
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
-from stream import recording_schema as rs
+from livedic.stream import recording_schema as rs
 
 __all__ = ["ChunkedWriter", "Recorder", "software_version"]
 

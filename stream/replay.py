@@ -56,9 +56,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dic.quality import Gates
+from livedic.dic.quality import Gates
 
-from stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
+from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
                            read_session_or_note, reader_notes, result_columns, say)
 
 # A replay on another machine agrees within these (see the module notes). Rounding differences of the
@@ -75,7 +75,7 @@ _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
 
 def add_replay_arguments(parser):
     """Add the ``livedic replay`` arguments to an ``argparse`` (sub)parser."""
-    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
     parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     parser.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
     method = parser.add_argument_group("method options (default: the recorded value)")
@@ -109,7 +109,7 @@ def add_replay_arguments(parser):
 
 def run_defaults():
     """The ``livedic run`` defaults of the method options (and ``n_points``)."""
-    from stream.run import add_run_arguments
+    from livedic.stream.run import add_run_arguments
     parser = add_run_arguments(argparse.ArgumentParser(add_help=False))
     return {key: parser.get_default(key) for key in METHOD_KEYS + ("n_points",)}
 
@@ -160,7 +160,7 @@ def resolve_parameters(metadata, given, method_text=""):
 
 def check_parameters(params, threads=None):
     """ValueError (one line, as ``livedic run`` words it) for a bad method parameter."""
-    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
     if params["subset"] < 3 or params["subset"] % 2 == 0:
         raise ValueError(f"--subset must be an odd integer >= 3, got {params['subset']}")
     if params["search"] not in SEARCH_METHODS:
@@ -233,8 +233,8 @@ def build_replay_points(image, metadata, subset, options, recorded_xy):
     recording that does not give P0 as a point (older ones say "ROI centre") gets
     it placed on the reference ``image`` as ``livedic run`` places it now.
     """
-    from stream.cli import read_points_csv
-    from stream.run import build_points, choose_p0
+    from livedic.stream.cli import read_points_csv
+    from livedic.stream.run import build_points, choose_p0
     shape = image.shape
     defaults = run_defaults()
     given_points = None
@@ -367,7 +367,7 @@ class ReplayReport:
         if self.all_frames and self.extra_frames:
             return text + (f" ({self.extra_frames} frames the live run dropped were tracked too, so later frames "
                            f"start from other seeds)")
-        from stream.recorder import software_version
+        from livedic.stream.recorder import software_version
         version = software_version()
         if self.recorded_version and self.recorded_version != version:
             return text + (f" with the recorded parameters: recorded with livedic {self.recorded_version}, "
@@ -443,8 +443,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     SourceError
         The frames cannot be read (``RecordingSourceError``).
     """
-    from acquire.mcap_replay import McapSource, iter_results
-    from dic.tracking import Tracker
+    from livedic.acquire.mcap_replay import McapSource, iter_results
+    from livedic.dic.tracking import Tracker
 
     path = os.fspath(path)
     point_options = point_options or PointOptions()
@@ -550,7 +550,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
 
 def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
-    from stream.run import ProgressBar
+    from livedic.stream.run import ProgressBar
 
     check_output_csv(args.output, args.recording)
     given = {key: getattr(args, key) for key in METHOD_KEYS}

@@ -38,7 +38,7 @@ from datetime import datetime
 
 import numpy as np
 
-from dic.quality import MIN_ZNCC, Gates
+from livedic.dic.quality import MIN_ZNCC, Gates
 
 DEFAULT_SOURCE = "synthetic:tensile"
 DEFAULT_POINTS = 1000
@@ -51,7 +51,7 @@ RECORDINGS_DIR = "recordings"
 
 def add_run_arguments(parser):
     """Add the ``livedic run`` options to an ``argparse`` (sub)parser."""
-    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
     parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
                         help="frame source (default synthetic:tensile): synthetic:[tensile|translate][?opts], "
                              "aravis:[ID], v4l2:/dev/videoN, video:FILE, images:GLOB, mcap:FILE")
@@ -165,7 +165,7 @@ def parse_color_range(text):
 
 
 def _check_args(args):
-    from dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames must be >= 1, got {args.frames}")
     if args.subset < 3 or args.subset % 2 == 0:
@@ -270,7 +270,7 @@ class ProgressBar:
 # ----------------------------------------------------------------------------- points
 
 def _read_points(path):
-    from stream.cli import read_points_csv
+    from livedic.stream.cli import read_points_csv
     return read_points_csv(path)
 
 
@@ -280,7 +280,7 @@ def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
     P0 is ``p0`` or the ROI centre, snapped to a pixel; a grid point on the same
     pixel is not repeated.
     """
-    from dic.tracking import grid_in_roi, step_for_count
+    from livedic.dic.tracking import grid_in_roi, step_for_count
     height, width = shape
     if roi is None:
         roi = (0, 0, width, height)
@@ -498,7 +498,7 @@ def choose_p0(image, roi, subset, p0=None):
 
 def _warm_up(args):
     """Compile the numba kernels on a tiny image before the camera starts (cached: ~0.5 s later)."""
-    from dic.tracking import Tracker
+    from livedic.dic.tracking import Tracker
     rng = np.random.default_rng(0)
     import cv2
     image = cv2.GaussianBlur(rng.uniform(0, 255, (96, 96)).astype(np.float32), (0, 0), 2.0)
@@ -574,7 +574,7 @@ class _FirstFrameAhead:
     """
 
     def __init__(self, source, uri):
-        from acquire.base import SourceError
+        from livedic.acquire.base import SourceError
         self.source = source
         self._frames = iter(source)
         try:
@@ -596,7 +596,7 @@ class _FirstFrameAhead:
 
 def _check_outputs(args, record_path, viewer_mode, viewer_target):
     """``OutputError`` (one line) for an output that cannot be written, before anything starts."""
-    from stream.csv_output import check_output_file
+    from livedic.stream.csv_output import check_output_file
     if record_path:
         check_output_file(record_path, "--record" if args.record else "recording (--record FILE.mcap or "
                           "--no-record to change)", create_folders=True)
@@ -615,7 +615,7 @@ def check_viewer_reachable(url, timeout_s=1.0):
     import socket
     from urllib.parse import urlsplit
 
-    from stream.rerun_log import DEFAULT_PORT
+    from livedic.stream.rerun_log import DEFAULT_PORT
     try:
         parts = urlsplit(url)
         host = parts.hostname or "127.0.0.1"
@@ -678,7 +678,7 @@ def run_session(args):
         within ``--reconnect-timeout``); raised after the recording is closed and the
         summary printed.
     """
-    from stream.rerun_log import parse_viewer
+    from livedic.stream.rerun_log import parse_viewer
 
     roi_arg, p0_arg = _check_args(args)
     given_points = _read_points(args.points) if args.points else None
@@ -717,14 +717,14 @@ def _points_how(args, step):
 
 def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_target, viewer_note, show_progress,
          stem, say, interrupt):
-    from acquire.base import SourceError, SourceLost
-    from acquire.sources import open_source, parse_scheme
-    from dic.tracking import Tracker
-    from stream.acquisition import AcquisitionThread, Reconnect
-    from stream.csv_output import json_text, write_text_atomic
-    from stream.frame_queue import FrameQueue
-    from stream.rerun_log import RerunLogger
-    from stream.tracker_loop import TrackerLoop
+    from livedic.acquire.base import SourceError, SourceLost
+    from livedic.acquire.sources import open_source, parse_scheme
+    from livedic.dic.tracking import Tracker
+    from livedic.stream.acquisition import AcquisitionThread, Reconnect
+    from livedic.stream.csv_output import json_text, write_text_atomic
+    from livedic.stream.frame_queue import FrameQueue
+    from livedic.stream.rerun_log import RerunLogger
+    from livedic.stream.tracker_loop import TrackerLoop
 
     scheme = parse_scheme(args.source)
     if args.reconnect and scheme not in _CAMERA_SCHEMES:
@@ -747,7 +747,7 @@ def _run(args, roi_arg, p0_arg, given_points, record_path, viewer_mode, viewer_t
             import rerun  # noqa: F401
         if record_path:
             try:
-                import stream.recorder  # noqa: F401
+                import livedic.stream.recorder  # noqa: F401
             except ImportError:
                 pass                    # _open_recorder says so
         total = args.frames
@@ -1012,7 +1012,7 @@ def _default_roi(source):
 
 def _drop_policy(choice, source, scheme):
     """Queue policy: as chosen, or (auto) drop the oldest for live sources and block for files."""
-    from stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST
+    from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST
     if choice != "auto":
         return {"oldest": DROP_OLDEST, "newest": DROP_NEWEST, "block": BLOCK}[choice]
     if scheme in ("aravis", "v4l2"):
@@ -1046,7 +1046,7 @@ def _safe_settings(source):
 
 def _open_recorder(path, metadata, say, *, on_error, start_time_ns=None):
     try:
-        from stream.recorder import Recorder
+        from livedic.stream.recorder import Recorder
     except ImportError as error:
         say(f"warning: not recording ({error}); use --no-record to silence this")
         return None

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from stream.frame_queue import QueueClosed
+from livedic.stream.frame_queue import QueueClosed
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000

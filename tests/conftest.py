@@ -50,8 +50,8 @@ def time_limit(request):
 @pytest.fixture(scope="session")
 def aravis():
     """``(Aravis, GLib)``; fails with the install command when Aravis is not importable."""
-    from acquire.aravis import load_aravis
-    from acquire.base import SourceError
+    from livedic.acquire.aravis import load_aravis
+    from livedic.acquire.base import SourceError
     try:
         return load_aravis()
     except SourceError as error:

@@ -7,11 +7,11 @@ cycle them forward and back).
 import numpy as np
 import pytest
 
-from acquire.base import SourceError
-from acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
-from bench.live import HEADER
-from bench.soak import run_soak_benchmark
-from stream.cli import build_parser, main
+from livedic.acquire.base import SourceError
+from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
+from livedic.bench.live import HEADER
+from livedic.bench.soak import run_soak_benchmark
+from livedic.stream.cli import build_parser, main
 
 
 # --------------------------------------------------------------------------- synthetic loop=K
@@ -111,6 +111,6 @@ def test_soak_command_keeps_the_recording_on_request(tmp_path, capsys):
     assert "every produced frame accounted for: recorded 40 == produced 40" in out
     kept = list(tmp_path.glob("soak-*.mcap"))
     assert len(kept) == 1 and f"recording kept: {kept[0]}" in out
-    from acquire.mcap_replay import inspect_recording
+    from livedic.acquire.mcap_replay import inspect_recording
     assert inspect_recording(str(kept[0])).frames == 40
     assert code in (0, 1)          # 1 only if the (timing-dependent) RSS check failed on a 40-frame run

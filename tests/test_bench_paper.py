@@ -10,8 +10,8 @@ import os
 import numpy as np
 import pytest
 
-from bench import _paper_runs as runs
-from bench.paper import PaperConfig, run_paper_benchmark
+from livedic.bench import _paper_runs as runs
+from livedic.bench.paper import PaperConfig, run_paper_benchmark
 
 FIGURES = ["fig09_success.png", "fig09_success_noise.png", "fig10_cost.png", "fig_radius.png", "fig11_subpixel.png",
            "fig11_subpixel_noise.png", "table1_time.png", "fig07_fitting_distance.png",

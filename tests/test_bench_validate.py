@@ -1,6 +1,6 @@
 """``livedic bench validate``: the quick synthetic run finds no wrong-but-ok point and says so."""
 
-from bench.validate import run_validate_benchmark
+from livedic.bench.validate import run_validate_benchmark
 
 
 def test_quick_validation_has_no_wrong_ok_point_and_checks_the_zncc_gate():

@@ -28,11 +28,11 @@ the cheapest: at radius 2 it costs 25 evaluations.
 
 import numpy as np
 
-from dic.result import IntegerSearchResult
-from dic.search import coarse_fine, exhaustive, fft_cc, improved_wso, pso, wso
-from dic.search._common import new_outputs, resolve_options, search_boxes, seed_to_uint
-from dic.search.pyramid import levels_for, pyramid_search
-from dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
+from livedic.dic.result import IntegerSearchResult
+from livedic.dic.search import coarse_fine, exhaustive, fft_cc, improved_wso, pso, wso
+from livedic.dic.search._common import new_outputs, resolve_options, search_boxes, seed_to_uint
+from livedic.dic.search.pyramid import levels_for, pyramid_search
+from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
 SEARCH_METHODS = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso")
 
@@ -173,7 +173,7 @@ def integer_search(reference, deformed, points, *, method="improved-wso", subset
     radius = check_radius(radius)
     xy = as_points(points)
     start = as_guess(guess, xy.shape[0])
-    from dic.correlation import snap_points
+    from livedic.dic.correlation import snap_points
     xs, ys = snap_points(xy)
     return search_points(reference, deformed, xs, ys, np.ascontiguousarray(start[:, 0]),
                          np.ascontiguousarray(start[:, 1]), half, radius, method, seed=seed, options=options)

@@ -20,8 +20,8 @@ import numbers
 import numpy as np
 from numba import njit
 
-from dic.correlation import prepare_reference_subset, zncc_at_integer
-from dic.status import Status
+from livedic.dic.correlation import prepare_reference_subset, zncc_at_integer
+from livedic.dic.status import Status
 
 OK = np.int8(Status.OK)
 OUTSIDE_REFERENCE = np.int8(Status.OUTSIDE_REFERENCE)

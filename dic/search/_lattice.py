@@ -22,8 +22,8 @@ Keys weights per phase.
 import numpy as np
 from numba import njit, uint64
 
-from dic.correlation import FLAT_VARIANCE
-from dic.interpolation import keys_weights
+from livedic.dic.correlation import FLAT_VARIANCE
+from livedic.dic.interpolation import keys_weights
 
 # Only re-association and FMA contraction: lets LLVM vectorise the float32 sums.
 # No nnan/ninf/nsz flags, so NaN/inf semantics are untouched; the result depends

@@ -9,7 +9,7 @@ Ties keep the first position in row-major order (v outer, u inner).
 import numpy as np
 from numba import njit, prange
 
-from dic.search._common import begin_point, finish_point, fitness, new_cache
+from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {}
 CHECKS = {}

@@ -27,8 +27,8 @@ pattern matching", Appl. Opt. 49(28):5501-5509 (2010), :DOI:`10.1364/AO.49.00550
 import numpy as np
 from numba import njit, prange
 
-from dic.correlation import FLAT_VARIANCE
-from dic.status import FLAT_REFERENCE, FLAT_TARGET, OK
+from livedic.dic.correlation import FLAT_VARIANCE
+from livedic.dic.status import FLAT_REFERENCE, FLAT_TARGET, OK
 
 DEFAULTS = {}
 CHECKS = {}

@@ -144,8 +144,8 @@ of the improved surface fit (``dic.subpixel.improved_surface_fit``).
 import numpy as np
 from numba import njit, prange
 
-from dic._random import uniform, new_state
-from dic.search._common import (begin_point, finish_point, fitness, hill_climb, is_bool, is_int_at_least,
+from livedic.dic._random import uniform, new_state
+from livedic.dic.search._common import (begin_point, finish_point, fitness, hill_climb, is_bool, is_int_at_least,
                                 is_real_in, new_cache, round_half_up)
 
 DEFAULTS = {"population": 20, "iterations": 50, "mu": 0.7, "p_min": 0.5, "p_max": 1.5,

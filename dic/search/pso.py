@@ -25,8 +25,8 @@ on an earlier 6000-trial run.
 import numpy as np
 from numba import njit, prange
 
-from dic._random import new_state, uniform
-from dic.search._common import (begin_point, finish_point, fitness, is_int_at_least, is_real_in,
+from livedic.dic._random import new_state, uniform
+from livedic.dic.search._common import (begin_point, finish_point, fitness, is_int_at_least, is_real_in,
                                 new_cache, round_half_up)
 
 DEFAULTS = {"population": 20, "iterations": 50, "c1": 1.49445, "c2": 1.49445,

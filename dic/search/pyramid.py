@@ -36,9 +36,9 @@ IEEE Trans. Commun. 31(4):532-540 (1983), :DOI:`10.1109/TCOM.1983.1095851`.
 import numpy as np
 from numba import njit, prange
 
-from dic.search import exhaustive
-from dic.search._common import begin_point, hill_climb, new_cache, new_outputs
-from dic.status import FLAT_TARGET, OK, OUTSIDE_TARGET
+from livedic.dic.search import exhaustive
+from livedic.dic.search._common import begin_point, hill_climb, new_cache, new_outputs
+from livedic.dic.status import FLAT_TARGET, OK, OUTSIDE_TARGET
 
 # Smallest subset half-width used on a coarse level (a 7 x 7 subset).
 MIN_COARSE_HALF = 3

@@ -42,8 +42,8 @@ reference code's minimisation of -ZNCC). Defaults n = 20, K = 50.
 import numpy as np
 from numba import njit, prange
 
-from dic._random import new_state, uniform
-from dic.search._common import (begin_point, finish_point, fitness, is_bool, is_int_at_least, new_cache,
+from livedic.dic._random import new_state, uniform
+from livedic.dic.search._common import (begin_point, finish_point, fitness, is_bool, is_int_at_least, new_cache,
                                 round_half_up)
 
 DEFAULTS = {"population": 20, "iterations": 50, "variant": "code", "fix_gbest": True}

@@ -40,13 +40,13 @@ algorithms in digital image correlation", Meas. Sci. Technol. 17:1615-1621
 import numpy as np
 from numba import njit, prange
 
-from dic.correlation import FLAT_VARIANCE as _FLAT
-from dic.gradient import diff2_x, diff2_y, diff4_x, diff4_y
-from dic.result import SubpixelResult
-from dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
+from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
+from livedic.dic.gradient import diff2_x, diff2_y, diff4_x, diff4_y
+from livedic.dic.result import SubpixelResult
+from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
                         OUTSIDE_TARGET as _OUTSIDE_TARGET)
-from dic.validation import as_image, check_same_shape
+from livedic.dic.validation import as_image, check_same_shape
 
 _MAX_STEP = 1.0   # a step beyond one pixel means the start was not the integer peak
 

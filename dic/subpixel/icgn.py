@@ -86,15 +86,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
-from dic.correlation import FLAT_VARIANCE as _FLAT
-from dic.gradient import diff4_x, diff4_y
-from dic.linalg import cholesky_lower
-from dic.result import SubpixelResult
-from dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
+from livedic.dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
+from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
+from livedic.dic.gradient import diff4_x, diff4_y
+from livedic.dic.linalg import cholesky_lower
+from livedic.dic.result import SubpixelResult
+from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
                         OUTSIDE_TARGET as _OUTSIDE_TARGET, Status)
-from dic.validation import as_image, check_same_shape
+from livedic.dic.validation import as_image, check_same_shape
 
 # |ux|, |uy|, |vx|, |vy| beyond this is no longer a small-strain subset: declared diverged.
 _MAX_GRADIENT = 1.0

@@ -63,15 +63,15 @@ beyond the subset (2 at the default), the extended polish up to
 import numpy as np
 from numba import njit, prange
 
-from dic._random import new_state
-from dic.correlation import prepare_reference_subset, subset_inside
-from dic.result import SubpixelResult
-from dic.search._common import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
+from livedic.dic._random import new_state
+from livedic.dic.correlation import prepare_reference_subset, subset_inside
+from livedic.dic.result import SubpixelResult
+from livedic.dic.search._common import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
                                 OUTSIDE_TARGET, is_int_at_least, is_real_in, resolve_options, round_half_up,
                                 seed_to_uint)
-from dic.search._lattice import build_plane, lattice_tables, node_zncc, valid_range
-from dic.search.improved_wso import DEFAULTS as _IWSO, fitness_sd, iwso_init, iwso_move, iwso_tell
-from dic.subpixel.peak_fit import fit_peak_3x3
+from livedic.dic.search._lattice import build_plane, lattice_tables, node_zncc, valid_range
+from livedic.dic.search.improved_wso import DEFAULTS as _IWSO, fitness_sd, iwso_init, iwso_move, iwso_tell
+from livedic.dic.subpixel.peak_fit import fit_peak_3x3
 
 DEFAULTS = {"spacing": 0.2, "extent": 1.0, "population": 4, "iterations": 10, "sd_tol": _IWSO["sd_tol"]}
 CHECKS = {

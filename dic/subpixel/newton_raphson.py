@@ -47,14 +47,14 @@ Part 2. Improved digital image correlation", Exp. Mech. 38:86-92 (1998),
 import numpy as np
 from numba import njit, prange
 
-from dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
-from dic.correlation import FLAT_VARIANCE as _FLAT
-from dic.linalg import cholesky_lower
-from dic.result import SubpixelResult
-from dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
+from livedic.dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
+from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
+from livedic.dic.linalg import cholesky_lower
+from livedic.dic.result import SubpixelResult
+from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
                         OUTSIDE_TARGET as _OUTSIDE_TARGET, Status)
-from dic.validation import as_image, check_same_shape
+from livedic.dic.validation import as_image, check_same_shape
 
 _MAX_GRADIENT = 1.0  # |ux|.. beyond this the iteration is declared diverged
 _CHUNK = 16

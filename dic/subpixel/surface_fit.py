@@ -23,11 +23,11 @@ value at its peak (clipped to 1). The target needs 1 px of margin.
 import numpy as np
 from numba import njit, prange
 
-from dic.correlation import prepare_reference_subset, subset_inside, zncc_at_integer
-from dic.result import SubpixelResult
-from dic.search._common import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
+from livedic.dic.correlation import prepare_reference_subset, subset_inside, zncc_at_integer
+from livedic.dic.result import SubpixelResult
+from livedic.dic.search._common import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
                                 OUTSIDE_TARGET, is_int_at_least, resolve_options)
-from dic.subpixel.peak_fit import fit_peak_3x3
+from livedic.dic.subpixel.peak_fit import fit_peak_3x3
 
 DEFAULTS = {"max_moves": 2}
 CHECKS = {"max_moves": (is_int_at_least(0), "an integer >= 0")}

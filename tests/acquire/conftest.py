@@ -20,14 +20,14 @@ def integer_displacements(reference, image, points, radius):
     """
     points = np.asarray(points, np.float64)
     try:
-        from dic import measure
+        from livedic.dic import measure
     except ImportError:
         measure = None
     if measure is not None:
         result = measure(reference, image, points, subset=21, search="exhaustive", subpixel="none", radius=radius)
         assert bool(np.all(result.ok)), f"dic.measure flagged points: {result.status}"
         return np.asarray(result.u), np.asarray(result.v)
-    from dic.correlation import zncc
+    from livedic.dic.correlation import zncc
     shifts = [(u, v) for v in range(-radius, radius + 1) for u in range(-radius, radius + 1)]
     best_u, best_v = np.zeros(len(points)), np.zeros(len(points))
     best = np.full(len(points), -np.inf)

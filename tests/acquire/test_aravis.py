@@ -16,10 +16,10 @@ import time
 import numpy as np
 import pytest
 
-from acquire import aravis as aravis_module
-from acquire.aravis import AravisCamera, list_cameras, open_uri, parse_uri
-from acquire.base import SourceError
-from acquire.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion
+from livedic.acquire import aravis as aravis_module
+from livedic.acquire.aravis import AravisCamera, list_cameras, open_uri, parse_uri
+from livedic.acquire.base import SourceError
+from livedic.acquire.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 
@@ -245,8 +245,8 @@ def test_teardown_leaves_no_crash_at_interpreter_exit(gige):
     """Subprocesses that exit with frames still held, cameras left open, or closed properly: exit code 0."""
     script = textwrap.dedent(f"""
         import sys, numpy as np
-        from acquire.aravis import open_uri
-        from acquire.fake_genicam import InProcessFakeCamera, SpeckleMotion
+        from livedic.acquire.aravis import open_uri
+        from livedic.acquire.fake_genicam import InProcessFakeCamera, SpeckleMotion
         mode = sys.argv[1]
         fake = InProcessFakeCamera(SpeckleMotion((128, 160))).start()
         inproc = open_uri("aravis:Fake_1", roi=(0, 0, 160, 128), frame_rate=500)

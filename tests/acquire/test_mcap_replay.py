@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from acquire.base import Frame, SourceError
-from acquire.mcap_replay import (McapSource, RecordingError, RecordingSourceError, inspect_recording,
+from livedic.acquire.base import Frame, SourceError
+from livedic.acquire.mcap_replay import (McapSource, RecordingError, RecordingSourceError, inspect_recording,
                                  iter_results, read_events, read_results, read_session, recover)
-from stream.recorder import Recorder
+from livedic.stream.recorder import Recorder
 
 T0 = 1_700_000_000_000_000_000
 
@@ -80,7 +80,7 @@ def test_replay_as_fast_as_possible_gives_every_frame_in_order(recording):
 
 
 def test_realtime_replay_follows_the_recorded_pace(tmp_path, monkeypatch):
-    import acquire.mcap_replay as mcap_replay
+    import livedic.acquire.mcap_replay as mcap_replay
     waits = []
     real_sleep = time.sleep
 

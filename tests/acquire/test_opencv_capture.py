@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from acquire.base import SourceError
-from acquire.opencv_capture import V4L2Camera, VideoFile, open_uri
+from livedic.acquire.base import SourceError
+from livedic.acquire.opencv_capture import V4L2Camera, VideoFile, open_uri
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 

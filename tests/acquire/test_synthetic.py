@@ -5,10 +5,10 @@ import time
 import numpy as np
 import pytest
 
-from acquire.base import SourceError
-from acquire.synthetic import (SyntheticTensileSource, SyntheticTranslateSource, TensileModel, _render_rows,
+from livedic.acquire.base import SourceError
+from livedic.acquire.synthetic import (SyntheticTensileSource, SyntheticTranslateSource, TensileModel, _render_rows,
                                open_synthetic, parse_synthetic_uri)
-from dic import measure
+from livedic.dic import measure
 
 
 def _frames(source):
@@ -82,7 +82,7 @@ def test_frames_formats_timestamps_and_dark_background():
 def test_pacing_delivers_at_the_frame_rate_and_unpaced_is_fast(monkeypatch):
     """Paced: never faster than the frame rate (a lower bound holds on any machine). Unpaced: it never
     waits (counted, not timed: a loaded machine can be slow without the source waiting)."""
-    import acquire.synthetic as synthetic
+    import livedic.acquire.synthetic as synthetic
     waits = []
     real_sleep = time.sleep
 
@@ -194,7 +194,7 @@ def test_measured_strain_peaks_at_the_neck():
 
 def test_option_parsing_is_shared_by_every_source():
     """One set of rules (acquire.options) for synthetic, mcap, v4l2 and aravis options."""
-    from acquire.options import as_bool, as_float, as_int, parse_number
+    from livedic.acquire.options import as_bool, as_float, as_int, parse_number
     assert as_int("seed", "18446744073709551615", low=0) == 2**64 - 1          # exact, not via float
     assert as_int("frames", "300.0") == 300 and as_float("fps", " 50 ") == 50.0
     assert [as_bool("pace", v) for v in ("1", "yes", "On", "0", "false", "", True)] == [True] * 3 + [False] * 3 + [True]

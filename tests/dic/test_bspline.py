@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from dic.bspline import PAD, BSplineCoefficients, interpolate, prefilter, sample_shift
+from livedic.dic.bspline import PAD, BSplineCoefficients, interpolate, prefilter, sample_shift
 from tests.conftest import blurred_noise
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from dic import Status, zncc
+from livedic.dic import Status, zncc
 from tests.conftest import blurred_noise
 
 

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from dic import Status
-from dic.gradient import gradient_4th, gradient_central
-from dic.speckle import SpecklePattern, render
-from dic.subpixel import gradient_method as gm
+from livedic.dic import Status
+from livedic.dic.gradient import gradient_4th, gradient_central
+from livedic.dic.speckle import SpecklePattern, render
+from livedic.dic.subpixel import gradient_method as gm
 
 HALF = 10
 

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from dic import Status
-from dic.bspline import PAD
-from dic.speckle import SpecklePattern, affine, render
-from dic.subpixel import icgn
+from livedic.dic import Status
+from livedic.dic.bspline import PAD
+from livedic.dic.speckle import SpecklePattern, affine, render
+from livedic.dic.subpixel import icgn
 
 HALF = 10
 SHAPE = (128, 128)

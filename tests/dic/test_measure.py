@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from dic import SEARCH_METHODS, SUBPIXEL_METHODS, Status, measure
-from dic.speckle import SpecklePattern, render
+from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS, Status, measure
+from livedic.dic.speckle import SpecklePattern, render
 
 SHIFT = (3.3, -2.2)   # fractions well below 0.5: the integer ZNCC peak is the nearest pixel
 # Bounds on the RMS and the largest |error| (px) per sub-pixel method on exact, unquantised images:

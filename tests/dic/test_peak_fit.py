@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from dic.subpixel.peak_fit import fit_peak_3x3
+from livedic.dic.subpixel.peak_fit import fit_peak_3x3
 
 
 def _quadratic_grid(px, py, curv_x, curv_y, cross, top):

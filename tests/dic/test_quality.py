@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from dic import Status, measure
-from dic.neighbours import neighbour_graph, typical_spacing
-from dic.quality import Gates, gate_status, median_test, texture
-from dic.speckle import SpecklePattern, render
-from dic.subpixel.icgn import prepare_reference
+from livedic.dic import Status, measure
+from livedic.dic.neighbours import neighbour_graph, typical_spacing
+from livedic.dic.quality import Gates, gate_status, median_test, texture
+from livedic.dic.speckle import SpecklePattern, render
+from livedic.dic.subpixel.icgn import prepare_reference
 
 
 def _grid(step=10, n=12):

@@ -4,9 +4,9 @@ import numba
 import numpy as np
 import pytest
 
-from bench import patterns
-from dic import SEARCH_METHODS, Status, measure
-from dic.speckle import SpecklePattern, affine, render
+from livedic.bench import patterns
+from livedic.dic import SEARCH_METHODS, Status, measure
+from livedic.dic.speckle import SpecklePattern, affine, render
 
 
 def _grid(lo, hi, step):

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from dic.search import SEARCH_METHODS, integer_search, method_options, search_points
-from dic.speckle import SpecklePattern, render
-from dic.status import Status
+from livedic.dic.search import SEARCH_METHODS, integer_search, method_options, search_points
+from livedic.dic.speckle import SpecklePattern, render
+from livedic.dic.status import Status
 
 SIZE = 256
 
@@ -140,7 +140,7 @@ def test_paper_claim_improved_wso_evaluates_less_than_coarse_fine(radius10_run, 
 @pytest.mark.parametrize("generator", ["simulator", "fft", "sparse", "discs2"])
 def test_improved_wso_equals_exhaustive_at_large_radius(generator):
     """Radius 32, shift ~0.9 x radius, noise sigma 2, on four pattern generators (border points included)."""
-    from bench import patterns
+    from livedic.bench import patterns
 
     size, radius, shift = 288, 32, (21.6, -19.3)
     if generator == "simulator":
@@ -184,7 +184,7 @@ def test_fft_cc_is_the_exhaustive_search_by_fft(pattern, reference):
 
 
 def test_paper_literal_options_and_polish_variants_run(pattern, reference):
-    from dic.search.improved_wso import PAPER_LITERAL
+    from livedic.dic.search.improved_wso import PAPER_LITERAL
     deformed = render(pattern, (6, -4))
     pts = _points(40, 10, 10, seed=9)
     truth = integer_search(reference, deformed, pts, method="exhaustive", radius=10)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from dic.speckle import SpecklePattern, affine, render, sinusoid, translation
+from livedic.dic.speckle import SpecklePattern, affine, render, sinusoid, translation
 
 SHAPE = (72, 96)          # (H, W): not square, so a swapped axis shows
 DENSITY = 1000 / 256**2   # the paper's 256 x 256 / 1000 speckles

@@ -4,11 +4,11 @@ import numba
 import numpy as np
 import pytest
 
-from dic.search import search_points
-from dic.search._lattice import build_plane, lattice_tables, node_zncc
-from dic.speckle import SpecklePattern, render
-from dic.status import Status
-from dic.subpixel import improved_surface_fit, surface_fit
+from livedic.dic.search import search_points
+from livedic.dic.search._lattice import build_plane, lattice_tables, node_zncc
+from livedic.dic.speckle import SpecklePattern, render
+from livedic.dic.status import Status
+from livedic.dic.subpixel import improved_surface_fit, surface_fit
 
 SIZE = 256
 HALF = 10  # subset 21

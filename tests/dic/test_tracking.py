@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from acquire.synthetic import SyntheticTranslateSource
-from dic.status import Status
-from dic.tracking import Tracker, grid_in_roi, step_for_count
+from livedic.acquire.synthetic import SyntheticTranslateSource
+from livedic.dic.status import Status
+from livedic.dic.tracking import Tracker, grid_in_roi, step_for_count
 
 
 def _translate_frames(query):
@@ -156,7 +156,7 @@ def test_points_on_a_blank_background_are_never_ok_and_a_knock_is_not_trusted():
     """The specimen (speckle) moves; the blank background beside it does not. Points on the background
     are POOR_TEXTURE from the start; a point whose neighbours disagree after a sudden knock is
     re-found from them, and every ok point is right (within 0.05 px)."""
-    from dic.speckle import SpecklePattern, render
+    from livedic.dic.speckle import SpecklePattern, render
 
     pattern = SpecklePattern((200, 240), n_speckles=700, radius=4.0, seed=6)
     rng = np.random.default_rng(2)

@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from dic.speckle import SpecklePattern, render
-from stream.cli import main
+from livedic.dic.speckle import SpecklePattern, render
+from livedic.stream.cli import main
 
 SHIFT = (1.4, 0.7)
 
@@ -118,7 +118,7 @@ def test_a_grey_palette_image_is_read_as_grey_without_a_note(image_pair, tmp_pat
     path = tmp_path / f"palette.{fmt.lower()}"
     palette.save(path, format=fmt)
     assert Image.open(path).mode == "P"
-    from acquire.image_io import read_grey_image
+    from livedic.acquire.image_io import read_grey_image
     image, note = read_grey_image(path)
     assert note is None and image.dtype == np.uint8 and np.array_equal(image, grey)
     code = main(["measure", str(path), image_pair["def", 8], "--grid", "40", "--subpixel", "icgn", "--radius", "3"])
@@ -157,7 +157,7 @@ def _unwritable_folder(tmp_path, variant, monkeypatch):
     if variant == "denied":
         import tempfile
 
-        import stream.csv_output
+        import livedic.stream.csv_output as csv_output
         folder = tmp_path / "denied"
         folder.mkdir()
         real = tempfile.mkstemp
@@ -167,7 +167,7 @@ def _unwritable_folder(tmp_path, variant, monkeypatch):
                 raise PermissionError(13, "Permission denied", str(folder))
             return real(*args, dir=dir, **kwargs)
 
-        monkeypatch.setattr(stream.csv_output.tempfile, "mkstemp", mkstemp)
+        monkeypatch.setattr(csv_output.tempfile, "mkstemp", mkstemp)
         return folder
     blocker = tmp_path / "file.txt"
     blocker.write_text("a file, not a folder\n")
@@ -201,7 +201,7 @@ def test_output_to_a_folder_names_the_folder_not_a_temporary_file(image_pair, tm
 
 def test_output_file_gets_the_usual_permissions(image_pair, tmp_path):
     """Like replay and export: 0666 & ~umask (mkstemp alone would give 0600)."""
-    from stream.csv_output import current_umask
+    from livedic.stream.csv_output import current_umask
     out = tmp_path / "out.csv"
     previous = os.umask(0o022)
     try:
@@ -218,9 +218,9 @@ def test_a_long_measurement_shows_progress_and_gives_the_same_numbers(image_pair
     is exactly one dic.measure call's."""
     import threading
 
-    import dic
-    from acquire.image_io import read_grey_image
-    from stream.cli import MeasureProgress, grid_points, measure_with_progress
+    from livedic import dic
+    from livedic.acquire.image_io import read_grey_image
+    from livedic.stream.cli import MeasureProgress, grid_points, measure_with_progress
 
     reference, _ = read_grey_image(image_pair["ref", 8])
     deformed, _ = read_grey_image(image_pair["def", 8])
@@ -254,7 +254,7 @@ def test_a_long_measurement_shows_progress_and_gives_the_same_numbers(image_pair
 
 
 def test_progress_stays_quiet_for_short_measurements():
-    from stream.cli import MeasureProgress
+    from livedic.stream.cli import MeasureProgress
     stream = io.StringIO()
     progress = MeasureProgress(10, "m", in_place=False, after_s=1.5, every_s=15.0, stream=stream)
     for elapsed in (0.25, 0.5, 1.0, 1.25):
@@ -284,7 +284,7 @@ def test_flat_or_saturated_region_flags_its_points_and_the_rest_is_measured(tmp_
     outside = [r for r in rows if float(r["x"]) - 10 > 50 + 3]  # clear of the edge, shift included
     assert inside and outside
     assert all(r["ok"] == "0" and r["u"] == "nan" for r in inside)
-    from dic.status import Status
+    from livedic.dic.status import Status
     assert {int(r["status"]) for r in inside} == {int(Status.FLAT_REFERENCE)}
     for row in outside:
         assert row["ok"] == "1"

@@ -12,13 +12,13 @@ import time
 import numpy as np
 import pytest
 
-from acquire.base import Frame, FrameSource, SourceError, SourceLost
-from acquire.sources import open_source, parse_scheme
-from acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
-from stream.acquisition import AcquisitionThread, QueuedFrame
-from stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
-from stream.run import add_run_arguments, build_points, run_session
-from stream.tracker_loop import TrackerLoop
+from livedic.acquire.base import Frame, FrameSource, SourceError, SourceLost
+from livedic.acquire.sources import open_source, parse_scheme
+from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.stream.acquisition import AcquisitionThread, QueuedFrame
+from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
+from livedic.stream.run import add_run_arguments, build_points, run_session
+from livedic.stream.tracker_loop import TrackerLoop
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -242,7 +242,7 @@ class Reopener:
 
 
 def _run_acquisition(source, reconnect, *, max_frames=None, timeout=10):
-    from stream.acquisition import Reconnect
+    from livedic.stream.acquisition import Reconnect
     queue = FrameQueue(1000, BLOCK)
     events = []
     policy = Reconnect(reopen=reconnect, retry_s=0.01, on_event=lambda *e: events.append(e)) \
@@ -302,7 +302,7 @@ def test_reconnect_refuses_a_camera_that_comes_back_with_other_images():
 
 
 def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
-    from stream.acquisition import Reconnect
+    from livedic.stream.acquisition import Reconnect
     policy = Reconnect(reopen=Reopener(*[SourceError("camera not found")] * 1000), retry_s=0.01, timeout_s=0.2)
     thread, frames, events = _run_acquisition(ListSource(5, fail_after=3, error=SourceError("cable pulled")), policy)
     assert thread.finished_reason == "error" and len(frames) == 3
@@ -312,7 +312,7 @@ def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
 
 
 def test_reconnect_waits_until_stopped_and_a_stop_ends_cleanly():
-    from stream.acquisition import Reconnect
+    from livedic.stream.acquisition import Reconnect
     queue = FrameQueue(100)
     reopen = Reopener(*[SourceError("camera not found")] * 10_000)
     thread = AcquisitionThread(ListSource(5, fail_after=3, error=SourceError("lost")), queue,
@@ -337,7 +337,7 @@ def test_no_reconnect_for_a_source_that_never_delivered():
 # --------------------------------------------------------------------------- tracker loop
 
 def test_tracker_loop_tracks_times_and_scores_against_the_truth():
-    from dic.tracking import Tracker
+    from livedic.dic.tracking import Tracker
     source = SyntheticTranslateSource("synthetic:translate?frames=12&size=128x128&du=0.3&dv=0.2&pace=0")
     queue = FrameQueue(32)
     acquisition = AcquisitionThread(source, queue)
@@ -363,7 +363,7 @@ def test_tracker_loop_tracks_times_and_scores_against_the_truth():
 
 def test_session_stats_keep_per_frame_numbers_packed_with_the_same_percentiles():
     from array import array
-    from stream.tracker_loop import SessionStats
+    from livedic.stream.tracker_loop import SessionStats
     stats = SessionStats()
     assert np.isnan(stats.latency_ms(50)) and np.isnan(stats.processing_ms(99))
     assert np.isnan(stats.delivery_delay_ms(99)) and stats.summary()["delivery_delay_p99_ms"] is None
@@ -386,7 +386,7 @@ def test_session_stats_keep_per_frame_numbers_packed_with_the_same_percentiles()
 
 
 def test_a_failing_sink_is_switched_off_not_fatal():
-    from dic.tracking import Tracker
+    from livedic.dic.tracking import Tracker
     source = SyntheticTranslateSource("synthetic:translate?frames=4&size=96x96&pace=0")
     queue = FrameQueue(8)
     acquisition = AcquisitionThread(source, queue)
@@ -461,7 +461,7 @@ def test_run_session_end_to_end(tmp_path, capsys):
                for row in c.to_record_batch().column("Scalars:scalars").to_pylist()]
     assert len(p0_rows) == summary["frames"] and all(len(row) == 2 for row in p0_rows)   # u and v per frame
     # The recording holds every acquired frame and one result per tracked frame, P0 first.
-    from acquire.mcap_replay import inspect_recording, read_events, read_results
+    from livedic.acquire.mcap_replay import inspect_recording, read_events, read_results
     info = inspect_recording(str(mcap))
     assert info.indexed and not info.truncated and info.frames == 40
     results = read_results(str(mcap))
@@ -491,8 +491,8 @@ def test_run_session_options_are_checked(tmp_path):
 
 
 def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_path, monkeypatch):
-    import stream.run as run_module
-    from acquire import sources
+    import livedic.stream.run as run_module
+    from livedic.acquire import sources
 
     def failing(uri, **options):
         return ListSource(30, fail_after=12, error=SourceError("camera lost after 12 frames"), period_s=0.002)
@@ -503,14 +503,14 @@ def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_pat
                    "--roi", "0,0,4,4", "--subset", "3", "--step", "1"])
     with pytest.raises(SourceLost, match="camera lost"):
         run_module.run_session(args)
-    from acquire.mcap_replay import inspect_recording, read_events
+    from livedic.acquire.mcap_replay import inspect_recording, read_events
     assert inspect_recording(str(mcap)).frames == 12
     assert any(e.kind == "camera_lost" for e in read_events(str(mcap)))
 
 
 def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monkeypatch):
-    import stream.run as run_module
-    from acquire import sources
+    import livedic.stream.run as run_module
+    from livedic.acquire import sources
 
     opened = []
 
@@ -529,7 +529,7 @@ def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monk
                    "--roi", "0,0,4,4", "--subset", "3", "--step", "1", "--reconnect", "--frames", "30",
                    "--drop", "block", "--summary-json", str(summary)])
     assert run_module.run_session(args) == 0
-    from acquire.mcap_replay import McapSource, read_events, read_results
+    from livedic.acquire.mcap_replay import McapSource, read_events, read_results
     with McapSource(str(mcap)) as replay:
         recorded = [(frame.index, frame.timestamp_ns) for frame in replay]
     assert [index for index, _ in recorded] == list(range(30))
@@ -591,7 +591,7 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
     assert process.returncode == 0, text
     name = signal.Signals(stop_signal).name
     assert f"stopped on {name}" in text and f"stopped    on {name}" in out
-    from acquire.mcap_replay import inspect_recording, read_results
+    from livedic.acquire.mcap_replay import inspect_recording, read_results
     info = inspect_recording(str(mcap))
     assert info.indexed and not info.truncated and 10 <= info.frames < 400
     assert 1 <= len(read_results(str(mcap))) <= info.frames

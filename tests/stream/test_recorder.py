@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from acquire.base import Frame
-from acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results, read_session, recover
-from stream import recording_schema as rs
-from stream.recorder import Recorder
+from livedic.acquire.base import Frame
+from livedic.acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results, read_session, recover
+from livedic.stream import recording_schema as rs
+from livedic.stream.recorder import Recorder
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 T0 = 1_700_000_000_000_000_000
@@ -409,8 +409,8 @@ def test_writes_from_several_threads(tmp_path):
 _KILL_CHILD = """
     import sys, time
     import numpy as np
-    from acquire.base import Frame
-    from stream.recorder import Recorder
+    from livedic.acquire.base import Frame
+    from livedic.stream.recorder import Recorder
 
     path, marker, pause = sys.argv[1], sys.argv[2], float(sys.argv[3])
     rec = Recorder(path, {"source_uri": "test://sigkill"})
@@ -502,8 +502,8 @@ def test_sigkill_loses_nothing_the_recorder_counted_durable(tmp_path):
 _FULL_CHILD = """
     import json, resource, signal, sys
     import numpy as np
-    from acquire.base import Frame
-    from stream.recorder import Recorder
+    from livedic.acquire.base import Frame
+    from livedic.stream.recorder import Recorder
 
     path, limit, dt, flush = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)           # get EFBIG instead of being killed

@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from acquire.mcap_replay import read_results, read_session
-from stream.cli import main
+from livedic.acquire.mcap_replay import read_results, read_session
+from livedic.stream.cli import main
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
@@ -59,11 +59,11 @@ def killed(tmp_path_factory):
 @pytest.fixture(scope="module")
 def dropped(tmp_path_factory):
     """A recording whose live run 'dropped' frames 3, 6 and 7: all images, results only for the others."""
-    from dic.speckle import SpecklePattern, render
-    from dic.tracking import Tracker
-    from acquire.base import Frame
-    from stream.recorder import Recorder
-    from stream.run import build_points
+    from livedic.dic.speckle import SpecklePattern, render
+    from livedic.dic.tracking import Tracker
+    from livedic.acquire.base import Frame
+    from livedic.stream.recorder import Recorder
+    from livedic.stream.run import build_points
 
     path = tmp_path_factory.mktemp("dropped") / "dropped.mcap"
     pattern = SpecklePattern((128, 160), n_speckles=400, seed=3)
@@ -291,7 +291,7 @@ def test_bad_input_is_one_line_and_exit_2(case, recording, tmp_path, capsys):
 def test_the_shipped_sample_replays_exactly_or_within_rounding_and_exports(tmp_path, capsys):
     """The sample was recorded on another machine: bit for bit is not promised here, agreement within
     floating-point rounding (ROUNDING_TOLERANCE_PX = 1e-4 px, the same points ok) is."""
-    from stream.replay import ROUNDING_TOLERANCE_PX, Agreement, replay
+    from livedic.stream.replay import ROUNDING_TOLERANCE_PX, Agreement, replay
     assert ROUNDING_TOLERANCE_PX == 1e-4
     assert os.path.getsize(SAMPLE) < 5_000_000
     readme = open(os.path.join(REPO, "recordings", "README.md")).read()
@@ -323,11 +323,11 @@ def test_the_shipped_sample_replays_exactly_or_within_rounding_and_exports(tmp_p
 def _recording_with_offsets(path, change):
     """A 6-frame recording whose recorded results are the tracker's, changed by ``change(i, m) -> (u, v, zncc, ok)``
     (as a replay on another CPU, or by another program, would see them)."""
-    from acquire.base import Frame
-    from dic.speckle import SpecklePattern, render
-    from dic.tracking import Tracker
-    from stream.recorder import Recorder
-    from stream.run import build_points
+    from livedic.acquire.base import Frame
+    from livedic.dic.speckle import SpecklePattern, render
+    from livedic.dic.tracking import Tracker
+    from livedic.stream.recorder import Recorder
+    from livedic.stream.run import build_points
 
     pattern = SpecklePattern((128, 160), n_speckles=400, seed=5)
     images = [render(pattern, (0.25 * i, -0.15 * i), noise_sigma=0.5, noise_seed=i) for i in range(6)]
@@ -370,7 +370,7 @@ def _ok_flipped(i, m):
 def test_replay_says_exact_within_rounding_or_differs(case, agreement, words, tmp_path, capsys):
     """Bit for bit, within floating-point rounding (1e-4 px, ZNCC 1e-6, the same points ok), or different:
     the verdict is the report's ``agreement`` (data), and the line says the same."""
-    from stream.replay import Agreement, replay
+    from livedic.stream.replay import Agreement, replay
     change = {"same": _shifted(0.0), "rounding": _shifted(1.8e-6), "beyond": _shifted(2e-4),
               "zncc": _shifted(0.0, dzncc=1e-5), "ok-flip": _ok_flipped}[case]
     path = _recording_with_offsets(tmp_path / f"{case}.mcap", change)
@@ -397,7 +397,7 @@ def _unwritable_folder(tmp_path, variant, monkeypatch):
     if variant == "denied":
         import tempfile
 
-        import stream.csv_output
+        import livedic.stream.csv_output as csv_output
         folder = tmp_path / "denied"
         folder.mkdir()
         real = tempfile.mkstemp
@@ -407,7 +407,7 @@ def _unwritable_folder(tmp_path, variant, monkeypatch):
                 raise PermissionError(13, "Permission denied", str(folder))
             return real(*args, dir=dir, **kwargs)
 
-        monkeypatch.setattr(stream.csv_output.tempfile, "mkstemp", mkstemp)
+        monkeypatch.setattr(csv_output.tempfile, "mkstemp", mkstemp)
         return folder
     blocker = tmp_path / "file.txt"
     blocker.write_text("a file, not a folder\n")
@@ -442,7 +442,7 @@ def test_replay_to_a_folder_names_the_folder_not_a_temporary_file(recording, tmp
 
 
 def test_replay_and_export_files_get_the_usual_permissions_and_strict_json(recording, tmp_path, capsys):
-    from stream.csv_output import current_umask
+    from livedic.stream.csv_output import current_umask
     expected = 0o666 & ~current_umask()
     assert main(["replay", recording, "-o", str(tmp_path / "replay.csv"), "--progress", "off"]) == 0
     assert main(["export", recording, "-o", str(tmp_path / "export")]) == 0

@@ -7,11 +7,11 @@ import sys
 import numpy as np
 import pytest
 
-from acquire.base import Frame
-from dic.result import Measurement
-from stream import rerun_log
-from stream.rerun_log import RerunLogger, parse_viewer
-from stream.tracker_loop import FrameResult, SessionStats
+from livedic.acquire.base import Frame
+from livedic.dic.result import Measurement
+from livedic.stream import rerun_log
+from livedic.stream.rerun_log import RerunLogger, parse_viewer
+from livedic.stream.tracker_loop import FrameResult, SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -146,8 +146,8 @@ def test_periodic_flush_keeps_scalars_after_a_kill(tmp_path):
 import os, signal, sys, time
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
 from test_rerun_log import _result
-from stream.rerun_log import RerunLogger
-from stream.tracker_loop import SessionStats
+from livedic.stream.rerun_log import RerunLogger
+from livedic.stream.tracker_loop import SessionStats
 logger = RerunLogger("save", {str(path)!r}, flush_interval_s=0.2)
 logger.start(image_shape=(96, 128), p0_index=0, points=None)
 for i in range(30):

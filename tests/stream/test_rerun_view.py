@@ -8,11 +8,11 @@ were white on light grey, and nothing marked lost or weakly correlated points.
 import numpy as np
 import pytest
 
-from acquire.base import Frame
-from dic.result import Measurement
-from stream import rerun_log
-from stream.rerun_log import RerunLogger, colour_bar_image, colormap_lut, grow_limits, nice_ceil, typical_spacing
-from stream.tracker_loop import FrameResult, SessionStats
+from livedic.acquire.base import Frame
+from livedic.dic.result import Measurement
+from livedic.stream import rerun_log
+from livedic.stream.rerun_log import RerunLogger, colour_bar_image, colormap_lut, grow_limits, nice_ceil, typical_spacing
+from livedic.stream.tracker_loop import FrameResult, SessionStats
 
 SHAPE = (240, 320)
 
@@ -205,7 +205,7 @@ def test_lost_and_low_zncc_points_are_marked_and_counted(tmp_path):
 def test_run_passes_color_range_and_refind_zncc_to_the_view(tmp_path, monkeypatch):
     """``--color-range -2,2`` (a value starting with a minus sign, as typed) fixes both colour scales;
     the low-ZNCC markers use ``--refind-zncc``."""
-    from stream.cli import main
+    from livedic.stream.cli import main
     monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
     path = tmp_path / "view.rrd"
     assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "5", "--progress", "off",
@@ -219,7 +219,7 @@ def test_run_passes_color_range_and_refind_zncc_to_the_view(tmp_path, monkeypatc
 
 
 def test_run_without_color_range_uses_the_automatic_scale(tmp_path, monkeypatch):
-    from stream.cli import main
+    from livedic.stream.cli import main
     monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
     path = tmp_path / "auto.rrd"
     assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "3", "--progress", "off",

@@ -31,7 +31,7 @@ SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
 ])
 def test_bad_run_input_is_one_line_and_exit_2(extra, message):
     argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", SMALL, *extra]
-    done = subprocess.run([sys.executable, "-m", "stream.cli", *argv], capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True, timeout=120)
     errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
     assert done.returncode == 2, done.stderr
     assert len(errors) == 1 and message in errors[0], done.stderr
@@ -42,6 +42,6 @@ def test_points_outside_the_image_are_a_clear_error(tmp_path):
     points = tmp_path / "points.csv"
     points.write_text("x,y\n40,60\n500,20\n")
     argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", SMALL, "--points", str(points)]
-    done = subprocess.run([sys.executable, "-m", "stream.cli", *argv], capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stderr
     assert "1 of the given points lie outside the 96x160 image (first: 500,20)" in done.stderr

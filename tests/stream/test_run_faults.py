@@ -19,8 +19,8 @@ import time
 import numpy as np
 import pytest
 
-from acquire.fake_genicam import GigEFakeCamera, SpeckleMotion
-from acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results
+from livedic.acquire.fake_genicam import GigEFakeCamera, SpeckleMotion
+from livedic.acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 
@@ -32,7 +32,7 @@ SERIAL = "LDFAULT"
 
 def livedic_run(tmp_path, *options, preexec_fn=None):
     """Start ``livedic run`` in a child process; returns the Popen (text pipes)."""
-    command = [sys.executable, "-m", "stream.cli", "run", "--viewer", "none", "--progress", "off",
+    command = [sys.executable, "-m", "livedic.stream.cli", "run", "--viewer", "none", "--progress", "off",
                "--summary-json", str(tmp_path / "summary.json"), *options]
     env = dict(os.environ, PYTHONPATH=REPO + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=str(tmp_path),
@@ -217,7 +217,7 @@ def test_disk_full_stops_the_recording_but_not_the_measurement(tmp_path):
     assert os.path.getsize(record) <= limit
     info = inspect_recording(str(record))
     assert info.truncated and 10 <= info.frames < 90, info
-    from acquire.sources import open_source
+    from livedic.acquire.sources import open_source
     with open_source(uri, frames=90, pace=False) as simulator:
         expected = {frame.index: frame.image for frame in simulator}
     with McapSource(str(record)) as replay:

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from stream.cli import main
+from livedic.stream.cli import main
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
@@ -89,7 +89,7 @@ def _unwritable_folder(tmp_path, variant, monkeypatch):
     if variant == "denied":
         import tempfile
 
-        import stream.csv_output
+        import livedic.stream.csv_output as csv_output
         folder = tmp_path / "denied"
         folder.mkdir()
         real = tempfile.mkstemp
@@ -99,7 +99,7 @@ def _unwritable_folder(tmp_path, variant, monkeypatch):
                 raise PermissionError(13, "Permission denied", str(folder))
             return real(*args, dir=dir, **kwargs)
 
-        monkeypatch.setattr(stream.csv_output.tempfile, "mkstemp", mkstemp)
+        monkeypatch.setattr(csv_output.tempfile, "mkstemp", mkstemp)
         return folder
     blocker = tmp_path / "file.txt"
     blocker.write_text("a file, not a folder\n")
@@ -156,7 +156,7 @@ def test_connect_to_no_viewer_fails_first_with_one_line(tmp_path, capsys):
 
 
 def test_connect_to_a_listening_viewer_goes_ahead(monkeypatch):
-    from stream.run import check_viewer_reachable
+    from livedic.stream.run import check_viewer_reachable
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
         server.listen()
@@ -164,7 +164,7 @@ def test_connect_to_a_listening_viewer_goes_ahead(monkeypatch):
 
 
 def test_the_summary_is_printed_even_when_the_viewer_fails_to_close(tmp_path, capsys, monkeypatch):
-    from stream.rerun_log import RerunLogger
+    from livedic.stream.rerun_log import RerunLogger
 
     def broken_close(self):
         raise RuntimeError("Flush timed out")
@@ -191,7 +191,7 @@ def test_the_summary_json_is_strict_json_with_null_for_missing_numbers(tmp_path)
     text = summary.read_text()
     data = json.loads(text, parse_constant=lambda name: pytest.fail(f"summary JSON holds {name}"))
     assert data["frames"] == 1 and data["latency_p50_ms"] is None
-    from stream.csv_output import current_umask
+    from livedic.stream.csv_output import current_umask
     assert summary.stat().st_mode & 0o777 == 0o666 & ~current_umask()
 
 
@@ -200,7 +200,7 @@ def test_the_summary_json_is_strict_json_with_null_for_missing_numbers(tmp_path)
 def _livedic(tmp_path, *argv):
     env = dict(os.environ, PYTHONPATH=REPO + os.pathsep + os.environ.get("PYTHONPATH", ""))
     env.pop("LIVEDIC_DEBUG", None)
-    return subprocess.Popen([sys.executable, "-m", "stream.cli", *argv], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "livedic.stream.cli", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, cwd=str(tmp_path), env=env)
 
 
@@ -247,7 +247,7 @@ HOLE_CENTRE, HOLE_RADIUS = (120, 100), 34
 
 def _holed(shift=(0.0, 0.0), seed=4):
     """A 200x240 speckle image with a dark, flat hole over its centre (an open-hole specimen)."""
-    from dic.speckle import SpecklePattern, render
+    from livedic.dic.speckle import SpecklePattern, render
     pattern = SpecklePattern((200, 240), n_speckles=900, radius=3.0, seed=seed)
     image = render(pattern, shift if any(shift) else None, bit_depth=8, noise_sigma=1.0,
                    noise_seed=int(100 * shift[0]) + 7)
@@ -259,7 +259,7 @@ def _holed(shift=(0.0, 0.0), seed=4):
 
 
 def test_p0_moves_off_a_hole_at_the_centre_and_a_given_p0_there_is_weak():
-    from stream.run import P0Reason, choose_p0
+    from livedic.stream.run import P0Reason, choose_p0
     image = _holed()
     subset = 21
     choice = choose_p0(image, None, subset)
@@ -279,8 +279,8 @@ def test_p0_moves_off_a_hole_at_the_centre_and_a_given_p0_there_is_weak():
 
 
 def test_p0_stays_near_the_centre_on_plain_speckle_and_blank_images_say_so():
-    from dic.speckle import SpecklePattern, render
-    from stream.run import P0Reason, choose_p0
+    from livedic.dic.speckle import SpecklePattern, render
+    from livedic.stream.run import P0Reason, choose_p0
     image = render(SpecklePattern((160, 200), n_speckles=700, radius=3.0, seed=9), bit_depth=8)
     choice = choose_p0(image, (20, 20, 160, 120), 21)
     assert choice.reason is P0Reason.BEST_NEAR_CENTRE and not choice.weak
@@ -290,7 +290,7 @@ def test_p0_stays_near_the_centre_on_plain_speckle_and_blank_images_say_so():
 
 
 def test_a_run_on_a_holed_specimen_traces_p0_on_the_speckle_and_says_why(tmp_path, capsys):
-    from acquire.mcap_replay import read_events, read_results
+    from livedic.acquire.mcap_replay import read_events, read_results
     frames = tmp_path / "frames"
     frames.mkdir()
     for i in range(4):
