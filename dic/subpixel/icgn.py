@@ -89,6 +89,7 @@ from numba import njit, prange
 from livedic.dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
+from livedic.dic.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
 from livedic.dic.linalg import cholesky_lower
 from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
@@ -186,8 +187,8 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
     """Fill the per-point arrays of one point (row stride ``lanes``); return (status, norm, sum_f).
 
     work : (hess (6, 6), h0 (2, 2), low (6, 6), linv (6, 6), row (17,), mom (30,)) scratch.
-    The Hessian is accumulated as moments: per row, sums of fx^2, fx fy, fy^2
-    times (1, dx, dx^2), folded with dy at the row end.
+    The Hessian is accumulated as moments (``dic.hessian``): per row, sums of
+    fx^2, fx fy, fy^2 times (1, dx, dx^2), folded with dy at the row end.
     """
     hess, h0, low, linv, row, mom = work
     height, width = reference.shape
@@ -290,45 +291,23 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
         row[15] = r15
         row[16] = r16
         fdy = float(dy)
-        for pair in range(3):   # moments (1, dx, dy, dx^2, dx dy, dy^2) of xx, xy, yy
-            s1 = row[3 * pair]
-            sx = row[3 * pair + 1]
-            o = 6 * pair
-            mom[o] += s1
-            mom[o + 1] += sx
-            mom[o + 2] += s1 * fdy
-            mom[o + 3] += row[3 * pair + 2]
-            mom[o + 4] += sx * fdy
-            mom[o + 5] += s1 * fdy * fdy
+        fold_row(row, fdy, mom)     # moments (1, dx, dy, dx^2, dx dy, dy^2) of xx, xy, yy
         for vec in range(4):    # moments (1, dx, dy) of fx, fy, fx fhat, fy fhat
             s1 = row[9 + 2 * vec]
             o = 18 + 3 * vec
             mom[o] += s1
             mom[o + 1] += row[10 + 2 * vec]
             mom[o + 2] += s1 * fdy
-    # parameter a = (component ga in (x, y), moment ma in (1, dx, dy)); H[a, b] = sum G_a G_b m_a m_b
+    # parameter a = (component ga in (x, y), moment ma in (1, dx, dy))
     for pa in range(6):
         ga = pa // 3
         ma = pa % 3
         sum_j[pa] = mom[18 + 3 * ga + ma]
         sum_jf[pa] = mom[24 + 3 * ga + ma]
-        for pb in range(6):
-            gb = pb // 3
-            mb = pb % 3
-            lo = min(ma, mb)
-            hi = max(ma, mb)
-            if lo == 0:
-                mo = hi
-            elif lo == 1:
-                mo = 2 + hi
-            else:
-                mo = 5
-            hess[pa, pb] = mom[6 * (ga + gb) + mo]
+    gauss_newton_matrix(mom, hess)
     if projected:
         # H = sum J~ J~^T - (sum J fhat)(sum J fhat)^T with J~ = J - mean J (module notes)
-        for pa in range(6):
-            for pb in range(6):
-                hess[pa, pb] -= sum_j[pa] * sum_j[pb] / n + sum_jf[pa] * sum_jf[pb]
+        subtract_normalisation(hess, sum_j, sum_jf, n)
     if not _invert_spd(hess, hinv, low, linv):
         return _FLAT_REFERENCE, np.nan, 0.0
     h0[0, 0] = hess[0, 0]

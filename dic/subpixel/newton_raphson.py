@@ -49,6 +49,7 @@ from numba import njit, prange
 
 from livedic.dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
+from livedic.dic.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
 from livedic.dic.linalg import cholesky_lower
 from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
@@ -130,15 +131,7 @@ def _nr_sums(coeffs, x0, y0, half, ftilde, p, acc, r):
                     r[q + 1] += t * dx
                     q += 2
         # fold the row into the subset moments
-        for pair in range(3):
-            s1, sx, sxx = r[3 * pair], r[3 * pair + 1], r[3 * pair + 2]
-            o = 3 + 6 * pair
-            acc[o] += s1
-            acc[o + 1] += sx
-            acc[o + 2] += s1 * dy
-            acc[o + 3] += sxx
-            acc[o + 4] += sx * dy
-            acc[o + 5] += s1 * dy * dy
+        fold_row(r, dy, acc[3:21])
         for vec in range(6):
             s1, sx = r[9 + 2 * vec], r[9 + 2 * vec + 1]
             o = 21 + 3 * vec
@@ -149,8 +142,8 @@ def _nr_sums(coeffs, x0, y0, half, ftilde, p, acc, r):
 
 @njit(cache=True)
 def _nr_one(coeffs, height, width, x0, y0, half, ftilde, fnorm, p, order, projected, max_iterations, tolerance,
-            acc, row, hess, rhs, dp):
-    """Refine p (6,) in place; return (status, zncc, iterations)."""
+            acc, row, hess, rhs, dp, sum_j, sum_jhat):
+    """Refine p (6,) in place; return (status, zncc, iterations). acc .. sum_jhat: scratch."""
     side = 2 * half + 1
     n = side * side
     half2 = float(half * half)
@@ -168,38 +161,19 @@ def _nr_one(coeffs, height, width, x0, y0, half, ftilde, fnorm, p, order, projec
         gnorm = np.sqrt(var)
         zncc = acc[2] / (fnorm * gnorm)
         scale = gnorm / fnorm
-        # parameter a -> (gradient component G, moment index mo in (1, dx, dy))
+        # parameter a -> (gradient component G, moment index in (1, dx, dy))
         for a in range(6):
-            ga = a // 3
-            ma = a % 3
+            base = 21 + 9 * (a // 3) + a % 3
             # b_a = scale * sum G f~ m - sum G g m + mean * sum G m
-            base = 21 + 9 * ga
-            rhs[a] = scale * acc[base + ma] - acc[base + 3 + ma] + mean * acc[base + 6 + ma]
-            for b in range(6):
-                gb = b // 3
-                mb = b % 3
-                pair = ga + gb  # 0: xx, 1: xy, 2: yy
-                # product of moments: (1,1)->1 (1,dx)->dx (1,dy)->dy (dx,dx)->dx^2 (dx,dy)->dxdy (dy,dy)->dy^2
-                lo = min(ma, mb)
-                hi = max(ma, mb)
-                if lo == 0:
-                    mo = hi
-                elif lo == 1:
-                    mo = 2 + hi
-                else:
-                    mo = 5
-                hess[a, b] = acc[3 + 6 * pair + mo]
+            rhs[a] = scale * acc[base] - acc[base + 3] + mean * acc[base + 6]
+        gauss_newton_matrix(acc[3:21], hess)
         if projected:
             # H = sum J~ J~^T - (sum J ghat)(sum J ghat)^T, J~ = J - mean J, ghat = g~ / |g~|
             for a in range(6):
-                base_a = 21 + 9 * (a // 3) + a % 3
-                sa = acc[base_a + 6]
-                ga = (acc[base_a + 3] - mean * sa) / gnorm
-                for b in range(6):
-                    base_b = 21 + 9 * (b // 3) + b % 3
-                    sb = acc[base_b + 6]
-                    gb = (acc[base_b + 3] - mean * sb) / gnorm
-                    hess[a, b] -= sa * sb / n + ga * gb
+                base = 21 + 9 * (a // 3) + a % 3
+                sum_j[a] = acc[base + 6]
+                sum_jhat[a] = (acc[base + 3] - mean * sum_j[a]) / gnorm
+            subtract_normalisation(hess, sum_j, sum_jhat, n)
         if order == 0:
             hess[1, 0] = hess[3, 0]
             hess[0, 1] = hess[0, 3]
@@ -240,6 +214,8 @@ def _nr_batch(reference, coeffs, xs, ys, half, params, status, order, projected,
         hess = np.zeros((6, 6))
         rhs = np.zeros(6)
         dp = np.zeros(6)
+        sum_j = np.empty(6)
+        sum_jhat = np.empty(6)
         for i in range(c * _CHUNK, min((c + 1) * _CHUNK, npts)):
             out_iter[i] = 0
             out_zncc[i] = np.nan
@@ -274,7 +250,7 @@ def _nr_batch(reference, coeffs, xs, ys, half, params, status, order, projected,
                 status[i] = _FLAT_REFERENCE
                 continue
             st, zn, it = _nr_one(coeffs, height, width, x0, y0, half, ftilde, np.sqrt(sq), params[i], order,
-                                 projected, max_iterations, tolerance, acc, row, hess, rhs, dp)
+                                 projected, max_iterations, tolerance, acc, row, hess, rhs, dp, sum_j, sum_jhat)
             status[i] = st
             out_iter[i] = it
             if st == _OK:
