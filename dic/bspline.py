@@ -375,11 +375,14 @@ def interpolate(image_or_coeffs, x, y, *, gradient=False):
 # ---------------------------------------------------------------------------
 # subset samplers (the IC-GN inner loop)
 
-_FASTMATH = {"contract", "reassoc"}  # FMA contraction and reordering only: no NaN/inf assumptions
+# numba fastmath flags of the float32 kernels (the samplers here, IC-GN, the Keys lattice): only re-association and FMA
+# contraction, which let LLVM vectorise the sums. No nnan/ninf/nsz flags, so NaN/inf semantics are
+# untouched; the result depends on the code path only, never on threads.
+FASTMATH = {"contract", "reassoc"}
 _F32 = np.float32
 
 
-@njit(cache=True, fastmath=_FASTMATH)
+@njit(cache=True, fastmath=FASTMATH)
 def sample_shift(flat, origin, stride, x, y, half, tmp, out, out_stride):
     """Spline values of the subset shifted as a whole to centre (x, y), separably.
 

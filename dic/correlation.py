@@ -179,3 +179,9 @@ def snap_points(xy):
     """Integer pixel (xs, ys) nearest to float points (N, 2); halves round up."""
     snapped = np.floor(xy + 0.5).astype(np.int64)
     return np.ascontiguousarray(snapped[:, 0]), np.ascontiguousarray(snapped[:, 1])
+
+
+@njit(cache=True)
+def round_half_up(x):
+    """Nearest integer to float ``x``, halves rounded up (``floor(x + 0.5)``, the rule of ``snap_points``), as int64."""
+    return np.int64(np.floor(x + 0.5))

@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit, prange
 
 from livedic.dic.status import LOW_CORRELATION, OK
-from livedic.dic.subpixel.icgn import _icgn_one, _scratch
+from livedic.dic.subpixel.icgn import refine_point, refine_point_scratch
 
 SEEDS = 9
 MAX_TRIES = 3
@@ -128,7 +128,7 @@ def _propagate(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, f
         for i in range(n):
             if state[i] == 1 and part[i] == region:
                 size = _heap_push(keys, items, size, zncc[i], i)
-        scratch = _scratch(half, lanes)
+        scratch = refine_point_scratch(half, lanes)
         p = np.empty(6)
         while size > 0:
             j, size = _heap_pop(keys, items, size)
@@ -137,10 +137,10 @@ def _propagate(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, f
                 if part[k] != region or state[k] != 0 or tries[k] >= max_tries:
                     continue
                 _carry(params, j, k, xs, ys, order[k], p)
-                st, zn, it = _icgn_one(flat, origin, stride, height, width, xs[k], ys[k], half, fhat[k], fx[k], fy[k],
-                                       norm[k], hinv[k], hinv0[k], sum_j[k], sum_jf[k], sum_f[k], p, order[k],
-                                       max_iterations, tolerance, translation_iterations, translation_tolerance,
-                                       scratch)
+                st, zn, it = refine_point(flat, origin, stride, height, width, xs[k], ys[k], half, fhat[k], fx[k],
+                                          fy[k], norm[k], hinv[k], hinv0[k], sum_j[k], sum_jf[k], sum_f[k], p,
+                                          order[k], max_iterations, tolerance, translation_iterations,
+                                          translation_tolerance, scratch)
                 iterations[k] += it
                 if st == OK and zn >= accept:
                     for c in range(6):
@@ -164,10 +164,10 @@ def _solve(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, f
     """IC-GN for the points ``idx`` from ``starts`` (len(idx), 6), refined in place, in parallel."""
     for t in prange(idx.shape[0]):
         k = idx[t]
-        scratch = _scratch(half, lanes)
-        st, zn, it = _icgn_one(flat, origin, stride, height, width, xs[k], ys[k], half, fhat[k], fx[k], fy[k],
-                               norm[k], hinv[k], hinv0[k], sum_j[k], sum_jf[k], sum_f[k], starts[t], order[k],
-                               max_iterations, tolerance, translation_iterations, translation_tolerance, scratch)
+        scratch = refine_point_scratch(half, lanes)
+        st, zn, it = refine_point(flat, origin, stride, height, width, xs[k], ys[k], half, fhat[k], fx[k], fy[k],
+                                  norm[k], hinv[k], hinv0[k], sum_j[k], sum_jf[k], sum_f[k], starts[t], order[k],
+                                  max_iterations, tolerance, translation_iterations, translation_tolerance, scratch)
         out_status[t] = st
         out_zncc[t] = zn
         out_iterations[t] = it

@@ -30,12 +30,12 @@ import numpy as np
 
 from livedic.dic.result import IntegerSearchResult
 from livedic.dic.search import coarse_fine, exhaustive, fft_cc, improved_wso, pso, wso
-from livedic.dic.search._common import new_outputs, resolve_options, search_boxes, seed_to_uint
+from livedic.dic.method_options import resolve_options, seed_to_uint
+from livedic.dic.search._common import new_outputs, search_boxes
 from livedic.dic.search.pyramid import levels_for, pyramid_search
 from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
-SEARCH_METHODS = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso")
-
+# Search method -> its module (DEFAULTS, CHECKS and the kernel).
 _MODULES = {
     "exhaustive": exhaustive,
     "fft-cc": fft_cc,
@@ -44,6 +44,8 @@ _MODULES = {
     "wso": wso,
     "improved-wso": improved_wso,
 }
+# The integer searches; ``dic.measure.SEARCH_METHODS`` adds "none" (no search: start from the guess).
+SEARCH_METHODS = tuple(_MODULES)
 
 
 def method_options(method):
@@ -158,7 +160,7 @@ def integer_search(reference, deformed, points, *, method="improved-wso", subset
 
     Examples
     --------
-    >>> from dic.speckle import SpecklePattern, render
+    >>> from livedic.dic.speckle import SpecklePattern, render
     >>> pattern = SpecklePattern((128, 128), n_speckles=250, seed=1)
     >>> ref, dfm = render(pattern), render(pattern, (3, -2))
     >>> r = integer_search(ref, dfm, [(64, 64)], radius=8)

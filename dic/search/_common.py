@@ -7,29 +7,20 @@
 * ``fitness``: ZNCC at an integer displacement through a per-point cache, so each
   method can report distinct evaluations and total calls.
 * ``hill_climb``: 8-neighbour ascent on the integer grid (the improved WSO's
-  "three-step search" polish, also used to recentre sub-pixel fits).
-* ``resolve_options``: checks a method's options dict against its defaults.
+  "three-step search" polish and the pyramid's refinement).
+
+Options are checked by ``dic.method_options``; status codes are ``dic.status``'s.
 
 Positions are absolute integer displacements (u, v); the search box of a point
 is ``[ulo, uhi] x [vlo, vhi]`` and its cache is a (vhi-vlo+1, uhi-ulo+1) array
 holding NaN where a position has not been evaluated.
 """
 
-import numbers
-
 import numpy as np
 from numba import njit
 
 from livedic.dic.correlation import prepare_reference_subset, zncc_at_integer
-from livedic.dic.status import Status
-
-OK = np.int8(Status.OK)
-OUTSIDE_REFERENCE = np.int8(Status.OUTSIDE_REFERENCE)
-FLAT_REFERENCE = np.int8(Status.FLAT_REFERENCE)
-OUTSIDE_TARGET = np.int8(Status.OUTSIDE_TARGET)
-FLAT_TARGET = np.int8(Status.FLAT_TARGET)
-NOT_CONVERGED = np.int8(Status.NOT_CONVERGED)
-BAD_GUESS = np.int8(Status.BAD_GUESS)
+from livedic.dic.status import BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, OK, OUTSIDE_REFERENCE, OUTSIDE_TARGET
 
 # A guess beyond this many pixels is treated as "far outside", before it is cast
 # to int64 (avoids overflow on absurd guesses such as 1e300).
@@ -87,12 +78,6 @@ def search_boxes(shape, xs, ys, guess_u, guess_v, half, radius, margin):
     vlo[bad] = 0
     vhi[bad] = 0
     return ulo, uhi, vlo, vhi, cu, cv, status
-
-
-@njit(cache=True)
-def round_half_up(x):
-    """Nearest integer to float ``x``, halves rounded up (``floor(x + 0.5)``), as int64."""
-    return np.int64(np.floor(x + 0.5))
 
 
 @njit(cache=True)
@@ -179,46 +164,3 @@ def new_outputs(n):
     """Output arrays of a search kernel: u, v, zncc, evaluations, calls."""
     return (np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.full(n, np.nan),
             np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))
-
-
-def resolve_options(method, options, defaults, checks):
-    """Merge ``options`` into ``defaults`` after checking names and values.
-
-    ``checks`` maps option name -> (predicate, description). Raises ValueError
-    naming the valid options (unknown name) or the expected value (bad value).
-    """
-    merged = dict(defaults)
-    for name, value in (options or {}).items():
-        if name not in defaults:
-            valid = ", ".join(sorted(defaults)) or "none"
-            raise ValueError(f"unknown option {name!r} for {method!r}: valid options are {valid}")
-        predicate, description = checks[name]
-        if not predicate(value):
-            raise ValueError(f"option {name!r} of {method!r} must be {description}, got {value!r}")
-        merged[name] = value
-    return merged
-
-
-def is_int_at_least(low):
-    return lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= low
-
-
-def is_real_in(low, high, low_open=False, high_open=False):
-    def check(v):
-        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(v):
-            return False
-        above = v > low if low_open else v >= low
-        below = v < high if high_open else v <= high
-        return above and below
-    return check
-
-
-def is_bool(v):
-    return isinstance(v, (bool, np.bool_))
-
-
-def seed_to_uint(seed):
-    """Seed as np.uint64 (any Python int, negative ones wrap)."""
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
-        raise ValueError(f"seed must be an integer, got {seed!r}")
-    return np.uint64(int(seed) % (1 << 64))

@@ -16,7 +16,8 @@ speckle radius) and a side lobe beats the sampled flank of the true peak.
 import numpy as np
 from numba import njit, prange
 
-from livedic.dic.search._common import begin_point, finish_point, fitness, is_int_at_least, new_cache
+from livedic.dic.method_options import is_int_at_least
+from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {"step": 3}
 CHECKS = {"step": (is_int_at_least(1), "an integer >= 1 (coarse lattice step, pixels)")}

@@ -145,8 +145,9 @@ import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import uniform, new_state
-from livedic.dic.search._common import (begin_point, finish_point, fitness, hill_climb, is_bool, is_int_at_least,
-                                is_real_in, new_cache, round_half_up)
+from livedic.dic.correlation import round_half_up
+from livedic.dic.method_options import is_bool, is_int_at_least, is_real_in
+from livedic.dic.search._common import begin_point, finish_point, fitness, hill_climb, new_cache
 
 DEFAULTS = {"population": 20, "iterations": 50, "mu": 0.7, "p_min": 0.5, "p_max": 1.5,
             "a1": 6.25, "a2": 5.0, "sd_tol": 1e-3, "tent_a": 0.5, "polish": True,

@@ -26,8 +26,9 @@ import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import new_state, uniform
-from livedic.dic.search._common import (begin_point, finish_point, fitness, is_int_at_least, is_real_in,
-                                new_cache, round_half_up)
+from livedic.dic.correlation import round_half_up
+from livedic.dic.method_options import is_int_at_least, is_real_in
+from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {"population": 20, "iterations": 50, "c1": 1.49445, "c2": 1.49445,
             "w_start": 0.9, "w_end": 0.4, "v_max": 0.2, "patience": 0}

@@ -43,8 +43,9 @@ import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import new_state, uniform
-from livedic.dic.search._common import (begin_point, finish_point, fitness, is_bool, is_int_at_least, new_cache,
-                                round_half_up)
+from livedic.dic.correlation import round_half_up
+from livedic.dic.method_options import is_bool, is_int_at_least
+from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {"population": 20, "iterations": 50, "variant": "code", "fix_gbest": True}
 CHECKS = {

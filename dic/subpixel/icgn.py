@@ -85,8 +85,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
+from numpy import float32 as _F32
 
-from livedic.dic.bspline import _F32, _FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
+from livedic.dic.bspline import FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
@@ -182,7 +183,7 @@ def _invert_spd(a, out, low, linv):
 # reference preparation
 
 
-@njit(cache=True, fastmath=_FASTMATH)
+@njit(cache=True, fastmath=FASTMATH)
 def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j, sum_jf, projected, work):
     """Fill the per-point arrays of one point (row stride ``lanes``); return (status, norm, sum_f).
 
@@ -396,7 +397,7 @@ def prepare_target(deformed):
 # iteration kernels
 
 
-@njit(cache=True, fastmath=_FASTMATH)
+@njit(cache=True, fastmath=FASTMATH)
 def _sums_shift(g, fhat, fx, fy):
     """(sum g, g^2, fhat g, fx g, fy g) in float64 over a padded subset (pad entries are 0)."""
     sg = 0.0
@@ -414,7 +415,7 @@ def _sums_shift(g, fhat, fx, fy):
     return sg, sgg, sfg, a0, b0
 
 
-@njit(cache=True, fastmath=_FASTMATH, inline="always")
+@njit(cache=True, fastmath=FASTMATH, inline="always")
 def _row_sums(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx, fy, koff):
     """Sample one subset row at an affine warp and return its 7 IC-GN sums (float32).
 
@@ -486,7 +487,7 @@ def _row_sums(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx
     return sg, sgg, sfg, pa, pax, pb, pbx
 
 
-@njit(cache=True, fastmath=_FASTMATH)
+@njit(cache=True, fastmath=FASTMATH)
 def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx, lane_mask,
                  kx, ky, run_mask, out):
     """out (9,) <- sums over the subset warped by p: g, g^2, fhat g, fx g, fx g dx, fx g dy, fy g, fy g dx, fy g dy.
@@ -576,10 +577,12 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
 
 
 @njit(cache=True)
-def _icgn_one(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf, sum_f,
-              p, order, max_iterations, tolerance, translation_iterations, translation_tolerance, scratch):
+def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
+                 sum_f, p, order, max_iterations, tolerance, translation_iterations, translation_tolerance, scratch):
     """Refine p = [u, ux, uy, v, vx, vy] (6,) in place; return (status, zncc, iterations).
 
+    The per-point kernel of ``refine_prepared``, for kernels that refine one point at a time
+    (``dic.reliability_guided``); ``scratch`` from ``refine_point_scratch``, one per task.
     order 0: translation-only IC-GN to ``tolerance`` (gradients ignored, left 0).
     order 1: translation pre-stage (start without gradients only), then 1st-order IC-GN.
     """
@@ -693,8 +696,8 @@ def _icgn_one(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, n
 
 
 @njit(cache=True)
-def _scratch(half, lanes):
-    """Per-task scratch arrays for ``_icgn_one``."""
+def refine_point_scratch(half, lanes):
+    """Per-task scratch arrays for ``refine_point``."""
     side = 2 * half + 1
     g = np.zeros(side * lanes, dtype=np.float32)
     tmp = np.zeros((side + 3) * lanes, dtype=np.float32)
@@ -713,33 +716,38 @@ def _scratch(half, lanes):
 
 @njit(cache=True, parallel=True, nogil=True)
 def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
-                sum_jf, sum_f, params, status, order, max_iterations, tolerance, translation_iterations,
+                sum_jf, sum_f, points, params, status, order, max_iterations, tolerance, translation_iterations,
                 translation_tolerance, out_zncc, out_iter):
-    """Refine every point whose ``status`` is OK; params (N, 6) in/out, status (N,) in/out, order (N,)."""
-    npts = xs.shape[0]
+    """Refine the prepared points ``points`` (M,) whose ``status`` is OK.
+
+    Row j of params (M, 6) in/out, status (M,) in/out, order (M,) and the outputs
+    is the prepared point ``points[j]``.
+    """
+    npts = points.shape[0]
     n_chunks = (npts + _CHUNK - 1) // _CHUNK
     for c in prange(n_chunks):
-        scratch = _scratch(half, lanes)
-        for i in range(c * _CHUNK, min((c + 1) * _CHUNK, npts)):
-            out_iter[i] = 0
-            out_zncc[i] = np.nan
-            if status[i] != _OK:
+        scratch = refine_point_scratch(half, lanes)
+        for j in range(c * _CHUNK, min((c + 1) * _CHUNK, npts)):
+            out_iter[j] = 0
+            out_zncc[j] = np.nan
+            if status[j] != _OK:
                 continue
             ok = True
             for m in range(6):
-                if not np.isfinite(params[i, m]):
+                if not np.isfinite(params[j, m]):
                     ok = False
             if not ok:
-                status[i] = _BAD_GUESS
+                status[j] = _BAD_GUESS
                 continue
-            st, zn, it = _icgn_one(flat, origin, stride, height, width, xs[i], ys[i], half, fhat[i], fx[i], fy[i],
-                                   norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], params[i], order[i],
-                                   max_iterations, tolerance, translation_iterations, translation_tolerance,
-                                   scratch)
-            status[i] = st
-            out_iter[i] = it
+            i = points[j]
+            st, zn, it = refine_point(flat, origin, stride, height, width, xs[i], ys[i], half, fhat[i], fx[i], fy[i],
+                                      norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], params[j], order[j],
+                                      max_iterations, tolerance, translation_iterations, translation_tolerance,
+                                      scratch)
+            status[j] = st
+            out_iter[j] = it
             if st == _OK:
-                out_zncc[i] = zn
+                out_zncc[j] = zn
 
 
 # ---------------------------------------------------------------------------
@@ -758,7 +766,7 @@ def _as_start(values, n, name, default):
 
 
 def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
-                    order=1, max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
+                    points=None, order=1, max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
     """IC-GN from prepared reference data and target coefficients.
 
     Parameters
@@ -773,6 +781,11 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
         Start displacement gradients (e.g. the previous frame's result); zero if omitted.
     status : ndarray of int8, shape (N,), optional
         Refine only where OK (combined with ``ref_prep.status``); other codes are copied through.
+    points : ndarray of int, shape (N,), optional
+        Which of the prepared points to refine (indices into ``ref_prep``'s points;
+        default all of them, in order). The start arrays, ``status``, a per-point
+        ``order`` and the result have one entry per index: the other prepared
+        points are not touched.
     order : {1, 0} or ndarray of int, shape (N,)
         Shape function: 1 (default) affine, p = (u, ux, uy, v, vx, vy); 0 rigid
         shift (u, v), the translation steps alone iterated to ``tolerance``
@@ -813,7 +826,13 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
                          f"{ref_prep.shape[1]}x{ref_prep.shape[0]}: both images must have the same size")
     if target_coeffs.coefficients.dtype != np.float32:
         raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
-    npts = ref_prep.xs.shape[0]
+    n_prepared = ref_prep.xs.shape[0]
+    points = np.arange(n_prepared) if points is None else np.asarray(points)
+    if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \
+            (points.size and (points.min() < 0 or points.max() >= n_prepared)):
+        raise ValueError(f"points must be a 1-D array of indices of the {n_prepared} prepared points")
+    points = np.ascontiguousarray(points, dtype=np.int64)
+    npts = points.shape[0]
     per_point = np.ndim(order) > 0
     orders = np.asarray(order).astype(np.int64) if per_point else np.full(npts, order, dtype=np.int64)
     if orders.shape != (npts,) or not np.all((orders == 0) | (orders == 1)) or \
@@ -833,7 +852,7 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     params[:, 4] = _as_start(vx0, npts, "vx0", 0.0)
     params[:, 5] = _as_start(vy0, npts, "vy0", 0.0)
     params[np.ix_(orders == 0, [1, 2, 4, 5])] = 0.0
-    st = ref_prep.status.copy()
+    st = ref_prep.status[points]
     if status is not None:
         status = np.asarray(status)
         if status.shape != (npts,):
@@ -845,7 +864,7 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     _icgn_batch(target_coeffs.flat, target_coeffs.origin, target_coeffs.coefficients.shape[1], height, width,
                 ref_prep.xs, ref_prep.ys, ref_prep.half, ref_prep.lanes, ref_prep.fhat, ref_prep.fx, ref_prep.fy,
                 ref_prep.norm, ref_prep.hinv, ref_prep.hinv0, ref_prep.sum_j, ref_prep.sum_jf, ref_prep.sum_f,
-                params, st, orders, int(max_iterations), float(tolerance), int(translation_iterations),
+                points, params, st, orders, int(max_iterations), float(tolerance), int(translation_iterations),
                 float(translation_tolerance), out_zncc, out_iter)
     ok = st == Status.OK
     params[~ok] = np.nan
@@ -885,7 +904,7 @@ def refine(reference, deformed, xs, ys, u0, v0, status, half, **options):
 
     Examples
     --------
-    >>> from dic.speckle import SpecklePattern, render
+    >>> from livedic.dic.speckle import SpecklePattern, render
     >>> pattern = SpecklePattern((96, 96), n_speckles=140, seed=1)
     >>> ref, dfm = render(pattern, bit_depth=None), render(pattern, (1.3, -0.6), bit_depth=None)
     >>> r = refine(ref, dfm, np.array([48]), np.array([48]), np.array([1.0]), np.array([-1.0]),

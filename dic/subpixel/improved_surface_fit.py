@@ -14,7 +14,7 @@ Per point, starting from the integer peak (u0, v0):
    intensities is the physically meaningful reading (a ZNCC map interpolated
    with a cubic kernel is not a correlation). The Keys weights of each phase
    ``frac(h i)`` are computed once per call (5 phases at h = 0.2) and the
-   horizontal pass is cached per phase and point (``dic.search._lattice``).
+   horizontal pass is cached per phase and point (``dic.subpixel.lattice``).
 2. **Search.** The improved WSO (``dic.search.improved_wso``, the same ask/tell
    code as the integer search: Tent init, Eq. 9-11 velocity, K_t position update,
    SD < ``sd_tol`` stop, "random" boundary rule) searches the node indices in
@@ -64,13 +64,13 @@ import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import new_state
-from livedic.dic.correlation import prepare_reference_subset, subset_inside
+from livedic.dic.correlation import prepare_reference_subset, round_half_up, subset_inside
+from livedic.dic.method_options import is_int_at_least, is_real_in, resolve_options, seed_to_uint
 from livedic.dic.result import SubpixelResult
-from livedic.dic.search._common import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
-                                OUTSIDE_TARGET, is_int_at_least, is_real_in, resolve_options, round_half_up,
-                                seed_to_uint)
-from livedic.dic.search._lattice import build_plane, lattice_tables, node_zncc, valid_range
 from livedic.dic.search.improved_wso import DEFAULTS as _IWSO, fitness_sd, iwso_init, iwso_move, iwso_tell
+from livedic.dic.status import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
+                                OUTSIDE_TARGET)
+from livedic.dic.subpixel.lattice import build_plane, lattice_tables, node_zncc, valid_range
 from livedic.dic.subpixel.peak_fit import fit_peak_3x3
 
 DEFAULTS = {"spacing": 0.2, "extent": 1.0, "population": 4, "iterations": 10, "sd_tol": _IWSO["sd_tol"]}

@@ -24,9 +24,10 @@ import numpy as np
 from numba import njit, prange
 
 from livedic.dic.correlation import prepare_reference_subset, subset_inside, zncc_at_integer
+from livedic.dic.method_options import is_int_at_least, resolve_options
 from livedic.dic.result import SubpixelResult
-from livedic.dic.search._common import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
-                                OUTSIDE_TARGET, is_int_at_least, resolve_options)
+from livedic.dic.status import (BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, NOT_CONVERGED, OK, OUTSIDE_REFERENCE,
+                                OUTSIDE_TARGET)
 from livedic.dic.subpixel.peak_fit import fit_peak_3x3
 
 DEFAULTS = {"max_moves": 2}

@@ -196,7 +196,7 @@ def test_affine_sums_kernel_matches_numpy(pattern):
     fhat = prep.fhat[0].reshape(side, prep.lanes)[:, :side]
     fx = prep.fx[0].reshape(side, prep.lanes)[:, :side]
     fy = prep.fy[0].reshape(side, prep.lanes)[:, :side]
-    g, tmp, kx, ky, lane_dx, lane_mask, run_mask, sums = icgn._scratch(HALF, prep.lanes)
+    g, tmp, kx, ky, lane_dx, lane_mask, run_mask, sums = icgn.refine_point_scratch(HALF, prep.lanes)
     # small gradients: every row one run; large ones: tap origins step inside rows
     for p in [(1.31, 0.0004, -0.0002, -0.41, 0.0003, 0.0001), (1.37, 0.06, -0.03, -0.41, -0.05, 0.04)]:
         icgn._affine_sums(coeffs.flat, coeffs.origin, coeffs.coefficients.shape[1], x0, y0, HALF, *p,

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from livedic.dic.search import search_points
-from livedic.dic.search._lattice import build_plane, lattice_tables, node_zncc
 from livedic.dic.speckle import SpecklePattern, render
 from livedic.dic.status import Status
 from livedic.dic.subpixel import improved_surface_fit, surface_fit
+from livedic.dic.subpixel.lattice import build_plane, lattice_tables, node_zncc
 
 SIZE = 256
 HALF = 10  # subset 21

@@ -22,13 +22,9 @@ Keys weights per phase.
 import numpy as np
 from numba import njit, uint64
 
+from livedic.dic.bspline import FASTMATH
 from livedic.dic.correlation import FLAT_VARIANCE
 from livedic.dic.interpolation import keys_weights
-
-# Only re-association and FMA contraction: lets LLVM vectorise the float32 sums.
-# No nnan/ninf/nsz flags, so NaN/inf semantics are untouched; the result depends
-# on the code path only, never on threads.
-_REASSOC = {"reassoc", "contract"}
 
 
 def lattice_tables(spacing, half_nodes):
@@ -73,7 +69,7 @@ def valid_range(size, c0, half, lr, rr, lo_k, hi_k, mid_k):
     return a, b
 
 
-@njit(cache=True, fastmath=_REASSOC)
+@njit(cache=True, fastmath=FASTMATH)
 def build_plane(target, planes, p, wts, x_org, y_org, offset):
     """Horizontal Keys pass for x-phase p into planes[p] (rows, cols), float32.
 
@@ -114,7 +110,7 @@ def build_plane(target, planes, p, wts, x_org, y_org, offset):
                 flat[r * cols + c] = acc - off
 
 
-@njit(cache=True, fastmath=_REASSOC)
+@njit(cache=True, fastmath=FASTMATH)
 def node_zncc(fhat2, planes, p, c0, r0, wy, side):
     """ZNCC of the prepared subset ``fhat2`` (side, side) float32 against the node whose
     samples are ``sum_t wy[t] * planes[p][r + r0 + t, c + c0]``; -1 for a flat target.

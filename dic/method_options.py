@@ -1,0 +1,63 @@
+"""Options of the search and sub-pixel methods: checked against each method's defaults, one set of rules.
+
+A method module declares ``DEFAULTS`` (option name -> default value) and
+``CHECKS`` (option name -> (predicate, description)); ``resolve_options`` merges
+what the caller passed into the defaults after checking names and values, and
+the predicates below build the checks. ``seed_to_uint`` turns the seed of the
+stochastic methods into the uint64 their per-point random streams start from.
+
+Examples
+--------
+>>> resolve_options("pso", {"population": 8}, {"population": 20}, {"population": (is_int_at_least(1), "an int >= 1")})
+{'population': 8}
+"""
+
+import numbers
+
+import numpy as np
+
+
+def resolve_options(method, options, defaults, checks):
+    """Merge ``options`` into ``defaults`` after checking names and values.
+
+    ``checks`` maps option name -> (predicate, description). Raises ValueError
+    naming the valid options (unknown name) or the expected value (bad value).
+    """
+    merged = dict(defaults)
+    for name, value in (options or {}).items():
+        if name not in defaults:
+            valid = ", ".join(sorted(defaults)) or "none"
+            raise ValueError(f"unknown option {name!r} for {method!r}: valid options are {valid}")
+        predicate, description = checks[name]
+        if not predicate(value):
+            raise ValueError(f"option {name!r} of {method!r} must be {description}, got {value!r}")
+        merged[name] = value
+    return merged
+
+
+def is_int_at_least(low):
+    """Predicate: an integer (not a bool) >= ``low``."""
+    return lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= low
+
+
+def is_real_in(low, high, low_open=False, high_open=False):
+    """Predicate: a finite real number (not a bool) in [low, high], either end open if told."""
+    def check(v):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(v):
+            return False
+        above = v > low if low_open else v >= low
+        below = v < high if high_open else v <= high
+        return above and below
+    return check
+
+
+def is_bool(v):
+    """Predicate: a Python or numpy bool."""
+    return isinstance(v, (bool, np.bool_))
+
+
+def seed_to_uint(seed):
+    """Seed as np.uint64 (any Python int, negative ones wrap)."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
+        raise ValueError(f"seed must be an integer, got {seed!r}")
+    return np.uint64(int(seed) % (1 << 64))
