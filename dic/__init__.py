@@ -1,13 +1,26 @@
 """livedic's measurement core: pure functions on numpy arrays.
 
-Correlation (ZNCC), integer-pixel search (exhaustive, coarse-fine, PSO, WSO,
-improved WSO), sub-pixel refinement (surface fit, gradient, Newton-Raphson,
-improved surface fit, IC-GN) and an exact speckle simulator. No I/O, no threads.
+Correlation (ZNCC), integer-pixel search (exhaustive, FFT-CC, coarse-fine, PSO,
+WSO, improved WSO), sub-pixel refinement (surface fit, gradient, Newton-Raphson,
+improved surface fit, IC-GN), quality gates, frame-to-frame tracking and an exact
+speckle simulator. No I/O, no threads.
+
+The front door:
+
+* ``measure`` -- displacements between two images; ``Measurement`` what it returns;
+  ``SEARCH_METHODS``, ``SUBPIXEL_METHODS`` the method names it takes; ``Gates``
+  its quality gates; ``Status`` the per-point codes.
+* ``Tracker`` -- points tracked through the frames of a test; ``grid_in_roi`` and
+  ``step_for_count`` place the points.
+* ``zncc`` -- the correlation of given displacements.
 """
 
 from livedic.dic.correlation import zncc
 from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
+from livedic.dic.quality import Gates
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
+from livedic.dic.tracking import Tracker, grid_in_roi, step_for_count
 
-__all__ = ["measure", "zncc", "Measurement", "Status", "SEARCH_METHODS", "SUBPIXEL_METHODS"]
+__all__ = ["measure", "Measurement", "SEARCH_METHODS", "SUBPIXEL_METHODS", "Gates", "Status", "Tracker", "grid_in_roi",
+           "step_for_count", "zncc"]

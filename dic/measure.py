@@ -1,29 +1,30 @@
 """``measure``: integer-pixel search followed by sub-pixel refinement, for many points."""
 
-import importlib
-
 import numpy as np
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
-from livedic.dic.correlation import snap_points
+from livedic.dic.correlation import _zncc_batch, snap_points
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
-from livedic.dic.reliability_guided import ICGN_OPTIONS
+from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
 from livedic.dic.result import Measurement, SubpixelResult
+from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
+from livedic.dic.subpixel import gradient_method, icgn, improved_surface_fit, newton_raphson, surface_fit
 from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
-SEARCH_METHODS = ("exhaustive", "fft-cc", "coarse-fine", "pso", "wso", "improved-wso", "none")
+# The integer searches, and "none": start the sub-pixel method from the guess.
+SEARCH_METHODS = _INTEGER_SEARCHES + ("none",)
 
 # Sub-pixel method -> (module, extra pixels its interpolation/fit needs beyond the subset).
 _SUBPIXEL = {
     "none": (None, 0),
-    "surface-fit": ("livedic.dic.subpixel.surface_fit", 1),
-    "gradient": ("livedic.dic.subpixel.gradient_method", 2),
-    "newton-raphson": ("livedic.dic.subpixel.newton_raphson", INTERPOLATION_MARGIN),
-    "improved-surface-fit": ("livedic.dic.subpixel.improved_surface_fit", 3),
-    "icgn": ("livedic.dic.subpixel.icgn", INTERPOLATION_MARGIN),
+    "surface-fit": (surface_fit, 1),
+    "gradient": (gradient_method, 2),
+    "newton-raphson": (newton_raphson, INTERPOLATION_MARGIN),
+    "improved-surface-fit": (improved_surface_fit, 3),
+    "icgn": (icgn, INTERPOLATION_MARGIN),
 }
 SUBPIXEL_METHODS = tuple(_SUBPIXEL)
 # Sub-pixel methods that run a stochastic optimiser and so take the seed.
@@ -87,7 +88,7 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
 
     Examples
     --------
-    >>> from dic.speckle import SpecklePattern, render
+    >>> from livedic.dic.speckle import SpecklePattern, render
     >>> pattern = SpecklePattern((128, 128), n_speckles=250, seed=1)
     >>> ref, dfm = render(pattern), render(pattern, (2.3, -1.4))
     >>> m = measure(ref, dfm, [(64, 64)], subpixel="icgn")
@@ -107,7 +108,6 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     radius = check_radius(radius)
     xy = as_points(points)
     xs, ys = snap_points(xy)
-    from livedic.dic.subpixel import icgn
     icgn_options = dict(subpixel_options or {}) if subpixel == "icgn" else {}
     # IC-GN's reference data also give the texture gates (dic.quality.texture)
     prep = icgn.prepare_reference(reference, xs, ys, half, hessian=icgn_options.pop("hessian", "projected"))
@@ -154,7 +154,7 @@ def _solve(reference, deformed, prep, start, search, subpixel, radius, seed, sea
            icgn_options, translation_only):
     """Search around ``start`` (unless ``search == "none"``), then the sub-pixel method; no gates."""
     xs, ys, half = prep.xs, prep.ys, prep.half
-    module_name, margin = _SUBPIXEL[subpixel]
+    _, margin = _SUBPIXEL[subpixel]
     if search == "none":
         u0 = start[:, 0].copy()
         v0 = start[:, 1].copy()
@@ -165,7 +165,6 @@ def _solve(reference, deformed, prep, start, search, subpixel, radius, seed, sea
             # These methods work around an integer peak.
             u0, v0 = np.floor(u0 + 0.5), np.floor(v0 + 0.5)
     else:
-        from livedic.dic.search import search_points
         found = search_points(reference, deformed, xs, ys, start[:, 0], start[:, 1], half, radius,
                               search, seed=seed, margin=margin, options=search_options)
         u0 = found.u.astype(np.float64)
@@ -181,11 +180,10 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
             subpixel_options, icgn_options, translation_only, gradients=None):
     """The sub-pixel stage from integer (or float) starts; first-order methods fit a translation where told."""
     xs, ys, half = prep.xs, prep.ys, prep.half
-    module_name, _ = _SUBPIXEL[subpixel]
-    if module_name is None:
+    method, _ = _SUBPIXEL[subpixel]
+    if method is None:
         ok_mask = status == Status.OK
         if from_guess:
-            from livedic.dic.correlation import _zncc_batch
             zncc = np.full(xs.shape[0], np.nan)
             st = np.zeros(xs.shape[0], dtype=np.int8)
             _zncc_batch(reference, deformed, xs, ys, np.where(ok_mask, u0, 0).astype(np.int64),
@@ -194,45 +192,58 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
             ok_mask = status == Status.OK
         return SubpixelResult(u=np.where(ok_mask, u0, np.nan), v=np.where(ok_mask, v0, np.nan),
                               zncc=np.where(ok_mask, zncc, np.nan), status=status, evaluations=evaluations)
-    method = importlib.import_module(module_name)
     options = dict(icgn_options) if subpixel == "icgn" else dict(subpixel_options or {})
     if subpixel in _SEEDED_SUBPIXEL:
         options.setdefault("seed", seed)
     if gradients is not None:
         for name, values in gradients.items():
             options.setdefault(f"{name}0", values)
+    # first-order methods: a rigid shift where the texture cannot pin an affine warp
+    split = translation_only is not None and translation_only.any() and options.get("order", 1) != 0
     if subpixel == "icgn":
-        coefficients = method.prepare_target(deformed)
-
-        def run(st, **extra):
-            return method.refine_prepared(prep, coefficients, u0, v0, status=st, **{**options, **extra})
+        if split:
+            options["order"] = np.where(translation_only, 0, 1)    # per-point shape function
+        refined = icgn.refine_prepared(prep, icgn.prepare_target(deformed), u0, v0, status=status, **options)
+    elif split:
+        refined = _refine_by_order(method, reference, deformed, xs, ys, u0, v0, status, half, options,
+                                   translation_only)
     else:
-        def run(st, **extra):
-            return method.refine(reference, deformed, xs, ys, u0, v0, st, half, **{**options, **extra})
-    if translation_only is None or not translation_only.any() or options.get("order", 1) == 0:
-        refined = run(status)
-    elif subpixel == "icgn":
-        refined = run(status, order=np.where(translation_only, 0, 1))    # per-point shape function
-    else:
-        # one call per shape-function order; the other order's points are masked out of each
-        first = run(np.where(translation_only, Status.BAD_GUESS, status).astype(np.int8))
-        shift = run(np.where(translation_only, status, Status.BAD_GUESS).astype(np.int8), order=0)
-        refined = first
-        for name in ("u", "v", "zncc", "status", "iterations"):
-            values = getattr(refined, name)
-            if values is not None:
-                values[translation_only] = getattr(shift, name)[translation_only]
+        refined = method.refine(reference, deformed, xs, ys, u0, v0, status, half, **options)
     refined.evaluations = evaluations
     return refined
+
+
+def _refine_by_order(method, reference, deformed, xs, ys, u0, v0, status, half, options, translation_only):
+    """``method.refine`` affine on the points where ``translation_only`` is False, rigid shift on the others.
+
+    One call per shape function, each on its own points (start gradients, given
+    one per point, follow them); the two results are merged, gradients NaN at
+    the shift points.
+    """
+    n = xs.shape[0]
+    merged = SubpixelResult(u=np.full(n, np.nan), v=np.full(n, np.nan), zncc=np.full(n, np.nan),
+                            status=np.empty(n, dtype=np.int8), ux=np.full(n, np.nan), uy=np.full(n, np.nan),
+                            vx=np.full(n, np.nan), vy=np.full(n, np.nan), iterations=np.zeros(n, dtype=np.int64))
+    for points, order in ((np.flatnonzero(~translation_only), {}), (np.flatnonzero(translation_only), {"order": 0})):
+        if points.size == 0:
+            continue
+        part_options = {name: np.broadcast_to(value, (n,))[points] if name in _START_GRADIENTS and value is not None
+                        else value for name, value in options.items()}
+        part = method.refine(reference, deformed, xs[points], ys[points], u0[points], v0[points], status[points],
+                             half, **{**part_options, **order})
+        for name in ("u", "v", "zncc", "status", "iterations", "ux", "uy", "vx", "vy"):
+            values = getattr(part, name)
+            if values is not None:
+                getattr(merged, name)[points] = values
+    return merged
+
+
+_START_GRADIENTS = ("ux0", "uy0", "vx0", "vy0")
 
 
 def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
             icgn_options, gates, texture, poor, translation_only, graph):
     """Reliability-guided measurement (``dic.reliability_guided``), then the chosen sub-pixel method."""
-    from livedic.dic.reliability_guided import guided_icgn
-    from livedic.dic.search import search_points
-    from livedic.dic.subpixel import icgn
-
     xs, ys, half = prep.xs, prep.ys, prep.half
     coeffs = icgn.prepare_target(deformed)
     options = dict(icgn_options)

@@ -42,11 +42,15 @@ import numpy as np
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
-from livedic.dic.correlation import snap_points
+from livedic.dic.correlation import _zncc_batch, snap_points
+from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
+from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
+from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
+from livedic.dic.subpixel.icgn import prepare_reference, prepare_target, refine_prepared
 from livedic.dic.validation import as_image, as_points, check_radius, check_subset
 
 # IC-GN iteration cap used for tracking (dic.subpixel.icgn's own default is 10): measured here, a
@@ -224,7 +228,7 @@ class Tracker:
 
     Examples
     --------
-    >>> from dic.speckle import SpecklePattern, render
+    >>> from livedic.dic.speckle import SpecklePattern, render
     >>> pattern = SpecklePattern((128, 128), n_speckles=250, seed=1)
     >>> tracker = Tracker(render(pattern), [(64, 64)], subpixel="icgn")
     >>> m = tracker.track(render(pattern, (0.4, -0.3)))
@@ -236,15 +240,14 @@ class Tracker:
                  seed_radius=2, refind_radius=16, refind_zncc=0.8, refind_drop=0.05, refind_gradient=0.1,
                  refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
                  seed_search_options=None, subpixel_options=None, gates=Gates()):
-        from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
         if search not in SEARCH_METHODS:
             raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
         if subpixel not in SUBPIXEL_METHODS:
             raise ValueError(f"unknown sub-pixel method {subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
         if refind_search is None:
             refind_search = search if search != "none" else "improved-wso"
-        if refind_search not in SEARCH_METHODS or refind_search == "none":
-            raise ValueError(f"re-find search must be one of {', '.join(m for m in SEARCH_METHODS if m != 'none')}, "
+        if refind_search not in _INTEGER_SEARCHES:
+            raise ValueError(f"re-find search must be one of {', '.join(_INTEGER_SEARCHES)}, "
                              f"got {refind_search!r}")
         self.reference = as_image(reference_image, "reference")
         self.half = check_subset(subset, self.reference.shape)
@@ -261,7 +264,7 @@ class Tracker:
         self.search = search
         self.subpixel = subpixel
         self.refind_search = refind_search
-        if refind_fallback is not None and (refind_fallback not in SEARCH_METHODS or refind_fallback == "none"):
+        if refind_fallback is not None and refind_fallback not in _INTEGER_SEARCHES:
             raise ValueError(f"re-find fallback must be None or a search method, got {refind_fallback!r}")
         self.refind_fallback = refind_fallback if refind_fallback != refind_search else None
         self.seed = int(seed)
@@ -299,7 +302,6 @@ class Tracker:
                                         self._prep.status).astype(np.int8)
             texture = quality.texture(self._prep)
         else:
-            from livedic.dic.subpixel.icgn import prepare_reference
             texture = quality.texture(prepare_reference(self.reference, self._xs, self._ys, self.half))
         poor = texture.poor(gates) & (self._ref_status == Status.OK)
         self._ref_status[poor] = Status.POOR_TEXTURE
@@ -326,7 +328,6 @@ class Tracker:
         y0 = max(int(self._ys.min()) - reach, 0)
         x1 = min(int(self._xs.max()) + reach + 1, width)
         y1 = min(int(self._ys.max()) + reach + 1, height)
-        from livedic.dic.subpixel.icgn import prepare_reference
         window = np.ascontiguousarray(self.reference[y0:y1, x0:x1])
         self._prep = prepare_reference(window, self._xs - x0, self._ys - y0, self.half)
         self._window = (y0, y1, x0, x1)
@@ -353,7 +354,6 @@ class Tracker:
 
     def _reference_status(self):
         """OUTSIDE_REFERENCE / FLAT_REFERENCE per point, from the ZNCC of the reference with itself."""
-        from livedic.dic.correlation import _zncc_batch
         n = self._xs.shape[0]
         zncc = np.empty(n)
         status = np.empty(n, dtype=np.int8)
@@ -406,7 +406,6 @@ class Tracker:
         """Measure points ``idx`` from (start_u, start_v): search (unless "none") then sub-pixel."""
         if self._prep is not None:
             return self._measure_icgn(target, idx, start_u, start_v, search, radius, grads, options)
-        from livedic.dic.measure import measure
         points = np.column_stack([self.x[idx], self.y[idx]])
         guess = np.column_stack([start_u, start_v])
         return measure(self.reference, target, points, subset=self.subset, search=search,
@@ -414,44 +413,33 @@ class Tracker:
                        search_options=options, subpixel_options=self.subpixel_options or None, gates=None)
 
     def _measure_icgn(self, target, idx, start_u, start_v, search, radius, grads, options):
-        from livedic.dic.subpixel.icgn import refine_prepared
-        n_all = self.n_points
-        u0 = np.full(n_all, np.nan)
-        v0 = np.full(n_all, np.nan)
-        status = np.full(n_all, Status.BAD_GUESS, dtype=np.int8)   # points not in idx are skipped
+        """IC-GN on the prepared reference for the points ``idx`` only (after the seeded search, if any)."""
+        status = None
         evaluations = None
-        if search == "none":
-            u0[idx] = start_u
-            v0[idx] = start_v
-            status[idx] = Status.OK
-            coeffs = self._target_coefficients()
-        else:
-            from livedic.dic.search import search_points
+        u0, v0 = start_u, start_v
+        if search != "none":
             found = search_points(self.reference, target, self._xs[idx], self._ys[idx], start_u, start_v,
                                   self.half, radius, search, seed=self.seed, margin=INTERPOLATION_MARGIN,
                                   options=options)
             ok = found.status == Status.OK
             # Where the search confirms the start's integer pixel, keep the start's fraction.
             same = ok & (found.u == np.floor(start_u + 0.5)) & (found.v == np.floor(start_v + 0.5))
-            u0[idx] = np.where(same, start_u, found.u)
-            v0[idx] = np.where(same, start_v, found.v)
-            status[idx] = found.status
+            u0 = np.where(same, start_u, found.u)
+            v0 = np.where(same, start_v, found.v)
+            status = found.status
             evaluations = found.evaluations
             if ok.any():
                 self._ensure_window(float(np.max(np.maximum(np.abs(found.u[ok]), np.abs(found.v[ok])))) + 2)
         coeffs = self._target_coefficients()
         refine_options = {k: v for k, v in self.subpixel_options.items() if k not in ("ux0", "uy0", "vx0", "vy0")}
-        full = {name: np.zeros(n_all) for name in grads}
-        for name, values in grads.items():
-            full[name][idx] = values
-        refine_options.setdefault("order", self._order)
-        result = refine_prepared(self._prep, coeffs, u0, v0, full["ux"], full["uy"], full["vx"], full["vy"],
-                                 status=status, **refine_options)
-        ok = result.status[idx] == Status.OK
-        return Measurement(x=self.x[idx], y=self.y[idx], u=result.u[idx], v=result.v[idx],
-                           zncc=result.zncc[idx], ok=ok, status=result.status[idx],
-                           ux=result.ux[idx], uy=result.uy[idx], vx=result.vx[idx], vy=result.vy[idx],
-                           iterations=result.iterations[idx], evaluations=evaluations)
+        order = refine_options.pop("order", self._order)
+        if np.ndim(order) > 0:
+            order = np.asarray(order)[idx]
+        result = refine_prepared(self._prep, coeffs, u0, v0, grads["ux"], grads["uy"], grads["vx"], grads["vy"],
+                                 status=status, points=idx, order=order, **refine_options)
+        return Measurement(x=self.x[idx], y=self.y[idx], u=result.u, v=result.v, zncc=result.zncc,
+                           ok=result.status == Status.OK, status=result.status, ux=result.ux, uy=result.uy,
+                           vx=result.vx, vy=result.vy, iterations=result.iterations, evaluations=evaluations)
 
     def track(self, image):
         """Displacement of every point from the reference to ``image``.
@@ -541,7 +529,6 @@ class Tracker:
     def _from_neighbours(self, result, retry, weak):
         """IC-GN for the points ``retry`` from their best neighbour measured in this frame
         (``dic.reliability_guided.propagate``); returns the points still to search."""
-        from livedic.dic.reliability_guided import propagate
         solved = result.ok & ~weak
         if not solved.any():
             return retry
@@ -583,7 +570,6 @@ class Tracker:
     def _target_coefficients(self):
         """B-spline coefficients of the current frame on the IC-GN window (computed once per window)."""
         if self._coeffs is None or self._coeffs[0] != self._window:
-            from livedic.dic.subpixel.icgn import prepare_target
             y0, y1, x0, x1 = self._window
             self._coeffs = (self._window, prepare_target(np.ascontiguousarray(self._target[y0:y1, x0:x1])))
         return self._coeffs[1]
