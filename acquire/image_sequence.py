@@ -20,6 +20,7 @@ import time
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.image_io import read_grey_image
+from livedic.acquire.options import as_bool, as_float
 
 __all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
 
@@ -74,14 +75,9 @@ class ImageSequence(FrameSource):
     def __init__(self, pattern, *, frame_rate=1.0, realtime=False, loop=False, uri=None):
         self.pattern = os.fspath(pattern)
         self.uri = uri or f"{SCHEME}:{self.pattern}"
-        try:
-            self.frame_rate = float(frame_rate)
-        except (TypeError, ValueError):
-            raise SourceError(f"frame_rate={frame_rate!r} is not a number") from None
-        if not self.frame_rate > 0:
-            raise SourceError(f"frame_rate={frame_rate!r} must be > 0")
-        self.realtime = _as_bool(realtime)
-        self.loop = _as_bool(loop)
+        self.frame_rate = as_float("frame_rate", frame_rate, low=0, low_open=True)
+        self.realtime = as_bool("realtime", realtime)
+        self.loop = as_bool("loop", loop)
         self.files = _find(self.pattern)
         if not self.files:
             raise SourceError(f"no image files match '{self.pattern}' (give a glob such as "
@@ -147,17 +143,6 @@ class ImageSequence(FrameSource):
 
     def __len__(self):
         return len(self.files)
-
-
-def _as_bool(value):
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("0", "false", "no", "off", ""):
-        return False
-    raise SourceError(f"{value!r} is not a boolean (use 1/0, true/false)")
 
 
 def open_uri(uri, **options):
