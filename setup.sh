@@ -39,6 +39,15 @@ if [ -f scripts/install_system.sh ]; then
 fi
 say "installing livedic and its dependencies into $venv"
 "$venv/bin/uv" pip install -q --python "$venv/bin/python" -e ".[test]"
+# numba's on-disk caches (__pycache__/*.nbi, *.nbc) are keyed by source file, not by module name: after
+# an update that renamed modules, a cached kernel would try to import its old module. Rebuild them
+# (about a minute, once) whenever the code changed since the last set-up.
+stamp="$venv/.livedic-code"
+code=$(git rev-parse HEAD 2>/dev/null || echo unknown)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$code" ]; then
+  find acquire dic stream bench -name '*.nb[ic]' -delete 2>/dev/null || true
+  echo "$code" > "$stamp"
+fi
 
 case "$mode" in
   install) say "done: activate with 'source $venv/bin/activate' or call $venv/bin/livedic" ;;
