@@ -131,6 +131,37 @@ def test_prepared_path_equals_refine_and_carries_gradients(pattern, grid):
     np.testing.assert_allclose(again.vy, whole.vy, atol=5e-4)
 
 
+def test_prepared_path_on_a_selection_touches_only_those_points(pattern, grid):
+    """``points=``: the selected rows, in the order asked, equal to the whole run's; nothing else is refined."""
+    xs, ys = grid
+    ref = render(pattern)
+    dfm = render(pattern, (0.8, -0.4))
+    prep = icgn.prepare_reference(ref, xs, ys, HALF)
+    coeffs = icgn.prepare_target(dfm)
+    u0 = np.linspace(0.5, 1.2, xs.size)
+    v0 = np.linspace(-0.9, 0.1, xs.size)
+    order = np.arange(xs.size) % 2
+    whole = icgn.refine_prepared(prep, coeffs, u0, v0, order=order)
+    pick = np.array([xs.size - 1, 3, 0, 7])
+    part = icgn.refine_prepared(prep, coeffs, u0[pick], v0[pick], order=order[pick], points=pick,
+                                status=np.array([Status.OK, Status.OK, Status.OUTSIDE_TARGET, Status.OK], np.int8))
+    assert part.u.shape == (pick.size,)
+    for name in ("u", "v", "ux", "uy", "vx", "vy", "zncc", "iterations", "status"):
+        expected = getattr(whole, name)[pick]
+        if name in ("u", "v", "ux", "uy", "vx", "vy", "zncc"):
+            expected[2] = np.nan
+        elif name == "iterations":
+            expected[2] = 0
+        else:
+            expected[2] = Status.OUTSIDE_TARGET
+        np.testing.assert_array_equal(getattr(part, name), expected)
+    empty = icgn.refine_prepared(prep, coeffs, [], [], points=np.array([], dtype=np.int64))
+    assert empty.u.shape == (0,)
+    for bad in (np.array([xs.size]), np.array([-1]), np.ones(xs.size, dtype=bool)):
+        with pytest.raises(ValueError, match="indices of the"):
+            icgn.refine_prepared(prep, coeffs, np.zeros(bad.size), np.zeros(bad.size), points=bad)
+
+
 def test_border_points_and_leaving_warps_get_a_status(pattern):
     ref = render(pattern)
     dfm = render(pattern, (2.0, 0.0))

@@ -136,3 +136,13 @@ def test_bad_images_are_clear_errors(images):
         measure(np.full((50, 50), np.nan), np.zeros((50, 50)), [(25, 25)])
     with pytest.raises(ValueError, match="points"):
         measure(reference, reference, [(np.nan, 3.0)])
+
+
+def test_one_list_of_search_methods_and_the_front_door():
+    """``dic.SEARCH_METHODS`` is ``dic.search``'s integer searches plus "none"; the package exports what users need."""
+    from livedic import dic
+    from livedic.dic import search
+    assert dic.SEARCH_METHODS == search.SEARCH_METHODS + ("none",)
+    for name in ("measure", "Measurement", "SEARCH_METHODS", "SUBPIXEL_METHODS", "Gates", "Status", "Tracker",
+                 "grid_in_roi", "step_for_count", "zncc"):
+        assert name in dic.__all__ and hasattr(dic, name), name
