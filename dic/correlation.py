@@ -14,7 +14,7 @@ because ``sum(fhat) == 0`` the target mean cancels from the numerator.
 import numpy as np
 from numba import njit, prange
 
-from livedic.dic.status import Status
+from livedic.dic.status import FLAT_REFERENCE, FLAT_TARGET, OK, OUTSIDE_REFERENCE, OUTSIDE_TARGET
 from livedic.dic.validation import as_image, as_points, check_same_shape, check_subset
 
 # Relative variance below which a subset is "flat" (no texture to correlate).
@@ -112,23 +112,23 @@ def _zncc_batch(reference, target, xs, ys, us, vs, half, out_c, out_status):
         fhat = np.empty(n_side * n_side)
         x, y, u, v = xs[i], ys[i], us[i], vs[i]
         if not subset_inside(reference.shape[0], reference.shape[1], x, y, half):
-            out_status[i] = 1  # Status.OUTSIDE_REFERENCE
+            out_status[i] = OUTSIDE_REFERENCE
             out_c[i] = np.nan
             continue
         if prepare_reference_subset(reference, x, y, half, fhat) == 0.0:
-            out_status[i] = 2  # Status.FLAT_REFERENCE
+            out_status[i] = FLAT_REFERENCE
             out_c[i] = np.nan
             continue
         if not subset_inside(target.shape[0], target.shape[1], x + u, y + v, half):
-            out_status[i] = 3  # Status.OUTSIDE_TARGET
+            out_status[i] = OUTSIDE_TARGET
             out_c[i] = np.nan
             continue
         c = zncc_at_integer(fhat, target, x, y, half, u, v)
         if c == -1.0:
-            out_status[i] = 4  # Status.FLAT_TARGET
+            out_status[i] = FLAT_TARGET
             out_c[i] = np.nan
             continue
-        out_status[i] = 0
+        out_status[i] = OK
         out_c[i] = c
 
 
