@@ -23,7 +23,9 @@ Timing, all on the host's monotonic clock:
 * **POI/s** = points tracked per second of that same wall time.
 
 A sink that raises is switched off and its error kept in ``sink_errors`` (a
-broken viewer must not stop a measurement); the caller decides what to do.
+broken viewer must not stop a measurement); the caller decides what to do. A
+sink marked ``required`` (its ``required`` attribute is true: a replay's CSV)
+ends the loop instead, its error raised by ``run`` (see ``stream.sinks``).
 """
 
 import threading
@@ -162,7 +164,7 @@ class TrackerLoop:
     make_tracker : callable
         ``make_tracker(first_frame) -> dic.tracking.Tracker`` (built on the reference).
     sinks : sequence of callables
-        ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order.
+        ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order (``stream.sinks``).
     stop_event : threading.Event, optional
         Set to end the loop after the current frame.
     max_frames : int, optional
@@ -234,6 +236,8 @@ class TrackerLoop:
                 try:
                     sink(result, stats)
                 except Exception as error:  # noqa: BLE001 - keep measuring, report later
+                    if getattr(sink, "required", False):
+                        raise             # the session's output itself: it cannot go on without it
                     self.sinks.remove(sink)
                     self.sink_errors.append((sink, error))
         self.stats.dropped = self.queue.dropped

@@ -1,0 +1,443 @@
+"""The configuration of a tracking session, validated once and frozen.
+
+``livedic run`` builds it from its command line (``SessionConfig.from_args``),
+``livedic replay`` from a recording's metadata and the options given, and the
+benchmarks directly; ``stream.session.Session`` runs it. Every check is made
+here, when a config is built, and a bad value is a ``ValueError`` with one line
+that names the option as the command line spells it (the CLI prints it and
+exits 2). Nothing downstream re-checks a value or reads an argparse Namespace.
+
+The pieces:
+
+* ``TrackingConfig``: how points are tracked (subset, search, sub-pixel method,
+  radii, gates, seed): what a recording must give for a replay to repeat it;
+* ``PointsConfig``: which points (ROI, grid step or count, a points file, P0, the
+  most points a live session takes);
+* ``ViewerConfig``: where the live view goes (``--viewer``);
+* ``SessionConfig``: the source, those three, and the session's outputs and
+  pipeline settings.
+"""
+
+import argparse
+import math
+import os
+import sys
+from dataclasses import asdict, dataclass, field, fields
+from datetime import datetime
+
+from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
+from livedic.dic.quality import MIN_ZNCC
+
+DEFAULT_SOURCE = "synthetic:tensile"
+DEFAULT_POINTS = 1000
+# Points a live session tracks at most unless --max-points says otherwise: 20,000 points take ~140 MB in
+# the tracker and ~0.15 s a frame on one core (IC-GN, 1 MP), a few frames a second; --step 1 on 1 MP
+# (198,120 points) took 2.8 GB, dropped half the frames and lost a fifth of the points (issue 8).
+DEFAULT_MAX_POINTS = 20_000
+RECORDINGS_DIR = "recordings"
+# Sources that can be lost and come back (--reconnect).
+CAMERA_SCHEMES = ("aravis", "v4l2")
+# --drop: "auto" picks oldest for live sources and block for files (``Session`` decides, knowing the source).
+DROP_CHOICES = ("auto", "oldest", "newest", "block")
+PROGRESS_CHOICES = ("auto", "on", "off")
+VIEWER_NONE = "none"
+
+
+class UsageError(ValueError):
+    """Bad command-line input; the message is shown to the user as is."""
+
+
+# ----------------------------------------------------------------------------- single values
+
+def check_search(name):
+    """``name`` if it is an integer search method, else ValueError (one line)."""
+    if name not in SEARCH_METHODS:
+        raise ValueError(f"unknown search method {name!r}: choose one of {', '.join(SEARCH_METHODS)}")
+    return name
+
+
+def check_subpixel(name):
+    """``name`` if it is a sub-pixel method (``none`` included), else ValueError (one line)."""
+    if name not in SUBPIXEL_METHODS:
+        raise ValueError(f"unknown sub-pixel method {name!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
+    return name
+
+
+def argument_type(check):
+    """An argparse ``type=`` from a check: its ValueError message becomes argparse's error as is.
+
+    (argparse replaces a plain ValueError's message by "invalid <type> value"; an
+    ``ArgumentTypeError`` keeps the one line the check wrote.)
+    """
+    def convert(text):
+        try:
+            return check(text)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+    convert.__name__ = check.__name__
+    return convert
+
+
+search_method = argument_type(check_search)
+subpixel_method = argument_type(check_subpixel)
+
+
+def parse_numbers(text, count, what, example):
+    """``"a,b,..."`` -> ``count`` finite floats, or ValueError naming ``what`` with an ``example``."""
+    try:
+        values = [float(part) for part in str(text).split(",")]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{what} must be {count} comma-separated numbers, e.g. {example}; got {text!r}")
+    return values
+
+
+def parse_roi(text):
+    """``--roi`` "X,Y,W,H" -> a tuple of four ints (rounded), or None when not given."""
+    if text is None:
+        return None
+    return tuple(int(round(v)) for v in parse_numbers(text, 4, "--roi", "100,50,400,800"))
+
+
+def parse_p0(text):
+    """``--p0`` "X,Y" -> (x, y) floats, or None when not given."""
+    if text is None:
+        return None
+    return tuple(parse_numbers(text, 2, "--p0", "512,400"))
+
+
+def parse_color_range(text):
+    """``--color-range`` "LO,HI" -> (lo, hi) in px, or None when not given.
+
+    Raises
+    ------
+    ValueError
+        Not two finite comma-separated numbers, or LO not below HI.
+    """
+    if text is None:
+        return None
+    lo, hi = parse_numbers(text, 2, "--color-range", "-2,2")
+    if not lo < hi:
+        raise ValueError(f"--color-range {text}: LO must be below HI, e.g. -2,2")
+    return lo, hi
+
+
+def _check_threads(threads):
+    import numba
+    if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {threads}")
+
+
+def _option(name):
+    return "--" + name.replace("_", "-")
+
+
+# ----------------------------------------------------------------------------- tracking
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """How points are tracked frame to frame (``dic.tracking.Tracker``'s settings).
+
+    Attributes
+    ----------
+    subset : int
+        Odd subset side, pixels (>= 3).
+    search : str
+        Integer search seeded by the previous frame (``dic.SEARCH_METHODS``).
+    subpixel : str
+        Sub-pixel method (``dic.SUBPIXEL_METHODS`` but ``none``: a live session needs sub-pixel values).
+    seed_radius, refind_radius : int
+        Search radius around the previous result, and for re-finding lost points, pixels (>= 0).
+    refind_zncc : float
+        Points whose ZNCC falls below it are re-found (-1..1).
+    min_zncc : float
+        The correlation gate: a point is ok only if its ZNCC is at least this (-1..1).
+    seed : int
+        Seed of the stochastic searches.
+    """
+    subset: int = 21
+    search: str = "improved-wso"
+    subpixel: str = "icgn"
+    seed_radius: int = 2
+    refind_radius: int = 16
+    refind_zncc: float = 0.8
+    min_zncc: float = MIN_ZNCC
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.subset < 3 or self.subset % 2 == 0:
+            raise ValueError(f"--subset must be an odd integer >= 3, got {self.subset}")
+        check_search(self.search)
+        check_subpixel(self.subpixel)
+        if self.subpixel == "none":
+            raise ValueError("--subpixel none gives integer displacements only: choose a sub-pixel method (e.g. icgn)")
+        for name in ("seed_radius", "refind_radius"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{_option(name)} must be >= 0, got {getattr(self, name)}")
+        for name in ("refind_zncc", "min_zncc"):
+            if not -1.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{_option(name)} must be between -1 and 1, got {getattr(self, name)}")
+
+    @classmethod
+    def keys(cls):
+        """The parameter names, in order (the keys a recording's session metadata holds them under)."""
+        return tuple(f.name for f in fields(cls))
+
+    @property
+    def method(self):
+        """``"search+subpixel"``, as recorded with every result."""
+        return f"{self.search}+{self.subpixel}"
+
+    def as_dict(self):
+        return asdict(self)
+
+    def tracker(self, image, points, **overrides):
+        """A ``dic.tracking.Tracker`` on reference ``image`` for ``points`` with these settings.
+
+        ``overrides`` replace settings for this tracker only (the warm-up's smaller subset and radius).
+        """
+        from livedic.dic.quality import Gates
+        from livedic.dic.tracking import Tracker
+        settings = dict(self.as_dict(), **overrides)
+        min_zncc = settings.pop("min_zncc")
+        return Tracker(image, points, gates=Gates(min_zncc=min_zncc), **settings)
+
+
+# ----------------------------------------------------------------------------- points
+
+@dataclass(frozen=True)
+class PointsConfig:
+    """Which points a session tracks (P0, the traced point, is always point 0).
+
+    Attributes
+    ----------
+    roi : tuple (x, y, w, h) or None
+        Region of the grid; None: the source's suggestion (the simulator's gauge section,
+        a replayed recording's ROI), else the whole image.
+    points_file : str or None
+        Track the points of this CSV (header x, y) instead of a grid.
+    xy : array (N, 2) or None
+        Track these points instead of a grid (already read: a points file, or a
+        recording's points); ``points_file`` then only names where they come from.
+    step : int or None
+        Grid step, pixels; None: about ``n_points`` points over the ROI.
+    n_points : int
+        Points wanted when ``step`` is None.
+    p0 : (x, y) or None
+        P0; None: the best-textured point near the ROI centre (``stream.p0``).
+    max_points : int
+        A live session refuses to start with more points (their cost is in the message).
+    """
+    roi: tuple = None
+    points_file: str = None
+    xy: object = field(default=None, compare=False, repr=False)
+    step: int = None
+    n_points: int = DEFAULT_POINTS
+    p0: tuple = None
+    max_points: int = DEFAULT_MAX_POINTS
+
+    def __post_init__(self):
+        if self.roi is not None:
+            if len(self.roi) != 4:
+                raise ValueError(f"--roi must be 4 comma-separated numbers, e.g. 100,50,400,800; got {self.roi!r}")
+            object.__setattr__(self, "roi", tuple(int(v) for v in self.roi))
+            if self.roi[2] <= 0 or self.roi[3] <= 0:
+                raise ValueError(f"--roi width and height must be positive, got {','.join(map(str, self.roi))!r}")
+        if self.p0 is not None:
+            object.__setattr__(self, "p0", tuple(float(v) for v in self.p0))
+        if self.step is not None and self.step < 1:
+            raise ValueError(f"--step must be a positive number of pixels, got {self.step}")
+        if self.n_points < 1:
+            raise ValueError(f"--n-points must be >= 1, got {self.n_points}")
+        if self.max_points < 1:
+            raise ValueError(f"--max-points must be >= 1, got {self.max_points}")
+
+    @property
+    def given(self):
+        """Whether the points come from a file or a list rather than a grid."""
+        return self.xy is not None or self.points_file is not None
+
+    def how(self, step):
+        """How the points were asked for, for messages (``step``: the grid step used)."""
+        if self.points_file:
+            return f"--points {self.points_file}"
+        if self.xy is not None:
+            return "the given points"
+        if self.step is not None:
+            return f"--step {self.step}"
+        return f"--n-points {self.n_points} (grid step {step} px)"
+
+
+# ----------------------------------------------------------------------------- viewer
+
+@dataclass(frozen=True)
+class ViewerConfig:
+    """Where the live view goes: ``mode`` spawn, connect (``target`` URL), save (``target`` .rrd) or none.
+
+    ``note`` says why a requested mode was changed (spawn without a display saves instead).
+    """
+    mode: str = VIEWER_NONE
+    target: str = None
+    note: str = None
+
+    @classmethod
+    def parse(cls, words, default_save_path):
+        """From ``--viewer`` words (``stream.rerun_log.parse_viewer``); ValueError for a bad mode or URL."""
+        from livedic.stream.rerun_log import parse_viewer
+        return cls(*parse_viewer(words, default_save_path))
+
+    def describe(self):
+        """For the summary: the mode and where it goes."""
+        return f"{self.mode} {self.target}" if self.target else self.mode
+
+
+# ----------------------------------------------------------------------------- the session
+
+def session_name():
+    """``session-YYYYmmdd-HHMMSS``, the default name of a session's files."""
+    return "session-" + datetime.now().strftime("%Y%m%d-%H%M%S")
+
+
+def unique_path(path):
+    """``path``, or ``path`` with -2, -3 ... before the extension if it exists."""
+    if not os.path.exists(path):
+        return path
+    stem, ext = os.path.splitext(path)
+    k = 2
+    while os.path.exists(f"{stem}-{k}{ext}"):
+        k += 1
+    return f"{stem}-{k}{ext}"
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """Everything a session runs with (see the module notes), checked when built.
+
+    Attributes
+    ----------
+    source : str
+        Frame source URI (``acquire.sources``).
+    frames : int or None
+        Stop after this many frames (synthetic: also the length of the test).
+    points : PointsConfig
+    tracking : TrackingConfig
+    record : str or None
+        The recording's path (.mcap, must not exist); None: not recorded.
+    record_named : bool
+        Whether ``record`` was named by the user (``--record``) or is the default name (messages).
+    viewer : ViewerConfig
+    name : str
+        The session's name (the Rerun recording's name).
+    queue : int
+        Frames the queue holds.
+    drop : str
+        When the queue is full (``DROP_CHOICES``).
+    color_range : (lo, hi) or None
+        Fixed colour limits of the u and v views, px.
+    image_max_side : int
+        Camera image in the view downsampled to at most this many pixels a side.
+    show_progress : bool
+        The progress line on stderr.
+    threads : int
+        numba threads while the session runs.
+    summary_json : str or None
+        Also write the summary as JSON here.
+    reconnect : bool
+        Reopen a lost camera instead of ending (cameras only).
+    reconnect_timeout : float or None
+        Give up after this many seconds without the camera (needs ``reconnect``).
+    warm_up : bool
+        Compile the tracking kernels on a tiny image before the source starts (live sources:
+        the first frames must not wait for the compiler).
+    command : str
+        What made the session, in the recording's metadata.
+    """
+    source: str = DEFAULT_SOURCE
+    frames: int = None
+    points: PointsConfig = field(default_factory=PointsConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    record: str = None
+    record_named: bool = True
+    viewer: ViewerConfig = field(default_factory=ViewerConfig)
+    name: str = "livedic session"
+    queue: int = 4
+    drop: str = "auto"
+    color_range: tuple = None
+    image_max_side: int = 512
+    show_progress: bool = False
+    threads: int = 1
+    summary_json: str = None
+    reconnect: bool = False
+    reconnect_timeout: float = None
+    warm_up: bool = True
+    command: str = "livedic run"
+
+    def __post_init__(self):
+        if self.frames is not None and self.frames < 1:
+            raise ValueError(f"--frames must be >= 1, got {self.frames}")
+        _check_threads(self.threads)
+        if self.queue < 1:
+            raise ValueError(f"--queue must be >= 1 frame, got {self.queue}")
+        if self.drop not in DROP_CHOICES:
+            raise ValueError(f"unknown --drop {self.drop!r}: choose one of {', '.join(DROP_CHOICES)}")
+        if self.image_max_side < 16:
+            raise ValueError(f"--image-max-side must be >= 16 pixels, got {self.image_max_side}")
+        if self.record is not None and not self.record.endswith(".mcap"):
+            raise ValueError(f"--record file {self.record!r} must end in .mcap")
+        if self.color_range is not None:
+            lo, hi = (float(v) for v in self.color_range)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError(f"--color-range {lo:g},{hi:g}: LO must be below HI, e.g. -2,2")
+            object.__setattr__(self, "color_range", (lo, hi))
+        if self.reconnect_timeout is not None:
+            if not self.reconnect:
+                raise ValueError("--reconnect-timeout needs --reconnect")
+            if not (math.isfinite(self.reconnect_timeout) and self.reconnect_timeout > 0):
+                raise ValueError(f"--reconnect-timeout must be a positive number of seconds, got "
+                                 f"{self.reconnect_timeout}")
+
+        if self.reconnect and self.scheme not in CAMERA_SCHEMES:
+            raise ValueError(f"--reconnect applies to cameras (aravis:, v4l2:); {self.source} is a {self.scheme} "
+                             f"source")
+
+    @property
+    def scheme(self):
+        """The source's scheme (``acquire.sources.SCHEMES``); SourceError for an unknown or malformed URI."""
+        from livedic.acquire.sources import parse_scheme
+        return parse_scheme(self.source)
+
+    @classmethod
+    def from_args(cls, args, *, stem=None):
+        """From ``livedic run``'s parsed options (``stream.run.add_run_arguments``).
+
+        Resolves what the options leave open: the recording's default name
+        (``recordings/session-YYYYmmdd-HHMMSS.mcap``, never an existing file), the
+        viewer (spawn without a display saves next to the recording) and the progress
+        line (``auto``: when stderr is a terminal).
+
+        Raises
+        ------
+        ValueError
+            A bad option (one line); an existing ``--record`` file.
+        """
+        tracking = TrackingConfig(subset=args.subset, search=args.search, subpixel=args.subpixel,
+                                  seed_radius=args.seed_radius, refind_radius=args.refind_radius,
+                                  refind_zncc=args.refind_zncc, min_zncc=args.min_zncc, seed=args.seed)
+        points = PointsConfig(roi=parse_roi(args.roi), points_file=args.points, step=args.step,
+                              n_points=args.n_points, p0=parse_p0(args.p0), max_points=args.max_points)
+        if args.record is not None and args.record.endswith(".mcap") and os.path.exists(args.record):
+            raise ValueError(f"--record file {args.record} exists: choose a new name (recordings are never "
+                             f"overwritten)")
+        stem = stem or os.path.join(RECORDINGS_DIR, session_name())
+        record = None if args.no_record else (args.record or unique_path(stem + ".mcap"))
+        default_rrd = os.path.splitext(record)[0] + ".rrd" if record else unique_path(stem + ".rrd")
+        viewer = ViewerConfig.parse(args.viewer, default_rrd)
+        return cls(
+            source=args.source, frames=args.frames, points=points, tracking=tracking, record=record,
+            record_named=args.record is not None, viewer=viewer, name=os.path.basename(stem),
+            queue=args.queue, drop=args.drop, color_range=parse_color_range(args.color_range),
+            image_max_side=args.image_max_side,
+            show_progress=args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty()),
+            threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
+            reconnect_timeout=args.reconnect_timeout)

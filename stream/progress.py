@@ -1,0 +1,62 @@
+"""The progress line of ``livedic run`` and ``livedic replay``: one line on stderr, redrawn in place."""
+
+import sys
+import time
+
+
+class ProgressBar:
+    """One line on ``stream`` (stderr), redrawn at most ``hz`` times a second; silent when disabled.
+
+    Parameters
+    ----------
+    total : int, optional
+        What 100 % is; without it the line shows the count only.
+    enabled : bool
+        False: ``update`` and ``close`` do nothing (``--progress off``, or stderr not a terminal).
+    stream : file, optional
+        Where the line goes (default ``sys.stderr``).
+    hz : float
+        Redraws a second at most (``update(..., force=True)`` redraws at once).
+    width : int
+        Characters of the bar.
+    """
+
+    def __init__(self, total=None, *, enabled=True, stream=None, hz=8.0, width=24):
+        self.total = total
+        self.enabled = enabled
+        self.stream = stream or sys.stderr
+        self.period = 1.0 / hz
+        self.width = width
+        self._last = 0.0
+        self._shown = False
+        self.last_text = ""
+
+    def update(self, done, text="", force=False):
+        """Show ``done`` (of ``total``) and ``text``, unless the last redraw is too recent."""
+        if not self.enabled:
+            return
+        self.last_text = text
+        now = time.monotonic()
+        if not force and now - self._last < self.period:
+            return
+        self._last = now
+        if self.total:
+            filled = int(self.width * min(done / self.total, 1.0))
+            bar = f"[{'#' * filled}{'.' * (self.width - filled)}] {done}/{self.total}"
+        else:
+            bar = f"{done}"
+        self.stream.write(f"\r{bar} {text}\033[K")
+        self.stream.flush()
+        self._shown = True
+
+    def clear(self):
+        """Wipe the line so that a message can be printed in its place (it comes back on the next update)."""
+        if self.enabled:
+            self.stream.write("\r\033[K")
+
+    def close(self):
+        """End the line (a newline after the last redraw)."""
+        if self.enabled and self._shown:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._shown = False

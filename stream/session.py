@@ -1,0 +1,723 @@
+"""A tracking session: source -> queue -> tracker -> sinks, with one lifecycle.
+
+Wiring (one producer thread, one consumer loop)::
+
+    source --(acquisition thread)--> FrameQueue --(calling thread)--> Tracker --> sinks: recorder results,
+                    |                 (drops counted)                              Rerun view, P0 check,
+                    \\--> recorder frames (every frame, dropped or not)             progress, more ...
+
+``livedic run``, ``livedic replay``, ``livedic bench live`` and ``bench soak``
+all run this one object, so the benchmarks measure what a user gets. Its
+lifecycle::
+
+    session = Session(config)     # a SessionConfig (stream.config): nothing is opened yet
+    session.prepare()             # outputs checked, source opened, kernels compiled, the simulated test
+                                  # rendered, the first frame read, the points and P0 placed on it and
+                                  # checked, then the recording and the view opened
+    session.start()               # the acquisition thread starts
+    session.run()                 # tracks until the source ends or fails, or stop() is called
+    session.stop(reason)          # from any thread or a signal handler: run() then tracks what is queued
+    session.summary()             # the numbers (dict, as --summary-json writes them); summary_text()
+    session.close()               # recording, view and source closed (``with Session(...)`` does it)
+
+Bad input raises from ``prepare`` (``ValueError``, ``SourceError``, one line)
+before any output exists; ``abandon`` (a stop before the session started)
+closes what was opened and removes the recording it had just created. Where
+the session stands is ``phase`` (a ``Phase``); how it went is data: ``stats``,
+``acquisition`` (frames, losses, ``error``), ``recorder``, ``sink_errors``,
+``stopped_by``, ``render_seconds``.
+
+Sinks (``stream.sinks``): the recording of results, the Rerun view, the P0
+check and the progress line are built in; ``Session(config, sinks=[...])``
+adds more (a replay's comparison and CSV, the soak's memory monitor; strain,
+extensometers or load channels later).
+"""
+
+import dataclasses
+import enum
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from livedic.acquire import sources
+from livedic.acquire.base import SourceError
+from livedic.stream.acquisition import AcquisitionThread, Reconnect
+from livedic.stream.config import CAMERA_SCHEMES, VIEWER_NONE
+from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
+from livedic.stream.p0 import choose_p0
+from livedic.stream.points import build_points, check_point_count, read_points_csv
+from livedic.stream.progress import ProgressBar
+from livedic.stream.sinks import P0Watch, ProgressLine, RecordResults
+from livedic.stream.tracker_loop import TrackerLoop
+
+
+class Phase(enum.Enum):
+    """Where a session stands; the value says it in words ("stopped while ...")."""
+    CREATED = "setting up"
+    CHECKING = "checking the outputs"
+    OPENING_SOURCE = "opening the source"
+    COMPILING = "compiling the tracking kernels"
+    RENDERING = "rendering the simulated test"
+    FIRST_FRAME = "waiting for the first frame"
+    CHECKING_POINTS = "checking the points"
+    OPENING_OUTPUTS = "opening the outputs"
+    READY = "starting the session"
+    RUNNING = "running"
+    FINISHED = "finished"
+    CLOSED = "closed"
+
+
+# Phases in which this session's recording may exist without a session in it.
+_RECORDING_OPENED = (Phase.OPENING_OUTPUTS, Phase.READY)
+
+
+class NoFrame(SourceError):
+    """The source ended before its first frame."""
+
+
+class FirstFrameAhead:
+    """A source whose first frame has been read already; iterating yields it, then the rest.
+
+    The first frame gives the image size, so the points (ROI, P0, a points file,
+    their number) are checked and P0 is placed before any output is opened: bad
+    input leaves no file behind.
+
+    Raises
+    ------
+    NoFrame
+        The source ends before its first frame.
+    SourceError
+        It fails before its first frame.
+    """
+
+    def __init__(self, source, uri):
+        self.source = source
+        self._frames = iter(source)
+        try:
+            self.frame = next(self._frames)
+        except StopIteration:
+            raise NoFrame(f"{uri} delivered no frame") from None
+
+    def __iter__(self):
+        yield self.frame
+        yield from self._frames
+
+    @property
+    def settings(self):
+        return self.source.settings
+
+    def close(self):
+        self.source.close()
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The reference frame's points, set when the tracker is built on it."""
+    frame_index: int
+    points: np.ndarray
+    roi: tuple
+    step: int
+    shape: tuple
+
+
+def warm_up(tracking):
+    """Compile the numba kernels on a tiny image before the camera starts (cached: ~0.5 s later)."""
+    import cv2
+    rng = np.random.default_rng(0)
+    image = cv2.GaussianBlur(rng.uniform(0, 255, (96, 96)).astype(np.float32), (0, 0), 2.0)
+    shifted = np.roll(image, (1, 2), axis=(0, 1))
+    tracker = tracking.tracker(image, [(48.0, 48.0), (40.0, 52.0)], subset=min(tracking.subset, 31),
+                               refind_radius=8)
+    tracker.track(image)
+    tracker.track(shifted)
+    tracker.track(np.roll(image, (9, -7), axis=(0, 1)))   # exercises the re-find path
+
+
+def check_viewer_reachable(url, timeout_s=1.0):
+    """ValueError (one line) unless something accepts TCP connections at ``url``'s host and port.
+
+    ``--viewer connect URL`` with no viewer there would otherwise run the whole session
+    while the Rerun SDK retries in the background, and end with a flush timeout.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    from livedic.stream.rerun_log import DEFAULT_PORT
+    try:
+        parts = urlsplit(url)
+        host = parts.hostname or "127.0.0.1"
+        port = parts.port or (443 if parts.scheme.endswith("https") else DEFAULT_PORT)
+    except ValueError as error:
+        raise ValueError(f"--viewer connect {url}: not a valid URL ({error})") from None
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            pass
+    except OSError as error:
+        reason = "connection refused" if isinstance(error, ConnectionRefusedError) else \
+            (error.strerror or type(error).__name__)
+        raise ValueError(f"--viewer connect {url}: no Rerun viewer is listening at {host}:{port} ({reason}); "
+                         f"start one (rerun --bind 127.0.0.1 --port {port}), or use --viewer spawn, "
+                         f"--viewer save FILE.rrd or --viewer none") from None
+
+
+def default_roi(source):
+    """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
+    roi = getattr(source, "suggested_roi", None)
+    if roi is not None:
+        return tuple(int(v) for v in roi)
+    session = getattr(source, "session", None)
+    if isinstance(session, dict) and isinstance(session.get("roi"), (list, tuple)) and len(session["roi"]) == 4:
+        return tuple(int(v) for v in session["roi"])
+    return None
+
+
+def drop_policy(choice, source, scheme):
+    """Queue policy: as chosen, or (auto) drop the oldest for live sources and block for files."""
+    if choice != "auto":
+        return {"oldest": DROP_OLDEST, "newest": DROP_NEWEST, "block": BLOCK}[choice]
+    if scheme in CAMERA_SCHEMES:
+        return DROP_OLDEST
+    if scheme == "synthetic":
+        return DROP_OLDEST if source.options.get("pace", True) else BLOCK
+    return DROP_OLDEST if getattr(source, "realtime", False) else BLOCK
+
+
+# Per-process keys that mean nothing in a recording (the host's monotonic clock).
+_VOLATILE_METADATA = ("capture_monotonic_ns",)
+
+
+def for_recording(frame):
+    """``frame`` without the per-process metadata keys (same image, no copy)."""
+    metadata = frame.metadata
+    if not isinstance(metadata, dict) or not any(key in metadata for key in _VOLATILE_METADATA):
+        return frame
+    kept = {k: v for k, v in metadata.items() if k not in _VOLATILE_METADATA}
+    return dataclasses.replace(frame, metadata=kept)
+
+
+def lost_upstream(acquisition):
+    """Frames the source skipped (gaps in its frame indices), not counting queue drops."""
+    if acquisition.first_index is None:
+        return 0
+    return max(0, (acquisition.last_index - acquisition.first_index + 1) - acquisition.frames)
+
+
+def _safe_settings(source):
+    try:
+        settings = dict(source.settings)
+    except Exception as error:  # noqa: BLE001 - settings are informative only
+        settings = {"settings_error": f"{type(error).__name__}: {error}"}
+    return settings
+
+
+def _remove_quietly(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+class Session:
+    """One tracking session (see the module notes for the lifecycle).
+
+    Parameters
+    ----------
+    config : stream.config.SessionConfig
+        Validated settings.
+    source : FrameSource, optional
+        An opened source to use instead of opening ``config.source`` (a replay's
+        selected frames, the soak's counted simulator); ``config.source`` still names it.
+    points : ndarray (N, 2) or callable, optional
+        Track exactly these points (P0 first), or ``points(reference_image)``'s, instead of
+        ``config.points``' grid and P0 (a replay of the recorded points).
+    sinks : sequence of callables, optional
+        More sinks, called after the built-in ones (``stream.sinks``).
+    say : callable, optional
+        ``say(message)`` receives the session's messages; default: a ``livedic: `` line on stderr.
+
+    Attributes
+    ----------
+    phase : Phase
+    source : FrameSource or None
+        The opened source (the session closes it).
+    recorder : stream.recorder.Recorder or None
+    viewer : stream.rerun_log.RerunLogger or None
+    queue : FrameQueue, acquisition : AcquisitionThread, loop : TrackerLoop
+        The pipeline, from ``start``.
+    points : ndarray (N, 2)
+        The points (P0 first), from ``prepare``.
+    p0 : stream.p0.P0Choice or None
+        Where P0 is and why (None when ``points`` were given).
+    reference : Reference or None
+        The reference frame's points, once the tracker is built on it.
+    total_frames : int or None
+        Frames the session expects (``config.frames`` or the source's length).
+    render_seconds : float or None
+        Time spent rendering the simulated test ahead (before the session; not measured).
+    stopped_by : str or None
+        Why ``stop`` was called (a signal name, ...).
+    sink_errors : list of (name, exception)
+        Sinks switched off during the session.
+    """
+
+    def __init__(self, config, *, source=None, points=None, sinks=(), say=None):
+        self.config = config
+        self.phase = Phase.CREATED
+        self._given_source = source
+        self._given_points = points
+        self._extra_sinks = list(sinks)
+        self._say = say
+        self.source = None
+        self.recorder = None
+        self.viewer = None
+        self.queue = None
+        self.acquisition = None
+        self.loop = None
+        self.bar = None
+        self.points = None
+        self.p0 = None
+        self.reference = None
+        self.total_frames = config.frames
+        self.render_seconds = None
+        self.stopped_by = None
+        self.sink_errors = []
+        self.drop_policy = None
+        self._ahead = None
+        self._roi = None                       # the ROI asked for (given or the source's), None: whole image
+        self._step = None
+        self._given_xy = None
+        self._settings = {}
+        self._source_options = {}
+        self._stop_requested = False
+        self._previous_threads = None
+        self._record_path_was_free = False
+        self._summary = None
+        self._summary_text = None
+
+    # ----------------------------------------------------------------- messages
+
+    def say(self, message):
+        """One message for the user (``livedic: message`` on stderr, clear of the progress line)."""
+        if self._say is not None:
+            self._say(message)
+            return
+        if self.config.show_progress:
+            sys.stderr.write("\r\033[K")
+        print(f"livedic: {message}", file=sys.stderr, flush=True)
+
+    def event(self, kind, message, level="info", *, tell=True):
+        """An event: said (``tell``; "warning: " unless info), shown in the view and recorded as ``kind``."""
+        if tell:
+            self.say(("warning: " if level != "info" else "") + message)
+        if self.viewer is not None:
+            self.viewer.event(message, level=level)
+        if self.recorder is not None:
+            self.recorder.write_event(kind, message, level=level)
+
+    # ----------------------------------------------------------------- lifecycle
+
+    def prepare(self):
+        """Everything before the session: see the module notes. Raises on bad input; nothing is left behind."""
+        config = self.config
+        import numba
+        self._previous_threads = numba.get_num_threads()
+        numba.set_num_threads(config.threads)
+
+        self.phase = Phase.CHECKING
+        if self._given_points is None:
+            self._given_xy = config.points.xy
+            if self._given_xy is None and config.points.points_file:
+                self._given_xy = read_points_csv(config.points.points_file)
+        self._check_outputs()
+        if config.viewer.mode == "connect":
+            check_viewer_reachable(config.viewer.target)
+        self._record_path_was_free = bool(config.record) and not os.path.exists(config.record)
+
+        self.phase = Phase.OPENING_SOURCE
+        scheme = config.scheme
+        if scheme == "synthetic" and config.frames is not None and "frames=" not in config.source:
+            self._source_options["frames"] = max(config.frames, 2)
+        if self._given_source is not None:
+            self.source = self._given_source
+        else:
+            self.source = sources.open_source(config.source, **self._source_options)
+        self.phase = Phase.COMPILING
+        if config.warm_up:
+            warm_up(config.tracking)
+        # Imported now (~0.5 s together), not between the first frame and the next: frames that come
+        # meanwhile queue up and a paced source delivers them late, in a burst.
+        if config.viewer.mode != VIEWER_NONE:
+            import rerun  # noqa: F401
+        if config.record:
+            try:
+                import livedic.stream.recorder  # noqa: F401
+            except ImportError:
+                pass                    # _open_recorder says so
+        frames = getattr(self.source, "frames", None)
+        if frames and isinstance(frames, int):
+            self.total_frames = min(self.total_frames, frames) if self.total_frames else frames
+        if hasattr(self.source, "prepare"):
+            self.phase = Phase.RENDERING
+            self._render()
+        self.drop_policy = drop_policy(config.drop, self.source, scheme)
+
+        # The first frame: its size checks the points before any output exists.
+        self.phase = Phase.FIRST_FRAME
+        self._ahead = FirstFrameAhead(self.source, config.source)
+        self.phase = Phase.CHECKING_POINTS
+        self._place_points(self._ahead.frame)
+
+        self.phase = Phase.OPENING_OUTPUTS
+        self._open_outputs(scheme)
+        self.phase = Phase.READY
+
+    def start(self):
+        """Start acquisition (after ``prepare``)."""
+        config = self.config
+        self.queue = FrameQueue(config.queue, self.drop_policy)
+        recorder = self.recorder
+        on_frame = (lambda item: recorder.write_frame(for_recording(item.frame))) if recorder is not None else None
+        reconnect = None
+        if config.reconnect:
+            reconnect = Reconnect(reopen=lambda: sources.open_source(config.source, **self._source_options),
+                                  retry_s=1.0, timeout_s=config.reconnect_timeout, on_event=self._source_event)
+        self.acquisition = AcquisitionThread(self._ahead, self.queue, max_frames=config.frames, on_frame=on_frame,
+                                             reconnect=reconnect)
+        self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
+        sinks = []
+        if recorder is not None:
+            sinks.append(RecordResults(recorder, config.tracking.method))
+        if self.viewer is not None and self.viewer.enabled:
+            sinks.append(self.viewer)
+        if self.p0 is not None:
+            sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
+        sinks.append(ProgressLine(self.bar, self.acquisition))
+        sinks.extend(self._extra_sinks)
+        self.loop = TrackerLoop(self.queue, self._make_tracker, sinks=sinks)
+        self.phase = Phase.RUNNING
+        if self._stop_requested:
+            self.acquisition.stop()
+        self.acquisition.start()
+
+    def run(self):
+        """Track until the source ends or fails, or ``stop`` is called; returns the ``SessionStats``.
+
+        A sink marked ``required`` that fails ends the session: its error is raised
+        (after acquisition has stopped). A source failure is not raised: it is
+        ``acquisition.error`` (the summary reports it, the caller decides).
+        """
+        try:
+            self.loop.run()
+        finally:
+            self.acquisition.stop()
+            self.queue.close()          # frees a put blocked on a full queue ("block" policy)
+            self.acquisition.join(timeout=10.0)
+        self.bar.update(self.acquisition.frames, self.bar.last_text, force=True)
+        self.bar.close()
+        self._report_end()
+        self.phase = Phase.FINISHED
+        self._summary = self._make_summary()
+        self._summary_text = format_summary(self._summary, self.reference, self.recorder)
+        if self.viewer is not None:
+            try:
+                self.viewer.log_summary("```\n" + self._summary_text + "\n```")
+            except Exception as error:  # noqa: BLE001 - the viewer is a display: the summary still goes out
+                self.say(f"warning: the Rerun viewer did not take the summary: {type(error).__name__}: {error}")
+        return self.loop.stats
+
+    def execute(self):
+        """``prepare``, ``start`` and ``run``; returns ``summary()`` (close the session afterwards)."""
+        self.prepare()
+        self.start()
+        self.run()
+        return self.summary()
+
+    def stop(self, reason=None):
+        """Stop acquisition (any thread; a signal handler): ``run`` then tracks what is queued and returns."""
+        if reason is not None:
+            self.stopped_by = reason
+        self._stop_requested = True
+        if self.acquisition is not None:
+            self.acquisition.stop()
+
+    def close(self):
+        """Close the source, the recording and the view (what is open); restore numba's threads. Idempotent.
+
+        ``acquisition`` stays for the caller to read (its frames, losses, error).
+        """
+        acquisition = self.acquisition
+        if acquisition is not None and acquisition.ident is not None:
+            if acquisition.is_alive():
+                acquisition.stop()
+                acquisition.join(timeout=10.0)    # the thread closes the source as it ends
+        elif self.source is not None:
+            self._close_quietly(self.source.close, "frame source")
+        self.source = None
+        if self.recorder is not None and not self.recorder.closed:
+            self.recorder.close()
+        if self.viewer is not None:
+            viewer, self.viewer = self.viewer, None
+            self._close_quietly(viewer.close, "Rerun stream")
+        if self._previous_threads is not None:
+            import numba
+            numba.set_num_threads(self._previous_threads)
+            self._previous_threads = None
+        self.phase = Phase.CLOSED
+
+    def abandon(self):
+        """Before ``start``: close what is open and remove the recording this session had just created."""
+        remove = self.phase in _RECORDING_OPENED and self._record_path_was_free
+        if self.recorder is not None:
+            self._close_quietly(self.recorder.close, "recording")
+        self.close()
+        if remove:
+            _remove_quietly(self.config.record)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    # ----------------------------------------------------------------- results
+
+    @property
+    def stats(self):
+        """The running ``SessionStats`` (from ``start``)."""
+        return self.loop.stats if self.loop is not None else None
+
+    @property
+    def source_error(self):
+        """Why acquisition stopped early (``SourceError``), or None."""
+        return self.acquisition.error if self.acquisition is not None else None
+
+    def summary(self):
+        """The session's numbers (a dict; NaN where a number is missing), after ``run``."""
+        return self._summary
+
+    def summary_text(self):
+        """The end-of-run text (a few aligned lines), after ``run``."""
+        return self._summary_text
+
+    # ----------------------------------------------------------------- stages
+
+    def _check_outputs(self):
+        """``OutputError`` (one line) for an output that cannot be written, before anything starts."""
+        from livedic.stream.csv_output import check_output_file
+        config = self.config
+        if config.record:
+            check_output_file(config.record, "--record" if config.record_named else
+                              "recording (--record FILE.mcap or --no-record to change)", create_folders=True)
+        if config.viewer.mode == "save":
+            check_output_file(config.viewer.target, "--viewer save", create_folders=True)
+        if config.summary_json:
+            check_output_file(config.summary_json, "--summary-json")
+
+    def _render(self):
+        """Render the simulated test ahead, with a progress line; says how long it took."""
+        source = self.source
+        rendered = getattr(source, "rendered_frames", source.frames)
+        bar = ProgressBar(rendered, enabled=self.config.show_progress)
+        started = time.perf_counter()
+        try:
+            source.prepare(progress=lambda done, n: bar.update(done, "rendering the simulated test"))
+        finally:
+            bar.close()
+        self.render_seconds = time.perf_counter() - started
+        cycling = f", cycled to make {source.frames}" if rendered != source.frames else ""
+        pacing = f"delivery paced at {source.fps:g} fps" if source.options.get("pace", True) else "delivery unpaced"
+        self.say(f"simulator: {rendered} frames rendered ahead in {self.render_seconds:.1f} s{cycling}; {pacing}")
+
+    def _place_points(self, first):
+        """The points on the first frame (P0 first), checked: inside the image, not too many."""
+        config = self.config
+        if self._given_points is not None:
+            points = self._given_points(first.image) if callable(self._given_points) else self._given_points
+            self.points = np.asarray(points, dtype=np.float64)
+            return
+        wanted = config.points
+        subset = config.tracking.subset
+        given = self._given_xy
+        self._roi = wanted.roi if wanted.roi is not None else (None if given is not None else default_roi(self.source))
+        preview, _, preview_step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
+                                                n_points=wanted.n_points, subset=subset, p0=wanted.p0, points=given)
+        check_point_count(len(preview), wanted.max_points, how=wanted.how(preview_step), frames=self.total_frames,
+                          recording=config.record is not None)
+        self.p0 = choose_p0(first.image, self._roi, subset, p0=wanted.p0)
+        self.points, _, self._step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
+                                                  n_points=wanted.n_points, subset=subset, p0=self.p0.xy,
+                                                  points=given)
+
+    def _metadata(self):
+        """The session metadata the recording starts with."""
+        config = self.config
+        wanted = config.points
+        p0 = self.p0.xy if self.p0 is not None else tuple(self.points[0])
+        return {
+            "command": config.command, "source_uri": config.source, "source_settings": self._settings,
+            "roi": list(self._roi) if self._roi else "full image", "step": wanted.step,
+            "n_points_wanted": wanted.n_points, "points_file": wanted.points_file, "p0": list(p0),
+            "p0_choice": self.p0.describe() if self.p0 is not None else "given with the points",
+            **config.tracking.as_dict(),
+            "queue_size": config.queue, "drop_policy": self.drop_policy, "point_ids": "P0 is point 0",
+            "threads": config.threads, "reconnect": config.reconnect, "reconnect_timeout_s": config.reconnect_timeout,
+        }
+
+    def _open_outputs(self, scheme):
+        from livedic.stream.rerun_log import RerunLogger
+        config = self.config
+        self._settings = _safe_settings(self.source)
+        if config.record:
+            # The simulator's clock starts at 0 ns; cameras keep the recorder's default (Unix time).
+            self.recorder = self._open_recorder(config.record, self._metadata(),
+                                                start_time_ns=0 if scheme == "synthetic" else None)
+        if config.viewer.note:
+            self.say(config.viewer.note)
+        self.viewer = RerunLogger(config.viewer.mode, config.viewer.target, recording_name=config.name,
+                                  image_max_side=config.image_max_side, color_range=config.color_range,
+                                  low_zncc=config.tracking.refind_zncc)
+
+    def _open_recorder(self, path, metadata, *, start_time_ns=None):
+        try:
+            from livedic.stream.recorder import Recorder
+        except ImportError as error:
+            self.say(f"warning: not recording ({error}); use --no-record to silence this")
+            return None
+
+        def recording_stopped(message):
+            self.say(f"warning: {message}")        # the recorder's message starts "recording stopped: ..."
+            if self.viewer is not None:
+                self.viewer.event(message, level="error")
+
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        return Recorder(path, metadata, start_time_ns=start_time_ns, on_error=recording_stopped)
+
+    def _make_tracker(self, frame):
+        """The tracker on the reference frame (the first tracked); tells the view and the recording."""
+        config = self.config
+        tracker = config.tracking.tracker(frame.image, self.points)
+        roi_used = self._roi if self._roi is not None else (0, 0, frame.image.shape[1], frame.image.shape[0])
+        self.reference = Reference(frame_index=frame.index, points=self.points, roi=tuple(int(v) for v in roi_used),
+                                   step=self._step, shape=frame.image.shape)
+        if self.p0 is None:
+            return tracker                      # given points: the caller's session (a replay) says what they are
+        wanted = config.points
+        note = (f"reference frame {frame.index}: {len(self.points)} points"
+                + (f", grid step {self._step} px over ROI {','.join(map(str, self.reference.roi))}"
+                   if self._given_xy is None else f" from {wanted.points_file or 'the given points'}")
+                + f"; {self.p0.describe()}")
+        has_truth = callable((frame.metadata or {}).get("truth"))
+        if self.viewer is not None:
+            self.viewer.start(image_shape=frame.image.shape, roi=self.reference.roi, p0_index=0, points=self.points,
+                              has_truth=has_truth, title=f"livedic run: {config.source}",
+                              source_settings=self._settings)
+        self.event("note", note, tell=False)
+        warning = self.p0.warning()
+        if warning:
+            self.event("p0_weak", warning, "warning")
+        return tracker
+
+    def _source_event(self, kind, message, level):
+        """A lost camera, waited for and back (``Reconnect.on_event``; from the acquisition thread)."""
+        self.event(kind, message, level)
+
+    def _report_end(self):
+        """Say what went wrong during the session, and record it."""
+        recorder = self.recorder
+        for sink, error in self.loop.sink_errors:
+            name = "Rerun display" if sink is self.viewer else getattr(sink, "name", type(sink).__name__)
+            self.sink_errors.append((name, error))
+            self.say(f"warning: {name} stopped during the session: {type(error).__name__}: {error}")
+            if recorder is not None and not isinstance(sink, RecordResults):
+                recorder.write_event("note", f"{name} stopped: {error}", level="warning")
+        if self.stopped_by:
+            self.say(f"stopped on {self.stopped_by}; the recording is closed properly")
+            if recorder is not None:
+                recorder.write_event("note", f"session stopped on {self.stopped_by}")
+        error = self.acquisition.error
+        if error is not None:
+            if recorder is not None:
+                recorder.write_event("camera_lost", str(error), level="error")
+            if self.viewer is not None:
+                self.viewer.event(f"source failed: {error}", level="error")
+
+    def _make_summary(self):
+        config = self.config
+        acquisition = self.acquisition
+        viewer = self.viewer
+        reference = self.reference
+        summary = self.loop.stats.summary()
+        summary.update(
+            source=config.source, method=config.tracking.method, acquired=acquisition.frames,
+            lost_upstream=lost_upstream(acquisition), stopped_by=self.stopped_by,
+            source_losses=list(acquisition.losses), reconnects=acquisition.reconnects,
+            outage_s=round(acquisition.outage_s, 3),
+            source_error=str(acquisition.error) if acquisition.error is not None else None,
+            recording=config.record if self.recorder is not None else None,
+            rerun=config.viewer.describe(),
+            points_shape=list(reference.shape) if reference else [],
+            roi=list(reference.roi) if reference else None,
+            step=reference.step if reference else None,
+            p0=list(self.p0.xy) if self.p0 is not None else None,
+            p0_choice=self.p0.reason.name if self.p0 is not None else None,
+            p0_weak=self.p0.weak if self.p0 is not None else None,
+            viewer_log_ms_per_frame=(1e3 * viewer.log_seconds / viewer.frames_logged
+                                     if viewer is not None and viewer.frames_logged else None),
+            render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None)
+        return summary
+
+    def _close_quietly(self, close, what):
+        """``close()``; a failure is one warning line (the session's outcome and summary still go out)."""
+        try:
+            close()
+        except Exception as error:  # noqa: BLE001 - closing a display or a source must not hide the summary
+            self.say(f"warning: closing the {what} failed: {type(error).__name__}: {error}")
+
+
+def format_summary(summary, reference, recorder):
+    """The end-of-run text (plain, a few aligned lines)."""
+    def num(value, fmt):
+        return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
+
+    lines = [f"livedic run: {summary['source']}  ({summary['method']})"]
+    lines.append(f"  frames     {summary['frames']} tracked of {summary['acquired']} acquired; "
+                 f"{summary['dropped']} dropped by the queue, {summary['lost_upstream']} lost upstream")
+    if reference is not None:
+        points = reference.points
+        lines.append(f"  points     {len(points)} (P0 at {points[0, 0]:g}, {points[0, 1]:g}); "
+                     f"{num(100 * summary['ok_fraction'], '.1f')} % ok; {summary['refound']} re-found")
+    lines.append(f"  rate       {num(summary['fps'], '.1f')} fps, {num(summary['poi_per_s'], ',.0f')} POI/s")
+    lines.append(f"  latency    p50 {num(summary['latency_p50_ms'], '.1f')} ms, "
+                 f"p99 {num(summary['latency_p99_ms'], '.1f')} ms from frame {summary['latency_from']} to result "
+                 f"(tracking p50 {num(summary['processing_p50_ms'], '.1f')} ms, "
+                 f"p99 {num(summary['processing_p99_ms'], '.1f')} ms)")
+    extra = f"reference set-up {num(summary['setup_ms'], '.0f')} ms"
+    if summary.get("delivery_delay_p99_ms") is not None:
+        extra += f"; frame delivery delay p99 {num(summary['delivery_delay_p99_ms'], '.1f')} ms"
+    if summary.get("viewer_log_ms_per_frame") is not None:
+        extra += f"; Rerun logging {num(summary['viewer_log_ms_per_frame'], '.1f')} ms/frame"
+    lines.append(f"             {extra}")
+    if summary.get("error_rms_px") is not None:
+        lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
+                     f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
+    if recorder is not None:
+        size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
+        if recorder.error:
+            lines.append(f"  recording  {recorder.path} STOPPED EARLY: {recorder.frames_durable} frames kept "
+                         f"({size / 1e6:.0f} MB); see the warning above")
+        else:
+            lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
+                         f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
+    if summary.get("source_losses"):
+        losses = len(summary["source_losses"])
+        lines.append(f"  camera     lost {losses} time(s), back {summary['reconnects']} time(s); "
+                     f"{summary['outage_s']:.1f} s without frames")
+    lines.append(f"  rerun      {summary['rerun']}")
+    if summary.get("stopped_by"):
+        lines.append(f"  stopped    on {summary['stopped_by']}")
+    return "\n".join(lines)

@@ -1,0 +1,123 @@
+"""What a session does with each tracked frame: the sinks of ``stream.session.Session``.
+
+A sink is a callable ``sink(result, stats)`` (a ``stream.tracker_loop.FrameResult``
+and the running ``SessionStats``), called for every tracked frame, in order, in
+the tracking thread. Two optional attributes say how the session treats it:
+
+``name``
+    How a warning names it ("recording", "P0 check" ...).
+``required``
+    True when the session's output is the sink's (a replay's CSV): an error there
+    ends the session and is raised. Any other sink that fails is switched off and
+    reported, and the measurement goes on (a broken display must not stop a test).
+
+The Rerun view (``stream.rerun_log.RerunLogger``) is a sink as it is. Sinks to
+come (strain, extensometers, load channels) plug in the same way:
+``Session(config, sinks=[...])``.
+"""
+
+import math
+
+import numpy as np
+
+
+class RecordResults:
+    """Writes each frame's results (and a drop event when the queue dropped frames) to a ``Recorder``.
+
+    Parameters
+    ----------
+    recorder : stream.recorder.Recorder
+    method : str
+        ``"search+subpixel"``, recorded with every result set.
+    """
+    name = "recording"
+    required = False
+
+    def __init__(self, recorder, method):
+        self.recorder = recorder
+        self.method = method
+        self.reference_frame_index = None
+
+    def __call__(self, result, stats):
+        m = result.measurement
+        frame = result.frame
+        if result.is_reference:
+            self.reference_frame_index = frame.index
+        self.recorder.write_results(
+            frame.index, frame.timestamp_ns, np.arange(m.u.size, dtype=np.uint32), m.x, m.y, m.u, m.v,
+            m.zncc, m.ok, ux=m.ux, uy=m.uy, vx=m.vx, vy=m.vy, status=m.status.astype(np.int32),
+            iterations=m.iterations, method=self.method, processing_ns=result.processing_ns,
+            latency_ns=result.latency_ns, reference_frame_index=self.reference_frame_index,
+            dropped_frames=result.dropped_since_last)
+        if result.dropped_since_last:
+            self.recorder.write_event("drop", f"{result.dropped_since_last} frame(s) dropped by the queue before "
+                                      f"frame {frame.index} (total {result.dropped_total})", level="warning")
+
+
+class P0Watch:
+    """Warns once when P0 is lost or its ZNCC falls below ``refind_zncc``: its trace is then doubtful.
+
+    Parameters
+    ----------
+    refind_zncc : float
+        The session's ``--refind-zncc``.
+    report : callable
+        ``report(kind, message, level)``: the session's event (said, shown, recorded).
+    """
+    name = "P0 check"
+    required = False
+
+    def __init__(self, refind_zncc, report):
+        self.refind_zncc = refind_zncc
+        self.report = report
+        self.warned = False
+
+    def __call__(self, result, stats):
+        if self.warned or result.is_reference:
+            return
+        m = result.measurement
+        ok, zncc = bool(m.ok[0]), float(m.zncc[0])
+        if ok and zncc >= self.refind_zncc:
+            return
+        self.warned = True
+        what = "P0 was lost" if not ok else \
+            f"P0's ZNCC fell to {zncc:.2f} (below --refind-zncc {self.refind_zncc:g})"
+        self.report("p0_weak", f"{what} at frame {result.frame.index}: its trace may be wrong from there", "warning")
+
+
+class ProgressLine:
+    """The session's progress bar: frames acquired, fps, latency, drops, reconnections, error.
+
+    Parameters
+    ----------
+    bar : stream.progress.ProgressBar
+    acquisition : stream.acquisition.AcquisitionThread
+        Its frame count and reconnections are shown.
+    """
+    name = "progress"
+    required = False
+
+    def __init__(self, bar, acquisition):
+        self.bar = bar
+        self.acquisition = acquisition
+
+    def __call__(self, result, stats):
+        text = (f"{stats.fps:5.1f} fps  latency p50 {stats.latency_ms(50):5.1f} ms  "
+                f"drops {result.dropped_total}")
+        if self.acquisition.reconnects:
+            text += f"  reconnected {self.acquisition.reconnects}x"
+        if math.isfinite(result.error_rms_px):
+            text += f"  error {result.error_rms_px:.3f} px"
+        self.bar.update(self.acquisition.frames, text)
+
+
+class FunctionSink:
+    """A plain function as a sink, with a ``name`` and whether it is ``required`` (see the module notes)."""
+
+    def __init__(self, function, name, *, required=False):
+        self.function = function
+        self.name = name
+        self.required = required
+
+    def __call__(self, result, stats):
+        self.function(result, stats)
