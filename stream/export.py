@@ -27,7 +27,9 @@ bit-for-bit the recorded one.
 Every file is written under a temporary name and all four are renamed into place
 only when all are complete, so an error or Ctrl-C never leaves a half-written
 file. Existing files are not replaced unless ``--overwrite``. A truncated recording
-(crash, kill, disk full) exports what can be recovered and says so in a note.
+(crash, kill, disk full) exports what can be recovered and says so in a note; the
+``truncated`` flag is the reader's (``RecordingInfo.truncated``), never read from
+the note's text.
 
 The helpers here (CSV formatting, atomic files, reader notes, P0 lookup) are also
 used by ``stream.replay``.
@@ -127,6 +129,7 @@ def reader_notes():
     """Collect the notes ``acquire.mcap_replay`` logs (truncated file ...) instead of printing them raw.
 
     Yields a list that fills with one line per distinct note ("note: " prefix removed).
+    The lines are for people; what a program acts on is the reader's ``RecordingInfo``.
     """
     notes = []
 
@@ -163,15 +166,19 @@ def p0_point_id(metadata):
     return 0, "not in the session metadata: point 0, livedic's convention"
 
 
-def read_session_or_note(path):
-    """(session metadata dict, note or ""): a recording without metadata gives {} and a note."""
-    from livedic.acquire.mcap_replay import RecordingError, read_session
+def session_or_note(recording):
+    """(session metadata dict, note or "") of a ``Recording``: one without metadata gives {} and a note."""
+    from livedic.acquire.mcap_replay import NoSessionMetadata
     try:
-        return read_session(path), ""
-    except RecordingError as error:
-        if "no session metadata" not in str(error):
-            raise
-        return {}, str(error)
+        return recording.session(), ""
+    except NoSessionMetadata as missing:
+        return {}, str(missing)
+
+
+def read_session_or_note(path):
+    """``session_or_note`` of the recording at ``path`` (``RecordingError`` if it is not one)."""
+    from livedic.acquire.mcap_replay import Recording
+    return session_or_note(Recording(path))
 
 
 def say(message):
@@ -196,7 +203,7 @@ def export_recording(path, directory, *, overwrite=False):
         ``directory`` is a file, a target exists without ``overwrite``, or the
         recording is missing, not MCAP, not livedic, or corrupt (``RecordingError``).
     """
-    from livedic.acquire.mcap_replay import iter_results, read_events
+    from livedic.acquire.mcap_replay import Recording
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
@@ -206,7 +213,8 @@ def export_recording(path, directory, *, overwrite=False):
         raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
                          f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
     with reader_notes() as notes:
-        metadata, session_note = read_session_or_note(path)     # checks the file before DIR is made
+        recording = Recording(path)                             # checks the file before DIR is made
+        metadata, session_note = session_or_note(recording)
         if session_note:
             notes.append(session_note)
         p0_id, p0_how = p0_point_id(metadata)
@@ -223,7 +231,7 @@ def export_recording(path, directory, *, overwrite=False):
             p0_missing = 0
             t0 = None
             extras_seen = None
-            for result in iter_results(path):
+            for result in recording.results():
                 extras = {name: getattr(result, name) for name in EXTRA_COLUMNS
                           if getattr(result, name) is not None and len(getattr(result, name)) == len(result.u)}
                 if fields_header is None:
@@ -254,7 +262,7 @@ def export_recording(path, directory, *, overwrite=False):
                 frames += 1
             if fields_header is None:
                 fields.write(",".join(LEADING_COLUMNS) + "\n")
-            events = read_events(path)
+            events = recording.events()
             if t0 is None and events:
                 t0 = min(event.timestamp_ns for event in events)
             buffer = io.StringIO()
@@ -269,7 +277,7 @@ def export_recording(path, directory, *, overwrite=False):
             if frames == 0:
                 notes.append(f"{path} holds no tracking results (/dic/results): fields.csv and p0_trace.csv "
                              f"have headers only")
-            truncated = any("truncated" in note for note in notes)
+            truncated = recording.info.truncated
             session = dict(metadata)
             session[EXPORT_KEY] = {
                 "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),

@@ -4,7 +4,8 @@ Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
 (``/dic/results``, ``/livedic/events``, ``/livedic/session``) are kept apart, so an
 indexed reader fetches the results without reading any image. Frames go into mcap's
 open chunk; results and events are serialized at once and wait in memory, to be
-written together as one data chunk (``ChunkedWriter``). A chunk is written:
+written together as one data chunk (``acquire.mcap_io.ChunkedWriter``, the
+format's writer, shared with ``recover``). A chunk is written:
 
 * when it holds ``chunk_bytes`` (default 4 MiB: 4 frames of 1 MP mono8, 16 of
   512x512; pending data is written when it holds as much);
@@ -58,7 +59,7 @@ at once, which shows up on the first frame.
 Examples
 --------
 >>> import numpy as np, tempfile, os
->>> from acquire.base import Frame
+>>> from livedic.acquire.base import Frame
 >>> path = os.path.join(tempfile.mkdtemp(), "session.mcap")
 >>> with Recorder(path, {"source_uri": "synthetic://"}) as rec:
 ...     rec.write_frame(Frame(0, 1_000, np.zeros((4, 6), np.uint8), "Mono8"))
@@ -73,191 +74,21 @@ import logging
 import os
 import threading
 import time
-from collections import Counter
 from collections.abc import Mapping
 from datetime import datetime, timezone
 
 import numpy as np
-from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
-from livedic.stream import recording_schema as rs
+from livedic.acquire import recording_schema as rs
+from livedic.acquire.mcap_io import ChunkedWriter, library_name, software_version
 
-__all__ = ["ChunkedWriter", "Recorder", "software_version"]
+__all__ = ["Recorder"]
 
 log = logging.getLogger(__name__)
 
 _U64 = 1 << 64
-DEFAULT_CHUNK_BYTES = 4 << 20    # chosen by measurement: see ChunkedWriter
-_NEVER = 1 << 62                 # mcap's own size-triggered chunking is switched off
+DEFAULT_CHUNK_BYTES = 4 << 20    # chosen by measurement: see acquire.mcap_io.ChunkedWriter
 _RESULT_EXTRAS = rs.OPTIONAL_ARRAYS + rs.RESULT_SCALARS
-
-
-def software_version():
-    """The installed livedic version, or "unknown"."""
-    try:
-        from importlib.metadata import version
-        return version("livedic")
-    except Exception:  # noqa: BLE001 - metadata is best effort
-        return "unknown"
-
-
-class ChunkedWriter:
-    """An mcap ``Writer`` whose chunks are closed by livedic, not by mcap.
-
-    Messages are added with a ``kind``: "image" (``/camera/image`` and
-    ``/camera/frame_info``) or "data" (results, events, the session message). A chunk
-    holds one kind only, so an indexed reader fetches the results without reading any
-    image. mcap's writer has a single open chunk, which holds images only; data
-    messages (serialized payloads with their channel, times and sequence) wait in a
-    list here and are written together as one data chunk. So images and results that
-    alternate every frame no longer cost a chunk each: the writer keeps a ~570-byte
-    ``ChunkIndex`` per chunk in memory until ``finish`` (for the summary), which is
-    what grew the memory of long sessions when every frame made two chunks.
-
-    When things are written:
-
-    * the image chunk is closed when it holds ``chunk_bytes``;
-    * the pending data is written as one chunk when it holds ``chunk_bytes``; the
-      open image chunk is closed first (its frames come before their results in the
-      file);
-    * when the oldest unwritten message, image or data, is ``flush_interval_s`` old,
-      both are written (``flush_due``, called on every write by the ``Recorder`` and
-      by its background thread): one age check for both keeps them in step, where two
-      independent timers would each cut the other's chunk short;
-    * ``flush`` and ``finish`` write everything.
-
-    Pending data is *not* written each time an image chunk fills up
-    (``data_with_images=False``, the default). Measured at 1 MP Mono8, 50 fps, 1,000
-    points (85 KB of results a frame) with 4 MiB chunks: 0.385 chunks a frame,
-    against 0.50 when the data follows every image chunk (one image chunk per 4
-    frames); with 1 MiB chunks 1.08 against 2.0. The price is that results may lag
-    their frames in the file by up to ``flush_interval_s``, which the age check
-    bounds anyway. At 512x512 (age-bound) both give 0.15.
-
-    Chunk size (``Recorder``'s default ``chunk_bytes``, 4 MiB), measured at 1 MP, 50
-    fps, 1,000 points on 2 shared cores: 1 / 4 / 8 / 16 MiB give 1.08 / 0.385 / 0.23 /
-    0.15 chunks a frame (~110 / 40 / 24 / 16 MB of chunk indexes an hour), a
-    transient peak of ~3 / 12 / 19 / 37 MB while a chunk is written (the chunk is
-    copied twice on its way out), a ``write_frame`` p99 of ~3 / 9 / 16 / 37 ms (the
-    call that writes the chunk; the frame period is 20 ms) and ~420 / 445 / 500 /
-    ~325 MB/s of write throughput (median of 3, one run for 16 MiB; noisy). 4 MiB
-    takes most of the gain while the burst stays under half a frame period; at
-    512x512 chunks are closed by age from 4 MiB on, so larger ones gain nothing there.
-
-    ``chunks_written`` counts the chunks written; ``durable_counts`` counts, by the
-    ``count_as`` label given to ``add``, the messages in written chunks (handed to the
-    kernel: they survive the death of the process). Not thread safe: the ``Recorder``
-    calls it under its lock. Also used by ``acquire.mcap_replay.recover`` (which gives
-    no ``flush_interval_s``: size and ``finish`` only).
-    """
-
-    def __init__(self, stream, *, chunk_bytes, compression, library, flush_interval_s=None,
-                 data_with_images=False, clock=time.monotonic):
-        codec = {None: CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
-        self.stream = stream
-        self.writer = Writer(stream, chunk_size=_NEVER, compression=codec[compression],
-                             index_types=IndexType.ALL, use_chunking=True, enable_crcs=True)
-        self.writer.start(profile="", library=library)
-        self.chunk_bytes = int(chunk_bytes)
-        self.flush_interval_s = flush_interval_s
-        self.data_with_images = bool(data_with_images)
-        self.clock = clock                   # seconds, monotonic (a test may drive it by hand)
-        self.image_bytes = 0                 # the open image chunk (in mcap's writer)
-        self.image_since = None              # monotonic time of its first message; None: no open chunk
-        self.image_counts = Counter()
-        self.pending = []                    # data waiting: (channel_id, log_time, publish_time, sequence, data)
-        self.pending_bytes = 0
-        self.pending_since = None
-        self.pending_counts = Counter()
-        self.durable_counts = Counter()
-        self.chunks_written = 0
-        self._schemas = {}
-
-    def register(self, topic, schema_name, schema_data, *, schema_encoding="protobuf",
-                 message_encoding="protobuf", metadata=None):
-        key = (schema_name, schema_encoding, schema_data)
-        schema_id = self._schemas.get(key)
-        if schema_id is None:
-            schema_id = self.writer.register_schema(schema_name, schema_encoding, schema_data)
-            self._schemas[key] = schema_id
-        return self.writer.register_channel(topic, message_encoding, schema_id, dict(metadata or {}))
-
-    def add(self, kind, channel_id, log_time, data, *, publish_time=0, sequence=0, count_as=None):
-        """Add one message of ``kind`` ("image" or "data"); writes a chunk when one is full."""
-        size = len(data) + 31                # + the message record's header
-        if kind == "image":
-            self.writer.add_message(channel_id=channel_id, log_time=log_time, data=data,
-                                    publish_time=publish_time, sequence=sequence)
-            if self.image_since is None:
-                self.image_since = self.clock()
-            self.image_bytes += size
-            if count_as:
-                self.image_counts[count_as] += 1
-            if self.image_bytes >= self.chunk_bytes:
-                self.close_image_chunk()
-                if self.data_with_images:
-                    self.write_data()
-        elif kind == "data":
-            self.pending.append((channel_id, log_time, publish_time, sequence, data))
-            if self.pending_since is None:
-                self.pending_since = self.clock()
-            self.pending_bytes += size
-            if count_as:
-                self.pending_counts[count_as] += 1
-            if self.pending_bytes >= self.chunk_bytes:
-                self.write_data()
-        else:
-            raise ValueError(f"kind must be 'image' or 'data', got {kind!r}")
-
-    def age(self):
-        """Seconds since the oldest message not yet written (0 when everything is written)."""
-        oldest = min((t for t in (self.image_since, self.pending_since) if t is not None), default=None)
-        return 0.0 if oldest is None else self.clock() - oldest
-
-    def flush_due(self):
-        """Write everything if the oldest unwritten message is ``flush_interval_s`` old; True if it did."""
-        if self.flush_interval_s is None or self.age() < self.flush_interval_s:
-            return False
-        self.close_image_chunk()
-        self.write_data()
-        return True
-
-    def close_image_chunk(self):
-        if self.image_since is None:
-            return
-        self.writer.flush()                  # finalise chunk + indexes, flush stream to the kernel
-        self.chunks_written += 1
-        self.durable_counts.update(self.image_counts)
-        self.image_counts.clear()
-        self.image_since = None
-        self.image_bytes = 0
-
-    def write_data(self):
-        """Write the pending data messages as one chunk (after closing the open image chunk)."""
-        if not self.pending:
-            return
-        self.close_image_chunk()             # mcap has one open chunk: never mix the kinds
-        add = self.writer.add_message
-        for channel_id, log_time, publish_time, sequence, data in self.pending:
-            add(channel_id=channel_id, log_time=log_time, data=data, publish_time=publish_time, sequence=sequence)
-        self.writer.flush()
-        self.chunks_written += 1
-        self.durable_counts.update(self.pending_counts)
-        self.pending_counts.clear()
-        self.pending = []
-        self.pending_since = None
-        self.pending_bytes = 0
-
-    def flush(self):
-        """Write the image chunk and the pending data, and flush the stream to the kernel."""
-        self.close_image_chunk()
-        self.write_data()
-        self.writer.flush()                  # records outside chunks (header, metadata) too
-
-    def finish(self):
-        self.flush()
-        self.writer.finish()
-        self.stream.flush()
 
 
 class Recorder:
@@ -365,9 +196,8 @@ class Recorder:
         except FileExistsError:
             raise FileExistsError(f"{self.path} exists: choose a new name or pass overwrite=True") from None
         try:
-            library = f"livedic/{software_version()} {LIBRARY_IDENTIFIER}"
             self._cw = ChunkedWriter(self._file, chunk_bytes=int(chunk_bytes), compression=compression,
-                                      library=library, flush_interval_s=self._flush_interval_s)
+                                      library=library_name(), flush_interval_s=self._flush_interval_s)
             self._ch_image = self._cw.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA,
                                                rs.schema_data(rs.RAW_IMAGE_SCHEMA))
             self._ch_info = self._cw.register(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA,

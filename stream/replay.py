@@ -306,10 +306,7 @@ class ReplayReport:
     seconds: float = 0.0
     recorded_version: str = ""
     notes: list = field(default_factory=list)
-
-    @property
-    def truncated(self):
-        return any("truncated" in note for note in self.notes)
+    truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
 
     @property
     def exact(self):
@@ -367,7 +364,7 @@ class ReplayReport:
         if self.all_frames and self.extra_frames:
             return text + (f" ({self.extra_frames} frames the live run dropped were tracked too, so later frames "
                            f"start from other seeds)")
-        from livedic.stream.recorder import software_version
+        from livedic.acquire.mcap_io import software_version
         version = software_version()
         if self.recorded_version and self.recorded_version != version:
             return text + (f" with the recorded parameters: recorded with livedic {self.recorded_version}, "
@@ -443,7 +440,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     SourceError
         The frames cannot be read (``RecordingSourceError``).
     """
-    from livedic.acquire.mcap_replay import McapSource, iter_results
+    from livedic.acquire.mcap_replay import McapSource, Recording
     from livedic.dic.tracking import Tracker
 
     path = os.fspath(path)
@@ -451,7 +448,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     point_options.check()
     with reader_notes() as notes:
         metadata, session_note = read_session_or_note(path)
-        results = list(iter_results(path))
+        recording = Recording(path)
+        results = list(recording.results())
         params, recorded_params, param_notes = resolve_parameters(
             metadata, given or {}, results[0].method if results else "")
         check_parameters(params, threads)
@@ -462,7 +460,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
                    if (given or {}).get(key) is not None and recorded_params.get(key) != params[key]]
         report = ReplayReport(path=path, params=params, recorded_params=recorded_params, changed=changed,
                               all_frames=all_frames, recorded_frames=len(results),
-                              recorded_version=str(metadata.get("software_version", "")), notes=notes)
+                              recorded_version=str(metadata.get("software_version", "")), notes=notes,
+                              truncated=recording.info.truncated)
         if not results and not all_frames:
             raise ValueError(f"{path} holds no tracking results (/dic/results) to replay: pass --all-frames to "
                              f"track every recorded frame from the first one")

@@ -10,9 +10,13 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+from livedic.acquire import recording_schema as rs
 from livedic.acquire.base import Frame, SourceError
-from livedic.acquire.mcap_replay import (McapSource, RecordingError, RecordingSourceError, inspect_recording,
-                                 iter_results, read_events, read_results, read_session, recover)
+from livedic.acquire.mcap_io import ChunkedWriter
+from livedic.acquire.mcap_replay import (CorruptRecording, McapSource, NoSessionMetadata, NotLivedic, NotMcap,
+                                         Recording, RecordingError, RecordingSourceError, inspect_recording,
+                                         iter_results, read_events, read_results, read_session, recover)
+from livedic.dic.result import Measurement
 from livedic.stream.recorder import Recorder
 
 T0 = 1_700_000_000_000_000_000
@@ -26,10 +30,11 @@ def _hang_guard():
     faulthandler.cancel_dump_traceback_later()
 
 
-def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20):
+def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20, compression=None):
     rng = np.random.default_rng(7)
     images = [rng.integers(0, 200, size=shape, dtype=dtype) for _ in range(n)]
-    with Recorder(path, {"source_uri": "synthetic://", "points": [[1, 2]]}, chunk_bytes=chunk_bytes) as rec:
+    with Recorder(path, {"source_uri": "synthetic://", "points": [[1, 2]]}, chunk_bytes=chunk_bytes,
+                  compression=compression) as rec:
         for i, image in enumerate(images):
             rec.write_frame(Frame(i, T0 + i * dt_ns, image, "Mono8" if dtype == np.uint8 else "Mono16"))
             rec.write_results(i, T0 + i * dt_ns, [1, 2], [3.0, 4.0], [5.0, 6.0], [0.1 * i, 0.0], [0.0, -0.1 * i],
@@ -190,7 +195,7 @@ def test_recover_rewrites_a_complete_indexed_file(tmp_path, recording):
     assert fixed.read_bytes() == before
     assert "source itself" in _one_line_error(lambda: recover(cut, cut))
     assert recover(cut, fixed, overwrite=True)["frames"] == len(expected)
-    assert not [p for p in os.listdir(tmp_path) if ".partial-" in p]
+    assert sorted(os.listdir(tmp_path)) == ["cut.mcap", "fixed.mcap"]          # no temporary file left
 
 
 def test_recover_skips_a_corrupt_chunk_that_strict_readers_reject(tmp_path):
@@ -210,6 +215,109 @@ def test_recover_skips_a_corrupt_chunk_that_strict_readers_reject(tmp_path):
     assert summary["corrupt_chunks"] == 1
     assert [f.index for f in McapSource(fixed)] == [0, 2, 3, 4]
     assert [r.frame_index for r in read_results(fixed)] == [0, 1, 2, 3, 4]
+
+
+def test_truncation_is_a_field_of_the_reader(tmp_path, recording):
+    """Callers learn that a recording was cut short from ``RecordingInfo.truncated``, not from a note's text."""
+    path, _ = recording
+    cut = tmp_path / "cut.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[:int(len(data) * 0.7)])
+    for name, truncated in ((path, False), (cut, True)):
+        reader = Recording(name)
+        results = list(reader.results())
+        assert results and reader.info.truncated is truncated and reader.info.indexed is not truncated
+        source = McapSource(name)
+        assert list(source) and source.info.truncated is truncated
+
+
+def test_zero_filled_tail_ends_the_scan_where_the_data_ends(tmp_path, recording):
+    """Blocks never written before a crash read as zeros: the scan stops at the first one, at once."""
+    path, _ = recording
+    cut, zeros = tmp_path / "cut.mcap", tmp_path / "zeros.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[:int(len(data) * 0.7)])
+    want = inspect_recording(cut)
+    zeros.write_bytes(data[:want.valid_bytes] + bytes(4 << 20))           # zeros from the first cut record on
+    got = inspect_recording(zeros)
+    assert got.truncated and got.frames == want.frames and got.valid_bytes == want.valid_bytes
+    assert [f.index for f in McapSource(zeros)] == [f.index for f in McapSource(cut)]
+
+
+def test_recorded_results_carry_the_measurement(recording):
+    path, _ = recording
+    result = read_results(path)[2]
+    assert isinstance(result.measurement, Measurement) and result.measurement.evaluations is None
+    for name in ("x", "y", "u", "v", "zncc", "ok", "status", "ux", "iterations"):
+        assert getattr(result, name) is getattr(result.measurement, name)
+    assert result.u.tolist() == [0.2, 0.0] and result.ok.tolist() == [True, False] and result.status is None
+
+
+def _chunks(path):
+    from mcap.reader import make_reader
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    return sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+
+
+@pytest.mark.parametrize("compression", [None, "lz4", "zstd"])
+def test_a_chunk_is_never_decompressed_beyond_what_it_claims(tmp_path, compression):
+    """A chunk's uncompressed size is the most the reader allocates for it: over 1 GiB is refused unread,
+    and a chunk that holds more than it claims is corrupt (its CRC is zeroed so only the size can tell)."""
+    if compression == "zstd":
+        pytest.importorskip("zstandard")
+    path = tmp_path / "ok.mcap"
+    images = [np.full((32, 32), i, np.uint8) for i in range(3)]
+    with Recorder(path, {}, compression=compression, chunk_bytes=512) as rec:
+        for i, image in enumerate(images):
+            rec.write_frame(Frame(i, T0 + i, image, "Mono8"))
+    assert [int(f.image[0, 0]) for f in McapSource(path)] == [0, 1, 2]
+    second_image_chunk = _chunks(path)[2].chunk_start_offset     # the session chunk, then one per frame
+    size_at = second_image_chunk + 9 + 16                        # opcode, length, start and end times
+    for claim, expected in ((5 << 30, "claims 5368709120 uncompressed bytes"), (None, "")):
+        data = bytearray(path.read_bytes())
+        usize = struct.unpack_from("<Q", data, size_at)[0]
+        struct.pack_into("<QI", data, size_at, usize - 8 if claim is None else claim, 0)
+        bad = tmp_path / f"bad-{claim}.mcap"
+        bad.write_bytes(bytes(data))
+        message = _one_line_error(lambda: list(McapSource(bad)), RecordingSourceError)
+        assert "corrupt" in message and expected in message
+        assert isinstance(pytest.raises(RecordingSourceError, lambda: list(McapSource(bad))).value.__cause__,
+                          CorruptRecording)
+
+
+def _without_session(path):
+    """A file with livedic's image channel and one frame but no session metadata."""
+    with open(path, "wb") as f:
+        writer = ChunkedWriter(f, chunk_bytes=1 << 20, compression=None, library="livedic/test")
+        channel = writer.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA, rs.schema_data(rs.RAW_IMAGE_SCHEMA))
+        writer.add("image", channel, T0, rs.encode_raw_image(np.zeros((4, 6), np.uint8), T0))
+        writer.finish()
+
+
+def test_each_problem_has_its_exception_type(tmp_path, recording):
+    """What a caller acts on is the type (all RecordingError, one line); McapSource keeps it as the cause."""
+    (tmp_path / "empty.mcap").write_bytes(b"")
+    (tmp_path / "text.mcap").write_bytes(b"frame,u,v\n")
+    _plain_mcap(tmp_path / "robot.mcap")
+    _without_session(tmp_path / "nosession.mcap")
+    data = recording[0].read_bytes()
+    bad = bytearray(data[:_chunks(recording[0])[1].chunk_start_offset + 200])  # cut inside the first image chunk
+    bad[-150] ^= 0xFF
+    (tmp_path / "corrupt.mcap").write_bytes(bytes(data[:len(bad) - 200]) + bytes(bad[-200:]) + data[len(bad):])
+    cases = {"empty.mcap": NotMcap, "text.mcap": NotMcap, "robot.mcap": NotLivedic,
+             "nosession.mcap": NoSessionMetadata}
+    for name, error_type in cases.items():
+        _one_line_error(lambda: read_session(tmp_path / name), error_type)
+    assert _one_line_error(lambda: read_session(tmp_path / "nosession.mcap")).endswith(
+        "has no session metadata (livedic.session)")
+    assert [f.image.shape for f in McapSource(tmp_path / "nosession.mcap")] == [(4, 6)]
+    _one_line_error(lambda: list(McapSource(tmp_path / "corrupt.mcap")), RecordingSourceError)
+    for name, error_type in {"robot.mcap": NotLivedic, "empty.mcap": NotMcap}.items():
+        caught = pytest.raises(RecordingSourceError, McapSource, tmp_path / name).value
+        assert isinstance(caught, SourceError) and isinstance(caught.__cause__, error_type)
+    assert isinstance(pytest.raises(RecordingSourceError, lambda: list(McapSource(tmp_path / "corrupt.mcap")))
+                      .value.__cause__, CorruptRecording)
 
 
 # ----------------------------------------------------------------------------- bad input
@@ -253,6 +361,34 @@ def test_mcap_from_another_program_is_named_as_such(tmp_path):
 
 # ----------------------------------------------------------------------------- fuzz
 
+def test_huge_lengths_at_every_record_start_fail_cleanly(tmp_path):
+    """The length fields hypothesis rarely hits: every 8- and 4-byte field in the first 64 bytes of every
+    record (chunk headers and the records inside uncompressed chunks among them) set to its maximum."""
+    from mcap.opcode import Opcode
+
+    from livedic.acquire.mcap_io import RecordScan
+    path = tmp_path / "small.mcap"
+    _record(path, n=2, shape=(4, 4), chunk_bytes=64)
+    data = path.read_bytes()
+    with open(path, "rb") as f:
+        starts = [offset for offset, opcode, _ in RecordScan(f, 8, len(data), wanted=())
+                  if opcode != Opcode.MESSAGE_INDEX]                   # the readers never read those
+    fuzzed = tmp_path / "huge.mcap"
+    for start in starts:
+        for at in range(start + 1, min(start + 64, len(data) - 8)):
+            for width, value in ((8, 2**64 - 1), (4, 2**32 - 1)):
+                raw = bytearray(data)
+                raw[at:at + width] = value.to_bytes(width, "little")
+                fuzzed.write_bytes(bytes(raw))
+                for call in (read_session, inspect_recording,           # every record path, strict ...
+                             lambda p: list(Recording(p).records(strict=False))):        # ... and as recover
+                    try:
+                        call(fuzzed)
+                    except RecordingError:
+                        pass
+
+
+
 class _Hang(Exception):
     pass
 
@@ -275,19 +411,23 @@ def _exercise(path, tmp_dir):
 @pytest.fixture(scope="module")
 def fuzz_bases(tmp_path_factory):
     base = tmp_path_factory.mktemp("fuzz")
-    complete = base / "complete.mcap"
-    _record(complete, n=3, shape=(6, 8), chunk_bytes=256)
-    data = complete.read_bytes()
-    return base, [data, data[:int(len(data) * 0.7)]]         # indexed and truncated variants
+    variants = []
+    for compression in (None, "lz4"):
+        complete = base / f"complete-{compression}.mcap"
+        _record(complete, n=3, shape=(6, 8), chunk_bytes=256, compression=compression)
+        data = complete.read_bytes()
+        variants += [data, data[:int(len(data) * 0.7)]]      # indexed and truncated variants
+    return base, variants
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(which=st.integers(0, 1), data=st.data())
+@given(which=st.integers(0, 3), data=st.data())
 def test_fuzzed_recordings_fail_cleanly(fuzz_bases, which, data):
     base, variants = fuzz_bases
     raw = bytearray(variants[which])
     for _ in range(data.draw(st.integers(1, 4), label="mutations")):
-        kind = data.draw(st.sampled_from(["flip", "byte", "cut", "insert", "delete", "length"]), label="kind")
+        kind = data.draw(st.sampled_from(["flip", "byte", "cut", "insert", "delete", "length", "length32"]),
+                         label="kind")
         at = data.draw(st.integers(0, max(len(raw) - 1, 0)), label="at")
         if kind == "flip" and raw:
             raw[at] ^= 1 << data.draw(st.integers(0, 7))
@@ -300,7 +440,9 @@ def test_fuzzed_recordings_fail_cleanly(fuzz_bases, which, data):
         elif kind == "delete":
             del raw[at:at + data.draw(st.integers(1, 64))]
         elif kind == "length" and len(raw) >= at + 8:       # a huge or odd record length field
-            raw[at:at + 8] = struct.pack("<Q", data.draw(st.sampled_from([0, 1, 2**31, 2**63, 2**64 - 1])))
+            raw[at:at + 8] = struct.pack("<Q", data.draw(st.sampled_from([0, 1, 2**31, 2**33, 2**63, 2**64 - 1])))
+        elif kind == "length32" and len(raw) >= at + 4:     # a string, map or array length field
+            raw[at:at + 4] = struct.pack("<I", data.draw(st.sampled_from([0, 1, 2**31, 2**32 - 1])))
     path = base / "fuzzed.mcap"
     path.write_bytes(bytes(raw))
     previous = signal.signal(signal.SIGALRM, _alarm)

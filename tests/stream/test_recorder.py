@@ -20,7 +20,7 @@ from hypothesis import given, settings, strategies as st
 
 from livedic.acquire.base import Frame
 from livedic.acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results, read_session, recover
-from livedic.stream import recording_schema as rs
+from livedic.acquire import recording_schema as rs
 from livedic.stream.recorder import Recorder
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

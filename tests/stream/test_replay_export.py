@@ -239,6 +239,26 @@ def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
     assert [int(row["frame"]) for row in trace] == [r.frame_index for r in recovered]
 
 
+def test_export_of_a_recording_without_session_metadata_says_so(tmp_path, capsys):
+    """No ``livedic.session`` metadata is a note (the reader's ``NoSessionMetadata``), not an error."""
+    import numpy as np
+    from livedic.acquire import recording_schema as rs
+    from livedic.acquire.mcap_io import ChunkedWriter
+
+    path = tmp_path / "bare.mcap"
+    with open(path, "wb") as handle:
+        writer = ChunkedWriter(handle, chunk_bytes=1 << 20, compression=None, library="livedic/test")
+        image = writer.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA, rs.schema_data(rs.RAW_IMAGE_SCHEMA))
+        writer.add("image", image, 5, rs.encode_raw_image(np.zeros((4, 6), np.uint8), 5))
+        writer.finish()
+    capsys.readouterr()
+    assert main(["export", str(path), "-o", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert f"note: {path} has no session metadata (livedic.session)" in err
+    exported = json.loads((tmp_path / "out" / "session.json").read_text())["livedic.export"]
+    assert exported["truncated"] is False and exported["p0_id"] == 0 and exported["frames_with_results"] == 0
+
+
 # --------------------------------------------------------------------------- bad input
 
 def _foreign_mcap(path):

@@ -1,0 +1,476 @@
+"""MCAP records of livedic recordings, on the ``mcap`` library: read within bounds, written in livedic's chunk layout.
+
+Reading. Records are parsed by mcap's own record classes (``mcap.records``) and
+chunks broken up by ``mcap.stream_reader.breakup_chunk`` (which checks their CRC).
+What the library's readers lack for files that may be cut short or damaged is
+this thin layer:
+
+* ``RecordScan`` frames the records of a byte range (opcode, length, body) and
+  stops cleanly where the data stops: at a record that runs past the end of the
+  file (where the writer died), at zero bytes (blocks never written before a
+  crash), at the end of the file, or at the DataEnd/Footer record. It says which
+  (``ScanEnd``) and how many bytes were whole (``valid_bytes``). mcap's
+  ``StreamReader`` reads each field straight from the file with whatever length
+  the file claims (a flipped bit can make one read as large as the file) and
+  cannot tell where a record starts; here no record over ``MAX_RECORD_BYTES`` is
+  read and ``parse_record`` parses each body from memory, where no field can reach
+  past its record.
+* ``open_chunk`` decompresses a chunk with its claimed size capped at
+  ``MAX_CHUNK_BYTES`` before mcap breaks it up: the decompressors would allocate
+  whatever size a corrupt or hostile chunk claims.
+* ``read_summary`` checks the footer, the summary's CRC and the offsets of its
+  chunk and metadata indexes (mcap's ``SeekingReader`` uses them unchecked) and
+  returns an ``mcap.summary.Summary``, or why there is none.
+
+Anything that does not parse raises ``Damaged`` (the message says what, without
+the file name: the reader adds that).
+
+Writing. ``ChunkedWriter`` is an ``mcap.writer.Writer`` whose chunks livedic
+closes itself, keeping images and data in chunks of their own (see its notes);
+``stream.recorder`` writes live sessions with it and ``acquire.mcap_replay.recover``
+rewrites damaged ones.
+"""
+
+import dataclasses
+import enum
+import io
+import os
+import struct
+import time
+import zlib
+from collections import Counter
+
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
+                          Schema)
+from mcap.stream_reader import CRCValidationError, breakup_chunk
+from mcap.summary import Summary
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
+
+__all__ = ["ChunkedWriter", "Damaged", "MAGIC", "MAX_CHUNK_BYTES", "MAX_RECORD_BYTES", "RecordScan", "ScanEnd",
+           "library_name", "open_chunk", "parse_record", "read_summary", "software_version"]
+
+MAGIC = b"\x89MCAP0\r\n"
+MAX_RECORD_BYTES = 1 << 30          # a record (chunk) claiming more is corrupt
+MAX_CHUNK_BYTES = 1 << 30           # a chunk claiming more once decompressed is corrupt
+MAX_METADATA_BYTES = 1 << 26
+_HEAD = struct.Struct("<BQ")        # opcode, length: the 9 bytes before every record body
+_FOOTER_BYTES = _HEAD.size + 20
+_RECORD_TYPES = {Opcode.HEADER: Header, Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message,
+                 Opcode.CHUNK: Chunk, Opcode.METADATA: Metadata, Opcode.CHUNK_INDEX: ChunkIndex,
+                 Opcode.METADATA_INDEX: MetadataIndex, Opcode.DATA_END: DataEnd, Opcode.FOOTER: Footer}
+_MESSAGE_HEADER_BYTES = 2 + 4 + 8 + 8
+# What mcap's record parsers raise on bytes that are not what they claim (struct.error: a short field;
+# OverflowError: a length beyond any buffer, inside a chunk).
+_PARSE_ERRORS = (McapError, ValueError, struct.error, OverflowError)
+
+
+class Damaged(Exception):
+    """A record that does not parse; the message says what is wrong."""
+
+
+# ----------------------------------------------------------------------------- records
+
+class _Exact(io.BytesIO):
+    """A record body for mcap's parsers: a field that would run past the body raises ``Damaged``."""
+
+    def __init__(self, body):
+        super().__init__(body)
+        self._size = len(body)
+
+    def read(self, size=-1):
+        if size is None or not 0 <= size <= self._size - self.tell():
+            raise Damaged("a field runs past the end of its record")
+        return super().read(size)
+
+
+def parse_record(opcode, body):
+    """The ``mcap.records`` record of ``opcode`` parsed from ``body`` (bytes), or ``Damaged``."""
+    record_type = _RECORD_TYPES[opcode]
+    stream = ReadDataStream(_Exact(body))
+    try:
+        if record_type is Message:
+            if len(body) < _MESSAGE_HEADER_BYTES:
+                raise Damaged("a message record is shorter than its header")
+            return Message.read(stream, len(body))
+        return record_type.read(stream)
+    except _PARSE_ERRORS as error:
+        raise Damaged(f"bad {record_type.__name__.lower()} record ({type(error).__name__})") from None
+
+
+class ScanEnd(enum.Enum):
+    """Why a ``RecordScan`` stopped."""
+    DATA_END = "data end"            # the DataEnd (or Footer) record: the data section is complete
+    END_OF_RANGE = "end of range"    # the last record ended exactly at the end (a section, or a file cut there)
+    PARTIAL = "partial record"       # a record runs past the end: the writer stopped inside it
+    ZEROS = "zeros"                  # zero bytes where a record starts: blocks never written before a crash
+    TOO_LARGE = "too large"          # a record claims more than MAX_RECORD_BYTES: corrupt
+
+    @property
+    def complete(self):
+        """The data section ended as a finished file's does."""
+        return self is ScanEnd.DATA_END
+
+
+class RecordScan:
+    """The records of ``f`` from byte ``start`` to ``end``, in order, framed within bounds.
+
+    Iterating yields ``(offset, opcode, body)``; ``body`` is the record's bytes for the
+    opcodes in ``wanted`` and None for the others (skipped unread). Afterwards ``stop``
+    says why the scan ended (``ScanEnd``), ``valid_bytes`` where the last whole record
+    ends and ``claimed`` what a ``TOO_LARGE`` record claimed.
+    """
+
+    def __init__(self, f, start, end, wanted):
+        self.f, self.start, self.end, self.wanted = f, start, end, wanted
+        self.valid_bytes = start
+        self.stop = None
+        self.claimed = 0
+
+    def __iter__(self):
+        f, pos, end = self.f, self.start, self.end
+        f.seek(pos)
+        while True:
+            self.valid_bytes = pos
+            if pos >= end:
+                self.stop = ScanEnd.END_OF_RANGE
+                return
+            head = f.read(_HEAD.size)
+            if len(head) < _HEAD.size:
+                self.stop = ScanEnd.PARTIAL
+                return
+            opcode, length = _HEAD.unpack(head)
+            if opcode == 0:
+                self.stop = ScanEnd.ZEROS
+                return
+            if length > end - pos - _HEAD.size:
+                self.stop = ScanEnd.PARTIAL
+                return
+            if length > MAX_RECORD_BYTES:
+                self.stop, self.claimed = ScanEnd.TOO_LARGE, length
+                return
+            if opcode in (Opcode.DATA_END, Opcode.FOOTER):
+                self.stop = ScanEnd.DATA_END
+                return
+            body = None
+            if opcode in self.wanted:
+                body = f.read(length)
+                if len(body) < length:           # the file shrank while we read it
+                    self.stop = ScanEnd.PARTIAL
+                    return
+            else:
+                f.seek(length, os.SEEK_CUR)
+            pos += _HEAD.size + length
+            self.valid_bytes = pos
+            yield pos - _HEAD.size - length, opcode, body
+
+
+def read_record_at(f, offset, length, opcode):
+    """The record of ``opcode`` that an index says is ``length`` bytes at ``offset`` (``Damaged`` if not)."""
+    f.seek(offset)
+    head = f.read(_HEAD.size)
+    if len(head) < _HEAD.size or _HEAD.unpack(head) != (opcode, length - _HEAD.size):
+        raise Damaged(f"no {Opcode(opcode).name.lower()} record where the index points")
+    body = f.read(length - _HEAD.size)
+    if len(body) < length - _HEAD.size:
+        raise Damaged("the file ends inside the record")
+    return parse_record(opcode, body)
+
+
+# ----------------------------------------------------------------------------- chunks
+
+def _decompress(chunk):
+    """The chunk's records, uncompressed, never more than it claims (itself capped at MAX_CHUNK_BYTES)."""
+    size = chunk.uncompressed_size
+    if size > MAX_CHUNK_BYTES:
+        raise Damaged(f"chunk claims {size} uncompressed bytes")
+    compression = chunk.compression
+    if compression == "":
+        return chunk.data
+    try:
+        if compression == "lz4":
+            import lz4.frame
+            decompressor = lz4.frame.LZ4FrameDecompressor()
+            data = decompressor.decompress(chunk.data, max_length=size)
+            if not decompressor.eof:
+                raise Damaged(f"lz4 chunk holds more than its header's {size} bytes, or is cut short")
+            return data
+        if compression == "zstd":
+            import zstandard
+            if zstandard.frame_content_size(chunk.data) > size:      # it would allocate what the frame claims
+                raise Damaged(f"zstd frame claims more than the chunk's {size} bytes")
+            return zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=size)
+    except Damaged:
+        raise
+    except Exception as error:  # noqa: BLE001 - decompressors raise assorted types on garbage
+        raise Damaged(f"{compression} decompression failed ({type(error).__name__})") from None
+    raise Damaged(f"unsupported chunk compression {compression!r}")
+
+
+def open_chunk(chunk):
+    """The records of ``chunk`` (an ``mcap.records.Chunk``): Schema, Channel and Message, in order.
+
+    Decompressed within bounds, CRC checked (when the writer stored one) and broken up
+    by mcap; raises ``Damaged`` when any of it fails.
+    """
+    data = _decompress(chunk)
+    if len(data) != chunk.uncompressed_size:
+        raise Damaged(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}")
+    try:
+        return breakup_chunk(dataclasses.replace(chunk, compression="", data=data), validate_crc=True)
+    except CRCValidationError:
+        raise Damaged("chunk CRC mismatch") from None
+    except _PARSE_ERRORS as error:
+        raise Damaged(f"bad record inside the chunk ({type(error).__name__})") from None
+
+
+# ----------------------------------------------------------------------------- summary
+
+def read_summary(f, size, data_start):
+    """``(summary, problem)``: the file's ``mcap.summary.Summary`` when it has a sound one, else None.
+
+    ``problem`` is "" when there is simply no summary (a file cut short, or written
+    without one) and otherwise says, for people, what is wrong with it ("its summary
+    fails its CRC" ...): the reader then reads the file record by record.
+    """
+    if size < data_start + _FOOTER_BYTES + len(MAGIC):
+        return None, ""
+    f.seek(size - len(MAGIC))
+    if f.read(len(MAGIC)) != MAGIC:
+        return None, "it does not end with an MCAP footer (no index)"
+    footer_start = size - len(MAGIC) - _FOOTER_BYTES
+    f.seek(footer_start)
+    head = f.read(_FOOTER_BYTES)
+    if _HEAD.unpack_from(head) != (Opcode.FOOTER, 20):
+        return None, "its footer is damaged"
+    footer = parse_record(Opcode.FOOTER, head[_HEAD.size:])
+    if footer.summary_start == 0:
+        return None, ""                                  # a complete file written without a summary
+    if not data_start <= footer.summary_start <= footer_start:
+        return None, "its footer points outside the file"
+    if footer_start - footer.summary_start > MAX_RECORD_BYTES:
+        return None, f"its summary claims {footer_start - footer.summary_start} bytes"
+    f.seek(footer.summary_start)
+    data = f.read(footer_start - footer.summary_start)
+    # The summary CRC covers the summary and the footer up to its own CRC field.
+    if footer.summary_crc and zlib.crc32(head[:-4], zlib.crc32(data)) != footer.summary_crc:
+        return None, "its summary fails its CRC"
+    try:
+        return _parse_summary(data, data_start, footer.summary_start), ""
+    except Damaged as bad:
+        return None, f"its summary is damaged ({bad})"
+
+
+def _parse_summary(data, data_start, data_end):
+    """An ``mcap.summary.Summary`` from the summary section's bytes; indexes must point into the data section."""
+    summary = Summary()
+    wanted = (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK_INDEX, Opcode.METADATA_INDEX)
+    scan = RecordScan(io.BytesIO(data), 0, len(data), wanted)
+    for _, opcode, body in scan:
+        if body is None:
+            continue
+        record = parse_record(opcode, body)
+        if opcode == Opcode.SCHEMA:
+            summary.schemas[record.id] = record
+        elif opcode == Opcode.CHANNEL:
+            summary.channels[record.id] = record
+        elif opcode == Opcode.CHUNK_INDEX:
+            if not (data_start <= record.chunk_start_offset
+                    and record.chunk_start_offset + record.chunk_length <= data_end
+                    and _HEAD.size <= record.chunk_length <= MAX_RECORD_BYTES):
+                raise Damaged("a chunk index points outside the data section")
+            summary.chunk_indexes.append(record)
+        else:
+            if not (data_start <= record.offset and record.offset + record.length <= data_end
+                    and _HEAD.size <= record.length <= MAX_METADATA_BYTES):
+                raise Damaged("a metadata index points outside the data section")
+            summary.metadata_indexes.append(record)
+    if scan.stop is not ScanEnd.END_OF_RANGE:
+        raise Damaged("a summary record runs past the summary")
+    for channel in summary.channels.values():
+        if channel.schema_id and channel.schema_id not in summary.schemas:
+            raise Damaged(f"channel {channel.topic!r} has no schema")
+    summary.chunk_indexes.sort(key=lambda chunk: chunk.chunk_start_offset)
+    return summary
+
+
+# ----------------------------------------------------------------------------- writing
+
+def software_version():
+    """The installed livedic version, or "unknown"."""
+    try:
+        from importlib.metadata import version
+        return version("livedic")
+    except Exception:  # noqa: BLE001 - metadata is best effort
+        return "unknown"
+
+
+def library_name(how=""):
+    """The MCAP header's ``library``: livedic's version, ``how`` it was written (e.g. "recovered"), mcap's."""
+    return f"livedic/{software_version()} {f'({how}) ' if how else ''}{LIBRARY_IDENTIFIER}"
+
+
+_NEVER = 1 << 62                 # mcap's own size-triggered chunking is switched off
+
+
+class ChunkedWriter:
+    """An mcap ``Writer`` whose chunks are closed by livedic, not by mcap.
+
+    Messages are added with a ``kind``: "image" (``/camera/image`` and
+    ``/camera/frame_info``) or "data" (results, events, the session message). A chunk
+    holds one kind only, so an indexed reader fetches the results without reading any
+    image. mcap's writer has a single open chunk, which holds images only; data
+    messages (serialized payloads with their channel, times and sequence) wait in a
+    list here and are written together as one data chunk. So images and results that
+    alternate every frame no longer cost a chunk each: the writer keeps a ~570-byte
+    ``ChunkIndex`` per chunk in memory until ``finish`` (for the summary), which is
+    what grew the memory of long sessions when every frame made two chunks.
+
+    When things are written:
+
+    * the image chunk is closed when it holds ``chunk_bytes``;
+    * the pending data is written as one chunk when it holds ``chunk_bytes``; the
+      open image chunk is closed first (its frames come before their results in the
+      file);
+    * when the oldest unwritten message, image or data, is ``flush_interval_s`` old,
+      both are written (``flush_due``, called on every write by the ``Recorder`` and
+      by its background thread): one age check for both keeps them in step, where two
+      independent timers would each cut the other's chunk short;
+    * ``flush`` and ``finish`` write everything.
+
+    Pending data is *not* written each time an image chunk fills up
+    (``data_with_images=False``, the default). Measured at 1 MP Mono8, 50 fps, 1,000
+    points (85 KB of results a frame) with 4 MiB chunks: 0.385 chunks a frame,
+    against 0.50 when the data follows every image chunk (one image chunk per 4
+    frames); with 1 MiB chunks 1.08 against 2.0. The price is that results may lag
+    their frames in the file by up to ``flush_interval_s``, which the age check
+    bounds anyway. At 512x512 (age-bound) both give 0.15.
+
+    Chunk size (``Recorder``'s default ``chunk_bytes``, 4 MiB), measured at 1 MP, 50
+    fps, 1,000 points on 2 shared cores: 1 / 4 / 8 / 16 MiB give 1.08 / 0.385 / 0.23 /
+    0.15 chunks a frame (~110 / 40 / 24 / 16 MB of chunk indexes an hour), a
+    transient peak of ~3 / 12 / 19 / 37 MB while a chunk is written (the chunk is
+    copied twice on its way out), a ``write_frame`` p99 of ~3 / 9 / 16 / 37 ms (the
+    call that writes the chunk; the frame period is 20 ms) and ~420 / 445 / 500 /
+    ~325 MB/s of write throughput (median of 3, one run for 16 MiB; noisy). 4 MiB
+    takes most of the gain while the burst stays under half a frame period; at
+    512x512 chunks are closed by age from 4 MiB on, so larger ones gain nothing there.
+
+    ``chunks_written`` counts the chunks written; ``durable_counts`` counts, by the
+    ``count_as`` label given to ``add``, the messages in written chunks (handed to the
+    kernel: they survive the death of the process). Not thread safe: the ``Recorder``
+    calls it under its lock. Also used by ``acquire.mcap_replay.recover`` (which gives
+    no ``flush_interval_s``: size and ``finish`` only). Written with mcap's
+    ``Writer.flush()`` (mcap >= 1.5): the chunk and its message indexes are written and
+    the Python buffer is flushed to the kernel.
+    """
+
+    def __init__(self, stream, *, chunk_bytes, compression, library, flush_interval_s=None,
+                 data_with_images=False, clock=time.monotonic):
+        codec = {None: CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
+        self.stream = stream
+        self.writer = Writer(stream, chunk_size=_NEVER, compression=codec[compression],
+                             index_types=IndexType.ALL, use_chunking=True, enable_crcs=True)
+        self.writer.start(profile="", library=library)
+        self.chunk_bytes = int(chunk_bytes)
+        self.flush_interval_s = flush_interval_s
+        self.data_with_images = bool(data_with_images)
+        self.clock = clock                   # seconds, monotonic (a test may drive it by hand)
+        self.image_bytes = 0                 # the open image chunk (in mcap's writer)
+        self.image_since = None              # monotonic time of its first message; None: no open chunk
+        self.image_counts = Counter()
+        self.pending = []                    # data waiting: (channel_id, log_time, publish_time, sequence, data)
+        self.pending_bytes = 0
+        self.pending_since = None
+        self.pending_counts = Counter()
+        self.durable_counts = Counter()
+        self.chunks_written = 0
+        self._schemas = {}
+
+    def register(self, topic, schema_name, schema_data, *, schema_encoding="protobuf",
+                 message_encoding="protobuf", metadata=None):
+        key = (schema_name, schema_encoding, schema_data)
+        schema_id = self._schemas.get(key)
+        if schema_id is None:
+            schema_id = self.writer.register_schema(schema_name, schema_encoding, schema_data)
+            self._schemas[key] = schema_id
+        return self.writer.register_channel(topic, message_encoding, schema_id, dict(metadata or {}))
+
+    def add(self, kind, channel_id, log_time, data, *, publish_time=0, sequence=0, count_as=None):
+        """Add one message of ``kind`` ("image" or "data"); writes a chunk when one is full."""
+        size = len(data) + 31                # + the message record's header
+        if kind == "image":
+            self.writer.add_message(channel_id=channel_id, log_time=log_time, data=data,
+                                    publish_time=publish_time, sequence=sequence)
+            if self.image_since is None:
+                self.image_since = self.clock()
+            self.image_bytes += size
+            if count_as:
+                self.image_counts[count_as] += 1
+            if self.image_bytes >= self.chunk_bytes:
+                self.close_image_chunk()
+                if self.data_with_images:
+                    self.write_data()
+        elif kind == "data":
+            self.pending.append((channel_id, log_time, publish_time, sequence, data))
+            if self.pending_since is None:
+                self.pending_since = self.clock()
+            self.pending_bytes += size
+            if count_as:
+                self.pending_counts[count_as] += 1
+            if self.pending_bytes >= self.chunk_bytes:
+                self.write_data()
+        else:
+            raise ValueError(f"kind must be 'image' or 'data', got {kind!r}")
+
+    def age(self):
+        """Seconds since the oldest message not yet written (0 when everything is written)."""
+        oldest = min((t for t in (self.image_since, self.pending_since) if t is not None), default=None)
+        return 0.0 if oldest is None else self.clock() - oldest
+
+    def flush_due(self):
+        """Write everything if the oldest unwritten message is ``flush_interval_s`` old; True if it did."""
+        if self.flush_interval_s is None or self.age() < self.flush_interval_s:
+            return False
+        self.close_image_chunk()
+        self.write_data()
+        return True
+
+    def close_image_chunk(self):
+        if self.image_since is None:
+            return
+        self.writer.flush()                  # finalise chunk + indexes, flush stream to the kernel
+        self.chunks_written += 1
+        self.durable_counts.update(self.image_counts)
+        self.image_counts.clear()
+        self.image_since = None
+        self.image_bytes = 0
+
+    def write_data(self):
+        """Write the pending data messages as one chunk (after closing the open image chunk)."""
+        if not self.pending:
+            return
+        self.close_image_chunk()             # mcap has one open chunk: never mix the kinds
+        add = self.writer.add_message
+        for channel_id, log_time, publish_time, sequence, data in self.pending:
+            add(channel_id=channel_id, log_time=log_time, data=data, publish_time=publish_time, sequence=sequence)
+        self.writer.flush()
+        self.chunks_written += 1
+        self.durable_counts.update(self.pending_counts)
+        self.pending_counts.clear()
+        self.pending = []
+        self.pending_since = None
+        self.pending_bytes = 0
+
+    def flush(self):
+        """Write the image chunk and the pending data, and flush the stream to the kernel."""
+        self.close_image_chunk()
+        self.write_data()
+        self.writer.flush()                  # records outside chunks (header, metadata) too
+
+    def finish(self):
+        self.flush()
+        self.writer.finish()
+        self.stream.flush()
