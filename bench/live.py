@@ -4,12 +4,12 @@ Setup (issue 3): ``synthetic:tensile?size=1024x1024&fps=50&frames=N`` (Mono8,
 N = 150 by default), subset 21, integer search ``improved-wso`` seeded by the
 previous frame (radius 2), for 400, 1,000 and 2,500 points, with the
 improved surface fit and with IC-GN as the sub-pixel method. Every case is one
-``livedic run`` session, called in-process through the real command-line
-parser (``livedic run --viewer none --record ... --summary-json ...``), so
-the benchmark measures exactly what a user gets: acquisition thread, bounded
-queue (4 frames, drop the oldest), tracker, recorder (ON, into a temporary
-folder deleted afterwards), no viewer. The numbers come from the session's
-``--summary-json``:
+session of ``livedic run`` (``stream.session.Session``, its config built with
+run's defaults, as ``livedic run --viewer none --progress off --record ...``
+gives it), so the benchmark measures exactly what a user gets: acquisition
+thread, bounded queue (4 frames, drop the oldest), tracker, recorder (ON, into
+a temporary folder deleted afterwards), no viewer. The numbers are the
+session's summary (what ``--summary-json`` writes):
 
 * fps tracked = frames tracked / (last result - first arrival);
 * drops = frames the queue discarded because the tracker was behind;
@@ -33,13 +33,10 @@ the measured time); that rendering time is printed on its own. Target on the
 and no drops.
 """
 
-import contextlib
-import io
 import json
 import math
 import os
 import platform
-import re
 import shutil
 import tempfile
 import time
@@ -50,8 +47,6 @@ TARGET_POINTS = 1000
 TARGET_METHOD = "icgn"
 TARGET_FPS = 50.0
 TARGET_P99_MS = 30.0
-
-_RENDER_LINE = re.compile(r"(\d+) frames rendered ahead in ([0-9.]+) s")
 
 
 def _load():
@@ -71,42 +66,41 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
              search="improved-wso", subset=21, echo=None):
     """One ``livedic run`` session; returns a row dict (summary numbers, render time, error text).
 
-    ``echo(text)`` receives what the session printed (its summary), when given.
+    ``echo(text)`` receives what the session said and its summary, when given.
     """
-    from livedic.stream.cli import build_parser
-    from livedic.stream.run import run_session
+    from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
+    from livedic.stream.csv_output import json_text
+    from livedic.stream.session import Session
 
     tag = f"{n_points}-{search}-{subpixel}-{'rec' if record else 'norec'}-{'paced' if paced else 'unpaced'}"
-    summary_path = os.path.join(workdir, f"{tag}.json")
     record_path = os.path.join(workdir, f"{tag}.mcap")
     uri = f"synthetic:tensile?size={size}x{size}&fps={fps:g}&frames={frames}" + ("" if paced else "&pace=0")
-    argv = ["run", "--source", uri, "--viewer", "none", "--progress", "off", "--n-points", str(n_points),
-            "--subset", str(subset), "--search", search, "--subpixel", subpixel, "--threads", str(threads),
-            "--summary-json", summary_path]
-    argv += ["--record", record_path] if record else ["--no-record"]
-    args = build_parser().parse_args(argv)
     row = dict(points_wanted=n_points, subpixel=subpixel, search=search, record=record, paced=paced,
                fps_offered=fps if paced else None, size=size, frames_offered=frames, error=None, render_s=None,
                summary={})
-    out, err = io.StringIO(), io.StringIO()
+    said = []
+    session = None
     started = time.perf_counter()
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            run_session(args)
+        config = SessionConfig(source=uri, points=PointsConfig(n_points=n_points),
+                               tracking=TrackingConfig(subset=subset, search=search, subpixel=subpixel),
+                               record=record_path if record else None, threads=threads,
+                               command="livedic bench live")
+        with Session(config, say=lambda message: said.append(f"livedic: {message}")) as session:
+            session.execute()
+        if session.source_error is not None:
+            row["error"] = f"{type(session.source_error).__name__}: {session.source_error}"
     except Exception as error:  # noqa: BLE001 - one failed case must not hide the others
         row["error"] = f"{type(error).__name__}: {error}"
     row["wall_s"] = time.perf_counter() - started
-    match = _RENDER_LINE.search(err.getvalue())
-    if match:
-        row["render_s"] = float(match.group(2))
-    if os.path.exists(summary_path):
-        with open(summary_path) as handle:
-            row["summary"] = json.load(handle)
+    if session is not None:
+        row["render_s"] = session.render_seconds
+        if session.summary() is not None:
+            row["summary"] = json.loads(json_text(session.summary()))     # None where a number is missing
     if echo is not None:
-        echo(err.getvalue() + out.getvalue())
-    for path in (summary_path, record_path):
-        if os.path.exists(path):
-            os.remove(path)
+        echo("\n".join(said + ([session.summary_text()] if session is not None and session.summary_text() else [])))
+    if os.path.exists(record_path):
+        os.remove(record_path)
     return row
 
 

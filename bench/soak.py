@@ -1,11 +1,13 @@
 """``livedic bench soak``: a long session through the full pipeline; memory and frame accounting.
 
-Setup (issue 4): 20,000 frames of the simulated tensile test through the same
-parts as ``livedic run``: the acquisition thread, the bounded queue (4 frames,
-drop the oldest, as for a camera), the tracker (1,000 points, subset 21,
-improved-wso + IC-GN by default, options parsed by the real ``livedic run``
-parser) and the recorder (every frame and every result into an MCAP file in a
-temporary folder, deleted afterwards unless ``keep``). No viewer.
+Setup (issue 4): 20,000 frames of the simulated tensile test through the
+session ``livedic run`` runs (``stream.session.Session``, its config built with
+run's defaults): the acquisition thread, the bounded queue (4 frames, drop the
+oldest, as for a camera), the tracker (1,000 points, subset 21, improved-wso +
+IC-GN by default, P0 placed as run places it) and the recorder (every frame and
+every result into an MCAP file in a temporary folder, deleted afterwards unless
+``keep``). No viewer. The soak adds one sink, its monitor (progress, RSS), and
+counts the frames where the source yields them.
 
 The source is ``synthetic:tensile?...&loop=K``: only K frames (default 200)
 are rendered and the 20,000 delivered frames cycle through them forward and
@@ -151,20 +153,14 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
         mcap_index ((chunk indexes, MB) or None), stats_mb, passed_rss, passed_accounting, lines,
         recording (path or None).
     """
-    import numba
     import numpy as np
 
     from livedic.acquire.mcap_replay import inspect_recording
-    from livedic.dic.quality import Gates
-    from livedic.acquire.synthetic import SyntheticTensileSource
-    from livedic.dic.tracking import Tracker
-    from livedic.stream import recording_schema as rs
-    from livedic.stream.acquisition import AcquisitionThread
-    from livedic.stream.cli import build_parser
-    from livedic.stream.frame_queue import DROP_OLDEST, FrameQueue
-    from livedic.stream.recorder import Recorder
-    from livedic.stream.run import _check_args, _for_recording, _warm_up, build_points
-    from livedic.stream.tracker_loop import TrackerLoop
+    from livedic.stream.recording_schema import TOPIC_RESULTS
+    from livedic.acquire.sources import open_source
+    from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
+    from livedic.stream.session import Session
+    from livedic.stream.sinks import FunctionSink
 
     if frames < 2:
         raise ValueError(f"--frames must be >= 2, got {frames}")
@@ -180,143 +176,99 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     workdir = directory or tempfile.mkdtemp(prefix="livedic-bench-soak-")
     os.makedirs(workdir, exist_ok=True)
     record_path = os.path.join(workdir, f"soak-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.mcap")
-    args = build_parser().parse_args(
-        ["run", "--source", uri, "--viewer", "none", "--progress", "off", "--n-points", str(n_points),
-         "--search", search, "--subpixel", subpixel, "--queue", str(queue), "--drop", "oldest",
-         "--threads", str(threads), "--record", record_path])
-    _check_args(args)
+    # livedic run's session with these options: --n-points, --search, --subpixel, --queue, --drop oldest,
+    # --threads, --record, --viewer none, --progress off (the rest at run's defaults).
+    config = SessionConfig(source=uri, points=PointsConfig(n_points=n_points),
+                           tracking=TrackingConfig(search=search, subpixel=subpixel), record=record_path, queue=queue,
+                           drop="oldest", threads=threads, command="livedic bench soak")
     paced_s = frames / fps
     max_wall_s = max_wall_s or 3.0 * paced_s + 120.0
     say(f"livedic bench soak: {frames} frames, {uri}")
     say(f"  {size}x{size} Mono8 ({size * size * frames / 1e9:.1f} GB of frames to record), {loop} rendered frames "
         f"cycled forward and back, paced at {fps:g} fps ({paced_s:.0f} s); {n_points} points wanted, subset "
-        f"{args.subset}, {search} + {subpixel}; queue {queue} drop-oldest; recording into {record_path}"
+        f"{config.tracking.subset}, {search} + {subpixel}; queue {queue} drop-oldest; recording into {record_path}"
         f"{' (kept)' if keep else ' (deleted afterwards)'}; viewer none; {threads} numba thread(s)")
     say(f"  machine: {os.cpu_count()} CPU cores; {_load()} at start")
 
-    previous_threads = numba.get_num_threads()
-    numba.set_num_threads(args.threads)
-    recorder = None
-    acquisition = None
     result = {}
     started = time.perf_counter()
+    samples = []          # (frames tracked, RSS MB) after the warm-up
+    block = {"start": time.perf_counter(), "frames": 0, "err_sq": 0.0, "err_n": 0}
+    marks = {}
+    session = None
+
+    def monitor(res, stats):
+        if math.isfinite(res.error_rms_px) and not res.is_reference:
+            block["err_sq"] += res.error_rms_px ** 2
+            block["err_n"] += 1
+        if stats.frames == warmup_frames:
+            marks["rss_warm"] = rss_mb()
+            marks["warm_frames"] = stats.frames
+            samples.append((stats.frames, marks["rss_warm"]))
+        produced = counting.produced
+        if stats.frames == 1:
+            say(f"  reference frame {res.frame.index}: {len(session.points)} points, set-up "
+                f"{res.processing_ns / 1e6:.0f} ms, RSS {rss_mb():.1f} MB")
+            block.update(start=time.perf_counter(), frames=1)
+            return
+        if produced // progress_every > block.get("shown", 0):
+            block["shown"] = produced // progress_every
+            now = time.perf_counter()
+            rss = rss_mb()
+            if stats.frames > warmup_frames:
+                samples.append((stats.frames, rss))
+            span = now - block["start"]
+            tracked = stats.frames - block["frames"]
+            lat = stats.latencies_ns[-max(tracked, 1):]
+            p99 = np.percentile(np.asarray(lat), 99) / 1e6 if lat else float("nan")
+            err = math.sqrt(block["err_sq"] / block["err_n"]) if block["err_n"] else float("nan")
+            say(f"  {produced:>6d}/{frames} produced  {stats.frames:>6d} tracked  "
+                f"{session.queue.dropped:>5d} dropped  {session.recorder.frames_written:>6d} recorded  "
+                f"{(tracked / span if span > 0 else float('nan')):5.1f} fps  latency p99 {p99:6.1f} ms  "
+                f"error {err:.4f} px  RSS {rss:7.1f} MB  {time.perf_counter() - started:5.0f} s")
+            block.update(start=now, frames=stats.frames, err_sq=0.0, err_n=0)
+
     try:
-        _warm_up(args)
-        source = SyntheticTensileSource(uri)
-        t0 = time.perf_counter()
-        source.prepare()
-        say(f"  rendered {source.rendered_frames} frames in {time.perf_counter() - t0:.1f} s (before the clock)")
-        roi = tuple(int(v) for v in source.suggested_roi)
-        counting = CountingSource(source)
-        metadata = {"command": "livedic bench soak", "source_uri": uri, "source_settings": dict(source.settings),
-                    "roi": list(roi), "n_points_wanted": n_points, "subset": args.subset, "search": search,
-                    "subpixel": subpixel, "seed_radius": args.seed_radius, "refind_radius": args.refind_radius,
-                    "refind_zncc": args.refind_zncc, "min_zncc": args.min_zncc, "seed": args.seed,
-                    "queue_size": queue,
-                    "drop_policy": DROP_OLDEST, "point_ids": "P0 is point 0", "threads": threads}
-        errors = []
-        recorder = Recorder(record_path, metadata, start_time_ns=0, on_error=errors.append)
-        frame_queue = FrameQueue(queue, DROP_OLDEST)
-        acquisition = AcquisitionThread(counting, frame_queue,
-                                        on_frame=lambda item: recorder.write_frame(_for_recording(item.frame)))
-        method = f"{search}+{subpixel}"
-        session = {}
-
-        def make_tracker(frame):
-            points, _, _ = build_points(frame.image.shape, roi=roi, step=None, n_points=n_points,
-                                        subset=args.subset)
-            session["points"] = len(points)
-            return Tracker(frame.image, points, subset=args.subset, search=search, subpixel=subpixel,
-                           seed_radius=args.seed_radius, refind_radius=args.refind_radius,
-                           refind_zncc=args.refind_zncc, seed=args.seed, gates=Gates(min_zncc=args.min_zncc))
-
-        def record_results(res, stats):          # what ``livedic run`` records for each result
-            m = res.measurement
-            frame = res.frame
-            recorder.write_results(
-                frame.index, frame.timestamp_ns, np.arange(m.u.size, dtype=np.uint32), m.x, m.y, m.u, m.v,
-                m.zncc, m.ok, ux=m.ux, uy=m.uy, vx=m.vx, vy=m.vy, status=m.status.astype(np.int32),
-                iterations=m.iterations, method=method, processing_ns=res.processing_ns,
-                latency_ns=res.latency_ns, reference_frame_index=loop_.reference_frame.index,
-                dropped_frames=res.dropped_since_last)
-            if res.dropped_since_last:
-                recorder.write_event("drop", f"{res.dropped_since_last} frame(s) dropped by the queue before "
-                                     f"frame {frame.index} (total {res.dropped_total})", level="warning")
-
-        samples = []          # (frames tracked, RSS MB) after the warm-up
-        block = {"start": time.perf_counter(), "frames": 0, "err_sq": 0.0, "err_n": 0}
-        marks = {}
-
-        def monitor(res, stats):
-            if math.isfinite(res.error_rms_px) and not res.is_reference:
-                block["err_sq"] += res.error_rms_px ** 2
-                block["err_n"] += 1
-            if stats.frames == warmup_frames:
-                marks["rss_warm"] = rss_mb()
-                marks["warm_frames"] = stats.frames
-                samples.append((stats.frames, marks["rss_warm"]))
-            produced = counting.produced
-            if stats.frames == 1:
-                say(f"  reference frame {res.frame.index}: {session.get('points', 0)} points, set-up "
-                    f"{res.processing_ns / 1e6:.0f} ms, RSS {rss_mb():.1f} MB")
-                block.update(start=time.perf_counter(), frames=1)
-                return
-            if produced // progress_every > block.get("shown", 0):
-                block["shown"] = produced // progress_every
-                now = time.perf_counter()
-                rss = rss_mb()
-                if stats.frames > warmup_frames:
-                    samples.append((stats.frames, rss))
-                span = now - block["start"]
-                tracked = stats.frames - block["frames"]
-                lat = stats.latencies_ns[-max(tracked, 1):]
-                p99 = np.percentile(np.asarray(lat), 99) / 1e6 if lat else float("nan")
-                err = math.sqrt(block["err_sq"] / block["err_n"]) if block["err_n"] else float("nan")
-                say(f"  {produced:>6d}/{frames} produced  {stats.frames:>6d} tracked  "
-                    f"{frame_queue.dropped:>5d} dropped  {recorder.frames_written:>6d} recorded  "
-                    f"{(tracked / span if span > 0 else float('nan')):5.1f} fps  latency p99 {p99:6.1f} ms  "
-                    f"error {err:.4f} px  RSS {rss:7.1f} MB  {time.perf_counter() - started:5.0f} s")
-                block.update(start=now, frames=stats.frames, err_sq=0.0, err_n=0)
-
-        loop_ = TrackerLoop(frame_queue, make_tracker, sinks=[record_results, monitor])
-        rss_before = rss_mb()
-        timer = threading.Timer(max_wall_s, acquisition.stop)
-        timer.daemon = True
-        acquisition.start()
-        timer.start()
-        try:
-            loop_.run()
-        finally:
-            timer.cancel()
-            acquisition.stop()
-            frame_queue.close()
-            acquisition.join(timeout=30.0)
-        stats = loop_.stats
-        rss_end = rss_mb()
-        samples.append((stats.frames, rss_end))
-        index_memory = mcap_index_memory(recorder)
-        stats_mb = sum(sys.getsizeof(values) for values in
-                       (stats.latencies_ns, stats.processing_ns, stats.delivery_delays_ns)) / 1e6
-        recorder.close()
-        chunks = recorder.chunks_written
-        rss_closed = rss_mb()
+        counting = CountingSource(open_source(uri))
+        session = Session(config, source=counting, sinks=[FunctionSink(monitor, "soak monitor")],
+                          say=lambda message: say(f"  {message}"))
+        with session:
+            session.prepare()             # kernels compiled, frames rendered, points placed, recording opened
+            rss_before = rss_mb()
+            timer = threading.Timer(max_wall_s, session.stop)
+            timer.daemon = True
+            session.start()
+            timer.start()
+            try:
+                stats = session.run()
+            finally:
+                timer.cancel()
+            recorder = session.recorder
+            rss_end = rss_mb()
+            samples.append((stats.frames, rss_end))
+            index_memory = mcap_index_memory(recorder)
+            stats_mb = sum(sys.getsizeof(values) for values in
+                           (stats.latencies_ns, stats.processing_ns, stats.delivery_delays_ns)) / 1e6
+            recorder.close()
+            chunks = recorder.chunks_written
+            rss_closed = rss_mb()
         wall = time.perf_counter() - started
-        for sink, error in loop_.sink_errors:
-            say(f"  warning: sink {getattr(sink, '__name__', sink)} stopped: {type(error).__name__}: {error}")
-        if acquisition.error is not None:
-            say(f"  warning: the source failed: {acquisition.error}")
-        if acquisition.finished_reason == "stopped":
+        for name, error in session.sink_errors:
+            say(f"  warning: sink {name} stopped: {type(error).__name__}: {error}")
+        if session.source_error is not None:
+            say(f"  warning: the source failed: {session.source_error}")
+        if session.acquisition.finished_reason == "stopped":
             say(f"  warning: stopped by the safety timer after {max_wall_s:.0f} s")
-        if recorder.error or errors:
-            say(f"  warning: {recorder.error or errors[0]}")
+        if recorder.error:
+            say(f"  warning: {recorder.error}")
 
         t0 = time.perf_counter()
         info = inspect_recording(record_path)
         readback_s = time.perf_counter() - t0
         recorded = info.frames
-        results_recorded = info.message_counts.get(rs.TOPIC_RESULTS, 0)
+        results_recorded = info.message_counts.get(TOPIC_RESULTS, 0)
         produced = counting.produced
-        tracked, dropped = stats.frames, frame_queue.dropped
+        tracked, dropped = stats.frames, session.queue.dropped
         rss_warm = marks.get("rss_warm", rss_before)
         growth = (rss_end - rss_warm) / rss_warm if rss_warm else float("nan")
         after = [(n, mb) for n, mb in samples if n >= marks.get("warm_frames", 0)]
@@ -325,7 +277,7 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
             slope = float(np.polyfit([n for n, _ in after], [mb for _, mb in after], 1)[0]) * 10_000
         size_gb = os.path.getsize(record_path) / 1e9
 
-        summary = stats.summary()
+        summary = session.summary()
         say("")
         say(f"soak: {produced} frames in {wall:.0f} s ({_load()} at end)")
         say(f"  frames   produced {produced} | recorded {recorded} (read back from the MCAP, {size_gb:.2f} GB, "
@@ -333,7 +285,7 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
             f"(results recorded {results_recorded}) | dropped {dropped}")
         say(f"  rate     {summary['fps']:.1f} fps tracked, latency p50 {summary['latency_p50_ms']:.1f} ms, "
             f"p99 {summary['latency_p99_ms']:.1f} ms, tracking p50 {summary['processing_p50_ms']:.1f} ms, "
-            f"{session.get('points', 0)} points, error RMS "
+            f"{len(session.points)} points, error RMS "
             f"{summary['error_rms_px'] if summary['error_rms_px'] is not None else float('nan'):.4f} px")
         say(f"  RSS      start {rss_warm:.1f} MB (after {marks.get('warm_frames', 0)} frames of warm-up), end "
             f"{rss_end:.1f} MB, growth {100 * growth:+.2f} %; before the pipeline started {rss_before:.1f} MB, "
@@ -358,12 +310,6 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
                       passed_accounting=accounted,
                       wall_s=wall, summary=summary, recording=record_path if keep else None)
     finally:
-        numba.set_num_threads(previous_threads)
-        if acquisition is not None and acquisition.is_alive():
-            acquisition.stop()
-            acquisition.join(timeout=10.0)
-        if recorder is not None and not recorder.closed:
-            recorder.close()
         if keep:
             say(f"  recording kept: {record_path}")
         elif directory is None:

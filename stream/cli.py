@@ -1,8 +1,12 @@
-"""The ``livedic`` command line.
+"""The ``livedic`` command line: run, measure, replay, export, recover, cameras.
 
 Every failure caused by input (files, options, cameras) ends with one line on
-stderr and exit code 2; a camera lost mid-session (recording kept) with exit
-code 3; set LIVEDIC_DEBUG=1 to see a traceback instead.
+stderr and exit code 2 (argparse's own errors too); a camera lost mid-session
+(recording kept) with exit code 3; set LIVEDIC_DEBUG=1 to see a traceback instead.
+
+Commands of the layers above (``livedic bench ...``) are added by the program
+that sits above them: ``livedic.bench.cli`` passes ``extensions`` to ``main``
+(stream never imports bench).
 """
 
 import argparse
@@ -11,17 +15,24 @@ import signal
 import sys
 import threading
 
+from livedic.stream.config import UsageError, search_method, subpixel_method
+from livedic.stream.points import read_points_csv, read_points_table  # noqa: F401 - _csv: until replay moves
+from livedic.stream.replay import add_replay_arguments, replay_command
+from livedic.stream.run import add_run_arguments, run_session
+
 EXIT_BAD_INPUT = 2
 EXIT_SOURCE_LOST = 3
-
-
-class UsageError(ValueError):
-    """Bad command-line input; the message is shown to the user as is."""
-
 
 # Options whose value may start with a minus sign and a digit ("-2,2"), which argparse would
 # otherwise take for an option and answer "expected one argument".
 _SIGNED_LIST_OPTIONS = ("--color-range",)
+
+
+class LivedicParser(argparse.ArgumentParser):
+    """argparse with livedic's one-line errors: ``livedic: error: ...`` on stderr, exit 2 (no usage block)."""
+
+    def error(self, message):
+        self.exit(EXIT_BAD_INPUT, f"livedic: error: {message} (see {self.prog} --help)\n")
 
 
 def _attach_signed_values(argv):
@@ -41,9 +52,16 @@ def _attach_signed_values(argv):
     return joined
 
 
-def main(argv=None):
-    parser = build_parser()
-    args = parser.parse_args(_attach_signed_values(argv))
+def main(argv=None, *, extensions=()):
+    """Parse ``argv`` (default: the process's), run the command; returns the exit code.
+
+    ``extensions``: callables ``add(commands)`` that add subcommands (see ``build_parser``).
+    """
+    parser = build_parser(extensions)
+    try:
+        args = parser.parse_args(_attach_signed_values(argv))
+    except SystemExit as done:        # --help (0), or a bad option: argparse said so in one line (2)
+        return done.code
     if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
         # A file-size limit (ulimit -f) must fail a write with EFBIG, which stops a recording
         # cleanly, rather than kill livedic (and the measurement) with SIGXFSZ.
@@ -67,7 +85,7 @@ def main(argv=None):
         return EXIT_BAD_INPUT if kind == "" else 1
 
 
-def entry_point():
+def entry_point(extensions=()):
     """The ``livedic`` console script: ``main()``, then exit without waiting for a dead camera.
 
     After a GigE camera is lost, Aravis's teardown of it waits on register writes
@@ -76,7 +94,7 @@ def entry_point():
     synced, so the process ends at once instead (``os._exit``, after flushing the
     standard streams). ``main()`` itself never does this: tests and scripts call it.
     """
-    code = main()
+    code = main(extensions=extensions)
     aravis = sys.modules.get("livedic.acquire.aravis")
     pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
     for thread in pending:
@@ -97,15 +115,21 @@ def _error_kind(error):
     return f"internal {type(error).__name__}: "
 
 
-def build_parser():
-    parser = argparse.ArgumentParser(
+def build_parser(extensions=()):
+    """The ``livedic`` parser: this layer's commands, then those ``extensions`` add.
+
+    Parameters
+    ----------
+    extensions : sequence of callables
+        ``add(commands)`` with the ``argparse`` subparsers object: each adds its commands
+        (``livedic.bench.cli.add_bench_commands`` adds ``livedic bench ...``).
+    """
+    parser = LivedicParser(
         prog="livedic", description="Real-time digital image correlation: measure, track, record, replay.")
     commands = parser.add_subparsers(metavar="COMMAND")
 
-    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
     from livedic.dic.quality import MIN_ZNCC
-
-    from livedic.stream.run import add_run_arguments, run_session
 
     run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
     add_run_arguments(run)
@@ -145,14 +169,12 @@ def build_parser():
     recover.add_argument("--overwrite", action="store_true", help="replace FIXED.mcap if it exists")
     recover.set_defaults(handler=_cmd_recover)
 
-    from livedic.stream.replay import add_replay_arguments
-
     replay = commands.add_parser("replay", help="re-run tracking offline on a recording's frames (CSV out)",
                                  description="Track a recording's frames again. Options not given are the "
                                              "recorded ones; with them the numbers equal the recorded ones "
                                              "exactly. Truncated recordings replay what can be recovered.")
     add_replay_arguments(replay)
-    replay.set_defaults(handler=_cmd_replay)
+    replay.set_defaults(handler=replay_command)
 
     export = commands.add_parser("export", help="write a recording's results as CSV (P0 trace, fields, events)",
                                  description="Write DIR/p0_trace.csv, DIR/fields.csv, DIR/events.csv and "
@@ -162,61 +184,16 @@ def build_parser():
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
     export.set_defaults(handler=_cmd_export)
 
-    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak")
-    bench_commands = bench.add_subparsers(metavar="BENCH")
-    paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
-    paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
-    paper.add_argument("-o", "--output", default="results/paper", metavar="DIR", help="results folder")
-    paper.set_defaults(handler=_cmd_bench_paper)
-    speed = bench_commands.add_parser("speed", help="points per second per method on a 1024x1024 image")
-    speed.add_argument("--points", type=int, default=10_000, help="number of points (default 10000)")
-    speed.add_argument("--size", type=int, default=1024, help="image side in pixels (default 1024)")
-    speed.add_argument("--repeat", type=int, default=3, help="timed repetitions, best kept (default 3)")
-    speed.add_argument("--quick", action="store_true", help="fewer points and methods, for CI")
-    speed.set_defaults(handler=_cmd_bench_speed)
-    live = bench_commands.add_parser("live", help="the live pipeline on 1 MP simulated frames: fps, latency, drops",
-                                     description="livedic run (recording on, no viewer) on synthetic:tensile "
-                                                 "1024x1024 at 50 fps for 400/1000/2500 points, improved surface "
-                                                 "fit and IC-GN; prints a table and the verdict on the target "
-                                                 "(1000 points IC-GN >= 50 fps, p99 latency <= 30 ms, no drops).")
-    live.add_argument("--quick", action="store_true", help="512x512, 40 frames, 1000 points only (CI)")
-    live.add_argument("--frames", type=int, metavar="N", help="frames per case (default 150; quick 40)")
-    live.add_argument("--fps", type=float, default=50.0, help="rate of the simulated camera (default 50)")
-    live.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1, as livedic run)")
-    live.add_argument("--verbose", action="store_true", help="also print each session's own summary")
-    live.set_defaults(handler=_cmd_bench_live)
-    validate = bench_commands.add_parser(
-        "validate", help="is every point marked ok right? wrong-but-ok points on other generators and the DIC "
-                         "Challenge sets", description="Counts the points dic.measure reports as ok that are more "
-                         "than 0.5 px from the truth (target: 0 in every row), on shifts up to 30 px from four "
-                         "pattern generators and, with --data, DIC Challenge Samples 3 and 12 and Stars 1/2. "
-                         "Exit code 1 if any row has one.")
-    validate.add_argument("--data", metavar="DIR",
-                          help="folder with dicc1_sample3_translation, dicc1_sample12_oht_cfrp and dicc2_star "
-                               "(e.g. ../shared/datasets); without it only the synthetic cases run")
-    validate.add_argument("--quick", action="store_true", help="fewer shifts, points and searches (minutes)")
-    validate.set_defaults(handler=_cmd_bench_validate)
-    soak = bench_commands.add_parser("soak", help="20,000 frames through the full pipeline: RSS growth, frames "
-                                                  "produced vs recorded vs tracked vs dropped")
-    soak.add_argument("--frames", type=int, default=20_000, metavar="N", help="frames to produce (default 20000)")
-    soak.add_argument("--size", type=int, default=512, metavar="PX",
-                      help="square image side (default 512: 20000 frames record 5.2 GB; 1024 would be 21 GB)")
-    soak.add_argument("--fps", type=float, default=50.0, help="paced rate of the simulated camera (default 50)")
-    soak.add_argument("--points", type=int, default=1000, metavar="N", help="points wanted (default 1000)")
-    soak.add_argument("--subpixel", default="icgn", metavar="NAME", help="sub-pixel method (default icgn)")
-    soak.add_argument("--loop", type=int, default=200, metavar="K",
-                      help="frames rendered and cycled forward and back (default 200)")
-    soak.add_argument("--dir", metavar="DIR", help="folder for the recording (default: a temporary folder)")
-    soak.add_argument("--keep", action="store_true", help="keep the recording (deleted by default)")
-    soak.set_defaults(handler=_cmd_bench_soak)
+    for extend in extensions:
+        extend(commands)
     return parser
 
 
 def _add_method_options(parser, searches, subpixels, *, subpixel_default="improved-surface-fit"):
     parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
-    parser.add_argument("--search", default="improved-wso", metavar="NAME",
+    parser.add_argument("--search", type=search_method, default="improved-wso", metavar="NAME",
                         help=f"integer search: {', '.join(searches)} (default improved-wso)")
-    parser.add_argument("--subpixel", default=subpixel_default, metavar="NAME",
+    parser.add_argument("--subpixel", type=subpixel_method, default=subpixel_default, metavar="NAME",
                         help=f"sub-pixel method: {', '.join(subpixels)} (default {subpixel_default})")
     parser.add_argument("--radius", type=int, default=16, metavar="R", help="search radius, pixels (default 16)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
@@ -226,6 +203,7 @@ def _cmd_measure(args):
     import numpy as np
 
     from livedic.acquire.image_io import read_grey_image
+    from livedic.dic.tracking import grid_in_roi
     from livedic.stream.csv_output import check_output_file, write_csv
 
     to_file = args.output not in (None, "-")
@@ -241,7 +219,7 @@ def _cmd_measure(args):
                          f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
     extras = {}
     if args.grid is not None:
-        points = grid_points(reference.shape, args.grid, args.subset)
+        points = grid_in_roi(reference.shape, None, args.grid, args.subset)
     else:
         points, extras = read_points_table(args.points)
     progress = None
@@ -345,87 +323,6 @@ def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=
     return outcome["result"]
 
 
-def grid_points(shape, step, subset):
-    """(x, y) points every ``step`` pixels over the region where a subset fits, centred in the image."""
-    import numpy as np
-
-    if step is None or step <= 0:
-        raise UsageError(f"grid step must be a positive number of pixels, got {step}")
-    if subset < 3 or subset % 2 == 0:
-        raise UsageError(f"subset must be an odd integer >= 3, got {subset}")
-    half = subset // 2
-    height, width = shape
-    if width < subset or height < subset:
-        raise UsageError(f"subset {subset} is larger than the image ({width}x{height}): use a smaller subset")
-
-    def axis(length):
-        span = length - 1 - 2 * half
-        count = span // step + 1
-        start = half + (span - (count - 1) * step) // 2
-        return start + step * np.arange(count)
-
-    xs, ys = np.meshgrid(axis(width), axis(height))
-    return np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
-
-
-def read_points_csv(path):
-    """Points from a CSV whose header names columns x and y (other columns ignored); (N, 2) float64."""
-    return read_points_table(path)[0]
-
-
-def read_points_table(path):
-    """Points and the file's other columns from a CSV whose header names columns x and y.
-
-    Returns
-    -------
-    xy : ndarray, shape (N, 2), float64
-    extras : dict
-        Every other column of the header, in file order: name (as written) -> list of N strings
-        (empty where a line is short).
-
-    Raises
-    ------
-    UsageError
-        A missing, unreadable or empty file, no x and y in the header, a line whose x or y is
-        not a number, or NaN/infinite coordinates.
-    """
-    import csv
-
-    import numpy as np
-
-    try:
-        with open(path, newline="") as handle:
-            rows = [row for row in csv.reader(handle) if any(field.strip() for field in row)]
-    except FileNotFoundError:
-        raise UsageError(f"points file {path} does not exist") from None
-    except (UnicodeDecodeError, IsADirectoryError, PermissionError, csv.Error) as error:
-        raise UsageError(f"cannot read points file {path}: {error.__class__.__name__}") from None
-    if not rows:
-        raise UsageError(f"points file {path} is empty: it needs a header line 'x,y' and one point per line")
-    names = [name.strip() for name in rows[0]]
-    header = [name.lower() for name in names]
-    if "x" not in header or "y" not in header:
-        raise UsageError(f"points file {path} has header {','.join(rows[0])!r}: it must name columns x and y")
-    ix, iy = header.index("x"), header.index("y")
-    extra_columns = [(k, name) for k, name in enumerate(names) if k not in (ix, iy) and name]
-    points = []
-    extras = {name: [] for _, name in extra_columns}
-    for number, fields in enumerate(rows[1:], start=2):
-        try:
-            points.append((float(fields[ix]), float(fields[iy])))
-        except (ValueError, IndexError):
-            raise UsageError(f"points file {path}, line {number}: {','.join(fields)!r} is not a number pair "
-                             f"x,y") from None
-        for k, name in extra_columns:
-            extras[name].append(fields[k].strip() if k < len(fields) else "")
-    if not points:
-        raise UsageError(f"points file {path} has a header but no points")
-    xy = np.array(points)
-    if not np.all(np.isfinite(xy)):
-        raise UsageError(f"points file {path} contains NaN or infinite coordinates")
-    return xy, extras
-
-
 def _cmd_cameras(args):
     from livedic.acquire.aravis import list_cameras
 
@@ -452,52 +349,9 @@ def _cmd_recover(args):
     return 0
 
 
-def _cmd_replay(args):
-    from livedic.stream.replay import replay_command
-    return replay_command(args)
-
-
 def _cmd_export(args):
     from livedic.stream.export import export_command
     return export_command(args)
-
-
-def _cmd_bench_paper(args):
-    from livedic.bench.paper import run_paper_benchmark
-    return run_paper_benchmark(args.output, quick=args.quick)
-
-
-def _cmd_bench_speed(args):
-    from livedic.bench.speed import run_speed_benchmark
-    return run_speed_benchmark(n_points=args.points, size=args.size, repeat=args.repeat, quick=args.quick)
-
-
-def _cmd_bench_live(args):
-    from livedic.bench.live import run_live_benchmark
-    if args.frames is not None and args.frames < 2:
-        raise UsageError(f"--frames must be >= 2, got {args.frames}")
-    if not args.fps > 0:
-        raise UsageError(f"--fps must be > 0, got {args.fps}")
-    run_live_benchmark(quick=args.quick, frames=args.frames, fps=args.fps, threads=args.threads,
-                       echo_sessions=args.verbose, log=lambda line: print(line, flush=True))
-    return 0
-
-
-def _cmd_bench_validate(args):
-    from livedic.bench.validate import run_validate_benchmark
-    if args.data is not None and not os.path.isdir(args.data):
-        raise UsageError(f"--data {args.data} is not a folder: give the folder holding the DIC Challenge sets")
-    return run_validate_benchmark(data=args.data, quick=args.quick, log=lambda line: print(line, flush=True))
-
-
-def _cmd_bench_soak(args):
-    from livedic.bench.soak import run_soak_benchmark
-    if args.frames < 2 or args.size < 64 or not args.fps > 0 or args.points < 1 or args.loop < 2:
-        raise UsageError("--frames >= 2, --size >= 64, --fps > 0, --points >= 1 and --loop >= 2 please")
-    result = run_soak_benchmark(frames=args.frames, size=args.size, fps=args.fps, n_points=args.points,
-                                subpixel=args.subpixel, loop=args.loop, directory=args.dir, keep=args.keep,
-                                log=lambda line: print(line, flush=True))
-    return 0 if result["passed_rss"] and result["passed_accounting"] else 1
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ from livedic.acquire.base import SourceError
 from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
 from livedic.bench.live import HEADER
 from livedic.bench.soak import run_soak_benchmark
-from livedic.stream.cli import build_parser, main
+from livedic.bench.cli import build_parser, main
 
 
 # --------------------------------------------------------------------------- synthetic loop=K

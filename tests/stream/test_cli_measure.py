@@ -220,11 +220,11 @@ def test_a_long_measurement_shows_progress_and_gives_the_same_numbers(image_pair
 
     from livedic import dic
     from livedic.acquire.image_io import read_grey_image
-    from livedic.stream.cli import MeasureProgress, grid_points, measure_with_progress
+    from livedic.stream.cli import MeasureProgress, measure_with_progress
 
     reference, _ = read_grey_image(image_pair["ref", 8])
     deformed, _ = read_grey_image(image_pair["def", 8])
-    points = grid_points(reference.shape, 9, 21)
+    points = dic.grid_in_roi(reference.shape, None, 9, 21)
     method = dict(subset=21, search="improved-wso", subpixel="improved-surface-fit", radius=6, seed=3)
     direct = dic.measure(reference, deformed, points, **method)
     drawn = threading.Event()

@@ -1,8 +1,6 @@
 """Live pipeline: frame queue, acquisition thread, tracker loop, URI dispatch, ``livedic run`` end to end."""
 
-import argparse
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -17,10 +15,11 @@ from livedic.acquire.sources import open_source, parse_scheme
 from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
 from livedic.stream.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
-from livedic.stream.run import add_run_arguments, build_points, run_session
+from livedic.stream.cli import LivedicParser
+from livedic.stream.points import build_points
+from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.tracker_loop import TrackerLoop
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def _item(i):
@@ -426,7 +425,7 @@ def test_open_source_dispatches_on_the_scheme(tmp_path):
 # --------------------------------------------------------------------------- livedic run
 
 def _parse(argv):
-    parser = argparse.ArgumentParser()
+    parser = LivedicParser(prog="livedic run")
     add_run_arguments(parser)
     return parser.parse_args(argv)
 
@@ -481,13 +480,27 @@ def test_run_session_end_to_end(tmp_path, capsys):
 def test_run_session_options_are_checked(tmp_path):
     for argv, words in ((["--subset", "20"], "odd"), (["--roi", "1,2,3"], "4 comma"),
                         (["--record", str(tmp_path / "x.txt")], ".mcap"), (["--viewer", "save", "x.png"], ".rrd"),
-                        (["--viewer", "show"], "viewer mode"), (["--search", "magic"], "unknown search"),
-                        (["--subpixel", "none"], "sub-pixel")):
+                        (["--viewer", "show"], "viewer mode"), (["--subpixel", "none"], "sub-pixel")):
         extra = [] if "--record" in argv else ["--no-record"]
         with pytest.raises(ValueError, match=words):
             run_session(_parse(argv + extra + ["--progress", "off"]))
     with pytest.raises(SourceError, match="valid sources"):
         run_session(_parse(["--source", "camera:1", "--no-record", "--viewer", "none"]))
+
+
+def test_method_names_are_checked_by_the_parser_and_the_config(capsys):
+    """An unknown method name is refused by argparse (one line, exit 2) and by the config itself (API users)."""
+    from livedic.stream.config import TrackingConfig
+    for option, words in (("--search", "unknown search method 'magic'"), ("--subpixel", "unknown sub-pixel method")):
+        with pytest.raises(SystemExit) as stop:
+            _parse([option, "magic"])
+        assert stop.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("livedic: error: argument " + option) and words in err[0], err
+    with pytest.raises(ValueError, match="unknown search method 'magic'"):
+        TrackingConfig(search="magic")
+    with pytest.raises(ValueError, match="unknown sub-pixel method 'magic'"):
+        TrackingConfig(subpixel="magic")
 
 
 def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_path, monkeypatch):
@@ -555,8 +568,7 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
     machine takes longer to get there), in the middle of a 400-frame session."""
     import re
     mcap = tmp_path / "interrupted.mcap"
-    code = (f"import sys; sys.path.insert(0, {REPO!r}); "
-            "import argparse; from stream.run import add_run_arguments, run_session; "
+    code = ("import argparse, sys; from livedic.stream.run import add_run_arguments, run_session; "
             "p = argparse.ArgumentParser(); add_run_arguments(p); "
             "sys.exit(run_session(p.parse_args(sys.argv[1:])))")
     process = subprocess.Popen(

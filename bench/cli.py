@@ -1,0 +1,123 @@
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak``.
+
+The layers run one way, dic <- acquire <- stream <- bench, so the command line of
+stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
+adds them to it. It is the console script (``livedic = "livedic.bench.cli:entry_point"``);
+``python -m livedic.bench.cli`` works too.
+"""
+
+import os
+import sys
+
+from livedic.stream import cli as stream_cli
+from livedic.stream.cli import UsageError
+from livedic.stream.config import subpixel_method
+
+
+def add_bench_commands(commands):
+    """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
+    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak")
+    bench_commands = bench.add_subparsers(metavar="BENCH")
+    paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
+    paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
+    paper.add_argument("-o", "--output", default="results/paper", metavar="DIR", help="results folder")
+    paper.set_defaults(handler=_cmd_bench_paper)
+    speed = bench_commands.add_parser("speed", help="points per second per method on a 1024x1024 image")
+    speed.add_argument("--points", type=int, default=10_000, help="number of points (default 10000)")
+    speed.add_argument("--size", type=int, default=1024, help="image side in pixels (default 1024)")
+    speed.add_argument("--repeat", type=int, default=3, help="timed repetitions, best kept (default 3)")
+    speed.add_argument("--quick", action="store_true", help="fewer points and methods, for CI")
+    speed.set_defaults(handler=_cmd_bench_speed)
+    live = bench_commands.add_parser("live", help="the live pipeline on 1 MP simulated frames: fps, latency, drops",
+                                     description="livedic run (recording on, no viewer) on synthetic:tensile "
+                                                 "1024x1024 at 50 fps for 400/1000/2500 points, improved surface "
+                                                 "fit and IC-GN; prints a table and the verdict on the target "
+                                                 "(1000 points IC-GN >= 50 fps, p99 latency <= 30 ms, no drops).")
+    live.add_argument("--quick", action="store_true", help="512x512, 40 frames, 1000 points only (CI)")
+    live.add_argument("--frames", type=int, metavar="N", help="frames per case (default 150; quick 40)")
+    live.add_argument("--fps", type=float, default=50.0, help="rate of the simulated camera (default 50)")
+    live.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1, as livedic run)")
+    live.add_argument("--verbose", action="store_true", help="also print each session's own summary")
+    live.set_defaults(handler=_cmd_bench_live)
+    validate = bench_commands.add_parser(
+        "validate", help="is every point marked ok right? wrong-but-ok points on other generators and the DIC "
+                         "Challenge sets", description="Counts the points dic.measure reports as ok that are more "
+                         "than 0.5 px from the truth (target: 0 in every row), on shifts up to 30 px from four "
+                         "pattern generators and, with --data, DIC Challenge Samples 3 and 12 and Stars 1/2. "
+                         "Exit code 1 if any row has one.")
+    validate.add_argument("--data", metavar="DIR",
+                          help="folder with dicc1_sample3_translation, dicc1_sample12_oht_cfrp and dicc2_star "
+                               "(e.g. ../shared/datasets); without it only the synthetic cases run")
+    validate.add_argument("--quick", action="store_true", help="fewer shifts, points and searches (minutes)")
+    validate.set_defaults(handler=_cmd_bench_validate)
+    soak = bench_commands.add_parser("soak", help="20,000 frames through the full pipeline: RSS growth, frames "
+                                                  "produced vs recorded vs tracked vs dropped")
+    soak.add_argument("--frames", type=int, default=20_000, metavar="N", help="frames to produce (default 20000)")
+    soak.add_argument("--size", type=int, default=512, metavar="PX",
+                      help="square image side (default 512: 20000 frames record 5.2 GB; 1024 would be 21 GB)")
+    soak.add_argument("--fps", type=float, default=50.0, help="paced rate of the simulated camera (default 50)")
+    soak.add_argument("--points", type=int, default=1000, metavar="N", help="points wanted (default 1000)")
+    soak.add_argument("--subpixel", type=subpixel_method, default="icgn", metavar="NAME",
+                      help="sub-pixel method (default icgn)")
+    soak.add_argument("--loop", type=int, default=200, metavar="K",
+                      help="frames rendered and cycled forward and back (default 200)")
+    soak.add_argument("--dir", metavar="DIR", help="folder for the recording (default: a temporary folder)")
+    soak.add_argument("--keep", action="store_true", help="keep the recording (deleted by default)")
+    soak.set_defaults(handler=_cmd_bench_soak)
+
+
+def build_parser():
+    """The whole ``livedic`` parser, benchmarks included."""
+    return stream_cli.build_parser(extensions=(add_bench_commands,))
+
+
+def main(argv=None):
+    """``livedic`` with ``argv`` (default: the process's); returns the exit code."""
+    return stream_cli.main(argv, extensions=(add_bench_commands,))
+
+
+def entry_point():
+    """The ``livedic`` console script (see ``stream.cli.entry_point``)."""
+    return stream_cli.entry_point(extensions=(add_bench_commands,))
+
+
+def _cmd_bench_paper(args):
+    from livedic.bench.paper import run_paper_benchmark
+    return run_paper_benchmark(args.output, quick=args.quick)
+
+
+def _cmd_bench_speed(args):
+    from livedic.bench.speed import run_speed_benchmark
+    return run_speed_benchmark(n_points=args.points, size=args.size, repeat=args.repeat, quick=args.quick)
+
+
+def _cmd_bench_live(args):
+    from livedic.bench.live import run_live_benchmark
+    if args.frames is not None and args.frames < 2:
+        raise UsageError(f"--frames must be >= 2, got {args.frames}")
+    if not args.fps > 0:
+        raise UsageError(f"--fps must be > 0, got {args.fps}")
+    run_live_benchmark(quick=args.quick, frames=args.frames, fps=args.fps, threads=args.threads,
+                       echo_sessions=args.verbose, log=lambda line: print(line, flush=True))
+    return 0
+
+
+def _cmd_bench_validate(args):
+    from livedic.bench.validate import run_validate_benchmark
+    if args.data is not None and not os.path.isdir(args.data):
+        raise UsageError(f"--data {args.data} is not a folder: give the folder holding the DIC Challenge sets")
+    return run_validate_benchmark(data=args.data, quick=args.quick, log=lambda line: print(line, flush=True))
+
+
+def _cmd_bench_soak(args):
+    from livedic.bench.soak import run_soak_benchmark
+    if args.frames < 2 or args.size < 64 or not args.fps > 0 or args.points < 1 or args.loop < 2:
+        raise UsageError("--frames >= 2, --size >= 64, --fps > 0, --points >= 1 and --loop >= 2 please")
+    result = run_soak_benchmark(frames=args.frames, size=args.size, fps=args.fps, n_points=args.points,
+                                subpixel=args.subpixel, loop=args.loop, directory=args.dir, keep=args.keep,
+                                log=lambda line: print(line, flush=True))
+    return 0 if result["passed_rss"] and result["passed_accounting"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(entry_point())
