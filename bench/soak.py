@@ -156,7 +156,7 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     import numpy as np
 
     from livedic.acquire.mcap_replay import inspect_recording
-    from livedic.stream.recording_schema import TOPIC_RESULTS
+    from livedic.acquire.recording_schema import TOPIC_RESULTS
     from livedic.acquire.sources import open_source
     from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
     from livedic.stream.session import Session

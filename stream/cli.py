@@ -16,7 +16,7 @@ import sys
 import threading
 
 from livedic.stream.config import UsageError, search_method, subpixel_method
-from livedic.stream.points import read_points_csv, read_points_table  # noqa: F401 - _csv: until replay moves
+from livedic.stream.points import read_points_table
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
 

@@ -2,8 +2,11 @@
 
 ``livedic replay FILE.mcap [-o OUT.csv] [method options] [--all-frames]``
 
-The recorded frames are tracked again with a ``dic.tracking.Tracker`` built the way
-``livedic run`` builds it. Every option that is not given is taken from the
+The recorded frames are tracked again by the session ``livedic run`` runs
+(``stream.session.Session``: the recorded frames -> a blocking queue, nothing
+dropped -> the tracker -> the comparison with the recording, the CSV rows and
+the progress line), its ``TrackingConfig`` built from the recording's metadata
+and the options given. Every option that is not given is taken from the
 recording's session metadata (``subset``, ``search``, ``subpixel``, ``seed_radius``,
 ``refind_radius``, ``refind_zncc``, ``seed``; the point grid from ``roi``, ``step``,
 ``n_points_wanted``, ``p0``), so with no options the replay repeats the live run.
@@ -46,7 +49,6 @@ how the replay compares with the recording (``ReplayReport.agreement``, an
 Truncated recordings (crash, kill, disk full) are replayed on what can be recovered.
 """
 
-import argparse
 import enum
 import math
 import os
@@ -56,7 +58,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.quality import Gates
+from livedic.stream.config import (DEFAULT_POINTS, PointsConfig, SessionConfig, TrackingConfig, parse_p0, parse_roi,
+                                   search_method, subpixel_method)
+from livedic.stream.p0 import choose_p0
+from livedic.stream.points import build_points, read_points_csv
+from livedic.stream.progress import ProgressBar
+from livedic.stream.session import NoFrame, Session
+from livedic.stream.sinks import FunctionSink
 
 from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
                            read_session_or_note, reader_notes, result_columns, say)
@@ -69,19 +77,20 @@ from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, c
 ROUNDING_TOLERANCE_PX = 1e-4
 ROUNDING_TOLERANCE_ZNCC = 1e-6
 
-METHOD_KEYS = ("subset", "search", "subpixel", "seed_radius", "refind_radius", "refind_zncc", "min_zncc", "seed")
+METHOD_KEYS = TrackingConfig.keys()
 _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
 
 
 def add_replay_arguments(parser):
     """Add the ``livedic replay`` arguments to an ``argparse`` (sub)parser."""
-    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
+    from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
     parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     parser.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
     method = parser.add_argument_group("method options (default: the recorded value)")
     method.add_argument("--subset", type=int, metavar="N", help="odd subset side, pixels")
-    method.add_argument("--search", metavar="NAME", help=f"integer search: {', '.join(SEARCH_METHODS)}")
-    method.add_argument("--subpixel", metavar="NAME",
+    method.add_argument("--search", type=search_method, metavar="NAME",
+                        help=f"integer search: {', '.join(SEARCH_METHODS)}")
+    method.add_argument("--subpixel", type=subpixel_method, metavar="NAME",
                         help=f"sub-pixel method: {', '.join(m for m in SUBPIXEL_METHODS if m != 'none')}")
     method.add_argument("--seed-radius", type=int, metavar="R", help="search radius around the previous result, px")
     method.add_argument("--refind-radius", type=int, metavar="R", help="search radius for re-finding lost points, px")
@@ -108,10 +117,8 @@ def add_replay_arguments(parser):
 # ----------------------------------------------------------------------------- parameters
 
 def run_defaults():
-    """The ``livedic run`` defaults of the method options (and ``n_points``)."""
-    from livedic.stream.run import add_run_arguments
-    parser = add_run_arguments(argparse.ArgumentParser(add_help=False))
-    return {key: parser.get_default(key) for key in METHOD_KEYS + ("n_points",)}
+    """The ``livedic run`` defaults of the method options (and ``n_points``): ``stream.config``'s."""
+    return dict(TrackingConfig().as_dict(), n_points=DEFAULT_POINTS)
 
 
 def _recorded_value(key, value):
@@ -159,37 +166,14 @@ def resolve_parameters(metadata, given, method_text=""):
 
 
 def check_parameters(params, threads=None):
-    """ValueError (one line, as ``livedic run`` words it) for a bad method parameter."""
-    from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS
-    if params["subset"] < 3 or params["subset"] % 2 == 0:
-        raise ValueError(f"--subset must be an odd integer >= 3, got {params['subset']}")
-    if params["search"] not in SEARCH_METHODS:
-        raise ValueError(f"unknown search method {params['search']!r}: choose one of {', '.join(SEARCH_METHODS)}")
-    if params["subpixel"] not in SUBPIXEL_METHODS:
-        raise ValueError(f"unknown sub-pixel method {params['subpixel']!r}: "
-                         f"choose one of {', '.join(SUBPIXEL_METHODS)}")
-    if params["subpixel"] == "none":
-        raise ValueError("--subpixel none gives integer displacements only: choose a sub-pixel method (e.g. icgn)")
-    for name in ("seed_radius", "refind_radius"):
-        if params[name] < 0:
-            raise ValueError(f"--{name.replace('_', '-')} must be >= 0, got {params[name]}")
-    for name in ("refind_zncc", "min_zncc"):
-        if not -1.0 <= params[name] <= 1.0:
-            raise ValueError(f"--{name.replace('_', '-')} must be between -1 and 1, got {params[name]}")
+    """ValueError (one line, as ``livedic run`` words it) for a bad method parameter or thread count.
+
+    The checks are ``stream.config``'s (``TrackingConfig``, ``SessionConfig``): returns the ``TrackingConfig``.
+    """
+    tracking = TrackingConfig(**{key: params[key] for key in METHOD_KEYS})
     if threads is not None:
-        import numba
-        if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-            raise ValueError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {threads}")
-
-
-def _numbers(text, count, what, example):
-    try:
-        values = [float(part) for part in str(text).split(",")]
-    except ValueError:
-        values = []
-    if len(values) != count or not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{what} must be {count} comma-separated numbers, e.g. {example}; got {text!r}")
-    return values
+        SessionConfig(threads=threads)
+    return tracking
 
 
 @dataclass
@@ -206,16 +190,9 @@ class PointOptions:
         return any(value is not None for value in (self.roi, self.points, self.step, self.n_points, self.p0))
 
     def check(self):
-        if self.roi is not None:
-            roi = [int(round(v)) for v in _numbers(self.roi, 4, "--roi", "100,50,400,800")]
-            if roi[2] <= 0 or roi[3] <= 0:
-                raise ValueError(f"--roi width and height must be positive, got {self.roi!r}")
-        if self.p0 is not None:
-            _numbers(self.p0, 2, "--p0", "512,400")
-        if self.step is not None and self.step < 1:
-            raise ValueError(f"--step must be a positive number of pixels, got {self.step}")
-        if self.n_points is not None and self.n_points < 1:
-            raise ValueError(f"--n-points must be >= 1, got {self.n_points}")
+        """ValueError (one line) for a bad option: ``PointsConfig``'s checks, on what was given."""
+        PointsConfig(roi=parse_roi(self.roi), step=self.step,
+                     n_points=self.n_points if self.n_points is not None else DEFAULT_POINTS, p0=parse_p0(self.p0))
 
 
 def _list_of_numbers(value, count):
@@ -225,32 +202,26 @@ def _list_of_numbers(value, count):
     return None
 
 
-def build_replay_points(image, metadata, subset, options, recorded_xy):
-    """Points (P0 first) for ``options`` given on the command line, as ``livedic run`` builds them.
+def replay_points_config(metadata, options, recorded_xy):
+    """The points to rebuild (``PointsConfig``): the options given, the rest from the session metadata.
 
     What the user did not give comes from the session metadata (ROI, step, points
-    wanted, P0); a recording made from a points file keeps its recorded points. A
-    recording that does not give P0 as a point (older ones say "ROI centre") gets
-    it placed on the reference ``image`` as ``livedic run`` places it now.
+    wanted, P0); a recording made from a points file keeps its recorded points.
     """
-    from livedic.stream.cli import read_points_csv
-    from livedic.stream.run import build_points, choose_p0
-    shape = image.shape
     defaults = run_defaults()
-    given_points = None
+    given_points = points_file = None
     if options.points is not None:
-        given_points = read_points_csv(options.points)
+        given_points, points_file = read_points_csv(options.points), options.points
     elif options.roi is None and options.step is None and options.n_points is None \
             and metadata.get("points_file") not in (None, ""):
         if recorded_xy is None:
             raise ValueError(f"the recording tracked points from {metadata['points_file']}: give --points FILE.csv")
-        given_points = recorded_xy
-    roi = None
+        given_points, points_file = recorded_xy, str(metadata["points_file"])
     if options.roi is not None:
-        roi = [int(round(v)) for v in _numbers(options.roi, 4, "--roi", "100,50,400,800")]
+        roi = parse_roi(options.roi)
     else:
         recorded_roi = _list_of_numbers(metadata.get("roi"), 4)
-        roi = [int(v) for v in recorded_roi] if recorded_roi else None
+        roi = tuple(int(v) for v in recorded_roi) if recorded_roi else None
     if options.step is not None:
         step = options.step
     elif options.roi is not None or options.n_points is not None:
@@ -260,13 +231,24 @@ def build_replay_points(image, metadata, subset, options, recorded_xy):
     n_points = options.n_points
     if n_points is None:
         n_points = _recorded_value("subset", metadata.get("n_points_wanted")) or defaults["n_points"]
-    p0 = _numbers(options.p0, 2, "--p0", "512,400") if options.p0 is not None \
-        else _list_of_numbers(metadata.get("p0"), 2)
+    p0 = parse_p0(options.p0) if options.p0 is not None else _list_of_numbers(metadata.get("p0"), 2)
+    return PointsConfig(roi=roi, points_file=points_file, xy=given_points, step=step, n_points=n_points, p0=p0)
+
+
+def build_replay_points(image, metadata, subset, options, recorded_xy):
+    """Points (P0 first) for ``options`` given on the command line, as ``livedic run`` builds them.
+
+    See ``replay_points_config``. A recording that does not give P0 as a point (older
+    ones say "ROI centre") gets it placed on the reference ``image`` as ``livedic run``
+    places it now.
+    """
+    wanted = replay_points_config(metadata, options, recorded_xy)
+    grid = dict(roi=wanted.roi, step=wanted.step, n_points=wanted.n_points, subset=subset, points=wanted.xy)
+    p0 = wanted.p0
     if p0 is None:
-        build_points(shape, roi=roi, step=step, n_points=n_points, subset=subset, points=given_points)  # ROI check
-        p0 = choose_p0(image, roi, subset).xy
-    points, _, _ = build_points(shape, roi=roi, step=step, n_points=n_points, subset=subset, p0=p0,
-                                points=given_points)
+        build_points(image.shape, **grid)                        # the ROI checked first
+        p0 = choose_p0(image, wanted.roi, subset).xy
+    points, _, _ = build_points(image.shape, p0=p0, **grid)
     return points
 
 
@@ -441,7 +423,6 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         The frames cannot be read (``RecordingSourceError``).
     """
     from livedic.acquire.mcap_replay import McapSource, Recording
-    from livedic.dic.tracking import Tracker
 
     path = os.fspath(path)
     point_options = point_options or PointOptions()
@@ -452,7 +433,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         results = list(recording.results())
         params, recorded_params, param_notes = resolve_parameters(
             metadata, given or {}, results[0].method if results else "")
-        check_parameters(params, threads)
+        tracking = check_parameters(params, threads)
         notes.extend(param_notes)
         if session_note:
             notes.append(session_note)
@@ -481,60 +462,41 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
                 reference_index = int(first.reference_frame_index)
                 notes.append(f"the first recorded results are for frame {first.frame_index}, not for the reference "
                              f"frame {reference_index}: the replay tracks the reference frame first, as live")
-        import numba
-        previous_threads = numba.get_num_threads()
-        numba.set_num_threads(threads)
-        tracker = None
-        point_ids = None
-        seen = set()
+        rebuild = point_options.given or recorded_xy is None
+        if rebuild:
+            def points(image):
+                return build_replay_points(image, metadata, tracking.subset, point_options, recorded_xy)
+        else:
+            points = recorded_xy
+        # The session: the recorded frames -> a blocking queue (nothing dropped) -> tracker -> comparison,
+        # rows out, progress (each required: a failure there ends the replay with its error).
+        config = SessionConfig(source=f"mcap:{path}", tracking=tracking, threads=threads, drop="block",
+                               warm_up=False, command="livedic replay")
+        point_ids = []
+        comparison = _Comparison(report, recorded, recorded_xy)
+        sinks = [comparison]
+        if on_result is not None:
+            sinks.append(FunctionSink(lambda result, stats: on_result(result.frame, result.measurement, point_ids[0]),
+                                      "output", required=True))
+        if progress is not None:
+            sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
+        frames = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
         started = time.perf_counter()
-        try:
-            with McapSource(path) as source:
-                for frame in source:
-                    key = (int(frame.index), int(frame.timestamp_ns))
-                    if tracker is None:
-                        if (reference_key is not None and key != reference_key) or \
-                                (reference_index is not None and key[0] != reference_index):
-                            report.skipped_before_reference += 1
-                            continue
-                        if point_options.given or recorded_xy is None:
-                            points = build_replay_points(frame.image, metadata, params["subset"],
-                                                         point_options, recorded_xy)
-                            point_ids = np.arange(len(points), dtype=np.uint32)
-                        else:
-                            points, point_ids = recorded_xy, recorded_ids
-                        tracker = Tracker(frame.image, points, subset=params["subset"], search=params["search"],
-                                          subpixel=params["subpixel"], seed_radius=params["seed_radius"],
-                                          refind_radius=params["refind_radius"],
-                                          refind_zncc=params["refind_zncc"], seed=params["seed"],
-                                          gates=Gates(min_zncc=params["min_zncc"]))
-                        report.points = tracker.n_points
-                        report.same_points = recorded_xy is not None and recorded_xy.shape == (tracker.n_points, 2) \
-                            and np.array_equal(recorded_xy[:, 0], tracker.x) \
-                            and np.array_equal(recorded_xy[:, 1], tracker.y)
-                    elif not all_frames and key not in recorded:
-                        continue
-                    measurement = tracker.track(frame.image)
-                    report.frames += 1
-                    match = recorded.get(key)
-                    if match is not None and key not in seen:
-                        seen.add(key)
-                        if report.same_points:
-                            _compare(report, measurement, match)
-                    else:
-                        report.extra_frames += 1
-                    if on_result is not None:
-                        on_result(frame, measurement, point_ids)
-                    if progress is not None:
-                        progress(report.frames)
-        finally:
-            numba.set_num_threads(previous_threads)
+        with Session(config, source=frames, points=points, sinks=sinks) as session:
+            try:
+                session.prepare()
+            except NoFrame:
+                what = f"reference frame {reference_key[0] if reference_key else reference_index}" if results \
+                    else "frame"
+                raise ValueError(f"{path} holds no image of the {what} (/camera/image): nothing to replay") from None
+            point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded_ids)
+            session.start()
+            session.run()
+        if session.source_error is not None:
+            raise session.source_error
         report.seconds = time.perf_counter() - started
-        if tracker is None:
-            what = f"reference frame {reference_key[0] if reference_key else reference_index}" if results \
-                else "frame"
-            raise ValueError(f"{path} holds no image of the {what} (/camera/image): nothing to replay")
-        report.missing_frames = len(recorded) - len(seen)
+        report.skipped_before_reference = frames.skipped_before_reference
+        report.missing_frames = len(recorded) - len(comparison.seen)
         if report.missing_frames:
             notes.append(f"{report.missing_frames} recorded result set(s) have no image in the file and were "
                          f"not replayed")
@@ -545,12 +507,79 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     return report
 
 
+class RecordedFrames:
+    """The frames of a recording that a replay tracks, from its ``McapSource``.
+
+    The first is the reference frame (``reference_key``: (index, timestamp) or
+    ``reference_index``; frames before it are skipped and counted); then, unless
+    ``all_frames``, only the frames with recorded results (``recorded``, keyed by
+    (index, timestamp)), in the recorded order: what the live run tracked.
+    """
+
+    def __init__(self, source, recorded, reference_key, reference_index, all_frames):
+        self.source = source
+        self.recorded = recorded
+        self.reference_key = reference_key
+        self.reference_index = reference_index
+        self.all_frames = all_frames
+        self.skipped_before_reference = 0
+
+    def __iter__(self):
+        started = False
+        for frame in self.source:
+            key = (int(frame.index), int(frame.timestamp_ns))
+            if not started:
+                if (self.reference_key is not None and key != self.reference_key) or \
+                        (self.reference_index is not None and key[0] != self.reference_index):
+                    self.skipped_before_reference += 1
+                    continue
+                started = True
+            elif not self.all_frames and key not in self.recorded:
+                continue
+            yield frame
+
+    @property
+    def settings(self):
+        return self.source.settings
+
+    def close(self):
+        self.source.close()
+
+
+class _Comparison:
+    """The replay's sink that compares each tracked frame with its recorded results (fills the report)."""
+    name = "comparison"
+    required = True
+
+    def __init__(self, report, recorded, recorded_xy):
+        self.report = report
+        self.recorded = recorded
+        self.recorded_xy = recorded_xy
+        self.seen = set()
+
+    def __call__(self, result, stats):
+        report = self.report
+        m = result.measurement
+        if result.is_reference:
+            recorded_xy = self.recorded_xy
+            report.points = stats.n_points
+            report.same_points = recorded_xy is not None and recorded_xy.shape == (stats.n_points, 2) \
+                and np.array_equal(recorded_xy[:, 0], m.x) and np.array_equal(recorded_xy[:, 1], m.y)
+        report.frames += 1
+        key = (int(result.frame.index), int(result.frame.timestamp_ns))
+        match = self.recorded.get(key)
+        if match is not None and key not in self.seen:
+            self.seen.add(key)
+            if report.same_points:
+                _compare(report, m, match)
+        else:
+            report.extra_frames += 1
+
+
 # ----------------------------------------------------------------------------- the command
 
 def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
-    from livedic.stream.run import ProgressBar
-
     check_output_csv(args.output, args.recording)
     given = {key: getattr(args, key) for key in METHOD_KEYS}
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0)

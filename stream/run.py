@@ -27,9 +27,7 @@ from livedic.stream.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, DEFAULT_S
                                    PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
                                    subpixel_method)
 from livedic.stream.csv_output import json_text, write_text_atomic
-from livedic.stream.p0 import choose_p0  # noqa: F401 - old home, until stream/replay.py imports stream.p0
 from livedic.stream.points import build_points  # noqa: F401 - old home: tests/stream/test_replay_export.py
-from livedic.stream.progress import ProgressBar  # noqa: F401 - old home, until replay imports stream.progress
 from livedic.stream.session import Session
 
 _TRACKING = TrackingConfig()
