@@ -458,7 +458,11 @@ def decode_results(data):
 # ----------------------------------------------------------------------------- metadata as strings
 
 def json_default(value):
-    """``json.dumps`` fallback: numpy values to Python, anything else to its str()."""
+    """``json.dumps`` fallback: numpy values to Python, anything else to its str().
+
+    livedic's one conversion of numpy values for JSON (``default=json_default``); strict
+    JSON for files (NaN as null) is ``stream.csv_output.json_text``'s concern on top of it.
+    """
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
