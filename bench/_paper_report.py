@@ -6,10 +6,13 @@ paper's own values and the reasons that cannot be measured are fixed text.
 
 import importlib
 import inspect
+import json
 import math
 import os
 
 import numpy as np
+
+from livedic.acquire.recording_schema import json_default
 
 from livedic.bench._paper_figures import table1_rows
 from livedic.bench._paper_runs import LABELS, REFERENCE_SEARCH, SEARCHES, SUBPIXEL_MODULES, SUBPIXELS
@@ -24,11 +27,10 @@ TARGET_NOISE_TOLERANCE = 0.10
 
 def write_all(results, cfg, out):
     """Write ``results.json`` and ``report.md``; return the PASS/FAIL lines."""
-    from livedic.bench.paper import save_json
-
     checks = accuracy_checks(results)
     results["checks"] = checks
-    save_json(os.path.join(out, "results.json"), _json_ready(results))
+    with open(os.path.join(out, "results.json"), "w") as handle:
+        json.dump(_json_ready(results), handle, indent=1, default=json_default)
     text = render_report(results, cfg, checks)
     with open(os.path.join(out, "report.md"), "w") as handle:
         handle.write(text)

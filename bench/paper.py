@@ -27,7 +27,6 @@ Outputs in the results folder: ``figNN_*.png``, a CSV beside each figure,
 ``results.json`` (every number) and ``report.md``.
 """
 
-import json
 import dataclasses
 import os
 import platform
@@ -276,23 +275,6 @@ def machine_info():
                 numpy=np.__version__, platform=platform.platform(), processor=platform.processor() or platform.machine(),
                 numba_threads=numba.get_num_threads(), date=time.strftime("%Y-%m-%d %H:%M:%S %Z"),
                 argv=" ".join(sys.argv[:1] + [a for a in sys.argv[1:]]))
-
-
-def save_json(path, data):
-    with open(path, "w") as handle:
-        json.dump(data, handle, indent=1, default=_jsonable)
-
-
-def _jsonable(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (np.floating,)):
-        return float(value)
-    if isinstance(value, tuple):
-        return list(value)
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
 __all__ = ["PaperConfig", "run_paper_benchmark"]
