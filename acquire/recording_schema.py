@@ -460,8 +460,9 @@ def decode_results(data):
 def json_default(value):
     """``json.dumps`` fallback: numpy values to Python, anything else to its str().
 
-    livedic's one conversion of numpy values for JSON (``default=json_default``); strict
-    JSON for files (NaN as null) is ``stream.csv_output.json_text``'s concern on top of it.
+    The format's conversion for ``json.dumps(..., default=json_default)``: session and
+    frame metadata go through it (``to_json``). NaN stays NaN here (Python's JSON reads it
+    back); strict JSON files are ``stream.csv_output.json_text``'s.
     """
     if isinstance(value, np.ndarray):
         return value.tolist()
