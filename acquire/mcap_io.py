@@ -5,16 +5,16 @@ chunks broken up by ``mcap.stream_reader.breakup_chunk`` (which checks their CRC
 What the library's readers lack for files that may be cut short or damaged is
 this thin layer:
 
-* ``RecordScan`` frames the records of a byte range (opcode, length, body) and
-  stops cleanly where the data stops: at a record that runs past the end of the
-  file (where the writer died), at zero bytes (blocks never written before a
-  crash), at the end of the file, or at the DataEnd/Footer record. It says which
+* ``RecordScan`` frames the records of a byte range (opcode, length) and stops
+  cleanly where the data stops: at a record that runs past the end of the file
+  (where the writer died), at zero bytes (blocks never written before a crash),
+  at the end of the file, or at the DataEnd/Footer record. It says which
   (``ScanEnd``) and how many bytes were whole (``valid_bytes``). mcap's
-  ``StreamReader`` reads each field straight from the file with whatever length
-  the file claims (a flipped bit can make one read as large as the file) and
-  cannot tell where a record starts; here no record over ``MAX_RECORD_BYTES`` is
-  read and ``parse_record`` parses each body from memory, where no field can reach
-  past its record.
+  ``StreamReader`` reads each field with whatever length the file claims (a
+  flipped bit can make one read as large as the file) and cannot tell where a
+  record starts; here no record over ``MAX_RECORD_BYTES`` is read and
+  ``read_record`` hands mcap's parser the record's body only, so no field can
+  reach past its record.
 * ``open_chunk`` decompresses a chunk with its claimed size capped at
   ``MAX_CHUNK_BYTES`` before mcap breaks it up: the decompressors would allocate
   whatever size a corrupt or hostile chunk claims.
@@ -34,7 +34,6 @@ rewrites damaged ones.
 import dataclasses
 import enum
 import io
-import os
 import struct
 import time
 import zlib
@@ -50,7 +49,8 @@ from mcap.summary import Summary
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
 __all__ = ["ChunkedWriter", "Damaged", "MAGIC", "MAX_CHUNK_BYTES", "MAX_RECORD_BYTES", "RecordScan", "ScanEnd",
-           "library_name", "open_chunk", "parse_record", "read_summary", "software_version"]
+           "library_name", "open_chunk", "parse_record", "read_record", "read_record_at", "read_summary",
+           "software_version"]
 
 MAGIC = b"\x89MCAP0\r\n"
 MAX_RECORD_BYTES = 1 << 30          # a record (chunk) claiming more is corrupt
@@ -73,31 +73,43 @@ class Damaged(Exception):
 
 # ----------------------------------------------------------------------------- records
 
-class _Exact(io.BytesIO):
-    """A record body for mcap's parsers: a field that would run past the body raises ``Damaged``."""
+class _Body:
+    """The next ``length`` bytes of ``f``, one record's body, for mcap's parsers.
 
-    def __init__(self, body):
-        super().__init__(body)
-        self._size = len(body)
+    A field that would run past the body raises ``Damaged`` before anything is read;
+    fields are read straight from ``f`` (a chunk's data is read once, into its own bytes).
+    """
+
+    def __init__(self, f, length):
+        self.f, self.left = f, length
 
     def read(self, size=-1):
-        if size is None or not 0 <= size <= self._size - self.tell():
+        if size is None or not 0 <= size <= self.left:
             raise Damaged("a field runs past the end of its record")
-        return super().read(size)
+        data = self.f.read(size)
+        if len(data) < size:
+            raise Damaged("the file ends inside the record")
+        self.left -= size
+        return data
+
+
+def read_record(f, opcode, length):
+    """The ``mcap.records`` record of ``opcode`` whose ``length``-byte body starts at ``f``'s position."""
+    record_type = _RECORD_TYPES[opcode]
+    stream = ReadDataStream(_Body(f, length))
+    try:
+        if record_type is Message:
+            if length < _MESSAGE_HEADER_BYTES:
+                raise Damaged("a message record is shorter than its header")
+            return Message.read(stream, length)
+        return record_type.read(stream)
+    except _PARSE_ERRORS as error:
+        raise Damaged(f"bad {record_type.__name__.lower()} record ({type(error).__name__})") from None
 
 
 def parse_record(opcode, body):
     """The ``mcap.records`` record of ``opcode`` parsed from ``body`` (bytes), or ``Damaged``."""
-    record_type = _RECORD_TYPES[opcode]
-    stream = ReadDataStream(_Exact(body))
-    try:
-        if record_type is Message:
-            if len(body) < _MESSAGE_HEADER_BYTES:
-                raise Damaged("a message record is shorter than its header")
-            return Message.read(stream, len(body))
-        return record_type.read(stream)
-    except _PARSE_ERRORS as error:
-        raise Damaged(f"bad {record_type.__name__.lower()} record ({type(error).__name__})") from None
+    return read_record(io.BytesIO(body), opcode, len(body))
 
 
 class ScanEnd(enum.Enum):
@@ -117,26 +129,27 @@ class ScanEnd(enum.Enum):
 class RecordScan:
     """The records of ``f`` from byte ``start`` to ``end``, in order, framed within bounds.
 
-    Iterating yields ``(offset, opcode, body)``; ``body`` is the record's bytes for the
-    opcodes in ``wanted`` and None for the others (skipped unread). Afterwards ``stop``
-    says why the scan ended (``ScanEnd``), ``valid_bytes`` where the last whole record
-    ends and ``claimed`` what a ``TOO_LARGE`` record claimed.
+    Iterating yields ``(offset, opcode, length)`` of each whole record with ``f`` at the
+    start of its body, which the caller may read with ``read_record(f, opcode, length)``
+    (or leave: the scan goes on from the record's end). Afterwards ``stop`` says why the
+    scan ended (``ScanEnd``), ``valid_bytes`` where the last whole record ends and
+    ``claimed`` what a ``TOO_LARGE`` record claimed.
     """
 
-    def __init__(self, f, start, end, wanted):
-        self.f, self.start, self.end, self.wanted = f, start, end, wanted
+    def __init__(self, f, start, end):
+        self.f, self.start, self.end = f, start, end
         self.valid_bytes = start
         self.stop = None
         self.claimed = 0
 
     def __iter__(self):
         f, pos, end = self.f, self.start, self.end
-        f.seek(pos)
         while True:
             self.valid_bytes = pos
             if pos >= end:
                 self.stop = ScanEnd.END_OF_RANGE
                 return
+            f.seek(pos)
             head = f.read(_HEAD.size)
             if len(head) < _HEAD.size:
                 self.stop = ScanEnd.PARTIAL
@@ -154,17 +167,8 @@ class RecordScan:
             if opcode in (Opcode.DATA_END, Opcode.FOOTER):
                 self.stop = ScanEnd.DATA_END
                 return
-            body = None
-            if opcode in self.wanted:
-                body = f.read(length)
-                if len(body) < length:           # the file shrank while we read it
-                    self.stop = ScanEnd.PARTIAL
-                    return
-            else:
-                f.seek(length, os.SEEK_CUR)
+            yield pos, opcode, length
             pos += _HEAD.size + length
-            self.valid_bytes = pos
-            yield pos - _HEAD.size - length, opcode, body
 
 
 def read_record_at(f, offset, length, opcode):
@@ -173,10 +177,7 @@ def read_record_at(f, offset, length, opcode):
     head = f.read(_HEAD.size)
     if len(head) < _HEAD.size or _HEAD.unpack(head) != (opcode, length - _HEAD.size):
         raise Damaged(f"no {Opcode(opcode).name.lower()} record where the index points")
-    body = f.read(length - _HEAD.size)
-    if len(body) < length - _HEAD.size:
-        raise Damaged("the file ends inside the record")
-    return parse_record(opcode, body)
+    return read_record(f, opcode, length - _HEAD.size)
 
 
 # ----------------------------------------------------------------------------- chunks
@@ -267,11 +268,12 @@ def _parse_summary(data, data_start, data_end):
     """An ``mcap.summary.Summary`` from the summary section's bytes; indexes must point into the data section."""
     summary = Summary()
     wanted = (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK_INDEX, Opcode.METADATA_INDEX)
-    scan = RecordScan(io.BytesIO(data), 0, len(data), wanted)
-    for _, opcode, body in scan:
-        if body is None:
+    f = io.BytesIO(data)
+    scan = RecordScan(f, 0, len(data))
+    for _, opcode, length in scan:
+        if opcode not in wanted:
             continue
-        record = parse_record(opcode, body)
+        record = read_record(f, opcode, length)
         if opcode == Opcode.SCHEMA:
             summary.schemas[record.id] = record
         elif opcode == Opcode.CHANNEL:

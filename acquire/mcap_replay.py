@@ -61,7 +61,7 @@ from livedic.acquire import recording_schema as rs
 from livedic.acquire.atomic_file import AtomicFile
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.mcap_io import (MAGIC, ChunkedWriter, Damaged, RecordScan, library_name, open_chunk,
-                                     parse_record, read_record_at, read_summary)
+                                     parse_record, read_record, read_record_at, read_summary)
 from livedic.dic.result import Measurement
 
 __all__ = ["CorruptRecording", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
@@ -314,14 +314,14 @@ class Recording:
         """
         info = self.info if info is None else info
         with self._open_file() as f:
-            scan = RecordScan(f, self.data_start, os.fstat(f.fileno()).st_size, _DATA_RECORDS)
+            scan = RecordScan(f, self.data_start, os.fstat(f.fileno()).st_size)
             info.truncated = True                      # until the scan reaches the DataEnd record
-            for offset, opcode, body in scan:
-                info.valid_bytes = scan.valid_bytes
-                if body is None:
+            for offset, opcode, length in scan:
+                info.valid_bytes = offset + _HEAD_BYTES + length
+                if opcode not in _DATA_RECORDS:
                     continue
                 try:
-                    records = _data_records(opcode, body)
+                    records = _data_records(f, opcode, length)
                 except Damaged as bad:
                     if strict:
                         what = "a chunk" if opcode == Opcode.CHUNK else f"a record (opcode {opcode:#04x})"
@@ -471,14 +471,12 @@ class Recording:
         return out
 
 
-def _data_records(opcode, body):
-    """The records a data-section record holds: a chunk's contents, or the record itself."""
-    if opcode == Opcode.CHUNK:
-        records = open_chunk(parse_record(opcode, body))
-    elif opcode == Opcode.HEADER:
+def _data_records(f, opcode, length):
+    """The records a data-section record at ``f``'s position holds: a chunk's contents, or the record itself."""
+    if opcode == Opcode.HEADER:
         raise Damaged("a second header record")
-    else:
-        records = [parse_record(opcode, body)]
+    record = read_record(f, opcode, length)
+    records = open_chunk(record) if opcode == Opcode.CHUNK else [record]
     if any(isinstance(record, Schema) and record.id == 0 for record in records):
         raise Damaged("schema id 0")
     return records

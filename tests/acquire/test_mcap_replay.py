@@ -371,7 +371,7 @@ def test_huge_lengths_at_every_record_start_fail_cleanly(tmp_path):
     _record(path, n=2, shape=(4, 4), chunk_bytes=64)
     data = path.read_bytes()
     with open(path, "rb") as f:
-        starts = [offset for offset, opcode, _ in RecordScan(f, 8, len(data), wanted=())
+        starts = [offset for offset, opcode, _ in RecordScan(f, 8, len(data))
                   if opcode != Opcode.MESSAGE_INDEX]                   # the readers never read those
     fuzzed = tmp_path / "huge.mcap"
     for start in starts:
