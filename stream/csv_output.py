@@ -25,11 +25,12 @@ import tempfile
 
 import numpy as np
 
-_TEMP_PREFIX = ".livedic-"
+from livedic.acquire.atomic_file import TEMP_PREFIX as _TEMP_PREFIX
+from livedic.acquire.atomic_file import AtomicFile, OutputError, current_umask
+from livedic.acquire.recording_schema import json_default
 
-
-class OutputError(ValueError):
-    """An output path that cannot be written; the message is one line for the user."""
+__all__ = ["AtomicFile", "OutputError", "check_output_file", "check_output_folder", "current_umask", "json_text",
+           "write_csv", "write_text_atomic"]
 
 
 # ----------------------------------------------------------------------------- checks before the work
@@ -109,79 +110,6 @@ def _example_name(what):
 
 # ----------------------------------------------------------------------------- atomic files
 
-def current_umask():
-    """The process umask, read without changing it where the system allows (Linux: /proc)."""
-    try:
-        with open("/proc/self/status") as handle:
-            for line in handle:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)        # elsewhere: set and restore (not thread-safe, but only as a fallback)
-    os.umask(mask)
-    return mask
-
-
-class AtomicFile:
-    """A text file written under a temporary name beside ``path``; ``commit()`` renames it into place.
-
-    The file gets the permissions ``open(path, "w")`` would give it (``0666 & ~umask``;
-    ``tempfile.mkstemp`` alone makes 0600). ``discard()``, or leaving the ``with``
-    block on an error, removes the temporary file.
-
-    Raises
-    ------
-    OutputError
-        The folder does not exist, or ``path`` is a folder.
-    """
-
-    def __init__(self, path):
-        self.path = os.fspath(path)
-        if os.path.isdir(self.path):
-            raise OutputError(f"{self.path} is a folder: give a file name")
-        directory = os.path.dirname(os.path.abspath(self.path))
-        if not os.path.isdir(directory):
-            raise OutputError(f"cannot write {self.path}: folder {directory} does not exist")
-        fd, self.tmp = tempfile.mkstemp(prefix=_TEMP_PREFIX, suffix=".partial", dir=directory)
-        try:
-            os.fchmod(fd, 0o666 & ~current_umask())
-            self.handle = os.fdopen(fd, "w", newline="")
-        except BaseException:
-            os.close(fd)
-            os.unlink(self.tmp)
-            raise
-
-    def write(self, text):
-        self.handle.write(text)
-
-    def commit(self):
-        """Flush, close and rename into place."""
-        self.handle.close()
-        try:
-            os.replace(self.tmp, self.path)
-        except IsADirectoryError:
-            # A folder of that name appeared since the check: say so without the temporary name.
-            self.discard()
-            raise OutputError(f"{self.path} is a folder: give a file name") from None
-        self.tmp = None
-
-    def discard(self):
-        if not self.handle.closed:
-            self.handle.close()
-        if self.tmp is not None and os.path.exists(self.tmp):
-            os.unlink(self.tmp)
-        self.tmp = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, *exc):
-        if exc_type is not None or self.tmp is not None:
-            self.discard()
-        return False
-
-
 def write_text_atomic(path, text):
     """Write ``text`` to ``path`` through an ``AtomicFile``."""
     with AtomicFile(path) as out:
@@ -202,15 +130,11 @@ def _json_ready(value):
         return {str(key): _json_ready(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
         return [_json_ready(item) for item in value]
-    if isinstance(value, np.ndarray):
-        return _json_ready(value.tolist())
-    if isinstance(value, np.generic):
-        return _json_ready(value.item())
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if value is None or isinstance(value, (bool, int, str)):
         return value
-    return str(value)
+    return _json_ready(json_default(value))      # numpy values, paths ...: the format's one conversion
 
 
 # ----------------------------------------------------------------------------- CSV tables
