@@ -341,6 +341,8 @@ def _cmd_cameras(args):
 def _cmd_recover(args):
     from livedic.acquire.mcap_replay import recover
 
+    if os.path.lexists(args.output) and not args.overwrite:
+        raise UsageError(f"{args.output} already exists: choose a new name, or add --overwrite to replace it")
     summary = recover(args.recording, args.output, overwrite=args.overwrite)
     state = "was cut short" if summary["truncated"] else "was complete"
     print(f"livedic: {args.recording} {state}; wrote {args.output} with {summary['frames']} frames, "

@@ -27,7 +27,6 @@ from livedic.stream.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, DEFAULT_S
                                    PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
                                    subpixel_method)
 from livedic.stream.csv_output import json_text, write_text_atomic
-from livedic.stream.points import build_points  # noqa: F401 - old home: tests/stream/test_replay_export.py
 from livedic.stream.session import Session
 
 _TRACKING = TrackingConfig()

@@ -63,7 +63,7 @@ def dropped(tmp_path_factory):
     from livedic.dic.tracking import Tracker
     from livedic.acquire.base import Frame
     from livedic.stream.recorder import Recorder
-    from livedic.stream.run import build_points
+    from livedic.stream.points import build_points
 
     path = tmp_path_factory.mktemp("dropped") / "dropped.mcap"
     pattern = SpecklePattern((128, 160), n_speckles=400, seed=3)
@@ -347,7 +347,7 @@ def _recording_with_offsets(path, change):
     from livedic.dic.speckle import SpecklePattern, render
     from livedic.dic.tracking import Tracker
     from livedic.stream.recorder import Recorder
-    from livedic.stream.run import build_points
+    from livedic.stream.points import build_points
 
     pattern = SpecklePattern((128, 160), n_speckles=400, seed=5)
     images = [render(pattern, (0.25 * i, -0.15 * i), noise_sigma=0.5, noise_seed=i) for i in range(6)]
