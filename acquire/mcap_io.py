@@ -391,6 +391,14 @@ class ChunkedWriter:
         self.chunks_written = 0
         self._schemas = {}
 
+    def chunk_indexes(self):
+        """The chunk indexes mcap's writer holds in memory until ``finish`` writes the summary, or None.
+
+        A diagnostic (``livedic bench soak`` sizes it): mcap keeps them in a private
+        attribute of its ``Writer``; read here, in the one module that wraps the library.
+        """
+        return getattr(self.writer, "_Writer__chunk_indices", None)
+
     def register(self, topic, schema_name, schema_data, *, schema_encoding="protobuf",
                  message_encoding="protobuf", metadata=None):
         key = (schema_name, schema_encoding, schema_data)

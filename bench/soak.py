@@ -89,11 +89,11 @@ def mcap_index_memory(recorder):
 
     The writer holds one ``ChunkIndex`` per chunk written until ``finish``; the
     recorder keeps chunks few (images by size or age, results and events together
-    every ``flush_interval_s``: ~0.15 chunks per frame at 512x512 and 50 fps). Reads
-    private attributes of mcap's ``Writer``: best effort only.
+    every ``flush_interval_s``: ~0.15 chunks per frame at 512x512 and 50 fps). Best
+    effort (``Recorder.chunk_indexes``): None where the library does not say.
     """
     try:
-        indices = recorder._cw.writer._Writer__chunk_indices
+        indices = recorder.chunk_indexes()
         sample = indices[-200:]
         seen = set()          # objects shared between indexes (small ints, strings) counted once
         per_chunk = sum(_deep_size(index, seen) for index in sample) / max(len(sample), 1)

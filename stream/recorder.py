@@ -245,6 +245,10 @@ class Recorder:
     def chunks_written(self):
         return self._cw.chunks_written
 
+    def chunk_indexes(self):
+        """The chunk indexes held in memory for the file's summary (a diagnostic), or None."""
+        return self._cw.chunk_indexes()
+
     @property
     def closed(self):
         return self._closed
