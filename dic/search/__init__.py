@@ -18,9 +18,9 @@ Measured success, evaluations and time of all of them: ``livedic bench paper``
 (Figs 9/10 at radius 10 and a radius study up to 48 px; tables in
 :mod:`dic.search.improved_wso`). In short, the improved WSO, run on an image
 pyramid (:mod:`dic.search.pyramid`), finds the exhaustive optimum in every
-search at radius 10-48 on six pattern generators with 62-173 distinct
+search at radius 10-48 on six pattern generators with 62-174 distinct
 evaluations a point; coarse-fine step 3 needs 73-1,113 and misses 0.02-0.4 %,
-PSO and the original WSO fall to 40 % and 16 % at radius 48. ``"fft-cc"``
+PSO and the original WSO fall to 41 % and 16 % at radius 48. ``"fft-cc"``
 gives the exhaustive answer in 3.5-8.4x less time than ``"exhaustive"`` at
 radius 10-48. For a seeded search with a small radius (tracking), ``"exhaustive"`` is
 the cheapest: at radius 2 it costs 25 evaluations.

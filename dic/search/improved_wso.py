@@ -121,13 +121,13 @@ lattice covers it by construction.
 paper). Everything above was measured at radius 10-16; success falls with the
 box area. Measured by ``livedic bench paper`` (radius study: six generators,
 livedic's simulator R = 2, 4, 5, FFT-filtered noise, sparse dots, hard discs;
-noise-free and sigma 2; 35,000-50,000 searches per radius), the swarm alone
-(``PAPER_LITERAL``) finds the exhaustive integer in 99.95, 98.4, 93.3, 82.2 and
-60.5 % of searches at radius 10, 16, 24, 32, 48. The search therefore runs on
+noise-free and sigma 2; 37,600-53,800 searches per radius), the swarm alone
+(``PAPER_LITERAL``) finds the exhaustive integer in 99.94, 98.4, 93.4, 82.5 and
+61.2 % of searches at radius 10, 16, 24, 32, 48. The search therefore runs on
 an image pyramid (``dic.search.pyramid``): the swarm searches the box at the
 level where its radius is at most ``top_radius``, and hill climbs refine it
 level by level. Same study: **100 %** at every radius, with 67, 62, 88, 102
-and 173 distinct evaluations a point (coarse-fine step 3: 73-1,113 and
+and 174 distinct evaluations a point (coarse-fine step 3: 73-1,113 and
 99.6-99.98 %; exhaustive 441-9,409). ``top_radius`` 3 was chosen over 4, 6
 and 8 (100 % at 3-4, 98.3-99.9 % at 8, at 1.5-2x the evaluations): at the
 top level the swarm then searches a 5 x 5 to 7 x 7 box, where it evaluates
