@@ -125,16 +125,27 @@ class Reference:
 
 
 def warm_up(tracking):
-    """Compile the numba kernels on a tiny image before the camera starts (cached: ~0.5 s later)."""
+    """Compile every numba kernel the tracker may use before the camera starts (cached: ~0.5 s later).
+
+    A kernel first met mid-session compiles there (several seconds for the parallel
+    ones, on a fresh installation): the frames queue up and are dropped. So the
+    warm-up takes each path once: plain tracking, a seeded search, points lost while
+    their neighbours are fine (solved again from the neighbours), and a jump no
+    neighbour explains (the wide re-find and its fallback).
+    """
     import cv2
     rng = np.random.default_rng(0)
-    image = cv2.GaussianBlur(rng.uniform(0, 255, (96, 96)).astype(np.float32), (0, 0), 2.0)
+    image = cv2.GaussianBlur(rng.uniform(0, 255, (128, 128)).astype(np.float32), (0, 0), 2.0)
+    axis = np.arange(40.0, 89.0, 12.0)
+    points = [(x, y) for y in axis for x in axis]
+    tracker = tracking.tracker(image, points, subset=min(tracking.subset, 31), refind_radius=8)
     shifted = np.roll(image, (1, 2), axis=(0, 1))
-    tracker = tracking.tracker(image, [(48.0, 48.0), (40.0, 52.0)], subset=min(tracking.subset, 31),
-                               refind_radius=8)
+    partly = shifted.copy()
+    partly[:, :60] = np.roll(image, (3, 4), axis=(0, 1))[:, :60]        # the left points jump by ~2 px
     tracker.track(image)
     tracker.track(shifted)
-    tracker.track(np.roll(image, (9, -7), axis=(0, 1)))   # exercises the re-find path
+    tracker.track(partly)
+    tracker.track(np.roll(image, (9, -7), axis=(0, 1)))                 # every point far off: wide re-find
 
 
 def check_viewer_reachable(url, timeout_s=1.0):
