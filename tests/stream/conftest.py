@@ -1,0 +1,42 @@
+"""Fixtures shared by the stream tests."""
+
+import os
+
+import pytest
+
+
+@pytest.fixture
+def unwritable_folder(tmp_path, monkeypatch):
+    """``unwritable_folder(variant)``: a folder where no file can be created (see ``_make``)."""
+    return lambda variant: _make(tmp_path, variant, monkeypatch)
+
+
+def _make(tmp_path, variant, monkeypatch):
+    """A folder where no file can be created: read-only (0555; root ignores permission bits, so skipped for
+    root), permission denied as the system says it (simulated where it matters, in the only call that
+    creates files, so it runs as root too), or a path 'under' a regular file (fails for root too)."""
+    if variant == "read-only":
+        if os.geteuid() == 0:
+            pytest.skip("root ignores permission bits; the denied and under-a-file variants cover root")
+        folder = tmp_path / "read-only"
+        folder.mkdir()
+        folder.chmod(0o555)
+        return folder
+    if variant == "denied":
+        import tempfile
+
+        import livedic.stream.csv_output as csv_output
+        folder = tmp_path / "denied"
+        folder.mkdir()
+        real = tempfile.mkstemp
+
+        def mkstemp(*args, dir=None, **kwargs):
+            if dir is not None and os.path.abspath(dir) == str(folder):
+                raise PermissionError(13, "Permission denied", str(folder))
+            return real(*args, dir=dir, **kwargs)
+
+        monkeypatch.setattr(csv_output.tempfile, "mkstemp", mkstemp)
+        return folder
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("a file, not a folder\n")
+    return blocker
