@@ -1,6 +1,7 @@
 """Fixtures shared by the stream tests."""
 
 import os
+import threading
 
 import pytest
 
@@ -40,3 +41,40 @@ def _make(tmp_path, variant, monkeypatch):
     blocker = tmp_path / "file.txt"
     blocker.write_text("a file, not a folder\n")
     return blocker
+
+
+@pytest.fixture
+def signal_when():
+    """``signal_when(process, ready, signum)``: see ``_signal_when``."""
+    return _signal_when
+
+
+def _signal_when(process, ready, signum, *, timeout_s=120):
+    """Read ``process``'s stderr until ``ready(stderr bytes so far)``, send it ``signum``, wait for it to end.
+
+    Returns ``(stderr text, stdout bytes)``; kills the child if it does not end.
+    """
+    err = bytearray()
+    reached = threading.Event()
+
+    def read_stderr():
+        while True:
+            chunk = process.stderr.read1(256)
+            if not chunk:
+                return
+            err.extend(chunk)
+            if ready(bytes(err)):
+                reached.set()
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    try:
+        assert reached.wait(timeout_s), bytes(err).decode(errors="replace")
+        process.send_signal(signum)
+        out = process.stdout.read()
+        process.wait(60)
+        reader.join(10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    return bytes(err).decode(errors="replace"), out

@@ -563,7 +563,7 @@ def test_reconnect_is_refused_for_files_and_simulators():
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_signal):
+def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_signal, signal_when):
     """The signal goes once the progress bar shows 10 frames acquired (not after a fixed time: a slow
     machine takes longer to get there), in the middle of a 400-frame session."""
     import re
@@ -575,31 +575,13 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
         [sys.executable, "-c", code, "--source", "synthetic:tensile?size=128x128&fps=20", "--frames", "400",
          "--n-points", "20", "--roi", "0,0,128,128", "--record", str(mcap), "--viewer", "none", "--progress", "on"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=str(tmp_path))
-    err = bytearray()
-    going = threading.Event()
 
-    def read_stderr():
-        while True:
-            chunk = process.stderr.read1(256)
-            if not chunk:
-                return
-            err.extend(chunk)
-            done = re.findall(rb"\] (\d+)/400 +[\d.]+ fps", bytes(err[-400:]))      # the session's bar
-            if done and int(done[-1]) >= 10:
-                going.set()
+    def ten_frames(err):
+        done = re.findall(rb"\] (\d+)/400 +[\d.]+ fps", err[-400:])      # the session's bar
+        return bool(done) and int(done[-1]) >= 10
 
-    reader = threading.Thread(target=read_stderr, daemon=True)
-    reader.start()
-    try:
-        assert going.wait(120), bytes(err).decode(errors="replace")
-        process.send_signal(stop_signal)
-        out = process.stdout.read().decode()
-        process.wait(60)
-        reader.join(10)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    text = bytes(err).decode(errors="replace")
+    text, out = signal_when(process, ten_frames, stop_signal)
+    out = out.decode()
     assert process.returncode == 0, text
     name = signal.Signals(stop_signal).name
     assert f"stopped on {name}" in text and f"stopped    on {name}" in out

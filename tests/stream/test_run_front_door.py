@@ -8,7 +8,6 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 
 import cv2
 import numpy as np
@@ -174,35 +173,12 @@ def _livedic(tmp_path, *argv):
                             stderr=subprocess.PIPE, cwd=str(tmp_path), env=env)
 
 
-def test_sigterm_while_the_simulator_renders_ends_cleanly_with_exit_0(tmp_path):
+def test_sigterm_while_the_simulator_renders_ends_cleanly_with_exit_0(tmp_path, signal_when):
     """SIGTERM as soon as the progress bar says the test is being rendered (300 frames of 1 MP: many
     seconds): exit 0, one line saying so, and no recording (none was opened yet)."""
     process = _livedic(tmp_path, "run", "--frames", "300", "--record", "session.mcap", "--viewer", "save",
                        "session.rrd", "--progress", "on", "--summary-json", "summary.json")
-    err = bytearray()
-    rendering = threading.Event()
-
-    def read_stderr():
-        while True:
-            chunk = process.stderr.read1(256)
-            if not chunk:
-                return
-            err.extend(chunk)
-            if b"rendering the simulated test" in err:
-                rendering.set()
-
-    reader = threading.Thread(target=read_stderr, daemon=True)
-    reader.start()
-    try:
-        assert rendering.wait(120), bytes(err).decode(errors="replace")
-        process.send_signal(signal.SIGTERM)
-        out = process.stdout.read()
-        process.wait(60)
-        reader.join(10)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    text = bytes(err).decode(errors="replace")
+    text, out = signal_when(process, lambda err: b"rendering the simulated test" in err, signal.SIGTERM)
     assert process.returncode == 0, text
     assert ("stopped on SIGTERM while rendering the simulated test, before the session started: nothing was "
             "recorded") in text
