@@ -29,7 +29,6 @@ Exit code 0 when no row has a wrong-ok point, 1 otherwise.
 
 import glob
 import os
-import sys
 import time
 
 import numpy as np

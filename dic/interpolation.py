@@ -5,7 +5,6 @@ with a = -0.5, the MATLAB ``interp2(..., 'cubic')`` kernel the paper's improved
 surface fit is built on. B-spline interpolation for IC-GN / N-R lives alongside.
 """
 
-import numpy as np
 from numba import njit
 
 KEYS_A = -0.5

@@ -6,7 +6,6 @@ gradient vanishes. Used at 1 px spacing by the classic surface-fit method and
 at 0.2 px by the paper's improved surface fit.
 """
 
-import numpy as np
 from numba import njit
 
 
