@@ -540,25 +540,6 @@ EXHAUSTIVE_SAMPLE = 64
 RADIUS_LABELS = {"exhaustive": "exhaustive", "fft-cc": "FFT-CC", "coarse-fine": "coarse-fine", "pso": "PSO",
                  "wso": "WSO (original)", "improved-wso": "improved WSO (pyramid)",
                  "improved-wso (paper)": "improved WSO (paper literal)"}
-RADIUS_GENERATORS = ("simulator R=4", "simulator R=2", "simulator R=5", "fft-filtered noise", "sparse dots",
-                     "hard discs R=3")
-
-
-def radius_pair(generator, size, shift, sigma, seed):
-    """Reference and deformed 8-bit images of one generator (``bench.patterns`` or ``dic.speckle``)."""
-    from livedic.bench import patterns
-    from livedic.dic.speckle import SpecklePattern, render
-
-    if generator.startswith("simulator"):
-        r = float(generator.split("R=")[1])
-        # the paper's coverage at any speckle size: 1000 speckles of R = 4 per 256^2
-        pattern = SpecklePattern((size, size), density=1000 / 256 ** 2 * (4.0 / r) ** 2, radius=r, seed=seed)
-        return (render(pattern, bit_depth=8, noise_sigma=sigma, noise_seed=noise_seed(seed, 1)),
-                render(pattern, shift, bit_depth=8, noise_sigma=sigma, noise_seed=noise_seed(seed, 2)))
-    make = {"fft-filtered noise": patterns.fft_blurred, "sparse dots": patterns.sparse_dots,
-            "hard discs R=3": lambda shape, s, seed: patterns.hard_discs(shape, s, radius=3.0, seed=seed)}[generator]
-    a, b = make((size, size), shift, seed=seed)
-    return (patterns.to_8bit(a, sigma, noise_seed(seed, 1)), patterns.to_8bit(b, sigma, noise_seed(seed, 2)))
 
 
 def run_radius(cfg, log):
@@ -572,6 +553,7 @@ def run_radius(cfg, log):
     that integer is the true shift rounded (a dot-free subset of a sparse pattern
     has no right answer to find).
     """
+    from livedic.bench import patterns
     from livedic.dic.search import integer_search
     from livedic.dic.search.improved_wso import PAPER_LITERAL
 
@@ -585,7 +567,8 @@ def run_radius(cfg, log):
                 angle = rng.uniform(0.0, 2.0 * np.pi)
                 magnitude = radius * rng.uniform(0.2, 0.9)
                 shift = (round(magnitude * np.cos(angle), 3), round(magnitude * np.sin(angle), 3))
-                reference, deformed = radius_pair(generator, cfg.radius_size, shift, sigma, cfg.seed + g)
+                reference, deformed = patterns.pair(generator, (cfg.radius_size,) * 2, shift, noise_sigma=sigma,
+                                                    seed=cfg.seed + g)
                 half = cfg.subset // 2
                 points = grid_points(half + radius + 4, cfg.radius_size - 1 - half - radius - 4, cfg.radius_step)
                 kwargs = dict(subset=cfg.subset, radius=radius, seed=cfg.seed + radius)

@@ -36,6 +36,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from livedic.bench.patterns import GENERATORS
+
 
 def _steps(start, stop, step):
     count = int(round((stop - start) / step)) + 1
@@ -74,8 +76,7 @@ class PaperConfig:
     radius_study: tuple = (10, 16, 24, 32, 48)
     radius_size: int = 512
     radius_step: int = 7
-    radius_generators: tuple = ("simulator R=4", "simulator R=2", "simulator R=5", "fft-filtered noise",
-                                "sparse dots", "hard discs R=3")
+    radius_generators: tuple = GENERATORS
 
     @classmethod
     def full(cls):

@@ -15,7 +15,8 @@ generators share nothing with it:
   paint-like edges), area-integrated by 4 x 4 supersampling; shift analytic.
 
 All return float64 images in grey levels (0..255 scale) before noise and
-quantisation; ``to_8bit`` adds Gaussian noise and rounds.
+quantisation; ``to_8bit`` adds Gaussian noise and rounds. ``pair`` makes an
+8-bit pair by name, livedic's own simulator included, for the benchmarks.
 """
 
 import numpy as np
@@ -137,7 +138,37 @@ def to_8bit(image, noise_sigma=0.0, seed=0):
     return np.clip(np.floor(noisy + 0.5), 0, 255).astype(np.uint8)
 
 
-def low_contrast(image, contrast=40.0, mean=110.0):
-    """``image`` rescaled to a grey-level span of ``contrast`` around ``mean`` (a dim, flat-lit specimen)."""
-    lo, hi = np.percentile(image, [0.5, 99.5])
-    return mean + (image - 0.5 * (lo + hi)) * (contrast / (hi - lo))
+
+
+GENERATORS = ("simulator R=4", "simulator R=2", "simulator R=5", "fft-filtered noise", "sparse dots",
+              "hard discs R=3")
+
+
+def pair(generator, shape, shift, *, noise_sigma, seed, contrast=None):
+    """An 8-bit (reference, deformed) pair of ``generator`` (one of ``GENERATORS``) shifted by ``shift``.
+
+    ``simulator R=r`` is livedic's Zhou-Goodson simulator (``dic.speckle``) at the paper's
+    coverage for any speckle radius r (1000 speckles of R = 4 per 256^2), its exact
+    intensities scaled to 20..220 grey levels. ``contrast`` squeezes the pair into that
+    many grey levels around 110 (a dim specimen). Independent Gaussian noise of
+    ``noise_sigma`` grey levels on each image, then rounding.
+    """
+    if generator.startswith("simulator R="):
+        from livedic.dic.speckle import SpecklePattern, render
+        r = float(generator.split("=")[1])
+        pattern = SpecklePattern(shape, density=1000 / 256 ** 2 * (4.0 / r) ** 2, radius=r, seed=seed)
+        a, b = render(pattern, bit_depth=None), render(pattern, shift, bit_depth=None)
+        scale = 200.0 / np.percentile(a, 99.5)
+        a, b = 20.0 + scale * a, 20.0 + scale * b
+    elif generator == "fft-filtered noise":
+        a, b = fft_blurred(shape, shift, seed=seed)
+    elif generator == "sparse dots":
+        a, b = sparse_dots(shape, shift, seed=seed)
+    elif generator.startswith("hard discs R="):
+        a, b = hard_discs(shape, shift, radius=float(generator.split("=")[1]), seed=seed)
+    else:
+        raise ValueError(f"unknown pattern generator {generator!r}: one of {', '.join(GENERATORS)}")
+    if contrast is not None:
+        lo, hi = np.percentile(a, [0.5, 99.5])
+        a, b = (110.0 + (image - 0.5 * (lo + hi)) * contrast / (hi - lo) for image in (a, b))
+    return to_8bit(a, noise_sigma, 2 * seed + 1), to_8bit(b, noise_sigma, 2 * seed + 2)

@@ -33,6 +33,8 @@ import time
 
 import numpy as np
 
+from livedic.bench import patterns
+
 SYNTHETIC_SHIFTS = ((17.4, -9.2), (0.37, -0.81), (-26.3, 14.1), (29.1, 21.7))
 RADIUS = 32
 SIZE = 384
@@ -41,29 +43,6 @@ SIZE = 384
 def _grid(lo, hi, step):
     axis = np.arange(lo, hi + 1, step, dtype=float)
     return np.column_stack([a.ravel() for a in np.meshgrid(axis, axis)])
-
-
-def _synthetic_pair(generator, shift, seed, *, contrast=None, noise=2.0):
-    from livedic.bench import patterns
-    from livedic.dic.speckle import SpecklePattern, render
-
-    shape = (SIZE, SIZE)
-    if generator == "simulator":
-        pattern = SpecklePattern(shape, density=1000 / 256 ** 2, radius=4.0, seed=seed)
-        a, b = render(pattern, bit_depth=None), render(pattern, shift, bit_depth=None)
-        scale = 200.0 / np.percentile(a, 99.5)        # exact intensities on the 8-bit scale
-        a, b = 20.0 + scale * a, 20.0 + scale * b
-    elif generator == "fft-filtered":
-        a, b = patterns.fft_blurred(shape, shift, seed=seed)
-    elif generator == "sparse dots":
-        a, b = patterns.sparse_dots(shape, shift, seed=seed)
-    else:
-        a, b = patterns.hard_discs(shape, shift, radius=3.0, seed=seed)
-    if contrast is not None:
-        lo, hi = np.percentile(a, [0.5, 99.5])
-        squeeze = lambda image: 110.0 + (image - 0.5 * (lo + hi)) * contrast / (hi - lo)  # noqa: E731
-        a, b = squeeze(a), squeeze(b)
-    return patterns.to_8bit(a, noise, seed + 101), patterns.to_8bit(b, noise, seed + 202)
 
 
 def _methods(quick):
@@ -96,12 +75,12 @@ class _Table:
 def _synthetic(table, quick):
     from livedic.dic import measure
 
-    generators = ("simulator", "fft-filtered", "sparse dots", "hard discs")
+    generators = ("simulator R=4", "fft-filtered noise", "sparse dots", "hard discs R=3")
     shifts = SYNTHETIC_SHIFTS[:2] if quick else SYNTHETIC_SHIFTS
     points = _grid(40, SIZE - 41, 16 if quick else 12)
     for g, generator in enumerate(generators):
         for shift in shifts:
-            ref, dfm = _synthetic_pair(generator, shift, seed=10 + g)
+            ref, dfm = patterns.pair(generator, (SIZE, SIZE), shift, noise_sigma=2.0, seed=10 + g)
             for label, options in _methods(quick):
                 m = measure(ref, dfm, points, radius=RADIUS, **options)
                 error = np.hypot(m.u - shift[0], m.v - shift[1])
@@ -115,9 +94,9 @@ def low_contrast_floor(log, quick=False):
 
     lowest = 1.0
     points = _grid(40, SIZE - 41, 16 if quick else 8)
-    for g, generator in enumerate(("simulator", "fft-filtered")):
+    for g, generator in enumerate(("simulator R=4", "fft-filtered noise")):
         shift = (5.37, -3.81)
-        ref, dfm = _synthetic_pair(generator, shift, seed=30 + g, contrast=50.0, noise=3.0)
+        ref, dfm = patterns.pair(generator, (SIZE, SIZE), shift, noise_sigma=3.0, seed=30 + g, contrast=50.0)
         m = measure(ref, dfm, points, subpixel="icgn", radius=8, gates=Gates(min_zncc=-1.0))
         error = np.hypot(m.u - shift[0], m.v - shift[1])
         right = m.ok & (error <= 0.5)

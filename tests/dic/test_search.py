@@ -137,21 +137,13 @@ def test_paper_claim_improved_wso_evaluates_less_than_coarse_fine(radius10_run, 
     assert evaluation_run["improved-wso"].evaluations.mean() < evaluation_run["coarse-fine"].evaluations.mean()
 
 
-@pytest.mark.parametrize("generator", ["simulator", "fft", "sparse", "discs2"])
+@pytest.mark.parametrize("generator", ["simulator R=4", "fft-filtered noise", "sparse dots", "hard discs R=2"])
 def test_improved_wso_equals_exhaustive_at_large_radius(generator):
     """Radius 32, shift ~0.9 x radius, noise sigma 2, on four pattern generators (border points included)."""
     from livedic.bench import patterns
 
     size, radius, shift = 288, 32, (21.6, -19.3)
-    if generator == "simulator":
-        pattern = SpecklePattern((size, size), n_speckles=int(1000 * (size / 256) ** 2), radius=4.0, seed=2)
-        ref = render(pattern, noise_sigma=2, noise_seed=1)
-        dfm = render(pattern, shift, noise_sigma=2, noise_seed=2)
-    else:
-        make = {"fft": patterns.fft_blurred, "sparse": patterns.sparse_dots,
-                "discs2": lambda shape, shift, seed: patterns.hard_discs(shape, shift, radius=2.0, seed=seed)}
-        a, b = make[generator]((size, size), shift, seed=3)
-        ref, dfm = patterns.to_8bit(a, 2.0, 1), patterns.to_8bit(b, 2.0, 2)
+    ref, dfm = patterns.pair(generator, (size, size), shift, noise_sigma=2.0, seed=3)
     rng = np.random.default_rng(7)
     lo, hi = 10 + radius + 4, size - 10 - radius - 4
     pts = rng.uniform(lo, hi, size=(120, 2)).round()
