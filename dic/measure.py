@@ -114,8 +114,10 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     texture = quality.texture(prep)
     thresholds = gates or Gates()
     translation_only = texture.translation_only(thresholds) if subpixel in _FIRST_ORDER else None
-    graph = neighbour_graph(np.column_stack([xs, ys]).astype(np.float64))
-    if guess is None and guided and search != "none" and xs.shape[0]:
+    guided = guess is None and guided and search != "none" and xs.shape[0] > 0
+    # neighbours serve the propagation and the median test only (a tracker that gates itself needs neither)
+    graph = neighbour_graph(np.column_stack([xs, ys]).astype(np.float64)) if guided or gates is not None else None
+    if guided:
         poor = texture.poor(thresholds)
         raw = _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
                       icgn_options, thresholds, texture, poor, translation_only, graph)
