@@ -377,37 +377,22 @@ def propagate(prep, coeffs, graph, *, order, accept, params, zncc, solved, pendi
 
 
 def _repair(problem, state, find_outliers):
-    """Solve the points ``find_outliers`` flags again from their best ok neighbour; keep what is better."""
+    """Solve the points ``find_outliers`` flags again from their best ok neighbour; keep what is better.
+
+    The same propagation as the first pass, with the outliers pending and every other ok point solved.
+    """
     ok = problem.status == OK
     outliers = np.flatnonzero(find_outliers(problem.params, ok))
     if not outliers.size:
         return
-    start, index = problem.start, problem.index
-    chosen = []
-    sources = []
-    for k in outliers:
-        neighbours = index[start[k]:start[k + 1]]
-        good = neighbours[ok[neighbours] & ~np.isin(neighbours, outliers)]
-        if good.size:
-            chosen.append(k)
-            sources.append(good[np.argmax(problem.zncc[good])])
-    if not chosen:
-        return
-    chosen = np.array(chosen, dtype=np.int64)
-    sources = np.array(sources, dtype=np.int64)
-    dx = (problem.prep.xs[chosen] - problem.prep.xs[sources]).astype(np.float64)
-    dy = (problem.prep.ys[chosen] - problem.prep.ys[sources]).astype(np.float64)
-    p = problem.params[sources]
-    starts = p.copy()
-    starts[:, 0] = p[:, 0] + p[:, 1] * dx + p[:, 2] * dy
-    starts[:, 3] = p[:, 3] + p[:, 4] * dx + p[:, 5] * dy
-    translation = problem.order[chosen] == 0
-    starts[np.ix_(translation, [1, 2, 4, 5])] = 0.0
-    before = (problem.params[chosen].copy(), problem.status[chosen].copy(), problem.zncc[chosen].copy())
-    accepted = problem.solve(chosen, starts)
-    better = accepted & (problem.zncc[chosen] > np.nan_to_num(before[2], nan=-np.inf))
+    before = (problem.params[outliers].copy(), problem.status[outliers].copy(), problem.zncc[outliers].copy())
+    repair_state = np.where(ok, 1, 2).astype(np.int8)
+    repair_state[outliers] = 0
+    problem.tries[outliers] = 0
+    problem.propagate(repair_state, np.zeros(state.shape[0], dtype=np.int64), 1)
+    better = (repair_state[outliers] == 1) & (problem.zncc[outliers] > np.nan_to_num(before[2], nan=-np.inf))
     # what did not improve goes back to its first result (the quality gates judge it)
-    keep_old = ~better
-    problem.params[chosen[keep_old]] = before[0][keep_old]
-    problem.status[chosen[keep_old]] = before[1][keep_old]
-    problem.zncc[chosen[keep_old]] = before[2][keep_old]
+    keep_old = outliers[~better]
+    problem.params[keep_old] = before[0][~better]
+    problem.status[keep_old] = before[1][~better]
+    problem.zncc[keep_old] = before[2][~better]
