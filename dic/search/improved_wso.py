@@ -122,11 +122,14 @@ paper). Everything above was measured at radius 10-16; success falls with the
 box area. Measured by ``livedic bench paper`` (radius study: six generators,
 livedic's simulator R = 2, 4, 5, FFT-filtered noise, sparse dots, hard discs;
 noise-free and sigma 2; 37,600-53,800 searches per radius), the swarm alone
-(``PAPER_LITERAL``) finds the exhaustive integer in 99.94, 98.4, 93.4, 82.5 and
-61.2 % of searches at radius 10, 16, 24, 32, 48. The search therefore runs on
+(``PAPER_LITERAL``) finds the exhaustive integer in 99.92, 98.4, 93.3, 82.6 and
+61.1 % of searches at radius 10, 16, 24, 32, 48. The search therefore runs on
 an image pyramid (``dic.search.pyramid``): the swarm searches the box at the
 level where its radius is at most ``top_radius``, and hill climbs refine it
-level by level. Same study: **100 %** at every radius, with 67, 62, 88, 102
+level by level; a top-level result below ZNCC 0.7 is checked by an exhaustive
+search of the small top box (``pyramid.VERIFY_ZNCC``: it caught the one search in
+the study, of 37,607 at radius 48, where the swarm had stalled on a side lobe of a
+9 x 9 coarse subset). Same study: **100 %** at every radius, with 67, 62, 88, 102
 and 174 distinct evaluations a point (coarse-fine step 3: 73-1,113 and
 99.6-99.98 %; exhaustive 441-9,409). ``top_radius`` 3 was chosen over 4, 6
 and 8 (100 % at 3-4, 98.3-99.9 % at 8, at 1.5-2x the evaluations): at the
