@@ -9,7 +9,7 @@ into NaN with its own ``dic.Status`` code; what passes every gate is ``ok``.
    ``MIN_ZNCC`` = 0.5, was chosen by measurement (``livedic bench validate``
    prints it): on 8-bit pairs whose speckle spans 50 grey levels, with noise
    sigma = 3 (livedic's simulator and an FFT-filtered random pattern, subset 21,
-   IC-GN), the lowest ZNCC of a correct point (within 0.5 px) was 0.69 (full
+   IC-GN), the lowest ZNCC of a correct point (within 0.5 px) was 0.68 (full
    run; 0.73 in the quick one), with room left for a dimmer specimen; wrong matches found by a failed search
    score 0.2-0.55 on the DIC Challenge images. ZNCC alone cannot separate the
    two on poor images, so the other gates carry much of the weight.
