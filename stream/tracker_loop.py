@@ -59,6 +59,8 @@ class FrameResult:
     error_rms_px: float = float("nan")   # against the truth (synthetic sources), ok points
     error_max_px: float = float("nan")
     capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
+    strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
+    extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
 
     @property
     def origin_ns(self):

@@ -1,0 +1,283 @@
+"""Strain and virtual extensometers in a session: settings, placement on the points, the per-frame stage.
+
+``StrainConfig`` holds what the user asked for (``--strain-window``,
+``--strain-measure``, ``--gauge-length``, ``--extensometer``, ``--scale``);
+``StrainConfig.place(points, p0, roi, step, subset)`` turns it into a
+``StrainStage`` on the reference points (the strain windows found, the
+extensometers' ends placed and checked), once, before any output opens. The
+stage is the session's first sink: per frame it computes the strain field and
+the extensometer readings from the tracked displacements, attaches them to the
+``FrameResult`` (``result.strain``, ``result.extensometers``) for the sinks after
+it (recording, Rerun view, progress line), and keeps the last readings and its
+own cost for the summary. ``livedic export`` and ``livedic replay`` rebuild the
+same stage from the recording's metadata (``StrainConfig.from_metadata``), so a
+recording's strain is computed one way everywhere.
+
+Extensometers:
+
+``--gauge-length L[,W]``
+    ``axial``: length L along y (image rows, the pulling axis of the simulator),
+    centred on P0; ``transverse``: length W along x through P0 (default 0.8 x
+    the ROI width).
+``--extensometer NAME=x1,y1,x2,y2``
+    any other, between two reference image positions in px (repeatable).
+
+Lengths are in px, or in mm with ``--scale PX_PER_MM`` (image positions stay in px).
+"""
+
+import math
+import re
+import time
+from array import array
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from livedic.dic.extensometer import Extensometer, place_extensometers, poisson_ratio, read_extensometers
+from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
+
+TRANSVERSE_FRACTION = 0.8
+AXIAL, TRANSVERSE = "axial", "transverse"
+_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")
+
+
+def parse_gauge_length(text):
+    """``L`` or ``L,W`` (positive numbers) -> (L, W or None); ValueError with an example otherwise."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 2) or not all(math.isfinite(v) and v > 0 for v in values):
+        raise ValueError(f"--gauge-length {text!r}: give L or L,W, positive lengths (px, or mm with --scale), "
+                         f"e.g. 400 or 400,200")
+    return values[0], (values[1] if len(values) == 2 else None)
+
+
+def parse_extensometer(text):
+    """``NAME=x1,y1,x2,y2`` -> ``Extensometer``; ValueError with an example otherwise."""
+    name, sep, coords = str(text).partition("=")
+    name = name.strip()
+    example = "e.g. --extensometer upper=400,200,400,500"
+    if not sep or not _NAME.match(name):
+        raise ValueError(f"--extensometer {text!r}: give NAME=x1,y1,x2,y2 with a NAME of letters, digits, "
+                         f"_ . - ({example})")
+    try:
+        values = [float(v) for v in coords.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 4 or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"--extensometer {text!r}: give four numbers x1,y1,x2,y2 in px ({example})")
+    if values[:2] == values[2:]:
+        raise ValueError(f"--extensometer {text!r}: its two ends coincide")
+    return Extensometer(name, *values)
+
+
+@dataclass(frozen=True)
+class StrainConfig:
+    """What strain and which extensometers a session computes (see the module notes).
+
+    Attributes
+    ----------
+    window : int
+        Points a side of the strain window (odd, >= 3).
+    measure : str
+        One of ``dic.strain.MEASURES``.
+    gauge_length : float or None
+        Axial extensometer length (px, or mm with ``scale``); None: no axial/transverse pair.
+    gauge_width : float or None
+        Transverse extensometer length; None: 0.8 x the ROI width.
+    extensometers : tuple of dic.extensometer.Extensometer
+        More, in reference px.
+    scale : float or None
+        Pixels per millimetre.
+    """
+    window: int = DEFAULT_WINDOW
+    measure: str = DEFAULT_MEASURE
+    gauge_length: float = None
+    gauge_width: float = None
+    extensometers: tuple = ()
+    scale: float = None
+
+    def __post_init__(self):
+        if not isinstance(self.window, int) or self.window < 3 or self.window % 2 == 0:
+            raise ValueError(f"--strain-window must be an odd number of points >= 3, got {self.window}")
+        if self.measure not in MEASURES:
+            raise ValueError(f"--strain-measure {self.measure!r}: choose one of {', '.join(MEASURES)}")
+        if self.scale is not None and not (math.isfinite(self.scale) and self.scale > 0):
+            raise ValueError(f"--scale must be a positive number of pixels per mm, got {self.scale}")
+        if self.gauge_width is not None and self.gauge_length is None:
+            raise ValueError("a transverse gauge width needs --gauge-length L,W")
+        object.__setattr__(self, "extensometers", tuple(self.extensometers))
+        names = [e.name for e in self.extensometers]
+        reserved = [n for n in names if self.gauge_length is not None and n in (AXIAL, TRANSVERSE)]
+        if reserved:
+            raise ValueError(f"--extensometer {reserved[0]}: that name is --gauge-length's; choose another")
+        if len(set(names)) != len(names):
+            raise ValueError(f"--extensometer names must differ: {', '.join(names)}")
+
+    @classmethod
+    def from_args(cls, args):
+        """From parsed ``--strain-window --strain-measure --gauge-length --extensometer --scale`` options."""
+        length = parse_gauge_length(getattr(args, "gauge_length", None))
+        return cls(window=args.strain_window, measure=args.strain_measure,
+                   gauge_length=length[0] if length else None, gauge_width=length[1] if length else None,
+                   extensometers=tuple(parse_extensometer(t) for t in (getattr(args, "extensometer", None) or ())),
+                   scale=getattr(args, "scale", None))
+
+    def to_px(self, length):
+        """A length as given (mm with ``scale``, else px) in px."""
+        return length * self.scale if self.scale else length
+
+    def resolve_extensometers(self, p0, roi):
+        """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others."""
+        placed = []
+        if self.gauge_length is not None:
+            x0, y0 = (float(v) for v in p0)
+            half = 0.5 * self.to_px(self.gauge_length)
+            width = self.to_px(self.gauge_width) if self.gauge_width is not None else TRANSVERSE_FRACTION * roi[2]
+            placed.append(Extensometer(AXIAL, x0, y0 - half, x0, y0 + half))
+            placed.append(Extensometer(TRANSVERSE, x0 - 0.5 * width, y0, x0 + 0.5 * width, y0))
+        return tuple(placed) + self.extensometers
+
+    def place(self, points, *, p0, roi, step, subset):
+        """The ``StrainStage`` on the reference ``points`` (N, 2); ValueError (one line) for an end off the points.
+
+        ``roi`` is (x, y, w, h) of the points' region (the transverse default width); ``step``
+        the grid step (None: the points' typical spacing).
+        """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        windows = strain_window(points, window=self.window, step=step, subset=subset)
+        try:
+            extensometers = place_extensometers(self.resolve_extensometers(p0, roi), points, step=windows.step)
+        except ValueError as error:
+            unit = f" ({self.scale:g} px/mm)" if self.scale else ""
+            raise ValueError(f"{error}{unit}") from None
+        return StrainStage(self, points, windows, extensometers)
+
+    def as_metadata(self):
+        """The settings as a recording's session metadata keys (``from_metadata`` reads them back)."""
+        return {"strain_window": self.window, "strain_measure": self.measure, "scale_px_per_mm": self.scale,
+                "gauge_length": self.gauge_length, "gauge_width": self.gauge_width,
+                "extensometers_given": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.extensometers]}
+
+    @classmethod
+    def from_metadata(cls, metadata, **overrides):
+        """The settings a recording was made with (defaults for an older recording), ``overrides`` replacing them."""
+        def get(key, default):
+            value = metadata.get(key, default)
+            return default if value in (None, "") else value
+        recorded = dict(window=int(get("strain_window", DEFAULT_WINDOW)),
+                        measure=str(get("strain_measure", DEFAULT_MEASURE)),
+                        gauge_length=_float_or_none(metadata.get("gauge_length")),
+                        gauge_width=_float_or_none(metadata.get("gauge_width")),
+                        extensometers=tuple(Extensometer(str(e[0]), *(float(v) for v in e[1:5]))
+                                            for e in (metadata.get("extensometers_given") or ())),
+                        scale=_float_or_none(metadata.get("scale_px_per_mm")))
+        recorded.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**recorded)
+
+
+def _float_or_none(value):
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+@dataclass
+class StrainStage:
+    """The per-frame strain and extensometer computation on one set of reference points (a session sink).
+
+    Call it with a ``FrameResult`` (as a sink) or use ``compute(u, v, ok)`` directly.
+    """
+    config: StrainConfig
+    points: np.ndarray
+    windows: object                  # dic.strain.StrainWindow
+    placed: object                   # dic.extensometer.ExtensometerSet
+    name: str = "strain"
+    required: bool = False
+    last_strain: object = None       # the last frame's StrainField
+    last_readings: object = None     # ... and ExtensometerReadings
+    seconds: array = field(default_factory=lambda: array("d"))
+    truth_errors: dict = field(default_factory=dict)   # name -> max |eng strain error| against the truth
+
+    @property
+    def extensometers(self):
+        return self.placed.extensometers
+
+    @property
+    def vsg_px(self):
+        return self.windows.vsg_px
+
+    def compute(self, u, v, ok):
+        """(StrainField, ExtensometerReadings) of one frame's displacements of ``points``."""
+        strain = strain_field(self.windows, u, v, ok, measure=self.config.measure)
+        readings = read_extensometers(self.placed, self.points, u, v, ok)
+        return strain, readings
+
+    def exact_readings(self, truth):
+        """Exact engineering strain of every extensometer from a truth ``truth(x, y) -> (u, v)``."""
+        ends = self.placed.ends
+        tu, tv = truth(ends[:, 0], ends[:, 1])
+        first, second = slice(0, None, 2), slice(1, None, 2)
+        length = np.hypot(ends[second, 0] + tu[second] - ends[first, 0] - tu[first],
+                          ends[second, 1] + tv[second] - ends[first, 1] - tv[first])
+        l0 = np.hypot(ends[second, 0] - ends[first, 0], ends[second, 1] - ends[first, 1])
+        return length / l0 - 1.0
+
+    def __call__(self, result, stats):
+        started = time.perf_counter()
+        m = result.measurement
+        strain, readings = self.compute(m.u, m.v, m.ok)
+        self.seconds.append(time.perf_counter() - started)
+        result.strain = strain
+        result.extensometers = readings
+        self.last_strain, self.last_readings = strain, readings
+        truth = result.frame.metadata.get("truth") if isinstance(result.frame.metadata, dict) else None
+        if callable(truth) and len(readings.names):
+            error = np.abs(readings.eng_strain - self.exact_readings(truth))
+            for name, e, ok in zip(readings.names, error, readings.ok):
+                if ok:
+                    self.truth_errors[name] = max(self.truth_errors.get(name, 0.0), float(e))
+
+    def poisson(self, readings=None):
+        """-e_transverse / e_axial of ``readings`` (default the last), NaN without the pair or below 5e-4 axial."""
+        readings = readings if readings is not None else self.last_readings
+        if readings is None or AXIAL not in readings.names or TRANSVERSE not in readings.names:
+            return float("nan")
+        axial, _, axial_ok = readings.reading(AXIAL)
+        transverse, _, transverse_ok = readings.reading(TRANSVERSE)
+        if not (axial_ok and transverse_ok):
+            return float("nan")
+        return float(poisson_ratio(axial, transverse))
+
+    def ms_per_frame(self, percentile=50):
+        return float(np.percentile(np.array(self.seconds), percentile)) * 1e3 if self.seconds else float("nan")
+
+    def describe(self):
+        """One line: the strain window, VSG and measure, and the extensometers."""
+        text = (f"strain: {self.config.measure}, window {self.windows.window} points x step {self.windows.step:g} px "
+                f"+ subset {self.windows.subset} = VSG {self.vsg_px:g} px")
+        if self.extensometers:
+            text += "; extensometers " + ", ".join(
+                f"{e.name} L0 {e.length_px:.1f} px" + (f" ({e.length_px / self.config.scale:.2f} mm)"
+                                                       if self.config.scale else "") for e in self.extensometers)
+        return text
+
+    def summary(self):
+        """Numbers for the session summary (a dict, NaN where missing)."""
+        readings = self.last_readings
+        final = {}
+        if readings is not None:
+            for i, name in enumerate(readings.names):
+                final[name] = {"L0_px": float(readings.l0_px[i]), "L_px": float(readings.length_px[i]),
+                               "eng_strain": float(readings.eng_strain[i]),
+                               "true_strain": float(readings.true_strain[i]), "ok": bool(readings.ok[i]),
+                               "error_max_vs_truth": self.truth_errors.get(name)}
+        return {"strain_measure": self.config.measure, "strain_window": self.windows.window,
+                "vsg_px": self.vsg_px, "strain_ms_p50": self.ms_per_frame(50),
+                "strain_ms_p99": self.ms_per_frame(99), "extensometers": final, "poisson_ratio": self.poisson()}
