@@ -27,6 +27,7 @@ from datetime import datetime
 
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.dic.quality import MIN_ZNCC
+from livedic.stream.strain import StrainConfig
 
 DEFAULT_SOURCE = "synthetic:tensile"
 DEFAULT_POINTS = 1000
@@ -352,6 +353,8 @@ class SessionConfig:
         the first frames must not wait for the compiler).
     command : str
         What made the session, in the recording's metadata.
+    strain : stream.strain.StrainConfig
+        The strain window and measure, and the virtual extensometers.
     """
     source: str = DEFAULT_SOURCE
     frames: int = None
@@ -372,6 +375,7 @@ class SessionConfig:
     reconnect_timeout: float = None
     warm_up: bool = True
     command: str = "livedic run"
+    strain: StrainConfig = field(default_factory=StrainConfig)
 
     def __post_init__(self):
         if self.frames is not None and self.frames < 1:
@@ -440,4 +444,4 @@ class SessionConfig:
             image_max_side=args.image_max_side,
             show_progress=args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty()),
             threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
-            reconnect_timeout=args.reconnect_timeout)
+            reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args))

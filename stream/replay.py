@@ -63,8 +63,9 @@ from livedic.stream.config import (DEFAULT_POINTS, PointsConfig, SessionConfig, 
 from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, read_points_csv
 from livedic.stream.progress import ProgressBar
-from livedic.stream.session import NoFrame, Session
+from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
+from livedic.stream.strain import StrainConfig, add_strain_arguments, overrides_from_args
 
 from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
                            read_session_or_note, reader_notes, result_columns, say)
@@ -111,6 +112,7 @@ def add_replay_arguments(parser):
     parser.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1)")
     parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                         help="progress bar on stderr (default auto: when stderr is a terminal)")
+    add_strain_arguments(parser, recorded=True)
     return parser
 
 
@@ -289,6 +291,7 @@ class ReplayReport:
     recorded_version: str = ""
     notes: list = field(default_factory=list)
     truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
+    strain: dict = None              # stream.strain.StrainStage.summary() of the replay (final extensometers)
 
     @property
     def exact(self):
@@ -394,7 +397,7 @@ def _compare(report, measurement, recorded):
 
 
 def replay(path, given=None, *, point_options=None, all_frames=False, on_result=None, progress=None,
-           threads=1):
+           threads=1, strain=None):
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
 
     Parameters
@@ -413,6 +416,9 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         ``progress(frames_done)``.
     threads : int
         numba threads while tracking.
+    strain : dict, optional
+        Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``); the
+        strain fields and extensometers are recomputed on the replayed displacements.
 
     Raises
     ------
@@ -471,7 +477,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         # The session: the recorded frames -> a blocking queue (nothing dropped) -> tracker -> comparison,
         # rows out, progress (each required: a failure there ends the replay with its error).
         config = SessionConfig(source=f"mcap:{path}", tracking=tracking, threads=threads, drop="block",
-                               warm_up=False, command="livedic replay")
+                               warm_up=False, command="livedic replay",
+                               strain=StrainConfig.from_metadata(metadata, **(strain or {})))
         point_ids = []
         comparison = _Comparison(report, recorded, recorded_xy)
         sinks = [comparison]
@@ -492,6 +499,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
             point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded_ids)
             session.start()
             session.run()
+        report.strain = session.strain.summary() if session.strain is not None else None
         if session.source_error is not None:
             raise session.source_error
         report.seconds = time.perf_counter() - started
@@ -583,6 +591,7 @@ def replay_command(args):
     check_output_csv(args.output, args.recording)
     given = {key: getattr(args, key) for key in METHOD_KEYS}
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0)
+    strain = overrides_from_args(args)
     to_file = args.output not in (None, "-")
     show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
     bar = ProgressBar(None, enabled=show_progress)
@@ -610,11 +619,11 @@ def replay_command(args):
         if to_file:
             with StagedFile(args.output) as out:
                 report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                                on_result=write_rows(out), progress=progress, threads=args.threads)
+                                on_result=write_rows(out), progress=progress, threads=args.threads, strain=strain)
                 out.commit()
         else:
             report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                            on_result=write_rows(sys.stdout), progress=progress, threads=args.threads)
+                            on_result=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain)
             sys.stdout.flush()
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
@@ -632,4 +641,6 @@ def replay_command(args):
     say(f"replayed {report.frames} frames x {report.points} points ({frames_text}; "
         f"{report.params['search']}+{report.params['subpixel']}) in {report.seconds:.1f} s ({rate}){where}")
     say(report.verdict())
+    for line in format_strain_summary(report.strain):
+        say(line.strip())
     return 0

@@ -28,6 +28,7 @@ from livedic.stream.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, DEFAULT_S
                                    subpixel_method)
 from livedic.stream.csv_output import json_text, write_text_atomic
 from livedic.stream.session import Session
+from livedic.stream.strain import add_strain_arguments
 
 _TRACKING = TrackingConfig()
 
@@ -102,6 +103,7 @@ def add_run_arguments(parser):
                         help="numba threads for rendering and tracking (default 1: the other core serves "
                              "acquisition, recording and display, and parallel regions stall when cores are shared)")
     parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
+    add_strain_arguments(parser)
     parser.add_argument("--reconnect", action="store_true",
                         help="cameras (aravis:, v4l2:): when the camera is lost, keep the session and the recording "
                              "open and reopen it every second until it is back (or Ctrl-C); the session then goes on "

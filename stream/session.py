@@ -52,6 +52,7 @@ from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, check_point_count, read_points_csv
 from livedic.stream.progress import ProgressBar
 from livedic.stream.sinks import P0Watch, ProgressLine, RecordResults
+from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
 
 
@@ -146,6 +147,10 @@ def warm_up(tracking):
     tracker.track(shifted)
     tracker.track(partly)
     tracker.track(np.roll(image, (9, -7), axis=(0, 1)))                 # every point far off: wide re-find
+    stage = StrainConfig(gauge_length=24.0).place(np.asarray(points, dtype=np.float64), p0=(64.0, 64.0),
+                                                  roi=(40, 40, 49, 49), step=12.0, subset=21)
+    m = tracker.track(shifted)
+    stage.compute(m.u, m.v, m.ok)
 
 
 def check_viewer_reachable(url, timeout_s=1.0):
@@ -263,6 +268,8 @@ class Session:
         The points (P0 first), from ``prepare``.
     p0 : stream.p0.P0Choice or None
         Where P0 is and why (None when ``points`` were given).
+    strain : stream.strain.StrainStage or None
+        The strain and extensometer stage on the points, from ``prepare``.
     reference : Reference or None
         The reference frame's points, once the tracker is built on it.
     total_frames : int or None
@@ -291,6 +298,7 @@ class Session:
         self.bar = None
         self.points = None
         self.p0 = None
+        self.strain = None
         self.reference = None
         self.total_frames = config.frames
         self.render_seconds = None
@@ -399,7 +407,7 @@ class Session:
         self.acquisition = AcquisitionThread(self._ahead, self.queue, max_frames=config.frames, on_frame=on_frame,
                                              reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
-        sinks = []
+        sinks = [self.strain] if self.strain is not None else []
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method))
         if self.viewer is not None and self.viewer.enabled:
@@ -550,6 +558,7 @@ class Session:
         if self._given_points is not None:
             points = self._given_points(first.image) if callable(self._given_points) else self._given_points
             self.points = np.asarray(points, dtype=np.float64)
+            self._place_strain(first.image.shape)
             return
         wanted = config.points
         subset = config.tracking.subset
@@ -563,6 +572,23 @@ class Session:
         self.points, _, self._step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
                                                   n_points=wanted.n_points, subset=subset, p0=self.p0.xy,
                                                   points=given)
+        self._place_strain(first.image.shape)
+
+    def _place_strain(self, shape):
+        """The strain stage on the points as the tracker uses them (pixel centres); ValueError for an
+        extensometer end off the points, before any output opens."""
+        from livedic.dic.correlation import snap_points
+        xs, ys = snap_points(self.points)
+        used = np.column_stack([xs, ys]).astype(np.float64)
+        if self._roi is not None:
+            roi = self._roi
+        elif len(used):
+            lo, hi = used.min(axis=0), used.max(axis=0)
+            roi = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
+        else:
+            roi = (0, 0, shape[1], shape[0])
+        self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self._step,
+                                               subset=self.config.tracking.subset)
 
     def _metadata(self):
         """The session metadata the recording starts with."""
@@ -577,6 +603,10 @@ class Session:
             **config.tracking.as_dict(),
             "queue_size": config.queue, "drop_policy": self.drop_policy, "point_ids": "P0 is point 0",
             "threads": config.threads, "reconnect": config.reconnect, "reconnect_timeout_s": config.reconnect_timeout,
+            **config.strain.as_metadata(),
+            "vsg_px": self.strain.vsg_px if self.strain is not None else None,
+            "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.strain.extensometers]
+            if self.strain is not None else [],
         }
 
     def _open_outputs(self, scheme):
@@ -628,6 +658,8 @@ class Session:
                               has_truth=has_truth, title=f"livedic run: {config.source}",
                               source_settings=self._settings)
         self.event("note", note, tell=False)
+        if self.strain is not None:
+            self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))
         warning = self.p0.warning()
         if warning:
             self.event("p0_weak", warning, "warning")
@@ -679,7 +711,8 @@ class Session:
             p0_weak=self.p0.weak if self.p0 is not None else None,
             viewer_log_ms_per_frame=(1e3 * viewer.log_seconds / viewer.frames_logged
                                      if viewer is not None and viewer.frames_logged else None),
-            render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None)
+            render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
+            strain=self.strain.summary() if self.strain is not None else None)
         return summary
 
     def _close_quietly(self, close, what):
@@ -716,6 +749,7 @@ def format_summary(summary, reference, recorder):
     if summary.get("error_rms_px") is not None:
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
+    lines.extend(format_strain_summary(summary.get("strain")))
     if recorder is not None:
         size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
         if recorder.error:
@@ -732,3 +766,21 @@ def format_summary(summary, reference, recorder):
     if summary.get("stopped_by"):
         lines.append(f"  stopped    on {summary['stopped_by']}")
     return "\n".join(lines)
+
+
+def format_strain_summary(strain):
+    """The summary's strain lines (none without strain): window, VSG, final extensometer readings."""
+    if not strain:
+        return []
+    lines = [f"  strain     {strain['strain_measure']}, window {strain['strain_window']} points, VSG "
+             f"{strain['vsg_px']:g} px; {strain['strain_ms_p50']:.2f} ms/frame (p99 {strain['strain_ms_p99']:.2f})"]
+    for name, final in strain["extensometers"].items():
+        reading = (f"{100 * final['eng_strain']:.3f} % engineering, {100 * final['true_strain']:.3f} % true"
+                   if final["ok"] else "no reading in the last frame (an end lost)")
+        error = final.get("error_max_vs_truth")
+        versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
+        lines.append(f"  extensom.  {name}: L0 {final['L0_px']:.1f} px, final {reading}{versus}")
+    poisson = strain.get("poisson_ratio")
+    if poisson is not None and math.isfinite(poisson):
+        lines.append(f"  Poisson    -e_transverse / e_axial = {poisson:.3f} (last frame)")
+    return lines

@@ -108,6 +108,10 @@ class ProgressLine:
             text += f"  reconnected {self.acquisition.reconnects}x"
         if math.isfinite(result.error_rms_px):
             text += f"  error {result.error_rms_px:.3f} px"
+        readings = result.extensometers
+        if readings is not None:
+            for name, strain, ok in zip(readings.names[:2], readings.eng_strain, readings.ok):
+                text += f"  {name} {100 * strain:.3f} %" if ok else f"  {name} lost"
         self.bar.update(self.acquisition.frames, text)
 
 

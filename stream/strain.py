@@ -41,6 +41,31 @@ AXIAL, TRANSVERSE = "axial", "transverse"
 _NAME = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")
 
 
+def add_strain_arguments(parser, *, recorded=False):
+    """Add ``--strain-window --strain-measure --gauge-length --extensometer --scale`` to an argparse parser.
+
+    ``recorded``: for commands that read a recording (replay, export): the defaults are then the
+    recorded settings (None here), which ``StrainConfig.from_metadata(..., **overrides)`` fills in.
+    """
+    group = parser.add_argument_group("strain and extensometers" + (" (default: the recorded settings)"
+                                                                     if recorded else ""))
+    group.add_argument("--strain-window", type=int, default=None if recorded else DEFAULT_WINDOW, metavar="N",
+                       help="odd number of grid points a side of the strain window (pointwise least squares; "
+                            f"VSG = (N - 1) x step + subset){'' if recorded else f'; default {DEFAULT_WINDOW}'}")
+    group.add_argument("--strain-measure", choices=MEASURES, default=None if recorded else DEFAULT_MEASURE,
+                       help="engineering (small strain), green (Green-Lagrange) or true (logarithmic, Hencky)"
+                            + ("" if recorded else f"; default {DEFAULT_MEASURE}"))
+    group.add_argument("--gauge-length", metavar="L[,W]",
+                       help="virtual extensometers 'axial' (length L along y, centred on P0) and 'transverse' "
+                            "(length W along x through P0; default 0.8 x the ROI width); px, or mm with --scale")
+    group.add_argument("--extensometer", action="append", metavar="NAME=x1,y1,x2,y2",
+                       help="another virtual extensometer between two reference image positions, px "
+                            "(repeatable)")
+    group.add_argument("--scale", type=float, metavar="PX_PER_MM",
+                       help="pixels per millimetre: --gauge-length in mm, lengths also reported in mm")
+    return parser
+
+
 def parse_gauge_length(text):
     """``L`` or ``L,W`` (positive numbers) -> (L, W or None); ValueError with an example otherwise."""
     if text is None:
@@ -119,13 +144,13 @@ class StrainConfig:
             raise ValueError(f"--extensometer names must differ: {', '.join(names)}")
 
     @classmethod
-    def from_args(cls, args):
-        """From parsed ``--strain-window --strain-measure --gauge-length --extensometer --scale`` options."""
-        length = parse_gauge_length(getattr(args, "gauge_length", None))
-        return cls(window=args.strain_window, measure=args.strain_measure,
-                   gauge_length=length[0] if length else None, gauge_width=length[1] if length else None,
-                   extensometers=tuple(parse_extensometer(t) for t in (getattr(args, "extensometer", None) or ())),
-                   scale=getattr(args, "scale", None))
+    def from_args(cls, args, *, recorded_metadata=None):
+        """From options added by ``add_strain_arguments``; with ``recorded_metadata`` the options given
+        replace the recorded settings (``from_metadata``), the others stay as recorded."""
+        given = overrides_from_args(args)
+        if recorded_metadata is not None:
+            return cls.from_metadata(recorded_metadata, **given)
+        return cls(**given)
 
     def to_px(self, length):
         """A length as given (mm with ``scale``, else px) in px."""
@@ -165,19 +190,44 @@ class StrainConfig:
 
     @classmethod
     def from_metadata(cls, metadata, **overrides):
-        """The settings a recording was made with (defaults for an older recording), ``overrides`` replacing them."""
+        """The settings a recording was made with (defaults for an older recording), ``overrides`` replacing them.
+
+        The recorded extensometers are taken as placed (the ``extensometers`` key: name and ends in
+        reference px), so a replay or an export measures between the same material points whatever
+        points it tracks; a ``gauge_length``/``extensometers`` override replaces them all.
+        """
         def get(key, default):
             value = metadata.get(key, default)
             return default if value in (None, "") else value
+        placed = metadata.get("extensometers")
+        if not isinstance(placed, (list, tuple)):
+            placed = metadata.get("extensometers_given") or ()
         recorded = dict(window=int(get("strain_window", DEFAULT_WINDOW)),
                         measure=str(get("strain_measure", DEFAULT_MEASURE)),
-                        gauge_length=_float_or_none(metadata.get("gauge_length")),
-                        gauge_width=_float_or_none(metadata.get("gauge_width")),
-                        extensometers=tuple(Extensometer(str(e[0]), *(float(v) for v in e[1:5]))
-                                            for e in (metadata.get("extensometers_given") or ())),
+                        extensometers=tuple(Extensometer(str(e[0]), *(float(v) for v in e[1:5])) for e in placed),
                         scale=_float_or_none(metadata.get("scale_px_per_mm")))
-        recorded.update({k: v for k, v in overrides.items() if v is not None})
+        recorded.update(overrides)
         return cls(**recorded)
+
+
+def overrides_from_args(args):
+    """The strain settings given on the command line (a dict for ``StrainConfig``; absent ones left out).
+
+    A ``--gauge-length`` or ``--extensometer`` given replaces all the recorded extensometers.
+    """
+    given = {}
+    if getattr(args, "strain_window", None) is not None:
+        given["window"] = args.strain_window
+    if getattr(args, "strain_measure", None) is not None:
+        given["measure"] = args.strain_measure
+    if getattr(args, "scale", None) is not None:
+        given["scale"] = args.scale
+    length = parse_gauge_length(getattr(args, "gauge_length", None))
+    extra = tuple(parse_extensometer(t) for t in (getattr(args, "extensometer", None) or ()))
+    if length is not None or extra:
+        given.update(gauge_length=length[0] if length else None, gauge_width=length[1] if length else None,
+                     extensometers=extra)
+    return given
 
 
 def _float_or_none(value):
