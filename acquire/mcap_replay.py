@@ -1,4 +1,5 @@
-"""Read livedic recordings (MCAP): replay frames, read results, events and metadata, recover crashes.
+"""Read livedic recordings (MCAP): replay frames, read results, strain, extensometers, events and metadata,
+recover crashes.
 
 The format lives in ``livedic.acquire``: ``recording_schema`` (topics, schemas,
 codecs), ``mcap_io`` (MCAP records on the ``mcap`` library, read within bounds,
@@ -40,6 +41,8 @@ Examples
 ...         print(frame.index, frame.image.shape)
 >>> results = read_results("session.mcap")                       # doctest: +SKIP
 >>> results[0].u, results[0].ok                                   # doctest: +SKIP
+>>> strain = read_strain_fields("session.mcap")                  # doctest: +SKIP
+>>> samples = read_extensometer_samples("session.mcap")          # doctest: +SKIP
 >>> recording = Recording("session.mcap")                         # doctest: +SKIP
 >>> n = sum(1 for _ in recording.results()); recording.info.truncated   # doctest: +SKIP
 """
@@ -62,11 +65,13 @@ from livedic.acquire.atomic_file import AtomicFile
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.mcap_io import (MAGIC, ChunkedWriter, Damaged, RecordScan, library_name, open_chunk,
                                      parse_record, read_record, read_record_at, read_summary)
+from livedic.dic.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
 
 __all__ = ["CorruptRecording", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
-           "RecordedResults", "Recording", "RecordingError", "RecordingInfo", "RecordingSourceError",
-           "inspect_recording", "iter_results", "read_events", "read_results", "read_session", "recover"]
+           "RecordedExtensometerSample", "RecordedResults", "RecordedStrain", "Recording", "RecordingError",
+           "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results", "read_events",
+           "read_extensometer_samples", "read_results", "read_session", "read_strain_fields", "recover"]
 
 log = logging.getLogger(__name__)
 
@@ -155,6 +160,77 @@ def _recorded_results(values, publish_time_ns):
         processing_ns=values["processing_ns"], latency_ns=values["latency_ns"],
         reference_frame_index=values["reference_frame_index"], dropped_frames=values["dropped_frames"],
         publish_time_ns=publish_time_ns)
+
+
+@dataclass(frozen=True)
+class RecordedStrain:
+    """One frame's strain field as recorded on ``/dic/strain`` (``livedic.StrainField``).
+
+    Arrays have shape (N,), in the order of the frame's ``/dic/results`` points:
+    ``point_id`` uint32, ``status`` int32 (``dic.strain.StrainStatus`` codes), the
+    strains float64 (NaN where ``status`` is not 0). ``window`` is 0 when it was not
+    recorded.
+    """
+    frame_index: int
+    timestamp_ns: int
+    point_id: np.ndarray
+    exx: np.ndarray
+    eyy: np.ndarray
+    exy: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    status: np.ndarray
+    measure: str
+    window: int
+    vsg_px: float
+
+    @property
+    def ok(self):
+        return self.status == 0
+
+
+@dataclass(frozen=True)
+class RecordedExtensometerSample:
+    """One extensometer's reading in one frame, as recorded on ``/dic/extensometers``.
+
+    ``l_px``, ``eng_strain`` and ``true_strain`` are NaN where ``ok`` is False;
+    ``status`` is a ``dic.extensometer.ExtensometerStatus`` code.
+    """
+    frame_index: int
+    timestamp_ns: int
+    name: str
+    l0_px: float
+    l_px: float
+    eng_strain: float
+    true_strain: float
+    ok: bool
+    status: int
+
+
+_STRAIN_FLOATS = ("exx", "eyy", "exy", "e1", "e2")
+
+
+def _recorded_strain(message):
+    """``RecordedStrain`` from a decoded ``livedic.StrainField``; WireError when its arrays differ in length."""
+    arrays = {"point_id": np.array(message.point_id, dtype=np.uint32),
+              "status": np.array(message.status, dtype=np.int32)}
+    arrays.update({name: np.array(getattr(message, name), dtype=np.float64) for name in _STRAIN_FLOATS})
+    lengths = {name: len(array) for name, array in arrays.items()}
+    if len(set(lengths.values())) > 1:
+        raise rs.WireError("strain arrays differ in length: "
+                           + ", ".join(f"{name} {n}" for name, n in lengths.items()))
+    return RecordedStrain(frame_index=message.frame_index, timestamp_ns=message.timestamp_ns, measure=message.measure,
+                          window=message.window, vsg_px=message.vsg_px, **arrays)
+
+
+def _readings(samples):
+    """``dic.extensometer.ExtensometerReadings`` of one frame's samples, in recorded order."""
+    return ExtensometerReadings(names=tuple(s.name for s in samples),
+                                l0_px=np.array([s.l0_px for s in samples], dtype=np.float64),
+                                length_px=np.array([s.l_px for s in samples], dtype=np.float64),
+                                eng_strain=np.array([s.eng_strain for s in samples], dtype=np.float64),
+                                true_strain=np.array([s.true_strain for s in samples], dtype=np.float64),
+                                status=np.array([s.status for s in samples], dtype=np.int32))
 
 
 @dataclass(frozen=True)
@@ -458,6 +534,49 @@ class Recording:
                                        f"({bad})") from None
             yield _recorded_results(values, message.publish_time)
 
+    def strain_fields(self):
+        """Yield ``RecordedStrain`` per frame from ``/dic/strain`` (nothing for a recording without strain)."""
+        for channel, message in self.messages({rs.TOPIC_STRAIN}):
+            if self.schema_name(channel) != rs.STRAIN_FIELD_SCHEMA:
+                continue
+            try:
+                strain = _recorded_strain(rs.StrainField.FromString(message.data))
+            except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
+                raise CorruptRecording(f"{self.name} is corrupt: strain message at log time {message.log_time} "
+                                       f"({error if isinstance(error, rs.WireError) else type(error).__name__})"
+                                       ) from None
+            yield strain
+
+    def extensometer_samples(self):
+        """Yield ``RecordedExtensometerSample`` from ``/dic/extensometers``: per frame, one per extensometer."""
+        for channel, message in self.messages({rs.TOPIC_EXTENSOMETERS}):
+            if self.schema_name(channel) != rs.EXTENSOMETER_SAMPLE_SCHEMA:
+                continue
+            try:
+                sample = rs.ExtensometerSample.FromString(message.data)
+            except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
+                raise CorruptRecording(f"{self.name} is corrupt: extensometer message at log time "
+                                       f"{message.log_time} ({type(error).__name__})") from None
+            yield RecordedExtensometerSample(
+                frame_index=sample.frame_index, timestamp_ns=sample.timestamp_ns, name=sample.name,
+                l0_px=sample.l0_px, l_px=sample.l_px, eng_strain=sample.eng_strain, true_strain=sample.true_strain,
+                ok=sample.ok, status=sample.status)
+
+    def extensometer_readings(self):
+        """Yield ``(frame_index, timestamp_ns, dic.extensometer.ExtensometerReadings)`` per recorded frame.
+
+        The samples of one frame (consecutive messages with the same frame index) gathered
+        in recorded order, as ``dic.extensometer.read_extensometers`` returns them.
+        """
+        frame = []
+        for sample in self.extensometer_samples():
+            if frame and (sample.frame_index, sample.timestamp_ns) != (frame[0].frame_index, frame[0].timestamp_ns):
+                yield frame[0].frame_index, frame[0].timestamp_ns, _readings(frame)
+                frame = []
+            frame.append(sample)
+        if frame:
+            yield frame[0].frame_index, frame[0].timestamp_ns, _readings(frame)
+
     def events(self):
         """List of ``RecordedEvent`` from ``/livedic/events``."""
         out = []
@@ -503,6 +622,16 @@ def iter_results(path):
 def read_results(path):
     """List of ``RecordedResults``, one per recorded frame (see ``iter_results``)."""
     return list(iter_results(path))
+
+
+def read_strain_fields(path):
+    """List of ``RecordedStrain``, one per frame recorded with strain (empty for older recordings)."""
+    return list(Recording(path).strain_fields())
+
+
+def read_extensometer_samples(path):
+    """List of ``RecordedExtensometerSample``: per frame, one per extensometer (empty without extensometers)."""
+    return list(Recording(path).extensometer_samples())
 
 
 def read_events(path):

@@ -1,7 +1,8 @@
-"""Record a session to MCAP: raw frames, per-frame DIC results, events and session metadata.
+"""Record a session to MCAP: raw frames, per-frame DIC results, strain, extensometers, events, metadata.
 
 Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
-(``/dic/results``, ``/livedic/events``, ``/livedic/session``) are kept apart, so an
+(``/dic/results``, ``/dic/strain``, ``/dic/extensometers``, ``/livedic/events``,
+``/livedic/session``) are kept apart, so an
 indexed reader fetches the results without reading any image. Frames go into mcap's
 open chunk; results and events are serialized at once and wait in memory, to be
 written together as one data chunk (``acquire.mcap_io.ChunkedWriter``, the
@@ -132,11 +133,14 @@ class Recorder:
         Why recording stopped early (one line), None while all is well.
     frames_written, results_written, events_written : int
         Messages accepted.
+    strain_written, extensometers_written : int
+        ``write_strain`` / ``write_extensometers`` calls accepted (one per frame; the
+        extensometers of a frame are one message each).
     frames_durable, results_durable : int
         Frames, results in chunks handed to the kernel (they survive a kill of this process).
     chunks_written : int
         Chunks written so far (mcap keeps an index entry per chunk in memory until ``close``).
-    frames_dropped, results_dropped, events_dropped : int
+    frames_dropped, results_dropped, events_dropped, strain_dropped, extensometers_dropped : int
         Writes refused after a stop or close.
     bytes_written : int
         File size handed to the kernel so far.
@@ -166,6 +170,8 @@ class Recorder:
         self.error = None
         self.frames_written = self.results_written = self.events_written = 0
         self.frames_dropped = self.results_dropped = self.events_dropped = 0
+        self.strain_written = self.extensometers_written = 0
+        self.strain_dropped = self.extensometers_dropped = 0
         self.bytes_written = 0
         self._on_error = on_error
         self._flush_interval_s = float(flush_interval_s)
@@ -206,6 +212,10 @@ class Recorder:
                                                  rs.schema_data(rs.FRAME_RESULTS_SCHEMA))
             self._ch_events = self._cw.register(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA,
                                                 rs.schema_data(rs.EVENT_SCHEMA))
+            self._ch_strain = self._cw.register(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA,
+                                                rs.schema_data(rs.STRAIN_FIELD_SCHEMA))
+            self._ch_extensometers = self._cw.register(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA,
+                                                       rs.schema_data(rs.EXTENSOMETER_SAMPLE_SCHEMA))
             self._ch_session = self._cw.register(rs.TOPIC_SESSION, rs.SESSION_SCHEMA,
                                                  rs.schema_data(rs.SESSION_SCHEMA))
             self._cw.writer.add_metadata(rs.METADATA_NAME, strings)
@@ -366,6 +376,108 @@ class Recorder:
         return self._write("results", "write_results", timestamp_ns, lambda: self._cw.add(
             "data", self._ch_results, timestamp_ns, payload, publish_time=time.time_ns(),
             sequence=frame_index & 0xFFFFFFFF, count_as="results"))
+
+    def write_strain(self, frame_index, timestamp_ns, strain_field, *, window=None):
+        """Record one frame's strain field on ``/dic/strain`` (``livedic.StrainField``).
+
+        Parameters
+        ----------
+        frame_index : int
+        timestamp_ns : int
+            The frame's timestamp; also the message log time.
+        strain_field : dic.strain.StrainField
+            Its ``exx, eyy, exy, e1, e2`` (float) and ``status`` (``StrainStatus`` codes), shape
+            (N,), one entry per point of the frame's ``write_results`` call, in the same
+            order: point ids are 0..N-1 as there; ``measure`` and ``vsg_px`` are recorded too.
+        window : int, optional
+            Points a side of the strain window (``StrainWindow.window``); taken from
+            ``strain_field.window`` when it has one, else 0 ("not given").
+
+        Returns
+        -------
+        bool
+            True if accepted (counted in ``strain_written``), False if dropped (counted in
+            ``strain_dropped``) because recording has stopped, or stopped on this write.
+
+        Raises
+        ------
+        ValueError
+            Arrays of different lengths or not 1-D, a status out of the 32-bit range, a bad window.
+        """
+        if self._refused("strain"):
+            return False
+        timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
+        frame_index = _frame_index(frame_index, "write_strain")
+        window = window if window is not None else getattr(strain_field, "window", None)
+        window = 0 if window is None else int(window)
+        if not 0 <= window < 1 << 32:
+            raise ValueError(f"write_strain: window must be a number of points >= 0, got {window}")
+        values = {"frame_index": frame_index, "timestamp_ns": timestamp_ns,
+                  "measure": str(strain_field.measure), "window": window, "vsg_px": float(strain_field.vsg_px)}
+        length = None
+        for name in rs.STRAIN_ARRAYS[1:]:
+            array = _as_1d(getattr(strain_field, name), name, "write_strain")
+            if length is None:
+                length = array.size
+            elif array.size != length:
+                raise ValueError(f"write_strain: {name} has {array.size} entries but exx has {length}")
+            values[name] = _convert(array, name, "write_strain", rs.STRAIN_DTYPES)
+        values["point_id"] = np.arange(length, dtype=np.uint32)
+        payload = rs.encode_strain(values)
+        return self._write("strain", "write_strain", timestamp_ns, lambda: self._cw.add(
+            "data", self._ch_strain, timestamp_ns, payload, publish_time=time.time_ns(),
+            sequence=frame_index & 0xFFFFFFFF, count_as="strain"))
+
+    def write_extensometers(self, frame_index, timestamp_ns, readings):
+        """Record one frame's extensometer readings on ``/dic/extensometers``: one message each.
+
+        Parameters
+        ----------
+        frame_index : int
+        timestamp_ns : int
+            The frame's timestamp; also the messages' log time.
+        readings : dic.extensometer.ExtensometerReadings
+            ``names`` and, per extensometer, ``l0_px``, ``length_px``, ``eng_strain``,
+            ``true_strain`` and ``status`` (``ExtensometerStatus`` codes; ok where 0). A
+            ``livedic.ExtensometerSample`` is written for each, in that order; none when
+            there are no extensometers.
+
+        Returns
+        -------
+        bool
+            True if accepted (counted in ``extensometers_written``, once per call), False if
+            dropped (counted in ``extensometers_dropped``) because recording has stopped.
+
+        Raises
+        ------
+        ValueError
+            Arrays whose lengths differ from the number of names, a status out of the 32-bit range.
+        """
+        if self._refused("extensometers"):
+            return False
+        timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
+        frame_index = _frame_index(frame_index, "write_extensometers")
+        names = [str(name) for name in readings.names]
+        columns = {}
+        for name in ("l0_px", "length_px", "eng_strain", "true_strain", "status"):
+            array = _as_1d(getattr(readings, name), name, "write_extensometers")
+            if array.size != len(names):
+                raise ValueError(f"write_extensometers: {name} has {array.size} entries for {len(names)} names")
+            columns[name] = _convert(array, name, "write_extensometers", {"status": np.dtype(np.int32)})
+        ok = columns["status"] == 0
+        payloads = [rs.ExtensometerSample(
+            frame_index=frame_index, timestamp_ns=timestamp_ns, name=name, l0_px=columns["l0_px"][i],
+            l_px=columns["length_px"][i], eng_strain=columns["eng_strain"][i],
+            true_strain=columns["true_strain"][i], ok=bool(ok[i]), status=int(columns["status"][i])
+        ).SerializeToString() for i, name in enumerate(names)]
+
+        def add():
+            publish_time = time.time_ns()
+            for payload in payloads:
+                self._cw.add("data", self._ch_extensometers, timestamp_ns, payload, publish_time=publish_time,
+                             sequence=frame_index & 0xFFFFFFFF, count_as="extensometer")
+
+        return self._write("extensometers", "write_extensometers", timestamp_ns, add)
 
     def write_event(self, kind, message, *, level="info", timestamp_ns=None):
         """Record a note on ``/livedic/events`` (``livedic.Event``).
@@ -580,20 +692,27 @@ def _log_time(value, name):
     return value
 
 
-def _as_1d(value, name):
+def _frame_index(value, during):
+    value = int(value)
+    if not 0 <= value < _U64:
+        raise ValueError(f"{during}: frame_index must be >= 0, got {value}")
+    return value
+
+
+def _as_1d(value, name, during="write_results"):
     array = np.asarray(value)
     if array.ndim != 1:
-        raise ValueError(f"write_results: {name} must be 1-D, got shape {array.shape}")
+        raise ValueError(f"{during}: {name} must be 1-D, got shape {array.shape}")
     return array
 
 
-def _convert(array, name):
-    dtype = rs.RESULT_DTYPES.get(name, np.dtype(np.float64))
+def _convert(array, name, during="write_results", dtypes=rs.RESULT_DTYPES):
+    dtype = dtypes.get(name, np.dtype(np.float64))
     name = "point_ids" if name == "point_id" else name          # the argument's name, for messages
     if dtype == np.uint32 and array.dtype != np.uint32:
         if array.size and (array.dtype.kind not in "iub" or array.min() < 0 or array.max() >= 1 << 32):
-            raise ValueError(f"write_results: {name} must be integers in [0, 2**32)")
+            raise ValueError(f"{during}: {name} must be integers in [0, 2**32)")
     elif dtype == np.int32 and array.dtype != np.int32:
         if array.size and (array.dtype.kind not in "iub" or array.min() < -(1 << 31) or array.max() >= 1 << 31):
-            raise ValueError(f"write_results: {name} must be 32-bit integers")
+            raise ValueError(f"{during}: {name} must be 32-bit integers")
     return array.astype(dtype, copy=False)

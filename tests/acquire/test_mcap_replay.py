@@ -15,7 +15,8 @@ from livedic.acquire.base import Frame, SourceError
 from livedic.acquire.mcap_io import ChunkedWriter
 from livedic.acquire.mcap_replay import (CorruptRecording, McapSource, NoSessionMetadata, NotLivedic, NotMcap,
                                          Recording, RecordingError, RecordingSourceError, inspect_recording,
-                                         iter_results, read_events, read_results, read_session, recover)
+                                         iter_results, read_events, read_extensometer_samples, read_results,
+                                         read_session, read_strain_fields, recover)
 from livedic.dic.result import Measurement
 from livedic.stream.recorder import Recorder
 
@@ -30,8 +31,12 @@ def _hang_guard():
     faulthandler.cancel_dump_traceback_later()
 
 
-def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20, compression=None):
+def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20, compression=None,
+            with_strain=False):
+    from livedic.dic.extensometer import ExtensometerReadings
+    from livedic.dic.strain import strain_field, strain_window
     rng = np.random.default_rng(7)
+    windows = strain_window(np.array([[x, y] for y in range(3) for x in range(3)], float), window=3, step=1.0)
     images = [rng.integers(0, 200, size=shape, dtype=dtype) for _ in range(n)]
     with Recorder(path, {"source_uri": "synthetic://", "points": [[1, 2]]}, chunk_bytes=chunk_bytes,
                   compression=compression) as rec:
@@ -39,6 +44,12 @@ def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_b
             rec.write_frame(Frame(i, T0 + i * dt_ns, image, "Mono8" if dtype == np.uint8 else "Mono16"))
             rec.write_results(i, T0 + i * dt_ns, [1, 2], [3.0, 4.0], [5.0, 6.0], [0.1 * i, 0.0], [0.0, -0.1 * i],
                               [0.99, 0.5], [True, False])
+            if with_strain:
+                rec.write_strain(i, T0 + i * dt_ns, strain_field(windows, np.full(9, 0.1 * i), np.zeros(9),
+                                                                 np.ones(9, bool)))
+                rec.write_extensometers(i, T0 + i * dt_ns, ExtensometerReadings(
+                    ("axial", "side"), np.array([10.0, 5.0]), np.array([10.0 + i, np.nan]), np.array([0.1 * i, np.nan]),
+                    np.array([np.log1p(0.1 * i), np.nan]), np.array([0, 1], np.int32)))
         rec.write_event("recording_stopped", "end of test")
     return images
 
@@ -179,7 +190,9 @@ def test_recover_rewrites_a_complete_indexed_file(tmp_path, recording):
     path, images = recording
     cut, fixed = tmp_path / "cut.mcap", tmp_path / "fixed.mcap"
     data = path.read_bytes()
-    cut.write_bytes(data[:int(len(data) * 0.8)])
+    # 80 % into the data section (the footer's summary_start ends it), wherever the summary's size puts it
+    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 4 - 8 - 8)[0]
+    cut.write_bytes(data[:int(summary_start * 0.8)])
     expected = [f.index for f in McapSource(cut)]
     summary = recover(cut, fixed)
     assert summary["truncated"] and summary["frames"] == len(expected) and summary["dst"] == str(fixed)
@@ -400,7 +413,8 @@ def _alarm(signum, frame):
 def _exercise(path, tmp_dir):
     """Every public reader on ``path``; only RecordingError may come out."""
     for call in (lambda: list(McapSource(path)), lambda: read_results(path), lambda: read_events(path),
-                 lambda: read_session(path), lambda: inspect_recording(path),
+                 lambda: read_session(path), lambda: inspect_recording(path), lambda: read_strain_fields(path),
+                 lambda: read_extensometer_samples(path),
                  lambda: recover(path, tmp_dir / "fuzz_out.mcap", overwrite=True)):
         try:
             call()
@@ -414,7 +428,7 @@ def fuzz_bases(tmp_path_factory):
     variants = []
     for compression in (None, "lz4"):
         complete = base / f"complete-{compression}.mcap"
-        _record(complete, n=3, shape=(6, 8), chunk_bytes=256, compression=compression)
+        _record(complete, n=3, shape=(6, 8), chunk_bytes=256, compression=compression, with_strain=True)
         data = complete.read_bytes()
         variants += [data, data[:int(len(data) * 0.7)]]      # indexed and truncated variants
     return base, variants
