@@ -18,7 +18,7 @@ Extensometers:
 ``--gauge-length L[,W]``
     ``axial``: length L along y (image rows, the pulling axis of the simulator),
     centred on P0; ``transverse``: length W along x through P0 (default 0.8 x
-    the ROI width).
+    the ROI width, shortened if needed to keep its ends on the tracked points).
 ``--extensometer NAME=x1,y1,x2,y2``
     any other, between two reference image positions in px (repeatable).
 
@@ -156,13 +156,22 @@ class StrainConfig:
         """A length as given (mm with ``scale``, else px) in px."""
         return length * self.scale if self.scale else length
 
-    def resolve_extensometers(self, p0, roi):
-        """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others."""
+    def resolve_extensometers(self, p0, roi, x_range=None):
+        """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others.
+
+        The default transverse length is 0.8 x the ROI width, shortened where needed to keep both
+        ends within ``x_range`` (the tracked points' x extent), P0 not being at the ROI's centre.
+        """
         placed = []
         if self.gauge_length is not None:
             x0, y0 = (float(v) for v in p0)
             half = 0.5 * self.to_px(self.gauge_length)
-            width = self.to_px(self.gauge_width) if self.gauge_width is not None else TRANSVERSE_FRACTION * roi[2]
+            if self.gauge_width is not None:
+                width = self.to_px(self.gauge_width)
+            else:
+                width = TRANSVERSE_FRACTION * roi[2]
+                if x_range is not None:
+                    width = min(width, 2.0 * min(x0 - x_range[0], x_range[1] - x0))
             placed.append(Extensometer(AXIAL, x0, y0 - half, x0, y0 + half))
             placed.append(Extensometer(TRANSVERSE, x0 - 0.5 * width, y0, x0 + 0.5 * width, y0))
         return tuple(placed) + self.extensometers
@@ -176,7 +185,9 @@ class StrainConfig:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         windows = strain_window(points, window=self.window, step=step, subset=subset)
         try:
-            extensometers = place_extensometers(self.resolve_extensometers(p0, roi), points, step=windows.step)
+            x_range = (points[:, 0].min(), points[:, 0].max()) if len(points) else None
+            extensometers = place_extensometers(self.resolve_extensometers(p0, roi, x_range), points,
+                                                step=windows.step)
         except ValueError as error:
             unit = f" ({self.scale:g} px/mm)" if self.scale else ""
             raise ValueError(f"{error}{unit}") from None

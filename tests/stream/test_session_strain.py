@@ -1,0 +1,158 @@
+"""Strain and virtual extensometers in a live session: options, checks, readings, replay.
+
+Exact extensometer strain comes from the simulator's truth at the two ends
+(``StrainStage.exact_readings``); the accuracy bound is the issue's: 50 microstrain
++ 0.5 % of the reading, here on a short, small test (tracking 8-bit images
+with noise sigma = 1), as a length error at the small gauge lengths these images hold.
+"""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from livedic.dic.extensometer import ExtensometerStatus
+from livedic.stream.config import SessionConfig, ViewerConfig
+from livedic.stream.session import Session
+from livedic.stream.strain import StrainConfig, parse_extensometer, parse_gauge_length
+
+SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
+
+
+def run_session(strain, record=None, frames=None):
+    config = SessionConfig(source=SOURCE, viewer=ViewerConfig("none"), record=record, strain=strain, warm_up=False,
+                           frames=frames)
+    readings, exact = [], []
+    with Session(config) as session:
+        session.prepare()
+        stage = session.strain
+
+        def keep(result, stats):
+            readings.append(result.extensometers)
+            exact.append(stage.exact_readings(result.frame.metadata["truth"]))
+        session._extra_sinks.append(keep)
+        session.start()
+        session.run()
+    return session, readings, exact
+
+
+@pytest.fixture(scope="module")
+def gauge_session():
+    return run_session(StrainConfig(gauge_length=200))
+
+
+def test_axial_and_transverse_extensometers_read_the_exact_strain(gauge_session):
+    session, readings, exact = gauge_session
+    assert session.strain.extensometers[0].name == "axial"
+    assert session.strain.extensometers[0].length_px == pytest.approx(200.0)
+    axial = np.array([r.eng_strain[0] for r in readings])
+    exact_axial = np.array([e[0] for e in exact])
+    assert all(r.ok.all() for r in readings)
+    assert exact_axial[-1] > 0.05                        # the test went well into plasticity
+    # The issue's bound is 50 microstrain + 0.5 % at L >= 400 px, i.e. 0.02 px of length: at L = 200 px
+    # (all this small image holds) the same 0.02 px is 100 microstrain. `livedic bench strain` checks L = 400.
+    assert np.all(np.abs(axial - exact_axial) <= 100e-6 + 0.005 * np.abs(exact_axial))
+    transverse = np.array([r.eng_strain[1] for r in readings])
+    assert np.all(np.diff(transverse[3:]) < 0)          # the coupon gets narrower as it is pulled
+    true_axial = np.array([r.true_strain[0] for r in readings])
+    np.testing.assert_allclose(true_axial, np.log1p(axial), rtol=0, atol=1e-12)
+
+
+def test_summary_reports_the_final_readings_and_the_strain_cost(gauge_session):
+    session, readings, _ = gauge_session
+    strain = session.summary()["strain"]
+    assert strain["extensometers"]["axial"]["eng_strain"] == pytest.approx(readings[-1].eng_strain[0])
+    assert strain["extensometers"]["axial"]["error_max_vs_truth"] < 1e-3
+    assert strain["vsg_px"] == (5 - 1) * session.reference.step + 21
+    assert np.isfinite(strain["strain_ms_p50"])
+    text = session.summary_text()
+    assert "extensom.  axial: L0 200.0 px, final" in text
+    json.dumps(session.summary(), allow_nan=True)         # the --summary-json content stays serialisable
+
+
+def test_the_strain_field_is_attached_to_every_frame_and_stated(gauge_session):
+    session, _, _ = gauge_session
+    last = session.strain.last_strain
+    assert last.eyy.shape == (len(session.points),)
+    ok = last.ok
+    assert ok.mean() > 0.95
+    assert np.all(np.isnan(last.eyy[~ok]))                 # never 0 where there is no strain
+    assert np.nanmedian(last.eyy) > 0.03                  # the gauge section is stretched
+
+
+def test_a_lost_end_gives_nan_with_a_reason_not_the_last_value(gauge_session):
+    session, _, _ = gauge_session
+    stage = session.strain
+    n = len(stage.points)
+    u, v, ok = np.zeros(n), np.zeros(n), np.ones(n, dtype=bool)
+    _, before = stage.compute(u, v, ok)
+    assert before.ok.all() and np.all(before.eng_strain == 0.0)
+    top_end = stage.placed.ends[0]
+    near = np.hypot(*(stage.points - top_end).T) < 3 * stage.placed.step
+    ok[near] = False
+    u[near] = v[near] = np.nan
+    _, after = stage.compute(u, v, ok)
+    assert after.status[0] == ExtensometerStatus.END_LOST
+    assert np.isnan(after.eng_strain[0]) and np.isnan(after.length_px[0])
+    assert after.ok[1]                                     # the transverse one is unaffected
+
+
+def test_gauge_length_in_mm_with_a_scale():
+    config = StrainConfig(gauge_length=20.0, scale=10.0)
+    extensometers = config.resolve_extensometers((100.0, 200.0), (0, 0, 150, 400))
+    assert extensometers[0].length_px == pytest.approx(200.0)
+    assert extensometers[1].length_px == pytest.approx(0.8 * 150)
+
+
+def test_option_parsing():
+    assert parse_gauge_length("400") == (400.0, None)
+    assert parse_gauge_length("400,120") == (400.0, 120.0)
+    e = parse_extensometer("upper=1,2,3,4.5")
+    assert (e.name, e.x1, e.y1, e.x2, e.y2) == ("upper", 1.0, 2.0, 3.0, 4.5)
+    for bad in ("0", "-3", "a,b", "1,2,3"):
+        with pytest.raises(ValueError, match="--gauge-length"):
+            parse_gauge_length(bad)
+    for bad in ("nameonly", "x=1,2,3", "x=1,2,1,2", "bad name=1,2,3,4"):
+        with pytest.raises(ValueError, match="--extensometer"):
+            parse_extensometer(bad)
+    with pytest.raises(ValueError, match="--strain-window"):
+        StrainConfig(window=4)
+    with pytest.raises(ValueError, match="that name is --gauge-length's"):
+        StrainConfig(gauge_length=100, extensometers=(parse_extensometer("axial=1,2,3,4"),))
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--gauge-length", "5000"], "extensometer axial: its end"),
+    (["--gauge-length", "abc"], "--gauge-length 'abc'"),
+    (["--extensometer", "e1=1,2"], "--extensometer 'e1=1,2'"),
+    (["--extensometer", "far=5,5,6,150"], "extensometer far: its end (5, 5) px lies outside the tracked points"),
+    (["--strain-window", "4"], "--strain-window must be an odd number"),
+    (["--scale", "-2", "--gauge-length", "10"], "--scale must be a positive number"),
+])
+def test_bad_strain_options_are_one_line_exit_2_and_leave_no_file(tmp_path, extra, message):
+    record = tmp_path / "s.mcap"
+    argv = ["run", "--viewer", "none", "--record", str(record), "--progress", "off",
+            "--source", "synthetic:tensile?size=192x256&frames=3&fps=1000", *extra]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=120)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
+    assert done.returncode == 2, done.stderr
+    assert len(errors) == 1 and message in errors[0], done.stderr
+    assert not record.exists()
+
+
+def test_replay_recomputes_the_same_extensometers(tmp_path):
+    from livedic.stream.replay import replay
+    record = str(tmp_path / "session.mcap")
+    session, readings, _ = run_session(StrainConfig(gauge_length=200, gauge_width=60), record=record, frames=8)
+    report = replay(record)
+    live = session.summary()["strain"]["extensometers"]
+    again = report.strain["extensometers"]
+    assert set(again) == {"axial", "transverse"}
+    for name in again:
+        assert again[name]["L0_px"] == pytest.approx(live[name]["L0_px"], abs=1e-12)
+        assert again[name]["eng_strain"] == pytest.approx(live[name]["eng_strain"], abs=1e-6)
+    longer = replay(record, strain={"gauge_length": 240.0, "gauge_width": None, "extensometers": ()})
+    assert longer.strain["extensometers"]["axial"]["L0_px"] == pytest.approx(240.0)
