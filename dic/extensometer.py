@@ -30,7 +30,7 @@ from livedic.dic.neighbours import typical_spacing
 # An end's surface is fitted over the points within this many grid steps (about 20 points).
 END_REACH = 2.5
 END_MIN_POINTS = 10            # 6 coefficients, with some to spare
-END_MIN_SPREAD = 0.25          # smaller eigenvalue of the points' position covariance, in step^2
+END_MIN_SPREAD = 0.2           # smaller eigenvalue of the points' position covariance, in step^2
 # Below this axial strain the ratio -e_trans / e_axial is noise over noise: NaN.
 POISSON_MIN_AXIAL = 5e-4
 

@@ -49,8 +49,8 @@ DEFAULT_WINDOW = 5
 MIN_VALID_FRACTION = 0.5
 MIN_POINTS = 6
 # The valid points must spread in both directions: the smaller eigenvalue of their
-# position covariance at least this times step^2 (a 3x3 corner block has 2/3).
-MIN_SPREAD = 0.25
+# position covariance at least this times step^2 (two rows have 0.25, a 3x3 corner block 2/3).
+MIN_SPREAD = 0.2
 
 
 class StrainStatus(enum.IntEnum):
