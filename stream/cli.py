@@ -19,6 +19,7 @@ from livedic.stream.config import UsageError, search_method, subpixel_method
 from livedic.stream.points import read_points_table
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
+from livedic.stream.strain import add_strain_arguments
 
 EXIT_BAD_INPUT = 2
 EXIT_SOURCE_LOST = 3
@@ -176,12 +177,17 @@ def build_parser(extensions=()):
     add_replay_arguments(replay)
     replay.set_defaults(handler=replay_command)
 
-    export = commands.add_parser("export", help="write a recording's results as CSV (P0 trace, fields, events)",
-                                 description="Write DIR/p0_trace.csv, DIR/fields.csv, DIR/events.csv and "
-                                             "DIR/session.json from a recording (complete or truncated).")
+    export = commands.add_parser("export", help="write a recording's results as CSV (P0 trace, fields, strain, "
+                                                "extensometers, events)",
+                                 description="Write DIR/p0_trace.csv, DIR/fields.csv (with the strain exx,eyy,exy), "
+                                             "DIR/events.csv, DIR/session.json, DIR/extensometers.csv and "
+                                             "DIR/extensometers.png from a recording (complete or truncated). "
+                                             "Strain and extensometers are recomputed from the recorded "
+                                             "displacements with the recorded settings, or the options below.")
     export.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
+    add_strain_arguments(export, recorded=True)
     export.set_defaults(handler=_cmd_export)
 
     for extend in extensions:

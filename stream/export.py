@@ -1,6 +1,6 @@
 """``livedic export``: a recording's results as CSV files anyone can open.
 
-``livedic export FILE.mcap -o DIR`` writes four files into DIR (created if missing):
+``livedic export FILE.mcap -o DIR`` writes six files into DIR (created if missing):
 
 ``p0_trace.csv``
     The traced point P0 over time, one row per frame with results:
@@ -11,7 +11,14 @@
     Every frame, every point, long format:
     ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then the extras the recording holds
     (``status``, ``ux``, ``uy``, ``vx``, ``vy``, ``iterations``) - the same columns as
-    ``livedic replay``, so the two files can be compared line by line.
+    ``livedic replay``, so the two files can be compared line by line - then the strain
+    ``exx,eyy,exy`` (NaN where a point has none; see below).
+``extensometers.csv``
+    ``frame,time_s,name,L0_px,L_px,eng_strain,true_strain,ok``: one row per frame and
+    virtual extensometer (``ok`` 1/0; NaN where not ok), ``time_s`` as in ``p0_trace.csv``.
+    Only the header when the recording has no extensometers (a note says so).
+``extensometers.png``
+    Engineering strain of each extensometer against time, gaps where an end was lost.
 ``events.csv``
     ``time,kind,level,message,timestamp_ns``: ``time`` in seconds on the same clock as
     ``p0_trace.csv`` (``timestamp_ns`` is the raw frame clock).
@@ -20,11 +27,20 @@
     ``livedic.export`` entry saying where the files came from and whether the
     recording was complete.
 
+Strain and extensometers are *recomputed* from the recorded displacements with the
+settings the recording was made with (``stream.strain.StrainConfig.from_metadata``: the
+strain window and measure, the extensometers as placed), on the recorded reference
+points (P0 first), one frame after another: the same ``StrainStage`` as the live
+session, so the strain of a recording is computed one way everywhere. The options
+``--strain-window --strain-measure --gauge-length --extensometer --scale`` replace the
+recorded settings (offline re-analysis; ``--gauge-length``/``--extensometer`` replace
+all the recorded extensometers).
+
 Numbers are written at full precision (the shortest text that reads back as the
 same float64), NaN as ``nan``, ``ok`` as 1/0: a value read back from these files is
 bit-for-bit the recorded one.
 
-Every file is written under a temporary name and all four are renamed into place
+Every file is written under a temporary name and all six are renamed into place
 only when all are complete, so an error or Ctrl-C never leaves a half-written
 file. Existing files are not replaced unless ``--overwrite``. A truncated recording
 (crash, kill, disk full) exports what can be recovered and says so in a note; the
@@ -53,7 +69,10 @@ LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "znc
 EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
 P0_COLUMNS = ("frame", "timestamp_ns", "time_s", "x", "y", "u", "v", "zncc", "ok")
 EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
-EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json")
+STRAIN_COLUMNS = ("exx", "eyy", "exy")
+EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok")
+EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
+BINARY_FILES = ("extensometers.png",)
 EXPORT_KEY = "livedic.export"
 
 _READER_LOGGER = "livedic.acquire.mcap_replay"
@@ -185,25 +204,138 @@ def say(message):
     print(f"livedic: {message}", file=sys.stderr, flush=True)
 
 
+# ----------------------------------------------------------------------------- strain
+
+def reference_geometry(metadata, first, p0_id):
+    """(points (N, 2), p0 (x, y), roi, step, subset) of a recording, as the session placed its strain stage.
+
+    ``first`` is the first ``RecordedResults``: its ``x, y`` are the reference points as the
+    tracker used them (pixel centres), P0 the point ``p0_id`` (point 0 by convention). The
+    ROI is the recorded one, or the points' extent when the session had none ("full image");
+    the step the recorded grid step (None: the points' typical spacing).
+    """
+    points = np.column_stack([first.x, first.y]).astype(np.float64)
+    where = np.flatnonzero(first.point_id == p0_id)
+    p0 = tuple(points[int(where[0]) if where.size else 0])
+    roi = metadata.get("roi")
+    if isinstance(roi, (list, tuple)) and len(roi) == 4 and all(isinstance(v, (int, float)) for v in roi):
+        roi = tuple(float(v) for v in roi)
+    elif len(points):
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        roi = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
+    else:
+        roi = (0.0, 0.0, 0.0, 0.0)
+    step = None
+    for key in ("grid_step", "step"):
+        value = metadata.get(key)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
+            step = float(value)
+            break
+    subset = metadata.get("subset")
+    subset = int(subset) if isinstance(subset, int) and not isinstance(subset, bool) and subset > 0 else 21
+    return points, p0, roi, step, subset
+
+
+def strain_stage(metadata, first, p0_id, overrides=None):
+    """The ``stream.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
+
+    Raises
+    ------
+    ValueError
+        A bad setting, or an extensometer end away from the tracked points (one line).
+    """
+    from livedic.stream.strain import StrainConfig
+    config = StrainConfig.from_metadata(metadata, **(overrides or {}))
+    points, p0, roi, step, subset = reference_geometry(metadata, first, p0_id)
+    return config.place(points, p0=p0, roi=roi, step=step, subset=subset)
+
+
+def extensometer_columns(frame_index, time_s, readings):
+    """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer)."""
+    return {"frame": int(frame_index), "time_s": float(time_s),
+            "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
+            "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
+            "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
+
+
+def _csv_cell(text):
+    """``text`` as one CSV cell (quoted only where CSV needs it)."""
+    text = str(text)
+    if any(c in text for c in ',"\n\r'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def _lost_readings(placed):
+    """Readings of ``placed`` extensometers for a frame whose points differ from the reference's: none ok."""
+    from livedic.dic.extensometer import ExtensometerReadings, ExtensometerStatus
+    n = len(placed.names)
+    nan = np.full(n, np.nan)
+    l0 = np.array([e.length_px for e in placed.extensometers], dtype=np.float64)
+    return ExtensometerReadings(names=placed.names, l0_px=l0, length_px=nan, eng_strain=nan.copy(),
+                                true_strain=nan.copy(),
+                                status=np.full(n, int(ExtensometerStatus.END_LOST), dtype=np.int32))
+
+
+def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=None, empty_note=""):
+    """Write ``extensometers.png`` to ``handle``: engineering strain (%) against time, one line each.
+
+    ``strains`` is (frames, extensometers), NaN where not ok: the line has a gap there
+    (points drawn too, so a reading between two gaps still shows).
+    """
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(8, 4.5), dpi=100, layout="constrained")
+    axes = figure.add_subplot()
+    times = np.asarray(times, dtype=np.float64)
+    strains = np.asarray(strains, dtype=np.float64).reshape(len(times), len(names))
+    for k, name in enumerate(names):
+        length = f"L0 {l0_px[k]:.0f} px" + (f" = {l0_px[k] / scale:.2f} mm" if scale else "")
+        axes.plot(times, 100.0 * strains[:, k], marker=".", markersize=3, linewidth=1.2, label=f"{name} ({length})")
+    axes.set_xlabel("time since the reference frame (s)")
+    axes.set_ylabel("engineering strain (L - L0) / L0 (%)")
+    axes.set_title(title, fontsize=10)
+    axes.grid(True, alpha=0.3)
+    axes.axhline(0.0, color="0.5", linewidth=0.6)
+    if names:
+        gaps = "gaps: no reading (an end lost its points)" if np.isnan(strains).any() else None
+        axes.legend(loc="best", fontsize=9, title=gaps, title_fontsize=8)
+    else:
+        axes.text(0.5, 0.5, empty_note, ha="center", va="center", transform=axes.transAxes, fontsize=10)
+    if len(times) == 0 or not names:
+        axes.set_xlim(0, 1)
+    figure.savefig(handle, format="png")
+
+
 # ----------------------------------------------------------------------------- export
 
-def export_recording(path, directory, *, overwrite=False):
+def export_recording(path, directory, *, overwrite=False, strain=None):
     """Write ``EXPORT_FILES`` for recording ``path`` into ``directory`` (see module notes).
+
+    Parameters
+    ----------
+    path, directory : str or os.PathLike
+    overwrite : bool
+    strain : dict, optional
+        Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
 
     Returns
     -------
     dict
         ``directory``, ``files`` (paths), ``frames`` (frames with results),
         ``points`` (points in the first frame), ``events``, ``p0_id``, ``p0_rows``,
-        ``truncated``, ``notes`` (list of lines).
+        ``truncated``, ``notes`` (list of lines), ``extensometers`` (names),
+        ``strain`` (one line: window, VSG, measure, extensometers; "" without results).
 
     Raises
     ------
     ValueError
-        ``directory`` is a file, a target exists without ``overwrite``, or the
-        recording is missing, not MCAP, not livedic, or corrupt (``RecordingError``).
+        ``directory`` is a file, a target exists without ``overwrite``, a strain setting is
+        bad or an extensometer lies off the points, or the recording is missing, not MCAP,
+        not livedic, or corrupt (``RecordingError``).
     """
     from livedic.acquire.mcap_replay import Recording
+    from livedic.stream.strain import StrainConfig
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
@@ -218,25 +350,33 @@ def export_recording(path, directory, *, overwrite=False):
         if session_note:
             notes.append(session_note)
         p0_id, p0_how = p0_point_id(metadata)
+        config = StrainConfig.from_metadata(metadata, **(strain or {}))   # bad settings: before DIR is made
+        results = recording.results()
+        first = next(results, None)
+        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
         created = not os.path.isdir(directory)
         os.makedirs(directory, exist_ok=True)
         staged = {}
         try:
             for name, target in targets.items():
-                staged[name] = StagedFile(target)
+                staged[name] = StagedFile(target, binary=name in BINARY_FILES)
             fields, trace = staged["fields.csv"], staged["p0_trace.csv"]
+            extensometers = staged["extensometers.csv"]
             fields_header = None
             trace.write(",".join(P0_COLUMNS) + "\n")
+            extensometers.write(",".join(EXTENSOMETER_COLUMNS) + "\n")
             frames = p0_rows = points = 0
-            p0_missing = 0
+            p0_missing = other_points = 0
             t0 = None
             extras_seen = None
-            for result in recording.results():
+            times, eng = [], []
+            for result in _chain(first, results):
                 extras = {name: getattr(result, name) for name in EXTRA_COLUMNS
                           if getattr(result, name) is not None and len(getattr(result, name)) == len(result.u)}
                 if fields_header is None:
                     extras_seen = [name for name in EXTRA_COLUMNS if name in extras]
-                    fields_header = list(LEADING_COLUMNS) + extras_seen
+                    fields_header = list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)
                     fields.write(",".join(fields_header) + "\n")
                     points = len(result.u)
                 n = len(result.u)
@@ -245,15 +385,27 @@ def export_recording(path, directory, *, overwrite=False):
                 extras = {name: extras[name] for name in extras_seen}
                 columns = result_columns(result.frame_index, result.timestamp_ns, result.point_id, result.x,
                                          result.y, result.u, result.v, result.zncc, result.ok, extras)
+                if np.array_equal(result.point_id, first.point_id):
+                    field, readings = stage.compute(result.u, result.v, result.ok)
+                    columns.update(exx=field.exx, eyy=field.eyy, exy=field.exy)
+                else:                             # not the reference's points: no strain to speak of
+                    other_points += 1
+                    readings = _lost_readings(stage.placed)
+                    columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
                 fields.write(csv_rows(columns, n))
                 if t0 is None:
                     t0 = int(result.timestamp_ns)
+                time_s = (int(result.timestamp_ns) - t0) / 1e9
+                extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
+                                             len(readings.names)))
+                times.append(time_s)
+                eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
                 where = np.flatnonzero(result.point_id == p0_id)
                 if where.size:
                     k = int(where[0])
                     trace.write(csv_rows({
                         "frame": int(result.frame_index), "timestamp_ns": int(result.timestamp_ns),
-                        "time_s": (int(result.timestamp_ns) - t0) / 1e9, "x": float(result.x[k]),
+                        "time_s": time_s, "x": float(result.x[k]),
                         "y": float(result.y[k]), "u": float(result.u[k]), "v": float(result.v[k]),
                         "zncc": float(result.zncc[k]), "ok": bool(result.ok[k])}, 1))
                     p0_rows += 1
@@ -261,7 +413,7 @@ def export_recording(path, directory, *, overwrite=False):
                     p0_missing += 1
                 frames += 1
             if fields_header is None:
-                fields.write(",".join(LEADING_COLUMNS) + "\n")
+                fields.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
             events = recording.events()
             if t0 is None and events:
                 t0 = min(event.timestamp_ns for event in events)
@@ -275,15 +427,33 @@ def export_recording(path, directory, *, overwrite=False):
             if frames and p0_missing:
                 notes.append(f"P0 (point {p0_id}) is missing from {p0_missing} of {frames} frames' results")
             if frames == 0:
-                notes.append(f"{path} holds no tracking results (/dic/results): fields.csv and p0_trace.csv "
-                             f"have headers only")
+                notes.append(f"{path} holds no tracking results (/dic/results): fields.csv, p0_trace.csv and "
+                             f"extensometers.csv have headers only")
+            elif not names:
+                notes.append("the recording has no extensometers: extensometers.csv has the header only "
+                             "(add some with --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+            if other_points:
+                notes.append(f"{other_points} of {frames} frames track other points than the first: no strain "
+                             f"and no extensometer readings for them")
+            if stage is not None:
+                l0 = [e.length_px for e in stage.extensometers]
+                title = (f"{os.path.basename(path)}: virtual extensometers"
+                         + (f" ({stage.config.scale:g} px/mm)" if stage.config.scale else ""))
+            else:
+                l0, title = [], f"{os.path.basename(path)}: virtual extensometers"
+            plot_extensometers(staged["extensometers.png"].handle, times, names, l0,
+                               np.array(eng).reshape(len(times), len(names)), title=title,
+                               scale=config.scale,
+                               empty_note="no tracking results" if frames == 0 else "no extensometers in this "
+                               "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
             truncated = recording.info.truncated
             session = dict(metadata)
             session[EXPORT_KEY] = {
                 "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
                 "frames_with_results": frames, "points": points, "events": len(events),
                 "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
-                "truncated": truncated, "notes": list(notes)}
+                "truncated": truncated, "notes": list(notes),
+                "strain": _strain_settings(stage, config, strain)}
             staged["session.json"].write(json_text(session))
             for name in EXPORT_FILES:
                 staged[name].commit()
@@ -298,7 +468,27 @@ def export_recording(path, directory, *, overwrite=False):
             raise
     return {"directory": directory, "files": [targets[name] for name in EXPORT_FILES], "frames": frames,
             "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
-            "truncated": truncated, "notes": list(notes)}
+            "truncated": truncated, "notes": list(notes), "extensometers": list(names),
+            "strain": stage.describe() if stage is not None else ""}
+
+
+def _chain(first, rest):
+    """``first`` (when not None) then the rest of the results."""
+    if first is None:
+        return
+    yield first
+    yield from rest
+
+
+def _strain_settings(stage, config, overrides):
+    """What the strain columns and the extensometers were computed with, for ``session.json``."""
+    settings = {"recomputed_from": "the recorded displacements", "measure": config.measure, "window": config.window,
+                "scale_px_per_mm": config.scale, "overridden": sorted(overrides or {})}
+    if stage is not None:
+        settings.update(step_px=stage.windows.step, subset_px=stage.windows.subset, vsg_px=stage.vsg_px,
+                        extensometers=[{"name": e.name, "x1": e.x1, "y1": e.y1, "x2": e.x2, "y2": e.y2,
+                                        "L0_px": e.length_px} for e in stage.extensometers])
+    return settings
 
 
 def _plural(count, word):
@@ -306,10 +496,14 @@ def _plural(count, word):
 
 
 def export_command(args):
-    """``livedic export FILE.mcap -o DIR [--overwrite]``; returns the exit code."""
-    summary = export_recording(args.recording, args.output, overwrite=args.overwrite)
+    """``livedic export FILE.mcap -o DIR [--overwrite] [strain options]``; returns the exit code."""
+    from livedic.stream.strain import overrides_from_args
+    overrides = overrides_from_args(args)              # bad values: one line, before anything is read
+    summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides)
     for note in summary["notes"]:
         say(f"note: {note}")
+    if summary["strain"]:
+        say(summary["strain"])
     state = " (what could be recovered from the truncated recording)" if summary["truncated"] else ""
     say(f"exported {summary['frames']} frames x {summary['points']} points{state}, P0 = point "
         f"{summary['p0_id']} ({summary['p0_rows']} rows), {_plural(summary['events'], 'event')} "

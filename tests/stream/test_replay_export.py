@@ -192,11 +192,14 @@ def test_replay_of_a_truncated_recording_uses_the_recovered_frames(killed, tmp_p
 
 # --------------------------------------------------------------------------- export
 
-def test_export_writes_the_four_files_and_refuses_to_overwrite(recording, tmp_path, capsys):
+EXPORTED = ["events.csv", "extensometers.csv", "extensometers.png", "fields.csv", "p0_trace.csv", "session.json"]
+
+
+def test_export_writes_the_six_files_and_refuses_to_overwrite(recording, tmp_path, capsys):
     target = tmp_path / "export"
     capsys.readouterr()
     assert main(["export", recording, "-o", str(target)]) == 0
-    assert sorted(os.listdir(target)) == ["events.csv", "fields.csv", "p0_trace.csv", "session.json"]
+    assert sorted(os.listdir(target)) == EXPORTED
     results = read_results(recording)
     n = results[0].u.size
     header, trace = _rows(target / "p0_trace.csv")
@@ -222,7 +225,7 @@ def test_export_writes_the_four_files_and_refuses_to_overwrite(recording, tmp_pa
     assert "--overwrite" in _one_error_line(capsys.readouterr().err)
     assert {name: (target / name).read_bytes() for name in os.listdir(target)} == before
     assert main(["export", recording, "-o", str(target), "--overwrite"]) == 0
-    assert sorted(os.listdir(target)) == ["events.csv", "fields.csv", "p0_trace.csv", "session.json"]
+    assert sorted(os.listdir(target)) == EXPORTED
 
 
 def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
