@@ -131,6 +131,7 @@ def build_parser(extensions=()):
 
     from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
     from livedic.dic.quality import MIN_ZNCC
+    from livedic.dic.strain import MEASURES
 
     run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
     add_run_arguments(run)
@@ -154,6 +155,14 @@ def build_parser(extensions=()):
     measure.add_argument("--no-guided", dest="guided", action="store_false",
                          help="search every point over the full radius instead of a few seeds whose results are "
                               "propagated to their neighbours (reliability-guided, the default)")
+    measure.add_argument("--strain-window", type=int, metavar="N",
+                         help="add the strain columns exx,eyy,exy: plane fits of u and v over N x N points "
+                              "(odd, >= 3; pointwise least squares; VSG = (N - 1) x step + subset, step = --grid "
+                              "or the points' spacing)")
+    measure.add_argument("--strain-measure", choices=MEASURES,
+                         help="strain measure of those columns: engineering (small strain, the default), green "
+                              "(Green-Lagrange) or true (logarithmic, Hencky); implies --strain-window 5 when "
+                              "that is not given")
     measure.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                          help="say on stderr how long a measurement has run once it takes over 1.5 s: on = one "
                               "line redrawn in place; auto (default) = that on a terminal, else a line every 15 s; "
@@ -213,6 +222,7 @@ def _cmd_measure(args):
     from livedic.stream.csv_output import check_output_file, write_csv
 
     to_file = args.output not in (None, "-")
+    strain = _measure_strain_config(args)            # bad values: one line, before anything is read
     if to_file:
         check_output_file(args.output, "-o")          # before the images are read and the work is done
     reference, note_ref = read_grey_image(args.reference)
@@ -244,6 +254,10 @@ def _cmd_measure(args):
         value = getattr(result, name)
         if value is not None:
             columns[name] = value
+    if strain is not None:
+        field, described = _measure_strain(result, strain, step=args.grid, subset=args.subset)
+        columns.update(exx=field.exx, eyy=field.eyy, exy=field.exy)
+        print(f"livedic: {described}", file=sys.stderr)
     for name, values in extras.items():              # the points file's own columns, after ours
         columns[name if name not in columns else f"points_{name}"] = np.array(values, dtype=object)
     write_csv(args.output, columns)
@@ -251,6 +265,32 @@ def _cmd_measure(args):
     if to_file:
         print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
     return 0
+
+
+def _measure_strain_config(args):
+    """The strain settings of ``livedic measure`` (None: no strain columns); ValueError for bad values."""
+    if args.strain_window is None and args.strain_measure is None:
+        return None
+    from livedic.stream.strain import StrainConfig
+    given = {"window": args.strain_window, "measure": args.strain_measure}
+    return StrainConfig(**{key: value for key, value in given.items() if value is not None})
+
+
+def _measure_strain(result, config, *, step, subset):
+    """(dic.strain.StrainField, one line saying how) of a measurement on its own points.
+
+    The window is laid on the measured points (pixel centres); the grid step is ``step``
+    (``--grid``), or the points' typical spacing for a points file.
+    """
+    import numpy as np
+
+    from livedic.dic.strain import strain_field, strain_window
+    points = np.column_stack([result.x, result.y]).astype(np.float64)
+    windows = strain_window(points, window=config.window, step=step, subset=subset)
+    field = strain_field(windows, result.u, result.v, result.ok, measure=config.measure)
+    how = (f"strain: {config.measure}, window {windows.window} points x step {windows.step:g} px + subset "
+           f"{windows.subset} = VSG {windows.vsg_px:g} px; {int(field.ok.sum())}/{field.ok.size} points with strain")
+    return field, how
 
 
 class MeasureProgress:

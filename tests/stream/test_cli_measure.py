@@ -258,3 +258,97 @@ def test_flat_or_saturated_region_flags_its_points_and_the_rest_is_measured(tmp_
     for row in outside:
         assert row["ok"] == "1"
         assert abs(float(row["u"]) - SHIFT[0]) < 0.02 and abs(float(row["v"]) - SHIFT[1]) < 0.02
+
+
+# ----------------------------------------------------------------------------- strain columns
+
+@pytest.fixture(scope="module")
+def affine_pair(tmp_path_factory):
+    """A uniform stretch with a little shear: exx = 2e-3, eyy = -1e-3, exy = 0.3e-3 engineering; 8-bit, no added
+    noise (quantisation only: the displacement error is then ~0.004 px RMS, the strain error ~5e-5 RMS)."""
+    from livedic.dic.speckle import affine
+    folder = tmp_path_factory.mktemp("affine")
+    pattern = SpecklePattern((260, 260), n_speckles=1800, seed=5)
+    field = affine(u=0.6, v=-0.3, ux=2e-3, uy=0.4e-3, vx=0.2e-3, vy=-1e-3, centre=(130.0, 130.0))
+    paths = []
+    for name, displacement in (("ref", None), ("def", field)):
+        path = folder / f"{name}.png"
+        assert cv2.imwrite(str(path), render(pattern, displacement))
+        paths.append(str(path))
+    return paths
+
+
+@pytest.mark.parametrize("measure,truth", [
+    ("engineering", (2e-3, -1e-3, 0.3e-3)),
+    # Green-Lagrange of F = [[1.002, 0.0004], [0.0002, 0.999]]: (F^T F - I) / 2
+    ("green", (2e-3 + 0.5 * (2e-3 ** 2 + 0.2e-3 ** 2), -1e-3 + 0.5 * (0.4e-3 ** 2 + 1e-3 ** 2),
+               0.5 * (1.002 * 0.4e-3 + 0.2e-3 * 0.999))),
+])
+def test_strain_columns_of_a_uniform_stretch_are_within_2e_4(affine_pair, tmp_path, capsys, measure, truth):
+    out = tmp_path / "strain.csv"
+    capsys.readouterr()
+    assert main(["measure", *affine_pair, "--grid", "10", "--subpixel", "icgn", "--strain-window", "7",
+                 "--strain-measure", measure, "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"strain: {measure}, window 7 points x step 10 px + subset 21 = VSG 81 px" in err
+    text = out.read_text()
+    header = text.splitlines()[0].split(",")
+    assert header[:7] == ["x", "y", "u", "v", "zncc", "ok", "status"] and header[-3:] == ["exx", "eyy", "exy"]
+    rows = _rows(text)
+    values = {name: np.array([float(r[name]) for r in rows]) for name in ("exx", "eyy", "exy")}
+    x, y = (np.array([float(r[name]) for r in rows]) for name in ("x", "y"))
+    ok = np.isfinite(values["exx"])
+    assert ok.all() and all(r["ok"] == "1" for r in rows)     # edge points keep enough neighbours too
+    # A full 7 x 7 window: 3 steps (30 px) from the grid's edges; nearer, the fits are one-sided and noisier.
+    full = (x >= x.min() + 30) & (x <= x.max() - 30) & (y >= y.min() + 30) & (y <= y.max() - 30)
+    assert full.sum() >= 200
+    for name, want in zip(("exx", "eyy", "exy"), truth):
+        error = values[name] - want
+        # measured: RMS <= 6.3e-5, max 1.3e-4 with a full window, 2.7e-4 at the edges
+        assert np.abs(error[full]).max() <= 2e-4, (name, np.abs(error[full]).max())
+        assert np.abs(error).max() <= 5e-4 and np.sqrt(np.mean(error ** 2)) <= 1e-4, name
+        assert abs(np.mean(error)) <= 3e-5, (name, np.mean(error))      # no bias: the right component and sign
+
+
+def test_strain_columns_from_a_points_file_use_the_points_spacing(affine_pair, tmp_path, capsys):
+    points = tmp_path / "points.csv"
+    xs, ys = np.meshgrid(np.arange(40, 221, 12), np.arange(40, 221, 12))
+    points.write_text("x,y,id\n" + "".join(f"{x},{y},p{i}\n" for i, (x, y) in enumerate(zip(xs.ravel(), ys.ravel()))))
+    capsys.readouterr()
+    assert main(["measure", *affine_pair, "--points", str(points), "--subpixel", "icgn",
+                 "--strain-window", "5"]) == 0
+    captured = capsys.readouterr()
+    assert "strain: engineering, window 5 points x step 12 px + subset 21 = VSG 69 px" in captured.err
+    header = captured.out.splitlines()[0].split(",")
+    assert header[-4:] == ["exx", "eyy", "exy", "id"]         # the points file's columns stay last
+    rows = _rows(captured.out)
+    assert [r["id"] for r in rows] == [f"p{i}" for i in range(len(rows))]
+    eyy = np.array([float(r["eyy"]) for r in rows])
+    assert np.isfinite(eyy).all() and np.sqrt(np.mean((eyy + 1e-3) ** 2)) <= 1e-4 and np.abs(eyy + 1e-3).max() <= 5e-4
+
+
+def test_without_the_strain_options_the_output_is_unchanged(affine_pair, capsys):
+    """The strain columns are added before the points file's columns and change nothing else."""
+    assert main(["measure", *affine_pair, "--grid", "40", "--subpixel", "icgn"]) == 0
+    plain = capsys.readouterr().out
+    assert main(["measure", *affine_pair, "--grid", "40", "--subpixel", "icgn", "--strain-window", "3"]) == 0
+    with_strain = capsys.readouterr().out
+    header = plain.splitlines()[0].split(",")
+    assert header[:7] == ["x", "y", "u", "v", "zncc", "ok", "status"] and "exx" not in header
+    stripped = [",".join(line.split(",")[:-3]) for line in with_strain.splitlines()]
+    assert with_strain.splitlines()[0].split(",")[-3:] == ["exx", "eyy", "exy"]
+    assert stripped == plain.splitlines()
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--strain-window", "4"], "--strain-window must be an odd number of points >= 3, got 4"),
+    (["--strain-window", "1"], "--strain-window must be an odd number of points >= 3, got 1"),
+    (["--strain-measure", "cauchy"], "invalid choice"),
+])
+def test_bad_strain_options_give_one_line_and_exit_2(affine_pair, tmp_path, capsys, extra, message):
+    out = tmp_path / "never.csv"
+    capsys.readouterr()
+    assert main(["measure", *affine_pair, "--grid", "40", "-o", str(out), *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+    assert not out.exists()
