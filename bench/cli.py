@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -16,7 +16,7 @@ from livedic.stream.config import subpixel_method
 
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
-    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak")
+    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
     paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
@@ -64,6 +64,18 @@ def add_bench_commands(commands):
     soak.add_argument("--dir", metavar="DIR", help="folder for the recording (default: a temporary folder)")
     soak.add_argument("--keep", action="store_true", help="keep the recording (deleted by default)")
     soak.set_defaults(handler=_cmd_bench_soak)
+    strain = bench_commands.add_parser(
+        "strain", help="strain fields and virtual extensometers against exact values: uniform strain, the simulated "
+                       "tensile test, the real dog-bone", description="Strain error RMS on uniform strain fields "
+                       "(two pattern generators, 8-bit, noise sigma 1) against the VSG, e_yy RMSE inside and outside "
+                       "the neck of the simulated tensile test, extensometer errors against ISO 9513 class 0.5 "
+                       "(50 microstrain + 0.5 %% of the reading) and, with --data, the real muDIC dog-bone sequence. "
+                       "Prints the tables and the verdict on each target; writes CSVs and strain.png.")
+    strain.add_argument("--quick", action="store_true", help="smaller images, one subset, 60 frames (about a minute)")
+    strain.add_argument("--data", metavar="DIR", help="folder with mudic_tensile_dogbone (e.g. ../shared/datasets); "
+                                                      "without it the real sequence is skipped")
+    strain.add_argument("-o", "--output", default="results/strain", metavar="DIR", help="results folder")
+    strain.set_defaults(handler=_cmd_bench_strain)
 
 
 def build_parser():
@@ -117,6 +129,22 @@ def _cmd_bench_soak(args):
                                 subpixel=args.subpixel, loop=args.loop, directory=args.dir, keep=args.keep,
                                 log=lambda line: print(line, flush=True))
     return 0 if result["passed_rss"] and result["passed_accounting"] else 1
+
+
+def _cmd_bench_strain(args):
+    from livedic.bench.strain import DOGBONE, run_strain_benchmark
+    if args.data is not None and not os.path.isdir(os.path.join(args.data, DOGBONE)):
+        raise UsageError(f"--data {args.data} has no {DOGBONE} folder: give the folder holding it "
+                         "(e.g. ../shared/datasets)")
+    try:
+        os.makedirs(args.output, exist_ok=True)
+    except OSError as error:
+        raise UsageError(f"-o {args.output}: cannot create the results folder ({error.strerror})") from None
+    if not os.access(args.output, os.W_OK | os.X_OK):
+        raise UsageError(f"-o {args.output}: the results folder is not writable; choose another")
+    run_strain_benchmark(quick=args.quick, data=args.data, output=args.output,
+                         log=lambda line: print(line, flush=True))
+    return 0
 
 
 if __name__ == "__main__":
