@@ -183,11 +183,19 @@ def test_plain_mcap_with_protobuf_decoder_reads_everything(tmp_path):
 
 @pytest.mark.skipif(shutil.which("rerun", path=os.path.dirname(sys.executable)) is None, reason="no rerun CLI")
 def test_rerun_mcap_convert_accepts_a_recording(tmp_path):
+    from livedic.dic.extensometer import ExtensometerReadings
+    from livedic.dic.strain import strain_field, strain_window
+
     path, out = tmp_path / "r.mcap", tmp_path / "r.rrd"
+    windows = strain_window(np.array([[x, y] for y in range(3) for x in range(3)], float), window=3, step=1.0)
     with Recorder(path, {"source_uri": "x"}) as rec:
         for i, image in enumerate(_frames(2, np.uint8)):
             rec.write_frame(Frame(i, T0 + i * 10**7, image, "Mono8"))
             rec.write_results(i, T0 + i * 10**7, **_results(i))
+            rec.write_strain(i, T0 + i * 10**7, strain_field(windows, np.full(9, 0.1), np.zeros(9), np.ones(9, bool)))
+            rec.write_extensometers(i, T0 + i * 10**7, ExtensometerReadings(
+                ("axial",), np.array([100.0]), np.array([100.0 + i]), np.array([0.01 * i]),
+                np.array([np.log1p(0.01 * i)]), np.array([0], np.int32)))
     rerun = shutil.which("rerun", path=os.path.dirname(sys.executable))
     done = subprocess.run([rerun, "mcap", "convert", str(path), "-o", str(out)], capture_output=True, text=True,
                           timeout=60)
@@ -195,6 +203,7 @@ def test_rerun_mcap_convert_accepts_a_recording(tmp_path):
     from rerun.chunk import RrdReader
     summary = str(RrdReader(str(out)).stream().collect().summary())
     assert "Image:buffer" in summary and "livedic.FrameResults:message" in summary
+    assert "livedic.StrainField:message" in summary and "livedic.ExtensometerSample:message" in summary
 
 
 # ----------------------------------------------------------------------------- codecs
