@@ -31,6 +31,15 @@ The simulator renders every frame before the session starts (it is not part of
 the measured time); that rendering time is printed on its own. Target on the
 2-core lab machine: 1,000 points with IC-GN at >= 50 fps, latency p99 <= 30 ms
 and no drops.
+
+Every session computes strain and two virtual extensometers, as the main job
+``livedic run --gauge-length 400`` does (400 px at 1 MP; 0.75 x the ROI height
+on smaller images): the strain stage is the session's first sink, in the
+tracker thread, after ``Tracker.track``. Its cost per frame (the summary's
+``strain`` block: p50 and p99) is printed for every case, as milliseconds and
+as a share of the tracking time in the same session, with the issue-11 target:
+strain + two extensometers <= 2 ms per frame at 1,000 points (judged on the
+p50 of the 1,000-point IC-GN case; its p99 is printed next to it).
 """
 
 import json
@@ -47,6 +56,8 @@ TARGET_POINTS = 1000
 TARGET_METHOD = "icgn"
 TARGET_FPS = 50.0
 TARGET_P99_MS = 30.0
+TARGET_STRAIN_MS = 2.0
+GAUGE_LENGTH_PX = 400.0       # the main job's --gauge-length (setup.sh, README)
 
 
 def _load():
@@ -62,22 +73,32 @@ def _num(value, fmt, missing="n/a"):
     return format(value, fmt)
 
 
+def gauge_length_for(size):
+    """The axial extensometer's length on the ``size`` x ``size`` simulated test: 400 px, or 0.75 x the ROI height."""
+    from livedic.acquire.synthetic import SyntheticTensileSource
+    roi_height = SyntheticTensileSource(f"synthetic:tensile?size={size}x{size}&frames=2").suggested_roi[3]
+    return min(GAUGE_LENGTH_PX, float(round(0.75 * roi_height)))
+
+
 def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, threads=1, workdir,
-             search="improved-wso", subset=21, echo=None):
+             search="improved-wso", subset=21, echo=None, gauge_length=None):
     """One ``livedic run`` session; returns a row dict (summary numbers, render time, error text).
 
-    ``echo(text)`` receives what the session said and its summary, when given.
+    ``echo(text)`` receives what the session said and its summary, when given. ``gauge_length``
+    (px): the axial/transverse extensometer pair (``--gauge-length``); None: ``gauge_length_for(size)``.
     """
     from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
     from livedic.stream.csv_output import json_text
     from livedic.stream.session import Session
+    from livedic.stream.strain import StrainConfig
 
     tag = f"{n_points}-{search}-{subpixel}-{'rec' if record else 'norec'}-{'paced' if paced else 'unpaced'}"
     record_path = os.path.join(workdir, f"{tag}.mcap")
     uri = f"synthetic:tensile?size={size}x{size}&fps={fps:g}&frames={frames}" + ("" if paced else "&pace=0")
+    gauge_length = gauge_length_for(size) if gauge_length is None else gauge_length
     row = dict(points_wanted=n_points, subpixel=subpixel, search=search, record=record, paced=paced,
                fps_offered=fps if paced else None, size=size, frames_offered=frames, error=None, render_s=None,
-               summary={})
+               gauge_length=gauge_length, summary={})
     said = []
     session = None
     started = time.perf_counter()
@@ -85,7 +106,7 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
         config = SessionConfig(source=uri, points=PointsConfig(n_points=n_points),
                                tracking=TrackingConfig(subset=subset, search=search, subpixel=subpixel),
                                record=record_path if record else None, threads=threads,
-                               command="livedic bench live")
+                               command="livedic bench live", strain=StrainConfig(gauge_length=gauge_length))
         with Session(config, say=lambda message: said.append(f"livedic: {message}")) as session:
             session.execute()
         if session.source_error is not None:
@@ -167,6 +188,40 @@ def judge_target(row, *, quick=False):
     return passed, (f"{'PASS' if passed else 'FAIL'}  target 1,000 points IC-GN{variant} >= {TARGET_FPS:g} fps, "
                     f"p99 <= {TARGET_P99_MS:g} ms, no drops ({where}): "
                     + "; ".join(("ok " if ok else "NOT ") + text for ok, text in checks) + note)
+
+
+def strain_cost_line(row):
+    """One line: the strain stage's cost per frame in ``row``'s session, in ms and against its tracking time."""
+    s = row["summary"]
+    strain = s.get("strain") if s else None
+    if not strain:
+        return f"  {row['points_wanted']:>6d} {_label(row):34s} n/a ({row['error'] or 'no strain in the summary'})"
+    p50, p99, track = strain.get("strain_ms_p50"), strain.get("strain_ms_p99"), s.get("processing_p50_ms")
+    share = f"{100 * p50 / track:5.1f} %" if p50 is not None and track else "  n/a"
+    names = ", ".join(strain.get("extensometers") or {}) or "none"
+    return (f"  {s.get('points', row['points_wanted']):>6d} {_label(row):34s} p50 {_num(p50, '6.3f')} ms, "
+            f"p99 {_num(p99, '6.3f')} ms; {share} of tracking (p50 {_num(track, '.1f')} ms); extensometers {names}")
+
+
+def judge_strain_cost(row, *, quick=False):
+    """(passed: bool, one line) for the issue-11 target on ``row`` (1,000 points IC-GN): strain <= 2 ms per frame."""
+    strain = (row or {}).get("summary", {}).get("strain") if row else None
+    if not strain or strain.get("strain_ms_p50") is None:
+        why = (row or {}).get("error") or "no strain cost in the summary"
+        return False, f"FAIL  target strain + two extensometers <= {TARGET_STRAIN_MS:g} ms per frame at 1,000 points: {why}"
+    s = row["summary"]
+    p50, p99 = strain["strain_ms_p50"], strain["strain_ms_p99"]
+    track = s.get("processing_p50_ms")
+    passed = p50 <= TARGET_STRAIN_MS
+    names = list(strain.get("extensometers") or {})
+    note = "  [quick mode: not the 1 MP configuration of the target]" if quick else ""
+    return passed, (f"{'PASS' if passed else 'FAIL'}  target strain + two extensometers <= {TARGET_STRAIN_MS:g} ms per "
+                    f"frame at 1,000 points: p50 {p50:.3f} ms (p99 {_num(p99, '.3f')} ms, "
+                    f"{'also' if p99 is not None and p99 <= TARGET_STRAIN_MS else 'NOT'} <= {TARGET_STRAIN_MS:g}), "
+                    f"{_num(100 * p50 / track if track else None, '.1f')} % of the tracking time (p50 "
+                    f"{_num(track, '.1f')} ms) in the same session ({row['size']}x{row['size']}, {s.get('points')} "
+                    f"points, IC-GN, window {strain.get('strain_window')}, VSG {_num(strain.get('vsg_px'), 'g')} px, "
+                    f"extensometers {', '.join(names) or 'none'}, axial {row['gauge_length']:g} px){note}")
 
 
 def _fit_cost(rows):
@@ -314,8 +369,15 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
     if unseeded is not None:
         variant_passed, variant_line = judge_target(unseeded, quick=quick)
         say(variant_line)
+    say(f"strain + two extensometers per frame (the session's first sink, in the tracker thread; axial "
+        f"{rows[0]['gauge_length']:g} px and transverse through P0):" if rows else "strain: no case ran")
+    for row in rows:
+        say(strain_cost_line(row))
+    strain_passed, strain_line = judge_strain_cost(target_row, quick=quick)
+    say(strain_line)
     say("what limits it:")
     for text in explain_limits(rows, fps):
         say(text)
     say(f"total {time.perf_counter() - started:.0f} s; {_load()} at end")
-    return dict(rows=rows, target_passed=passed, target_line=line, variant_line=variant_line, lines=printed)
+    return dict(rows=rows, target_passed=passed, target_line=line, variant_line=variant_line,
+                strain_passed=strain_passed, strain_line=strain_line, lines=printed)

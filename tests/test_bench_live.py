@@ -83,6 +83,16 @@ def test_quick_live_benchmark_prints_its_table_and_the_target_line(capsys):
     assert "rendering the simulated frames (before the clock" in out
     assert "what limits it:" in out and "1,000 points IC-GN: tracking p50" in out
     assert "error in" not in out
+    # strain + two extensometers in every session (issue 11): its cost per frame, and the target line
+    heading = [i for i, line in enumerate(lines) if line.startswith("strain + two extensometers per frame")]
+    assert len(heading) == 1 and "axial 245 px" in lines[heading[0]]       # 0.75 x the 327 px ROI at 512x512
+    for row, label in zip(lines[heading[0] + 1:heading[0] + 6], labels):
+        assert label.strip() in row and "extensometers axial, transverse" in row, row
+        p50 = float(row.split("p50")[1].split("ms")[0])
+        assert 0.0 < p50 < 1000.0 and "% of tracking" in row
+    strain = [line for line in lines if "target strain + two extensometers <= 2 ms per frame at 1,000 points" in line]
+    assert len(strain) == 1 and strain[0][:4] in ("PASS", "FAIL") and "quick mode" in strain[0]
+    assert "of the tracking time" in strain[0] and "VSG" in strain[0]
 
 
 # --------------------------------------------------------------------------- bench soak
