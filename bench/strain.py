@@ -400,7 +400,8 @@ def _bilinear_weights(grid_x, grid_y, x, y):
 
 def _mudic_extensometer(nodes, ends, height):
     """muDIC's true strain between our two reference ends (image rows), from its nodes interpolated bilinearly."""
-    reference = nodes[min(nodes)]
+    first = next(iter(nodes))                 # the reference frame's column comes first
+    reference = nodes[first]
     grid_x, grid_y = np.unique(reference[:, 0]), np.unique(reference[:, 1])
     index = {(float(y), float(x)): n for n, (x, y) in enumerate(reference)}
     picks = []
@@ -411,7 +412,7 @@ def _mudic_extensometer(nodes, ends, height):
     for stem, positions in nodes.items():
         a, b = (sum(w * positions[n] for n, w in pick) for pick in picks)
         out[stem] = float(np.hypot(*(b - a)))
-    l0 = out[min(nodes)]
+    l0 = out[first]
     return {stem: math.log(length / l0) for stem, length in out.items()}
 
 

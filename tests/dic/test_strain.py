@@ -278,8 +278,8 @@ def test_valid_points_along_one_line_give_one_direction():
         middle = slice(3, 12)                                  # 7 points in each window, all valid
         assert np.all(field.status[middle] == StrainStatus.ONE_DIRECTION), field.status
         assert np.all(np.isnan(field.exx[middle])) and np.all(np.isnan(field.exy[middle]))
-    # On a grid: the two valid rows of a window span 1 step across (variance step^2 / 4): just enough;
-    # one valid row and a single point off it are not.
+    # On a grid: the two valid rows of a window span 1 step across (variance step^2 / 4, above the
+    # MIN_SPREAD of 0.2 step^2): enough; one valid row and a single point off it are not.
     points = grid()
     u, v, ok = linear(points)
     j = np.rint((points[:, 1] - 200.0) / STEP)
@@ -288,7 +288,7 @@ def test_valid_points_along_one_line_give_one_direction():
     windows = strain_window(points, window=3)
     field = strain_field(windows, u, v, ok)
     inner = ok & (i > 0) & (i < 10)
-    assert np.all(field.status[inner] == StrainStatus.OK)       # 6 of 9 valid, spread 0.25 step^2
+    assert np.all(field.status[inner] == StrainStatus.OK)       # 6 of 9 valid, spread 0.25 step^2 >= 0.2
     np.testing.assert_allclose(field.eyy[inner], -0.02, rtol=0, atol=1e-12)
     ok[:] = (j == 5) | ((j == 4) & (i == 5))
     field = strain_field(windows, u, v, ok)
