@@ -584,6 +584,8 @@ def run_strain_benchmark(*, quick=False, data=None, output="results/strain", log
     say("")
     uniform = uniform_strain_study(quick=quick, say=say)
     uniform_met, default_met, lines, uniform_verdict = judge_uniform(uniform)
+    if quick:
+        uniform_verdict += "  [quick: 384x384, subset 21 only; the full run also tries subsets 31 and 41]"
     for line in lines:
         say(line)
     say(uniform_verdict)
