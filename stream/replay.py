@@ -25,7 +25,8 @@ the seeds differ). Changed parameters keep the recorded frame set unless
 
 The output CSV (``-o``, default stdout) is in long format, one row per frame and
 point: ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for
-first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``; numbers at full
+first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``, then the strain ``exx,eyy,exy``
+recomputed on the replayed displacements (``stream.strain``; NaN where a point has none); numbers at full
 precision (they read back as the same float64). At the end a line on stderr says
 how the replay compares with the recording (``ReplayReport.agreement``, an
 ``Agreement``):
@@ -67,7 +68,7 @@ from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
 from livedic.stream.strain import StrainConfig, add_strain_arguments, overrides_from_args
 
-from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, StagedFile, check_output_csv, csv_rows,
+from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, check_output_csv, csv_rows,
                            read_session_or_note, reader_notes, result_columns, say)
 
 # A replay on another machine agrees within these (see the module notes). Rounding differences of the
@@ -411,7 +412,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     all_frames : bool
         Track every frame from the reference on, not only those with recorded results.
     on_result : callable, optional
-        ``on_result(frame, measurement, point_ids)`` for each tracked frame, in order.
+        ``on_result(frame, measurement, point_ids, strain)`` for each tracked frame, in order
+        (``strain``: its ``dic.strain.StrainField``).
     progress : callable, optional
         ``progress(frames_done)``.
     threads : int
@@ -483,7 +485,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         comparison = _Comparison(report, recorded, recorded_xy)
         sinks = [comparison]
         if on_result is not None:
-            sinks.append(FunctionSink(lambda result, stats: on_result(result.frame, result.measurement, point_ids[0]),
+            sinks.append(FunctionSink(lambda result, stats: on_result(result.frame, result.measurement, point_ids[0],
+                                                                      result.strain),
                                       "output", required=True))
         if progress is not None:
             sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
@@ -598,17 +601,19 @@ def replay_command(args):
     state = {"header": None}
 
     def write_rows(out):
-        def on_result(frame, m, point_ids):
+        def on_result(frame, m, point_ids, strain):
             extras = {"status": np.asarray(m.status, dtype=np.int64)}
             for name in ("ux", "uy", "vx", "vy", "iterations"):
                 value = getattr(m, name)
                 if value is not None:
                     extras[name] = value
             if state["header"] is None:
-                state["header"] = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras]
+                state["header"] = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras] \
+                    + list(STRAIN_COLUMNS)
                 out.write(",".join(state["header"]) + "\n")
             columns = result_columns(frame.index, frame.timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc,
                                      m.ok, extras)
+            columns.update(exx=strain.exx, eyy=strain.eyy, exy=strain.exy)
             out.write(csv_rows(columns, len(m.u)))
         return on_result
 

@@ -409,7 +409,8 @@ class Session:
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
         sinks = [self.strain] if self.strain is not None else []
         if recorder is not None:
-            sinks.append(RecordResults(recorder, config.tracking.method))
+            sinks.append(RecordResults(recorder, config.tracking.method,
+                                       strain_window=self.strain.windows.window if self.strain is not None else None))
         if self.viewer is not None and self.viewer.enabled:
             sinks.append(self.viewer)
         if self.p0 is not None:
@@ -597,7 +598,7 @@ class Session:
         p0 = self.p0.xy if self.p0 is not None else tuple(self.points[0])
         return {
             "command": config.command, "source_uri": config.source, "source_settings": self._settings,
-            "roi": list(self._roi) if self._roi else "full image", "step": wanted.step,
+            "roi": list(self._roi) if self._roi else "full image", "step": wanted.step, "grid_step": self._step,
             "n_points_wanted": wanted.n_points, "points_file": wanted.points_file, "p0": list(p0),
             "p0_choice": self.p0.describe() if self.p0 is not None else "given with the points",
             **config.tracking.as_dict(),

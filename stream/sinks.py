@@ -29,13 +29,19 @@ class RecordResults:
     recorder : stream.recorder.Recorder
     method : str
         ``"search+subpixel"``, recorded with every result set.
+    strain_window : int, optional
+        The strain window (points a side), recorded with each strain field.
+
+    The strain field and extensometer readings that the strain stage attached to the
+    result (``result.strain``, ``result.extensometers``) are recorded with it.
     """
     name = "recording"
     required = False
 
-    def __init__(self, recorder, method):
+    def __init__(self, recorder, method, *, strain_window=None):
         self.recorder = recorder
         self.method = method
+        self.strain_window = strain_window
         self.reference_frame_index = None
 
     def __call__(self, result, stats):
@@ -49,6 +55,10 @@ class RecordResults:
             iterations=m.iterations, method=self.method, processing_ns=result.processing_ns,
             latency_ns=result.latency_ns, reference_frame_index=self.reference_frame_index,
             dropped_frames=result.dropped_since_last)
+        if result.strain is not None:
+            self.recorder.write_strain(frame.index, frame.timestamp_ns, result.strain, window=self.strain_window)
+        if result.extensometers is not None and len(result.extensometers.names):
+            self.recorder.write_extensometers(frame.index, frame.timestamp_ns, result.extensometers)
         if result.dropped_since_last:
             self.recorder.write_event("drop", f"{result.dropped_since_last} frame(s) dropped by the queue before "
                                       f"frame {frame.index} (total {result.dropped_total})", level="warning")

@@ -226,3 +226,27 @@ def test_a_lost_end_is_a_gap_with_nan_and_ok_0(tmp_path, capsys):
     frame3 = [r for r in fields if r["frame"] == "3"]
     lost = np.array([r["ok"] == "0" for r in frame3])
     assert np.isnan(_floats(frame3, "eyy")[lost]).all() and np.isfinite(_floats(frame3, "eyy")[~lost]).any()
+
+
+def test_recorded_channels_equal_what_export_computes(tensile, tmp_path):
+    """The live session records /dic/strain and /dic/extensometers; export recomputes the same numbers
+    from the recorded displacements (one computation everywhere: the same stage on the same data)."""
+    from livedic.acquire.mcap_replay import read_extensometer_samples, read_strain_fields
+    out = tmp_path / "out"
+    assert main(["export", tensile, "-o", str(out)]) == 0
+    samples = read_extensometer_samples(tensile)
+    _, rows = _rows(out / "extensometers.csv")
+    assert len(samples) == len(rows) > 0
+    for sample, row in zip(samples, rows):
+        assert (int(row["frame"]), row["name"]) == (sample.frame_index, sample.name)
+        assert float(row["L_px"]) == sample.l_px and float(row["eng_strain"]) == sample.eng_strain
+        assert int(row["ok"]) == int(sample.ok)
+    fields = read_strain_fields(tensile)
+    _, field_rows = _rows(out / "fields.csv")
+    assert len(fields) == len(read_results(tensile))
+    by_frame = {}
+    for row in field_rows:
+        by_frame.setdefault(int(row["frame"]), []).append(float(row["eyy"]))
+    for field in fields:
+        np.testing.assert_array_equal(np.array(by_frame[field.frame_index]), field.eyy)
+    assert fields[0].window == 5

@@ -134,9 +134,13 @@ def test_replay_with_the_recorded_parameters_equals_the_recording_bit_for_bit(re
     n = results[0].u.size
     assert f"replay matches the recording exactly: {len(results)} frames x {n} points" in err
     header, rows = _rows(out)
-    assert header[:9] == LEADING and header[9:] == ["status", "ux", "uy", "vx", "vy", "iterations"]
+    assert header[:9] == LEADING and header[9:] == ["status", "ux", "uy", "vx", "vy", "iterations", "exx", "eyy", "exy"]
     assert len(rows) == len(results) * n
     _assert_equals_recorded(rows, results)
+    # The strain recomputed on the replayed displacements is the recorded strain, bit for bit.
+    from livedic.acquire.mcap_replay import read_strain_fields
+    recorded_eyy = np.concatenate([field.eyy for field in read_strain_fields(recording)])
+    np.testing.assert_array_equal(np.array([float(row["eyy"]) for row in rows]), recorded_eyy)
     assert not [name for name in os.listdir(tmp_path) if name.startswith(".livedic-")]
 
 
