@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from livedic.dic.strain import (MEASURES, StrainStatus, displacement_gradients, principal_strains,
+from livedic.dic.strain import (MEASURES, StrainStatus, principal_strains,
                                 strain_field, strain_tensor, strain_window, virtual_strain_gauge)
 
 STEP = 10.0
