@@ -13,14 +13,20 @@ The front door:
 * ``Tracker`` -- points tracked through the frames of a test; ``grid_in_roi`` and
   ``step_for_count`` place the points.
 * ``zncc`` -- the correlation of given displacements.
+* ``strain_window``, ``strain_field`` -- strain at every point by pointwise least squares
+  (``StrainField``, ``StrainStatus``); ``Extensometer``, ``place_extensometers``,
+  ``read_extensometers`` -- virtual extensometers between material points.
 """
 
 from livedic.dic.correlation import zncc
+from livedic.dic.extensometer import Extensometer, place_extensometers, read_extensometers
 from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
 from livedic.dic.quality import Gates
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
+from livedic.dic.strain import StrainField, StrainStatus, strain_field, strain_window
 from livedic.dic.tracking import Tracker, grid_in_roi, step_for_count
 
 __all__ = ["measure", "Measurement", "SEARCH_METHODS", "SUBPIXEL_METHODS", "Gates", "Status", "Tracker", "grid_in_roi",
-           "step_for_count", "zncc"]
+           "step_for_count", "zncc", "strain_window", "strain_field", "StrainField", "StrainStatus", "Extensometer",
+           "place_extensometers", "read_extensometers"]
