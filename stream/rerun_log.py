@@ -27,6 +27,24 @@ Entity tree (paths are the constants below)::
     events              text log (drops, re-found points, source errors, notes)
     summary             the final summary (text document)
 
+  with strain (``start(strain=stage)``, the session's ``stream.strain.StrainStage``):
+
+    camera/field_eyy    e_yy at every ok point (same discs as u and v), colour-mapped; grey where the
+                        point has a displacement but no strain (too few valid points in its window)
+    legend/eyy          its colour bar, in %; colour_scale/eyy its limits [low, high] (strain)
+    camera/extensometers
+                        the extensometers, drawn on the camera view and the e_yy view between their
+                        ends' current positions, labelled "NAME 1.234 %" (engineering strain); red and
+                        labelled "NAME: lost" in a frame without a reading, its lost end where last seen
+    extensometers/strain/NAME
+                        engineering strain (%) of each, against time; nothing is logged for a frame
+                        without a reading, and a Clear at the first such frame leaves a gap in the line
+    strain_xy           transverse vs axial strain (%), when the extensometers "axial" and
+                        "transverse" exist (``--gauge-length``): axes, grid and tick labels
+                        (strain_xy/axes, strain_xy/ticks), the curve, one segment a frame, shown up to
+                        the time cursor (strain_xy/data/curve), and the current point with the two
+                        strains and Poisson's ratio -e_t/e_a once |e_axial| >= 5e-4 (strain_xy/now)
+
 Related values share one entity as a multi-series ``Scalars`` (one log call
 each: a scalar costs ~0.15 ms to log, about as much as an image).
 
@@ -49,8 +67,20 @@ shrink, so a colour means the same displacement for as long as possible, and
 they are not forced to be symmetric: zero sits where the 0 tick shows. Values
 outside the limits take the end colours.
 
+Strain: e_yy's colour scale follows the same rule (always automatic; ``--color-range`` is for u and v):
+it starts at [-0.001, +0.001] (+-0.1 %, so strain noise of ~1e-4 is one colour) and only grows, to
+nice numbers. The e_yy view's name gives the measure and the virtual strain gauge, e.g. "e_yy (%)
+engineering, VSG 77 px". Rerun has no XY plot: transverse vs axial is a 2D view of a fixed plot box,
+the curve logged in % under ``strain_xy/data``, whose transform maps the current axis limits onto the
+box; the limits start at +-0.05 % and only grow, to 1, 2 or 5 times a power of ten, and each growth
+logs one new transform (the whole curve rescales) and new axes. Logging costs about 1 ms a frame more
+with strain and two extensometers (colours are packed to Rerun's 0xRRGGBBAA here, and styles that do
+not change are logged once, static).
+
 Timelines: ``frame`` (frame index) and ``time`` (seconds since the first frame,
-camera clock). A default blueprint lays the views out.
+camera clock). A default blueprint lays the views out; with strain, the four fields form a 2 x 2 grid
+(camera and e_yy on top, u and v below, each over its colour bar) and the extensometer plots head the
+plot column, the performance plots sharing one row as tabs.
 
 Viewer modes (``--viewer``): ``spawn`` starts a local viewer bound to
 127.0.0.1 (``rerun --bind 127.0.0.1 --port 9876``; one already listening there
@@ -73,6 +103,9 @@ import time
 from collections import deque
 
 import numpy as np
+
+from livedic.dic.extensometer import end_displacements
+from livedic.stream.strain import AXIAL, TRANSVERSE
 
 APPLICATION_ID = "livedic"
 DEFAULT_PORT = 9876
@@ -100,12 +133,27 @@ DROPS = "perf/drops"
 ERROR = "error"
 EVENTS = "events"
 SUMMARY = "summary"
+# strain (only when the session has a strain stage: ``start(strain=...)``)
+FIELD_EYY = "camera/field_eyy"
+EXTENSOMETER_LINES = "camera/extensometers"
+LEGEND_EYY = "legend/eyy"
+LIMITS_EYY = "colour_scale/eyy"
+EXTENSOMETER_STRAIN = "extensometers/strain"     # one child per extensometer: extensometers/strain/NAME
+STRAIN_XY = "strain_xy"
+STRAIN_XY_DATA = "strain_xy/data"                # the transform from strain (%) to the plot box
+STRAIN_XY_CURVE = "strain_xy/data/curve"
+STRAIN_XY_NOW = "strain_xy/now"
+STRAIN_XY_AXES = "strain_xy/axes"
+STRAIN_XY_TICKS = "strain_xy/ticks"
 
 TIMELINE_FRAME = "frame"
 TIMELINE_TIME = "time"
 
 MIN_COLOUR_LIMIT_PX = 0.05       # the automatic scale starts at +-this, so reference-frame noise is one colour
+MIN_COLOUR_LIMIT_STRAIN = 1e-3   # e_yy's scale starts at +-0.1 %: strain noise (~1e-4) is one colour
+MIN_XY_LIMIT_STRAIN = 5e-4       # the transverse-vs-axial axes start at +-0.05 % (where Poisson's ratio starts)
 _NICE_MANTISSAS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+_AXIS_MANTISSAS = (1.0, 2.0, 5.0, 10.0)   # the transverse-vs-axial axes grow in fewer, bigger steps
 _LIMIT_PERCENTILES = (0.5, 99.5)
 _SPACING_QUERIES = 128           # points sampled to estimate the typical spacing (once per point set)
 _BAR_WIDTH = 340
@@ -115,6 +163,20 @@ _BAR_TEXT_HEIGHT = 34
 _LOST_COLOUR = (230, 0, 0)
 _LOW_ZNCC_COLOUR = (255, 220, 0)
 _MARKER_DRAW_ORDER = 40.0        # above the field discs (Points2D default 30)
+_NO_STRAIN_COLOUR = (150, 150, 150)   # an ok point without a strain (too few valid neighbours): grey
+# Extensometer colours, in order of definition (axial, transverse, then the others): not red (a lost one),
+# yellow (low ZNCC) or magenta (P0); lines and series share them.
+_EXTENSOMETER_COLOURS = ((0, 220, 255), (70, 240, 70), (255, 150, 0), (185, 125, 255), (255, 255, 255))
+_EXTENSOMETER_LOST_COLOUR = (230, 0, 0)
+_BLACK = 0x000000FF              # packed opaque black
+_LABEL_BEYOND = 0.25             # an extensometer's label sits this fraction of its length beyond its second end
+_EXTENSOMETER_DRAW_ORDER = 50.0  # above the lost/low-ZNCC squares and P0
+_XY_BOX = (100.0, 25.0)          # the transverse-vs-axial plot's box (width, height) in scene units
+_XY_FRAME_COLOUR = (160, 160, 160)
+_XY_ZERO_COLOUR = (210, 210, 210)
+_XY_GRID_COLOUR = (75, 75, 75)
+_XY_MAX_TICKS = 5
+_LABEL_TEXT_COLOUR = (20, 20, 20)   # labels are drawn on a light box: dark text reads best
 _SERIES_STYLE = {
     P0: (["u (px)", "v (px)"], [(230, 80, 60), (60, 120, 230)]),
     QUALITY: (["ZNCC mean", "ZNCC min", "fraction ok"], [(40, 160, 90), (200, 140, 30), (120, 120, 120)]),
@@ -125,6 +187,8 @@ _SERIES_STYLE = {
     LIMITS_U: (["u low (px)", "u high (px)"], [(48, 18, 59), (122, 4, 3)]),
     LIMITS_V: (["v low (px)", "v high (px)"], [(48, 18, 59), (122, 4, 3)]),
 }
+# colour bars: legend -> (the entity of its numeric limits, the unit on the bar, display factor)
+_LEGENDS = {LEGEND_U: (LIMITS_U, "px", 1.0), LEGEND_V: (LIMITS_V, "px", 1.0), LEGEND_EYY: (LIMITS_EYY, "%", 100.0)}
 
 
 def has_display():
@@ -181,10 +245,19 @@ def colormap_lut():
     return cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)[:, 0, ::-1].copy()
 
 
-def nice_ceil(value):
-    """The smallest "nice" number (1, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 times a power of ten) >= ``value`` > 0."""
+def pack_colours(rgb):
+    """(N, 3) uint8 RGB -> (N,) uint32 0xRRGGBBAA, opaque: what Rerun stores, without its per-call conversion."""
+    rgb = np.asarray(rgb, dtype=np.uint32).reshape(-1, 3)
+    return (rgb[:, 0] << 24) | (rgb[:, 1] << 16) | (rgb[:, 2] << 8) | np.uint32(255)
+
+
+def nice_ceil(value, mantissas=_NICE_MANTISSAS):
+    """The smallest "nice" number (1, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 times a power of ten) >= ``value`` > 0.
+
+    ``mantissas`` (ascending, ending with 10) replaces the nice mantissas.
+    """
     exponent = np.floor(np.log10(value))
-    for mantissa in _NICE_MANTISSAS:
+    for mantissa in mantissas:
         candidate = mantissa * 10.0 ** exponent
         if candidate >= value * (1 - 1e-9):   # 0.3 / 0.1 and friends land a rounding error above a mantissa
             return float(f"{candidate:.3g}")
@@ -206,6 +279,17 @@ def grow_limits(limits, values):
         lo = -nice_ceil(-low)
     if high > hi:
         hi = nice_ceil(high)
+    return float(lo), float(hi)
+
+
+def grow_to_cover(limits, value, mantissas=_AXIS_MANTISSAS):
+    """``limits`` (lo <= 0 <= hi) widened to cover one finite ``value``: an end that moves goes out to the next
+    1, 2 or 5 times a power of ten (``mantissas``)."""
+    lo, hi = limits
+    if value < lo:
+        lo = -nice_ceil(-value, mantissas)
+    if value > hi:
+        hi = nice_ceil(value, mantissas)
     return float(lo), float(hi)
 
 
@@ -243,10 +327,11 @@ def typical_spacing(x, y):
     return float(np.sqrt(np.median(distances)))
 
 
-def colour_bar_image(lut, lo, hi):
+def colour_bar_image(lut, lo, hi, unit="px", factor=1.0):
     """RGB colour bar: the gradient from ``lo`` to ``hi`` over a white strip with the limits and 0 in black.
 
-    White margins left and right keep the labels of two bars side by side apart.
+    The limits are written times ``factor`` in ``unit`` (strain: 100 and "%"). White margins left and
+    right keep the labels of two bars side by side apart.
     """
     import cv2
     bar = np.full((_BAR_GRADIENT_HEIGHT + _BAR_TEXT_HEIGHT, _BAR_WIDTH, 3), 255, dtype=np.uint8)
@@ -263,7 +348,7 @@ def colour_bar_image(lut, lo, hi):
     def text_width(text):
         return cv2.getTextSize(text, font, font_scale, thickness)[0][0]
 
-    left, right = f"{_fmt(lo)} px", f"{_fmt(hi)} px"
+    left, right = f"{_fmt(lo * factor)} {unit}", f"{_fmt(hi * factor)} {unit}"
     left_end, right_start = first + text_width(left), last + 1 - text_width(right)
     cv2.putText(bar, left, (first, baseline_y), font, font_scale, black, thickness, cv2.LINE_AA)
     cv2.putText(bar, right, (right_start, baseline_y), font, font_scale, black, thickness, cv2.LINE_AA)
@@ -294,6 +379,38 @@ def _viewer_command(port):
         raise ValueError("cannot spawn a viewer: the 'rerun' program is not installed (pip install rerun-sdk), "
                          "or use --viewer save FILE.rrd")
     return [exe, "--bind", "127.0.0.1", "--port", str(port)]
+
+
+def _extensometer_colour(index):
+    return _EXTENSOMETER_COLOURS[index % len(_EXTENSOMETER_COLOURS)]
+
+
+def _darker(rgb, factor=0.45):
+    return tuple(int(c * factor) for c in rgb)
+
+
+def _strain_view_name(strain):
+    """The e_yy view's name: the measure and the virtual strain gauge, e.g. "e_yy (%) engineering, VSG 77 px"."""
+    return f"e_yy (%) {strain.config.measure}, VSG {strain.vsg_px:g} px"
+
+
+def _axial_transverse_pair(strain):
+    """(index of "axial", index of "transverse") among the extensometers, or None without the pair."""
+    names = [e.name for e in strain.extensometers] if strain is not None else []
+    if AXIAL in names and TRANSVERSE in names:
+        return names.index(AXIAL), names.index(TRANSVERSE)
+    return None
+
+
+def _ticks(lo, hi):
+    """At most ``_XY_MAX_TICKS`` + 1 round values from ``lo`` to ``hi`` (lo <= 0 <= hi), 0 among them."""
+    step = nice_ceil((hi - lo) / _XY_MAX_TICKS, (1.0, 2.0, 2.5, 5.0, 10.0))
+    first = np.ceil(lo / step - 1e-9)
+    return [float(f"{k * step:.6g}") + 0.0 for k in np.arange(first, np.floor(hi / step + 1e-9) + 1)]
+
+
+def _tick_label(value):
+    return "0" if value == 0 else f"{value:g}"
 
 
 def _fmt(value):
@@ -357,7 +474,8 @@ class RerunLogger:
         self._t0_ns = None
         self._p0 = None
         start_limits = color_range or (-MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_PX)
-        self.colour_limits = {LEGEND_U: start_limits, LEGEND_V: start_limits}   # what the bars show now
+        self.colour_limits = {LEGEND_U: start_limits, LEGEND_V: start_limits,   # what the bars show now
+                              LEGEND_EYY: (-MIN_COLOUR_LIMIT_STRAIN, MIN_COLOUR_LIMIT_STRAIN)}
         self._limits_logged = {}
         self._radius_key = None
         self._radius = 4.0
@@ -365,7 +483,18 @@ class RerunLogger:
         self._last_u = self._last_v = None       # last ok displacement per point, to place lost markers
         self._flagged_shown = {LOST: False, LOW_ZNCC: False}
         self._tracking_text = None
-        self._first_bar = (None, None)           # (limits, image) drawn by start()
+        self._first_bars = {}                    # legend -> (limits, image) drawn by start()
+        self._no_strain_colour = pack_colours([_NO_STRAIN_COLOUR])[0]
+        self._extensometer_colours = self._lost_colour = None
+        self._strain = None                      # the session's stream.strain.StrainStage, from start()
+        self._end_u = self._end_v = None         # last known displacement of each extensometer end
+        self._series_shown = {}                  # extensometer name -> its strain series has a value now
+        self._xy_pair = None                     # (axial index, transverse index) for the transverse-vs-axial plot
+        self._xy_limits = {"axial": (-MIN_XY_LIMIT_STRAIN, MIN_XY_LIMIT_STRAIN),
+                           "transverse": (-MIN_XY_LIMIT_STRAIN, MIN_XY_LIMIT_STRAIN)}
+        self._xy_axes_logged = None
+        self._xy_last = None                     # the plot's previous point (%), None after a gap
+        self._xy_transform = ((1.0, 1.0), (0.0, 0.0))
         self.log_seconds = 0.0
         self.frames_logged = 0
         if mode == "none":
@@ -375,6 +504,7 @@ class RerunLogger:
         self.rec = rr.RecordingStream(APPLICATION_ID)
         self.rec.send_recording_name(recording_name)
         self._lut = colormap_lut()
+        self._packed_lut = pack_colours(self._lut)
         self._blueprint = None
 
     @property
@@ -383,18 +513,24 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- setup
     def start(self, *, image_shape, roi=None, p0_index=None, points=None, has_truth=False, title=None,
-              source_settings=None):
-        """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles)."""
+              source_settings=None, strain=None):
+        """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
+
+        ``strain`` is the session's ``stream.strain.StrainStage`` (None: no strain): with it the view
+        adds e_yy, the extensometers and their plots (module notes).
+        """
         if not self.enabled:
             return
         rr = self.rr
+        self._strain = strain
+        self._xy_pair = _axial_transverse_pair(strain)
         height, width = image_shape
         scale = 1
         while max(height, width) / scale > self.image_max_side:
             scale += 1
         self._scale = scale
         self._p0 = p0_index
-        blueprint = self._make_blueprint(has_truth)
+        blueprint = self._make_blueprint(has_truth, strain)
         if self.mode == "save":
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
@@ -417,12 +553,19 @@ class RerunLogger:
                                            colors=[(255, 200, 0)], labels=["ROI"]), static=True)
         self._image_side = max(height, width)
         # drawn now: OpenCV's first text call takes ~30 ms, which would land on the first frame
-        self._first_bar = (self.colour_limits[LEGEND_U], colour_bar_image(self._lut, *self.colour_limits[LEGEND_U]))
+        for legend in (LEGEND_U, LEGEND_EYY) if strain is not None else (LEGEND_U,):
+            _, unit, factor = _LEGENDS[legend]
+            limits = self.colour_limits[legend]
+            self._first_bars[legend] = (limits, colour_bar_image(self._lut, *limits, unit=unit, factor=factor))
+        if strain is not None:
+            self._start_strain(strain)
         if self.color_range is not None:      # fixed: static; automatic: logged with the first frame
             for legend in (LEGEND_U, LEGEND_V):
                 self._log_limits(legend, static=True)
         lines = [f"# {title or 'livedic session'}", "",
                  f"{len(points) if points is not None else 0} points; camera image shown at 1/{scale} scale."]
+        if strain is not None:
+            lines += ["", strain.describe() + "."]
         if source_settings:
             lines += ["", "| setting | value |", "|---|---|"]
             lines += [f"| {k} | {v} |" for k, v in source_settings.items()]
@@ -449,36 +592,76 @@ class RerunLogger:
         raise ValueError(f"the Rerun viewer did not start listening on 127.0.0.1:{DEFAULT_PORT} within 10 s; "
                          "use --viewer save FILE.rrd instead")
 
-    def _make_blueprint(self, has_truth):
+    def _make_blueprint(self, has_truth, strain=None):
         import rerun.blueprint as rrb
         field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
-        images = rrb.Horizontal(
-            rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi"]),
+        extensometers = [f"/{EXTENSOMETER_LINES}"] if strain is not None else []
+        image_views = [
+            rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi", *extensometers]),
             rrb.Spatial2DView(name="u (px)", origin=CAMERA, contents=[*field, f"/{FIELD_U}"]),
             rrb.Spatial2DView(name="v (px)", origin=CAMERA, contents=[*field, f"/{FIELD_V}"]),
-        )
-        legends = rrb.Horizontal(
+        ]
+        legend_views = [
             rrb.Vertical(rrb.TextDocumentView(name="tracking", origin=TRACKING),
                          rrb.TextDocumentView(name="session", origin=SUMMARY), row_shares=[1, 2]),
             rrb.Spatial2DView(name="u colour scale (px)", origin=LEGEND_U),
             rrb.Spatial2DView(name="v colour scale (px)", origin=LEGEND_V),
-        )
-        plots = [
-            rrb.TimeSeriesView(name="P0 displacement (px)", origin=P0),
-            rrb.TimeSeriesView(name="ZNCC quality", origin=QUALITY),
+        ]
+        strain_plots = []
+        if strain is None:
+            left = rrb.Vertical(rrb.Horizontal(*image_views), rrb.Horizontal(*legend_views), row_shares=[4, 1])
+        else:
+            # four fields do not fit in a row: a 2 x 2 grid, each view over its colour bar, camera and e_yy on top
+            eyy = rrb.Spatial2DView(name=_strain_view_name(strain), origin=CAMERA,
+                                    contents=[*field, f"/{FIELD_EYY}", *extensometers])
+            eyy_bar = rrb.Spatial2DView(name="e_yy colour scale (%)", origin=LEGEND_EYY)
+            texts, u_bar, v_bar = legend_views
+            cells = [(image_views[0], texts), (eyy, eyy_bar), (image_views[1], u_bar), (image_views[2], v_bar)]
+            left = rrb.Grid(*(rrb.Vertical(view, under, row_shares=[5, 1]) for view, under in cells), grid_columns=2)
+            strain_plots = self._strain_plots(strain)
+        performance = [
             rrb.TimeSeriesView(name="throughput", origin=THROUGHPUT),
             rrb.TimeSeriesView(name="latency (ms)", origin=LATENCY),
             rrb.TimeSeriesView(name="drops", origin=DROPS),
         ]
+        if strain_plots:     # the strain plots take the room: the performance plots share one row, as tabs
+            performance = [rrb.Tabs(*performance, name="performance")]
+        plots = [
+            *strain_plots,
+            rrb.TimeSeriesView(name="P0 displacement (px)", origin=P0),
+            rrb.TimeSeriesView(name="ZNCC quality", origin=QUALITY),
+            *performance,
+        ]
         if has_truth:
             plots.append(rrb.TimeSeriesView(name="error vs truth (px)", origin=ERROR))
         plots.append(rrb.TextLogView(name="events", origin=EVENTS))
+        # the strain plots are what a test engineer watches: three times the height of the others
+        shares = {"row_shares": [3] * len(strain_plots) + [1] * (len(plots) - len(strain_plots))} if strain_plots else {}
         return rrb.Blueprint(
             rrb.Horizontal(
-                rrb.Vertical(images, legends, row_shares=[4, 1]),
-                rrb.Vertical(*plots),
+                left,
+                rrb.Vertical(*plots, **shares),
                 column_shares=[3, 2]),
             collapse_panels=True)
+
+    def _strain_plots(self, strain):
+        """The extensometer strain series and the transverse-vs-axial plot (none without extensometers)."""
+        import rerun.blueprint as rrb
+        if not strain.extensometers:
+            return []
+        plots = [rrb.TimeSeriesView(name="extensometer strain (%)", origin=EXTENSOMETER_STRAIN)]
+        if self._xy_pair is not None:
+            # the curve is one segment a frame, all shown up to the time cursor (on either timeline)
+            history = rrb.VisibleTimeRanges([
+                rrb.VisibleTimeRange(timeline, start=rrb.TimeRangeBoundary.infinite(),
+                                     end=rrb.TimeRangeBoundary.cursor_relative())
+                for timeline in (TIMELINE_FRAME, TIMELINE_TIME)])
+            width, height = _XY_BOX
+            plots.append(rrb.Spatial2DView(name="transverse vs axial strain (%)", origin=STRAIN_XY,
+                                           overrides={f"/{STRAIN_XY_CURVE}": history},
+                                           visual_bounds=rrb.VisualBounds2D(x_range=[-0.08 * width, 1.03 * width],
+                                                                            y_range=[-0.4 * height, 1.2 * height])))
+        return plots
 
     # ----------------------------------------------------------------- per frame
     def log_frame(self, result, stats):
@@ -508,7 +691,12 @@ class RerunLogger:
             if self._limits_logged.get(legend) != self.colour_limits[legend]:
                 self._log_limits(legend)
             rec.log(path, rr.Points2D(np.column_stack([px[good], py[good]]), radii=radius,
-                                      colors=self._colours(values[good], *self.colour_limits[legend])))
+                                      colors=self._packed_lut[self._lut_index(values[good],
+                                                                              *self.colour_limits[legend])]))
+        if self._strain is not None and result.strain is not None:
+            self._log_strain_field(result.strain, ok, px, py, radius)
+        if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
+            self._log_extensometers(m, result.extensometers)
         self._log_flagged(m, px, py, radius)
         p0 = self._p0
         if p0 is not None and 0 <= p0 < m.u.size:
@@ -575,20 +763,183 @@ class RerunLogger:
 
     def _colours(self, values, lo, hi):
         """(N, 3) uint8 colours of ``values`` on the scale [lo, hi] (outside: the end colours)."""
+        return self._lut[self._lut_index(values, lo, hi)]
+
+    def _lut_index(self, values, lo, hi):
+        """Colour-map index of finite ``values`` on the scale [lo, hi] (outside: the ends)."""
         top = self._lut.shape[0] - 1
-        index = np.clip((values - lo) * (top / (hi - lo)) + 0.5, 0, top).astype(np.int64)
-        return self._lut[index]
+        return np.clip((values - lo) * (top / (hi - lo)) + 0.5, 0, top).astype(np.int64)
 
     def _log_limits(self, legend, static=False):
         """The colour bar image with its labels and the numeric limits, for ``legend``."""
         rr = self.rr
         lo, hi = self.colour_limits[legend]
-        limits, bar = self._first_bar
+        entity, unit, factor = _LEGENDS[legend]
+        limits, bar = self._first_bars.get(legend, (None, None))
         if limits != (lo, hi):
-            bar = colour_bar_image(self._lut, lo, hi)
+            bar = colour_bar_image(self._lut, lo, hi, unit=unit, factor=factor)
         self.rec.log(f"{legend}/bar", rr.Image(bar), static=static)
-        self.rec.log(LIMITS_U if legend == LEGEND_U else LIMITS_V, rr.Scalars([lo, hi]), static=static)
+        self.rec.log(entity, rr.Scalars([lo, hi]), static=static)
         self._limits_logged[legend] = (lo, hi)
+
+    # ----------------------------------------------------------------- strain
+    def _start_strain(self, strain):
+        """Series styles and the drawing styles of the strain entities (static: logged once, not per frame)."""
+        rr, rec = self.rr, self.rec
+        rec.log(LIMITS_EYY, rr.SeriesLines(names=["e_yy low", "e_yy high"], colors=[(48, 18, 59), (122, 4, 3)]),
+                static=True)
+        count = len(strain.extensometers)
+        self._end_u, self._end_v = np.zeros(2 * count), np.zeros(2 * count)
+        self._extensometer_colours = pack_colours([_extensometer_colour(i) for i in range(count)])
+        self._lost_colour = pack_colours([_EXTENSOMETER_LOST_COLOUR])[0]
+        # label text takes its strip's colour, on Rerun's light label box: darker shades of the line colours
+        self._label_colours = pack_colours([_darker(_extensometer_colour(i)) for i in range(count)])
+        self._lost_label_colour = pack_colours([_darker(_EXTENSOMETER_LOST_COLOUR)])[0]
+        for i, extensometer in enumerate(strain.extensometers):
+            rec.log(f"{EXTENSOMETER_STRAIN}/{extensometer.name}",
+                    rr.SeriesLines(names=[extensometer.name], colors=[_extensometer_colour(i)], widths=[2.0]),
+                    static=True)
+            self._series_shown[extensometer.name] = False
+        if count:
+            # label anchors (2+ extensometers), black outlines, then the coloured lines over them (module notes)
+            radii = ([0.0] * count if count > 1 else []) + [-3.0] * count + [-1.5] * count
+            rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(radii=radii, show_labels=True,
+                                                                    draw_order=_EXTENSOMETER_DRAW_ORDER), static=True)
+        if self._xy_pair is not None:
+            rec.log(STRAIN_XY_CURVE, rr.LineStrips2D.from_fields(radii=-1.5, colors=[_extensometer_colour(0)]),
+                    static=True)
+            rec.log(STRAIN_XY_NOW, rr.Points2D.from_fields(radii=[0.0, -4.0],
+                                                           colors=[_LABEL_TEXT_COLOUR, (255, 255, 255)],
+                                                           show_labels=True, draw_order=_MARKER_DRAW_ORDER),
+                    static=True)
+
+    def _log_strain_field(self, strain, ok, px, py, radius):
+        """e_yy at every point drawn (ok displacement): colour-mapped where it has a strain, grey where not."""
+        rr = self.rr
+        values = strain.eyy
+        has_strain = strain.ok & np.isfinite(values)
+        legend = LEGEND_EYY
+        self.colour_limits[legend] = grow_limits(self.colour_limits[legend], values[has_strain])
+        if self._limits_logged.get(legend) != self.colour_limits[legend]:
+            self._log_limits(legend)
+        shown = ok
+        colours = self._packed_lut[self._lut_index(np.where(has_strain[shown], values[shown], 0.0),
+                                                   *self.colour_limits[legend])]
+        colours[~has_strain[shown]] = self._no_strain_colour
+        self.rec.log(FIELD_EYY, rr.Points2D(np.column_stack([px[shown], py[shown]]), radii=radius, colors=colours))
+
+    def _log_extensometers(self, m, readings):
+        """The extensometers on the image, their strain series and the transverse-vs-axial plot.
+
+        One LineStrips2D: Rerun puts a strip's label at its middle, and labels only the first strips when
+        there are fewer labels than strips: an invisible zero-length strip a quarter length beyond each
+        second end comes first and carries the label, so "axial" reads below its lower end and "transverse"
+        right of its right end, clear of P0 where the two cross (one extensometer alone is labelled at its
+        middle). Then each line twice: black and wide, then in its colour, so it shows on the speckle and
+        on any colour of the field.
+        """
+        rr, rec, strain = self.rr, self.rec, self._strain
+        end_u, end_v = end_displacements(strain.placed, strain.points, m.u, m.v, m.ok)
+        known = np.isfinite(end_u) & np.isfinite(end_v)
+        np.copyto(self._end_u, end_u, where=known)     # a lost end stays where it was last seen
+        np.copyto(self._end_v, end_v, where=known)
+        ends = strain.placed.ends
+        scale = float(self._scale)
+        where = np.column_stack([(ends[:, 0] + self._end_u) / scale, (ends[:, 1] + self._end_v) / scale])
+        first, second = where[0::2], where[1::2]
+        ok = readings.ok
+        colours = np.where(ok, self._extensometer_colours, self._lost_colour).astype(np.uint32)
+        label_colours = np.where(ok, self._label_colours, self._lost_label_colour).astype(np.uint32)
+        labels = [f"{name} {100 * e:.3f} %" if good else f"{name}: lost"
+                  for name, e, good in zip(readings.names, readings.eng_strain, ok)]
+        lines = np.stack([first, second], axis=1)
+        black = np.full(len(lines), _BLACK, dtype=np.uint32)
+        strips, strip_colours = [lines, lines], [black, colours]
+        if len(lines) > 1:
+            anchor = second + _LABEL_BEYOND * (second - first)
+            strips.insert(0, np.stack([anchor, anchor], axis=1))
+            strip_colours.insert(0, label_colours)
+        rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(strips=np.concatenate(strips),
+                                                                colors=np.concatenate(strip_colours), labels=labels))
+        for name, e, good in zip(readings.names, readings.eng_strain, ok):
+            path = f"{EXTENSOMETER_STRAIN}/{name}"
+            if good:
+                rec.log(path, rr.Scalars(100.0 * float(e)))
+                self._series_shown[name] = True
+            elif self._series_shown.get(name):
+                rec.log(path, rr.Clear(recursive=False))    # a gap in the line, never the last value
+                self._series_shown[name] = False
+        if self._xy_pair is not None:
+            self._log_strain_xy(readings)
+
+    def _log_strain_xy(self, readings):
+        """One segment of the transverse-vs-axial curve, the current point and its numbers, the axes when they grow.
+
+        The curve is logged in strain (%) as (axial, -transverse) under ``STRAIN_XY_DATA``, whose transform maps
+        the current limits onto the fixed plot box: when the limits grow, one new transform rescales the
+        whole curve, and the segments already logged stay as they are.
+        """
+        rr, rec = self.rr, self.rec
+        a, t = self._xy_pair
+        if not (readings.ok[a] and readings.ok[t]):
+            if self._xy_last is not None:
+                self._xy_last = None                      # a gap in the curve
+                rec.log(STRAIN_XY_NOW, rr.Clear(recursive=False))
+            return
+        axial, transverse = float(readings.eng_strain[a]), float(readings.eng_strain[t])
+        self._xy_limits = {"axial": grow_to_cover(self._xy_limits["axial"], axial),
+                           "transverse": grow_to_cover(self._xy_limits["transverse"], transverse)}
+        if self._xy_axes_logged != self._xy_limits:
+            self._log_xy_axes()
+        point = (100.0 * axial, -100.0 * transverse)
+        if self._xy_last is not None:
+            rec.log(STRAIN_XY_CURVE, rr.LineStrips2D.from_fields(strips=[[self._xy_last, point]]))
+        self._xy_last = point
+        ratio = self._strain.poisson(readings)
+        text = f"axial {100 * axial:.3f} %   transverse {100 * transverse:.3f} %"
+        text += f"   Poisson {ratio:.3f}" if np.isfinite(ratio) else "   Poisson: from 0.05 % axial"
+        # two labels for two points: the text at the top of the box, none at the current point (one label
+        # alone would go to the middle of both)
+        (kx, ky), (bx, by) = self._xy_transform
+        width, height = _XY_BOX
+        # the numbers above the box, right of its title (the first point carries the label), then the current point
+        rec.log(STRAIN_XY_NOW, rr.Points2D.from_fields(positions=[(0.68 * width, -0.3 * height),
+                                                                  (kx * point[0] + bx,
+                                                                                         ky * point[1] + by)],
+                                                       labels=[text, ""]))
+
+    def _log_xy_axes(self):
+        """The plot box for the current limits: frame, zero lines, grid and tick labels (%), and the transform."""
+        rr, rec = self.rr, self.rec
+        width, height = _XY_BOX
+        (a_lo, a_hi), (t_lo, t_hi) = (tuple(100.0 * v for v in self._xy_limits[k]) for k in ("axial", "transverse"))
+        kx, ky = width / (a_hi - a_lo), height / (t_hi - t_lo)
+        bx, by = -kx * a_lo, ky * t_hi                    # X = kx * axial + bx, Y = ky * (-transverse) + by
+        self._xy_transform = ((kx, ky), (bx, by))
+        rec.log(STRAIN_XY_DATA, rr.Transform3D(translation=[bx, by, 0.0], scale=[kx, ky, 1.0]))
+        x_ticks, y_ticks = _ticks(a_lo, a_hi), _ticks(t_lo, t_hi)
+        strips, colours = [], []
+        for tick in x_ticks:
+            x = kx * tick + bx
+            strips.append([(x, 0.0), (x, height)])
+            colours.append(_XY_ZERO_COLOUR if tick == 0 else _XY_GRID_COLOUR)
+        for tick in y_ticks:
+            y = -ky * tick + by
+            strips.append([(0.0, y), (width, y)])
+            colours.append(_XY_ZERO_COLOUR if tick == 0 else _XY_GRID_COLOUR)
+        strips.append([(0.0, 0.0), (width, 0.0), (width, height), (0.0, height), (0.0, 0.0)])
+        colours.append(_XY_FRAME_COLOUR)
+        rec.log(STRAIN_XY_AXES, rr.LineStrips2D(strips, radii=-0.75, colors=colours, draw_order=0.0))
+        positions = [(kx * tick + bx, height + 0.02 * height) for tick in x_ticks]
+        positions += [(-0.04 * width, -ky * tick + by - 0.07 * height) for tick in y_ticks]
+        labels = [_tick_label(tick) for tick in x_ticks] + [_tick_label(tick) for tick in y_ticks]
+        # the axis titles: "transverse" above the box's left side, "axial" inside it at the right, under the
+        # zero line (a tensile test's curve runs down and right from 0, far from there)
+        positions += [(0.06 * width, -0.3 * height), (0.92 * width, by + 0.04 * height)]
+        labels += ["transverse (%)", "axial (%)"]
+        rec.log(STRAIN_XY_TICKS, rr.Points2D(positions, radii=0.0, labels=labels, show_labels=True,
+                                             colors=[_LABEL_TEXT_COLOUR]))
+        self._xy_axes_logged = dict(self._xy_limits)
 
     def _last_displacement(self, m):
         """Displacement per point, the last ok one where a point is not ok now (0 before its first)."""
