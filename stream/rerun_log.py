@@ -169,7 +169,10 @@ _NO_STRAIN_COLOUR = (150, 150, 150)   # an ok point without a strain (too few va
 _EXTENSOMETER_COLOURS = ((0, 220, 255), (70, 240, 70), (255, 150, 0), (185, 125, 255), (255, 255, 255))
 _EXTENSOMETER_LOST_COLOUR = (230, 0, 0)
 _BLACK = 0x000000FF              # packed opaque black
-_LABEL_BEYOND = 0.25             # an extensometer's label sits this fraction of its length beyond its second end
+# An extensometer's label sits beyond its second end, along the line, by these fractions of the image side
+# across and down: a label is wide (half of it ~1/6 of the image side in a view of ~1/4 of the screen) and
+# drawn below its anchor, so a horizontal line's label needs the room, a vertical one's hardly any.
+_LABEL_OFFSET = (0.16, 0.03)
 _EXTENSOMETER_DRAW_ORDER = 50.0  # above the lost/low-ZNCC squares and P0
 _XY_BOX = (100.0, 25.0)          # the transverse-vs-axial plot's box (width, height) in scene units
 _XY_FRAME_COLOUR = (160, 160, 160)
@@ -615,7 +618,9 @@ class RerunLogger:
             eyy = rrb.Spatial2DView(name=_strain_view_name(strain), origin=CAMERA,
                                     contents=[*field, f"/{FIELD_EYY}", *extensometers])
             eyy_bar = rrb.Spatial2DView(name="e_yy colour scale (%)", origin=LEGEND_EYY)
-            texts, u_bar, v_bar = legend_views
+            _, u_bar, v_bar = legend_views
+            texts = rrb.Horizontal(rrb.TextDocumentView(name="tracking", origin=TRACKING),
+                                   rrb.TextDocumentView(name="session", origin=SUMMARY), column_shares=[1, 2])
             cells = [(image_views[0], texts), (eyy, eyy_bar), (image_views[1], u_bar), (image_views[2], v_bar)]
             left = rrb.Grid(*(rrb.Vertical(view, under, row_shares=[5, 1]) for view, under in cells), grid_columns=2)
             strain_plots = self._strain_plots(strain)
@@ -832,8 +837,8 @@ class RerunLogger:
         """The extensometers on the image, their strain series and the transverse-vs-axial plot.
 
         One LineStrips2D: Rerun puts a strip's label at its middle, and labels only the first strips when
-        there are fewer labels than strips: an invisible zero-length strip a quarter length beyond each
-        second end comes first and carries the label, so "axial" reads below its lower end and "transverse"
+        there are fewer labels than strips: an invisible zero-length strip beyond each second end
+        (``_LABEL_OFFSET``) comes first and carries the label, so "axial" reads below its lower end and "transverse"
         right of its right end, clear of P0 where the two cross (one extensometer alone is labelled at its
         middle). Then each line twice: black and wide, then in its colour, so it shows on the speckle and
         on any colour of the field.
@@ -856,7 +861,8 @@ class RerunLogger:
         black = np.full(len(lines), _BLACK, dtype=np.uint32)
         strips, strip_colours = [lines, lines], [black, colours]
         if len(lines) > 1:
-            anchor = second + _LABEL_BEYOND * (second - first)
+            direction = (second - first) / np.hypot(*(second - first).T)[:, None]
+            anchor = second + direction * np.multiply(_LABEL_OFFSET, self._image_side / scale)
             strips.insert(0, np.stack([anchor, anchor], axis=1))
             strip_colours.insert(0, label_colours)
         rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(strips=np.concatenate(strips),
