@@ -109,6 +109,8 @@ from livedic.stream.strain import AXIAL, TRANSVERSE
 
 APPLICATION_ID = "livedic"
 DEFAULT_PORT = 9876
+# While frames wait in the queue the view leaves out images and fields, at most this many frames in a row.
+FIELDS_SKIP_MAX = 4
 DEFAULT_CONNECT_URL = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 VIEWER_MODES = ("spawn", "connect", "save", "none")
 
@@ -444,6 +446,10 @@ class RerunLogger:
     low_zncc : float
         Ok points whose ZNCC is below this are counted and marked as "low ZNCC" (default: the
         tracker's default ``refind_zncc``).
+    thin_when_behind : bool
+        A live session whose queue drops frames: while frames wait in the queue, leave out the
+        images and fields (at most ``FIELDS_SKIP_MAX`` frames in a row; plots get every frame), so
+        the display never costs the measurement a frame. Off: every frame is drawn (files, replays).
 
     Raises
     ------
@@ -453,7 +459,7 @@ class RerunLogger:
     """
 
     def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
-                 image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8):
+                 image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8, thin_when_behind=False):
         if color_range is not None:
             lo, hi = (float(value) for value in color_range)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
@@ -500,6 +506,9 @@ class RerunLogger:
         self._xy_transform = ((1.0, 1.0), (0.0, 0.0))
         self.log_seconds = 0.0
         self.frames_logged = 0
+        self.thin_when_behind = bool(thin_when_behind)
+        self.fields_skipped = 0                # frames whose images and fields were left out (queue not empty)
+        self._fields_skipped_in_a_row = 0
         if mode == "none":
             return
         import rerun as rr
@@ -681,36 +690,23 @@ class RerunLogger:
             self._t0_ns = frame.timestamp_ns
         rec.set_time(TIMELINE_FRAME, sequence=int(frame.index))
         rec.set_time(TIMELINE_TIME, duration=(frame.timestamp_ns - self._t0_ns) / 1e9)
-        if self.frames_logged % self.image_every == 0:
-            rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
         ok = m.ok
-        scale = float(self._scale)
-        last_u, last_v = self._last_displacement(m)
-        px = (m.x + last_u) / scale
-        py = (m.y + last_v) / scale
-        radius = self._point_radius(m) / scale
-        for path, legend, values in ((FIELD_U, LEGEND_U, m.u), (FIELD_V, LEGEND_V, m.v)):
-            good = ok & np.isfinite(values)
-            if self.color_range is None:
-                self.colour_limits[legend] = grow_limits(self.colour_limits[legend], values[good])
-            if self._limits_logged.get(legend) != self.colour_limits[legend]:
-                self._log_limits(legend)
-            rec.log(path, rr.Points2D(np.column_stack([px[good], py[good]]), radii=radius,
-                                      colors=self._packed_lut[self._lut_index(values[good],
-                                                                              *self.colour_limits[legend])]))
-        if self._strain is not None and result.strain is not None:
-            self._log_strain_field(result.strain, ok, px, py, radius)
+        # The display gives way to the measurement (live sessions that drop frames): while frames wait in
+        # the queue, the images and fields (most of the logging cost) are left out, at most FIELDS_SKIP_MAX
+        # frames in a row; the plots below get every frame.
+        show_fields = (not self.thin_when_behind or result.queue_depth == 0
+                       or self._fields_skipped_in_a_row >= FIELDS_SKIP_MAX)
+        if show_fields:
+            self._fields_skipped_in_a_row = 0
+            self._log_fields(result, m)
+        else:
+            self._fields_skipped_in_a_row += 1
+            self.fields_skipped += 1
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
-            self._log_extensometers(m, result.extensometers)
-        self._log_flagged(m, px, py, radius)
+            self._log_extensometer_series(result.extensometers)
         p0 = self._p0
-        if p0 is not None and 0 <= p0 < m.u.size:
-            if ok[p0]:
-                rec.log(P0, rr.Scalars([float(m.u[p0]), float(m.v[p0])]))
-            # a negative radius is in UI points: the same size at any zoom
-            rec.log(CAMERA_P0, rr.Points2D([[px[p0], py[p0]]], labels=["P0"], radii=-4.0,
-                                           colors=[(255, 0, 255) if ok[p0] else (128, 128, 128)],
-                                           show_labels=True, draw_order=_MARKER_DRAW_ORDER + 1))
+        if p0 is not None and 0 <= p0 < m.u.size and ok[p0]:
+            rec.log(P0, rr.Scalars([float(m.u[p0]), float(m.v[p0])]))
         nan = float("nan")
         zncc_ok = m.zncc[ok]
         rec.log(QUALITY, rr.Scalars([float(np.mean(zncc_ok)) if zncc_ok.size else nan,
@@ -733,6 +729,38 @@ class RerunLogger:
         self.log_seconds += time.perf_counter() - started
 
     __call__ = log_frame
+
+    def _log_fields(self, result, m):
+        """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
+        rr, rec, frame = self.rr, self.rec, result.frame
+        if self.frames_logged % self.image_every == 0:
+            rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
+        ok = m.ok
+        scale = float(self._scale)
+        last_u, last_v = self._last_displacement(m)
+        px = (m.x + last_u) / scale
+        py = (m.y + last_v) / scale
+        radius = self._point_radius(m) / scale
+        for path, legend, values in ((FIELD_U, LEGEND_U, m.u), (FIELD_V, LEGEND_V, m.v)):
+            good = ok & np.isfinite(values)
+            if self.color_range is None:
+                self.colour_limits[legend] = grow_limits(self.colour_limits[legend], values[good])
+            if self._limits_logged.get(legend) != self.colour_limits[legend]:
+                self._log_limits(legend)
+            rec.log(path, rr.Points2D(np.column_stack([px[good], py[good]]), radii=radius,
+                                      colors=self._packed_lut[self._lut_index(values[good],
+                                                                              *self.colour_limits[legend])]))
+        if self._strain is not None and result.strain is not None:
+            self._log_strain_field(result.strain, ok, px, py, radius)
+        if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
+            self._log_extensometer_lines(m, result.extensometers)
+        self._log_flagged(m, px, py, radius)
+        p0 = self._p0
+        if p0 is not None and 0 <= p0 < m.u.size:
+            # a negative radius is in UI points: the same size at any zoom
+            rec.log(CAMERA_P0, rr.Points2D([[px[p0], py[p0]]], labels=["P0"], radii=-4.0,
+                                           colors=[(255, 0, 255) if ok[p0] else (128, 128, 128)],
+                                           show_labels=True, draw_order=_MARKER_DRAW_ORDER + 1))
 
     def event(self, message, level="info"):
         """A line in the viewer's event log (level: info, warning or error)."""
@@ -833,8 +861,8 @@ class RerunLogger:
         colours[~has_strain[shown]] = self._no_strain_colour
         self.rec.log(FIELD_EYY, rr.Points2D(np.column_stack([px[shown], py[shown]]), radii=radius, colors=colours))
 
-    def _log_extensometers(self, m, readings):
-        """The extensometers on the image, their strain series and the transverse-vs-axial plot.
+    def _log_extensometer_lines(self, m, readings):
+        """The extensometers on the image, between the ends' current positions, labelled with their strain.
 
         One LineStrips2D: Rerun puts a strip's label at its middle, and labels only the first strips when
         there are fewer labels than strips: an invisible zero-length strip beyond each second end
@@ -867,6 +895,10 @@ class RerunLogger:
             strip_colours.insert(0, label_colours)
         rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(strips=np.concatenate(strips),
                                                                 colors=np.concatenate(strip_colours), labels=labels))
+
+    def _log_extensometer_series(self, readings):
+        """Each extensometer's strain series (a gap where it has no reading) and the transverse-vs-axial plot."""
+        rr, rec, ok = self.rr, self.rec, readings.ok
         for name, e, good in zip(readings.names, readings.eng_strain, ok):
             path = f"{EXTENSOMETER_STRAIN}/{name}"
             if good:

@@ -622,7 +622,7 @@ class Session:
             self.say(config.viewer.note)
         self.viewer = RerunLogger(config.viewer.mode, config.viewer.target, recording_name=config.name,
                                   image_max_side=config.image_max_side, color_range=config.color_range,
-                                  low_zncc=config.tracking.refind_zncc)
+                                  low_zncc=config.tracking.refind_zncc, thin_when_behind=self.drop_policy != BLOCK)
 
     def _open_recorder(self, path, metadata, *, start_time_ns=None):
         try:
@@ -712,6 +712,7 @@ class Session:
             p0_weak=self.p0.weak if self.p0 is not None else None,
             viewer_log_ms_per_frame=(1e3 * viewer.log_seconds / viewer.frames_logged
                                      if viewer is not None and viewer.frames_logged else None),
+            viewer_fields_skipped=viewer.fields_skipped if viewer is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=self.strain.summary() if self.strain is not None else None)
         return summary
@@ -746,6 +747,8 @@ def format_summary(summary, reference, recorder):
         extra += f"; frame delivery delay p99 {num(summary['delivery_delay_p99_ms'], '.1f')} ms"
     if summary.get("viewer_log_ms_per_frame") is not None:
         extra += f"; Rerun logging {num(summary['viewer_log_ms_per_frame'], '.1f')} ms/frame"
+        if summary.get("viewer_fields_skipped"):
+            extra += f" (fields left out of {summary['viewer_fields_skipped']} frames while behind)"
     lines.append(f"             {extra}")
     if summary.get("error_rms_px") is not None:
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "

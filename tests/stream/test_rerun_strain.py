@@ -208,3 +208,32 @@ def test_a_stage_without_extensometers_shows_only_the_field(tmp_path):
     entities = _entities(path)
     assert f"/{rerun_log.FIELD_EYY}" in entities
     assert not [e for e in entities if e.startswith(("/camera/extensometers", "/extensometers", "/strain_xy"))]
+
+
+def test_a_live_view_behind_leaves_out_fields_not_plots(tmp_path):
+    """With ``thin_when_behind`` (live sources that drop frames) the images and fields are left out while
+    frames wait in the queue, at most FIELDS_SKIP_MAX in a row; P0's plot and the extensometers' series get
+    every frame. Without it (files, replays) every frame is drawn, queue or not."""
+    import dataclasses
+    points = _points()
+    x, y = points[:, 0], points[:, 1]
+    for thin, path in ((True, tmp_path / "thin.rrd"), (False, tmp_path / "all.rrd")):
+        stage = _stage(points)
+        logger = RerunLogger("save", str(path), image_max_side=max(SHAPE), thin_when_behind=thin)
+        logger.start(image_shape=SHAPE, roi=ROI, p0_index=0, points=points, strain=stage)
+        frames = 12
+        for i in range(frames):
+            u, v = _field(i, x, y)
+            result = dataclasses.replace(_frame_result(i, x, y, u, v), queue_depth=2)   # always behind
+            stage(result, SessionStats())
+            logger.log_frame(result, SessionStats())
+        logger.close()
+        drawn = sorted(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions"))
+        assert len(_rows(path, f"/{rerun_log.P0}", "Scalars:scalars")) == frames
+        assert len(_rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == frames
+        if thin:
+            gap = rerun_log.FIELDS_SKIP_MAX + 1
+            assert drawn == list(range(0, frames, gap)) or drawn == list(range(gap - 1, frames, gap))
+            assert logger.fields_skipped == frames - len(drawn)
+        else:
+            assert drawn == list(range(frames)) and logger.fields_skipped == 0
