@@ -159,7 +159,7 @@ def test_replay_recomputes_the_same_extensometers(tmp_path):
 
 
 def test_the_strain_field_follows_the_simulators_exact_strain(gauge_session):
-    """e_yy at the last frame against the exact dV/dY of the simulator (central differences of its truth),
+    """e_yy at the last frame against the simulator's exact dV/dY (``TensileModel.strain_yy``),
     over the points more than one VSG from the plastic zone's ends, where the strain steps: RMSE within
     6e-3 (the window smooths the neck's peak: measured 2.8e-3 at VSG 45 px on this small image)."""
     from livedic.acquire.synthetic import TensileModel
