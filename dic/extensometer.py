@@ -3,16 +3,13 @@
 A video extensometer measures the distance between two marks on the specimen. Here
 each end is a point of the reference image; in every frame it moves with the
 material: its displacement is a least-squares quadratic surface of the tracked
-points' displacements around it (the ok points within ``END_REACH`` = 2.5 grid
-steps, about 20), evaluated at the end. Measured on the simulated tensile test
-(``livedic bench strain``): a plane over 2 steps is biased by the curvature of
-the field near a neck (a transverse gauge through it read 1 % low at the last
-frame), a quadratic over 2.5 steps is exact to second order and still averages
-the noise of ~20 points (over 3 steps the third-order terms grow back). Tracking
-each end with its own subset would add a subset's full noise (~0.01 px) and its
-own shape-function bias at each end. An end whose neighbourhood holds too few
-valid points, or points on a line only, is lost for that frame: its readings
-are NaN with a reason (``ExtensometerStatus``), never the last good value.
+points' displacements around it (``dic.field_fit``: the ok points within 2.5
+grid steps, about 20), evaluated at the end; that module's notes say why a
+quadratic and not a plane (measured). Tracking each end with its own subset
+would add a subset's full noise (~0.01 px) and its own shape-function bias at
+each end. An end whose neighbourhood holds too few valid points, or points on a
+line only, is lost for that frame: its readings are NaN with a reason
+(``ExtensometerStatus``), never the last good value.
 
 Per frame: the current length ``L``, engineering strain ``(L - L0) / L0`` and true
 strain ``ln(L / L0)``. ``poisson_ratio`` pairs an axial and a transverse reading.
@@ -23,14 +20,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from livedic.dic import field_fit
 from livedic.dic.neighbours import typical_spacing
 
-# An end's surface is fitted over the points within this many grid steps (about 20 points).
-END_REACH = 2.5
-END_MIN_POINTS = 10            # 6 coefficients, with some to spare
-END_MIN_SPREAD = 0.2           # smaller eigenvalue of the points' position covariance, in step^2
+# An end's surface is fitted over the points within this many grid steps (``dic.field_fit``).
+END_REACH = field_fit.REACH
+END_MIN_POINTS = field_fit.MIN_POINTS
+END_MIN_SPREAD = field_fit.MIN_SPREAD
 # Below this axial strain the ratio -e_trans / e_axial is noise over noise: NaN.
 POISSON_MIN_AXIAL = 5e-4
 
@@ -106,28 +103,6 @@ class ExtensometerSet:
         return tuple(e.name for e in self.extensometers)
 
 
-@njit(cache=True)
-def _ends_near(ex, ey, x, y, reach):
-    """CSR lists of the points within ``reach`` (Euclidean) of each end."""
-    n_ends = ex.shape[0]
-    counts = np.zeros(n_ends + 1, dtype=np.int64)
-    r2 = reach * reach
-    for k in range(n_ends):
-        for j in range(x.shape[0]):
-            if (x[j] - ex[k]) ** 2 + (y[j] - ey[k]) ** 2 <= r2:
-                counts[k + 1] += 1
-    for k in range(n_ends):
-        counts[k + 1] += counts[k]
-    index = np.empty(counts[n_ends], dtype=np.int64)
-    for k in range(n_ends):
-        fill = counts[k]
-        for j in range(x.shape[0]):
-            if (x[j] - ex[k]) ** 2 + (y[j] - ey[k]) ** 2 <= r2:
-                index[fill] = j
-                fill += 1
-    return counts, index
-
-
 def place_extensometers(extensometers, points, *, step=None):
     """Attach ``extensometers`` to the tracked reference ``points`` (N, 2).
 
@@ -146,9 +121,7 @@ def place_extensometers(extensometers, points, *, step=None):
         step = typical_spacing(points) if len(points) > 1 else 1.0
     step = float(step)
     ends = np.concatenate([e.ends for e in extensometers]) if extensometers else np.empty((0, 2))
-    start, index = _ends_near(np.ascontiguousarray(ends[:, 0]), np.ascontiguousarray(ends[:, 1]),
-                              np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
-                              END_REACH * step)
+    start, index = field_fit.neighbourhoods(ends, points, step)
     x_lo, y_lo = points.min(axis=0) if len(points) else (0.0, 0.0)
     x_hi, y_hi = points.max(axis=0) if len(points) else (0.0, 0.0)
     for k, e in enumerate(extensometers):
@@ -169,108 +142,9 @@ def _spread_enough(offsets, step):
     return np.linalg.eigvalsh(cov)[0] >= END_MIN_SPREAD * step * step
 
 
-@njit(cache=True)
-def _solve_in_place(a, b):
-    """Solve a x = b (small dense, partial pivoting) into b; False when a is (nearly) singular."""
-    n = a.shape[0]
-    scale = 0.0
-    for i in range(n):
-        scale = max(scale, abs(a[i, i]))
-    for col in range(n):
-        pivot = col
-        for row in range(col + 1, n):
-            if abs(a[row, col]) > abs(a[pivot, col]):
-                pivot = row
-        if abs(a[pivot, col]) <= 1e-10 * scale:
-            return False
-        if pivot != col:
-            for k in range(n):
-                a[col, k], a[pivot, k] = a[pivot, k], a[col, k]
-            for k in range(b.shape[1]):
-                b[col, k], b[pivot, k] = b[pivot, k], b[col, k]
-        for row in range(col + 1, n):
-            f = a[row, col] / a[col, col]
-            for k in range(col, n):
-                a[row, k] -= f * a[col, k]
-            for k in range(b.shape[1]):
-                b[row, k] -= f * b[col, k]
-    for col in range(n - 1, -1, -1):
-        for k in range(b.shape[1]):
-            acc = b[col, k]
-            for j in range(col + 1, n):
-                acc -= a[col, j] * b[j, k]
-            b[col, k] = acc / a[col, col]
-    return True
-
-
-@njit(cache=True)
-def _end_displacements(ends, start, index, x, y, u, v, valid, step, min_points, min_spread2, out_u, out_v):
-    """Quadratic surface fits of u and v around each end, evaluated at the end; NaN where not possible."""
-    basis = np.empty(6)
-    for k in range(ends.shape[0]):
-        out_u[k] = np.nan
-        out_v[k] = np.nan
-        count = 0
-        sx = 0.0
-        sy = 0.0
-        for m in range(start[k], start[k + 1]):
-            j = index[m]
-            if valid[j]:
-                count += 1
-                sx += (x[j] - ends[k, 0]) / step
-                sy += (y[j] - ends[k, 1]) / step
-        if count < min_points:
-            continue
-        mx = sx / count
-        my = sy / count
-        sxx = 0.0
-        sxy = 0.0
-        syy = 0.0
-        normal = np.zeros((6, 6))
-        rhs = np.zeros((6, 2))
-        for m in range(start[k], start[k + 1]):
-            j = index[m]
-            if not valid[j]:
-                continue
-            # Offsets in grid steps keep the 6 x 6 normal matrix well scaled.
-            px = (x[j] - ends[k, 0]) / step
-            py = (y[j] - ends[k, 1]) / step
-            sxx += (px - mx) ** 2
-            sxy += (px - mx) * (py - my)
-            syy += (py - my) ** 2
-            basis[0] = 1.0
-            basis[1] = px
-            basis[2] = py
-            basis[3] = px * px
-            basis[4] = px * py
-            basis[5] = py * py
-            for r in range(6):
-                rhs[r, 0] += basis[r] * u[j]
-                rhs[r, 1] += basis[r] * v[j]
-                for c in range(6):
-                    normal[r, c] += basis[r] * basis[c]
-        half_trace = 0.5 * (sxx + syy) / count
-        gap = math.sqrt((0.5 * (sxx - syy) / count) ** 2 + (sxy / count) ** 2)
-        if half_trace - gap < min_spread2:
-            continue
-        if not _solve_in_place(normal, rhs):
-            continue
-        out_u[k] = rhs[0, 0]       # the surface at the end (offset 0)
-        out_v[k] = rhs[0, 1]
-
-
 def end_displacements(placed, points, u, v, ok):
     """(u, v) of every end (2E,) in this frame, NaN where the end is lost."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    u = np.ascontiguousarray(u, dtype=np.float64)
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    valid = np.asarray(ok, dtype=bool) & np.isfinite(u) & np.isfinite(v)
-    n_ends = placed.ends.shape[0]
-    out_u, out_v = np.empty(n_ends), np.empty(n_ends)
-    _end_displacements(placed.ends, placed.start, placed.index, np.ascontiguousarray(points[:, 0]),
-                       np.ascontiguousarray(points[:, 1]), u, v, valid, placed.step, END_MIN_POINTS, END_MIN_SPREAD,
-                       out_u, out_v)
-    return out_u, out_v
+    return field_fit.fit_at(placed.ends, placed.start, placed.index, points, u, v, ok, placed.step)
 
 
 def read_extensometers(placed, points, u, v, ok):
