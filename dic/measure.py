@@ -11,7 +11,7 @@ from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
 from livedic.dic.result import Measurement, SubpixelResult
 from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
-from livedic.dic.subpixel import gradient_method, icgn, improved_surface_fit, newton_raphson, surface_fit
+from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
 from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
 # The integer searches, and "none": start the sub-pixel method from the guess.
@@ -25,6 +25,7 @@ _SUBPIXEL = {
     "newton-raphson": (newton_raphson, INTERPOLATION_MARGIN),
     "improved-surface-fit": (improved_surface_fit, 3),
     "icgn": (icgn, INTERPOLATION_MARGIN),
+    "icgn2": (icgn2, INTERPOLATION_MARGIN),
 }
 SUBPIXEL_METHODS = tuple(_SUBPIXEL)
 # Sub-pixel methods that run a stochastic optimiser and so take the seed.
@@ -72,7 +73,7 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     -------
     Measurement
         ``x, y, u, v, zncc, ok, status`` per point, plus ``ux, uy, vx, vy`` for
-        first-order methods (``newton-raphson``, ``icgn``; NaN where the subset
+        first- and second-order methods (``newton-raphson``, ``icgn``, ``icgn2``; NaN where the subset
         was too poorly textured for a first-order warp and a translation was
         fitted), ``iterations`` for iterative ones and ``evaluations`` (ZNCC
         evaluations of the search). Content at (x, y) in the reference is found
@@ -108,11 +109,14 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     radius = check_radius(radius)
     xy = as_points(points)
     xs, ys = snap_points(xy)
-    icgn_options = dict(subpixel_options or {}) if subpixel == "icgn" else {}
+    icgn_options = dict(subpixel_options or {}) if subpixel in _ICGN else {}
     # IC-GN's reference data also give the texture gates (dic.quality.texture)
     prep = icgn.prepare_reference(reference, xs, ys, half, hessian=icgn_options.pop("hessian", "projected"))
     texture = quality.texture(prep)
     thresholds = gates or Gates()
+    if subpixel == "icgn2":
+        # the 12-parameter data extend the first-order ones; too little texture for 12 -> first order
+        prep = icgn2.prepare_from(prep, vif_max=icgn_options.pop("vif_max", icgn2.VIF2_MAX))
     translation_only = texture.translation_only(thresholds) if subpixel in _FIRST_ORDER else None
     guided = guess is None and guided and search != "none" and xs.shape[0] > 0
     # neighbours serve the propagation and the median test only (a tracker that gates itself needs neither)
@@ -133,7 +137,9 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     return _finish(xs, ys, raw, status, translation_only)
 
 
-_FIRST_ORDER = ("icgn", "newton-raphson")
+_FIRST_ORDER = ("icgn", "icgn2", "newton-raphson")
+# IC-GN methods: the prepared reference, and their options come with it (hessian, ...).
+_ICGN = ("icgn", "icgn2")
 
 
 def _finish(xs, ys, raw, status, translation_only):
@@ -194,7 +200,7 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
             ok_mask = status == Status.OK
         return SubpixelResult(u=np.where(ok_mask, u0, np.nan), v=np.where(ok_mask, v0, np.nan),
                               zncc=np.where(ok_mask, zncc, np.nan), status=status, evaluations=evaluations)
-    options = dict(icgn_options) if subpixel == "icgn" else dict(subpixel_options or {})
+    options = dict(icgn_options) if subpixel in _ICGN else dict(subpixel_options or {})
     if subpixel in _SEEDED_SUBPIXEL:
         options.setdefault("seed", seed)
     if gradients is not None:
@@ -202,10 +208,11 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
             options.setdefault(f"{name}0", values)
     # first-order methods: a rigid shift where the texture cannot pin an affine warp
     split = translation_only is not None and translation_only.any() and options.get("order", 1) != 0
-    if subpixel == "icgn":
+    if subpixel in _ICGN:
         if split:
-            options["order"] = np.where(translation_only, 0, 1)    # per-point shape function
-        refined = icgn.refine_prepared(prep, icgn.prepare_target(deformed), u0, v0, status=status, **options)
+            # per-point shape function
+            options["order"] = np.where(translation_only, 0, options.get("order", 2 if subpixel == "icgn2" else 1))
+        refined = method.refine_prepared(prep, icgn.prepare_target(deformed), u0, v0, status=status, **options)
     elif split:
         refined = _refine_by_order(method, reference, deformed, xs, ys, u0, v0, status, half, options,
                                    translation_only)
@@ -249,7 +256,9 @@ def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_op
     xs, ys, half = prep.xs, prep.ys, prep.half
     coeffs = icgn.prepare_target(deformed)
     options = dict(icgn_options)
-    order = np.where(texture.translation_only(gates), 0, options.pop("order", 1))
+    # the propagation is first-order IC-GN (icgn2 refines every point from its result below)
+    order = np.where(texture.translation_only(gates), 0, min(options.pop("order", 1), 1))
+    first = prep.first if subpixel == "icgn2" else prep
 
     def full_search(idx):
         zero = np.zeros(idx.size)
@@ -264,7 +273,7 @@ def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_op
         return flagged
 
     params, status, zncc, iterations, evaluations = guided_icgn(
-        prep, coeffs, full_search, graph, order=order, accept=gates.min_zncc, energy=texture.energy,
+        first, coeffs, full_search, graph, order=order, accept=gates.min_zncc, energy=texture.energy,
         active=~poor, options={k: v for k, v in options.items() if k in ICGN_OPTIONS}, repair=outliers)
     if subpixel == "icgn":
         return SubpixelResult(u=params[:, 0], v=params[:, 3], zncc=zncc, status=status, ux=params[:, 1],
@@ -275,7 +284,7 @@ def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_op
     u0 = np.where(ok, np.floor(params[:, 0] + 0.5), 0.0)
     v0 = np.where(ok, np.floor(params[:, 3] + 0.5), 0.0)
     gradients = None
-    if subpixel == "newton-raphson":
+    if subpixel in ("newton-raphson", "icgn2"):
         u0, v0 = np.where(ok, params[:, 0], 0.0), np.where(ok, params[:, 3], 0.0)
         gradients = {name: np.where(ok, params[:, c], 0.0) for name, c in (("ux", 1), ("uy", 2), ("vx", 4), ("vy", 5))}
     return _refine(reference, deformed, prep, u0, v0, status.copy(), np.where(ok, zncc, np.nan), evaluations,

@@ -10,9 +10,9 @@ SHIFT = (3.3, -2.2)   # fractions well below 0.5: the integer ZNCC peak is the n
 # Bounds on the RMS and the largest |error| (px) per sub-pixel method on exact, unquantised images:
 # without 8-bit quantisation noise (~0.003 px here) a small systematic bias cannot hide.
 RMS_BOUND = {"none": 0.5, "surface-fit": 0.08, "gradient": 0.08, "newton-raphson": 0.001,
-             "improved-surface-fit": 0.006, "icgn": 0.001}
+             "improved-surface-fit": 0.006, "icgn": 0.001, "icgn2": 0.001}
 MAX_BOUND = {"none": 0.5, "surface-fit": 0.15, "gradient": 0.15, "newton-raphson": 0.003,
-             "improved-surface-fit": 0.012, "icgn": 0.003}
+             "improved-surface-fit": 0.012, "icgn": 0.003, "icgn2": 0.003}
 
 
 @pytest.fixture(scope="module")
@@ -59,11 +59,14 @@ def test_every_search_finds_the_integer_peak(images, points, search):
     assert np.all(result.evaluations > 0)
 
 
-def test_first_order_methods_report_gradients(images, points):
+# A rigid shift: the gradients are 0 up to the 8-bit rounding noise, which moves the 2nd-order fit's
+# more (its slope at the centre shares the subset with three more terms per component).
+@pytest.mark.parametrize("subpixel, bound", [("icgn", 5e-3), ("icgn2", 1e-2)])
+def test_first_order_methods_report_gradients(images, points, subpixel, bound):
     reference, deformed = images
-    result = measure(reference, deformed, points, subpixel="icgn", radius=6)
+    result = measure(reference, deformed, points, subpixel=subpixel, radius=6)
     for gradient in (result.ux, result.uy, result.vx, result.vy):
-        assert gradient is not None and np.max(np.abs(gradient)) < 5e-3
+        assert gradient is not None and np.max(np.abs(gradient)) < bound
 
 
 def test_search_none_starts_from_the_guess(images, points):

@@ -1,0 +1,940 @@
+"""Inverse-compositional Gauss-Newton (IC-GN) with the 2nd-order shape function (12 parameters).
+
+A first-order (affine) subset cannot follow a displacement that bends inside
+it: where the strain changes fast (the flanks of a neck) IC-GN then settles on
+the affine warp that fits best, and the centre's displacement is off by about
+``(1/2) u_xx`` times the subset's second moment (Schreier & Sutton 2002): up to
+~0.1 px on the simulated tensile test at 1024 x 1024 with 21 px subsets. The
+second-order shape function of Lu & Cary (2000) adds the six curvature terms,
+
+    u(dx, dy) = u + ux dx + uy dy + 1/2 uxx dx^2 + uxy dx dy + 1/2 uyy dy^2
+
+(the same for v), p = (u, ux, uy, uxx, uxy, uyy, v, vx, vy, vxx, vxy, vyy),
+and fits a quadratic field exactly. The iteration is OpenCorr's ``ICGN2D2``
+(vincentjzy/OpenCorr ``src/oc_icgn.cpp``) after Gao et al. (2015):
+
+- steepest-descent images ``J = (fx, fx dx, fx dy, fx dx^2/2, fx dx dy, fx dy^2/2,
+  fy, ...)`` and the 12 x 12 step matrix from the reference only (once per point);
+- each iteration samples the target at the quadratically warped subset (bicubic
+  B-spline, ``dic.bspline``) and forms the same ZNSSD residual as ``dic.subpixel.icgn``;
+- the update ``W(p) <- W(p) W(dp)^-1`` uses the 6 x 6 warp matrix acting on
+  ``(dx^2, dx dy, dy^2, dx, dy, 1)``: rows 3 and 4 are the warp itself, rows 0-2
+  its squares and product truncated to second order (OpenCorr ``Deformation2D2::setWarp``),
+  so the product is the composition of the two warps to second order in (dx, dy);
+- converged when ``du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)
+  + M^4 (duxx^2/4 + duxy^2 + duyy^2/4 + ...) < 0.001^2``: the largest
+  displacement change over the subset (M the subset half-width).
+
+The step matrix is that of ``dic.subpixel.icgn`` extended to 12 parameters: by
+default the exact derivative of the update equation at a zero-residual
+solution (``hessian="projected"``, see that module), or OpenCorr's ``sum J J^T``
+(``hessian="opencorr"``); both have the same fixed point. The truncated warp
+composition changes the path, never the fixed point: an iteration stops only
+where ``sum J e = 0`` for the exactly sampled 2nd-order warp.
+
+Start
+-----
+As OpenCorr does (FFT-CC, then ICGN2D1, then ICGN2D2), a start without
+second-order terms (all six exactly 0: an integer search result, a guess, a
+first-order result) is first refined by first-order IC-GN
+(``dic.subpixel.icgn.refine_point``, with its translation pre-stage), and the
+2nd-order iteration starts from that result; a start with second-order terms
+(the previous frame's result in a tracker) goes straight to the 2nd-order
+iteration. ``iterations`` counts every step of both.
+
+Shape function per point (``order``): 2 (default) quadratic; 1 affine (exactly
+``dic.subpixel.icgn``); 0 rigid shift (the translation-only fallback of
+``dic.quality`` for subsets too poorly textured to pin more).
+
+Noise and the first-order fallback
+----------------------------------
+Twelve parameters need more texture than six, and image noise moves a
+quadratic fit more: the variance of u grows by ``[H^-1]_uu / [H_uv^-1]_uu``
+(the variance inflation, VIF, of the 12 x 12 matrix against its shift block).
+Measured on the paper's speckle (R = 4 px, 1000 spots per 256^2, subset 21),
+8-bit images of an affine field, 19,602 points of two patterns: VIF median
+6.2 (first order: 1.3), and the error RMS 0.012-0.013 px against IC-GN's
+0.0067 px (8-bit rounding alone); the error grows with the VIF (RMS 0.010 px
+below 5, 0.026 px at 15-20, 0.094 px above 50, where one point was 0.22 px
+off). A point whose VIF exceeds ``VIF2_MAX`` (20; 1.4 % of those points) or
+whose 12 x 12 matrix is singular is therefore refined to first order
+(``Icgn2Reference.max_order`` 1, curvature NaN); the worst error among the
+rest was 0.099 px. On exact (float) images there is no such cost: IC-GN2 fits
+a quadratic field to 0.001 px where IC-GN is off by up to 0.06 px (tests).
+Use icgn2 where the strain varies within a subset (a neck, a notch, a crack
+tip) and icgn elsewhere; a larger subset lowers both its VIF and IC-GN's bias.
+
+Speed
+-----
+The sampler is ``dic.subpixel.icgn``'s, generalised: along a subset row the
+tap origin is ``(floor(x' - dx), floor(y'))`` with ``x' - dx`` and ``y'`` now
+quadratic in dx; while both floors stay constant (a whole row for gentle
+warps; the range over the row is taken at its ends and the parabola's vertex)
+the 16 taps of consecutive lanes are consecutive in memory, one vector pass
+per row (8 float32 lanes, fused with the 9 per-row sums), else one masked pass
+per run. Per-row sums are float32, the subset's float64. The per-iteration
+cost is about that of the affine sampler plus a 12 x 12 solve; measured costs
+are in the tests' and ``livedic bench speed``'s output.
+
+References
+----------
+H. Lu and P. D. Cary, "Deformation measurements by digital image correlation:
+implementation of a second-order displacement gradient", Exp. Mech.
+40:393-400 (2000), :DOI:`10.1007/BF02326485`.
+
+H. W. Schreier and M. A. Sutton, "Systematic errors in digital image
+correlation due to undermatched subset shape functions", Exp. Mech.
+42:303-310 (2002), :DOI:`10.1007/BF02410987`.
+
+Y. Gao, T. Cheng, Y. Su, X. Xu, Y. Zhang and Q. Zhang, "High-efficiency and
+high-accuracy digital image correlation for three-dimensional measurement",
+Opt. Lasers Eng. 65:73-80 (2015), :DOI:`10.1016/j.optlaseng.2014.05.013`.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+from numpy import float32 as _F32
+
+from livedic.dic.bspline import FASTMATH, INTERPOLATION_MARGIN, PAD, BSplineCoefficients
+from livedic.dic.result import SubpixelResult
+from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, NOT_CONVERGED as _NOT_CONVERGED, OK as _OK,
+                                OUTSIDE_TARGET as _OUTSIDE_TARGET, FLAT_TARGET as _FLAT_TARGET, Status)
+from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
+from livedic.dic.subpixel.icgn import (IcgnReference, _invert_spd, prepare_reference as _prepare_first,
+                                       prepare_target, refine_point, refine_point_scratch)
+from livedic.dic.validation import as_image, check_same_shape
+
+# Parameter order (OpenCorr's Deformation2D2).
+PARAMETERS = ("u", "ux", "uy", "uxx", "uxy", "uyy", "v", "vx", "vy", "vxx", "vxy", "vyy")
+SECOND_ORDER = ("uxx", "uxy", "uyy", "vxx", "vxy", "vyy")
+# Where the first-order parameters (u, ux, uy, v, vx, vy) sit in p, and the second-order ones.
+_FIRST_INDEX = np.array([0, 1, 2, 6, 7, 8], dtype=np.int64)
+_SECOND_INDEX = np.array([3, 4, 5, 9, 10, 11], dtype=np.int64)
+# Monomial of each parameter within a component: (1, dx, dy, dx^2/2, dx dy, dy^2/2) as
+# coefficient * dx^a * dy^b.
+_MONO_A = np.array([0, 1, 0, 2, 1, 0], dtype=np.int64)
+_MONO_B = np.array([0, 0, 1, 0, 1, 2], dtype=np.int64)
+_MONO_C = np.array([1.0, 1.0, 1.0, 0.5, 1.0, 0.5])
+# |ux|.. beyond this, or a curvature term times M beyond it, is no longer a subset warp: declared diverged.
+_MAX_GRADIENT = 1.0
+# Variance inflation of u, v by the 10 parameters beyond the shift above which a point is refined to
+# first order (module notes: 1.4 % of the points of the paper's speckle with subset 21).
+VIF2_MAX = 20.0
+_NO_RUN = -(1 << 62)  # tap origin of pad lanes in split rows
+_CHUNK = 32           # points per parallel task
+
+
+@dataclass
+class Icgn2Reference:
+    """Everything 2nd-order IC-GN needs from the reference image, computed once per session.
+
+    first : IcgnReference        the first-order data (subsets, gradients, 6 x 6 and 2 x 2 step
+                                 matrices): the first-order stage, the shift fallback and the
+                                 texture gates (``dic.quality.texture``) use it as it is
+    hinv2 : float64 (N, 12, 12)  inverse of the 12 x 12 step matrix, parameter order ``PARAMETERS``
+    sum_j2 : float64 (N, 12)     sum_i J_i
+    sum_jf2 : float64 (N, 12)    sum_i J_i fhat_i
+    max_order : int8 (N,)        2, or 1 where the 12 x 12 matrix is singular (refined to first order)
+    """
+    first: IcgnReference
+    hinv2: np.ndarray
+    sum_j2: np.ndarray
+    sum_jf2: np.ndarray
+    max_order: np.ndarray
+
+    @property
+    def xs(self):
+        return self.first.xs
+
+    @property
+    def ys(self):
+        return self.first.ys
+
+    @property
+    def half(self):
+        return self.first.half
+
+    @property
+    def shape(self):
+        return self.first.shape
+
+    @property
+    def status(self):
+        return self.first.status
+
+
+@dataclass
+class Icgn2Result(SubpixelResult):
+    """``SubpixelResult`` plus the second-order terms (NaN where not estimated: status not OK, order < 2)."""
+    uxx: np.ndarray = None
+    uxy: np.ndarray = None
+    uyy: np.ndarray = None
+    vxx: np.ndarray = None
+    vxy: np.ndarray = None
+    vyy: np.ndarray = None
+
+
+# ---------------------------------------------------------------------------
+# reference preparation
+
+
+@njit(cache=True)
+def _prepare2_one(half, lanes, fhat, fx, fy, projected, hinv2, sum_j2, sum_jf2, work):
+    """Fill the 12-parameter step matrix inverse and sums of one point; False if the matrix is singular.
+
+    The matrix entries are moments ``dx^a dy^b`` (a + b <= 4) of fx^2, fx fy, fy^2,
+    accumulated per row in powers of dx and folded with the row's dy; the sums are
+    moments (a + b <= 2) of fx, fy, fx fhat, fy fhat. Read from the stored float32
+    values, as the first-order preparation does, so they match what the iteration sees.
+    """
+    hess, low, linv, mom, vec, rowm, rowv = work
+    side = 2 * half + 1
+    n = side * side
+    for a in range(3):
+        for e in range(5):
+            for f in range(5):
+                mom[a, e, f] = 0.0
+    for a in range(4):
+        for e in range(3):
+            for f in range(3):
+                vec[a, e, f] = 0.0
+    for j in range(side):
+        for a in range(3):
+            for e in range(5):
+                rowm[a, e] = 0.0
+        for a in range(4):
+            for e in range(3):
+                rowv[a, e] = 0.0
+        k0 = j * lanes
+        for i in range(side):
+            k = k0 + i
+            gx = np.float64(fx[k])
+            gy = np.float64(fy[k])
+            fh = np.float64(fhat[k])
+            d = float(i - half)
+            d2 = d * d
+            xx = gx * gx
+            xy = gx * gy
+            yy = gy * gy
+            w = 1.0
+            for e in range(5):
+                rowm[0, e] += xx * w
+                rowm[1, e] += xy * w
+                rowm[2, e] += yy * w
+                if e < 3:
+                    rowv[0, e] += gx * w
+                    rowv[1, e] += gy * w
+                    rowv[2, e] += gx * fh * w
+                    rowv[3, e] += gy * fh * w
+                w *= d
+        dy = float(j - half)
+        for e in range(5):
+            w = 1.0
+            for f in range(5 - e):
+                for a in range(3):
+                    mom[a, e, f] += rowm[a, e] * w
+                if e + f <= 2:
+                    for a in range(4):
+                        vec[a, e, f] += rowv[a, e] * w
+                w *= dy
+    for i in range(12):
+        gi = i // 6
+        mi = i % 6
+        ci = _MONO_C[mi]
+        sum_j2[i] = ci * vec[gi, _MONO_A[mi], _MONO_B[mi]]
+        sum_jf2[i] = ci * vec[2 + gi, _MONO_A[mi], _MONO_B[mi]]
+        for jj in range(12):
+            gj = jj // 6
+            mj = jj % 6
+            hess[i, jj] = ci * _MONO_C[mj] * mom[gi + gj, _MONO_A[mi] + _MONO_A[mj], _MONO_B[mi] + _MONO_B[mj]]
+    if projected:
+        # the two rank-one terms of the ZNSSD's normalisation (dic.subpixel.icgn module notes)
+        for i in range(12):
+            for jj in range(12):
+                hess[i, jj] -= sum_j2[i] * sum_j2[jj] / n + sum_jf2[i] * sum_jf2[jj]
+    return _invert_spd(hess, hinv2, low, linv)
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def _prepare2_batch(half, lanes, fhat, fx, fy, status, projected, hinv2, sum_j2, sum_jf2, max_order):
+    npts = fhat.shape[0]
+    n_chunks = (npts + _CHUNK - 1) // _CHUNK
+    for c in prange(n_chunks):
+        work = (np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12)), np.empty((3, 5, 5)),
+                np.empty((4, 3, 3)), np.empty((3, 5)), np.empty((4, 3)))
+        for i in range(c * _CHUNK, min((c + 1) * _CHUNK, npts)):
+            max_order[i] = 1
+            if status[i] != _OK:
+                continue
+            if _prepare2_one(half, lanes, fhat[i], fx[i], fy[i], projected, hinv2[i], sum_j2[i], sum_jf2[i], work):
+                max_order[i] = 2
+
+
+def prepare_from(first, *, vif_max=VIF2_MAX):
+    """Extend first-order reference data (``dic.subpixel.icgn.prepare_reference``) to 12 parameters.
+
+    Parameters
+    ----------
+    first : IcgnReference
+    vif_max : float
+        A point whose variance inflation of u or v by the 10 parameters beyond
+        the shift, ``[H^-1]_uu / [H_uv^-1]_uu`` of the 12 x 12 matrix, exceeds
+        this is refined to first order (``max_order`` 1; module notes).
+
+    Returns
+    -------
+    Icgn2Reference
+        Holding ``first`` itself (not a copy).
+    """
+    if isinstance(vif_max, bool) or not isinstance(vif_max, (int, float, np.floating)) or not vif_max >= 1.0:
+        raise ValueError(f"vif_max must be a number >= 1, got {vif_max!r}")
+    if not isinstance(first, IcgnReference):
+        raise ValueError("first must come from dic.subpixel.icgn.prepare_reference (an IcgnReference)")
+    npts = first.xs.shape[0]
+    hinv2 = np.zeros((npts, 12, 12))
+    sum_j2 = np.zeros((npts, 12))
+    sum_jf2 = np.zeros((npts, 12))
+    max_order = np.ones(npts, dtype=np.int8)
+    _prepare2_batch(first.half, first.lanes, first.fhat, first.fx, first.fy, first.status,
+                    first.hessian == "projected", hinv2, sum_j2, sum_jf2, max_order)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vif = np.maximum(hinv2[:, 0, 0] / first.hinv0[:, 0, 0], hinv2[:, 6, 6] / first.hinv0[:, 1, 1])
+    max_order[(max_order == 2) & ~(vif <= vif_max)] = 1
+    return Icgn2Reference(first, hinv2, sum_j2, sum_jf2, max_order)
+
+
+def prepare_reference(reference, xs, ys, half, *, hessian="projected", vif_max=VIF2_MAX):
+    """Per-point reference data for 2nd-order IC-GN (once per session).
+
+    ``dic.subpixel.icgn.prepare_reference`` (same arguments, same ``status``)
+    followed by ``prepare_from`` (``vif_max``).
+
+    Returns
+    -------
+    Icgn2Reference
+    """
+    return prepare_from(_prepare_first(reference, xs, ys, half, hessian=hessian), vif_max=vif_max)
+
+
+# ---------------------------------------------------------------------------
+# iteration kernels
+
+
+@njit(cache=True, inline="always")
+def _quadratic_range(c, s, q, half):
+    """(min, max) of c + s d + q d^2 over d in [-half, half]: the ends and, inside, the vertex."""
+    h = float(half)
+    lo_end = c - s * h + q * h * h
+    hi_end = c + s * h + q * h * h
+    lo = min(lo_end, hi_end)
+    hi = max(lo_end, hi_end)
+    if q != 0.0:
+        dv = -s / (2.0 * q)
+        if -h < dv < h:
+            value = c + s * dv + q * dv * dv
+            lo = min(lo, value)
+            hi = max(hi, value)
+    return lo, hi
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _row_sums2(flat, base, stride, ax, sx, qx, ay, sy, qy, lanes, lane_dx, mask, fhat, fx, fy, koff):
+    """Sample one subset row at a quadratic warp and return its 9 sums (float32).
+
+    Lane l sits at dx = lane_dx[l]; its 16 taps start at flat[base + l] and its
+    fractional offsets are ax + sx dx + qx dx^2, ay + sy dx + qy dx^2 (the
+    affine sampler of ``dic.subpixel.icgn`` with a quadratic term). Returns
+    sum g, g^2, fhat g, fx g, fx g dx, fx g dx^2, fy g, fy g dx, fy g dx^2.
+    """
+    st = np.uint64(stride)
+    ko = np.uint64(koff)
+    sg = _F32(0.0)
+    sgg = _F32(0.0)
+    sfg = _F32(0.0)
+    pa = _F32(0.0)
+    pax = _F32(0.0)
+    paxx = _F32(0.0)
+    pb = _F32(0.0)
+    pbx = _F32(0.0)
+    pbxx = _F32(0.0)
+    for l in range(lanes):
+        lu = np.uint64(l)
+        d = lane_dx[lu]
+        tx = ax + (sx + qx * d) * d
+        ty = ay + (sy + qy * d) * d
+        s = _F32(1.0) - tx
+        t2 = tx * tx
+        t3 = t2 * tx
+        wx0 = s * s * s * _F32(1.0 / 6.0)
+        wx3 = t3 * _F32(1.0 / 6.0)
+        wx1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+        wx2 = _F32(1.0) - wx0 - wx1 - wx3
+        s = _F32(1.0) - ty
+        t2 = ty * ty
+        t3 = t2 * ty
+        wy0 = s * s * s * _F32(1.0 / 6.0)
+        wy3 = t3 * _F32(1.0 / 6.0)
+        wy1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+        wy2 = _F32(1.0) - wy0 - wy1 - wy3
+        o0 = base + lu
+        o1 = o0 + st
+        o2 = o1 + st
+        o3 = o2 + st
+        c0 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+        o0 += np.uint64(1)
+        o1 += np.uint64(1)
+        o2 += np.uint64(1)
+        o3 += np.uint64(1)
+        c1 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+        o0 += np.uint64(1)
+        o1 += np.uint64(1)
+        o2 += np.uint64(1)
+        o3 += np.uint64(1)
+        c2 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+        o0 += np.uint64(1)
+        o1 += np.uint64(1)
+        o2 += np.uint64(1)
+        o3 += np.uint64(1)
+        c3 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+        g = (wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3) * mask[lu]
+        k = ko + lu
+        sg += g
+        sgg += g * g
+        sfg += fhat[k] * g
+        a = fx[k] * g
+        b = fy[k] * g
+        ad = a * d
+        bd = b * d
+        pa += a
+        pax += ad
+        paxx += ad * d
+        pb += b
+        pbx += bd
+        pbxx += bd * d
+    return sg, sgg, sfg, pa, pax, paxx, pb, pbx, pbxx
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _quadratic_sums(flat, origin, stride, height, width, x0, y0, half, p, fhat, fx, fy, lanes, lane_dx, lane_mask,
+                    kx, ky, run_mask, out):
+    """out (15,) <- sums over the subset warped by p (12,): g, g^2, fhat g, then sum J_k g for the 12 parameters.
+
+    Returns False (``out`` undefined) where a sample would come closer than
+    ``INTERPOLATION_MARGIN`` px to the image edge: each row's x' and y' ranges
+    (ends and vertex of the row's parabola) are checked before it is sampled.
+    Rows are one run of consecutive taps, or a few (module notes).
+    """
+    side = 2 * half + 1
+    lo_edge = float(INTERPOLATION_MARGIN)
+    right = width - 1.0 - INTERPOLATION_MARGIN
+    bottom = height - 1.0 - INTERPOLATION_MARGIN
+    u, ux, uy, uxx, uxy, uyy = p[0], p[1], p[2], p[3], p[4], p[5]
+    v, vx, vy, vxx, vxy, vyy = p[6], p[7], p[8], p[9], p[10], p[11]
+    qx = 0.5 * uxx
+    qy = 0.5 * vxx
+    qx32 = _F32(qx)
+    qy32 = _F32(qy)
+    sg = 0.0
+    sgg = 0.0
+    sfg = 0.0
+    a0 = a1 = a2 = a3 = a4 = a5 = 0.0
+    b0 = b1 = b2 = b3 = b4 = b5 = 0.0
+    for j in range(side):
+        dy = float(j - half)
+        # along the row: x'(d) - d = bx + sx d + qx d^2, y'(d) = by + sy d + qy d^2
+        bx = x0 + u + uy * dy + 0.5 * uyy * dy * dy
+        sx = ux + uxy * dy
+        by = y0 + dy + v + vy * dy + 0.5 * vyy * dy * dy
+        sy = vx + vxy * dy
+        xlo, xhi = _quadratic_range(bx, 1.0 + sx, qx, half)
+        ylo, yhi = _quadratic_range(by, sy, qy, half)
+        if not (xlo >= lo_edge and ylo >= lo_edge and xhi <= right and yhi <= bottom):
+            return False
+        tlo, thi = _quadratic_range(bx, sx, qx, half)
+        kx0 = int(np.floor(tlo))
+        ky0 = int(np.floor(ylo))
+        koff = j * lanes
+        if kx0 == int(np.floor(thi)) and ky0 == int(np.floor(yhi)):
+            base = np.uint64(origin + (ky0 + PAD - 1) * stride + kx0 + PAD - 1 - half)
+            rsg, rsgg, rsfg, ra, rax, raxx, rb, rbx, rbxx = _row_sums2(
+                flat, base, stride, _F32(bx - kx0), _F32(sx), qx32, _F32(by - ky0), _F32(sy), qy32, lanes, lane_dx,
+                lane_mask, fhat, fx, fy, koff)
+        else:
+            # the tap origin steps inside this row: one masked pass per run of equal origin
+            for l in range(side):
+                d = float(l - half)
+                kx[l] = int(np.floor(bx + (sx + qx * d) * d))
+                ky[l] = int(np.floor(by + (sy + qy * d) * d))
+            for l in range(side, lanes):
+                kx[l] = _NO_RUN
+                ky[l] = _NO_RUN
+            rsg = rsgg = rsfg = ra = rax = raxx = rb = rbx = rbxx = _F32(0.0)
+            done = 0
+            # runs need not be contiguous on a parabola: take the first lane not yet summed each time
+            for m in range(lanes):
+                run_mask[m] = 0.0
+            l = 0
+            while done < side:
+                while kx[l] == _NO_RUN:
+                    l += 1
+                kxa = kx[l]
+                kya = ky[l]
+                base = np.uint64(origin + (kya + PAD - 1) * stride + kxa + PAD - 1 - half)
+                for m in range(lanes):
+                    if kx[m] == kxa and ky[m] == kya:
+                        run_mask[m] = 1.0
+                        kx[m] = _NO_RUN
+                        done += 1
+                    else:
+                        run_mask[m] = 0.0
+                r = _row_sums2(flat, base, stride, _F32(bx - kxa), _F32(sx), qx32, _F32(by - kya), _F32(sy), qy32,
+                               lanes, lane_dx, run_mask, fhat, fx, fy, koff)
+                rsg += r[0]
+                rsgg += r[1]
+                rsfg += r[2]
+                ra += r[3]
+                rax += r[4]
+                raxx += r[5]
+                rb += r[6]
+                rbx += r[7]
+                rbxx += r[8]
+        sg += rsg
+        sgg += rsgg
+        sfg += rsfg
+        # J_k g for (1, dx, dy, dx^2/2, dx dy, dy^2/2) of fx, then of fy
+        a0 += ra
+        a1 += rax
+        a2 += ra * dy
+        a3 += 0.5 * raxx
+        a4 += rax * dy
+        a5 += 0.5 * ra * dy * dy
+        b0 += rb
+        b1 += rbx
+        b2 += rb * dy
+        b3 += 0.5 * rbxx
+        b4 += rbx * dy
+        b5 += 0.5 * rb * dy * dy
+    out[0] = sg
+    out[1] = sgg
+    out[2] = sfg
+    out[3] = a0
+    out[4] = a1
+    out[5] = a2
+    out[6] = a3
+    out[7] = a4
+    out[8] = a5
+    out[9] = b0
+    out[10] = b1
+    out[11] = b2
+    out[12] = b3
+    out[13] = b4
+    out[14] = b5
+    return True
+
+
+@njit(cache=True)
+def _warp_matrix(p, w):
+    """The 6 x 6 warp matrix of p acting on (dx^2, dx dy, dy^2, dx, dy, 1) (OpenCorr Deformation2D2::setWarp)."""
+    u, ux, uy, uxx, uxy, uyy = p[0], p[1], p[2], p[3], p[4], p[5]
+    v, vx, vy, vxx, vxy, vyy = p[6], p[7], p[8], p[9], p[10], p[11]
+    w[0, 0] = 1.0 + 2.0 * ux + ux * ux + u * uxx
+    w[0, 1] = 2.0 * u * uxy + 2.0 * (1.0 + ux) * uy
+    w[0, 2] = uy * uy + u * uyy
+    w[0, 3] = 2.0 * u * (1.0 + ux)
+    w[0, 4] = 2.0 * u * uy
+    w[0, 5] = u * u
+    w[1, 0] = 0.5 * (v * uxx + 2.0 * (1.0 + ux) * vx + u * vxx)
+    w[1, 1] = 1.0 + uy * vx + ux * vy + v * uxy + u * vxy + vy + ux
+    w[1, 2] = 0.5 * (v * uyy + 2.0 * uy * (1.0 + vy) + u * vyy)
+    w[1, 3] = v + v * ux + u * vx
+    w[1, 4] = u + v * uy + u * vy
+    w[1, 5] = u * v
+    w[2, 0] = vx * vx + v * vxx
+    w[2, 1] = 2.0 * v * vxy + 2.0 * vx * (1.0 + vy)
+    w[2, 2] = 1.0 + 2.0 * vy + vy * vy + v * vyy
+    w[2, 3] = 2.0 * v * vx
+    w[2, 4] = 2.0 * v * (1.0 + vy)
+    w[2, 5] = v * v
+    w[3, 0] = 0.5 * uxx
+    w[3, 1] = uxy
+    w[3, 2] = 0.5 * uyy
+    w[3, 3] = 1.0 + ux
+    w[3, 4] = uy
+    w[3, 5] = u
+    w[4, 0] = 0.5 * vxx
+    w[4, 1] = vxy
+    w[4, 2] = 0.5 * vyy
+    w[4, 3] = vx
+    w[4, 4] = 1.0 + vy
+    w[4, 5] = v
+    for c in range(5):
+        w[5, c] = 0.0
+    w[5, 5] = 1.0
+
+
+@njit(cache=True)
+def _invert6(a, out, work):
+    """Inverse of the 6 x 6 ``a`` into ``out`` by Gauss-Jordan with partial pivoting; False if singular.
+
+    ``work`` (6, 12) scratch.
+    """
+    n = 6
+    for i in range(n):
+        for j in range(n):
+            work[i, j] = a[i, j]
+            work[i, n + j] = 1.0 if i == j else 0.0
+    for col in range(n):
+        pivot = col
+        best = abs(work[col, col])
+        for r in range(col + 1, n):
+            if abs(work[r, col]) > best:
+                best = abs(work[r, col])
+                pivot = r
+        if not (best > 1e-12):
+            return False
+        if pivot != col:
+            for j in range(2 * n):
+                t = work[col, j]
+                work[col, j] = work[pivot, j]
+                work[pivot, j] = t
+        inv_p = 1.0 / work[col, col]
+        for j in range(2 * n):
+            work[col, j] *= inv_p
+        for r in range(n):
+            if r != col:
+                factor = work[r, col]
+                if factor != 0.0:
+                    for j in range(2 * n):
+                        work[r, j] -= factor * work[col, j]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = work[i, n + j]
+    return True
+
+
+@njit(cache=True)
+def compose_inverse(p, dp, scratch):
+    """p <- the parameters of W(p) W(dp)^-1 (the IC-GN update), in place; False if W(dp) is singular.
+
+    Only rows 3 and 4 of the product are formed: they are the warp's parameters.
+    ``scratch`` = (w (6, 6), wd (6, 6), wi (6, 6), work (6, 12)).
+    """
+    w, wd, wi, work = scratch
+    _warp_matrix(p, w)
+    _warp_matrix(dp, wd)
+    if not _invert6(wd, wi, work):
+        return False
+    for half_row in range(2):
+        row = 3 + half_row
+        o = 6 * half_row
+        m0 = m1 = m2 = m3 = m4 = m5 = 0.0
+        for k in range(6):
+            a = w[row, k]
+            m0 += a * wi[k, 0]
+            m1 += a * wi[k, 1]
+            m2 += a * wi[k, 2]
+            m3 += a * wi[k, 3]
+            m4 += a * wi[k, 4]
+            m5 += a * wi[k, 5]
+        p[o] = m5
+        p[o + 1] = m3
+        p[o + 2] = m4
+        p[o + 3] = 2.0 * m0
+        p[o + 4] = m1
+        p[o + 5] = 2.0 * m2
+    p[1] -= 1.0      # row 3 holds 1 + ux
+    p[8] -= 1.0      # row 4 holds 1 + vy
+    return True
+
+
+@njit(cache=True)
+def refine_point_scratch2(half, lanes):
+    """Per-task scratch arrays for ``refine_point2``."""
+    return (refine_point_scratch(half, lanes), np.empty(6), np.empty(15), np.empty(12), np.empty(12),
+            (np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 12))))
+
+
+@njit(cache=True)
+def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
+                  sum_f, hinv2, sum_j2, sum_jf2, p, order, max_iterations, tolerance, translation_iterations,
+                  translation_tolerance, scratch2):
+    """Refine p (12,) in place (``PARAMETERS`` order); return (status, zncc, iterations).
+
+    order 0: shift, order 1: affine (``dic.subpixel.icgn.refine_point`` on the
+    first-order parameters, curvature left 0); order 2: a start without
+    curvature is refined to first order first (module notes), then the
+    2nd-order iteration runs to ``tolerance``.
+    """
+    scratch, p6, sums, r, dp, comp = scratch2
+    g, tmp, kx, ky, lane_dx, lane_mask, run_mask, _ = scratch
+    lanes = lane_dx.shape[0]
+    side = 2 * half + 1
+    n = side * side
+    iterations = 0
+    zncc = np.nan
+    flat_start = True
+    for m in range(6):
+        if p[_SECOND_INDEX[m]] != 0.0:
+            flat_start = False
+    if order < 2 or flat_start:
+        for m in range(6):
+            p6[m] = p[_FIRST_INDEX[m]]
+        st, zncc, iterations = refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm,
+                                            hinv, hinv0, sum_j, sum_jf, sum_f, p6, min(order, 1), max_iterations,
+                                            tolerance, translation_iterations, translation_tolerance, scratch)
+        for m in range(6):
+            p[_FIRST_INDEX[m]] = p6[m]
+            p[_SECOND_INDEX[m]] = 0.0
+        if order < 2 or st != _OK:
+            return st, zncc, iterations
+    half2 = float(half * half)
+    half4 = half2 * half2
+    tol2 = tolerance * tolerance
+    for _ in range(max_iterations):
+        if not _quadratic_sums(flat, origin, stride, height, width, x0, y0, half, p, fhat, fx, fy, lanes, lane_dx,
+                               lane_mask, kx, ky, run_mask, sums):
+            return _OUTSIDE_TARGET, zncc, iterations
+        mean = sums[0] / n
+        var = sums[1] - sums[0] * mean
+        if var <= _FLAT * n * (1.0 + mean * mean):
+            return _FLAT_TARGET, zncc, iterations
+        inv_dg = 1.0 / np.sqrt(var)
+        zncc = (sums[2] - mean * sum_f) * inv_dg
+        for k in range(12):
+            r[k] = norm * ((sums[3 + k] - mean * sum_j2[k]) * inv_dg - sum_jf2[k])
+        for k in range(12):
+            s = 0.0
+            for m in range(12):
+                s += hinv2[k, m] * r[m]
+            dp[k] = s
+        iterations += 1
+        if not compose_inverse(p, dp, comp):
+            return _NOT_CONVERGED, zncc, iterations
+        finite = True
+        for k in range(12):
+            if not np.isfinite(p[k]):
+                finite = False
+        if not finite or abs(p[1]) >= _MAX_GRADIENT or abs(p[2]) >= _MAX_GRADIENT or abs(p[7]) >= _MAX_GRADIENT \
+                or abs(p[8]) >= _MAX_GRADIENT:
+            return _NOT_CONVERGED, zncc, iterations
+        for m in range(6):
+            if abs(p[_SECOND_INDEX[m]]) * half >= _MAX_GRADIENT:
+                return _NOT_CONVERGED, zncc, iterations
+        step = (dp[0] * dp[0] + dp[6] * dp[6]
+                + half2 * (dp[1] * dp[1] + dp[2] * dp[2] + dp[7] * dp[7] + dp[8] * dp[8])
+                + half4 * (0.25 * (dp[3] * dp[3] + dp[5] * dp[5] + dp[9] * dp[9] + dp[11] * dp[11])
+                           + dp[4] * dp[4] + dp[10] * dp[10]))
+        if step < tol2:
+            return _OK, zncc, iterations
+    return _NOT_CONVERGED, zncc, iterations
+
+
+@njit(cache=True, parallel=True, nogil=True)
+def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
+                 sum_jf, sum_f, hinv2, sum_j2, sum_jf2, points, params, status, order, max_iterations, tolerance,
+                 translation_iterations, translation_tolerance, out_zncc, out_iter):
+    """Refine the prepared points ``points`` (M,) whose ``status`` is OK; row j of params (M, 12) in/out."""
+    npts = points.shape[0]
+    n_chunks = (npts + _CHUNK - 1) // _CHUNK
+    for c in prange(n_chunks):
+        scratch2 = refine_point_scratch2(half, lanes)
+        for j in range(c * _CHUNK, min((c + 1) * _CHUNK, npts)):
+            out_iter[j] = 0
+            out_zncc[j] = np.nan
+            if status[j] != _OK:
+                continue
+            ok = True
+            for m in range(12):
+                if not np.isfinite(params[j, m]):
+                    ok = False
+            if not ok:
+                status[j] = _BAD_GUESS
+                continue
+            i = points[j]
+            st, zn, it = refine_point2(flat, origin, stride, height, width, xs[i], ys[i], half, fhat[i], fx[i],
+                                       fy[i], norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], hinv2[i],
+                                       sum_j2[i], sum_jf2[i], params[j], order[j], max_iterations, tolerance,
+                                       translation_iterations, translation_tolerance, scratch2)
+            status[j] = st
+            out_iter[j] = it
+            if st == _OK:
+                out_zncc[j] = zn
+
+
+# ---------------------------------------------------------------------------
+# public API
+
+
+def _as_start(values, n, name, default):
+    if values is None:
+        return np.full(n, default, dtype=np.float64)
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim == 0:
+        return np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},) (one value per point), got {arr.shape}")
+    return arr
+
+
+def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
+                    uxx0=None, uxy0=None, uyy0=None, vxx0=None, vxy0=None, vyy0=None, points=None, order=2,
+                    max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
+    """2nd-order IC-GN from prepared reference data and target coefficients.
+
+    Parameters
+    ----------
+    ref_prep : Icgn2Reference
+        From ``prepare_reference`` or ``prepare_from``.
+    target_coeffs : BSplineCoefficients
+        From ``prepare_target`` (same image shape as the reference).
+    u0, v0 : array_like, shape (N,)
+        Start displacement (NaN marks a point as ``BAD_GUESS``).
+    ux0, uy0, vx0, vy0 : array_like, shape (N,), optional
+        Start displacement gradients; zero if omitted.
+    status : ndarray of int8, shape (N,), optional
+        Refine only where OK (combined with the reference's status); other codes are copied through.
+    uxx0, uxy0, uyy0, vxx0, vxy0, vyy0 : array_like, shape (N,), optional
+        Start second-order terms; zero if omitted. A point whose six are all
+        zero is refined to first order first (module notes).
+    points : ndarray of int, shape (N,), optional
+        Which prepared points to refine (default all, in order); as in
+        ``dic.subpixel.icgn.refine_prepared``.
+    order : {2, 1, 0} or ndarray of int, shape (N,)
+        Shape function: 2 (default) quadratic, 1 affine, 0 rigid shift; per
+        point as an array. Points whose 12 x 12 matrix is singular
+        (``ref_prep.max_order``) get at most 1.
+    max_iterations : int
+        Cap on the iterations of each stage (first-order, then 2nd-order); 50 as ``dic.subpixel.icgn``.
+    tolerance : float
+        Convergence threshold on the largest displacement change over the subset, px (0.001).
+    translation_iterations, translation_tolerance
+        The first-order stage's translation pre-stage (``dic.subpixel.icgn``).
+
+    Returns
+    -------
+    Icgn2Result
+        u, v, zncc, status, iterations (all stages), ux, uy, vx, vy (NaN at
+        order-0 points) and uxx, uxy, uyy, vxx, vxy, vyy (NaN at points refined
+        below order 2); everything NaN where status is not OK.
+
+    Raises
+    ------
+    ValueError
+        Coefficients not from ``prepare_target`` or of another image size,
+        start arrays of the wrong length, bad options.
+    """
+    if not isinstance(ref_prep, Icgn2Reference):
+        raise ValueError("ref_prep must come from dic.subpixel.icgn2.prepare_reference (an Icgn2Reference)")
+    if not isinstance(target_coeffs, BSplineCoefficients):
+        raise ValueError("target_coeffs must come from prepare_target (a BSplineCoefficients)")
+    first = ref_prep.first
+    if tuple(target_coeffs.shape) != tuple(first.shape):
+        raise ValueError(f"target is {target_coeffs.shape[1]}x{target_coeffs.shape[0]} but the reference is "
+                         f"{first.shape[1]}x{first.shape[0]}: both images must have the same size")
+    if target_coeffs.coefficients.dtype != np.float32:
+        raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
+    n_prepared = first.xs.shape[0]
+    points = np.arange(n_prepared) if points is None else np.asarray(points)
+    if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \
+            (points.size and (points.min() < 0 or points.max() >= n_prepared)):
+        raise ValueError(f"points must be a 1-D array of indices of the {n_prepared} prepared points")
+    points = np.ascontiguousarray(points, dtype=np.int64)
+    npts = points.shape[0]
+    per_point = np.ndim(order) > 0
+    if per_point:
+        orders = np.asarray(order).astype(np.int64)
+        valid = orders.shape == (npts,) and bool(np.all((orders >= 0) & (orders <= 2)))
+    else:
+        valid = order in (0, 1, 2) and not isinstance(order, bool)
+        orders = np.full(npts, order if valid else 0, dtype=np.int64)
+    if not valid:
+        raise ValueError(f"order must be 0 (shift), 1 (affine) or 2 (quadratic), or one of them per point, "
+                         f"got {order!r}")
+    orders = np.minimum(orders, ref_prep.max_order[points])
+    if int(max_iterations) < 1:
+        raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
+    if int(translation_iterations) < 0:
+        raise ValueError(f"translation_iterations must be >= 0, got {translation_iterations}")
+    if not (tolerance > 0 and translation_tolerance > 0):
+        raise ValueError(f"tolerances must be > 0, got {tolerance} and {translation_tolerance}")
+    starts = dict(u=u0, ux=ux0, uy=uy0, uxx=uxx0, uxy=uxy0, uyy=uyy0, v=v0, vx=vx0, vy=vy0, vxx=vxx0, vxy=vxy0,
+                  vyy=vyy0)
+    params = np.empty((npts, 12))
+    for c, name in enumerate(PARAMETERS):
+        params[:, c] = _as_start(starts[name], npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
+    params[np.ix_(orders == 0, [1, 2, 7, 8])] = 0.0
+    params[np.ix_(orders < 2, _SECOND_INDEX)] = 0.0
+    st = first.status[points]
+    if status is not None:
+        status = np.asarray(status)
+        if status.shape != (npts,):
+            raise ValueError(f"status must have shape ({npts},), got {status.shape}")
+        st = np.where(status != Status.OK, status, st).astype(np.int8)
+    st = np.ascontiguousarray(st, dtype=np.int8)
+    out_zncc = np.empty(npts)
+    out_iter = np.empty(npts, dtype=np.int64)
+    height, width = first.shape
+    _icgn2_batch(target_coeffs.flat, target_coeffs.origin, target_coeffs.coefficients.shape[1], height, width,
+                 first.xs, first.ys, first.half, first.lanes, first.fhat, first.fx, first.fy, first.norm, first.hinv,
+                 first.hinv0, first.sum_j, first.sum_jf, first.sum_f, ref_prep.hinv2, ref_prep.sum_j2,
+                 ref_prep.sum_jf2, points, params, st, orders, int(max_iterations), float(tolerance),
+                 int(translation_iterations), float(translation_tolerance), out_zncc, out_iter)
+    ok = st == Status.OK
+    params[~ok] = np.nan
+    params[np.ix_(orders == 0, [1, 2, 7, 8])] = np.nan
+    params[np.ix_(orders < 2, _SECOND_INDEX)] = np.nan
+    values = {name: params[:, c].copy() for c, name in enumerate(PARAMETERS)}
+    return Icgn2Result(zncc=np.where(ok, out_zncc, np.nan), status=st, iterations=out_iter, **values)
+
+
+def refine(reference, deformed, xs, ys, u0, v0, status, half, **options):
+    """2nd-order IC-GN refinement of every point whose ``status`` is OK (the ``dic.measure`` contract).
+
+    ``prepare_reference`` + ``prepare_target`` + ``refine_prepared``.
+
+    Parameters
+    ----------
+    reference, deformed : ndarray, shape (H, W)
+        Grey images of equal shape.
+    xs, ys : ndarray of int64, shape (N,)
+        Subset centres.
+    u0, v0 : ndarray of float64, shape (N,)
+        Start: an integer search result or a float guess; NaN gives ``BAD_GUESS``.
+    status : ndarray of int8, shape (N,)
+        Refine only where OK; other codes are copied through.
+    half : int
+        Subset half-width M.
+    **options
+        ``hessian``, ``vif_max`` (of ``prepare_reference``); ``order``, ``max_iterations``,
+        ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
+        start values ``ux0 ... vyy0`` (of ``refine_prepared``).
+
+    Returns
+    -------
+    Icgn2Result
+
+    Examples
+    --------
+    >>> from livedic.dic.speckle import SpecklePattern, render
+    >>> pattern = SpecklePattern((96, 96), n_speckles=140, seed=1)
+    >>> ref, dfm = render(pattern, bit_depth=None), render(pattern, (1.3, -0.6), bit_depth=None)
+    >>> r = refine(ref, dfm, np.array([48]), np.array([48]), np.array([1.0]), np.array([-1.0]),
+    ...            np.zeros(1, np.int8), 10)
+    >>> round(float(r.u[0]), 3), round(float(r.v[0]), 3), int(r.status[0])
+    (1.3, -0.6, 0)
+    """
+    reference = as_image(reference, "reference")
+    deformed = as_image(deformed, "deformed")
+    check_same_shape(reference, deformed)
+    options = dict(options)
+    hessian = options.pop("hessian", "projected")
+    vif_max = options.pop("vif_max", VIF2_MAX)
+    prep = prepare_reference(reference, xs, ys, half, hessian=hessian, vif_max=vif_max)
+    return refine_prepared(prep, prepare_target(deformed), u0, v0, status=status, **options)
+
+
+__all__ = ["Icgn2Reference", "Icgn2Result", "PARAMETERS", "SECOND_ORDER", "VIF2_MAX", "prepare_reference",
+           "prepare_from", "prepare_target", "refine_prepared", "refine", "refine_point2", "refine_point_scratch2",
+           "compose_inverse"]
