@@ -18,6 +18,8 @@ class Status(IntEnum):
     LOW_CORRELATION = 7     # best match below the ZNCC acceptance threshold
     POOR_TEXTURE = 8        # too little texture, or texture in one direction only, to pin the match
     OUTLIER = 9             # disagrees with its neighbours (normalised median test)
+    NOT_IN_KEY_FRAME = 10   # could not be placed in the frame that became the reference (incremental correlation)
+    SEPARATED = 11          # its material separated (fracture): no longer tracked
 
     @property
     def description(self):
@@ -36,6 +38,8 @@ BAD_GUESS = int(Status.BAD_GUESS)
 LOW_CORRELATION = int(Status.LOW_CORRELATION)
 POOR_TEXTURE = int(Status.POOR_TEXTURE)
 OUTLIER = int(Status.OUTLIER)
+NOT_IN_KEY_FRAME = int(Status.NOT_IN_KEY_FRAME)
+SEPARATED = int(Status.SEPARATED)
 
 
 _DESCRIPTIONS = {
@@ -49,4 +53,6 @@ _DESCRIPTIONS = {
     Status.LOW_CORRELATION: "best ZNCC below the acceptance threshold",
     Status.POOR_TEXTURE: "subset has too little texture, or texture in one direction only",
     Status.OUTLIER: "displacement disagrees with the neighbouring points",
+    Status.NOT_IN_KEY_FRAME: "not measured when the reference was updated, and its neighbours could not place it",
+    Status.SEPARATED: "its material separated (fracture): no longer tracked",
 }

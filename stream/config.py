@@ -156,6 +156,8 @@ class TrackingConfig:
         The correlation gate: a point is ok only if its ZNCC is at least this (-1..1).
     seed : int
         Seed of the stochastic searches.
+    reference_update : str
+        When the reference moves to a recent frame (``dic.key_frames``): ``auto``, ``never`` or ``every:N``.
     """
     subset: int = 21
     search: str = "improved-wso"
@@ -165,6 +167,7 @@ class TrackingConfig:
     refind_zncc: float = 0.8
     min_zncc: float = MIN_ZNCC
     seed: int = 0
+    reference_update: str = "auto"
 
     def __post_init__(self):
         if self.subset < 3 or self.subset % 2 == 0:
@@ -179,6 +182,8 @@ class TrackingConfig:
         for name in ("refind_zncc", "min_zncc"):
             if not -1.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{_option(name)} must be between -1 and 1, got {getattr(self, name)}")
+        from livedic.dic.key_frames import UpdatePolicy
+        object.__setattr__(self, "reference_update", str(UpdatePolicy.parse(self.reference_update)))
 
     @classmethod
     def keys(cls):
@@ -194,15 +199,15 @@ class TrackingConfig:
         return asdict(self)
 
     def tracker(self, image, points, **overrides):
-        """A ``dic.tracking.Tracker`` on reference ``image`` for ``points`` with these settings.
+        """A ``dic.key_frames.KeyFrameTracker`` on reference ``image`` for ``points`` with these settings.
 
         ``overrides`` replace settings for this tracker only (the warm-up's smaller subset and radius).
         """
+        from livedic.dic.key_frames import KeyFrameTracker
         from livedic.dic.quality import Gates
-        from livedic.dic.tracking import Tracker
         settings = dict(self.as_dict(), **overrides)
         min_zncc = settings.pop("min_zncc")
-        return Tracker(image, points, gates=Gates(min_zncc=min_zncc), **settings)
+        return KeyFrameTracker(image, points, gates=Gates(min_zncc=min_zncc), **settings)
 
 
 # ----------------------------------------------------------------------------- points
@@ -427,7 +432,8 @@ class SessionConfig:
         """
         tracking = TrackingConfig(subset=args.subset, search=args.search, subpixel=args.subpixel,
                                   seed_radius=args.seed_radius, refind_radius=args.refind_radius,
-                                  refind_zncc=args.refind_zncc, min_zncc=args.min_zncc, seed=args.seed)
+                                  refind_zncc=args.refind_zncc, min_zncc=args.min_zncc, seed=args.seed,
+                                  reference_update=args.reference_update)
         points = PointsConfig(roi=parse_roi(args.roi), points_file=args.points, step=args.step,
                               n_points=args.n_points, p0=parse_p0(args.p0), max_points=args.max_points)
         if args.record is not None and args.record.endswith(".mcap") and os.path.exists(args.record):

@@ -81,6 +81,8 @@ ROUNDING_TOLERANCE_ZNCC = 1e-6
 
 METHOD_KEYS = TrackingConfig.keys()
 _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
+# What a recording made before a parameter existed did (replayed that way, not with today's default).
+_BEFORE_KEY = {"reference_update": "never"}
 
 
 def add_replay_arguments(parser):
@@ -98,6 +100,7 @@ def add_replay_arguments(parser):
     method.add_argument("--refind-radius", type=int, metavar="R", help="search radius for re-finding lost points, px")
     method.add_argument("--refind-zncc", type=float, metavar="Z", help="re-find points whose ZNCC falls below Z")
     method.add_argument("--min-zncc", type=float, metavar="Z", help="a point is ok only if its ZNCC is at least Z")
+    method.add_argument("--reference-update", metavar="WHEN", help="auto, never or every:N (reference updates)")
     method.add_argument("--seed", type=int, help="seed of the stochastic searches")
     points = parser.add_argument_group("point options (default: the recorded points)")
     where = points.add_mutually_exclusive_group()
@@ -161,6 +164,8 @@ def resolve_parameters(metadata, given, method_text=""):
             used[key] = given[key]
         elif value is not None:
             used[key] = value
+        elif key in _BEFORE_KEY:
+            used[key] = _BEFORE_KEY[key]          # recorded before the option existed: what it did then
         else:
             used[key] = defaults[key]
             notes.append(f"the recording does not say which {key} it used: using livedic run's default "

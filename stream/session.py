@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livedic.acquire import sources
+from livedic.dic import field_fit
 from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.config import CAMERA_SCHEMES, VIEWER_NONE
@@ -51,7 +52,7 @@ from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQue
 from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, check_point_count, read_points_csv
 from livedic.stream.progress import ProgressBar
-from livedic.stream.sinks import P0Watch, ProgressLine, RecordResults
+from livedic.stream.sinks import P0Watch, ProgressLine, RecordResults, ReferenceUpdates
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
 
@@ -139,7 +140,9 @@ def warm_up(tracking):
     image = cv2.GaussianBlur(rng.uniform(0, 255, (128, 128)).astype(np.float32), (0, 0), 2.0)
     axis = np.arange(40.0, 89.0, 12.0)
     points = [(x, y) for y in axis for x in axis]
-    tracker = tracking.tracker(image, points, subset=min(tracking.subset, 31), refind_radius=8)
+    # reference updates every 2 frames: the update and the composition back to frame 0 are taken too
+    tracker = tracking.tracker(image, points, subset=min(tracking.subset, 31), refind_radius=8,
+                               reference_update="every:2")
     shifted = np.roll(image, (1, 2), axis=(0, 1))
     partly = shifted.copy()
     partly[:, :60] = np.roll(image, (3, 4), axis=(0, 1))[:, :60]        # the left points jump by ~2 px
@@ -151,6 +154,7 @@ def warm_up(tracking):
                                                   roi=(40, 40, 49, 49), step=12.0, subset=21)
     m = tracker.track(shifted)
     stage.compute(m.u, m.v, m.ok)
+    field_fit.displacement_at(np.array([[64.0, 64.0]]), np.asarray(points, dtype=np.float64), m.u, m.v, m.ok, 12.0)
 
 
 def check_viewer_reachable(url, timeout_s=1.0):
@@ -299,6 +303,7 @@ class Session:
         self.points = None
         self.p0 = None
         self.strain = None
+        self.reference_updates = None
         self.reference = None
         self.total_frames = config.frames
         self.render_seconds = None
@@ -413,6 +418,9 @@ class Session:
                                        strain_window=self.strain.windows.window if self.strain is not None else None))
         if self.viewer is not None and self.viewer.enabled:
             sinks.append(self.viewer)
+        self.reference_updates = ReferenceUpdates(lambda kind, message, level: self.event(kind, message, level,
+                                                                                         tell=level != "info"))
+        sinks.append(self.reference_updates)
         if self.p0 is not None:
             sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
         sinks.append(ProgressLine(self.bar, self.acquisition))
@@ -714,7 +722,9 @@ class Session:
                                      if viewer is not None and viewer.frames_logged else None),
             viewer_fields_skipped=viewer.fields_skipped if viewer is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
-            strain=self.strain.summary() if self.strain is not None else None)
+            strain=self.strain.summary() if self.strain is not None else None,
+            reference_update=config.tracking.reference_update,
+            **(self.reference_updates.summary() if self.reference_updates is not None else {}))
         return summary
 
     def _close_quietly(self, close, what):
@@ -750,6 +760,11 @@ def format_summary(summary, reference, recorder):
         if summary.get("viewer_fields_skipped"):
             extra += f" (fields left out of {summary['viewer_fields_skipped']} frames while behind)"
     lines.append(f"             {extra}")
+    if summary.get("reference_updates"):
+        lost = summary.get("reference_update_lost") or 0
+        lines.append(f"  reference  moved {summary['reference_updates']} times ({summary['reference_update']}; "
+                     f"longest {summary['reference_update_max_ms']:.1f} ms"
+                     + (f"; {lost} points could not be placed" if lost else "") + "); results from the first frame")
     if summary.get("error_rms_px") is not None:
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")

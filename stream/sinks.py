@@ -59,9 +59,41 @@ class RecordResults:
             self.recorder.write_strain(frame.index, frame.timestamp_ns, result.strain, window=self.strain_window)
         if result.extensometers is not None and len(result.extensometers.names):
             self.recorder.write_extensometers(frame.index, frame.timestamp_ns, result.extensometers)
+        if result.reference_update is not None:
+            self.reference_frame_index = frame.index       # the frames after this one are measured against it
         if result.dropped_since_last:
             self.recorder.write_event("drop", f"{result.dropped_since_last} frame(s) dropped by the queue before "
                                       f"frame {frame.index} (total {result.dropped_total})", level="warning")
+
+
+class ReferenceUpdates:
+    """Reports each move of the reference (``dic.key_frames``) as a ``reference_update`` event, and counts them.
+
+    Parameters
+    ----------
+    report : callable
+        ``report(kind, message, level)``: the session's event (shown, recorded; said only when asked).
+    """
+    name = "reference updates"
+    required = False
+
+    def __init__(self, report):
+        self.report = report
+        self.updates = []              # (frame index, dic.key_frames.ReferenceUpdate)
+
+    def __call__(self, result, stats):
+        update = result.reference_update
+        if update is None:
+            return
+        self.updates.append((result.frame.index, update))
+        text = update.describe().replace(f"tracked frame {update.frame}", f"frame {result.frame.index}")
+        self.report("reference_update", text, "warning" if update.lost else "info")
+
+    def summary(self):
+        """Count, lost points and the longest update (ms), for the session summary."""
+        return {"reference_updates": len(self.updates),
+                "reference_update_lost": sum(u.lost for _, u in self.updates),
+                "reference_update_max_ms": max((1e3 * u.seconds for _, u in self.updates), default=None)}
 
 
 class P0Watch:

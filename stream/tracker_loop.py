@@ -59,6 +59,7 @@ class FrameResult:
     error_rms_px: float = float("nan")   # against the truth (synthetic sources), ok points
     error_max_px: float = float("nan")
     capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
+    reference_update: object = None   # dic.key_frames.ReferenceUpdate when this frame became the reference
     strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
 
@@ -231,7 +232,8 @@ class TrackerLoop:
                                  queue_depth=len(self.queue),
                                  refind_attempts=self.tracker.last_refind_attempts,
                                  refound=int(self.tracker.last_refound.sum()),
-                                 capture_ns=int(capture) if capture is not None else None)
+                                 capture_ns=int(capture) if capture is not None else None,
+                                 reference_update=getattr(self.tracker, "last_update", None))
             last_dropped = dropped
             self._update(result)
             for sink in list(self.sinks):

@@ -1,0 +1,394 @@
+"""Incremental correlation with key frames: the reference follows the test, results stay Lagrangian.
+
+A tracker that always correlates against frame 0 fails once a subset's deformation
+outgrows its shape function or the surface changes (paint stretching, necking): the
+ZNCC falls and points are re-found again and again. ``KeyFrameTracker`` switches its
+reference to a recent frame (a *key frame*) when a criterion says so, and composes the
+displacements back to the first frame::
+
+    u_0->k(X) = u_0->r(X) + u_r->k(x_r),        x_r = X + u_0->r(X)
+
+so every result is the displacement of a material point X of frame 0 (Lagrangian, as
+without updates). The subsets of the new reference are centred on the pixel nearest
+to x_r (``p_r``); the displacement at x_r itself is u_r->k(p_r) + G (x_r - p_r), with
+G the first-order displacement gradient IC-GN measured at p_r, and the gradients
+compose as deformation gradients, F_0->k = (I + G) F_0->r. A point not ok in the
+frame that becomes the reference (or not trusted there, see below) is measured there
+directly from frame 0, IC-GN started where the trusted points around it say it is
+(``dic.field_fit``): placed if that confirms it, else reported ``NOT_IN_KEY_FRAME``
+until a later update confirms it.
+
+What an update costs: the new reference is prepared like a new tracker (subsets,
+gradients, Hessians of the points only): ~6 ms at 1,000 points on 1 MP here, well
+inside a 20 ms frame period. What it adds to the error: each update freezes the
+measurement noise of its key frame into every later result (a random walk, ~0.01 px
+per update with 8-bit images), which ``livedic bench fracture`` measures against the
+simulator's truth.
+
+When (``UpdatePolicy``, ``--reference-update``)::
+
+    never     frame 0 stays the reference (the results equal ``dic.Tracker``'s bit for bit)
+    every:N   the reference moves to every N-th frame tracked
+    auto      (default) the reference moves to the frame just tracked when, in it,
+              the 5th percentile of the ok points' ZNCC fell below AUTO_ZNCC (0.9), or the
+              strain since the key frame (99th percentile of the largest displacement
+              gradient) passed AUTO_STRAIN (0.1), and at least AUTO_OK (99 %) of its tracked
+              points are ok: a frame where the specimen broke or something passed in front of
+              it is not a reference to measure the next ones against (the move waits).
+
+What is carried into a new reference, and what is not. A key frame's errors stay in
+every later result (against the key frame the point then correlates perfectly), so a
+point's own result is carried only where it is trustworthy: ok, ZNCC at least the
+tracker's ``refind_zncc``, and no failed point within a subset's width (a subset that
+overlaps an occlusion, a flake or a crack can be ok and a few tenths of a pixel off:
+measured on an occluded frame, up to 0.9 px at ZNCC 0.63). The others are re-measured
+from frame 0 as above, and lost if that fails: a point whose key-frame subset showed
+something else would otherwise match that something in every later frame (measured:
+17 px off, ok, on a pasted patch).
+"""
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from livedic.dic import field_fit
+from livedic.dic.neighbours import typical_spacing
+from livedic.dic.result import Measurement
+from livedic.dic.status import Status
+from livedic.dic.measure import measure
+from livedic.dic.tracking import ICGN_MAX_ITERATIONS, Tracker
+
+AUTO_ZNCC = 0.9
+AUTO_STRAIN = 0.1
+AUTO_OK = 0.99
+
+
+@dataclass(frozen=True)
+class UpdatePolicy:
+    """When the reference moves (module notes). Build it with ``UpdatePolicy.parse("auto" | "never" | "every:N")``."""
+    mode: str = "auto"
+    every: int = 0
+
+    @classmethod
+    def parse(cls, text):
+        """``auto``, ``never`` or ``every:N`` (N >= 1); ValueError (one line) otherwise."""
+        if isinstance(text, UpdatePolicy):
+            return text
+        word = str(text).strip().lower()
+        if word in ("auto", "never"):
+            return cls(word)
+        if word.startswith("every:"):
+            try:
+                n = int(word[6:])
+            except ValueError:
+                n = 0
+            if n >= 1:
+                return cls("every", n)
+        raise ValueError(f"--reference-update {text!r}: choose auto, never or every:N (N >= 1 frames)")
+
+    def __str__(self):
+        return f"every:{self.every}" if self.mode == "every" else self.mode
+
+    def reason(self, frames_since_key, measurement, trackable):
+        """Why the frame just tracked should become the reference, or None.
+
+        ``measurement`` is its result on the current key frame's points, ``trackable`` the points
+        tracked there.
+        """
+        if self.mode == "never":
+            return None
+        ok = measurement.ok & trackable
+        tracked = int(trackable.sum())
+        if tracked == 0:
+            return None
+        if self.mode == "every":
+            return f"every {self.every} frames" if frames_since_key >= self.every else None
+        if ok.sum() < AUTO_OK * tracked:
+            return None                             # not a frame to measure the next ones against
+        low = float(np.percentile(measurement.zncc[ok], 5))
+        if low < AUTO_ZNCC:
+            return f"ZNCC 5th percentile {low:.3f} < {AUTO_ZNCC}"
+        if measurement.ux is not None:
+            gradients = np.abs(np.column_stack([measurement.ux[ok], measurement.uy[ok], measurement.vx[ok],
+                                                measurement.vy[ok]]))
+            gradients = gradients[np.all(np.isfinite(gradients), axis=1)]
+            if len(gradients):
+                strain = float(np.percentile(gradients.max(axis=1), 99))
+                if strain > AUTO_STRAIN:
+                    return f"strain since the key frame {strain:.3f} > {AUTO_STRAIN}"
+        return None
+
+
+@dataclass(frozen=True)
+class ReferenceUpdate:
+    """One move of the reference.
+
+    Attributes
+    ----------
+    frame : int
+        Which tracked frame became the reference (0 is the first frame tracked).
+    reason : str
+    carried : int
+        Points placed in it from their own result there.
+    estimated : int
+        Points placed from their neighbours (not trusted in that frame, or lost at an earlier update).
+    lost : int
+        Points that could not be placed (``Status.NOT_IN_KEY_FRAME`` until an update places them).
+    seconds : float
+        Time the update took.
+    """
+    frame: int
+    reason: str
+    carried: int
+    estimated: int
+    lost: int
+    seconds: float
+
+    def describe(self):
+        text = f"reference moved to tracked frame {self.frame} ({self.reason}): {self.carried} points carried"
+        if self.estimated:
+            text += f", {self.estimated} placed from their neighbours"
+        if self.lost:
+            text += f", {self.lost} lost"
+        return text + f", {1e3 * self.seconds:.1f} ms"
+
+
+class KeyFrameTracker:
+    """``dic.Tracker`` with reference updates (module notes); results are displacements from frame 0.
+
+    Parameters
+    ----------
+    reference_image : ndarray (H, W)
+        The first frame.
+    points : array_like (N, 2)
+        (x, y) positions in it (snapped to pixel centres, as ``Tracker`` does).
+    reference_update : str or UpdatePolicy
+        ``"auto"`` (default), ``"never"`` or ``"every:N"``.
+    **tracker_options
+        Passed to every ``Tracker`` (subset, search, subpixel, radii, gates ...).
+
+    Attributes
+    ----------
+    x, y : ndarray (N,)
+        The material points (positions in the first frame).
+    updates : list of ReferenceUpdate
+    last_update : ReferenceUpdate or None
+        Set when the frame just tracked became the reference.
+    key_frame : int
+        The tracked frame that is the reference now (0: the first).
+    """
+
+    def __init__(self, reference_image, points, *, reference_update="auto", **tracker_options):
+        self.policy = UpdatePolicy.parse(reference_update)
+        self._options = tracker_options
+        self._inner = Tracker(reference_image, points, **tracker_options)
+        self._first = self._inner.reference            # points lost at a key frame are re-measured from it
+        self.x, self.y = self._inner.x.copy(), self._inner.y.copy()
+        n = self.x.size
+        self._step = typical_spacing(np.column_stack([self.x, self.y])) if n > 1 else 1.0
+        self._members = np.arange(n)            # outer index of each inner point
+        self._u0 = np.zeros(n)                  # u_0->r, v_0->r at the key frame
+        self._v0 = np.zeros(n)
+        self._f0 = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()   # F_0->r
+        self._offset = np.zeros((n, 2))         # x_r - p_r of the inner points
+        self._status = np.full(n, -1, dtype=np.int8)   # outer status for points not in the inner tracker
+        self.key_frame = 0
+        self.frames_tracked = 0
+        self._since_key = 0
+        self.updates = []
+        self.last_update = None
+
+    # the Tracker interface the session uses
+    @property
+    def n_points(self):
+        return self.x.size
+
+    @property
+    def trackable(self):
+        mask = np.zeros(self.n_points, dtype=bool)
+        mask[self._members] = self._inner.trackable
+        return mask
+
+    @property
+    def last_refound(self):
+        mask = np.zeros(self.n_points, dtype=bool)
+        mask[self._members] = self._inner.last_refound
+        return mask
+
+    @property
+    def last_refind_attempts(self):
+        return self._inner.last_refind_attempts
+
+    @property
+    def last_seed_searches(self):
+        return self._inner.last_seed_searches
+
+    @property
+    def window(self):
+        return self._inner.window
+
+    def track(self, image):
+        """Displacement of every material point from the first frame to ``image`` (a ``Measurement``)."""
+        inner = self._inner.track(image)
+        self.frames_tracked += 1
+        self._since_key += 1
+        self.last_update = None
+        result = inner if self.key_frame == 0 and self._members.size == self.n_points else self._compose(inner)
+        reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
+        if reason is not None:
+            self._move_reference(image, result, reason)
+        return result
+
+    def stop_tracking(self, mask, status=Status.SEPARATED):
+        """Stop tracking the points ``mask`` (N,) from the next frame on (a fracture): reported with ``status``.
+
+        The current key frame stays the reference; its tracker is rebuilt without those points.
+        """
+        mask = np.asarray(mask, dtype=bool)
+        keep = ~mask[self._members]
+        if keep.all():
+            return
+        self._status[self._members[~keep]] = int(status)
+        pixels = np.column_stack([self._inner.x, self._inner.y])
+        self._rebuild(self._inner.reference, self._members[keep], pixels[keep], self._offset[keep])
+
+    # ------------------------------------------------------------------ composition
+    def _compose(self, inner):
+        """The inner result (displacement key frame -> this frame at p_r) as displacement from frame 0 at X."""
+        n = self.n_points
+        nan = np.full(n, np.nan)
+        status = np.where(self._status >= 0, self._status, int(Status.NOT_IN_KEY_FRAME)).astype(inner.status.dtype)
+        out = Measurement(x=self.x.copy(), y=self.y.copy(), u=nan.copy(), v=nan.copy(), zncc=nan.copy(),
+                          ok=np.zeros(n, dtype=bool), status=status,
+                          ux=None if inner.ux is None else nan.copy(), uy=None if inner.uy is None else nan.copy(),
+                          vx=None if inner.vx is None else nan.copy(), vy=None if inner.vy is None else nan.copy(),
+                          iterations=None if inner.iterations is None else np.zeros(n, dtype=inner.iterations.dtype))
+        members = self._members
+        du, dv = inner.u, inner.v
+        if inner.ux is not None:
+            g = np.stack([np.stack([inner.ux, inner.uy], axis=-1), np.stack([inner.vx, inner.vy], axis=-1)], axis=1)
+            known = np.all(np.isfinite(g.reshape(len(g), 4)), axis=1)
+            correction = np.einsum("nij,nj->ni", np.where(known[:, None, None], g, 0.0), self._offset)
+            du = du + correction[:, 0]
+            dv = dv + correction[:, 1]
+            f = np.einsum("nij,njk->nik", np.eye(2) + g, self._f0[members])
+            out.ux[members], out.uy[members] = f[:, 0, 0] - 1.0, f[:, 0, 1]
+            out.vx[members], out.vy[members] = f[:, 1, 0], f[:, 1, 1] - 1.0
+        out.u[members] = self._u0[members] + du
+        out.v[members] = self._v0[members] + dv
+        out.zncc[members] = inner.zncc
+        out.ok[members] = inner.ok
+        out.status[members] = inner.status
+        if out.iterations is not None and inner.iterations is not None:
+            out.iterations[members] = inner.iterations
+        return out
+
+    # ------------------------------------------------------------------ updates
+    def _move_reference(self, image, result, reason):
+        """Make ``image`` (whose result from frame 0 is ``result``) the reference; records a ReferenceUpdate.
+
+        The points followed so far, and those lost at an earlier update (``NOT_IN_KEY_FRAME``: they come
+        back once trusted points surround them again), are placed in the new reference: by their own
+        result where it is trusted, else by the quadratic fit of the trusted points around them.
+        """
+        started = time.perf_counter()
+        was_lost = np.flatnonzero(self._status == int(Status.NOT_IN_KEY_FRAME))
+        candidates = np.union1d(self._members, was_lost)
+        near_failures = self._near_failures(result)
+        trusted = self._trusted(result, near_failures)
+        own = trusted[candidates]
+        u = np.where(own, result.u[candidates], np.nan)
+        v = np.where(own, result.v[candidates], np.nan)
+        grad = np.full((candidates.size, 4), np.nan)
+        if result.ux is not None:
+            grad[own] = np.column_stack([result.ux, result.uy, result.vx, result.vy])[candidates[own]]
+        # Not trusted here: re-measured from frame 0 where nothing else failed around them (their own failure
+        # aside), else left out until a later key frame (their subset here may show something else).
+        own_failure = (~result.ok[candidates] & self.trackable[candidates]).astype(np.int64)
+        others = np.flatnonzero(~own & (near_failures[candidates] - own_failure == 0))
+        if others.size:
+            u[others], v[others], grad[others] = self._place_from_first_frame(image, candidates[others], result,
+                                                                              trusted)
+        placed = np.isfinite(u) & np.isfinite(v)
+        members = candidates[placed]
+        self._status[candidates[~placed]] = int(Status.NOT_IN_KEY_FRAME)
+        self._status[members] = -1
+        f = np.broadcast_to(np.eye(2), (members.size, 2, 2)).copy()
+        g = grad[placed]
+        known = np.all(np.isfinite(g), axis=1)
+        f[known] += g[known].reshape(-1, 2, 2)
+        # translation-only points (no gradients): the previous key frame's are the best known
+        f[~known] = self._f0[members[~known]]
+        self._u0[members], self._v0[members] = u[placed], v[placed]
+        self._f0[members] = f
+        where = np.column_stack([self.x[members] + u[placed], self.y[members] + v[placed]])
+        snapped = np.floor(where + 0.5)
+        self._rebuild(np.array(image, copy=True), members, snapped, where - snapped)
+        self.key_frame = self.frames_tracked - 1
+        self._since_key = 0
+        self.last_update = ReferenceUpdate(frame=self.key_frame, reason=reason, carried=int((placed & own).sum()),
+                                           estimated=int((placed & ~own).sum()), lost=int((~placed).sum()),
+                                           seconds=time.perf_counter() - started)
+        self.updates.append(self.last_update)
+
+    def _place_from_first_frame(self, image, idx, result, trusted):
+        """(u, v, gradients) of the points ``idx`` in ``image``, measured from the first frame, or NaN.
+
+        Their own result in this frame is not trusted (module notes), so their subset here may show
+        something else (an occlusion, a flake). The quadratic fit of the trusted points around
+        (within 2.5 grid steps, else 5: the rim of a hole) gives where they should be; IC-GN from the
+        first frame, started there, confirms it only if the subset here shows the same material
+        (ZNCC >= the tracker's ``refind_zncc``): then its result is the placement.
+        """
+        n = idx.size
+        u, v, grad = np.full(n, np.nan), np.full(n, np.nan), np.full((n, 4), np.nan)
+        points = np.column_stack([self.x, self.y])
+        for reach in (field_fit.REACH, 2 * field_fit.REACH):
+            todo = np.flatnonzero(~np.isfinite(u))
+            if todo.size == 0:
+                break
+            where = points[idx[todo]]
+            start, index = field_fit.neighbourhoods(where, points, self._step, reach)
+            u[todo], v[todo] = field_fit.fit_at(where, start, index, points, result.u, result.v, trusted, self._step)
+            if result.ux is not None:
+                for pair, (a, b) in enumerate((("ux", "uy"), ("vx", "vy"))):
+                    grad[todo, 2 * pair], grad[todo, 2 * pair + 1] = field_fit.fit_at(
+                        where, start, index, points, getattr(result, a), getattr(result, b), trusted, self._step)
+        guessed = np.flatnonzero(np.isfinite(u) & np.isfinite(v))
+        out_u, out_v, out_grad = np.full(n, np.nan), np.full(n, np.nan), np.full((n, 4), np.nan)
+        if guessed.size == 0:
+            return out_u, out_v, out_grad
+        start_grad = np.where(np.isfinite(grad[guessed]), grad[guessed], 0.0)
+        subpixel = self._inner.subpixel if self._inner.subpixel in ("icgn", "icgn2") else "icgn"
+        m = measure(self._first, image, points[idx[guessed]], subset=self._inner.subset, search="none",
+                    subpixel=subpixel, guess=np.column_stack([u[guessed], v[guessed]]), gates=None,
+                    subpixel_options={"ux0": start_grad[:, 0], "uy0": start_grad[:, 1], "vx0": start_grad[:, 2],
+                                      "vy0": start_grad[:, 3], "max_iterations": ICGN_MAX_ITERATIONS})
+        with np.errstate(invalid="ignore"):
+            confirmed = m.ok & (m.zncc >= max(self._inner.refind_zncc, self._inner.gates.min_zncc))
+        keep = guessed[confirmed]
+        out_u[keep], out_v[keep] = m.u[confirmed], m.v[confirmed]
+        if m.ux is not None:
+            out_grad[keep] = np.column_stack([m.ux, m.uy, m.vx, m.vy])[confirmed]
+        return out_u, out_v, out_grad
+
+    def _near_failures(self, result):
+        """How many failed (tracked, not ok) points lie within a subset's width of each point (itself included)."""
+        count = np.zeros(self.n_points, dtype=np.int64)
+        reach = float(self._inner.subset)
+        for i in np.flatnonzero(~result.ok & self.trackable):
+            count += (np.abs(self.x - self.x[i]) < reach) & (np.abs(self.y - self.y[i]) < reach)
+        return count
+
+    def _trusted(self, result, near_failures):
+        """Points whose own result in this frame may be carried into it as a key frame (module notes)."""
+        with np.errstate(invalid="ignore"):
+            return result.ok & (result.zncc >= self._inner.refind_zncc) & (near_failures == 0)
+
+    def _rebuild(self, key_image, members, positions, offset):
+        """A new inner Tracker on ``key_image`` for the outer points ``members`` at pixel ``positions``."""
+        self._inner = Tracker(key_image, positions, **self._options)
+        self._members = np.asarray(members)
+        self._offset = np.asarray(offset, dtype=np.float64).reshape(-1, 2)
+
