@@ -21,11 +21,36 @@ loop      K >= 2: render only K frames of the test and cycle through  0 (off)
           them forward and back (see below); 0: render every frame
 ========  ==========================================================  ===================
 
-``synthetic:tensile`` adds ``strain`` (uniform plastic strain when the neck
-starts, default 0.05) and ``neck`` (extra peak strain of the neck in the last
-frame, default 0.15). ``synthetic:translate`` adds ``du``, ``dv`` (shift per
+Options of ``synthetic:tensile`` (the test to fracture: ``synthetic:tensile?strain=0.30&neck=1.0&fade=0.2&fracture=1``)
+
+========  ==========================================================  ===================
+strain    uniform plastic strain when the neck starts (>= 0)          0.05
+neck      extra peak strain at the neck centre in the last frame      0.15
+          before any fracture (>= 0)
+lateral   law of the lateral contraction: ``linear`` (small strain:   auto
+          Poisson 0.3 elastic, 0.5 plastic, linearised),
+          ``incompressible`` (plastic flow keeps the volume at any
+          strain) or ``auto``: linear while strain <= 0.05 and
+          neck <= 0.15 (the default test's frames stay as they
+          were), incompressible beyond
+view      ``grip``: the bottom grip line stays put in the image;      auto
+          ``centre``: the camera keeps the deformed gauge section
+          centred (its two ends' mid-point stays where it was), so a
+          30 % / 100 % test stays in view; ``auto``: grip under the
+          same limits as ``lateral``, centre beyond
+fade      0..1: the speckles fade as the paint strains plastically,   0 (none)
+          each at its own seeded rate; F is the share of their
+          density lost on average at the most strained point (below)
+fracture  0: none; 1: the specimen breaks across the neck centre in   0 (none)
+          the last 10 % of the frames (frame frames - round(0.1
+          frames)); F >= 2: the first broken frame is F (< frames).
+          Not with ``loop``.
+========  ==========================================================  ===================
+
+``synthetic:translate`` adds ``du``, ``dv`` (shift per
 frame in px, default 0.3 and -0.2) and ``jump=F:U:V`` (from frame F on, add a
 sudden extra shift (U, V) px; default none). ``synthetic:`` alone is the tensile test.
+A bad value is one ``SourceError`` line naming the option and what it takes.
 
 The simulator renders ahead; delivery is paced. Every frame of the test is
 rendered into memory before the first frame is delivered (``prepare``; about
@@ -59,22 +84,64 @@ elastically, as stress = force / area) and a neck at ``Y_n`` = 0.06 H above
 the centre, of width ``s`` = 0.07 H (FWHM 0.12 H, a diffuse neck about a third
 of the gauge width long). The plastic zone's ends have the fillets' width
 (0.035 H). Schedule over the normalised time
-``tau = i / (frames - 1)``: elastic loading to ``e_el`` = 0.004 at tau = 0.15,
+``tau = i / (frames - 1)`` (``i / (F - 1)`` with a fracture at frame F):
+elastic loading to ``e_el`` = 0.004 at tau = 0.15,
 uniform plastic strain growing linearly to ``strain`` at tau = 0.6, then the
 neck grows quadratically to ``neck`` at tau = 1 while the rest unloads
 elastically by 20 %. The displacement is the exact integral,
-``V(Y) = -int_Y^{Y_b} e_yy`` (closed form with tanh and log cosh), and the
-lateral contraction is ``U = -(0.3 e_el(...) + 0.5 (e_pl g + e_n sech^2)) (X - X_c)``
-(Poisson ratio 0.3 elastic, 0.5 plastic). Rigid motion: both grips drift by
+``V(Y) = -int_Y^{Y_b} e_yy`` (closed form with tanh and log cosh): engineering
+strain is dy/dY - 1, so it stays exact at any strain. The lateral contraction
+is ``U = -L(Y) (X - X_c)``: with ``lateral=linear``
+``L = 0.3 e_el(...) + 0.5 e_p`` (Poisson ratio 0.3 elastic, 0.5 plastic), where
+``e_p = e_pl g + e_n sech^2`` is the plastic strain; at large strain that is
+wrong (at 100 % it would halve the width), so ``lateral=incompressible`` takes
+the width's stretch ``1 - L = (1 - 0.3 e_el(...)) / sqrt(1 + e_p)``: the plastic
+part keeps the volume (width^2 x length), the small elastic part keeps its
+Poisson ratio. Rigid motion: both grips drift by
 a fraction of a pixel over the test and jitter by 0.03 px per frame
-(seeded), and the top grip drifts sideways by 0.4 px, a small shear. The
+(seeded), and the top grip drifts sideways by 0.4 px, a small shear; with
+``view=centre`` the whole image also moves by ``-(V(top) + V(bottom)) / 2`` of
+the gauge ends, so the deformed gauge stays centred (at 30 % / 100 % it spans
+~97 % of the height before the fracture). The
 model keeps ``y`` a function of ``Y`` alone, so each image row is the
 reference sampled along one horizontal line at affinely mapped columns: the
-inverse map is solved per row (Newton, to 1e-12 px) and the Zhou-Goodson sum
+inverse map is solved per row (Newton, safeguarded by bisection for very
+large strains, to 1e-12 px) and the Zhou-Goodson sum
 of the ``dic.speckle`` pattern is evaluated there exactly (same centres, same
 5R cutoff as ``SpecklePattern.intensity``; no image interpolation). Intensity:
 white paint darkened by the speckle, ``full * (0.06 + 0.88 exp(-I))``, a
 pointwise map that keeps the motion exact.
+
+Surface change (``fade=F``): the paint cracks as it strains, so each speckle k
+loses optical density with the plastic strain at its centre,
+``I = sum_k a_k exp(-d_k^2 / R^2)``,
+``a_k = max(0, 1 - F r_k e_p(y_k) / (strain + neck))``, with ``r_k`` a seeded
+rate uniform in 0..2 (mean 1): the spots' density falls by F on average at the
+most strained point and the pattern itself changes (spots fade unequally), which a
+correlation coefficient notices and an intensity scaling would not. Irreversible
+(the plastic strain never decreases) and attached to the material, so the
+motion stays exact. Nothing fades in the elastic phase or outside the plastic
+zone. At the neck centre of ``strain=0.30&neck=1.0`` (last frame before the
+fracture), the ZNCC of a 21 px subset between the faded and unfaded images
+of the same deformation is about 0.997 (F = 0.2), 0.95 (0.5), 0.5 (1).
+
+Fracture (``fracture``): in frame F the specimen separates across the neck
+centre, reference row ``Y_n`` (a material point with Y < Y_n belongs to the
+upper half). The loading (strains, drift, camera) stops at frame F - 1, where
+the neck has reached ``neck``; from F on the load is gone, so both halves unload
+elastically (``e_el`` = 0; plastic strain stays) and the upper half moves away
+by the crack's opening, ``gap = 3 px + 2 px per frame after F``: V of the
+upper half is that of the lower half's formula minus ``gap``. The rows between
+the two faces show the background (a 1 px coverage ramp at each face, as at
+the coupon's sides). ``source.fracture_frame`` (None without one) and
+``metadata["fracture_frame"]`` say when; ``metadata["phase"]`` is
+``"fractured"`` from then on; ``model.crack_faces(i)`` gives the faces' rows.
+``source.visible(i, x, y, half_width)`` (and ``metadata["truth"].visible(x, y,
+half_width)``) says which reference points' square subsets of that half-width
+are fully seen in frame i: all specimen, entirely on one side of the crack
+(once broken: Y - d >= Y_n or Y + d < Y_n) and inside the image in the
+reference and in frame i (a large strain carries parts of the coupon out of
+view). The truth stays exact for every material point, visible or not.
 
 Exact truth is the displacement of material points. A subset-based method with
 a first-order shape function cannot follow the curvature of the field inside a
@@ -84,7 +151,9 @@ it shows a systematic error of up to ~0.1 px at 1024 x 1024 with 21 px subsets
 
 ``truth(frame_index, x, y)`` gives the exact (u, v) of reference points and
 ``Frame.metadata["truth"]`` holds the same for that frame as a callable
-``truth(x, y) -> (u, v)``. Paced frames also carry
+``truth(x, y) -> (u, v)``, with ``truth.visible(x, y, half_width)`` (the
+source's ``visible``; for ``synthetic:translate``: the subset inside the image
+in the reference and in that frame). Paced frames also carry
 ``metadata["capture_monotonic_ns"]``: when the simulated camera produced the
 frame, on the host's ``time.monotonic_ns`` clock (a consumer that holds the GIL
 can make the frame *arrive* later than that; latency is honest from capture).
@@ -115,7 +184,15 @@ PAINT_GAIN = 0.88
 BACKGROUND_LEVEL = 0.10
 
 _COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0}
-TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15)
+TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15, lateral="auto",
+                        view="auto", fade=0.0, fracture=0)
+# Laws of the lateral contraction and camera views of the tensile test (module notes).
+LATERAL_LAWS = ("linear", "incompressible")
+VIEWS = ("grip", "centre")
+# Up to these (the default test's), ``lateral=auto`` and ``view=auto`` keep the small-strain model.
+SMALL_STRAIN_LIMITS = {"strain": 0.05, "neck": 0.15}
+# Seeds the speckles' fading rates (independent of the pattern, the jitter and the noise).
+_FADE_SEED = 2025
 TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3, dv=-0.2, jump=None)
 
 
@@ -125,7 +202,8 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 
 def _usage():
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
-            "&loop=0&strain=0.05&neck=0.15, or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
+            "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0, "
+            "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
             "(same common options)")
 
 
@@ -172,6 +250,38 @@ def _convert_options(model, raw):
     return out
 
 
+def _resolve_tensile_options(options):
+    """The tensile options with ``lateral``/``view`` chosen and ``fracture`` as a frame (0: none).
+
+    ``auto`` keeps the small-strain model (linear lateral law, bottom grip fixed in view) up to the
+    default test's strains, so those frames stay as they were, and takes the large-strain one beyond.
+    """
+    out = dict(options)
+    small = all(out[key] <= limit for key, limit in SMALL_STRAIN_LIMITS.items())
+    if out["lateral"] == "auto":
+        out["lateral"] = "linear" if small else "incompressible"
+    if out["view"] == "auto":
+        out["view"] = "grip" if small else "centre"
+    contraction = 0.5 * (out["strain"] + out["neck"])
+    if out["lateral"] == "linear" and contraction >= 0.9:
+        raise SourceError(f"synthetic:tensile option lateral=linear: the linear law narrows the neck to "
+                          f"1 - 0.5 (strain + neck) = {1 - contraction:.2f} of its width (must stay above 0.1); "
+                          "use lateral=incompressible")
+    frames, fracture = out["frames"], out["fracture"]
+    if fracture and _rendered_count(out) < frames:
+        raise SourceError(f"synthetic:tensile option fracture={fracture}: a broken specimen cannot be cycled "
+                          f"with loop={out['loop']}; use loop=0")
+    if fracture == 1:
+        fracture = frames - max(1, round(0.1 * frames))
+        if fracture < 2:
+            raise SourceError(f"synthetic:tensile option fracture=1: needs frames >= 3 (frames={frames})")
+    elif fracture and fracture > frames - 1:
+        raise SourceError(f"synthetic:tensile option fracture={fracture}: the frame it breaks at must be in "
+                          f"2..{frames - 1} (frames={frames}), or 1 for the last 10 % of the frames")
+    out["fracture"] = fracture
+    return out
+
+
 def _rendered_count(options):
     """Frames actually rendered: ``loop`` when it is on and below ``frames``, else ``frames``."""
     loop = options["loop"]
@@ -214,13 +324,44 @@ def _to_jump(value):
     return (frame, u, v)
 
 
+def _to_choice(choices):
+    def convert(value):
+        text = str(value).strip().lower()
+        if text not in choices:
+            raise ValueError(f"choose one of {', '.join(choices)}")
+        return text
+    return convert
+
+
+def _to_fade(value):
+    fade = parse_number(value, low=0)
+    if fade > 1.0:
+        raise ValueError("must be in 0..1 (the share of the speckles' density lost, on average, at the most "
+                         "strained point)")
+    return fade
+
+
+def _to_fracture(value):
+    """0 (off), 1 (on, at the default frame) or the frame F >= 2 at which the specimen breaks."""
+    try:
+        return int(parse_bool(value))
+    except ValueError:
+        pass
+    try:
+        return parse_number(value, integer=True, low=0)
+    except ValueError:
+        raise ValueError("write 0 (none), 1 (in the last 10 % of the frames) or the frame it breaks at, "
+                         ">= 2") from None
+
+
 _INT = partial(parse_number, integer=True)
 _CONVERTERS = {
     "frames": partial(_INT, low=2), "fps": partial(parse_number, low=0, low_open=True), "size": _to_size,
     "bit": _to_bit, "noise": partial(parse_number, low=0), "seed": partial(_INT, low=0),
     "radius": partial(parse_number, low=0.5), "pace": parse_bool, "loop": partial(_INT, low=0),
     "strain": partial(parse_number, low=0), "neck": partial(parse_number, low=0), "du": parse_number,
-    "dv": parse_number, "jump": _to_jump,
+    "dv": parse_number, "jump": _to_jump, "lateral": _to_choice(("auto",) + LATERAL_LAWS),
+    "view": _to_choice(("auto",) + VIEWS), "fade": _to_fade, "fracture": _to_fracture,
 }
 
 
@@ -245,18 +386,31 @@ class TensileModel:
     shape : tuple of int, (H, W)
         Image size, rows and columns.
     frames : int
-        Frames of the test; frame 0 is the undeformed reference, the last one the deepest neck.
+        Frames of the test; frame 0 is the undeformed reference, the last one the deepest neck
+        (or, with ``fracture_frame``, the last one before the fracture).
     strain : float
         Uniform plastic strain reached when the neck starts.
     neck : float
-        Extra peak strain at the centre of the neck in the last frame.
+        Extra peak strain at the centre of the neck in the last frame (before the fracture).
     seed : int
         Seed of the grip jitter.
+    lateral : {"linear", "incompressible"}
+        Law of the lateral contraction: ``linear`` (dU/dX = -(0.3 e_el + 0.5 e_p), the small-strain
+        law of the default test) or ``incompressible`` (width stretch (1 - 0.3 e_el) / sqrt(1 + e_p):
+        plastic flow keeps the volume at any strain).
+    view : {"grip", "centre"}
+        ``grip``: the bottom grip line stays put in the image; ``centre``: the camera keeps the
+        deformed gauge section centred (the mid-point of its two ends stays where it was).
+    fracture_frame : int or None
+        First frame in which the specimen is broken across the neck centre (2 <= F < frames), or
+        None for no fracture.
 
     Attributes
     ----------
     x_centre, y_neck, neck_width, gauge_top, gauge_bottom, gauge_half, shoulder_half, y_grip : float
-        Geometry in reference pixels (``y_grip`` is the fixed bottom grip line).
+        Geometry in reference pixels (``y_grip`` is the fixed bottom grip line). ``y_neck`` is also
+        the reference row of the crack.
+    fracture_frame : int or None
     """
 
     NU_ELASTIC = 0.3
@@ -268,14 +422,29 @@ class TensileModel:
     JITTER_PX = 0.03       # grip jitter, standard deviation per frame and axis
     DRIFT_PX = (0.25, 0.15)  # (u, v) drift of both grips over the whole test
     SHEAR_PX = -0.4        # extra sideways drift of the top grip over the whole test
+    GAP_START_PX = 3.0     # opening of the crack in the fracture frame
+    GAP_RATE_PX = 2.0      # further opening per frame after it
+    LATERAL_LAWS = LATERAL_LAWS
+    VIEWS = VIEWS
 
-    def __init__(self, shape, frames, *, strain=0.05, neck=0.15, seed=0):
+    def __init__(self, shape, frames, *, strain=0.05, neck=0.15, seed=0, lateral="linear", view="grip",
+                 fracture_frame=None):
         H, W = int(shape[0]), int(shape[1])
         self.shape = (H, W)
         self.frames = int(frames)
         self.plastic_strain = float(strain)
         self.neck_strain = float(neck)
         self.seed = int(seed)
+        if lateral not in self.LATERAL_LAWS:
+            raise ValueError(f"lateral must be one of {', '.join(self.LATERAL_LAWS)}, got {lateral!r}")
+        if view not in self.VIEWS:
+            raise ValueError(f"view must be one of {', '.join(self.VIEWS)}, got {view!r}")
+        if fracture_frame is not None and not 2 <= int(fracture_frame) <= self.frames - 1:
+            raise ValueError(f"the fracture frame must be in 2..{self.frames - 1} (frames={self.frames}), "
+                             f"got {fracture_frame}")
+        self.lateral = lateral
+        self.view = view
+        self.fracture_frame = None if fracture_frame is None else int(fracture_frame)
         self.x_centre = (W - 1) / 2.0
         self.gauge_half = 0.20 * W
         self.shoulder_half = 0.35 * W
@@ -294,10 +463,17 @@ class TensileModel:
 
     # -- schedule ---------------------------------------------------------
     def tau(self, i):
-        return i / max(self.frames - 1, 1)
+        """Normalised time of the loading schedule: 0 at frame 0, 1 at the last frame before any fracture."""
+        if self.fracture_frame is None:
+            return i / max(self.frames - 1, 1)
+        return min(i, self.fracture_frame - 1) / (self.fracture_frame - 1)
+
+    def fractured(self, i):
+        """Whether frame ``i`` shows the specimen broken."""
+        return self.fracture_frame is not None and i >= self.fracture_frame
 
     def state(self, i):
-        """Strains and rigid motion of frame ``i`` (a dict of floats)."""
+        """Strains and rigid motion of frame ``i`` (a dict of floats; ``gap`` is the crack opening, px)."""
         tau = self.tau(i)
         if tau <= self.TAU_YIELD:
             e_el = self.YIELD_STRAIN * tau / self.TAU_YIELD
@@ -317,8 +493,16 @@ class TensileModel:
             phase = "necking"
         u_r = self.DRIFT_PX[0] * tau + self._jitter[i, 0]
         v_r = self.DRIFT_PX[1] * tau + self._jitter[i, 1]
-        return {"frame": int(i), "tau": tau, "phase": phase, "e_el": e_el, "e_pl": e_pl, "e_neck": e_n,
-                "u_rigid": u_r, "v_rigid": v_r, "shear_top": self.SHEAR_PX * tau}
+        st = {"frame": int(i), "tau": tau, "phase": phase, "e_el": e_el, "e_pl": e_pl, "e_neck": e_n,
+              "u_rigid": u_r, "v_rigid": v_r, "shear_top": self.SHEAR_PX * tau, "gap": 0.0}
+        if self.view == "centre":
+            # The camera follows the stretch of the loading (frozen from the fracture on).
+            st["v_rigid"] = v_r - 0.5 * (self._axial(st, self.gauge_top) + self._axial(st, self.gauge_bottom))
+        if self.fractured(i):
+            # The load drops to zero: both halves unload elastically; the crack opens.
+            st.update(phase="fractured", e_el=0.0,
+                      gap=self.GAP_START_PX + self.GAP_RATE_PX * (i - self.fracture_frame))
+        return st
 
     # -- 1-D profiles -----------------------------------------------------
     def _box(self, Y):
@@ -336,13 +520,19 @@ class TensileModel:
         return self.gauge_half + (self.shoulder_half - self.gauge_half) * shoulder
 
     def strain_yy(self, i, Y):
-        """Exact axial engineering strain dV/dY at reference rows Y for frame ``i``."""
+        """Exact axial engineering strain dV/dY at reference rows Y for frame ``i`` (away from a crack)."""
         st = self.state(i)
         Y = np.asarray(Y, dtype=np.float64)
         a = self.area_ratio
         g = self._box(Y)
         return (st["e_el"] * (a + (1.0 - a) * g) + st["e_pl"] * g
                 + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width))
+
+    def plastic_strain_yy(self, i, Y):
+        """The plastic part of the axial strain at reference rows Y for frame ``i`` (never decreases)."""
+        st = self.state(i)
+        Y = np.asarray(Y, dtype=np.float64)
+        return st["e_pl"] * self._box(Y) + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width)
 
     def _antiderivative(self, st, Y):
         a = self.area_ratio
@@ -352,11 +542,16 @@ class TensileModel:
                 + st["e_neck"] * s * np.tanh((Y - self.y_neck) / s))
 
     def _lateral(self, st, Y):
-        """L(Y): lateral contraction factor, dU/dX = -L."""
+        """L(Y): lateral contraction factor, dU/dX = -L (the width's stretch is 1 - L)."""
         a = self.area_ratio
         g = self._box(Y)
-        return (self.NU_ELASTIC * st["e_el"] * (a + (1.0 - a) * g)
-                + self.NU_PLASTIC * (st["e_pl"] * g + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width)))
+        if self.lateral == "linear":
+            return (self.NU_ELASTIC * st["e_el"] * (a + (1.0 - a) * g)
+                    + self.NU_PLASTIC * (st["e_pl"] * g
+                                         + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width)))
+        elastic = self.NU_ELASTIC * st["e_el"] * (a + (1.0 - a) * g)
+        plastic = st["e_pl"] * g + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width)
+        return 1.0 - (1.0 - elastic) / np.sqrt(1.0 + plastic)
 
     def _axial(self, st, Y):
         """V(Y) without rigid motion: minus the stretch of the material between Y and the grip."""
@@ -366,30 +561,77 @@ class TensileModel:
         return st["shear_top"] * (self.y_grip - Y) / self.y_grip
 
     def displacement(self, i, X, Y):
-        """Exact (U, V) of reference points (X, Y) in frame ``i`` (float64 arrays, broadcast)."""
+        """Exact (U, V) of reference points (X, Y) in frame ``i`` (float64 arrays, broadcast).
+
+        Once broken, points with Y < ``y_neck`` belong to the upper half (moved away by the gap).
+        """
         X, Y = np.broadcast_arrays(np.asarray(X, dtype=np.float64), np.asarray(Y, dtype=np.float64))
         st = self.state(i)
         U = st["u_rigid"] + self._shear(st, Y) - self._lateral(st, Y) * (X - self.x_centre)
         V = st["v_rigid"] + self._axial(st, Y)
+        if st["gap"]:
+            V = V - st["gap"] * (Y < self.y_neck)
         return U, V
+
+    def crack_faces(self, i):
+        """Deformed rows (upper face, lower face) of the crack in frame ``i``; None before the fracture."""
+        st = self.state(i)
+        if not st["gap"]:
+            return None
+        lower = self.y_neck + st["v_rigid"] + float(self._axial(st, self.y_neck))
+        return lower - st["gap"], lower
+
+    def row_cover(self, i, rows):
+        """Fraction of each deformed row's pixel covered by material along y: 1, or less at and in the crack."""
+        y = np.asarray(rows, dtype=np.float64)
+        faces = self.crack_faces(i)
+        if faces is None:
+            return np.ones(y.shape)
+        upper, lower = faces
+        below = np.clip(y + 0.5 - lower, 0.0, 1.0)
+        above = np.clip(upper - (y - 0.5), 0.0, 1.0)
+        return np.maximum(below, above)
+
+    def _crack_shift(self, st, y):
+        """Shift of deformed rows into the lower half's map: the gap for rows of the upper half, else 0."""
+        upper = self.y_neck + st["v_rigid"] + float(self._axial(st, self.y_neck)) - st["gap"]
+        return st["gap"] * (y < upper + 0.5 * st["gap"])
 
     def inverse_rows(self, i, rows):
         """For deformed rows y: the reference row Y and the column map X = alpha + beta * x.
 
-        Solves ``y = Y + V(Y)`` by safeguarded Newton to 1e-12 px, then inverts the
-        row's affine column map ``x = X + U(X, Y)``.
+        Solves ``y = Y + V(Y)`` by safeguarded Newton (a bracket kept from f' >= 1, bisection when a
+        step leaves it) to 1e-12 px, then inverts the row's affine column map ``x = X + U(X, Y)``.
+        Once broken, rows above the middle of the crack are mapped through the upper half, the others
+        through the lower one (the rows in the crack get ``row_cover`` 0).
         """
         st = self.state(i)
         y = np.asarray(rows, dtype=np.float64)
+        if st["gap"]:
+            y = y + self._crack_shift(st, y)     # the upper half is the lower half's map shifted by the gap
         Y = y - st["v_rigid"] - self._axial(st, y)   # fixed-point start
-        for _ in range(50):
+        low = np.full(Y.shape, -np.inf)
+        high = np.full(Y.shape, np.inf)
+        previous = np.full(Y.shape, np.inf)
+        for _ in range(100):
             residual = Y + st["v_rigid"] + self._axial(st, Y) - y
             slope = 1.0 + self.strain_yy(i, Y)
-            Y = Y - residual / slope
-            if np.max(np.abs(residual)) < 1e-12:
+            size = np.abs(residual)
+            # f(Y) = Y + V(Y) - y has f' = 1 + e_yy >= 1, so the root lies within |f(Y)| of Y.
+            high = np.where(residual > 0.0, np.minimum(high, Y), np.minimum(high, Y - residual))
+            low = np.where(residual > 0.0, np.maximum(low, Y - residual), np.maximum(low, Y))
+            step = Y - residual / slope
+            # Bisect where Newton leaves the bracket or fails to halve the residual (a cycle, at very large
+            # strain); never near the root, where rounding sets the residual and Newton's step is kept.
+            bisect = ((step <= low) | (step >= high) | (size > 0.5 * previous)) & (size > 1e-9)
+            Y = np.where(bisect, 0.5 * (low + high), step)
+            previous = size
+            if np.max(size) < 1e-12:
                 break
-        else:  # pragma: no cover - the map is monotone with slope >= 1
-            raise SourceError("tensile model: could not invert the axial displacement")
+        else:
+            residual = Y + st["v_rigid"] + self._axial(st, Y) - y
+            if np.max(np.abs(residual)) > 1e-9 * max(1.0, float(np.max(np.abs(y)))):  # pragma: no cover
+                raise SourceError("tensile model: could not invert the axial displacement")
         L = self._lateral(st, Y)
         offset = st["u_rigid"] + self._shear(st, Y)
         # x = X + offset - L (X - xc)  ->  X = xc + (x - offset - xc) / (1 - L)
@@ -398,22 +640,57 @@ class TensileModel:
         return Y, alpha, beta
 
     def nominal_strain(self, i):
-        """Mean axial strain over the gauge section (what an extensometer would read)."""
+        """Mean axial strain over the gauge section (what an extensometer would read; with the crack's gap)."""
         st = self.state(i)
         top, bottom = self.gauge_top, self.gauge_bottom
-        return float((self._antiderivative(st, bottom) - self._antiderivative(st, top)) / (bottom - top))
+        return float((self._antiderivative(st, bottom) - self._antiderivative(st, top) + st["gap"])
+                     / (bottom - top))
+
+    def visible(self, i, X, Y, half_width=0.0):
+        """Whether the square subset of half-width ``half_width`` around each reference point (X, Y) is fully seen.
+
+        True where the subset is all specimen (inside the coupon's outline), on one side of the crack
+        (from the fracture on: Y - d >= ``y_neck`` or Y + d < ``y_neck``) and, in the reference and in
+        frame ``i``, inside the image (pixel centres 0..W-1, 0..H-1).
+        """
+        X, Y = np.broadcast_arrays(np.asarray(X, dtype=np.float64), np.asarray(Y, dtype=np.float64))
+        d = float(half_width)
+        H, W = self.shape
+        edge = np.minimum(np.minimum(self.half_width(Y - d), self.half_width(Y)), self.half_width(Y + d))
+        seen = np.abs(X - self.x_centre) + d <= edge
+        if self.fractured(i):
+            seen &= (Y - d >= self.y_neck) | (Y + d < self.y_neck)
+        for frame in (0, i):
+            # U is affine in X on a row and V depends on Y alone: the corners bound the deformed subset.
+            for dy in (-d, d):
+                for dx in (-d, d):
+                    u, v = self.displacement(frame, X + dx, Y + dy)
+                    x, y = X + dx + u, Y + dy + v
+                    seen &= (x >= 0.0) & (x <= W - 1.0) & (y >= 0.0) & (y <= H - 1.0)
+        return seen
 
 
 class FrameTruth:
-    """Exact displacement of reference points in one frame: ``truth(x, y) -> (u, v)`` arrays."""
+    """Exact displacement of reference points in one frame: ``truth(x, y) -> (u, v)`` arrays.
 
-    def __init__(self, function, frame_index, description):
+    ``truth.visible(x, y, half_width)`` says which reference points' subsets are fully seen in
+    that frame (the source's ``visible``; all of them when the source gives none).
+    """
+
+    def __init__(self, function, frame_index, description, visible=None):
         self._function = function
+        self._visible = visible
         self.frame_index = int(frame_index)
         self.description = description
 
     def __call__(self, x, y):
         return self._function(self.frame_index, x, y)
+
+    def visible(self, x, y, half_width=0.0):
+        """Boolean array: the subset of half-width ``half_width`` px around each reference point is fully seen."""
+        if self._visible is None:
+            return np.ones(np.broadcast(np.asarray(x), np.asarray(y)).shape, dtype=bool)
+        return self._visible(self.frame_index, x, y, half_width)
 
     def __repr__(self):
         return f"FrameTruth({self.description}, frame={self.frame_index})"
@@ -424,10 +701,12 @@ class FrameTruth:
 # --------------------------------------------------------------------------- #
 
 @njit(cache=True)
-def _row_intensity(xs, ys, inv_r, reach2, delta, q, Yr, a, b, lo, hi, c_lo, c_hi, acc):
-    """acc[c - c_lo] = sum_k exp(-((a + b c - x_k)^2 + (Yr - y_k)^2) / R^2) over |d| < reach.
+def _row_intensity(xs, ys, amp, inv_r, reach2, delta, q, Yr, a, b, lo, hi, c_lo, c_hi, acc):
+    """acc[c - c_lo] = sum_k amp_k exp(-((a + b c - x_k)^2 + (Yr - y_k)^2) / R^2) over |d| < reach.
 
-    Centres k in [lo, hi) (those within reach of the row). Along the row the
+    Centres k in [lo, hi) (those within reach of the row); ``amp`` is 1 for
+    every spot of unfaded paint (an exact product: the sum is then bit for bit
+    the plain one). Along the row the
     Gaussian is stepped by the exact recurrence g(c+1) = g(c) s(c),
     s(c+1) = s(c) q with q = exp(-2 delta^2), delta = b / R: two exp per spot,
     relative rounding drift below 1e-14 over a spot's width.
@@ -448,7 +727,7 @@ def _row_intensity(xs, ys, inv_r, reach2, delta, q, Yr, a, b, lo, hi, c_lo, c_hi
         if last < first:
             continue
         t = (a + b * first - xk) * inv_r
-        g = math.exp(-(t * t + d2y * inv_r2))
+        g = amp[k] * math.exp(-(t * t + d2y * inv_r2))
         step = math.exp(-(2.0 * t * delta + delta * delta))
         for c in range(first - c_lo, last - c_lo + 1):
             acc[c] += g
@@ -466,6 +745,7 @@ def _render_rows(xs, ys, radius, reach, Y, alpha, beta, col_lo, col_hi, out):
     H, W = out.shape
     inv_r = 1.0 / radius
     reach2 = reach * reach
+    amp = np.ones(xs.shape[0])
     for r in prange(H):
         c_lo, c_hi = col_lo[r], col_hi[r]
         if c_hi <= c_lo:
@@ -473,17 +753,20 @@ def _render_rows(xs, ys, radius, reach, Y, alpha, beta, col_lo, col_hi, out):
         delta = beta[r] * inv_r
         lo = np.searchsorted(ys, Y[r] - reach)
         hi = np.searchsorted(ys, Y[r] + reach, side="right")
-        _row_intensity(xs, ys, inv_r, reach2, delta, math.exp(-2.0 * delta * delta), Y[r], alpha[r], beta[r],
+        _row_intensity(xs, ys, amp, inv_r, reach2, delta, math.exp(-2.0 * delta * delta), Y[r], alpha[r], beta[r],
                        lo, hi, c_lo, c_hi, out[r, c_lo:c_hi])
 
 
 @njit(cache=True, parallel=True)
-def _render_specimen(xs, ys, radius, reach, Y, alpha, beta, left, right, background, full, floor, gain, out):
+def _render_specimen(xs, ys, amp, radius, reach, Y, alpha, beta, left, right, row_cover, background, full, floor,
+                     gain, out):
     """Grey image (float32 out, (H, W)) of the coupon: painted speckle inside [left, right], background outside.
 
     Each row r: background[r] everywhere, blended towards the paint
     ``full (floor + gain exp(-I))`` by the pixel's coverage of the specimen
-    (1 px linear ramp at the deformed edges ``left[r]``, ``right[r]``).
+    (1 px linear ramp at the deformed edges ``left[r]``, ``right[r]``, times
+    ``row_cover[r]``: 1, or less at a crack face, 0 in the crack). Spot k's
+    optical density is scaled by ``amp[k]`` (1: unfaded).
     """
     H, W = out.shape
     inv_r = 1.0 / radius
@@ -492,6 +775,9 @@ def _render_specimen(xs, ys, radius, reach, Y, alpha, beta, left, right, backgro
         bg = background[r]
         for c in range(W):
             out[r, c] = bg
+        rc = row_cover[r]
+        if rc <= 0.0:
+            continue
         c_lo = max(int(math.floor(left[r])) - 1, 0)
         c_hi = min(int(math.ceil(right[r])) + 2, W)
         if c_hi <= c_lo:
@@ -500,7 +786,7 @@ def _render_specimen(xs, ys, radius, reach, Y, alpha, beta, left, right, backgro
         delta = beta[r] * inv_r
         lo = np.searchsorted(ys, Y[r] - reach)
         hi = np.searchsorted(ys, Y[r] + reach, side="right")
-        _row_intensity(xs, ys, inv_r, reach2, delta, math.exp(-2.0 * delta * delta), Y[r], alpha[r], beta[r],
+        _row_intensity(xs, ys, amp, inv_r, reach2, delta, math.exp(-2.0 * delta * delta), Y[r], alpha[r], beta[r],
                        lo, hi, c_lo, c_hi, acc)
         for c in range(c_lo, c_hi):
             cover = min(c - left[r], right[r] - c) + 0.5
@@ -508,6 +794,7 @@ def _render_specimen(xs, ys, radius, reach, Y, alpha, beta, left, right, backgro
                 continue
             if cover > 1.0:
                 cover = 1.0
+            cover *= rc
             paint = full * (floor + gain * math.exp(-acc[c - c_lo]))
             out[r, c] = bg + cover * (paint - bg)
 
@@ -624,7 +911,22 @@ class _PrerenderedSource(FrameSource):
 
     def frame_metadata(self, i):
         return {"synthetic": self.model_name,
-                "truth": FrameTruth(self.truth, i, f"synthetic:{self.model_name}")}
+                "truth": FrameTruth(self.truth, i, f"synthetic:{self.model_name}", visible=self.visible)}
+
+    def visible(self, frame_index, x, y, half_width=0.0):
+        """Whether the square subset of half-width ``half_width`` px around each reference point (x, y)
+        lies inside the image in the reference and in frame ``frame_index`` (boolean array)."""
+        j = self._check_index(frame_index)
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        H, W = self.shape
+        d = float(half_width)
+        seen = np.ones(x.shape, dtype=bool)
+        for dy in (-d, d):
+            for dx in (-d, d):
+                u, v = self.truth(j, x + dx, y + dy)
+                for px, py in ((x + dx, y + dy), (x + dx + u, y + dy + v)):
+                    seen &= (px >= 0.0) & (px <= W - 1.0) & (py >= 0.0) & (py <= H - 1.0)
+        return seen
 
     def __iter__(self):
         self.prepare()
@@ -668,13 +970,16 @@ class SyntheticTensileSource(_PrerenderedSource):
     uri : str, optional
         ``synthetic:tensile?...``; keyword options override the URI's.
     **options
-        frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, strain, neck.
+        frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, loop, strain, neck, lateral,
+        view, fade, fracture.
 
     Attributes
     ----------
     model : TensileModel
     suggested_roi : tuple of int, (x, y, w, h)
         The gauge section, inset so subsets stay on the specimen while it narrows.
+    fracture_frame : int or None
+        The first frame showing the specimen broken (``fracture`` option), None without one.
     """
 
     model_name = "tensile"
@@ -684,15 +989,22 @@ class SyntheticTensileSource(_PrerenderedSource):
         if model != "tensile":
             raise SourceError(f"{uri!r} is not a tensile URI: use synthetic:tensile?...")
         raw.update({k: v for k, v in options.items() if v is not None})
-        opts = _convert_options("tensile", raw)
+        opts = _resolve_tensile_options(_convert_options("tensile", raw))
+        fracture = opts["fracture"] or None
         self.model = TensileModel((opts["size"][1], opts["size"][0]), _rendered_count(opts), strain=opts["strain"],
-                                  neck=opts["neck"], seed=opts["seed"])
+                                  neck=opts["neck"], seed=opts["seed"], lateral=opts["lateral"], view=opts["view"],
+                                  fracture_frame=fracture)
+        self.fracture_frame = fracture
         super().__init__(opts, uri)
         self._rows = np.arange(self.shape[0], dtype=np.float64)
         H = self.shape[0]
         self._background = BACKGROUND_LEVEL * (1.0 + 0.15 * (self._rows / H - 0.5))
         self._xs = np.ascontiguousarray(self.pattern.centres[:, 0])
         self._ys = np.ascontiguousarray(self.pattern.centres[:, 1])
+        self._unfaded = np.ones(self._xs.shape[0])
+        # Each speckle fades at its own rate (uniform 0..2 x the mean): the pattern changes, not only its contrast.
+        self._fade_rates = (np.random.default_rng([opts["seed"], _FADE_SEED]).uniform(0.0, 2.0, self._xs.shape[0])
+                            if opts["fade"] > 0.0 else None)
 
     @property
     def suggested_roi(self):
@@ -708,12 +1020,33 @@ class SyntheticTensileSource(_PrerenderedSource):
         """Exact (u, v) at reference points (x, y) in frame ``frame_index``."""
         return self.model.displacement(self._check_index(frame_index), x, y)
 
+    def visible(self, frame_index, x, y, half_width=0.0):
+        """Whether the square subset of half-width ``half_width`` px around each reference point (x, y) is
+        fully seen in frame ``frame_index``: all specimen, on one side of the crack (once broken), inside
+        the image in the reference and in that frame (boolean array; ``TensileModel.visible``)."""
+        return self.model.visible(self._check_index(frame_index), x, y, half_width)
+
     def frame_metadata(self, i):
         meta = super().frame_metadata(i)
         j = self.rendered_index(i)
         st = self.model.state(j)
         meta.update({"phase": st["phase"], "nominal_strain": self.model.nominal_strain(j)})
+        if self.fracture_frame is not None:
+            meta["fracture_frame"] = self.fracture_frame
         return meta
+
+    def fade_amplitudes(self, i):
+        """Optical density factor of every speckle in frame ``i``: 1 - fade r_k e_p(y_k) / (strain + neck), >= 0.
+
+        ``r_k`` is the spot's seeded rate (uniform 0..2), ``e_p(y_k)`` the plastic strain at its centre's
+        reference row; all ones without ``fade``.
+        """
+        fade = self.options["fade"]
+        peak = self.model.plastic_strain + self.model.neck_strain
+        if self._fade_rates is None or peak <= 0.0:
+            return self._unfaded
+        damage = self.model.plastic_strain_yy(i, self._ys) / peak
+        return np.maximum(1.0 - fade * self._fade_rates * damage, 0.0)
 
     def _render(self, i):
         full = float(self.full_scale)
@@ -722,10 +1055,11 @@ class SyntheticTensileSource(_PrerenderedSource):
         # Deformed columns of the specimen edges on each row (X = xc -+ hw).
         left = (self.model.x_centre - hw - alpha) / beta
         right = (self.model.x_centre + hw - alpha) / beta
+        row_cover = self.model.row_cover(i, self._rows)
         image = np.empty(self.shape, dtype=np.float32)
-        _render_specimen(self._xs, self._ys, float(self.pattern.radius), float(self.pattern.cutoff_px),
-                         Y, alpha, beta, left, right, full * self._background, full, PAINT_FLOOR, PAINT_GAIN,
-                         image)
+        _render_specimen(self._xs, self._ys, self.fade_amplitudes(i), float(self.pattern.radius),
+                         float(self.pattern.cutoff_px), Y, alpha, beta, left, right, row_cover,
+                         full * self._background, full, PAINT_FLOOR, PAINT_GAIN, image)
         return _quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
 
 
