@@ -32,7 +32,7 @@ When (``UpdatePolicy``, ``--reference-update``)::
     auto      (default) the reference moves to the frame just tracked when, in it,
               the 5th percentile of the ok points' ZNCC fell below AUTO_ZNCC (0.9), or the
               strain since the key frame (99th percentile of the largest displacement
-              gradient) passed AUTO_STRAIN (0.1), and at least AUTO_OK (99 %) of its tracked
+              gradient) passed AUTO_STRAIN (0.05), and at least AUTO_OK (99 %) of its tracked
               points are ok: a frame where the specimen broke or something passed in front of
               it is not a reference to measure the next ones against (the move waits).
 
@@ -45,6 +45,11 @@ measured on an occluded frame, up to 0.9 px at ZNCC 0.63). The others are re-mea
 from frame 0 as above, and lost if that fails: a point whose key-frame subset showed
 something else would otherwise match that something in every later frame (measured:
 17 px off, ok, on a pasted patch).
+
+Measured on the real muDIC dog-bone (18 frames to 16 % strain, 961 points): re-found
+points 4.69 % of the point-frames against frame 0 only, 1.83 % with AUTO_STRAIN 0.1,
+0.36 % with 0.05 (7 moves), 0.17 % with 0.03 (9 moves; each move freezes one frame's
+noise in, so not fewer). ``livedic bench fracture`` reruns it.
 """
 
 import time
@@ -60,7 +65,7 @@ from livedic.dic.measure import measure
 from livedic.dic.tracking import ICGN_MAX_ITERATIONS, Tracker
 
 AUTO_ZNCC = 0.9
-AUTO_STRAIN = 0.1
+AUTO_STRAIN = 0.05
 AUTO_OK = 0.99
 
 
@@ -361,10 +366,14 @@ class KeyFrameTracker:
             return out_u, out_v, out_grad
         start_grad = np.where(np.isfinite(grad[guessed]), grad[guessed], 0.0)
         subpixel = self._inner.subpixel if self._inner.subpixel in ("icgn", "icgn2") else "icgn"
-        m = measure(self._first, image, points[idx[guessed]], subset=self._inner.subset, search="none",
-                    subpixel=subpixel, guess=np.column_stack([u[guessed], v[guessed]]), gates=None,
+        first, now, at, shift = _crops(self._first, image, points[idx[guessed]],
+                                       np.column_stack([u[guessed], v[guessed]]), self._inner.subset)
+        m = measure(first, now, at, subset=self._inner.subset, search="none", subpixel=subpixel,
+                    guess=np.column_stack([u[guessed] - shift[0], v[guessed] - shift[1]]), gates=None,
                     subpixel_options={"ux0": start_grad[:, 0], "uy0": start_grad[:, 1], "vx0": start_grad[:, 2],
                                       "vy0": start_grad[:, 3], "max_iterations": ICGN_MAX_ITERATIONS})
+        m.u[:] += shift[0]
+        m.v[:] += shift[1]
         with np.errstate(invalid="ignore"):
             confirmed = m.ok & (m.zncc >= max(self._inner.refind_zncc, self._inner.gates.min_zncc))
         keep = guessed[confirmed]
@@ -392,3 +401,27 @@ class KeyFrameTracker:
         self._members = np.asarray(members)
         self._offset = np.asarray(offset, dtype=np.float64).reshape(-1, 2)
 
+
+
+def _crops(first, image, points, displacement, subset):
+    """Same-size crops of ``first`` around ``points`` and of ``image`` around ``points + displacement``.
+
+    Returns (first crop, image crop, points in the first crop, (dx, dy)): a displacement measured
+    between the crops plus (dx, dy) is the displacement between the full images. IC-GN's prefilter
+    then runs on the few points' neighbourhood, not on the whole frame.
+    """
+    margin = subset + 16                       # subset, interpolation margin and prefilter guard
+    lo = np.floor(points.min(axis=0)) - margin
+    hi = np.ceil(points.max(axis=0)) + margin
+    moved = points + displacement
+    lo_b = np.floor(moved.min(axis=0)) - margin
+    hi_b = np.ceil(moved.max(axis=0)) + margin
+    size = np.maximum(hi - lo, hi_b - lo_b).astype(int) + 1
+    height, width = first.shape
+    origin_a = np.clip(lo.astype(int), 0, [width - 1, height - 1])
+    origin_b = np.clip(lo_b.astype(int), 0, [width - 1, height - 1])
+    size = np.minimum(size, [width - max(origin_a[0], origin_b[0]), height - max(origin_a[1], origin_b[1])])
+    (xa, ya), (xb, yb), (w, h) = origin_a, origin_b, size
+    crop_a = np.ascontiguousarray(first[ya:ya + h, xa:xa + w])
+    crop_b = np.ascontiguousarray(image[yb:yb + h, xb:xb + w])
+    return crop_a, crop_b, points - (xa, ya), (float(xb - xa), float(yb - ya))

@@ -77,7 +77,7 @@ def add_run_arguments(parser):
     parser.add_argument("--reference-update", default=_TRACKING.reference_update, metavar="WHEN",
                         help="move the reference to a recent frame as the specimen deforms (results stay "
                              "displacements from the first frame): auto (default: when correlation falls, points "
-                             "fail or the strain since the reference passes 0.1), never, or every:N frames")
+                             "fail or the strain since the reference passes 0.05), never, or every:N frames")
     parser.add_argument("--min-zncc", type=float, default=_TRACKING.min_zncc, metavar="Z",
                         help=f"a point is ok only if its ZNCC is at least Z (default {_TRACKING.min_zncc}); the other "
                              "quality gates (texture, neighbours, border) always apply")
