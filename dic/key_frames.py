@@ -58,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livedic.dic import field_fit
+from livedic.dic.fracture import detect_fracture
 from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
@@ -180,12 +181,18 @@ class KeyFrameTracker:
     updates : list of ReferenceUpdate
     last_update : ReferenceUpdate or None
         Set when the frame just tracked became the reference.
+    fractures : list of dic.fracture.Fracture
+    last_fracture : dic.fracture.Fracture or None
+        Set when a fracture was detected in the frame just tracked (``dic.fracture``; its points
+        across the crack are ``SEPARATED`` from that frame on). ``detect_fractures=False`` turns it off.
     key_frame : int
         The tracked frame that is the reference now (0: the first).
     """
 
-    def __init__(self, reference_image, points, *, reference_update="auto", **tracker_options):
+    def __init__(self, reference_image, points, *, reference_update="auto", detect_fractures=True,
+                 **tracker_options):
         self.policy = UpdatePolicy.parse(reference_update)
+        self.detect_fractures = bool(detect_fractures)
         self._options = tracker_options
         self._inner = Tracker(reference_image, points, **tracker_options)
         self._first = self._inner.reference            # points lost at a key frame are re-measured from it
@@ -203,6 +210,9 @@ class KeyFrameTracker:
         self._since_key = 0
         self.updates = []
         self.last_update = None
+        self.fractures = []
+        self.last_fracture = None
+        self._previous = None                   # the last result (for the fracture test)
 
     # the Tracker interface the session uses
     @property
@@ -239,11 +249,34 @@ class KeyFrameTracker:
         self.frames_tracked += 1
         self._since_key += 1
         self.last_update = None
+        self.last_fracture = None
         result = inner if self.key_frame == 0 and self._members.size == self.n_points else self._compose(inner)
-        reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
-        if reason is not None:
-            self._move_reference(image, result, reason)
+        if self.detect_fractures and self._previous is not None:
+            self._check_fracture(result)
+        if self.last_fracture is None:
+            reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
+            if reason is not None:
+                self._move_reference(image, result, reason)
+        self._previous = (result.ok.copy(), result.u.copy(), result.v.copy())
         return result
+
+    def _check_fracture(self, result):
+        """``dic.fracture``: a band lost at once with a jump across it stops the points across the crack."""
+        ok_before, u_before, v_before = self._previous
+        fracture = detect_fracture(self.x, self.y, ok_before, result.ok, u_before, v_before, result.u, result.v,
+                                   step=self._step, subset=self._inner.subset, trackable=self.trackable)
+        if fracture is None:
+            return
+        self.stop_tracking(fracture.separated)
+        separated = fracture.separated
+        result.ok[separated] = False
+        result.status[separated] = int(Status.SEPARATED)
+        for name in ("u", "v", "zncc", "ux", "uy", "vx", "vy"):
+            values = getattr(result, name)
+            if values is not None:
+                values[separated] = np.nan
+        self.last_fracture = fracture
+        self.fractures.append(fracture)
 
     def stop_tracking(self, mask, status=Status.SEPARATED):
         """Stop tracking the points ``mask`` (N,) from the next frame on (a fracture): reported with ``status``.

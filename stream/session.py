@@ -52,7 +52,7 @@ from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQue
 from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, check_point_count, read_points_csv
 from livedic.stream.progress import ProgressBar
-from livedic.stream.sinks import P0Watch, ProgressLine, RecordResults, ReferenceUpdates
+from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
 
@@ -304,6 +304,7 @@ class Session:
         self.p0 = None
         self.strain = None
         self.reference_updates = None
+        self.fractures = None
         self.reference = None
         self.total_frames = config.frames
         self.render_seconds = None
@@ -421,6 +422,8 @@ class Session:
         self.reference_updates = ReferenceUpdates(lambda kind, message, level: self.event(kind, message, level,
                                                                                          tell=level != "info"))
         sinks.append(self.reference_updates)
+        self.fractures = FractureWatch(self.event)
+        sinks.append(self.fractures)
         if self.p0 is not None:
             sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
         sinks.append(ProgressLine(self.bar, self.acquisition))
@@ -724,7 +727,8 @@ class Session:
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=self.strain.summary() if self.strain is not None else None,
             reference_update=config.tracking.reference_update,
-            **(self.reference_updates.summary() if self.reference_updates is not None else {}))
+            **(self.reference_updates.summary() if self.reference_updates is not None else {}),
+            **(self.fractures.summary() if self.fractures is not None else {}))
         return summary
 
     def _close_quietly(self, close, what):
@@ -765,6 +769,10 @@ def format_summary(summary, reference, recorder):
         lines.append(f"  reference  moved {summary['reference_updates']} times ({summary['reference_update']}; "
                      f"longest {summary['reference_update_max_ms']:.1f} ms"
                      + (f"; {lost} points could not be placed" if lost else "") + "); results from the first frame")
+    for fracture in summary.get("fractures") or ():
+        lines.append(f"  fracture   at frame {fracture['frame']}: {fracture['lost']} points lost at once, the sides "
+                     f"{fracture['jump_px']:.1f} px apart; {fracture['separated']} points across the crack no "
+                     f"longer tracked, the rest tracked on")
     if summary.get("error_rms_px") is not None:
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")

@@ -96,6 +96,33 @@ class ReferenceUpdates:
                 "reference_update_max_ms": max((1e3 * u.seconds for _, u in self.updates), default=None)}
 
 
+class FractureWatch:
+    """Reports a detected fracture (``dic.fracture``) as a ``fracture`` event (said, shown, recorded).
+
+    Parameters
+    ----------
+    report : callable
+        ``report(kind, message, level)``: the session's event.
+    """
+    name = "fracture"
+    required = False
+
+    def __init__(self, report):
+        self.report = report
+        self.fractures = []            # (frame index, dic.fracture.Fracture)
+
+    def __call__(self, result, stats):
+        if result.fracture is None:
+            return
+        self.fractures.append((result.frame.index, result.fracture))
+        self.report("fracture", f"frame {result.frame.index}: {result.fracture.describe()}", "warning")
+
+    def summary(self):
+        """The fractures for the session summary: frame and points separated, or an empty list."""
+        return {"fractures": [{"frame": frame, "lost": f.lost, "jump_px": f.jump_px,
+                               "separated": int(f.separated.sum())} for frame, f in self.fractures]}
+
+
 class P0Watch:
     """Warns once when P0 is lost or its ZNCC falls below ``refind_zncc``: its trace is then doubtful.
 

@@ -60,6 +60,7 @@ class FrameResult:
     error_max_px: float = float("nan")
     capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
     reference_update: object = None   # dic.key_frames.ReferenceUpdate when this frame became the reference
+    fracture: object = None       # dic.fracture.Fracture when one was detected in this frame
     strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
 
@@ -233,7 +234,8 @@ class TrackerLoop:
                                  refind_attempts=self.tracker.last_refind_attempts,
                                  refound=int(self.tracker.last_refound.sum()),
                                  capture_ns=int(capture) if capture is not None else None,
-                                 reference_update=getattr(self.tracker, "last_update", None))
+                                 reference_update=getattr(self.tracker, "last_update", None),
+                                 fracture=getattr(self.tracker, "last_fracture", None))
             last_dropped = dropped
             self._update(result)
             for sink in list(self.sinks):

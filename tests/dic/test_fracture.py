@@ -1,0 +1,68 @@
+"""Fracture detection (``dic.fracture``): a band lost at once AND a jump across it; neither alone."""
+
+import numpy as np
+import pytest
+
+from livedic.dic.fracture import detect_fracture
+
+STEP = 10.0
+XS, YS = np.meshgrid(np.arange(100.0, 400.0, STEP), np.arange(100.0, 600.0, STEP))
+X, Y = XS.ravel(), YS.ravel()
+CRACK_Y = 350.0
+
+
+def frame(shift_top=0.0, lost=None):
+    """ok, u, v: the part above the crack (smaller y) moved up by ``shift_top`` px; ``lost`` not ok."""
+    ok = np.ones(X.size, dtype=bool) if lost is None else ~lost
+    u = np.where(ok, 0.01 * (X - 250), np.nan)
+    v = np.where(ok, 0.02 * (Y - 600) - np.where(Y < CRACK_Y, shift_top, 0.0), np.nan)
+    return ok, u, v
+
+
+def detect(before, now, trackable=None):
+    return detect_fracture(X, Y, before[0], now[0], before[1], before[2], now[1], now[2], step=STEP, subset=21,
+                           trackable=trackable)
+
+
+BAND = np.abs(Y - CRACK_Y) < 12          # the subsets straddling the crack: two rows of points
+
+
+def test_a_band_lost_with_a_jump_is_a_fracture():
+    fracture = detect(frame(), frame(shift_top=4.0, lost=BAND))
+    assert fracture is not None
+    assert fracture.lost == BAND.sum()
+    assert fracture.jump_px == pytest.approx(4.0, abs=1e-9)
+    assert abs(fracture.direction[1]) < 1e-9                   # along x: a crack across the coupon
+    assert fracture.centre[1] == pytest.approx(CRACK_Y)
+    separated = fracture.separated
+    assert separated[BAND].all() and not separated[np.abs(Y - CRACK_Y) > 21].any()
+    assert set(np.unique(fracture.side[~separated])) == {-1, 1}
+    assert "fracture" in fracture.describe()
+
+
+def test_a_band_lost_without_a_jump_is_not_a_fracture():
+    """Something passing in front of the camera: points lost along a line, nothing moved apart."""
+    assert detect(frame(), frame(lost=BAND)) is None
+
+
+def test_a_jump_without_a_band_is_not_a_fracture():
+    """A grip slip moves a whole part but loses no band of points."""
+    assert detect(frame(), frame(shift_top=4.0)) is None
+
+
+def test_scattered_losses_are_not_a_band():
+    rng = np.random.default_rng(0)
+    scattered = np.zeros(X.size, dtype=bool)
+    scattered[rng.choice(X.size, BAND.sum(), replace=False)] = True
+    assert detect(frame(), frame(shift_top=4.0, lost=scattered)) is None
+
+
+def test_a_short_band_is_not_a_fracture():
+    """A few lost points in a row at one edge (a local flake), not across the specimen."""
+    short = BAND & (X < 140)
+    assert detect(frame(), frame(shift_top=4.0, lost=short)) is None
+
+
+def test_points_already_lost_do_not_count():
+    before = frame(lost=BAND)
+    assert detect(before, frame(shift_top=4.0, lost=BAND)) is None
