@@ -23,7 +23,12 @@ but starts each point from its result in the previous frame:
    constructor (``dic.subpixel.icgn.prepare_reference``), each frame is
    prefiltered once (``prepare_target``), and the iteration starts from the
    previous frame's displacement *gradients* as well, so a specimen that keeps
-   stretching converges in a few iterations.
+   stretching converges in a few iterations. ``"icgn2"`` (2nd-order shape
+   function, ``dic.subpixel.icgn2``) works the same way with its 12-parameter
+   reference data and starts from the previous frame's second-order terms too;
+   a point without them (the first frame, a re-found point) is refined to first
+   order first. Points it re-finds from a neighbour are propagated by
+   first-order IC-GN, then refined by icgn2.
 3. **Re-finding.** A point that failed, or whose ZNCC is below ``refind_zncc``,
    or fell by more than ``refind_drop`` since the previous frame, is searched
    again over ``refind_radius`` px around its last good displacement (or that
@@ -38,6 +43,8 @@ Points whose reference subset is unusable (outside the image, no texture) are
 reported with their status every frame and never searched.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from livedic.dic import quality
@@ -50,6 +57,7 @@ from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
 from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
+from livedic.dic.subpixel import icgn2
 from livedic.dic.subpixel.icgn import prepare_reference, prepare_target, refine_prepared
 from livedic.dic.validation import as_image, as_points, check_radius, check_subset
 
@@ -63,7 +71,11 @@ REFIND_MAX_WAIT = 32
 SEED_SWARM = {"population": 6, "iterations": 8}
 _SWARMS = ("improved-wso", "wso", "pso")
 # Sub-pixel methods that converge from a sub-pixel start: the seeded search runs only for doubtful points.
-_ITERATIVE = ("icgn", "newton-raphson")
+_ITERATIVE = ("icgn", "icgn2", "newton-raphson")
+# Sub-pixel methods on the prepared-reference fast path (IC-GN).
+_PREPARED = ("icgn", "icgn2")
+# Methods that report displacement gradients.
+_GRADIENTS = ("icgn", "icgn2", "newton-raphson")
 # IC-GN reads each frame on a window around the points: displacement room it starts with (px) and the
 # extra border that keeps the B-spline prefilter's edge effects (pole 2 - sqrt(3): 0.27^12 < 1e-6) away.
 _WINDOW_ALLOWANCE = 48
@@ -160,11 +172,11 @@ class Tracker:
     search : str
         Integer search seeded by the previous result (``dic.SEARCH_METHODS``),
         or ``"none"`` to start the sub-pixel method straight from it. With
-        ``"icgn"`` and ``"newton-raphson"`` it runs only for doubtful points (see
-        the module notes).
+        ``"icgn"``, ``"icgn2"`` and ``"newton-raphson"`` it runs only for doubtful points
+        (see the module notes).
     subpixel : str
-        Sub-pixel method (``dic.SUBPIXEL_METHODS``); ``"icgn"`` uses the
-        prepared-reference fast path.
+        Sub-pixel method (``dic.SUBPIXEL_METHODS``); ``"icgn"`` and ``"icgn2"``
+        use the prepared-reference fast path.
     seed_radius : int
         Search radius around the previous displacement, pixels (2 covers 1.5 px of
         motion between frames; measured on 1,000 points, searching every point, the
@@ -199,9 +211,10 @@ class Tracker:
         improved WSO's hill-climb polish still ends on a ZNCC maximum); otherwise
         ``search_options``.
     subpixel_options : dict, optional
-        Options of the sub-pixel method; for ``"icgn"`` the default cap is
-        ``max_iterations=ICGN_MAX_ITERATIONS`` (50): a few subsets need far more
-        than IC-GN's own default of 10.
+        Options of the sub-pixel method; for ``"icgn"`` and ``"icgn2"`` the default
+        cap is ``max_iterations=ICGN_MAX_ITERATIONS`` (50): a few subsets need far
+        more than IC-GN's own default of 10. ``"icgn2"`` also takes ``vif_max``
+        (``dic.subpixel.icgn2.prepare_from``).
     gates : dic.quality.Gates
         Quality gates applied to every frame's result, as in ``dic.measure``:
         a point is ok only if it passes them (``POOR_TEXTURE`` points are never
@@ -220,6 +233,9 @@ class Tracker:
     last_seed_searches : int
         Points that the seeded search was run for in the last call (all trackable points
         for the surface-fit methods; only doubtful ones for IC-GN and Newton-Raphson).
+    last_second_order : dict of str -> ndarray of float64, shape (N,), or None
+        ``"icgn2"``: the second-order terms of the last frame (``dic.subpixel.icgn2.SECOND_ORDER``:
+        uxx, uxy, uyy, vxx, vxy, vyy), NaN where not ok or refined below order 2; None otherwise.
 
     Raises
     ------
@@ -273,7 +289,8 @@ class Tracker:
             seed_search_options = dict(SEED_SWARM) if search in _SWARMS else search_options
         self.seed_search_options = seed_search_options
         self.subpixel_options = dict(subpixel_options or {})
-        if subpixel == "icgn":
+        self._vif_max = self.subpixel_options.pop("vif_max", icgn2.VIF2_MAX) if subpixel == "icgn2" else None
+        if subpixel in _PREPARED:
             self.subpixel_options.setdefault("max_iterations", ICGN_MAX_ITERATIONS)
         if not isinstance(gates, Gates):
             raise ValueError(f"gates must be a dic.quality.Gates, got {gates!r}")
@@ -283,7 +300,9 @@ class Tracker:
         self.x = self._xs.astype(np.float64)
         self.y = self._ys.astype(np.float64)
         n = self._xs.shape[0]
-        self._prev = {name: np.zeros(n) for name in ("u", "v", "ux", "uy", "vx", "vy")}
+        # icgn2 also starts each point from its previous second-order terms
+        self._shape_terms = _SHAPE + (icgn2.SECOND_ORDER if subpixel == "icgn2" else ())
+        self._prev = {name: np.zeros(n) for name in ("u", "v") + self._shape_terms}
         self._prev_zncc = np.full(n, np.nan)
         self._good_u = np.zeros(n)
         self._good_v = np.zeros(n)
@@ -296,22 +315,23 @@ class Tracker:
         self._window = None
         self._allowance = 0
         self._graph = neighbour_graph(np.column_stack([self.x, self.y]))
-        if subpixel == "icgn":
+        if subpixel in _PREPARED:
             self._prepare_window(_WINDOW_ALLOWANCE)
             self._ref_status = np.where(self._ref_status != Status.OK, self._ref_status,
                                         self._prep.status).astype(np.int8)
-            texture = quality.texture(self._prep)
+            texture = quality.texture(self._first_order_prep())
         else:
             texture = quality.texture(prepare_reference(self.reference, self._xs, self._ys, self.half))
         poor = texture.poor(gates) & (self._ref_status == Status.OK)
         self._ref_status[poor] = Status.POOR_TEXTURE
         # first-order methods fit a translation where one or two speckles cannot pin a 6-parameter warp
-        self._order = np.where(texture.translation_only(gates), 0, 1)
+        self._order = np.where(texture.translation_only(gates), 0, 2 if subpixel == "icgn2" else 1)
         self.trackable = self._ref_status == Status.OK
         self.frames_tracked = 0
         self.last_refound = np.zeros(n, dtype=bool)
         self.last_refind_attempts = 0
         self.last_seed_searches = 0
+        self.last_second_order = None
 
     # ------------------------------------------------------------------ IC-GN window
     def _prepare_window(self, allowance):
@@ -329,7 +349,11 @@ class Tracker:
         x1 = min(int(self._xs.max()) + reach + 1, width)
         y1 = min(int(self._ys.max()) + reach + 1, height)
         window = np.ascontiguousarray(self.reference[y0:y1, x0:x1])
-        self._prep = prepare_reference(window, self._xs - x0, self._ys - y0, self.half)
+        if self.subpixel == "icgn2":
+            self._prep = icgn2.prepare_reference(window, self._xs - x0, self._ys - y0, self.half,
+                                                 vif_max=self._vif_max)
+        else:
+            self._prep = prepare_reference(window, self._xs - x0, self._ys - y0, self.half)
         self._window = (y0, y1, x0, x1)
         self._allowance = int(allowance)
         self._window_full = (y0, x0) == (0, 0) and (y1, x1) == (height, width)
@@ -342,6 +366,10 @@ class Tracker:
             return False
         self._prepare_window(max(2 * self._allowance, int(np.ceil(displacement)) + _WINDOW_ALLOWANCE))
         return True
+
+    def _first_order_prep(self):
+        """The first-order IC-GN reference data (icgn2's extend them)."""
+        return self._prep.first if self.subpixel == "icgn2" else self._prep
 
     @property
     def window(self):
@@ -395,8 +423,9 @@ class Tracker:
         return nu, nv
 
     def _gradients(self):
+        """Start shape terms per point (gradients, and icgn2's second-order terms): previous ones, else 0."""
         grads = {}
-        for name in ("ux", "uy", "vx", "vy"):
+        for name in self._shape_terms:
             g = self._prev[name]
             grads[name] = np.where(np.isfinite(g), g, 0.0)
         return grads
@@ -431,15 +460,29 @@ class Tracker:
             if ok.any():
                 self._ensure_window(float(np.max(np.maximum(np.abs(found.u[ok]), np.abs(found.v[ok])))) + 2)
         coeffs = self._target_coefficients()
-        refine_options = {k: v for k, v in self.subpixel_options.items() if k not in ("ux0", "uy0", "vx0", "vy0")}
+        starts = tuple(f"{name}0" for name in self._shape_terms)
+        refine_options = {k: v for k, v in self.subpixel_options.items() if k not in starts}
         order = refine_options.pop("order", self._order)
         if np.ndim(order) > 0:
             order = np.asarray(order)[idx]
-        result = refine_prepared(self._prep, coeffs, u0, v0, grads["ux"], grads["uy"], grads["vx"], grads["vy"],
-                                 status=status, points=idx, order=order, **refine_options)
-        return Measurement(x=self.x[idx], y=self.y[idx], u=result.u, v=result.v, zncc=result.zncc,
-                           ok=result.status == Status.OK, status=result.status, ux=result.ux, uy=result.uy,
-                           vx=result.vx, vy=result.vy, iterations=result.iterations, evaluations=evaluations)
+        if self.subpixel == "icgn2":
+            second = {f"{name}0": grads[name] for name in icgn2.SECOND_ORDER}
+            result = icgn2.refine_prepared(self._prep, coeffs, u0, v0, grads["ux"], grads["uy"], grads["vx"],
+                                           grads["vy"], status=status, points=idx, order=order, **second,
+                                           **refine_options)
+        else:
+            result = refine_prepared(self._prep, coeffs, u0, v0, grads["ux"], grads["uy"], grads["vx"], grads["vy"],
+                                     status=status, points=idx, order=order, **refine_options)
+        return self._measurement(idx, result, evaluations)
+
+    def _measurement(self, idx, result, evaluations=None):
+        """The points ``idx``'s rows of a tracker result from a sub-pixel result (icgn2: with its 2nd-order terms)."""
+        fields = dict(x=self.x[idx], y=self.y[idx], u=result.u, v=result.v, zncc=result.zncc,
+                      ok=result.status == Status.OK, status=result.status, ux=result.ux, uy=result.uy,
+                      vx=result.vx, vy=result.vy, iterations=result.iterations, evaluations=evaluations)
+        if self.subpixel == "icgn2":
+            return _Curved(**fields, **{name: getattr(result, name) for name in icgn2.SECOND_ORDER})
+        return Measurement(**fields)
 
     def track(self, image):
         """Displacement of every point from the reference to ``image``.
@@ -517,6 +560,9 @@ class Tracker:
         self.frames_tracked += 1
         self._target = None
         self._coeffs = None
+        if isinstance(result, _Curved):
+            self.last_second_order = {name: getattr(result, name) for name in icgn2.SECOND_ORDER}
+            result = _take(result, slice(None), Measurement)
         return result
 
     def _outliers(self, result):
@@ -536,20 +582,29 @@ class Tracker:
         pending[retry] = True
         params = np.column_stack([result.u, result.ux, result.uy, result.v, result.vx, result.vy])
         params = np.where(np.isfinite(params), params, 0.0)
+        options = {k: v for k, v in self.subpixel_options.items() if k in ("max_iterations", "tolerance")}
         accepted, params, status, zncc, iterations = propagate(
-            self._prep, self._target_coefficients(), self._graph, order=self._order,
+            self._first_order_prep(), self._target_coefficients(), self._graph, order=np.minimum(self._order, 1),
             accept=max(self.gates.min_zncc, self.refind_zncc), params=params, zncc=result.zncc, solved=solved,
-            pending=pending, options={k: v for k, v in self.subpixel_options.items()
-                                      if k in ("max_iterations", "tolerance")})
+            pending=pending, options=options)
         idx = np.flatnonzero(accepted)
         if idx.size:
             p = params[idx]
-            translation = self._order[idx] == 0
-            grads = {name: np.where(translation, np.nan, p[:, c]) for name, c in (("ux", 1), ("uy", 2), ("vx", 4),
-                                                                                  ("vy", 5))}
-            found = Measurement(x=self.x[idx], y=self.y[idx], u=p[:, 0], v=p[:, 3], zncc=zncc[idx],
-                                ok=np.ones(idx.size, dtype=bool), status=status[idx], iterations=iterations[idx],
-                                **grads)
+            if self.subpixel == "icgn2":
+                # the first-order warp from the neighbour starts icgn2 (no second-order terms: its first-order
+                # stage confirms the propagated result, then the 2nd-order iteration runs)
+                again = icgn2.refine_prepared(self._prep, self._target_coefficients(), p[:, 0], p[:, 3], p[:, 1],
+                                              p[:, 2], p[:, 4], p[:, 5], points=idx, order=self._order[idx],
+                                              **options)
+                again.iterations += iterations[idx]
+                found = self._measurement(idx, again)
+            else:
+                translation = self._order[idx] == 0
+                grads = {name: np.where(translation, np.nan, p[:, c]) for name, c in (("ux", 1), ("uy", 2),
+                                                                                      ("vx", 4), ("vy", 5))}
+                found = Measurement(x=self.x[idx], y=self.y[idx], u=p[:, 0], v=p[:, 3], zncc=zncc[idx],
+                                    ok=np.ones(idx.size, dtype=bool), status=status[idx], iterations=iterations[idx],
+                                    **grads)
             self.last_refound[idx[self._keep_better(result, idx, found)]] = True
         with np.errstate(invalid="ignore"):
             still = ~result.ok[retry] | (result.zncc[retry] < self.refind_zncc)
@@ -562,7 +617,7 @@ class Tracker:
         result.status[:] = status
         result.ok[:] = status == Status.OK
         bad = ~result.ok
-        for name in ("u", "v", "ux", "uy", "vx", "vy"):
+        for name in ("u", "v") + self._shape_terms:
             values = getattr(result, name)
             if values is not None:
                 values[bad] = np.nan
@@ -622,20 +677,23 @@ class Tracker:
     def _empty_result(self):
         n = self.n_points
         nan = np.full(n, np.nan)
-        first_order = self.subpixel in ("icgn", "newton-raphson")
-        return Measurement(x=self.x.copy(), y=self.y.copy(), u=nan.copy(), v=nan.copy(), zncc=nan.copy(),
-                           ok=np.zeros(n, dtype=bool), status=self._ref_status.copy(),
-                           ux=nan.copy() if first_order else None, uy=nan.copy() if first_order else None,
-                           vx=nan.copy() if first_order else None, vy=nan.copy() if first_order else None,
-                           iterations=np.zeros(n, dtype=np.int64) if first_order else None)
+        first_order = self.subpixel in _GRADIENTS
+        fields = dict(x=self.x.copy(), y=self.y.copy(), u=nan.copy(), v=nan.copy(), zncc=nan.copy(),
+                      ok=np.zeros(n, dtype=bool), status=self._ref_status.copy(),
+                      ux=nan.copy() if first_order else None, uy=nan.copy() if first_order else None,
+                      vx=nan.copy() if first_order else None, vy=nan.copy() if first_order else None,
+                      iterations=np.zeros(n, dtype=np.int64) if first_order else None)
+        if self.subpixel == "icgn2":
+            return _Curved(**fields, **{name: nan.copy() for name in icgn2.SECOND_ORDER})
+        return Measurement(**fields)
 
     @staticmethod
     def _scatter(result, idx, part):
         for name in ("u", "v", "zncc", "ok", "status"):
             getattr(result, name)[idx] = getattr(part, name)
-        for name in ("ux", "uy", "vx", "vy", "iterations"):
-            target = getattr(result, name)
-            values = getattr(part, name)
+        for name in ("ux", "uy", "vx", "vy", "iterations") + icgn2.SECOND_ORDER:
+            target = getattr(result, name, None)
+            values = getattr(part, name, None)
             if target is not None and values is not None:
                 target[idx] = values
 
@@ -643,7 +701,7 @@ class Tracker:
         ok = result.ok
         self._prev["u"] = np.where(ok, result.u, np.nan)
         self._prev["v"] = np.where(ok, result.v, np.nan)
-        for name in ("ux", "uy", "vx", "vy"):
+        for name in self._shape_terms:
             values = getattr(result, name)
             self._prev[name] = np.where(ok, values, np.nan) if values is not None else np.zeros(self.n_points)
         self._prev_zncc = np.where(ok, result.zncc, np.nan)
@@ -663,10 +721,29 @@ def _gradients_of(measurement):
     return measurement.ux, measurement.uy, measurement.vx, measurement.vy
 
 
-def _take(measurement, mask):
-    """The rows of ``measurement`` where ``mask`` is True (a new Measurement)."""
+def _take(measurement, mask, kind=None):
+    """The rows of ``measurement`` where ``mask`` is True (a new record of its kind, or of ``kind``)."""
+    kind = kind or type(measurement)
+    names = ("x", "y", "u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations", "evaluations")
+    if kind is _Curved:
+        names += icgn2.SECOND_ORDER
     values = {}
-    for name in ("x", "y", "u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations", "evaluations"):
+    for name in names:
         array = getattr(measurement, name)
         values[name] = None if array is None else np.asarray(array)[mask]
-    return Measurement(**values)
+    return kind(**values)
+
+
+# Displacement-gradient names of a first-order result.
+_SHAPE = ("ux", "uy", "vx", "vy")
+
+
+@dataclass
+class _Curved(Measurement):
+    """A tracker result inside ``Tracker.track`` with icgn2's second-order terms (``icgn2.SECOND_ORDER``)."""
+    uxx: np.ndarray = None
+    uxy: np.ndarray = None
+    uyy: np.ndarray = None
+    vxx: np.ndarray = None
+    vxy: np.ndarray = None
+    vyy: np.ndarray = None
