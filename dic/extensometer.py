@@ -142,12 +142,25 @@ def _spread_enough(offsets, step):
     return np.linalg.eigvalsh(cov)[0] >= END_MIN_SPREAD * step * step
 
 
-def end_displacements(placed, points, u, v, ok):
-    """(u, v) of every end (2E,) in this frame, NaN where the end is lost."""
-    return field_fit.fit_at(placed.ends, placed.start, placed.index, points, u, v, ok, placed.step)
+def end_displacements(placed, points, u, v, ok, *, point_labels=None, end_labels=None):
+    """(u, v) of every end (2E,) in this frame, NaN where the end is lost.
+
+    ``point_labels`` (N,) and ``end_labels`` (2E,): regions that must not be mixed (the two sides of
+    a crack): an end is fitted on the points of its own region only.
+    """
+    if point_labels is None:
+        return field_fit.fit_at(placed.ends, placed.start, placed.index, points, u, v, ok, placed.step)
+    point_labels, end_labels = np.asarray(point_labels), np.asarray(end_labels)
+    out_u, out_v = np.full(len(placed.ends), np.nan), np.full(len(placed.ends), np.nan)
+    for label in np.unique(end_labels):
+        fu, fv = field_fit.fit_at(placed.ends, placed.start, placed.index, points, u, v,
+                                  np.asarray(ok, dtype=bool) & (point_labels == label), placed.step)
+        mine = end_labels == label
+        out_u[mine], out_v[mine] = fu[mine], fv[mine]
+    return out_u, out_v
 
 
-def read_extensometers(placed, points, u, v, ok):
+def read_extensometers(placed, points, u, v, ok, *, point_labels=None, end_labels=None):
     """Every extensometer's reading in one frame.
 
     Parameters
@@ -159,12 +172,14 @@ def read_extensometers(placed, points, u, v, ok):
     u, v : arrays (N,)
         Their displacements in this frame, px.
     ok : array (N,) of bool
+    point_labels, end_labels : arrays, optional
+        Regions not to mix (``end_displacements``).
 
     Returns
     -------
     ExtensometerReadings
     """
-    end_u, end_v = end_displacements(placed, points, u, v, ok)
+    end_u, end_v = end_displacements(placed, points, u, v, ok, point_labels=point_labels, end_labels=end_labels)
     ends = placed.ends
     first, second = slice(0, None, 2), slice(1, None, 2)
     l0 = np.hypot(ends[second, 0] - ends[first, 0], ends[second, 1] - ends[first, 1])

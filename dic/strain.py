@@ -362,7 +362,7 @@ class StrainField:
         return self.status == _OK
 
 
-def strain_field(neighbourhoods, u, v, ok, *, measure=DEFAULT_MEASURE):
+def strain_field(neighbourhoods, u, v, ok, *, measure=DEFAULT_MEASURE, labels=None):
     """The strain field of one frame: plane fits over ``neighbourhoods``, then the chosen measure.
 
     Parameters
@@ -374,6 +374,9 @@ def strain_field(neighbourhoods, u, v, ok, *, measure=DEFAULT_MEASURE):
     ok : array (N,) of bool
     measure : str
         One of ``MEASURES``.
+    labels : array (N,) of int, optional
+        Regions that must not be mixed (the two sides of a crack, ``dic.fracture``): a point's window
+        uses the points of its own region only.
 
     Returns
     -------
@@ -381,7 +384,18 @@ def strain_field(neighbourhoods, u, v, ok, *, measure=DEFAULT_MEASURE):
     """
     if measure not in MEASURES:
         raise ValueError(f"unknown strain measure {measure!r}: choose one of {', '.join(MEASURES)}")
-    ux, uy, vx, vy, status = displacement_gradients(neighbourhoods, u, v, ok)
+    if labels is None:
+        ux, uy, vx, vy, status = displacement_gradients(neighbourhoods, u, v, ok)
+    else:
+        labels = np.asarray(labels)
+        ok = np.asarray(ok, dtype=bool)
+        ux, uy, vx, vy = (np.full(labels.shape, np.nan) for _ in range(4))
+        status = np.full(labels.shape, _POINT_NOT_OK, dtype=np.int32)
+        for label in np.unique(labels):
+            mine = labels == label
+            part = displacement_gradients(neighbourhoods, u, v, ok & mine)
+            for out, values in zip((ux, uy, vx, vy, status), part):
+                out[mine] = values[mine]
     exx, eyy, exy = strain_tensor(ux, uy, vx, vy, measure)
     e1, e2, angle = principal_strains(exx, eyy, exy)
     return StrainField(exx=exx, eyy=eyy, exy=exy, e1=e1, e2=e2, angle=angle, ux=ux, uy=uy, vx=vx, vy=vy,

@@ -264,6 +264,8 @@ class StrainStage:
     last_strain: object = None       # the last frame's StrainField
     last_readings: object = None     # ... and ExtensometerReadings
     seconds: array = field(default_factory=lambda: array("d"))
+    point_labels: np.ndarray = None  # the side of each crack each point is on (after a fracture)
+    end_labels: np.ndarray = None
     truth_errors: dict = field(default_factory=dict)   # name -> max |eng strain error| against the truth
 
     @property
@@ -275,10 +277,27 @@ class StrainStage:
         return self.windows.vsg_px
 
     def compute(self, u, v, ok):
-        """(StrainField, ExtensometerReadings) of one frame's displacements of ``points``."""
-        strain = strain_field(self.windows, u, v, ok, measure=self.config.measure)
-        readings = read_extensometers(self.placed, self.points, u, v, ok)
+        """(StrainField, ExtensometerReadings) of one frame's displacements of ``points``.
+
+        After a fracture (``add_fracture``) windows and extensometer ends use the points of their own
+        side of the crack only: a plane across a crack would read its opening as strain.
+        """
+        strain = strain_field(self.windows, u, v, ok, measure=self.config.measure, labels=self.point_labels)
+        readings = read_extensometers(self.placed, self.points, u, v, ok, point_labels=self.point_labels,
+                                      end_labels=self.end_labels)
         return strain, readings
+
+    def add_fracture(self, fracture):
+        """Split the points (and the extensometer ends) by the crack of a ``dic.fracture.Fracture``."""
+        def sides(where):
+            offset = (where - np.asarray(fracture.centre)) @ np.array([-fracture.direction[1], fracture.direction[0]])
+            return (offset > 0).astype(np.int64)
+        count = 0 if self.point_labels is None else int(self.point_labels.max()) + 1
+        base = np.zeros(len(self.points), dtype=np.int64) if self.point_labels is None else self.point_labels
+        ends = np.zeros(len(self.placed.ends), dtype=np.int64) if self.end_labels is None else self.end_labels
+        scale = max(count, 1)
+        self.point_labels = base + scale * sides(self.points)
+        self.end_labels = ends + scale * sides(self.placed.ends)
 
     def exact_readings(self, truth):
         """Exact engineering strain of every extensometer from a truth ``truth(x, y) -> (u, v)``."""
@@ -292,6 +311,8 @@ class StrainStage:
 
     def __call__(self, result, stats):
         started = time.perf_counter()
+        if result.fracture is not None:
+            self.add_fracture(result.fracture)
         m = result.measurement
         strain, readings = self.compute(m.u, m.v, m.ok)
         self.seconds.append(time.perf_counter() - started)
