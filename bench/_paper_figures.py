@@ -20,10 +20,12 @@ COLOURS = {
     "newton-raphson": "tab:green",
     "improved-surface-fit": "tab:red",
     "icgn": "tab:purple",
+    "icgn2": "tab:brown",
 }
 MARKERS = {"coarse-fine": "s", "pso": "^", "wso": "v", "improved-wso": "o", "exhaustive": "x", "fft-cc": "+",
            "improved-wso (paper)": "P",
-           "surface-fit": "s", "gradient": "^", "newton-raphson": "v", "improved-surface-fit": "o", "icgn": "D"}
+           "surface-fit": "s", "gradient": "^", "newton-raphson": "v", "improved-surface-fit": "o", "icgn": "D",
+           "icgn2": "*"}
 
 
 def _plt():

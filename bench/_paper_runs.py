@@ -16,13 +16,14 @@ SEARCHES = ("coarse-fine", "pso", "wso", "improved-wso")
 REFERENCE_SEARCH = "exhaustive"
 # Sub-pixel methods compared in Figs 11/12 and Table 1.
 QUANTISATION_SD = 1.0 / np.sqrt(12.0)
-SUBPIXELS = ("surface-fit", "gradient", "newton-raphson", "improved-surface-fit", "icgn")
+SUBPIXELS = ("surface-fit", "gradient", "newton-raphson", "improved-surface-fit", "icgn", "icgn2")
 SUBPIXEL_MODULES = {
     "surface-fit": "livedic.dic.subpixel.surface_fit",
     "gradient": "livedic.dic.subpixel.gradient_method",
     "newton-raphson": "livedic.dic.subpixel.newton_raphson",
     "improved-surface-fit": "livedic.dic.subpixel.improved_surface_fit",
     "icgn": "livedic.dic.subpixel.icgn",
+    "icgn2": "livedic.dic.subpixel.icgn2",
 }
 LABELS = {
     "exhaustive": "exhaustive",
@@ -35,6 +36,7 @@ LABELS = {
     "newton-raphson": "Newton-Raphson",
     "improved-surface-fit": "improved surface fit",
     "icgn": "IC-GN",
+    "icgn2": "IC-GN2",
 }
 
 

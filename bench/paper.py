@@ -14,8 +14,9 @@ speckle centres), subset 21 x 21 px:
   same +-10 px box;
 * Fig 10 time and ZNCC evaluations per point of those searches, same run;
 * Fig 11 mean error and SD of u vs sub-pixel translation (s, 0), s = 0.05..1 px,
-  for surface fit, gradient, Newton-Raphson, improved surface fit and IC-GN,
-  all started from the same exhaustive integer argmax;
+  for surface fit, gradient, Newton-Raphson, improved surface fit, IC-GN and
+  IC-GN2 (IC-GN with the 2nd-order shape function, not in the paper), all
+  started from the same exhaustive integer argmax;
 * Table 1 time of each sub-pixel method on the Fig 11 job: the sub-pixel stage
   alone, and the whole ``dic.measure`` call (improved-WSO search + method);
 * Fig 7  improved surface fit error vs fitting distance 0.2..2 px at 0.2, 0.8 px;
