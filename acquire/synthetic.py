@@ -21,7 +21,8 @@ loop      K >= 2: render only K frames of the test and cycle through  0 (off)
           them forward and back (see below); 0: render every frame
 ========  ==========================================================  ===================
 
-Options of ``synthetic:tensile`` (the test to fracture: ``synthetic:tensile?strain=0.30&neck=1.0&fade=0.2&fracture=1``)
+Options of ``synthetic:tensile`` (a test to fracture:
+``synthetic:tensile?strain=0.30&neck=1.0&fade=0.2&fracture=1``)
 
 ========  ==========================================================  ===================
 strain    uniform plastic strain when the neck starts (>= 0)          0.05
@@ -55,7 +56,7 @@ A bad value is one ``SourceError`` line naming the option and what it takes.
 The simulator renders ahead; delivery is paced. Every frame of the test is
 rendered into memory before the first frame is delivered (``prepare``; about
 50 ms per 1024 x 1024 frame on one core here, so ~15 s for the default 300
-frames), then frames are handed out at ``fps`` from memory,
+frames; the large-strain, fade and fracture options cost the same), then frames are handed out at ``fps`` from memory,
 so the rate a consumer sees is the camera's, not the renderer's. Frame
 timestamps are the simulated camera clock, ``index * 1e9 / fps`` ns.
 
@@ -134,8 +135,10 @@ by the crack's opening, ``gap = 3 px + 2 px per frame after F``: V of the
 upper half is that of the lower half's formula minus ``gap``. The rows between
 the two faces show the background (a 1 px coverage ramp at each face, as at
 the coupon's sides). ``source.fracture_frame`` (None without one) and
-``metadata["fracture_frame"]`` say when; ``metadata["phase"]`` is
-``"fractured"`` from then on; ``model.crack_faces(i)`` gives the faces' rows.
+``metadata["fracture_frame"]`` (in every frame's metadata, only with a
+fracture) say when; ``metadata["phase"]`` is ``"fractured"`` from then on and
+``metadata["nominal_strain"]`` includes the gap; ``model.crack_faces(i)``
+gives the faces' rows.
 ``source.visible(i, x, y, half_width)`` (and ``metadata["truth"].visible(x, y,
 half_width)``) says which reference points' square subsets of that half-width
 are fully seen in frame i: all specimen, entirely on one side of the crack
