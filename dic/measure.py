@@ -257,7 +257,7 @@ def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_op
     coeffs = icgn.prepare_target(deformed)
     options = dict(icgn_options)
     # the propagation is first-order IC-GN (icgn2 refines every point from its result below)
-    order = np.where(texture.translation_only(gates), 0, min(options.pop("order", 1), 1))
+    order = np.where(texture.translation_only(gates), 0, np.minimum(options.pop("order", 1), 1))
     first = prep.first if subpixel == "icgn2" else prep
 
     def full_search(idx):
