@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain|fracture``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -76,6 +76,17 @@ def add_bench_commands(commands):
                                                       "without it the real sequence is skipped")
     strain.add_argument("-o", "--output", default="results/strain", metavar="DIR", help="results folder")
     strain.set_defaults(handler=_cmd_bench_strain)
+    fracture = bench_commands.add_parser(
+        "fracture", help="a tensile test to fracture: reference updates, accumulated error, fracture detection",
+        description="The simulated test to 30 %% uniform / 100 %% neck strain with fading paint and a fracture, "
+                    "tracked with --reference-update never and auto: visible points ok, RMSE and extensometer "
+                    "error against the truth, wrong-but-ok points, the fracture frame, jumps at updates, update "
+                    "time; with --data the real muDIC dog-bone's re-finds. Prints the verdict on each target; "
+                    "writes fracture.csv and fracture.png.")
+    fracture.add_argument("--quick", action="store_true", help="512x512, 120 frames (a minute or two)")
+    fracture.add_argument("--data", metavar="DIR", help="folder with mudic_tensile_dogbone (e.g. ../shared/datasets)")
+    fracture.add_argument("-o", "--output", default="results/fracture", metavar="DIR", help="results folder")
+    fracture.set_defaults(handler=_cmd_bench_fracture)
 
 
 def build_parser():
@@ -136,15 +147,30 @@ def _cmd_bench_strain(args):
     if args.data is not None and not os.path.isdir(os.path.join(args.data, DOGBONE)):
         raise UsageError(f"--data {args.data} has no {DOGBONE} folder: give the folder holding it "
                          "(e.g. ../shared/datasets)")
-    try:
-        os.makedirs(args.output, exist_ok=True)
-    except OSError as error:
-        raise UsageError(f"-o {args.output}: cannot create the results folder ({error.strerror})") from None
-    if not os.access(args.output, os.W_OK | os.X_OK):
-        raise UsageError(f"-o {args.output}: the results folder is not writable; choose another")
+    _check_results_folder(args.output)
     run_strain_benchmark(quick=args.quick, data=args.data, output=args.output,
                          log=lambda line: print(line, flush=True))
     return 0
+
+
+def _cmd_bench_fracture(args):
+    from livedic.bench.fracture import run
+    _check_results_folder(args.output)
+    try:
+        run(quick=args.quick, data=args.data, output=args.output, say=lambda line: print(line, flush=True))
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    return 0
+
+
+def _check_results_folder(path):
+    """UsageError (one line) unless the results folder exists or can be made, and takes files."""
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as error:
+        raise UsageError(f"-o {path}: cannot create the results folder ({error.strerror})") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise UsageError(f"-o {path}: the results folder is not writable; choose another")
 
 
 if __name__ == "__main__":

@@ -113,6 +113,8 @@ def detect_fracture(x, y, ok_before, ok_now, u_before, v_before, u_now, v_now, *
     jump = float(np.hypot(increments[1][0] - increments[0][0], increments[1][1] - increments[0][1]))
     if jump < MIN_JUMP_PX:
         return None
-    separated = (np.abs(offset) <= max(float(subset), width + 0.5 * subset)) & trackable
+    # every point there, tracked now or not: one not tracked in this key frame (too little texture left)
+    # could be taken up again by a later reference, across the crack
+    separated = np.abs(offset) <= max(float(subset), width + 0.5 * subset)
     return Fracture(centre=(float(centre[0]), float(centre[1])), direction=(float(along[0]), float(along[1])),
                     lost=n_lost, jump_px=jump, separated=separated, side=side)
