@@ -267,6 +267,7 @@ class KeyFrameTracker:
                                    step=self._step, subset=self._inner.subset, trackable=self.trackable)
         if fracture is None:
             return
+        same = any(_same_crack(fracture, earlier, 2.0 * self._inner.subset) for earlier in self.fractures)
         self.stop_tracking(fracture.separated)
         separated = fracture.separated
         result.ok[separated] = False
@@ -275,6 +276,8 @@ class KeyFrameTracker:
             values = getattr(result, name)
             if values is not None:
                 values[separated] = np.nan
+        if same:
+            return                      # the crack widening (its faces pull more subsets across): not news
         self.last_fracture = fracture
         self.fractures.append(fracture)
 
@@ -434,6 +437,14 @@ class KeyFrameTracker:
         self._members = np.asarray(members)
         self._offset = np.asarray(offset, dtype=np.float64).reshape(-1, 2)
 
+
+
+def _same_crack(new, old, distance):
+    """Whether ``new`` lies along the crack of ``old`` (within ``distance`` px of its line, within 20 degrees)."""
+    normal = np.array([-old.direction[1], old.direction[0]])
+    offset = abs(float((np.asarray(new.centre) - np.asarray(old.centre)) @ normal))
+    parallel = abs(float(np.dot(new.direction, old.direction))) >= np.cos(np.radians(20.0))
+    return offset <= distance and parallel
 
 
 def _crops(first, image, points, displacement, subset):
