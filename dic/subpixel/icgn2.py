@@ -107,8 +107,9 @@ from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, NOT_CONVERGED as _NOT_CONVERGED, OK as _OK,
                                 OUTSIDE_TARGET as _OUTSIDE_TARGET, FLAT_TARGET as _FLAT_TARGET, Status)
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
-from livedic.dic.subpixel.icgn import (IcgnReference, _invert_spd, prepare_reference as _prepare_first,
-                                       prepare_target, refine_point, refine_point_scratch)
+from livedic.dic.subpixel.icgn import (IcgnReference, _as_start, _invert_spd, bspline_tap,
+                                       prepare_reference as _prepare_first, prepare_target, refine_point,
+                                       refine_point_scratch)
 from livedic.dic.validation import as_image, check_same_shape
 
 # Parameter order (OpenCorr's Deformation2D2).
@@ -219,7 +220,6 @@ def _prepare2_one(half, lanes, fhat, fx, fy, projected, hinv2, sum_j2, sum_jf2, 
             gy = np.float64(fy[k])
             fh = np.float64(fhat[k])
             d = float(i - half)
-            d2 = d * d
             xx = gx * gx
             xy = gx * gy
             yy = gy * gy
@@ -369,41 +369,7 @@ def _row_sums2(flat, base, stride, ax, sx, qx, ay, sy, qy, lanes, lane_dx, mask,
         d = lane_dx[lu]
         tx = ax + (sx + qx * d) * d
         ty = ay + (sy + qy * d) * d
-        s = _F32(1.0) - tx
-        t2 = tx * tx
-        t3 = t2 * tx
-        wx0 = s * s * s * _F32(1.0 / 6.0)
-        wx3 = t3 * _F32(1.0 / 6.0)
-        wx1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
-        wx2 = _F32(1.0) - wx0 - wx1 - wx3
-        s = _F32(1.0) - ty
-        t2 = ty * ty
-        t3 = t2 * ty
-        wy0 = s * s * s * _F32(1.0 / 6.0)
-        wy3 = t3 * _F32(1.0 / 6.0)
-        wy1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
-        wy2 = _F32(1.0) - wy0 - wy1 - wy3
-        o0 = base + lu
-        o1 = o0 + st
-        o2 = o1 + st
-        o3 = o2 + st
-        c0 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
-        o0 += np.uint64(1)
-        o1 += np.uint64(1)
-        o2 += np.uint64(1)
-        o3 += np.uint64(1)
-        c1 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
-        o0 += np.uint64(1)
-        o1 += np.uint64(1)
-        o2 += np.uint64(1)
-        o3 += np.uint64(1)
-        c2 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
-        o0 += np.uint64(1)
-        o1 += np.uint64(1)
-        o2 += np.uint64(1)
-        o3 += np.uint64(1)
-        c3 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
-        g = (wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3) * mask[lu]
+        g = bspline_tap(flat, base + lu, st, tx, ty) * mask[lu]
         k = ko + lu
         sg += g
         sgg += g * g
@@ -770,17 +736,6 @@ def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat,
 
 # ---------------------------------------------------------------------------
 # public API
-
-
-def _as_start(values, n, name, default):
-    if values is None:
-        return np.full(n, default, dtype=np.float64)
-    arr = np.asarray(values, dtype=np.float64)
-    if arr.ndim == 0:
-        return np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},) (one value per point), got {arr.shape}")
-    return arr
 
 
 def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
