@@ -764,6 +764,27 @@ def _as_start(values, n, name, default):
     return arr
 
 
+def checked_points(ref_prep, target_coeffs, points):
+    """The indices of the prepared points to refine (int64), after checking the target's coefficients.
+
+    ``ref_prep`` is an ``IcgnReference`` (the first-order data of any IC-GN order); ValueError (one
+    line) for coefficients not from ``prepare_target``, of another size, or bad indices.
+    """
+    if not isinstance(target_coeffs, BSplineCoefficients):
+        raise ValueError("target_coeffs must come from prepare_target (a BSplineCoefficients)")
+    if tuple(target_coeffs.shape) != tuple(ref_prep.shape):
+        raise ValueError(f"target is {target_coeffs.shape[1]}x{target_coeffs.shape[0]} but the reference is "
+                         f"{ref_prep.shape[1]}x{ref_prep.shape[0]}: both images must have the same size")
+    if target_coeffs.coefficients.dtype != np.float32:
+        raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
+    n_prepared = ref_prep.xs.shape[0]
+    points = np.arange(n_prepared) if points is None else np.asarray(points)
+    if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \
+            (points.size and (points.min() < 0 or points.max() >= n_prepared)):
+        raise ValueError(f"points must be a 1-D array of indices of the {n_prepared} prepared points")
+    return np.ascontiguousarray(points, dtype=np.int64)
+
+
 def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
                     points=None, order=1, max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
     """IC-GN from prepared reference data and target coefficients.
@@ -818,19 +839,7 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
         Coefficients not from ``prepare_target`` or of another image size,
         start arrays of the wrong length, bad options.
     """
-    if not isinstance(target_coeffs, BSplineCoefficients):
-        raise ValueError("target_coeffs must come from prepare_target (a BSplineCoefficients)")
-    if tuple(target_coeffs.shape) != tuple(ref_prep.shape):
-        raise ValueError(f"target is {target_coeffs.shape[1]}x{target_coeffs.shape[0]} but the reference is "
-                         f"{ref_prep.shape[1]}x{ref_prep.shape[0]}: both images must have the same size")
-    if target_coeffs.coefficients.dtype != np.float32:
-        raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
-    n_prepared = ref_prep.xs.shape[0]
-    points = np.arange(n_prepared) if points is None else np.asarray(points)
-    if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \
-            (points.size and (points.min() < 0 or points.max() >= n_prepared)):
-        raise ValueError(f"points must be a 1-D array of indices of the {n_prepared} prepared points")
-    points = np.ascontiguousarray(points, dtype=np.int64)
+    points = checked_points(ref_prep, target_coeffs, points)
     npts = points.shape[0]
     per_point = np.ndim(order) > 0
     orders = np.asarray(order).astype(np.int64) if per_point else np.full(npts, order, dtype=np.int64)

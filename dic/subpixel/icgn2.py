@@ -102,12 +102,12 @@ import numpy as np
 from numba import njit, prange
 from numpy import float32 as _F32
 
-from livedic.dic.bspline import FASTMATH, INTERPOLATION_MARGIN, PAD, BSplineCoefficients
+from livedic.dic.bspline import FASTMATH, INTERPOLATION_MARGIN, PAD
 from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, NOT_CONVERGED as _NOT_CONVERGED, OK as _OK,
                                 OUTSIDE_TARGET as _OUTSIDE_TARGET, FLAT_TARGET as _FLAT_TARGET, Status)
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
-from livedic.dic.subpixel.icgn import (IcgnReference, _as_start, _invert_spd, bspline_tap,
+from livedic.dic.subpixel.icgn import (IcgnReference, _as_start, _invert_spd, bspline_tap, checked_points,
                                        prepare_reference as _prepare_first, prepare_target, refine_point,
                                        refine_point_scratch)
 from livedic.dic.validation import as_image, check_same_shape
@@ -787,20 +787,8 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     """
     if not isinstance(ref_prep, Icgn2Reference):
         raise ValueError("ref_prep must come from dic.subpixel.icgn2.prepare_reference (an Icgn2Reference)")
-    if not isinstance(target_coeffs, BSplineCoefficients):
-        raise ValueError("target_coeffs must come from prepare_target (a BSplineCoefficients)")
     first = ref_prep.first
-    if tuple(target_coeffs.shape) != tuple(first.shape):
-        raise ValueError(f"target is {target_coeffs.shape[1]}x{target_coeffs.shape[0]} but the reference is "
-                         f"{first.shape[1]}x{first.shape[0]}: both images must have the same size")
-    if target_coeffs.coefficients.dtype != np.float32:
-        raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
-    n_prepared = first.xs.shape[0]
-    points = np.arange(n_prepared) if points is None else np.asarray(points)
-    if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \
-            (points.size and (points.min() < 0 or points.max() >= n_prepared)):
-        raise ValueError(f"points must be a 1-D array of indices of the {n_prepared} prepared points")
-    points = np.ascontiguousarray(points, dtype=np.int64)
+    points = checked_points(first, target_coeffs, points)
     npts = points.shape[0]
     per_point = np.ndim(order) > 0
     if per_point:
