@@ -1,0 +1,382 @@
+"""Tensile properties from an engineering stress-strain curve, by the methods of ISO 6892-1.
+
+Input: per frame, the engineering strain (dimensionless, e.g. the ``axial`` extensometer)
+and the engineering stress (MPa). A frame with either value not finite has no reading and
+is skipped: the properties are computed from the frames that have one, and where a value
+lies between two frames (Rp0.2) it is interpolated between the valid frames either side,
+which the result names. Frames are reported by their index in the input arrays.
+
+What is computed, and how (each result carries this as its ``method`` text):
+
+* **E** (GPa): least-squares line of stress on strain over a stress range of the loading
+  branch (the frames before the curve first rises above the range). The default range is
+  10 % to 40 % of Rp0.2 when Rp0.2 is known, else of the maximum stress (ISO 6892-1:2019
+  Annex G fits the elastic line well below the proportional limit; 40 % of Rm is below it
+  for the usual metals, and ``tensile_properties`` refits once Rp0.2 is known). The line's
+  strain at zero stress (``strain_at_zero_stress``) is the toe correction: seating and a
+  zero offset of the extensometer move the curve, not the properties.
+* **Rp0.2** (MPa): the curve's first crossing of the line parallel to the elastic line,
+  offset by 0.2 % strain; linear interpolation between the bracketing frames.
+* **Rm** (MPa): the maximum engineering stress (at maximum force), the first frame with it.
+* **Ag** (%): plastic extension at maximum force, (strain at Rm - Rm / E) x 100; **Agt** the
+  total, strain at Rm x 100 (both toe-corrected). The strain is that of the frame of Rm (on
+  a flat top a noisy maximum moves it; ISO's polynomial fit near the maximum is not done).
+* **A** (%): plastic elongation at fracture, (strain - stress / E) x 100 at the last frame
+  before the stress first falls below ``FRACTURE_DROP`` (10 %) of Rm after Rm: ISO 6892-1
+  defines fracture by the force drop; the elastic recovery stress / E is removed, as the
+  broken specimen springs back.
+
+A property that cannot be computed is NaN with a ``Reason`` (data, not text).
+"""
+
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+
+DEFAULT_RANGE = (0.10, 0.40)   # share of Rp0.2 (or of the maximum stress) fitted for E
+MIN_POINTS = 5                 # fewest frames in the range to fit E
+PROOF_OFFSET = 0.002           # 0.2 % strain
+FRACTURE_DROP = 0.10           # fracture: stress below this share of Rm, after Rm
+
+_NAN = float("nan")
+
+
+class Reason(enum.Enum):
+    """Why a property is NaN."""
+    NO_DATA = "no frame with both strain and stress"
+    TOO_FEW_POINTS = "too few frames in the stress range of the elastic fit"
+    NOT_POSITIVE = "the elastic fit's slope is not positive"
+    NO_MODULUS = "needs E, which is NaN"
+    NEVER_CROSSED = "the curve does not cross the offset line before maximum force"
+    NO_FRACTURE = "the stress never falls below the fracture share of Rm after Rm"
+
+
+@dataclass(frozen=True)
+class Modulus:
+    """The elastic modulus fitted over a stress range.
+
+    Attributes
+    ----------
+    value : float
+        E in GPa (NaN with ``reason`` when it cannot be fitted).
+    standard_error : float
+        Standard error of the fitted slope, GPa.
+    n_points : int
+        Frames in the fit.
+    stress_range_MPa : (float, float)
+        The fitted stress range.
+    strain_at_zero_stress : float
+        Where the fitted line crosses zero stress (toe correction); 0 when NaN.
+    method : str
+    reason : Reason or None
+    """
+    value: float
+    standard_error: float
+    n_points: int
+    stress_range_MPa: tuple
+    strain_at_zero_stress: float
+    method: str
+    reason: Reason = None
+
+
+@dataclass(frozen=True)
+class ProofStrength:
+    """Rp (MPa) and the two frames it was interpolated between (-1 when NaN)."""
+    value: float
+    frames: tuple
+    method: str
+    reason: Reason = None
+
+
+@dataclass(frozen=True)
+class TensileStrength:
+    """Rm (MPa), the frame of the maximum and the strain there (-1 and NaN when NaN)."""
+    value: float
+    frame: int
+    strain: float
+    method: str
+    reason: Reason = None
+
+
+@dataclass(frozen=True)
+class UniformElongation:
+    """Ag (%, plastic) and Agt (%, total) at maximum force."""
+    value: float
+    total: float
+    method: str
+    reason: Reason = None
+
+
+@dataclass(frozen=True)
+class ElongationAfterFracture:
+    """A (%) and the frame taken as the last before fracture (-1 when NaN)."""
+    value: float
+    frame: int
+    method: str
+    reason: Reason = None
+
+
+@dataclass(frozen=True)
+class TensileProperties:
+    """The properties of one test; the field names are the report's JSON keys."""
+    E_GPa: Modulus
+    Rp02_MPa: ProofStrength
+    Rm_MPa: TensileStrength
+    Ag_percent: UniformElongation
+    A_percent: ElongationAfterFracture
+
+    def as_dict(self):
+        """``{"E_GPa": {"value": float, "method": str, "reason": str or None}, ...}`` (NaN stays NaN)."""
+        out = {}
+        for name in ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent"):
+            prop = getattr(self, name)
+            out[name] = {"value": float(prop.value), "method": prop.method,
+                         "reason": None if prop.reason is None else prop.reason.value}
+        return out
+
+
+def _valid(strain, stress):
+    """The input as float arrays, and the indices of the frames with both values finite."""
+    strain = np.asarray(strain, dtype=np.float64)
+    stress = np.asarray(stress, dtype=np.float64)
+    if strain.shape != stress.shape or strain.ndim != 1:
+        raise ValueError(f"strain and stress must be 1-D arrays of one length, got shapes "
+                         f"{strain.shape} and {stress.shape}")
+    frames = np.flatnonzero(np.isfinite(strain) & np.isfinite(stress))
+    return strain, stress, frames
+
+
+def _fit_line(x, y):
+    """Least squares y = a x + b: slope, intercept, standard error of the slope."""
+    x_mean, y_mean = x.mean(), y.mean()
+    sxx = np.sum((x - x_mean) ** 2)
+    slope = np.sum((x - x_mean) * (y - y_mean)) / sxx
+    intercept = y_mean - slope * x_mean
+    residuals = y - (slope * x + intercept)
+    error = np.sqrt(np.sum(residuals ** 2) / (x.size - 2) / sxx)
+    return slope, intercept, error
+
+
+def _plastic_strain(strain, stress, E_GPa, strain_at_zero_stress):
+    """Strain less the elastic part and the toe: what stays after unloading."""
+    return strain - stress / (E_GPa * 1000.0) - strain_at_zero_stress
+
+
+def modulus(strain, stress, *, stress_range=None, rp02_MPa=None, min_points=MIN_POINTS):
+    """Elastic modulus E by a least-squares line over a stress range of the loading branch.
+
+    Parameters
+    ----------
+    strain, stress : array_like (n,)
+        Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+    stress_range : (float, float), optional
+        The stress range (MPa) to fit. Default: 10 % to 40 % of ``rp02_MPa`` when it is
+        given and finite, else of the maximum stress.
+    rp02_MPa : float, optional
+        Rp0.2, for the default range.
+    min_points : int
+        Fewest frames in the range; fewer gives NaN with ``Reason.TOO_FEW_POINTS``.
+
+    Returns
+    -------
+    Modulus
+        E (GPa) with its standard error, the frames fitted and the range. The loading
+        branch is the frames before the stress first exceeds the range's upper end, so
+        an unloading or the falling branch after Rm is never fitted.
+    """
+    strain, stress, frames = _valid(strain, stress)
+    if frames.size == 0:
+        return Modulus(_NAN, _NAN, 0, (_NAN, _NAN), 0.0, "no fit", Reason.NO_DATA)
+    lo_share, hi_share = DEFAULT_RANGE
+    if stress_range is not None:
+        low, high = (float(v) for v in stress_range)
+        basis = "the stated range"
+    elif rp02_MPa is not None and np.isfinite(rp02_MPa):
+        low, high = lo_share * rp02_MPa, hi_share * rp02_MPa
+        basis = f"{lo_share:.0%} to {hi_share:.0%} of Rp0.2"
+    else:
+        peak = stress[frames].max()
+        low, high = lo_share * peak, hi_share * peak
+        basis = f"{lo_share:.0%} to {hi_share:.0%} of the maximum stress"
+    s, e = stress[frames], strain[frames]
+    above = np.flatnonzero(s > high)
+    branch = slice(0, above[0] if above.size else s.size)
+    s, e = s[branch], e[branch]
+    inside = (s >= low) & (s <= high)
+    n = int(inside.sum())
+    method = (f"least-squares line of stress on strain over {low:.1f} to {high:.1f} MPa "
+              f"({basis}) of the loading branch, {n} frames")
+    if n < max(min_points, 3):
+        return Modulus(_NAN, _NAN, n, (low, high), 0.0, method, Reason.TOO_FEW_POINTS)
+    slope, intercept, error = _fit_line(e[inside], s[inside])
+    if not slope > 0:
+        return Modulus(_NAN, _NAN, n, (low, high), 0.0, method, Reason.NOT_POSITIVE)
+    return Modulus(slope / 1000.0, error / 1000.0, n, (low, high), -intercept / slope, method)
+
+
+def proof_strength(strain, stress, E_GPa, offset=PROOF_OFFSET, *, strain_at_zero_stress=0.0):
+    """Proof strength Rp (Rp0.2 by default) by the offset line.
+
+    Parameters
+    ----------
+    strain, stress : array_like (n,)
+        Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+    E_GPa : float
+        The elastic modulus (slope of the offset line).
+    offset : float
+        The offset, as strain (0.002 = 0.2 %).
+    strain_at_zero_stress : float
+        Where the elastic line crosses zero stress (``Modulus.strain_at_zero_stress``).
+
+    Returns
+    -------
+    ProofStrength
+        The stress where the curve first crosses the line
+        stress = E (strain - strain_at_zero_stress - offset), linearly interpolated between
+        the last valid frame above the line and the first at or below it. Only the frames
+        up to maximum force are searched: a fall of the force at fracture is no crossing.
+    """
+    method = (f"first crossing of the curve with the elastic line offset by {offset:.1%} strain "
+              "up to maximum force, linear interpolation between the bracketing frames")
+    strain, stress, frames = _valid(strain, stress)
+    if not np.isfinite(E_GPa):
+        return ProofStrength(_NAN, (-1, -1), method, Reason.NO_MODULUS)
+    if frames.size == 0:
+        return ProofStrength(_NAN, (-1, -1), method, Reason.NO_DATA)
+    loading = slice(0, int(np.argmax(stress[frames])) + 1)
+    frames = frames[loading]
+    s, e = stress[frames], strain[frames]
+    # stress above the offset line; > 0 on the elastic part (E * offset), falls through 0 at Rp
+    above = s - E_GPa * 1000.0 * (e - strain_at_zero_stress - offset)
+    crossed = np.flatnonzero((above[:-1] > 0) & (above[1:] <= 0))
+    if crossed.size == 0:
+        return ProofStrength(_NAN, (-1, -1), method, Reason.NEVER_CROSSED)
+    i = crossed[0]
+    t = above[i] / (above[i] - above[i + 1])
+    value = s[i] + t * (s[i + 1] - s[i])
+    return ProofStrength(float(value), (int(frames[i]), int(frames[i + 1])), method)
+
+
+def tensile_strength(strain, stress):
+    """Tensile strength Rm: the maximum engineering stress.
+
+    Parameters
+    ----------
+    strain, stress : array_like (n,)
+        Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+
+    Returns
+    -------
+    TensileStrength
+        Rm (MPa), the first frame with it and the strain there. After fracture the force
+        is ~0, so the maximum is the one before fracture.
+    """
+    method = "maximum engineering stress (maximum force), first frame with it"
+    strain, stress, frames = _valid(strain, stress)
+    if frames.size == 0:
+        return TensileStrength(_NAN, -1, _NAN, method, Reason.NO_DATA)
+    frame = int(frames[np.argmax(stress[frames])])
+    return TensileStrength(float(stress[frame]), frame, float(strain[frame]), method)
+
+
+def uniform_elongation(Rm, E_GPa, *, strain_at_zero_stress=0.0):
+    """Ag and Agt: plastic and total extension at maximum force, percent.
+
+    Parameters
+    ----------
+    Rm : TensileStrength
+    E_GPa : float
+    strain_at_zero_stress : float
+        Toe correction (``Modulus.strain_at_zero_stress``).
+
+    Returns
+    -------
+    UniformElongation
+        Ag = (strain at Rm - Rm / E - toe) x 100 (ISO 6892-1 Ag, the plastic part) and
+        Agt = (strain at Rm - toe) x 100.
+    """
+    method = ("plastic extension at maximum force, (strain at Rm - Rm/E) x 100, toe-corrected; "
+              "total = strain at Rm x 100")
+    if Rm.reason is not None:
+        return UniformElongation(_NAN, _NAN, method, Rm.reason)
+    total = 100.0 * (Rm.strain - strain_at_zero_stress)
+    if not np.isfinite(E_GPa):
+        return UniformElongation(_NAN, total, method, Reason.NO_MODULUS)
+    plastic = 100.0 * _plastic_strain(Rm.strain, Rm.value, E_GPa, strain_at_zero_stress)
+    return UniformElongation(float(plastic), float(total), method)
+
+
+def elongation_after_fracture(strain, stress, E_GPa, *, drop=FRACTURE_DROP,
+                              strain_at_zero_stress=0.0):
+    """A: plastic elongation at fracture, percent.
+
+    Parameters
+    ----------
+    strain, stress : array_like (n,)
+        Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+    E_GPa : float
+    drop : float
+        Fracture is where the stress first falls below ``drop`` x Rm after the frame of Rm.
+    strain_at_zero_stress : float
+        Toe correction (``Modulus.strain_at_zero_stress``).
+
+    Returns
+    -------
+    ElongationAfterFracture
+        (strain - stress / E - toe) x 100 at the last valid frame before that fall: the
+        elongation the broken specimen keeps once its elastic strain has recovered.
+    """
+    method = (f"plastic strain x 100 at the last frame before the stress falls below "
+              f"{drop:.0%} of Rm after Rm (fracture), elastic recovery stress/E removed")
+    strain, stress, frames = _valid(strain, stress)
+    if not np.isfinite(E_GPa):
+        return ElongationAfterFracture(_NAN, -1, method, Reason.NO_MODULUS)
+    if frames.size == 0:
+        return ElongationAfterFracture(_NAN, -1, method, Reason.NO_DATA)
+    s = stress[frames]
+    peak = int(np.argmax(s))
+    fallen = np.flatnonzero(s[peak:] < drop * s[peak])
+    if fallen.size == 0:
+        return ElongationAfterFracture(_NAN, -1, method, Reason.NO_FRACTURE)
+    frame = int(frames[peak + fallen[0] - 1])
+    plastic = 100.0 * _plastic_strain(strain[frame], stress[frame], E_GPa, strain_at_zero_stress)
+    return ElongationAfterFracture(float(plastic), frame, method)
+
+
+def tensile_properties(strain, stress, *, stress_range=None, offset=PROOF_OFFSET,
+                       drop=FRACTURE_DROP, min_points=MIN_POINTS):
+    """E, Rp0.2, Rm, Ag and A of one test.
+
+    Parameters
+    ----------
+    strain, stress : array_like (n,)
+        Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+    stress_range : (float, float), optional
+        Stress range (MPa) for E. Default: E is fitted over 10 % to 40 % of the maximum
+        stress, Rp0.2 found with it, then E refitted over 10 % to 40 % of that Rp0.2 (kept
+        when it has ``min_points`` frames) and Rp0.2 found again with the refit.
+    offset : float
+        Proof strain (0.002: Rp0.2).
+    drop : float
+        Fracture's force drop, as share of Rm (``elongation_after_fracture``).
+    min_points : int
+        Fewest frames for the fit of E.
+
+    Returns
+    -------
+    TensileProperties
+    """
+    E = modulus(strain, stress, stress_range=stress_range, min_points=min_points)
+    rp = proof_strength(strain, stress, E.value, offset, strain_at_zero_stress=E.strain_at_zero_stress)
+    if stress_range is None and rp.reason is None:
+        refit = modulus(strain, stress, rp02_MPa=rp.value, min_points=min_points)
+        if refit.reason is None:
+            E = refit
+            rp = proof_strength(strain, stress, E.value, offset,
+                                strain_at_zero_stress=E.strain_at_zero_stress)
+    Rm = tensile_strength(strain, stress)
+    Ag = uniform_elongation(Rm, E.value, strain_at_zero_stress=E.strain_at_zero_stress)
+    A = elongation_after_fracture(strain, stress, E.value, drop=drop,
+                                  strain_at_zero_stress=E.strain_at_zero_stress)
+    return TensileProperties(E, rp, Rm, Ag, A)
