@@ -26,6 +26,11 @@ What is computed, and how (each result carries this as its ``method`` text):
   defines fracture by the force drop; the elastic recovery stress / E is removed, as the
   broken specimen springs back.
 
+ASTM E8/E8M reads yield strength by the same 0.2 % offset line and tensile strength as the
+maximum force over the original area, so the numbers serve both; its elongation after
+fracture is measured on the gauge marks after the test, which the plastic strain at the
+force drop approximates as ISO 6892-1 does with an extensometer.
+
 A property that cannot be computed is NaN with a ``Reason`` (data, not text).
 """
 
@@ -148,7 +153,9 @@ def _valid(strain, stress):
 
 
 def _fit_line(x, y):
-    """Least squares y = a x + b: slope, intercept, standard error of the slope."""
+    """Least squares y = a x + b: slope, intercept, standard error of the slope (NaN if x is constant)."""
+    if np.ptp(x) == 0:
+        return _NAN, _NAN, _NAN
     x_mean, y_mean = x.mean(), y.mean()
     sxx = np.sum((x - x_mean) ** 2)
     slope = np.sum((x - x_mean) * (y - y_mean)) / sxx
@@ -208,11 +215,12 @@ def modulus(strain, stress, *, stress_range=None, rp02_MPa=None, min_points=MIN_
     method = (f"least-squares line of stress on strain over {low:.1f} to {high:.1f} MPa "
               f"({basis}) of the loading branch, {n} frames")
     if n < max(min_points, 3):
-        return Modulus(_NAN, _NAN, n, (low, high), 0.0, method, Reason.TOO_FEW_POINTS)
+        return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.TOO_FEW_POINTS)
     slope, intercept, error = _fit_line(e[inside], s[inside])
     if not slope > 0:
-        return Modulus(_NAN, _NAN, n, (low, high), 0.0, method, Reason.NOT_POSITIVE)
-    return Modulus(slope / 1000.0, error / 1000.0, n, (low, high), -intercept / slope, method)
+        return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.NOT_POSITIVE)
+    return Modulus(float(slope / 1000.0), float(error / 1000.0), n, (float(low), float(high)),
+                   float(-intercept / slope), method)
 
 
 def proof_strength(strain, stress, E_GPa, offset=PROOF_OFFSET, *, strain_at_zero_stress=0.0):
