@@ -30,7 +30,8 @@ Interpolation (``force_at``)
 Linear between the two samples around each frame time; NaN before the first sample, after the
 last one (never extrapolated: a live session asks again once a later sample exists, see
 ``last_sample_time_s``), and where the two samples are more than ``max_gap_s`` apart (a stream
-that stalled: a stale value is never used).
+that stalled: a stale value is never used). ``max_gap_s`` defaults to 0.5 s for tcp, and for csv to
+0.5 s or 5 median sample intervals of the file, whichever is longer.
 
 TCP source
 ----------
@@ -64,7 +65,8 @@ import numpy as np
 from livedic.acquire.options import parse_number
 
 __all__ = ["LoadError", "LoadEventKind", "LoadEvent", "LoadWarnings", "LoadSource", "CsvLoad", "TcpLoad",
-           "open_load", "interpolate_force", "TIME_BASE_SESSION", "TIME_BASE_MONOTONIC", "LOAD_USAGE"]
+           "open_load", "interpolate_force", "read_force_csv", "csv_max_gap_s", "parse_line",
+           "TIME_BASE_SESSION", "TIME_BASE_MONOTONIC", "LOAD_USAGE"]
 
 TIME_BASE_SESSION = "session"        # seconds since the session's first frame
 TIME_BASE_MONOTONIC = "monotonic"    # time.monotonic_ns() / 1e9, the clock that stamps frame arrival
@@ -272,18 +274,28 @@ def _finite(path, line, name, cell):
     return value
 
 
+def csv_max_gap_s(time_s):
+    """Default gap that is a stall in a file: ``DEFAULT_MAX_GAP_S`` or 5 median sample intervals if longer.
+
+    Why: a slow export (1 Hz) is not a stall at every sample, yet a hole of several intervals is.
+    """
+    if time_s.size < 2:
+        return DEFAULT_MAX_GAP_S
+    return max(DEFAULT_MAX_GAP_S, 5.0 * float(np.median(np.diff(time_s))))
+
+
 class CsvLoad(LoadSource):
     """Force from a CSV file; times are seconds since the session's first frame, plus ``offset_s``."""
 
     time_base = TIME_BASE_SESSION
 
-    def __init__(self, path, *, offset_s=0.0, max_gap_s=DEFAULT_MAX_GAP_S, uri=None):
+    def __init__(self, path, *, offset_s=0.0, max_gap_s=None, uri=None):
         self.path = str(path)
         self.uri = uri or f"csv:{self.path}"
         self.offset_s = float(offset_s)
-        self.max_gap_s = float(max_gap_s)
         time_s, self._force = read_force_csv(self.path)
         self._time = time_s + self.offset_s
+        self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(time_s)
 
     def samples(self):
         return self._time.copy(), self._force.copy()
@@ -576,8 +588,9 @@ def open_load(uri, **options):
     uri : str
         ``csv:FILE`` or ``tcp://HOST:PORT[?clock=arrival|sender]`` (see the module notes).
     **options
-        csv: ``offset_s`` (``--load-offset``), ``max_gap_s``. tcp: ``clock``, ``max_gap_s``, ``retry_s``,
-        ``keep_s``, ``max_samples``, ``connect_timeout_s``, ``poll_s`` (override the query string).
+        csv: ``offset_s`` (``--load-offset``), ``max_gap_s`` (default: see ``csv_max_gap_s``).
+        tcp: ``clock``, ``max_gap_s``, ``retry_s``, ``keep_s``, ``max_samples``, ``connect_timeout_s``,
+        ``poll_s``. They override the query string.
 
     Returns
     -------
@@ -603,7 +616,9 @@ def open_load(uri, **options):
     if not rest:
         raise LoadError(f"load {uri!r} names no file; {LOAD_USAGE}")
     offset_s = _option("offset_s", options.pop("offset_s", 0.0))
-    max_gap_s = _option("max_gap_s", options.pop("max_gap_s", DEFAULT_MAX_GAP_S), low=0.0, low_open=True)
+    max_gap_s = options.pop("max_gap_s", None)
+    if max_gap_s is not None:
+        max_gap_s = _option("max_gap_s", max_gap_s, low=0.0, low_open=True)
     if options:
         raise LoadError(f"load {uri!r}: unknown option(s) {', '.join(sorted(options))}; csv takes offset_s, max_gap_s")
     return CsvLoad(rest, offset_s=offset_s, max_gap_s=max_gap_s, uri=uri)
