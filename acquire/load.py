@@ -41,7 +41,7 @@ read share one arrival instant: with arrival stamping only the last of them is k
 freshest reading; the others are counted in ``warnings.superseded``), so a fast DAQ stream is
 thinned to the rate of reads: use ``?clock=sender`` for every sample with its true time. With
 sender times a sample not later than the previous one is counted (``warnings.out_of_order``) and
-skipped. No data for ``max_gap_s`` is a ``stalled`` event (``resumed`` when data comes back); a
+skipped, and a bare ``force_N`` line (no time) is garbage. No data for ``max_gap_s`` is a ``stalled`` event (``resumed`` when data comes back); a
 refused or lost connection is an event and the thread reconnects every ``retry_s`` (1 s).
 ``close()`` stops the thread (joined with a timeout).
 
@@ -194,8 +194,8 @@ class LoadSource(ABC):
         t, _ = self.samples()
         return float(t[-1]) if t.size else math.nan
 
-    def events(self):
-        """``LoadEvent`` list, oldest first (a copy)."""
+    def events(self, since=0):
+        """``LoadEvent`` list, oldest first (a copy); ``since=n`` skips the n already seen (a poller's count)."""
         return []
 
     @property
@@ -375,7 +375,10 @@ def parse_line(text):
 
 
 class TcpLoad(LoadSource):
-    """Force lines read from a TCP server by a background thread (see the module notes)."""
+    """Force lines read from a TCP server by a background thread (see the module notes).
+
+    ``connected`` says whether a connection is open now, ``running`` whether the thread is alive.
+    """
 
     time_base = TIME_BASE_MONOTONIC
 
@@ -416,9 +419,9 @@ class TcpLoad(LoadSource):
         with self._lock:
             return float(self._buffer.last_time) if len(self._buffer) else math.nan
 
-    def events(self):
+    def events(self, since=0):
         with self._lock:
-            return list(self._events)
+            return self._events[since:]
 
     @property
     def warnings(self):

@@ -279,6 +279,7 @@ def test_a_disconnect_is_an_event_and_the_source_reconnects():
         kinds = [event.kind for event in load.events()]
         assert kinds == [LoadEventKind.CONNECTED, LoadEventKind.DISCONNECTED, LoadEventKind.CONNECTED], kinds
         assert all(event.message.startswith(f"tcp://127.0.0.1:{server.port}") for event in load.events())
+        assert [event.kind for event in load.events(since=2)] == [LoadEventKind.CONNECTED]
 
 
 def test_nothing_listening_is_one_event_and_close_stops_the_thread():
