@@ -1,0 +1,204 @@
+"""Stress from the machine's force and the specimen's cross-section: the stress-strain table.
+
+Engineering stress is force over the original cross-section, ``F / A0`` (N / mm^2 = MPa), at
+every frame; the strain is the engineering strain of the ``axial`` virtual extensometer.
+
+True strain ``ln(1 + e)`` and true stress ``F / A0 x (1 + e)`` assume uniform deformation at
+constant volume: they hold up to uniform elongation Ag, the frame of maximum force. Past it
+the neck concentrates the deformation, the gauge length no longer strains uniformly and the
+cross-section in the neck is smaller than ``A0 / (1 + e)``: both formulas would be wrong, so
+the table gives NaN there (ISO 6892-1 and ASTM E8 read nothing from them past Ag either).
+
+Force comes from an ``acquire.load.LoadSource`` interpolated onto the frames' times (NaN
+where the source has no sample around a frame: never extrapolated), the frame time being
+seconds since the first frame with results, the load file's time base.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
+           "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
+           "StressOptions"]
+
+STRESS_STRAIN_COLUMNS = ("frame", "time_s", "force_N", "eng_strain", "eng_stress_MPa", "true_strain",
+                         "true_stress_MPa")
+AXIAL = "axial"
+
+
+def cross_section_mm2(*, area=None, width=None, thickness=None):
+    """The original cross-section A0 (mm^2) from ``area`` or from ``width x thickness``.
+
+    Raises
+    ------
+    ValueError
+        Neither or both forms, one of width/thickness without the other, or a value that is not a
+        positive finite number (one line naming the option).
+    """
+    if area is not None and (width is not None or thickness is not None):
+        raise ValueError("give --area MM2 or --width MM --thickness MM, not both")
+    if area is not None:
+        return _positive("--area", area)
+    if width is None and thickness is None:
+        raise ValueError("the specimen's cross-section is needed: --area MM2, or --width MM --thickness MM")
+    if width is None or thickness is None:
+        missing = "--thickness" if width is not None else "--width"
+        raise ValueError(f"{missing} is missing: a rectangular cross-section needs --width MM and --thickness MM")
+    return _positive("--width", width) * _positive("--thickness", thickness)
+
+
+def _positive(name, value):
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} {value!r}: must be a positive number (mm or mm^2)")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class StressStrainTable:
+    """One row per frame with results (arrays of one length); ``uniform_frame`` is the row of maximum force.
+
+    ``uniform_frame`` is -1 when no frame has a force: then every true value is NaN.
+    """
+    frame: np.ndarray
+    time_s: np.ndarray
+    force_N: np.ndarray
+    eng_strain: np.ndarray
+    eng_stress_MPa: np.ndarray
+    true_strain: np.ndarray
+    true_stress_MPa: np.ndarray
+    uniform_frame: int
+    area_mm2: float
+
+    def columns(self):
+        """Ordered ``STRESS_STRAIN_COLUMNS`` -> array."""
+        return {name: getattr(self, name) for name in STRESS_STRAIN_COLUMNS}
+
+
+def stress_strain_table(frame, time_s, force_N, eng_strain, area_mm2):
+    """Engineering and true stress and strain per frame.
+
+    Parameters
+    ----------
+    frame, time_s : array_like (n,)
+        Frame indices and times (s since the first frame).
+    force_N, eng_strain : array_like (n,)
+        Force (N; NaN where unknown) and the axial engineering strain (NaN where not read).
+    area_mm2 : float
+        Original cross-section A0, positive.
+
+    Returns
+    -------
+    StressStrainTable
+        ``eng_stress = F / A0``; ``true_strain = ln(1 + e)`` and ``true_stress = eng_stress x (1 + e)``
+        up to and including the row of maximum force (the first one if tied), NaN after it
+        (see the module notes).
+    """
+    area = _positive("area", float(area_mm2))
+    force = np.asarray(force_N, dtype=np.float64)
+    strain = np.asarray(eng_strain, dtype=np.float64)
+    stress = force / area
+    finite = np.isfinite(force)
+    uniform = int(np.nanargmax(np.where(finite, force, -np.inf))) if finite.any() else -1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        true_strain = np.log1p(strain)
+        true_stress = stress * (1.0 + strain)
+    past = np.arange(force.size) > uniform
+    true_strain[past] = np.nan
+    true_stress[past] = np.nan
+    return StressStrainTable(np.asarray(frame, dtype=np.int64), np.asarray(time_s, dtype=np.float64), force, strain,
+                             stress, true_strain, true_stress, uniform, area)
+
+
+def stress_strain_rows(table, csv_rows):
+    """The CSV text of ``table``: header then one line per frame, through the exporter's ``csv_rows``."""
+    return ",".join(STRESS_STRAIN_COLUMNS) + "\n" + csv_rows(table.columns(), len(table.frame))
+
+
+def plot_stress_strain(handle, table, *, title, properties=None):
+    """Write the stress-strain plot (PNG) to ``handle``.
+
+    The engineering curve over all frames with a force and a strain, the true curve up to
+    uniform elongation (its last point marked Ag); with ``properties`` (``TensileProperties``)
+    Rp0.2 and Rm are marked.
+    """
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(8, 5), dpi=100, layout="constrained")
+    axes = figure.add_subplot()
+    strain_pct = 100.0 * table.eng_strain
+    axes.plot(strain_pct, table.eng_stress_MPa, marker=".", markersize=3, linewidth=1.2,
+              label="engineering: F / A0 against (L - L0) / L0")
+    if table.uniform_frame >= 0 and np.isfinite(table.true_stress_MPa).any():
+        axes.plot(100.0 * table.true_strain, table.true_stress_MPa, marker=".", markersize=3, linewidth=1.2,
+                  label="true: F / A0 (1 + e) against ln(1 + e), up to Ag (maximum force)")
+    if properties is not None:
+        rp, rm = properties.Rp02_MPa, properties.Rm_MPa
+        if math.isfinite(rp.value):
+            axes.axhline(rp.value, color="0.5", linewidth=0.7, linestyle="--", label=f"Rp0.2 = {rp.value:.1f} MPa")
+        if math.isfinite(rm.value):
+            axes.plot([100.0 * rm.strain], [rm.value], marker="o", color="C3", linestyle="none",
+                      label=f"Rm = {rm.value:.1f} MPa")
+    axes.set_xlabel("strain (%)")
+    axes.set_ylabel("stress (MPa)")
+    axes.set_title(title, fontsize=10)
+    axes.grid(True, alpha=0.3)
+    if not (np.isfinite(table.eng_stress_MPa) & np.isfinite(table.eng_strain)).any():
+        axes.text(0.5, 0.5, "no frame with both a force and an axial strain", ha="center", va="center",
+                  transform=axes.transAxes, fontsize=10)
+        axes.set_xlim(0, 1)
+    else:
+        axes.legend(loc="lower right", fontsize=9)
+    figure.savefig(handle, format="png")
+
+
+# ----------------------------------------------------------------------------- command-line options
+
+@dataclass(frozen=True)
+class StressOptions:
+    """What the stress-strain output needs: the load URI, its offset (s) and A0 (mm^2)."""
+    load: str
+    offset_s: float
+    area_mm2: float
+
+
+def add_stress_arguments(parser, *, load_required=False):
+    """Add ``--load --load-offset --area --width --thickness`` to an argparse parser."""
+    group = parser.add_argument_group("force and stress (the stress-strain curve)")
+    group.add_argument("--load", required=load_required, metavar="csv:FILE",
+                       help="the testing machine's force: a CSV with header time_s,force_N, time_s in seconds since "
+                            "the session's first frame")
+    group.add_argument("--load-offset", type=float, default=0.0, metavar="S",
+                       help="shift the load file's times by S seconds (a sample at time_s belongs to the frame at "
+                            "time_s + S; default 0)")
+    group.add_argument("--area", type=float, metavar="MM2", help="original cross-section A0, mm^2")
+    group.add_argument("--width", type=float, metavar="MM", help="specimen width, mm (with --thickness)")
+    group.add_argument("--thickness", type=float, metavar="MM", help="specimen thickness, mm (with --width)")
+    return parser
+
+
+def stress_options_from_args(args):
+    """``StressOptions`` from parsed arguments, or None without ``--load`` and cross-section options.
+
+    Raises
+    ------
+    ValueError
+        A cross-section without ``--load``, ``--load`` without a cross-section, a bad value, a load
+        that is not ``csv:FILE`` (offline, only a file holds a past test's force), or a non-finite
+        offset: one line.
+    """
+    load = getattr(args, "load", None)
+    section = {name: getattr(args, name, None) for name in ("area", "width", "thickness")}
+    if load is None:
+        given = [f"--{name}" for name, value in section.items() if value is not None]
+        if given:
+            raise ValueError(f"{' '.join(given)} without --load csv:FILE: the stress needs the machine's force")
+        return None
+    if not str(load).strip().lower().startswith("csv:"):
+        raise ValueError(f"--load {load!r}: a recording's force comes from a file here, give --load csv:FILE "
+                         f"(header time_s,force_N)")
+    offset = getattr(args, "load_offset", 0.0)
+    if offset is None or not math.isfinite(offset):
+        raise ValueError(f"--load-offset {offset!r}: must be a finite number of seconds")
+    return StressOptions(str(load).strip(), float(offset), cross_section_mm2(**section))
