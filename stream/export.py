@@ -22,6 +22,12 @@
 ``events.csv``
     ``time,kind,level,message,timestamp_ns``: ``time`` in seconds on the same clock as
     ``p0_trace.csv`` (``timestamp_ns`` is the raw frame clock).
+``stress_strain.csv`` and ``stress_strain.png`` (only with ``--load csv:FILE`` and a cross-section)
+    ``frame,time_s,force_N,eng_strain,eng_stress_MPa,true_strain,true_stress_MPa``: the force
+    interpolated onto each frame's ``time_s`` (NaN where the file has none), the ``axial``
+    extensometer's engineering strain, stress ``F / A0``, and the true values up to uniform
+    elongation (NaN after the frame of maximum force: ``stream.stress``); the plot of both curves.
+    The recording (or the options) must have an ``axial`` extensometer.
 ``session.json``
     The session metadata (method, parameters, source, ROI, ...), plus a
     ``livedic.export`` entry saying where the files came from and whether the
@@ -72,7 +78,8 @@ EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
 STRAIN_COLUMNS = ("exx", "eyy", "exy")
 EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok")
 EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
-BINARY_FILES = ("extensometers.png",)
+BINARY_FILES = ("extensometers.png", "stress_strain.png")
+STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
 EXPORT_KEY = "livedic.export"
 
 _READER_LOGGER = "livedic.acquire.mcap_replay"
@@ -309,7 +316,7 @@ def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=Non
 
 # ----------------------------------------------------------------------------- export
 
-def export_recording(path, directory, *, overwrite=False, strain=None):
+def export_recording(path, directory, *, overwrite=False, strain=None, stress=None):
     """Write ``EXPORT_FILES`` for recording ``path`` into ``directory`` (see module notes).
 
     Parameters
@@ -318,6 +325,8 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
     overwrite : bool
     strain : dict, optional
         Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
+    stress : stream.stress.StressOptions, optional
+        Force file and cross-section: also write ``STRESS_FILES``.
 
     Returns
     -------
@@ -325,7 +334,8 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
         ``directory``, ``files`` (paths), ``frames`` (frames with results),
         ``points`` (points in the first frame), ``events``, ``p0_id``, ``p0_rows``,
         ``truncated``, ``notes`` (list of lines), ``extensometers`` (names),
-        ``strain`` (one line: window, VSG, measure, extensometers; "" without results).
+        ``strain`` (one line: window, VSG, measure, extensometers; "" without results),
+        ``stress`` (None, or ``frames_with_force`` and ``uniform_frame``, the frame of maximum force or -1).
 
     Raises
     ------
@@ -339,7 +349,8 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
-    targets = {name: os.path.join(directory, name) for name in EXPORT_FILES}
+    outputs = EXPORT_FILES + (STRESS_FILES if stress is not None else ())
+    targets = {name: os.path.join(directory, name) for name in outputs}
     existing = [name for name, target in targets.items() if os.path.lexists(target)]
     if existing and not overwrite:
         raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
@@ -355,6 +366,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
         first = next(results, None)
         stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
         names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+        load = _open_stress_load(stress, names)                 # bad load or no axial: before DIR is made
         created = not os.path.isdir(directory)
         os.makedirs(directory, exist_ok=True)
         staged = {}
@@ -370,7 +382,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
             p0_missing = other_points = 0
             t0 = None
             extras_seen = None
-            times, eng = [], []
+            times, eng, frame_numbers = [], [], []
             for result in _chain(first, results):
                 extras = {name: getattr(result, name) for name in EXTRA_COLUMNS
                           if getattr(result, name) is not None and len(getattr(result, name)) == len(result.u)}
@@ -399,6 +411,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
                 extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
                                              len(readings.names)))
                 times.append(time_s)
+                frame_numbers.append(int(result.frame_index))
                 eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
                 where = np.flatnonzero(result.point_id == p0_id)
                 if where.size:
@@ -446,6 +459,13 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
                                scale=config.scale,
                                empty_note="no tracking results" if frames == 0 else "no extensometers in this "
                                "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+            stress_summary = None
+            if load is not None:
+                stress_summary = _write_stress_strain(staged, load, stress.area_mm2, frame_numbers, times,
+                                                      np.array(eng).reshape(len(times), len(names)), names,
+                                                      title=f"{os.path.basename(path)}: stress-strain (A0 "
+                                                            f"{stress.area_mm2:g} mm^2, force "
+                                                            f"{os.path.basename(stress.load[len('csv:'):])})")
             truncated = recording.info.truncated
             session = dict(metadata)
             session[EXPORT_KEY] = {
@@ -454,8 +474,11 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
                 "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
                 "truncated": truncated, "notes": list(notes),
                 "strain": _strain_settings(stage, config, strain)}
+            if stress is not None:
+                session[EXPORT_KEY]["stress"] = {"load": stress.load, "load_offset_s": stress.offset_s,
+                                                 "area_mm2": stress.area_mm2, **stress_summary}
             staged["session.json"].write(json_text(session))
-            for name in EXPORT_FILES:
+            for name in outputs:
                 staged[name].commit()
         except BaseException:
             for item in staged.values():
@@ -466,9 +489,87 @@ def export_recording(path, directory, *, overwrite=False, strain=None):
                 except OSError:
                     pass
             raise
-    return {"directory": directory, "files": [targets[name] for name in EXPORT_FILES], "frames": frames,
+    return {"directory": directory, "files": [targets[name] for name in outputs], "frames": frames,
             "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
             "truncated": truncated, "notes": list(notes), "extensometers": list(names),
+            "strain": stage.describe() if stage is not None else "", "stress": stress_summary}
+
+
+def _open_stress_load(stress, names):
+    """The ``LoadSource`` of ``stress`` (None without): ValueError (one line) if there is no axial extensometer."""
+    if stress is None:
+        return None
+    from livedic.acquire.load import open_load
+    from livedic.stream.stress import AXIAL
+    if AXIAL not in names:
+        raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
+                         f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
+                         f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
+    return open_load(stress.load, offset_s=stress.offset_s)
+
+
+def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
+    """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
+    from livedic.stream.stress import AXIAL, plot_stress_strain, stress_strain_rows, stress_strain_table
+    times = np.asarray(times, dtype=np.float64)
+    force = load.force_at(times)
+    table = stress_strain_table(frames, times, force, eng[:, list(names).index(AXIAL)], area_mm2)
+    staged["stress_strain.csv"].write(stress_strain_rows(table, csv_rows))
+    plot_stress_strain(staged["stress_strain.png"].handle, table, title=title)
+    return {"frames_with_force": int(np.isfinite(force).sum()), "uniform_frame_row": table.uniform_frame,
+            "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else -1}
+
+
+def axial_series(path, strain=None):
+    """The ``axial`` extensometer of a recording, frame by frame, recomputed as ``export_recording`` does.
+
+    Returns
+    -------
+    dict
+        ``metadata``, ``frames`` (indices), ``time_s`` (since the first frame with results),
+        ``eng_strain`` (NaN where not read), ``l0_px``, ``scale`` (px/mm or None), ``truncated``,
+        ``notes``, ``strain`` (the stage's one-line description).
+
+    Raises
+    ------
+    ValueError
+        Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
+    """
+    from livedic.acquire.mcap_replay import Recording
+    from livedic.stream.strain import StrainConfig
+    from livedic.stream.stress import AXIAL
+    with reader_notes() as notes:
+        recording = Recording(os.fspath(path))
+        metadata, session_note = session_or_note(recording)
+        if session_note:
+            notes.append(session_note)
+        p0_id, _ = p0_point_id(metadata)
+        config = StrainConfig.from_metadata(metadata, **(strain or {}))
+        results = recording.results()
+        first = next(results, None)
+        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+        if AXIAL not in names:
+            raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
+                             f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
+                             f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
+        column = list(names).index(AXIAL)
+        frames, times, eng = [], [], []
+        t0 = None
+        for result in _chain(first, results):
+            if np.array_equal(result.point_id, first.point_id):
+                _, readings = stage.compute(result.u, result.v, result.ok)
+            else:
+                readings = _lost_readings(stage.placed)
+            t0 = int(result.timestamp_ns) if t0 is None else t0
+            frames.append(int(result.frame_index))
+            times.append((int(result.timestamp_ns) - t0) / 1e9)
+            eng.append(float(readings.eng_strain[column]))
+        truncated = recording.info.truncated
+    l0 = stage.extensometers[column].length_px if stage is not None else math.nan
+    return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
+            "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
+            "l0_px": float(l0), "scale": config.scale, "truncated": truncated, "notes": list(notes),
             "strain": stage.describe() if stage is not None else ""}
 
 
@@ -498,8 +599,11 @@ def _plural(count, word):
 def export_command(args):
     """``livedic export FILE.mcap -o DIR [--overwrite] [strain options]``; returns the exit code."""
     from livedic.stream.strain import overrides_from_args
+    from livedic.stream.stress import stress_options_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
-    summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides)
+    stress = stress_options_from_args(args)
+    summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides,
+                               stress=stress)
     for note in summary["notes"]:
         say(f"note: {note}")
     if summary["strain"]:
@@ -508,5 +612,8 @@ def export_command(args):
     say(f"exported {summary['frames']} frames x {summary['points']} points{state}, P0 = point "
         f"{summary['p0_id']} ({summary['p0_rows']} rows), {_plural(summary['events'], 'event')} "
         f"to {summary['directory']}/ "
-        f"({', '.join(EXPORT_FILES)})")
+        f"({', '.join(os.path.basename(name) for name in summary['files'])})")
+    if summary["stress"] is not None:
+        say(f"stress-strain: force at {summary['stress']['frames_with_force']} of {summary['frames']} frames, "
+            f"maximum force at frame {summary['stress']['uniform_frame']} (true values up to it)")
     return 0
