@@ -1,4 +1,4 @@
-"""The ``livedic`` command line: run, measure, replay, export, recover, cameras.
+"""The ``livedic`` command line: run, measure, replay, export, report, recover, cameras.
 
 Every failure caused by input (files, options, cameras) ends with one line on
 stderr and exit code 2 (argparse's own errors too); a camera lost mid-session
@@ -20,6 +20,7 @@ from livedic.stream.points import read_points_table
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.strain import add_strain_arguments
+from livedic.stream.stress import add_stress_arguments
 
 EXIT_BAD_INPUT = 2
 EXIT_SOURCE_LOST = 3
@@ -197,7 +198,21 @@ def build_parser(extensions=()):
     export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
     add_strain_arguments(export, recorded=True)
+    add_stress_arguments(export)
     export.set_defaults(handler=_cmd_export)
+
+    report = commands.add_parser("report", help="tensile test report: E, Rp0.2, Rm, Ag, A (ISO 6892-1) from a "
+                                                "recording and the machine's force",
+                                 description="Write DIR/report.md, DIR/report.json and DIR/stress_strain.png: "
+                                             "the stress-strain curve of the axial extensometer and the force "
+                                             "file, and the tensile properties read from it by the methods of "
+                                             "ISO 6892-1.")
+    report.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
+    report.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
+    report.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
+    add_stress_arguments(report, load_required=True)
+    add_strain_arguments(report, recorded=True)
+    report.set_defaults(handler=_cmd_report)
 
     for extend in extensions:
         extend(commands)
@@ -400,6 +415,11 @@ def _cmd_recover(args):
 def _cmd_export(args):
     from livedic.stream.export import export_command
     return export_command(args)
+
+
+def _cmd_report(args):
+    from livedic.stream.report import report_command
+    return report_command(args)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,174 @@
+"""``livedic report``: the tensile test's result from a recording and the machine's force file.
+
+``livedic report FILE.mcap -o DIR --load csv:FILE (--area MM2 | --width MM --thickness MM)
+[--load-offset S]`` writes into DIR (created if missing):
+
+``report.json``
+    ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``: each
+    ``{"value": number or null, "method": text, "reason": text or null}`` (``reason`` says why a
+    value is null), then ``specimen`` (cross-section, gauge length) and ``source`` (recording, load
+    file, frames, strain settings). Strict JSON: no NaN.
+``report.md``
+    The same for people: specimen, gauge length, the properties with the method of each, and the
+    stress-strain plot.
+``stress_strain.png``
+    Engineering curve, true curve up to uniform elongation, Rp0.2 and Rm marked.
+
+The strain is the ``axial`` extensometer recomputed from the recorded displacements
+(``stream.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
+(``stream.stress``); the properties are ``dic.tensile_properties.tensile_properties`` of that
+engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
+0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
+only all together; existing ones are kept unless ``--overwrite``.
+"""
+
+import math
+import os
+from datetime import datetime, timezone
+
+from livedic.stream.csv_output import AtomicFile, check_output_folder, json_text
+
+__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_command", "report_json", "report_markdown"]
+
+REPORT_FILES = ("report.md", "report.json", "stress_strain.png")
+PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent")
+PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa": ("Rm", "MPa"),
+                   "Ag_percent": ("Ag", "%"), "A_percent": ("A", "%")}
+
+
+def report_json(properties, specimen, source):
+    """The ``report.json`` object: the five properties (NaN as null), ``specimen`` and ``source``."""
+    out = {}
+    for key, item in properties.as_dict().items():
+        value = item["value"]
+        out[key] = {"value": value if math.isfinite(value) else None, "method": item["method"],
+                    "reason": item["reason"]}
+    out["specimen"] = specimen
+    out["source"] = source
+    return out
+
+
+def report_markdown(report, plot_name, title):
+    """``report.md`` text from the ``report_json`` object."""
+    specimen, source = report["specimen"], report["source"]
+    gauge = f"{specimen['gauge_length_px']:.1f} px"
+    if specimen.get("gauge_length_mm") is not None:
+        gauge += f" = {specimen['gauge_length_mm']:.3f} mm ({specimen['scale_px_per_mm']:g} px/mm)"
+    lines = [f"# Tensile test: {title}", "",
+             "## Specimen", "",
+             f"- cross-section A0: {specimen['area_mm2']:g} mm^2",
+             f"- gauge length L0 (virtual extensometer `axial`): {gauge}", "",
+             "## Properties (ISO 6892-1)", "",
+             "| property | value | unit | method | why missing |",
+             "|---|---|---|---|---|"]
+    for key in PROPERTY_KEYS:
+        name, unit = PROPERTY_TITLES[key]
+        item = report[key]
+        value = "n/a" if item["value"] is None else f"{item['value']:.4g}"
+        lines.append(f"| {name} | {value} | {unit} | {_cell(item['method'])} | {_cell(item['reason'] or '')} |")
+    lines += ["", "## Stress-strain curve", "", f"![stress-strain curve]({plot_name})", "",
+              "Engineering stress F / A0 against the axial extensometer's engineering strain; true stress and "
+              "strain only up to uniform elongation (maximum force), where the uniform-deformation formulas "
+              "stop holding.", "",
+              "## Source", "",
+              f"- recording: `{source['recording']}`" + (" (truncated: what could be recovered)"
+                                                        if source["truncated"] else ""),
+              f"- force: `{source['load']}`, offset {source['load_offset_s']:g} s; force at "
+              f"{source['frames_with_force']} of {source['frames']} frames",
+              f"- {source['strain']}",
+              f"- written {source['generated_at']} by livedic report", ""]
+    return "\n".join(lines)
+
+
+def _cell(text):
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def report_recording(path, directory, *, stress, strain=None, overwrite=False):
+    """Write ``REPORT_FILES`` for recording ``path`` into ``directory``; returns the ``report.json`` object.
+
+    Parameters
+    ----------
+    path, directory : str or os.PathLike
+    stress : stream.stress.StressOptions
+        Force file, its offset, and A0.
+    strain : dict, optional
+        Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
+    overwrite : bool
+
+    Raises
+    ------
+    ValueError
+        ``directory`` is a file or holds the files without ``overwrite``, the recording or the load
+        file cannot be used, or there is no ``axial`` extensometer: one line, nothing written.
+    """
+    from livedic.acquire.load import open_load
+    from livedic.dic.tensile_properties import tensile_properties
+    from livedic.stream.export import axial_series
+    from livedic.stream.stress import plot_stress_strain, stress_strain_table
+
+    path, directory = os.fspath(path), os.fspath(directory)
+    check_output_folder(directory, "-o")
+    targets = {name: os.path.join(directory, name) for name in REPORT_FILES}
+    existing = [name for name, target in targets.items() if os.path.lexists(target)]
+    if existing and not overwrite:
+        raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
+                         f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
+    series = axial_series(path, strain)                   # every check before DIR is made
+    load = open_load(stress.load, offset_s=stress.offset_s)
+    force = load.force_at(series["time_s"])
+    table = stress_strain_table(series["frames"], series["time_s"], force, series["eng_strain"], stress.area_mm2)
+    properties = tensile_properties(table.eng_strain, table.eng_stress_MPa)
+    scale = series["scale"]
+    specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
+                "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale}
+    source = {"recording": os.path.abspath(path), "truncated": bool(series["truncated"]), "load": stress.load,
+              "load_offset_s": stress.offset_s, "frames": int(table.frame.size),
+              "frames_with_force": int(sum(math.isfinite(f) for f in table.force_N)),
+              "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else None,
+              "strain": series["strain"], "notes": series["notes"],
+              "generated_at": datetime.now(timezone.utc).isoformat()}
+    report = report_json(properties, specimen, source)
+    title = os.path.basename(path)
+    created = not os.path.isdir(directory)
+    os.makedirs(directory, exist_ok=True)
+    staged = {}
+    try:
+        for name, target in targets.items():
+            staged[name] = AtomicFile(target, binary=name.endswith(".png"))
+        staged["report.json"].write(json_text(report))
+        staged["report.md"].write(report_markdown(report, "stress_strain.png", title))
+        plot_stress_strain(staged["stress_strain.png"].handle, table, properties=properties,
+                           title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
+        for name in REPORT_FILES:
+            staged[name].commit()
+    except BaseException:
+        for item in staged.values():
+            item.discard()
+        if created:
+            try:
+                os.rmdir(directory)          # only if still empty
+            except OSError:
+                pass
+        raise
+    return report
+
+
+def report_command(args):
+    """``livedic report FILE.mcap -o DIR --load csv:FILE (--area | --width --thickness)``; the exit code."""
+    from livedic.stream.export import say
+    from livedic.stream.strain import overrides_from_args
+    from livedic.stream.stress import stress_options_from_args
+    overrides = overrides_from_args(args)              # bad values: one line, before anything is read
+    stress = stress_options_from_args(args)
+    report = report_recording(args.recording, args.output, stress=stress, strain=overrides,
+                              overwrite=args.overwrite)
+    for note in report["source"]["notes"]:
+        say(f"note: {note}")
+    values = []
+    for key in PROPERTY_KEYS:
+        name, unit = PROPERTY_TITLES[key]
+        value = report[key]["value"]
+        values.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
+    say(f"report: {', '.join(values)}; written to {args.output}/ ({', '.join(REPORT_FILES)})")
+    return 0
