@@ -238,3 +238,49 @@ def test_area_without_load_and_no_axial_extensometer(test_run, tmp_path, capsys)
                      "--area", "20", "--extensometer", "upper=180,150,180,350"])
         line = _one_error_line(capsys.readouterr().err)
         assert code == 2 and "'axial' extensometer" in line and not out.exists(), (command, line)
+
+
+def test_load_offset_shifts_the_file_onto_the_frames(test_run, tmp_path):
+    """A file whose clock starts 0.25 s late, with --load-offset 0.25: the same force at every frame."""
+    late = tmp_path / "late.csv"
+    _write_force(late, test_run["time_s"] - 0.25, test_run["force"])
+    out = tmp_path / "export"
+    assert main(["export", test_run["recording"], "-o", str(out), "--load", f"csv:{late}", "--load-offset", "0.25",
+                 "--area", str(AREA_MM2)]) == 0
+    _, rows = _rows(out / "stress_strain.csv")
+    assert np.allclose(_col(rows, "force_N"), test_run["force"], rtol=1e-9, atol=1e-9)
+
+
+def test_report_without_any_force_says_why_each_value_is_missing(test_run, tmp_path):
+    """Force samples that end before the first frame (offset -100 s): every property null, with its reason."""
+    out = tmp_path / "report"
+    assert main(["report", test_run["recording"], "-o", str(out), "--load", f"csv:{test_run['force_csv']}",
+                 "--load-offset", "-100", "--area", str(AREA_MM2)]) == 0
+    report = _strict_json(out / "report.json")
+    assert report["source"]["frames_with_force"] == 0 and report["source"]["uniform_frame"] is None
+    for key in KEYS:
+        assert report[key]["value"] is None and report[key]["reason"], key
+    assert "n/a" in (out / "report.md").read_text()
+
+
+def test_existing_report_files_are_kept_without_overwrite(test_run, tmp_path, capsys):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "report.json").write_text("keep")
+    options = ["report", test_run["recording"], "-o", str(out), "--load", f"csv:{test_run['force_csv']}",
+               "--area", str(AREA_MM2)]
+    assert main(options) == 2 and "--overwrite" in _one_error_line(capsys.readouterr().err)
+    assert (out / "report.json").read_text() == "keep" and sorted(os.listdir(out)) == ["report.json"]
+    assert main(options + ["--overwrite"]) == 0 and _strict_json(out / "report.json")["Rm_MPa"]["value"] > 0
+
+
+def test_table_true_values_stop_at_the_first_maximum_and_need_a_force():
+    from livedic.stream.stress import stress_strain_table
+    strain = np.array([0.0, 0.01, 0.02, 0.03, 0.04])
+    table = stress_strain_table([0, 1, 2, 3, 4], [0, 1, 2, 3, 4], [0.0, 50.0, 80.0, 80.0, 60.0], strain, 4.0)
+    assert table.uniform_frame == 2                               # a tie: the first frame with the maximum
+    assert np.array_equal(table.eng_stress_MPa, [0.0, 12.5, 20.0, 20.0, 15.0])
+    assert np.allclose(table.true_stress_MPa[:3], [0.0, 12.625, 20.4], rtol=1e-15, atol=0)
+    assert np.isnan(table.true_strain[3:]).all() and np.isnan(table.true_stress_MPa[3:]).all()
+    none = stress_strain_table([0, 1], [0, 1], [np.nan, np.nan], [0.0, 0.01], 4.0)
+    assert none.uniform_frame == -1 and np.isnan(none.true_strain).all() and np.isnan(none.eng_stress_MPa).all()
