@@ -193,7 +193,10 @@ def build_parser(extensions=()):
                                              "DIR/events.csv, DIR/session.json, DIR/extensometers.csv and "
                                              "DIR/extensometers.png from a recording (complete or truncated). "
                                              "Strain and extensometers are recomputed from the recorded "
-                                             "displacements with the recorded settings, or the options below.")
+                                             "displacements with the recorded settings, or the options below. "
+                                             "With --load csv:FILE and the cross-section (--area, or --width and "
+                                             "--thickness) also DIR/stress_strain.csv and DIR/stress_strain.png "
+                                             "(strain of the axial extensometer).")
     export.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
