@@ -46,6 +46,13 @@ fracture  0: none; 1: the specimen breaks across the neck centre in   0 (none)
           the last 10 % of the frames (frame frames - round(0.1
           frames)); F >= 2: the first broken frame is F (< frames).
           Not with ``loop``.
+modulus   Young's modulus E in GPa of the force law (below, Force)    200
+thickness coupon thickness in mm (the cross-section's depth)          2
+scale     camera scale in px per mm (the gauge width in mm)           10
+hardening h >= 0: linear hardening, the stress grows to (1 + h) x     0 (perfectly
+          the yield stress over the uniform plastic phase; this        plastic)
+          changes the elastic strain, so the displacement and the
+          images (0 keeps every image as it was)
 ========  ==========================================================  ===================
 
 ``synthetic:translate`` adds ``du``, ``dv`` (shift per
@@ -146,6 +153,22 @@ are fully seen in frame i: all specimen, entirely on one side of the crack
 reference and in frame i (a large strain carries parts of the coupon out of
 view). The truth stays exact for every material point, visible or not.
 
+Force (``source.force_N(i)``, ``metadata["force_N"]``, ``source.specimen``): the
+model's elastic strain is the stress over E, so the gauge section's engineering
+stress is ``E e_el(t)`` and the force ``F = E e_el(t) A0``, with ``A0`` = gauge
+width (0.4 W px) / ``scale`` x ``thickness`` (default 1024 px wide: 40.96 mm x
+2 mm = 81.92 mm^2). The shoulders strain ``a e_el``: the same force over the
+wider section. Yield at ``e_el`` = 0.004: 800 MPa at E = 200 GPa. Without
+``hardening`` the material is perfectly plastic (``e_el`` stays 0.004 during
+the uniform plastic flow), so Rp0.2 = Rm = yield exactly; the neck then unloads
+by 20 % (the engineering stress falls). With ``hardening=h``, ``e_el = 0.004
+(1 + h e_pl / strain)`` during the uniform flow (linear hardening, slope
+``h yield / strain`` against plastic strain), Rm = ``(1 + h)`` yield when the
+neck starts and Rp0.2 = yield ``(1 + 0.002 h / strain)`` (None for
+``strain`` < 0.002). From the fracture frame on the force is 0.
+``livedic.acquire.load.open_load("synthetic", source=SOURCE)`` gives it as a
+force signal.
+
 Exact truth is the displacement of material points. A subset-based method with
 a first-order shape function cannot follow the curvature of the field inside a
 subset, so where the strain changes fast (the neck's flanks late in the test)
@@ -186,9 +209,14 @@ PAINT_FLOOR = 0.06
 PAINT_GAIN = 0.88
 BACKGROUND_LEVEL = 0.10
 
+# The force law's defaults (module notes, Force): a steel-like modulus, a 2 mm sheet, 10 px per mm.
+DEFAULT_MODULUS_GPA = 200.0
+DEFAULT_THICKNESS_MM = 2.0
+DEFAULT_SCALE_PX_PER_MM = 10.0
 _COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0}
 TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15, lateral="auto",
-                        view="auto", fade=0.0, fracture=0)
+                        view="auto", fade=0.0, fracture=0, modulus=DEFAULT_MODULUS_GPA,
+                        thickness=DEFAULT_THICKNESS_MM, scale=DEFAULT_SCALE_PX_PER_MM, hardening=0.0)
 # Laws of the lateral contraction and camera views of the tensile test (module notes).
 LATERAL_LAWS = ("linear", "incompressible")
 VIEWS = ("grip", "centre")
@@ -205,7 +233,8 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 
 def _usage():
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
-            "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0, "
+            "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
+            "&modulus=200&thickness=2&scale=10&hardening=0, "
             "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
             "(same common options)")
 
@@ -365,6 +394,8 @@ _CONVERTERS = {
     "strain": partial(parse_number, low=0), "neck": partial(parse_number, low=0), "du": parse_number,
     "dv": parse_number, "jump": _to_jump, "lateral": _to_choice(("auto",) + LATERAL_LAWS),
     "view": _to_choice(("auto",) + VIEWS), "fade": _to_fade, "fracture": _to_fracture,
+    "modulus": partial(parse_number, low=0, low_open=True), "thickness": partial(parse_number, low=0, low_open=True),
+    "scale": partial(parse_number, low=0, low_open=True), "hardening": partial(parse_number, low=0),
 }
 
 
@@ -407,6 +438,13 @@ class TensileModel:
     fracture_frame : int or None
         First frame in which the specimen is broken across the neck centre (2 <= F < frames), or
         None for no fracture.
+    modulus_gpa : float
+        Young's modulus E (GPa): the gauge section's engineering stress is E x e_el (module notes, Force).
+    hardening : float
+        h >= 0: e_el grows linearly with the uniform plastic strain to (1 + h) x 0.004 when the neck
+        starts (linear hardening; it changes the displacement, so the images). 0: perfectly plastic.
+    thickness_mm, scale_px_per_mm : float
+        Thickness of the coupon and the camera's scale: A0 = gauge width (px) / scale x thickness.
 
     Attributes
     ----------
@@ -431,7 +469,8 @@ class TensileModel:
     VIEWS = VIEWS
 
     def __init__(self, shape, frames, *, strain=0.05, neck=0.15, seed=0, lateral="linear", view="grip",
-                 fracture_frame=None):
+                 fracture_frame=None, modulus_gpa=DEFAULT_MODULUS_GPA, hardening=0.0,
+                 thickness_mm=DEFAULT_THICKNESS_MM, scale_px_per_mm=DEFAULT_SCALE_PX_PER_MM):
         H, W = int(shape[0]), int(shape[1])
         self.shape = (H, W)
         self.frames = int(frames)
@@ -445,6 +484,16 @@ class TensileModel:
         if fracture_frame is not None and not 2 <= int(fracture_frame) <= self.frames - 1:
             raise ValueError(f"the fracture frame must be in 2..{self.frames - 1} (frames={self.frames}), "
                              f"got {fracture_frame}")
+        for name, value in (("modulus_gpa", modulus_gpa), ("thickness_mm", thickness_mm),
+                            ("scale_px_per_mm", scale_px_per_mm)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        if not (math.isfinite(hardening) and hardening >= 0.0):
+            raise ValueError(f"hardening must be a finite number >= 0, got {hardening!r}")
+        self.modulus_gpa = float(modulus_gpa)
+        self.hardening = float(hardening)
+        self.thickness_mm = float(thickness_mm)
+        self.scale_px_per_mm = float(scale_px_per_mm)
         self.lateral = lateral
         self.view = view
         self.fracture_frame = None if fracture_frame is None else int(fracture_frame)
@@ -484,13 +533,19 @@ class TensileModel:
             e_n = 0.0
             phase = "elastic"
         elif tau <= self.TAU_NECK:
+            progress = (tau - self.TAU_YIELD) / (self.TAU_NECK - self.TAU_YIELD)
             e_el = self.YIELD_STRAIN
+            if self.hardening:
+                # Only with the option, so the default test's frames stay bit for bit as they were.
+                e_el = self.YIELD_STRAIN * (1.0 + self.hardening * progress)
             e_pl = self.plastic_strain * (tau - self.TAU_YIELD) / (self.TAU_NECK - self.TAU_YIELD)
             e_n = 0.0
             phase = "plastic"
         else:
             s = (tau - self.TAU_NECK) / (1.0 - self.TAU_NECK)
             e_el = self.YIELD_STRAIN * (1.0 - self.UNLOAD * s)
+            if self.hardening:
+                e_el = self.YIELD_STRAIN * (1.0 + self.hardening) * (1.0 - self.UNLOAD * s)
             e_pl = self.plastic_strain
             e_n = self.neck_strain * s * s
             phase = "necking"
@@ -506,6 +561,42 @@ class TensileModel:
             st.update(phase="fractured", e_el=0.0,
                       gap=self.GAP_START_PX + self.GAP_RATE_PX * (i - self.fracture_frame))
         return st
+
+    # -- force (module notes, Force) ------------------------------------------
+    @property
+    def area_mm2(self):
+        """A0: the gauge section's initial cross-section, gauge width (px) / scale (px/mm) x thickness (mm)."""
+        return 2.0 * self.gauge_half / self.scale_px_per_mm * self.thickness_mm
+
+    def stress_mpa(self, i):
+        """Engineering stress of the gauge section in frame ``i`` (MPa): E x e_el, 0 once broken."""
+        return self.modulus_gpa * 1e3 * self.state(i)["e_el"]
+
+    def force_n(self, i):
+        """Force on the coupon in frame ``i`` (N): stress x A0; 0 from the fracture frame on."""
+        return self.stress_mpa(i) * self.area_mm2
+
+    @property
+    def specimen(self):
+        """The coupon and its exact material law (dict; module notes, Force).
+
+        ``A0_mm2``, ``gauge_width_px``, ``thickness_mm``, ``scale_px_per_mm``, ``E_GPa``,
+        ``hardening``, ``yield_MPa`` (E x 0.004), ``Rm_MPa`` (the largest engineering stress:
+        yield x (1 + hardening), reached when the neck starts), ``Rp02_MPa`` (stress at 0.2 %
+        uniform plastic strain; None when hardening > 0 and the uniform strain stays below 0.2 %)
+        and ``yield_strain``.
+        """
+        sigma_y = self.modulus_gpa * 1e3 * self.YIELD_STRAIN
+        if not self.hardening:
+            rp02 = sigma_y
+        elif self.plastic_strain >= 0.002:
+            rp02 = sigma_y * (1.0 + self.hardening * 0.002 / self.plastic_strain)
+        else:
+            rp02 = None
+        return {"A0_mm2": self.area_mm2, "gauge_width_px": 2.0 * self.gauge_half, "thickness_mm": self.thickness_mm,
+                "scale_px_per_mm": self.scale_px_per_mm, "E_GPa": self.modulus_gpa, "hardening": self.hardening,
+                "yield_strain": self.YIELD_STRAIN, "yield_MPa": sigma_y, "Rp02_MPa": rp02,
+                "Rm_MPa": sigma_y * (1.0 + self.hardening)}
 
     # -- 1-D profiles -----------------------------------------------------
     def _box(self, Y):
@@ -974,7 +1065,7 @@ class SyntheticTensileSource(_PrerenderedSource):
         ``synthetic:tensile?...``; keyword options override the URI's.
     **options
         frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, loop, strain, neck, lateral,
-        view, fade, fracture.
+        view, fade, fracture, modulus, thickness, scale, hardening.
 
     Attributes
     ----------
@@ -983,6 +1074,8 @@ class SyntheticTensileSource(_PrerenderedSource):
         The gauge section, inset so subsets stay on the specimen while it narrows.
     fracture_frame : int or None
         The first frame showing the specimen broken (``fracture`` option), None without one.
+    specimen : dict
+        A0 (mm^2), scale, E and the exact yield, Rp0.2 and Rm (``TensileModel.specimen``).
     """
 
     model_name = "tensile"
@@ -996,7 +1089,8 @@ class SyntheticTensileSource(_PrerenderedSource):
         fracture = opts["fracture"] or None
         self.model = TensileModel((opts["size"][1], opts["size"][0]), _rendered_count(opts), strain=opts["strain"],
                                   neck=opts["neck"], seed=opts["seed"], lateral=opts["lateral"], view=opts["view"],
-                                  fracture_frame=fracture)
+                                  fracture_frame=fracture, modulus_gpa=opts["modulus"], hardening=opts["hardening"],
+                                  thickness_mm=opts["thickness"], scale_px_per_mm=opts["scale"])
         self.fracture_frame = fracture
         super().__init__(opts, uri)
         self._rows = np.arange(self.shape[0], dtype=np.float64)
@@ -1023,6 +1117,24 @@ class SyntheticTensileSource(_PrerenderedSource):
         """Exact (u, v) at reference points (x, y) in frame ``frame_index``."""
         return self.model.displacement(self._check_index(frame_index), x, y)
 
+    def force_N(self, frame_index):  # noqa: N802 (the unit is part of the name, as in force_N columns)
+        """Force on the coupon in frame ``frame_index`` (N): E x e_el x A0, 0 from the fracture frame on."""
+        return self.model.force_n(self._check_index(frame_index))
+
+    def forces_N(self):  # noqa: N802
+        """Force (N) of every delivered frame 0 .. frames - 1 (float64 array; cycled with ``loop``)."""
+        rendered = np.array([self.model.force_n(j) for j in range(self.rendered_frames)])
+        k = self.rendered_frames
+        index = np.arange(self.frames)
+        if k < self.frames:
+            cycle = index % (2 * (k - 1))
+            index = np.where(cycle < k, cycle, 2 * (k - 1) - cycle)
+        return rendered[index]
+
+    @property
+    def specimen(self):
+        return self.model.specimen
+
     def visible(self, frame_index, x, y, half_width=0.0):
         """Whether the square subset of half-width ``half_width`` px around each reference point (x, y) is
         fully seen in frame ``frame_index``: all specimen, on one side of the crack (once broken), inside
@@ -1033,7 +1145,8 @@ class SyntheticTensileSource(_PrerenderedSource):
         meta = super().frame_metadata(i)
         j = self.rendered_index(i)
         st = self.model.state(j)
-        meta.update({"phase": st["phase"], "nominal_strain": self.model.nominal_strain(j)})
+        meta.update({"phase": st["phase"], "nominal_strain": self.model.nominal_strain(j),
+                     "force_N": self.model.force_n(j)})
         if self.fracture_frame is not None:
             meta["fracture_frame"] = self.fracture_frame
         return meta
