@@ -4,19 +4,27 @@ Valid forms::
 
     csv:FILE                         a file exported by the machine's software (header ``time_s,force_N``)
     tcp://HOST:PORT[?clock=arrival|sender]   text lines ``force_N`` or ``time_s,force_N`` over TCP
+    synthetic                        the simulator's force: ``open_load("synthetic", source=SOURCE)``
+                                     with SOURCE the session's ``synthetic:tensile`` camera
+    synthetic:tensile?...            the same force for a simulated test named by its camera URI
+                                     (nothing is rendered: the force needs only the model)
 
-``modbus://HOST:PORT?...`` and ``synthetic`` are named by issue 13 but not built yet: ``open_load``
-refuses them with one ``LoadError`` line. Every error is a ``LoadError`` (a ``ValueError``) of one
+``modbus://HOST:PORT?...`` is named by issue 13 but not built yet: ``open_load`` refuses it with
+one ``LoadError`` line. Every error is a ``LoadError`` (a ``ValueError``) of one
 line, naming the file and line or the option at fault.
 
 Time bases (``LoadSource.time_base``)
 -------------------------------------
 Each source gives force at times on one clock, in seconds:
 
-* ``"session"`` (``csv:``): seconds since the session's first frame, as the machine's software
+* ``"session"`` (``csv:``, ``synthetic``): seconds since the session's first frame, as the machine's software
   exports them, shifted by ``offset_s`` (the CLI's ``--load-offset S``): a sample written at
   ``time_s`` belongs to frame time ``time_s + offset_s``. The session passes each frame's
   timestamp relative to the first frame: ``(frame.timestamp_ns - first.timestamp_ns) / 1e9``.
+  ``synthetic`` has one sample per frame of the simulated camera, frame i at ``i / fps``: its
+  ``force_N(i)`` (``acquire.synthetic``, module notes, Force), exact at frame times; between two
+  frames the force is interpolated linearly (so across the fracture it falls from the last loaded
+  frame's force to 0). ``max_gap_s`` is 5 frame periods (0.5 s at least), as a csv's.
 * ``"monotonic"`` (``tcp://``): ``time.monotonic_ns() / 1e9``, the clock that stamps frame
   arrival (``stream.tracker_loop``'s ``arrival_ns``). Each line is stamped when it arrives, unless
   ``?clock=sender`` says its ``time_s`` is already on that clock (a sender on the same host that
@@ -65,6 +73,7 @@ import numpy as np
 from livedic.acquire.options import parse_number
 
 __all__ = ["LoadError", "LoadEventKind", "LoadEvent", "LoadWarnings", "LoadSource", "CsvLoad", "TcpLoad",
+           "SyntheticLoad",
            "open_load", "interpolate_force", "read_force_csv", "csv_max_gap_s", "parse_line",
            "TIME_BASE_SESSION", "TIME_BASE_MONOTONIC", "LOAD_USAGE"]
 
@@ -79,8 +88,9 @@ DEFAULT_MAX_SAMPLES = 2_000_000
 MAX_LINE_BYTES = 4096                # a "line" longer than this without a newline is garbage
 MAX_EVENTS = 10_000                  # an endless outage adds events once per outage, this is a safety cap
 
-LOAD_USAGE = "valid loads: csv:FILE (header time_s,force_N), tcp://HOST:PORT[?clock=arrival|sender]"
-NOT_BUILT = ("modbus", "synthetic")
+LOAD_USAGE = ("valid loads: csv:FILE (header time_s,force_N), tcp://HOST:PORT[?clock=arrival|sender], "
+              "synthetic (with the synthetic:tensile camera) or synthetic:tensile?...")
+NOT_BUILT = ("modbus",)
 
 
 class LoadError(ValueError):
@@ -303,6 +313,50 @@ class CsvLoad(LoadSource):
     @property
     def settings(self):
         return {**super().settings, "offset_s": self.offset_s}
+
+
+# --- synthetic ----------------------------------------------------------------------------------
+
+class SyntheticLoad(LoadSource):
+    """The simulated tensile test's force: one sample per frame, frame i at ``i / fps`` s (session time).
+
+    Parameters
+    ----------
+    source : SyntheticTensileSource
+        The simulated camera (or any object with ``frames``, ``fps`` and ``forces_N()``).
+    uri : str, optional
+        How the session names it (default ``synthetic``).
+    offset_s : float, optional
+        Added to every sample's time, as a csv's (``--load-offset``); 0 for the simulator's own frames.
+    max_gap_s : float, optional
+        Default: ``csv_max_gap_s`` of the frame times (5 frame periods, 0.5 s at least).
+
+    Attributes
+    ----------
+    specimen : dict
+        The source's ``specimen`` (A0, E, yield, Rp0.2, Rm): what the stress-strain curve needs.
+    """
+
+    time_base = TIME_BASE_SESSION
+
+    def __init__(self, source, *, uri="synthetic", offset_s=0.0, max_gap_s=None):
+        self.uri = uri
+        self.source_uri = getattr(source, "uri", None)
+        self.offset_s = float(offset_s)
+        self.specimen = dict(getattr(source, "specimen", {}) or {})
+        self._time = np.arange(int(source.frames), dtype=np.float64) / float(source.fps) + self.offset_s
+        self._force = np.asarray(source.forces_N(), dtype=np.float64)
+        self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(self._time)
+
+    def samples(self):
+        return self._time.copy(), self._force.copy()
+
+    def force_at(self, times_s):
+        return interpolate_force(self._time, self._force, times_s, self.max_gap_s)
+
+    @property
+    def settings(self):
+        return {**super().settings, "source": self.source_uri, "offset_s": self.offset_s, "specimen": self.specimen}
 
 
 # --- tcp:// --------------------------------------------------------------------------------------
@@ -583,15 +637,50 @@ def _open_tcp(uri, options):
     return TcpLoad(host, port, clock=clock, uri=uri, **kwargs)
 
 
+def _open_synthetic(uri, options):
+    """``synthetic`` with ``source=`` (the session's simulated camera) or ``synthetic:tensile?...``."""
+    source = options.pop("source", None)
+    offset_s = _option("offset_s", options.pop("offset_s", 0.0))
+    max_gap_s = options.pop("max_gap_s", None)
+    if max_gap_s is not None:
+        max_gap_s = _option("max_gap_s", max_gap_s, low=0.0, low_open=True)
+    if options:
+        raise LoadError(f"load {uri!r}: unknown option(s) {', '.join(sorted(options))}; synthetic takes source, "
+                        f"offset_s, max_gap_s")
+    if uri.lower() == "synthetic":
+        if source is None:
+            raise LoadError(f"load {uri!r}: the simulator's force needs the simulated camera: pass source= "
+                            f"(a synthetic:tensile source), or name the test: synthetic:tensile?...")
+        if not callable(getattr(source, "forces_N", None)):
+            raise LoadError(f"load {uri!r}: the camera {getattr(source, 'uri', type(source).__name__)!r} is not a "
+                            f"simulated tensile test; --load synthetic needs --source synthetic:tensile?...")
+        return SyntheticLoad(source, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)
+    if source is not None:
+        raise LoadError(f"load {uri!r}: give either source= with load synthetic, or the test's URI, not both")
+    from livedic.acquire.base import SourceError
+    from livedic.acquire.synthetic import SyntheticTensileSource, parse_synthetic_uri
+    try:
+        model, _ = parse_synthetic_uri(uri)
+        if model != "tensile":
+            raise SourceError(f"synthetic:{model} has no force; use synthetic:tensile?...")
+        source = SyntheticTensileSource(uri)
+    except SourceError as error:
+        raise LoadError(f"load {uri!r}: {error}") from None
+    return SyntheticLoad(source, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)
+
+
 def open_load(uri, **options):
     """Open the force signal named by ``uri``.
 
     Parameters
     ----------
     uri : str
-        ``csv:FILE`` or ``tcp://HOST:PORT[?clock=arrival|sender]`` (see the module notes).
+        ``csv:FILE``, ``tcp://HOST:PORT[?clock=arrival|sender]``, ``synthetic`` or
+        ``synthetic:tensile?...`` (see the module notes).
     **options
         csv: ``offset_s`` (``--load-offset``), ``max_gap_s`` (default: see ``csv_max_gap_s``).
+        synthetic: ``source`` (the ``synthetic:tensile`` camera; required for plain ``synthetic``),
+        ``offset_s``, ``max_gap_s``.
         tcp: ``clock``, ``max_gap_s``, ``retry_s``, ``keep_s``, ``max_samples``, ``connect_timeout_s``,
         ``poll_s``. They override the query string.
 
@@ -612,6 +701,8 @@ def open_load(uri, **options):
     scheme = scheme.lower()
     if scheme in NOT_BUILT:
         raise LoadError(f"load {uri!r}: {scheme} is not built yet; {LOAD_USAGE}")
+    if scheme == "synthetic":
+        return _open_synthetic(uri, options)
     if not sep or scheme not in ("csv", "tcp"):
         raise LoadError(f"unknown load {uri!r}; {LOAD_USAGE}")
     if scheme == "tcp":

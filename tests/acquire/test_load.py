@@ -17,6 +17,7 @@ import pytest
 
 from livedic.acquire.load import (LoadError, LoadEventKind, TIME_BASE_MONOTONIC, TIME_BASE_SESSION, interpolate_force,
                                   open_load)
+from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
 
 
 # --- helpers -----------------------------------------------------------------------------------
@@ -177,8 +178,10 @@ def test_a_bad_csv_is_one_line_naming_file_and_line(tmp_path, content, where):
 
 @pytest.mark.parametrize("uri, where", [
     ("modbus://127.0.0.1:502?register=1&scale=0.1", "not built yet"),
-    ("synthetic", "not built yet"),
-    ("synthetic:tensile", "not built yet"),
+    ("synthetic", "pass source="),
+    ("synthetic:translate", "has no force"),
+    ("synthetic:tensile?frames=1", "frames"),
+    ("synthetic:tensile?hardening=-1", "hardening"),
     ("udp://host:1", "unknown load"),
     ("", "empty"),
     ("csv:", "names no file"),
@@ -205,6 +208,53 @@ def test_frame_time_convention(tmp_path):
         assert load.frame_time_s(since_first_frame_s=0.5, arrival_ns=2_500_000_000) == 2.5
         with pytest.raises(LoadError):
             load.frame_time_s(since_first_frame_s=0.5)
+
+
+# --- synthetic ---------------------------------------------------------------------------------
+
+def test_synthetic_load_gives_the_simulators_force_at_frame_times():
+    source = SyntheticTensileSource("synthetic:tensile?frames=40&fps=25&size=128x128&pace=0&fracture=1")
+    with loading("synthetic", source=source) as load:
+        assert load.time_base == TIME_BASE_SESSION and load.specimen == source.specimen
+        frame_times = np.arange(40) / 25.0                         # frame i at i / fps since the first frame
+        forces = np.array([source.force_N(i) for i in range(40)])
+        np.testing.assert_allclose(load.force_at(frame_times), forces, rtol=1e-12, atol=0)
+        # Between two frames: linear interpolation (the first elastic frames are a straight line).
+        np.testing.assert_allclose(load.force_at([0.01, 0.06]), [0.25 * forces[1], 0.5 * (forces[1] + forces[2])],
+                                   rtol=1e-12)
+        broken = source.fracture_frame
+        assert np.all(load.force_at(frame_times[broken:]) == 0.0) and forces[broken - 1] > 0.0
+        assert math.isnan(load.force_at(39 / 25.0 + 1e-6)) and math.isnan(load.force_at(-1e-6))
+        assert load.last_sample_time_s == pytest.approx(39 / 25.0)
+        assert load.settings["specimen"]["E_GPa"] == 200.0 and load.settings["source"] == source.uri
+
+
+def test_synthetic_load_from_the_tests_uri_matches_the_cameras_force():
+    uri = "synthetic:tensile?frames=30&size=128x128&modulus=70&hardening=0.4"
+    with loading(uri) as load:
+        camera = SyntheticTensileSource(uri)
+        np.testing.assert_array_equal(load.samples()[1], camera.forces_N())
+        np.testing.assert_allclose(load.samples()[0], np.arange(30) / 50.0, rtol=1e-15)
+        assert load.specimen["Rm_MPa"] == pytest.approx(70e3 * 0.004 * 1.4, rel=1e-12)
+
+
+def test_synthetic_load_offset_shifts_the_frames_as_a_csvs():
+    # export and report pass offset_s (--load-offset) to every load: the same meaning as for csv.
+    source = SyntheticTensileSource("synthetic:tensile?frames=10&size=64x64")
+    with loading("synthetic", source=source, offset_s=0.5) as load:
+        np.testing.assert_allclose(load.force_at(0.5 + np.arange(10) / 50.0), source.forces_N(), rtol=1e-12)
+        assert math.isnan(load.force_at(0.49)) and load.settings["offset_s"] == 0.5
+
+
+def test_synthetic_load_needs_a_simulated_tensile_camera():
+    with pytest.raises(LoadError) as error:
+        open_load("synthetic", source=SyntheticTranslateSource("synthetic:translate?frames=3&size=64x64"))
+    assert "\n" not in str(error.value) and "synthetic:tensile" in str(error.value)
+    source = SyntheticTensileSource("synthetic:tensile?frames=3&size=64x64")
+    with pytest.raises(LoadError, match="not both"):
+        open_load("synthetic:tensile", source=source)
+    with pytest.raises(LoadError, match="unknown option"):
+        open_load("synthetic", source=source, clock="sender")
 
 
 # --- tcp:// ------------------------------------------------------------------------------------
