@@ -185,8 +185,9 @@ def stress_options_from_args(args):
     ------
     ValueError
         A cross-section without ``--load``, ``--load`` without a cross-section, a bad value, a load
-        that is not ``csv:FILE`` (offline, only a file holds a past test's force), or a non-finite
-        offset: one line.
+        that is neither ``csv:FILE`` (offline, only a file holds a past test's force) nor the simulated
+        test's own law (``synthetic:tensile?...``, the URI it was recorded with), or a non-finite offset:
+        one line.
     """
     load = getattr(args, "load", None)
     section = {name: getattr(args, name, None) for name in ("area", "width", "thickness")}
@@ -195,9 +196,9 @@ def stress_options_from_args(args):
         if given:
             raise ValueError(f"{' '.join(given)} without --load csv:FILE: the stress needs the machine's force")
         return None
-    if not str(load).strip().lower().startswith("csv:"):
+    if not str(load).strip().lower().startswith(("csv:", "synthetic:")):
         raise ValueError(f"--load {load!r}: a recording's force comes from a file here, give --load csv:FILE "
-                         f"(header time_s,force_N)")
+                         f"(header time_s,force_N), or the simulated test's own law, --load synthetic:tensile?...")
     offset = getattr(args, "load_offset", 0.0)
     if offset is None or not math.isfinite(offset):
         raise ValueError(f"--load-offset {offset!r}: must be a finite number of seconds")
