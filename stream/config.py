@@ -305,6 +305,20 @@ def session_name():
     return "session-" + datetime.now().strftime("%Y%m%d-%H%M%S")
 
 
+def _load_from_args(args):
+    """``load``, ``load_offset``, ``area_mm2`` from ``--load --load-offset --area --width --thickness``."""
+    from livedic.stream.stress import cross_section_mm2
+    section = {name: getattr(args, name, None) for name in ("area", "width", "thickness")}
+    load = getattr(args, "load", None)
+    area = cross_section_mm2(**section) if any(v is not None for v in section.values()) else None
+    if area is not None and load is None:
+        raise ValueError("--area/--width/--thickness without --load: the stress needs the machine's force")
+    offset = float(getattr(args, "load_offset", 0.0) or 0.0)
+    if not math.isfinite(offset):
+        raise ValueError(f"--load-offset {offset!r}: must be a finite number of seconds")
+    return {"load": load, "load_offset": offset, "area_mm2": area}
+
+
 def unique_path(path):
     """``path``, or ``path`` with -2, -3 ... before the extension if it exists."""
     if not os.path.exists(path):
@@ -360,6 +374,13 @@ class SessionConfig:
         What made the session, in the recording's metadata.
     strain : stream.strain.StrainConfig
         The strain window and measure, and the virtual extensometers.
+    load : str or None
+        The machine's force (``--load``: ``csv:FILE``, ``tcp://HOST:PORT``, ``synthetic``), or None.
+    load_offset : float
+        Seconds added to the load's times (``--load-offset``).
+    area_mm2 : float or None
+        Original cross-section A0 (``--area``, or ``--width`` x ``--thickness``); None: the simulated
+        test's own with ``--load synthetic``, else no stress.
     """
     source: str = DEFAULT_SOURCE
     frames: int = None
@@ -381,6 +402,9 @@ class SessionConfig:
     warm_up: bool = True
     command: str = "livedic run"
     strain: StrainConfig = field(default_factory=StrainConfig)
+    load: str = None
+    load_offset: float = 0.0
+    area_mm2: float = None
 
     def __post_init__(self):
         if self.frames is not None and self.frames < 1:
@@ -450,4 +474,5 @@ class SessionConfig:
             image_max_side=args.image_max_side,
             show_progress=args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty()),
             threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
-            reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args))
+            reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args),
+            **_load_from_args(args))

@@ -29,6 +29,7 @@ from livedic.stream.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, DEFAULT_S
 from livedic.stream.csv_output import json_text, write_text_atomic
 from livedic.stream.session import Session
 from livedic.stream.strain import add_strain_arguments
+from livedic.stream.stress import add_stress_arguments
 
 _TRACKING = TrackingConfig()
 
@@ -108,6 +109,7 @@ def add_run_arguments(parser):
                              "acquisition, recording and display, and parallel regions stall when cores are shared)")
     parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
     add_strain_arguments(parser)
+    add_stress_arguments(parser)
     parser.add_argument("--reconnect", action="store_true",
                         help="cameras (aravis:, v4l2:): when the camera is lost, keep the session and the recording "
                              "open and reopen it every second until it is back (or Ctrl-C); the session then goes on "

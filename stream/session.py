@@ -52,6 +52,7 @@ from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQue
 from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, check_point_count, read_points_csv
 from livedic.stream.progress import ProgressBar
+from livedic.stream.load_stage import format_force_summary
 from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
@@ -303,6 +304,8 @@ class Session:
         self.points = None
         self.p0 = None
         self.strain = None
+        self.load = None
+        self.load_stage = None
         self.reference_updates = None
         self.fractures = None
         self.reference = None
@@ -396,6 +399,7 @@ class Session:
         self.phase = Phase.CHECKING_POINTS
         self._place_points(self._ahead.frame)
 
+        self._open_load()
         self.phase = Phase.OPENING_OUTPUTS
         self._open_outputs(scheme)
         self.phase = Phase.READY
@@ -413,7 +417,7 @@ class Session:
         self.acquisition = AcquisitionThread(self._ahead, self.queue, max_frames=config.frames, on_frame=on_frame,
                                              reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
-        sinks = [self.strain] if self.strain is not None else []
+        sinks = [stage for stage in (self.strain, self.load_stage) if stage is not None]
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method,
                                        strain_window=self.strain.windows.window if self.strain is not None else None))
@@ -488,6 +492,9 @@ class Session:
         elif self.source is not None:
             self._close_quietly(self.source.close, "frame source")
         self.source = None
+        if self.load is not None:
+            load, self.load = self.load, None
+            self._close_quietly(load.close, "force source")
         if self.recorder is not None and not self.recorder.closed:
             self.recorder.close()
         if self.viewer is not None:
@@ -586,6 +593,19 @@ class Session:
                                                   points=given)
         self._place_strain(first.image.shape)
 
+    def _open_load(self):
+        """The machine's force source (``--load``), checked before any output opens (one line if bad)."""
+        config = self.config
+        if config.load is None:
+            return
+        from livedic.stream.load_stage import LoadStage, open_session_load
+        self.load = open_session_load(config.load, offset_s=config.load_offset, camera=self.source)
+        area = config.area_mm2
+        if area is None:
+            area = (getattr(self.load, "specimen", None) or {}).get("A0_mm2")
+        self.load_stage = LoadStage(self.load, area, lambda kind, message, level: self.event(
+            kind, message, level, tell=level != "info"))
+
     def _place_strain(self, shape):
         """The strain stage on the points as the tracker uses them (pixel centres); ValueError for an
         extensometer end off the points, before any output opens."""
@@ -619,6 +639,8 @@ class Session:
             "vsg_px": self.strain.vsg_px if self.strain is not None else None,
             "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.strain.extensometers]
             if self.strain is not None else [],
+            "load": config.load, "load_offset_s": config.load_offset,
+            "area_mm2": self.load_stage.area_mm2 if self.load_stage is not None else config.area_mm2,
         }
 
     def _open_outputs(self, scheme):
@@ -726,6 +748,7 @@ class Session:
             viewer_fields_skipped=viewer.fields_skipped if viewer is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=self.strain.summary() if self.strain is not None else None,
+            force=self.load_stage.summary() if self.load_stage is not None else None,
             reference_update=config.tracking.reference_update,
             **(self.reference_updates.summary() if self.reference_updates is not None else {}),
             **(self.fractures.summary() if self.fractures is not None else {}))
@@ -777,6 +800,7 @@ def format_summary(summary, reference, recorder):
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
     lines.extend(format_strain_summary(summary.get("strain")))
+    lines.extend(format_force_summary(summary.get("force")))
     if recorder is not None:
         size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
         if recorder.error:

@@ -181,6 +181,10 @@ class ProgressLine:
         if readings is not None:
             for name, strain, ok in zip(readings.names[:2], readings.eng_strain, readings.ok):
                 text += f"  {name} {100 * strain:.3f} %" if ok else f"  {name} lost"
+        if result.force_N is not None:
+            text += f"  {result.force_N:,.0f} N" if math.isfinite(result.force_N) else "  force n/a"
+            if result.stress_MPa is not None and math.isfinite(result.stress_MPa):
+                text += f" {result.stress_MPa:.0f} MPa"
         self.bar.update(self.acquisition.frames, text)
 
 

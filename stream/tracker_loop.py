@@ -62,6 +62,8 @@ class FrameResult:
     reference_update: object = None   # dic.key_frames.ReferenceUpdate when this frame became the reference
     fracture: object = None       # dic.fracture.Fracture when one was detected in this frame
     strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
+    force_N: float = None         # the machine's force at this frame (stream.load_stage), NaN when unknown
+    stress_MPa: float = None      # ... and the engineering stress
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
 
     @property

@@ -1,0 +1,110 @@
+"""The machine's force in a live session: the load source opened, the force and stress of every frame.
+
+``--load URI`` opens a force source (``acquire.load``: ``csv:FILE``, ``tcp://HOST:PORT``,
+``synthetic`` for the simulated test's own law); ``--area MM2`` (or ``--width MM --thickness
+MM``) gives the original cross-section A0 (the simulated test's own when ``--load synthetic``).
+``LoadStage`` is a session sink placed after the strain stage: per frame it takes the force at
+the frame's time (seconds since the first frame for files and the simulator, the arrival on the
+monotonic clock for a stream), interpolated, never extrapolated, NaN where the source has none
+(a stalled or lost stream: never a stale value), and the engineering stress F / A0, attaches both
+to the ``FrameResult`` (``result.force_N``, ``result.stress_MPa``) for the sinks after it
+(recording, progress line), reports the source's events (connected, stalled, lost) and keeps the
+numbers for the summary.
+"""
+
+import math
+import time
+
+import numpy as np
+
+from livedic.acquire.load import open_load
+
+
+def open_session_load(uri, *, offset_s, camera):
+    """The load source for ``uri`` (``--load``): ``synthetic`` uses the session's simulated camera.
+
+    Raises ValueError (``acquire.load.LoadError``: one line) for a bad URI or file.
+    """
+    text = str(uri).strip()
+    if text.lower() == "synthetic":
+        return open_load("synthetic", source=camera, offset_s=offset_s)
+    return open_load(text, offset_s=offset_s)
+
+
+class LoadStage:
+    """Force and stress per frame (a session sink; see the module notes).
+
+    Parameters
+    ----------
+    load : acquire.load.LoadSource
+    area_mm2 : float or None
+        A0; None: force only (stress NaN).
+    report : callable
+        ``report(kind, message, level)``: the session's event.
+    """
+    name = "force"
+    required = False
+
+    def __init__(self, load, area_mm2, report):
+        self.load = load
+        self.area_mm2 = area_mm2
+        self.report = report
+        self.first_ns = None
+        self.frames = 0
+        self.frames_without_force = 0
+        self.max_force_N = -math.inf
+        self.last_force_N = math.nan
+        self.last_stress_MPa = math.nan
+        self.seconds = 0.0
+        self._events_seen = 0
+
+    def __call__(self, result, stats):
+        started = time.perf_counter()
+        frame = result.frame
+        if self.first_ns is None:
+            self.first_ns = frame.timestamp_ns
+        when = self.load.frame_time_s(since_first_frame_s=(frame.timestamp_ns - self.first_ns) / 1e9,
+                                      arrival_ns=result.arrival_ns)
+        force = float(np.asarray(self.load.force_at(np.atleast_1d(when)), dtype=np.float64)[0])
+        stress = force / self.area_mm2 if self.area_mm2 and math.isfinite(force) else math.nan
+        result.force_N, result.stress_MPa = force, stress
+        self.frames += 1
+        if math.isfinite(force):
+            self.max_force_N = max(self.max_force_N, force)
+        else:
+            self.frames_without_force += 1
+        self.last_force_N, self.last_stress_MPa = force, stress
+        events = self.load.events(since=self._events_seen)
+        self._events_seen += len(events)
+        for event in events:
+            self.report("load", f"force source: {event.message}", "warning" if _is_trouble(event) else "info")
+        self.seconds += time.perf_counter() - started
+
+    def summary(self):
+        """The force numbers for the session summary (NaN/None where missing)."""
+        top = self.max_force_N if math.isfinite(self.max_force_N) else math.nan
+        return {"load": self.load.uri, "area_mm2": self.area_mm2, "max_force_N": top,
+                "max_stress_MPa": top / self.area_mm2 if self.area_mm2 and math.isfinite(top) else math.nan,
+                "final_force_N": self.last_force_N, "final_stress_MPa": self.last_stress_MPa,
+                "frames_without_force": self.frames_without_force, "frames": self.frames}
+
+
+def _is_trouble(event):
+    return event.kind.name in ("CONNECT_FAILED", "DISCONNECTED", "STALLED")
+
+
+def format_force_summary(force):
+    """The summary's force line (none without a load)."""
+    if not force:
+        return []
+
+    def num(value, fmt):
+        return "n/a" if value is None or not math.isfinite(value) else format(value, fmt)
+    missing = force["frames_without_force"]
+    text = (f"  force      {force['load']}: max {num(force['max_force_N'], ',.0f')} N"
+            + (f" = {num(force['max_stress_MPa'], '.1f')} MPa on A0 {force['area_mm2']:g} mm^2" if force["area_mm2"]
+               else " (no --area: no stress)")
+            + f"; final {num(force['final_force_N'], ',.0f')} N")
+    if missing:
+        text += f"; {missing} of {force['frames']} frames without force (NaN)"
+    return [text]

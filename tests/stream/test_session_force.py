@@ -1,0 +1,61 @@
+"""The machine's force in a live session (``--load``): force and stress per frame, in the summary.
+
+The simulated test's own law (``--load synthetic``: E 200 GPa, yield 800 MPa, perfectly plastic by
+default) and a force file with a known ramp give exact values at the frames' times.
+"""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from livedic.stream.cli import main
+
+SOURCE = "synthetic:tensile?size=384x512&frames=40&pace=0"
+
+
+def run_with(tmp_path, *extra):
+    summary = tmp_path / "summary.json"
+    code = main(["run", "--source", SOURCE, "--viewer", "none", "--no-record", "--progress", "off",
+                 "--summary-json", str(summary), *extra])
+    assert code == 0
+    return json.loads(summary.read_text())["force"]
+
+
+def test_the_simulated_law_gives_its_yield_stress(tmp_path):
+    force = run_with(tmp_path, "--load", "synthetic")
+    assert force["area_mm2"] == pytest.approx(0.4 * 384 / 10 * 2)        # the simulator's own A0
+    assert force["max_stress_MPa"] == pytest.approx(800.0, rel=1e-9)    # perfectly plastic at 200 GPa x 0.004
+    assert force["frames_without_force"] == 0 and force["frames"] == 40
+
+
+def test_a_force_file_is_read_at_the_frame_times(tmp_path):
+    ramp = tmp_path / "force.csv"
+    ramp.write_text("time_s,force_N\n" + "".join(f"{0.1 * k:.1f},{1000.0 * 0.1 * k}\n" for k in range(9)))
+    force = run_with(tmp_path, "--load", f"csv:{ramp}", "--area", "20")
+    # frames every 1/50 s: the file covers 0..0.8 s, frames 0..39 run to 0.78 s
+    assert force["final_force_N"] == pytest.approx(1000.0 * 39 / 50, rel=1e-9)
+    assert force["final_stress_MPa"] == pytest.approx(1000.0 * 39 / 50 / 20, rel=1e-9)
+    short = tmp_path / "short.csv"
+    short.write_text("time_s,force_N\n0,0\n0.4,400\n")
+    force = run_with(tmp_path, "--load", f"csv:{short}")
+    assert force["frames_without_force"] == 19                          # after 0.4 s: NaN, never extrapolated
+    assert force["final_force_N"] is None and force["max_stress_MPa"] is None
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--load", "csv:/nonexistent.csv"], "load file /nonexistent.csv"),
+    (["--area", "10"], "without --load"),
+    (["--load", "synthetic", "--area", "-1"], "--area"),
+])
+def test_bad_load_options_are_one_line_exit_2_and_leave_no_file(tmp_path, extra, message):
+    record = tmp_path / "s.mcap"
+    argv = ["run", "--viewer", "none", "--record", str(record), "--progress", "off",
+            "--source", "synthetic:tensile?size=192x256&frames=3&fps=1000", *extra]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=120)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
+    assert done.returncode == 2, done.stderr
+    assert len(errors) == 1 and message in errors[0], done.stderr
+    assert not record.exists()
