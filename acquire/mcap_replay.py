@@ -1,5 +1,5 @@
-"""Read livedic recordings (MCAP): replay frames, read results, strain, extensometers, events and metadata,
-recover crashes.
+"""Read livedic recordings (MCAP): replay frames, read results, strain, extensometers, force, events and
+metadata, recover crashes.
 
 The format lives in ``livedic.acquire``: ``recording_schema`` (topics, schemas,
 codecs), ``mcap_io`` (MCAP records on the ``mcap`` library, read within bounds,
@@ -43,6 +43,7 @@ Examples
 >>> results[0].u, results[0].ok                                   # doctest: +SKIP
 >>> strain = read_strain_fields("session.mcap")                  # doctest: +SKIP
 >>> samples = read_extensometer_samples("session.mcap")          # doctest: +SKIP
+>>> force = read_force_samples("session.mcap")                   # doctest: +SKIP
 >>> recording = Recording("session.mcap")                         # doctest: +SKIP
 >>> n = sum(1 for _ in recording.results()); recording.info.truncated   # doctest: +SKIP
 """
@@ -69,9 +70,10 @@ from livedic.dic.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
 
 __all__ = ["CorruptRecording", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
-           "RecordedExtensometerSample", "RecordedResults", "RecordedStrain", "Recording", "RecordingError",
-           "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results", "read_events",
-           "read_extensometer_samples", "read_results", "read_session", "read_strain_fields", "recover"]
+           "RecordedExtensometerSample", "RecordedForceSample", "RecordedResults", "RecordedStrain", "Recording",
+           "RecordingError", "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results", "read_events",
+           "read_extensometer_samples", "read_force_samples", "read_results", "read_session", "read_strain_fields",
+           "recover"]
 
 log = logging.getLogger(__name__)
 
@@ -205,6 +207,22 @@ class RecordedExtensometerSample:
     true_strain: float
     ok: bool
     status: int
+
+
+@dataclass(frozen=True)
+class RecordedForceSample:
+    """The machine's force on one tracked frame, as recorded on ``/machine/force``.
+
+    ``force_N`` is NaN (and ``ok`` False) where the load had no value for the frame;
+    ``stress_MPa`` (engineering) is NaN where the session had no cross-section;
+    ``source`` is the load URI.
+    """
+    frame_index: int
+    timestamp_ns: int
+    force_N: float
+    stress_MPa: float
+    ok: bool
+    source: str
 
 
 _STRAIN_FLOATS = ("exx", "eyy", "exy", "e1", "e2")
@@ -577,6 +595,20 @@ class Recording:
         if frame:
             yield frame[0].frame_index, frame[0].timestamp_ns, _readings(frame)
 
+    def force_samples(self):
+        """Yield ``RecordedForceSample`` from ``/machine/force``: one per tracked frame, none in older recordings."""
+        for channel, message in self.messages({rs.TOPIC_FORCE}):
+            if self.schema_name(channel) != rs.FORCE_SAMPLE_SCHEMA:
+                continue
+            try:
+                sample = rs.ForceSample.FromString(message.data)
+            except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
+                raise CorruptRecording(f"{self.name} is corrupt: force message at log time "
+                                       f"{message.log_time} ({type(error).__name__})") from None
+            yield RecordedForceSample(frame_index=sample.frame_index, timestamp_ns=sample.timestamp_ns,
+                                      force_N=sample.force_N, stress_MPa=sample.stress_MPa, ok=sample.ok,
+                                      source=sample.source)
+
     def events(self):
         """List of ``RecordedEvent`` from ``/livedic/events``."""
         out = []
@@ -632,6 +664,11 @@ def read_strain_fields(path):
 def read_extensometer_samples(path):
     """List of ``RecordedExtensometerSample``: per frame, one per extensometer (empty without extensometers)."""
     return list(Recording(path).extensometer_samples())
+
+
+def read_force_samples(path):
+    """List of ``RecordedForceSample``, one per tracked frame (empty for recordings without force)."""
+    return list(Recording(path).force_samples())
 
 
 def read_events(path):

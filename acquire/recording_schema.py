@@ -18,9 +18,9 @@ arrays) so that a 1 MP image costs one copy on write and none on read, and a
 result array is one ``numpy.frombuffer``. ``livedic.StrainField`` is encoded by
 the same hand encoder (the protobuf library took ~0.3 ms for 1,000 points, the
 hand encoder ~0.02 ms: it runs in the tracking thread every frame) and decoded by
-the protobuf library (offline only). ``livedic.ExtensometerSample`` (a few
-scalars) uses the library both ways. The tests check that the hand codecs agree
-with the protobuf library in both directions.
+the protobuf library (offline only). ``livedic.ExtensometerSample`` and
+``livedic.ForceSample`` (a few scalars) use the library both ways. The tests
+check that the hand codecs agree with the protobuf library in both directions.
 
 Nothing read from a recording is ever unpickled or evaluated: payloads are
 protobuf or JSON (``json.loads``) only.
@@ -40,6 +40,7 @@ TOPIC_FRAME_INFO = "/camera/frame_info"
 TOPIC_RESULTS = "/dic/results"
 TOPIC_STRAIN = "/dic/strain"
 TOPIC_EXTENSOMETERS = "/dic/extensometers"
+TOPIC_FORCE = "/machine/force"
 TOPIC_EVENTS = "/livedic/events"
 TOPIC_SESSION = "/livedic/session"
 
@@ -54,6 +55,7 @@ FRAME_RESULTS_SCHEMA = "livedic.FrameResults"
 FRAME_INFO_SCHEMA = "livedic.FrameInfo"
 STRAIN_FIELD_SCHEMA = "livedic.StrainField"
 EXTENSOMETER_SAMPLE_SCHEMA = "livedic.ExtensometerSample"
+FORCE_SAMPLE_SCHEMA = "livedic.ForceSample"
 EVENT_SCHEMA = "livedic.Event"
 SESSION_SCHEMA = "livedic.Session"
 
@@ -128,6 +130,17 @@ EXTENSOMETER_SAMPLE_FIELDS = (
     ("status", 9, _F.TYPE_INT32, False, "dic.extensometer.ExtensometerStatus code (0: measured)"),
 )
 
+# ForceSample: the testing machine's force on one tracked frame (Foxglove plots
+# /machine/force.force_N and .stress_MPa against time).
+FORCE_SAMPLE_FIELDS = (
+    ("frame_index", 1, _F.TYPE_UINT64, False, "index of the frame"),
+    ("timestamp_ns", 2, _F.TYPE_INT64, False, "that frame's timestamp (ns), equal to the message log_time"),
+    ("force_N", 3, _F.TYPE_DOUBLE, False, "force at the frame's time (N); NaN when the load had no value"),
+    ("stress_MPa", 4, _F.TYPE_DOUBLE, False, "engineering stress force_N / A0 (MPa); NaN without a cross-section"),
+    ("ok", 5, _F.TYPE_BOOL, False, "true where force_N is a number"),
+    ("source", 6, _F.TYPE_STRING, False, "the load URI the force came from (--load)"),
+)
+
 FRAME_INFO_FIELDS = (
     ("frame_index", 1, _F.TYPE_UINT64, False, "Frame.index (the image's MCAP sequence is this mod 2^32)"),
     ("timestamp_ns", 2, _F.TYPE_INT64, False, "Frame.timestamp_ns"),
@@ -160,6 +173,7 @@ def _build_file_proto():
     file_proto.message_type.append(_message_proto("Event", EVENT_FIELDS))
     file_proto.message_type.append(_message_proto("StrainField", STRAIN_FIELD_FIELDS))
     file_proto.message_type.append(_message_proto("ExtensometerSample", EXTENSOMETER_SAMPLE_FIELDS))
+    file_proto.message_type.append(_message_proto("ForceSample", FORCE_SAMPLE_FIELDS))
     session = file_proto.message_type.add(name="Session")
     entry = session.nested_type.add(name="MetadataEntry")
     entry.options.map_entry = True
@@ -179,6 +193,7 @@ Event = message_factory.GetMessageClass(_POOL.FindMessageTypeByName(EVENT_SCHEMA
 Session = message_factory.GetMessageClass(_POOL.FindMessageTypeByName(SESSION_SCHEMA))
 StrainField = message_factory.GetMessageClass(_POOL.FindMessageTypeByName(STRAIN_FIELD_SCHEMA))
 ExtensometerSample = message_factory.GetMessageClass(_POOL.FindMessageTypeByName(EXTENSOMETER_SAMPLE_SCHEMA))
+ForceSample = message_factory.GetMessageClass(_POOL.FindMessageTypeByName(FORCE_SAMPLE_SCHEMA))
 
 
 def schema_data(name):
@@ -188,7 +203,7 @@ def schema_data(name):
         from mcap_protobuf.schema import build_file_descriptor_set
         return build_file_descriptor_set(RawImage).SerializeToString()
     if name in (FRAME_RESULTS_SCHEMA, FRAME_INFO_SCHEMA, EVENT_SCHEMA, SESSION_SCHEMA, STRAIN_FIELD_SCHEMA,
-                EXTENSOMETER_SAMPLE_SCHEMA):
+                EXTENSOMETER_SAMPLE_SCHEMA, FORCE_SAMPLE_SCHEMA):
         return descriptor_pb2.FileDescriptorSet(file=[FILE_PROTO]).SerializeToString()
     raise KeyError(name)
 

@@ -1,8 +1,8 @@
-"""Record a session to MCAP: raw frames, per-frame DIC results, strain, extensometers, events, metadata.
+"""Record a session to MCAP: raw frames, per-frame DIC results, strain, extensometers, force, events, metadata.
 
 Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
-(``/dic/results``, ``/dic/strain``, ``/dic/extensometers``, ``/livedic/events``,
-``/livedic/session``) are kept apart, so an
+(``/dic/results``, ``/dic/strain``, ``/dic/extensometers``, ``/machine/force``,
+``/livedic/events``, ``/livedic/session``) are kept apart, so an
 indexed reader fetches the results without reading any image. Frames go into mcap's
 open chunk; results and events are serialized at once and wait in memory, to be
 written together as one data chunk (``acquire.mcap_io.ChunkedWriter``, the
@@ -133,14 +133,14 @@ class Recorder:
         Why recording stopped early (one line), None while all is well.
     frames_written, results_written, events_written : int
         Messages accepted.
-    strain_written, extensometers_written : int
-        ``write_strain`` / ``write_extensometers`` calls accepted (one per frame; the
-        extensometers of a frame are one message each).
+    strain_written, extensometers_written, force_written : int
+        ``write_strain`` / ``write_extensometers`` / ``write_force`` calls accepted (one per
+        frame; the extensometers of a frame are one message each).
     frames_durable, results_durable : int
         Frames, results in chunks handed to the kernel (they survive a kill of this process).
     chunks_written : int
         Chunks written so far (mcap keeps an index entry per chunk in memory until ``close``).
-    frames_dropped, results_dropped, events_dropped, strain_dropped, extensometers_dropped : int
+    frames_dropped, results_dropped, events_dropped, strain_dropped, extensometers_dropped, force_dropped : int
         Writes refused after a stop or close.
     bytes_written : int
         File size handed to the kernel so far.
@@ -170,8 +170,8 @@ class Recorder:
         self.error = None
         self.frames_written = self.results_written = self.events_written = 0
         self.frames_dropped = self.results_dropped = self.events_dropped = 0
-        self.strain_written = self.extensometers_written = 0
-        self.strain_dropped = self.extensometers_dropped = 0
+        self.strain_written = self.extensometers_written = self.force_written = 0
+        self.strain_dropped = self.extensometers_dropped = self.force_dropped = 0
         self.bytes_written = 0
         self._on_error = on_error
         self._flush_interval_s = float(flush_interval_s)
@@ -216,6 +216,8 @@ class Recorder:
                                                 rs.schema_data(rs.STRAIN_FIELD_SCHEMA))
             self._ch_extensometers = self._cw.register(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA,
                                                        rs.schema_data(rs.EXTENSOMETER_SAMPLE_SCHEMA))
+            self._ch_force = self._cw.register(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA,
+                                               rs.schema_data(rs.FORCE_SAMPLE_SCHEMA))
             self._ch_session = self._cw.register(rs.TOPIC_SESSION, rs.SESSION_SCHEMA,
                                                  rs.schema_data(rs.SESSION_SCHEMA))
             self._cw.writer.add_metadata(rs.METADATA_NAME, strings)
@@ -479,6 +481,46 @@ class Recorder:
 
         return self._write("extensometers", "write_extensometers", timestamp_ns, add)
 
+    def write_force(self, frame_index, timestamp_ns, force_N, stress_MPa, *, source=""):
+        """Record the machine's force on one tracked frame on ``/machine/force`` (``livedic.ForceSample``).
+
+        Parameters
+        ----------
+        frame_index : int
+        timestamp_ns : int
+            The frame's timestamp; also the message log time.
+        force_N : float
+            The force at the frame's time (N); NaN (or None) when the load had no value for
+            this frame (a lost or late stream): ``ok`` is recorded False then.
+        stress_MPa : float
+            Engineering stress ``force_N / A0`` (MPa); NaN (or None) without a cross-section.
+        source : str
+            The load URI the force came from (``--load``), recorded in every message.
+
+        Returns
+        -------
+        bool
+            True if accepted (counted in ``force_written``), False if dropped (counted in
+            ``force_dropped``) because recording has stopped, or stopped on this write.
+
+        Raises
+        ------
+        ValueError
+            A force or stress that is not a number (NaN and None are accepted).
+        """
+        if self._refused("force"):
+            return False
+        timestamp_ns = _log_time(timestamp_ns, "timestamp_ns")
+        frame_index = _frame_index(frame_index, "write_force")
+        force_N = _scalar(force_N, "force_N", "write_force")
+        stress_MPa = _scalar(stress_MPa, "stress_MPa", "write_force")
+        payload = rs.ForceSample(frame_index=frame_index, timestamp_ns=timestamp_ns, force_N=force_N,
+                                 stress_MPa=stress_MPa, ok=bool(np.isfinite(force_N)),
+                                 source=str(source)).SerializeToString()
+        return self._write("force", "write_force", timestamp_ns, lambda: self._cw.add(
+            "data", self._ch_force, timestamp_ns, payload, publish_time=time.time_ns(),
+            sequence=frame_index & 0xFFFFFFFF, count_as="force"))
+
     def write_event(self, kind, message, *, level="info", timestamp_ns=None):
         """Record a note on ``/livedic/events`` (``livedic.Event``).
 
@@ -697,6 +739,16 @@ def _frame_index(value, during):
     if not 0 <= value < _U64:
         raise ValueError(f"{during}: frame_index must be >= 0, got {value}")
     return value
+
+
+def _scalar(value, name, during):
+    """``value`` as a float, NaN for None; ValueError when it is not a number."""
+    if value is None:
+        return float("nan")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{during}: {name} must be a number or NaN, got {value!r}") from None
 
 
 def _as_1d(value, name, during="write_results"):
