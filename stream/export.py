@@ -22,12 +22,16 @@
 ``events.csv``
     ``time,kind,level,message,timestamp_ns``: ``time`` in seconds on the same clock as
     ``p0_trace.csv`` (``timestamp_ns`` is the raw frame clock).
-``stress_strain.csv`` and ``stress_strain.png`` (only with ``--load csv:FILE`` and a cross-section)
+``stress_strain.csv`` and ``stress_strain.png`` (with ``--load csv:FILE`` and a cross-section, or
+    without ``--load`` when the recording holds the machine's force on ``/machine/force``)
     ``frame,time_s,force_N,eng_strain,eng_stress_MPa,true_strain,true_stress_MPa``: the force
-    interpolated onto each frame's ``time_s`` (NaN where the file has none), the ``axial``
-    extensometer's engineering strain, stress ``F / A0``, and the true values up to uniform
-    elongation (NaN after the frame of maximum force: ``stream.stress``); the plot of both curves.
-    The recording (or the options) must have an ``axial`` extensometer.
+    interpolated onto each frame's ``time_s`` (NaN where the file has none), or the force recorded
+    for that frame (NaN where none was), the ``axial`` extensometer's engineering strain, stress
+    ``F / A0``, and the true values up to uniform elongation (NaN after the frame of maximum
+    force: ``stream.stress``); the plot of both curves. The recording (or the options) must have
+    an ``axial`` extensometer. The recorded force takes its cross-section from ``--area`` or
+    ``--width --thickness``, else from the session metadata's ``area_mm2``; a ``--load`` given
+    replaces the recorded force (a note says so).
 ``session.json``
     The session metadata (method, parameters, source, ROI, ...), plus a
     ``livedic.export`` entry saying where the files came from and whether the
@@ -366,7 +370,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         first = next(results, None)
         stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
         names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-        load = _open_stress_load(stress, names)                 # bad load or no axial: before DIR is made
+        load = _open_stress_load(stress, names, recording)      # bad load or no axial: before DIR is made
         created = not os.path.isdir(directory)
         os.makedirs(directory, exist_ok=True)
         staged = {}
@@ -465,7 +469,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                                                       np.array(eng).reshape(len(times), len(names)), names,
                                                       title=f"{os.path.basename(path)}: stress-strain (A0 "
                                                             f"{stress.area_mm2:g} mm^2, force "
-                                                            f"{os.path.basename(stress.load[len('csv:'):])})")
+                                                            f"{_force_label(stress)})")
             truncated = recording.info.truncated
             session = dict(metadata)
             session[EXPORT_KEY] = {
@@ -477,6 +481,8 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
             if stress is not None:
                 session[EXPORT_KEY]["stress"] = {"load": stress.load, "load_offset_s": stress.offset_s,
                                                  "area_mm2": stress.area_mm2, **stress_summary}
+                if isinstance(load, RecordedForce):
+                    session[EXPORT_KEY]["stress"]["recorded_source"] = load.source
             staged["session.json"].write(json_text(session))
             for name in outputs:
                 staged[name].commit()
@@ -495,8 +501,54 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
             "strain": stage.describe() if stage is not None else "", "stress": stress_summary}
 
 
-def _open_stress_load(stress, names):
-    """The ``LoadSource`` of ``stress`` (None without): ValueError (one line) if there is no axial extensometer."""
+class RecordedForce:
+    """The force recorded on ``/machine/force``, one value per tracked frame.
+
+    Attributes
+    ----------
+    forces : dict
+        Frame index -> force (N; NaN where the load had no value for that frame).
+    source : str
+        The load URI the session recorded (the last one seen; "" when none was written).
+    """
+
+    def __init__(self, forces, source=""):
+        self.forces = dict(forces)
+        self.source = str(source)
+
+    @classmethod
+    def read(cls, recording):
+        """The force samples of a ``Recording`` (an empty ``forces`` for recordings without them)."""
+        forces, source = {}, ""
+        for sample in recording.force_samples():
+            forces[int(sample.frame_index)] = float(sample.force_N)
+            source = sample.source or source
+        return cls(forces, source)
+
+    def on_frames(self, frames):
+        """Force at each of ``frames`` (indices): the recorded value, NaN for a frame without one."""
+        return np.array([self.forces.get(int(frame), math.nan) for frame in frames], dtype=np.float64)
+
+
+def _force_on_frames(load, frames, times):
+    """Force per frame: by frame index from the recording, or the load interpolated onto ``times``."""
+    if isinstance(load, RecordedForce):
+        return load.on_frames(frames)
+    return load.force_at(np.asarray(times, dtype=np.float64))
+
+
+def _force_label(stress):
+    """What the plot title calls the force: the file's name, or the recorded channel."""
+    from livedic.acquire.recording_schema import TOPIC_FORCE
+    if stress.recorded:
+        return f"recorded {TOPIC_FORCE}"
+    return os.path.basename(stress.load[len('csv:'):])
+
+
+def _open_stress_load(stress, names, recording=None):
+    """The ``LoadSource`` of ``stress``, or the ``RecordedForce`` of ``recording`` (None without ``stress``).
+
+    ValueError (one line) if there is no axial extensometer."""
     if stress is None:
         return None
     from livedic.acquire.load import open_load
@@ -505,14 +557,40 @@ def _open_stress_load(stress, names):
         raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
                          f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
                          f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
+    if stress.recorded:
+        return RecordedForce.read(recording)
     return open_load(stress.load, offset_s=stress.offset_s)
+
+
+def stress_from_args(args):
+    """``StressOptions`` of ``livedic export`` / ``report`` and note lines for people.
+
+    With ``--load``, that load (a note when the recording also holds force samples, which it
+    replaces); without, the force recorded on ``/machine/force`` when the recording holds some
+    (A0 from the options or the session's ``area_mm2``), else None. Bad options raise before the
+    recording is read; ValueError (one line) as ``stream.stress.stress_options_from_args``.
+    """
+    from livedic.acquire.mcap_replay import Recording
+    from livedic.acquire.recording_schema import TOPIC_FORCE
+    from livedic.stream.stress import stress_options_from_args
+    if getattr(args, "load", None) is not None:
+        stress = stress_options_from_args(args)               # bad options: one line, before anything is read
+    with reader_notes():                                      # the command's own read reports them, once
+        recording = Recording(os.fspath(args.recording))
+        recorded = RecordedForce.read(recording)
+        metadata = session_or_note(recording)[0] if recorded.forces else {}
+    if getattr(args, "load", None) is not None:
+        notes = [f"--load {stress.load} is the force here, not the one recorded on {TOPIC_FORCE} "
+                 f"({_plural(len(recorded.forces), 'frame')})"] if recorded.forces else []
+        return stress, notes
+    return stress_options_from_args(args, recorded_force=bool(recorded.forces), metadata=metadata), []
 
 
 def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
     """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
     from livedic.stream.stress import AXIAL, plot_stress_strain, stress_strain_rows, stress_strain_table
     times = np.asarray(times, dtype=np.float64)
-    force = load.force_at(times)
+    force = _force_on_frames(load, frames, times)
     table = stress_strain_table(frames, times, force, eng[:, list(names).index(AXIAL)], area_mm2)
     staged["stress_strain.csv"].write(stress_strain_rows(table, csv_rows))
     plot_stress_strain(staged["stress_strain.png"].handle, table, title=title)
@@ -599,12 +677,11 @@ def _plural(count, word):
 def export_command(args):
     """``livedic export FILE.mcap -o DIR [--overwrite] [strain options]``; returns the exit code."""
     from livedic.stream.strain import overrides_from_args
-    from livedic.stream.stress import stress_options_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
-    stress = stress_options_from_args(args)
+    stress, stress_notes = stress_from_args(args)
     summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides,
                                stress=stress)
-    for note in summary["notes"]:
+    for note in stress_notes + summary["notes"]:
         say(f"note: {note}")
     if summary["strain"]:
         say(summary["strain"])

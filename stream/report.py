@@ -1,7 +1,10 @@
 """``livedic report``: the tensile test's result from a recording and the machine's force file.
 
 ``livedic report FILE.mcap -o DIR --load csv:FILE (--area MM2 | --width MM --thickness MM)
-[--load-offset S]`` writes into DIR (created if missing):
+[--load-offset S]`` writes into DIR (created if missing). Without ``--load``, a recording that
+holds the machine's force on ``/machine/force`` gives the force (one value per frame, as
+recorded), its cross-section from ``--area`` / ``--width --thickness`` or the session's
+``area_mm2``:
 
 ``report.json``
     ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``: each
@@ -91,7 +94,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     ----------
     path, directory : str or os.PathLike
     stress : stream.stress.StressOptions
-        Force file, its offset, and A0.
+        Force file, its offset, and A0; ``load`` ``RECORDED_FORCE`` for the recording's own force.
     strain : dict, optional
         Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
     overwrite : bool
@@ -103,8 +106,9 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
         file cannot be used, or there is no ``axial`` extensometer: one line, nothing written.
     """
     from livedic.acquire.load import open_load
+    from livedic.acquire.mcap_replay import Recording
     from livedic.dic.tensile_properties import tensile_properties
-    from livedic.stream.export import axial_series
+    from livedic.stream.export import RecordedForce, axial_series, reader_notes
     from livedic.stream.stress import plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)
@@ -115,8 +119,12 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
         raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
                          f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
     series = axial_series(path, strain)                   # every check before DIR is made
-    load = open_load(stress.load, offset_s=stress.offset_s)
-    force = load.force_at(series["time_s"])
+    if stress.recorded:
+        with reader_notes():                              # axial_series has reported them
+            recorded = RecordedForce.read(Recording(path))
+        force = recorded.on_frames(series["frames"])
+    else:
+        force = open_load(stress.load, offset_s=stress.offset_s).force_at(series["time_s"])
     table = stress_strain_table(series["frames"], series["time_s"], force, series["eng_strain"], stress.area_mm2)
     properties = tensile_properties(table.eng_strain, table.eng_stress_MPa)
     scale = series["scale"]
@@ -127,6 +135,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
               "frames_with_force": int(sum(math.isfinite(f) for f in table.force_N)),
               "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else None,
               "strain": series["strain"], "notes": series["notes"],
+              **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
     report = report_json(properties, specimen, source)
     title = os.path.basename(path)
@@ -156,14 +165,16 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
 
 def report_command(args):
     """``livedic report FILE.mcap -o DIR --load csv:FILE (--area | --width --thickness)``; the exit code."""
-    from livedic.stream.export import say
+    from livedic.stream.export import say, stress_from_args
     from livedic.stream.strain import overrides_from_args
-    from livedic.stream.stress import stress_options_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
-    stress = stress_options_from_args(args)
+    stress, stress_notes = stress_from_args(args)
+    if stress is None:
+        raise ValueError("the report needs the machine's force: --load csv:FILE with the cross-section (--area MM2, "
+                         "or --width MM --thickness MM), or a recording that holds it (/machine/force)")
     report = report_recording(args.recording, args.output, stress=stress, strain=overrides,
                               overwrite=args.overwrite)
-    for note in report["source"]["notes"]:
+    for note in stress_notes + report["source"]["notes"]:
         say(f"note: {note}")
     values = []
     for key in PROPERTY_KEYS:

@@ -21,11 +21,13 @@ import numpy as np
 
 __all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
            "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
-           "StressOptions"]
+           "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY"]
 
 STRESS_STRAIN_COLUMNS = ("frame", "time_s", "force_N", "eng_strain", "eng_stress_MPa", "true_strain",
                          "true_stress_MPa")
 AXIAL = "axial"
+RECORDED_FORCE = "recorded:/machine/force"   # StressOptions.load when the force is the recording's own channel
+AREA_METADATA_KEY = "area_mm2"               # session metadata key of A0, when the session had a cross-section
 
 
 def cross_section_mm2(*, area=None, width=None, thickness=None):
@@ -157,10 +159,18 @@ def plot_stress_strain(handle, table, *, title, properties=None):
 
 @dataclass(frozen=True)
 class StressOptions:
-    """What the stress-strain output needs: the load URI, its offset (s) and A0 (mm^2)."""
+    """What the stress-strain output needs: the load URI, its offset (s) and A0 (mm^2).
+
+    ``load`` is ``RECORDED_FORCE`` when the force is the one recorded on ``/machine/force``
+    (``recorded`` is True then): one value per tracked frame, no offset.
+    """
     load: str
     offset_s: float
     area_mm2: float
+
+    @property
+    def recorded(self):
+        return self.load == RECORDED_FORCE
 
 
 def add_stress_arguments(parser, *, load_required=False):
@@ -178,19 +188,33 @@ def add_stress_arguments(parser, *, load_required=False):
     return parser
 
 
-def stress_options_from_args(args):
+def stress_options_from_args(args, *, recorded_force=False, metadata=None):
     """``StressOptions`` from parsed arguments, or None without ``--load`` and cross-section options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+    recorded_force : bool
+        The recording holds force samples (``/machine/force``). Without ``--load`` they are the
+        force then (``StressOptions.load`` is ``RECORDED_FORCE``), with A0 from ``--area`` or
+        ``--width --thickness``, else from the session metadata's ``area_mm2``. With ``--load``
+        the load wins.
+    metadata : dict, optional
+        The recording's session metadata (for ``area_mm2``).
 
     Raises
     ------
     ValueError
-        A cross-section without ``--load``, ``--load`` without a cross-section, a bad value, a load
-        that is neither ``csv:FILE`` (offline, only a file holds a past test's force) nor the simulated
-        test's own law (``synthetic:tensile?...``, the URI it was recorded with), or a non-finite offset:
-        one line.
+        A cross-section without ``--load`` and without recorded force, ``--load`` without a
+        cross-section, recorded force without any cross-section, a bad value, a load that is
+        neither ``csv:FILE`` (offline, only a file holds a past test's force) nor the simulated
+        test's own law (``synthetic:tensile?...``, the URI it was recorded with), or a non-finite
+        offset: one line.
     """
     load = getattr(args, "load", None)
     section = {name: getattr(args, name, None) for name in ("area", "width", "thickness")}
+    if load is None and recorded_force:
+        return StressOptions(RECORDED_FORCE, 0.0, _recorded_area(section, metadata))
     if load is None:
         given = [f"--{name}" for name, value in section.items() if value is not None]
         if given:
@@ -203,3 +227,19 @@ def stress_options_from_args(args):
     if offset is None or not math.isfinite(offset):
         raise ValueError(f"--load-offset {offset!r}: must be a finite number of seconds")
     return StressOptions(str(load).strip(), float(offset), cross_section_mm2(**section))
+
+
+def _recorded_area(section, metadata):
+    """A0 for the recorded force: the options when given, else the session's ``area_mm2``, else ValueError."""
+    if any(value is not None for value in section.values()):
+        return cross_section_mm2(**section)
+    value = (metadata or {}).get(AREA_METADATA_KEY)
+    if value is None:
+        raise ValueError("this recording holds the machine's force (/machine/force) but not the specimen's "
+                         "cross-section: give --area MM2, or --width MM --thickness MM")
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"the session's {AREA_METADATA_KEY} {value!r} is not a number: give --area MM2, "
+                         f"or --width MM --thickness MM") from None
+    return _positive(f"the session's {AREA_METADATA_KEY}", value)

@@ -284,3 +284,108 @@ def test_table_true_values_stop_at_the_first_maximum_and_need_a_force():
     assert np.isnan(table.true_strain[3:]).all() and np.isnan(table.true_stress_MPa[3:]).all()
     none = stress_strain_table([0, 1], [0, 1], [np.nan, np.nan], [0.0, 0.01], 4.0)
     assert none.uniform_frame == -1 and np.isnan(none.true_strain).all() and np.isnan(none.eng_stress_MPa).all()
+
+
+# ----------------------------------------------------------------------------- the recorded force (/machine/force)
+
+LOST_ROW = 10      # the load had no value for this frame: NaN recorded, NaN exported
+
+
+def _with_force(test_run, name, *, area_in_metadata):
+    """The test run's session and results written again with the Recorder, plus the law's force per frame on
+    /machine/force (as the live session records it), NaN at ``LOST_ROW``."""
+    from livedic.stream.recorder import Recorder
+
+    source = test_run["recording"]
+    metadata = {key: value for key, value in read_session(source).items() if not key.startswith("livedic.")}
+    if area_in_metadata:
+        metadata["area_mm2"] = AREA_MM2
+    path = test_run["folder"] / name
+    force = test_run["force"].copy()
+    force[LOST_ROW] = np.nan
+    with Recorder(path, metadata) as rec:
+        for result, f in zip(read_results(source), force):
+            assert rec.write_results(result.frame_index, result.timestamp_ns, result.point_id, result.x, result.y,
+                                     result.u, result.v, result.zncc, result.ok)
+            assert rec.write_force(result.frame_index, result.timestamp_ns, f, f / AREA_MM2,
+                                   source="synthetic:tensile")
+    assert rec.error is None and rec.force_written == len(force)
+    return str(path), force
+
+
+@pytest.fixture(scope="module")
+def force_recordings(test_run):
+    with_area, force = _with_force(test_run, "force-area.mcap", area_in_metadata=True)
+    without_area, _ = _with_force(test_run, "force-no-area.mcap", area_in_metadata=False)
+    return {"with_area": with_area, "without_area": without_area, "force": force}
+
+
+def test_export_without_load_uses_the_recorded_force(test_run, force_recordings, tmp_path, capsys):
+    """Force per frame as recorded (NaN where it was), A0 from the session's area_mm2, strain as always."""
+    out = tmp_path / "export"
+    assert main(["export", force_recordings["with_area"], "-o", str(out)]) == 0
+    assert "stress_strain.csv, stress_strain.png" in capsys.readouterr().err
+    header, rows = _rows(out / "stress_strain.csv")
+    assert header == HEADER and np.array_equal(_col(rows, "frame"), test_run["frames"])
+    force, stress = _col(rows, "force_N"), _col(rows, "eng_stress_MPa")
+    want = force_recordings["force"]
+    lost = np.arange(len(want)) == LOST_ROW
+    assert np.array_equal(force[~lost], want[~lost]) and np.isnan(force[lost]).all()     # bit for bit
+    assert np.isnan(stress[lost]).all()
+    assert np.all(np.abs(stress[~lost] - want[~lost] / AREA_MM2) <= 1e-12 * np.abs(stress[~lost]))
+    _, ext = _rows(out / "extensometers.csv")
+    assert np.array_equal(_col(rows, "eng_strain"), _col([r for r in ext if r["name"] == "axial"], "eng_strain"))
+    stress_entry = _strict_json(out / "session.json")["livedic.export"]["stress"]
+    assert stress_entry["load"] == "recorded:/machine/force" and stress_entry["area_mm2"] == AREA_MM2
+    assert stress_entry["recorded_source"] == "synthetic:tensile"
+    assert stress_entry["frames_with_force"] == len(want) - 1
+
+
+def test_recorded_force_takes_the_cross_section_from_the_options_or_asks_for_it(force_recordings, tmp_path,
+                                                                                  capsys):
+    out = tmp_path / "export"
+    code = main(["export", force_recordings["without_area"], "-o", str(out)])
+    line = _one_error_line(capsys.readouterr().err)
+    assert code == 2 and "--area" in line and "/machine/force" in line and not out.exists(), line
+    assert main(["export", force_recordings["without_area"], "-o", str(out), "--width", "5",
+                 "--thickness", "2"]) == 0
+    _, rows = _rows(out / "stress_strain.csv")
+    force, stress = _col(rows, "force_N"), _col(rows, "eng_stress_MPa")
+    ok = np.isfinite(force)
+    assert np.all(np.abs(stress[ok] - force[ok] / 10.0) <= 1e-12 * np.abs(stress[ok]))
+
+
+def test_a_given_load_replaces_the_recorded_force_with_a_note(test_run, force_recordings, tmp_path, capsys):
+    half = tmp_path / "half.csv"
+    _write_force(half, test_run["time_s"], 0.5 * test_run["force"])
+    out = tmp_path / "export"
+    assert main(["export", force_recordings["with_area"], "-o", str(out), "--load", f"csv:{half}",
+                 "--area", str(AREA_MM2)]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "/machine/force" in line]
+    assert len(notes) == 1 and notes[0].startswith("livedic: note: --load csv:"), notes
+    _, rows = _rows(out / "stress_strain.csv")
+    assert np.allclose(_col(rows, "force_N"), 0.5 * test_run["force"], rtol=1e-12, atol=0)
+
+
+def test_report_reads_the_recorded_force(test_run, force_recordings, tmp_path):
+    from livedic.stream.report import report_recording
+    from livedic.stream.stress import RECORDED_FORCE, StressOptions
+
+    out = tmp_path / "report"
+    report = report_recording(force_recordings["with_area"], out,
+                              stress=StressOptions(RECORDED_FORCE, 0.0, AREA_MM2))
+    assert sorted(os.listdir(out)) == ["report.json", "report.md", "stress_strain.png"]
+    assert report["source"]["frames_with_force"] == len(test_run["frames"]) - 1
+    assert report["source"]["recorded_source"] == "synthetic:tensile"
+    # the same law as test_report_recovers_the_laws_properties, one elastic frame without force: same tolerances
+    rm_law = float(test_run["force"][test_run["peak"]] / AREA_MM2)
+    assert abs(report["E_GPa"]["value"] / (E_MPA / 1000.0) - 1.0) <= 0.02, report["E_GPa"]
+    assert abs(report["Rm_MPa"]["value"] / rm_law - 1.0) <= 0.01, report["Rm_MPa"]
+    assert abs(report["Rp02_MPa"]["value"] / _law_rp02_MPa() - 1.0) <= 0.01, report["Rp02_MPa"]
+
+
+def test_export_of_a_recording_without_force_is_unchanged(test_run, tmp_path, capsys):
+    """No --load, no /machine/force: no stress files and no note, as before the channel existed."""
+    out = tmp_path / "export"
+    assert main(["export", test_run["recording"], "-o", str(out)]) == 0
+    assert "/machine/force" not in capsys.readouterr().err and not (out / "stress_strain.csv").exists()
