@@ -76,11 +76,19 @@ def report_markdown(report, plot_name, title):
               "## Source", "",
               f"- recording: `{source['recording']}`" + (" (truncated: what could be recovered)"
                                                         if source["truncated"] else ""),
-              f"- force: `{source['load']}`, offset {source['load_offset_s']:g} s; force at "
-              f"{source['frames_with_force']} of {source['frames']} frames",
+              _force_line(source),
               f"- {source['strain']}",
               f"- written {source['generated_at']} by livedic report", ""]
     return "\n".join(lines)
+
+
+def _force_line(source):
+    """The report's line on where the force came from: the load and its offset, or the recorded channel."""
+    counted = f"force at {source['frames_with_force']} of {source['frames']} frames"
+    if "recorded_source" in source:
+        origin = f" (from `{source['recorded_source']}`)" if source["recorded_source"] else ""
+        return f"- force: as recorded on `/machine/force`{origin}; {counted}"
+    return f"- force: `{source['load']}`, offset {source['load_offset_s']:g} s; {counted}"
 
 
 def _cell(text):
@@ -164,7 +172,10 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
 
 
 def report_command(args):
-    """``livedic report FILE.mcap -o DIR --load csv:FILE (--area | --width --thickness)``; the exit code."""
+    """``livedic report FILE.mcap -o DIR [--load csv:FILE] [--area | --width --thickness]``; the exit code.
+
+    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.stress_from_args``).
+    """
     from livedic.stream.export import say, stress_from_args
     from livedic.stream.strain import overrides_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read

@@ -389,3 +389,27 @@ def test_export_of_a_recording_without_force_is_unchanged(test_run, tmp_path, ca
     out = tmp_path / "export"
     assert main(["export", test_run["recording"], "-o", str(out)]) == 0
     assert "/machine/force" not in capsys.readouterr().err and not (out / "stress_strain.csv").exists()
+
+
+def _report_args(recording, out):
+    """``livedic report`` arguments without --load (the parser asks for it today: the recorded force needs none)."""
+    from livedic.stream.cli import build_parser
+    args = build_parser().parse_args(["report", recording, "-o", str(out), "--load", "csv:unused.csv"])
+    args.load = None
+    return args
+
+
+def test_report_command_without_load_reads_the_recorded_force_or_says_what_is_missing(test_run, force_recordings,
+                                                                                       tmp_path, capsys):
+    from livedic.stream.report import report_command
+
+    out = tmp_path / "report"
+    assert report_command(_report_args(force_recordings["with_area"], out)) == 0
+    assert "report: E " in capsys.readouterr().err
+    report = _strict_json(out / "report.json")
+    assert report["specimen"]["area_mm2"] == AREA_MM2 and report["source"]["load"] == "recorded:/machine/force"
+    assert "as recorded on `/machine/force` (from `synthetic:tensile`)" in (out / "report.md").read_text()
+    none = tmp_path / "none"
+    with pytest.raises(ValueError, match="the report needs the machine's force"):
+        report_command(_report_args(test_run["recording"], none))
+    assert not none.exists()
