@@ -71,9 +71,9 @@ from livedic.dic.result import Measurement
 
 __all__ = ["CorruptRecording", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
            "RecordedExtensometerSample", "RecordedForceSample", "RecordedResults", "RecordedStrain", "Recording",
-           "RecordingError", "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results", "read_events",
-           "read_extensometer_samples", "read_force_samples", "read_results", "read_session", "read_strain_fields",
-           "recover"]
+           "RecordingError", "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results",
+           "read_events", "read_extensometer_samples", "read_force_samples", "read_results", "read_session",
+           "read_strain_fields", "recover"]
 
 log = logging.getLogger(__name__)
 
