@@ -213,7 +213,7 @@ def build_parser(extensions=()):
     report.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     report.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
     report.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
-    add_stress_arguments(report, load_required=True)
+    add_stress_arguments(report)
     add_strain_arguments(report, recorded=True)
     report.set_defaults(handler=_cmd_report)
 

@@ -420,7 +420,8 @@ class Session:
         sinks = [stage for stage in (self.strain, self.load_stage) if stage is not None]
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method,
-                                       strain_window=self.strain.windows.window if self.strain is not None else None))
+                                       strain_window=self.strain.windows.window if self.strain is not None else None,
+                                       load_source=config.load))
         if self.viewer is not None and self.viewer.enabled:
             sinks.append(self.viewer)
         self.reference_updates = ReferenceUpdates(lambda kind, message, level: self.event(kind, message, level,

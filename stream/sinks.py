@@ -31,6 +31,8 @@ class RecordResults:
         ``"search+subpixel"``, recorded with every result set.
     strain_window : int, optional
         The strain window (points a side), recorded with each strain field.
+    load_source : str, optional
+        The ``--load`` URI, recorded with each force sample (``result.force_N`` set by the load stage).
 
     The strain field and extensometer readings that the strain stage attached to the
     result (``result.strain``, ``result.extensometers``) are recorded with it.
@@ -38,10 +40,11 @@ class RecordResults:
     name = "recording"
     required = False
 
-    def __init__(self, recorder, method, *, strain_window=None):
+    def __init__(self, recorder, method, *, strain_window=None, load_source=None):
         self.recorder = recorder
         self.method = method
         self.strain_window = strain_window
+        self.load_source = load_source
         self.reference_frame_index = None
 
     def __call__(self, result, stats):
@@ -59,6 +62,9 @@ class RecordResults:
             self.recorder.write_strain(frame.index, frame.timestamp_ns, result.strain, window=self.strain_window)
         if result.extensometers is not None and len(result.extensometers.names):
             self.recorder.write_extensometers(frame.index, frame.timestamp_ns, result.extensometers)
+        if result.force_N is not None:
+            self.recorder.write_force(frame.index, frame.timestamp_ns, result.force_N, result.stress_MPa,
+                                      source=self.load_source or "")
         if result.reference_update is not None:
             self.reference_frame_index = frame.index       # the frames after this one are measured against it
         if result.dropped_since_last:

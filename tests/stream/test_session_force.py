@@ -59,3 +59,20 @@ def test_bad_load_options_are_one_line_exit_2_and_leave_no_file(tmp_path, extra,
     assert done.returncode == 2, done.stderr
     assert len(errors) == 1 and message in errors[0], done.stderr
     assert not record.exists()
+
+
+def test_recorded_force_gives_the_simulators_properties(tmp_path):
+    """run --load synthetic records the force on /machine/force; report then needs no force file.
+    The simulator's law with hardening 0.5: E 200 GPa, Rp0.2 816 MPa, Rm 1200 MPa exactly; the issue's
+    bound: within 1 % (E within 2 %), through the axial extensometer's strain."""
+    source = "synthetic:tensile?size=384x512&frames=300&pace=0&hardening=0.5"
+    record = tmp_path / "test.mcap"
+    assert main(["run", "--source", source, "--load", "synthetic", "--record", str(record), "--viewer", "none",
+                 "--progress", "off", "--gauge-length", "200"]) == 0
+    out = tmp_path / "report"
+    assert main(["report", str(record), "-o", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["E_GPa"]["value"] == pytest.approx(200.0, rel=0.02)
+    assert report["Rp02_MPa"]["value"] == pytest.approx(816.0, rel=0.01)
+    assert report["Rm_MPa"]["value"] == pytest.approx(1200.0, rel=0.01)
+    assert report["A_percent"]["value"] is None and report["A_percent"]["reason"]    # no fracture in this test
