@@ -9,6 +9,7 @@ and all commands create files alike. It lives here, in ``acquire``, because
 ``recover`` (the recording format's repair) is its lowest user.
 """
 
+import contextlib
 import os
 import tempfile
 
@@ -104,3 +105,33 @@ class AtomicFile:
         if exc_type is not None or self.tmp is not None:
             self.discard()
         return False
+
+
+@contextlib.contextmanager
+def atomic_files(paths, *, binary=()):
+    """All of ``paths`` (name -> path) written whole, or none: yields name -> ``AtomicFile``.
+
+    The folder is created if missing. On leaving normally every file is committed; on an error
+    every one is discarded and a folder this call created is removed again (if still empty).
+    ``binary``: the names opened in binary mode.
+    """
+    folders = {os.path.dirname(os.path.abspath(p)) for p in paths.values()}
+    created = [folder for folder in folders if not os.path.isdir(folder)]
+    for folder in folders:
+        os.makedirs(folder, exist_ok=True)
+    staged = {}
+    try:
+        for name, path in paths.items():
+            staged[name] = AtomicFile(path, binary=name in binary)
+        yield staged
+        for item in staged.values():
+            item.commit()
+    except BaseException:
+        for item in staged.values():
+            item.discard()
+        for folder in created:
+            try:
+                os.rmdir(folder)          # only if still empty
+            except OSError:
+                pass
+        raise

@@ -73,6 +73,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.csv_output import AtomicFile, OutputError, check_output_file, check_output_folder, json_text
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
@@ -371,12 +372,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
         names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
         load = _open_stress_load(stress, names, recording)      # bad load or no axial: before DIR is made
-        created = not os.path.isdir(directory)
-        os.makedirs(directory, exist_ok=True)
-        staged = {}
-        try:
-            for name, target in targets.items():
-                staged[name] = StagedFile(target, binary=name in BINARY_FILES)
+        with atomic_files(targets, binary=BINARY_FILES) as staged:
             fields, trace = staged["fields.csv"], staged["p0_trace.csv"]
             extensometers = staged["extensometers.csv"]
             fields_header = None
@@ -484,17 +480,6 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                 if isinstance(load, RecordedForce):
                     session[EXPORT_KEY]["stress"]["recorded_source"] = load.source
             staged["session.json"].write(json_text(session))
-            for name in outputs:
-                staged[name].commit()
-        except BaseException:
-            for item in staged.values():
-                item.discard()
-            if created:
-                try:
-                    os.rmdir(directory)          # only if still empty
-                except OSError:
-                    pass
-            raise
     return {"directory": directory, "files": [targets[name] for name in outputs], "frames": frames,
             "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
             "truncated": truncated, "notes": list(notes), "extensometers": list(names),

@@ -29,7 +29,8 @@ import math
 import os
 from datetime import datetime, timezone
 
-from livedic.stream.csv_output import AtomicFile, check_output_folder, json_text
+from livedic.acquire.atomic_file import atomic_files
+from livedic.stream.csv_output import check_output_folder, json_text
 
 __all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_command", "report_json", "report_markdown"]
 
@@ -147,27 +148,11 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
               "generated_at": datetime.now(timezone.utc).isoformat()}
     report = report_json(properties, specimen, source)
     title = os.path.basename(path)
-    created = not os.path.isdir(directory)
-    os.makedirs(directory, exist_ok=True)
-    staged = {}
-    try:
-        for name, target in targets.items():
-            staged[name] = AtomicFile(target, binary=name.endswith(".png"))
+    with atomic_files(targets, binary={name for name in targets if name.endswith(".png")}) as staged:
         staged["report.json"].write(json_text(report))
         staged["report.md"].write(report_markdown(report, "stress_strain.png", title))
         plot_stress_strain(staged["stress_strain.png"].handle, table, properties=properties,
                            title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
-        for name in REPORT_FILES:
-            staged[name].commit()
-    except BaseException:
-        for item in staged.values():
-            item.discard()
-        if created:
-            try:
-                os.rmdir(directory)          # only if still empty
-            except OSError:
-                pass
-        raise
     return report
 
 
