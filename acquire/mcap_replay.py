@@ -552,29 +552,28 @@ class Recording:
                                        f"({bad})") from None
             yield _recorded_results(values, message.publish_time)
 
-    def strain_fields(self):
-        """Yield ``RecordedStrain`` per frame from ``/dic/strain`` (nothing for a recording without strain)."""
-        for channel, message in self.messages({rs.TOPIC_STRAIN}):
-            if self.schema_name(channel) != rs.STRAIN_FIELD_SCHEMA:
+    def _decoded(self, topic, schema, decode, what):
+        """Yield ``decode(message bytes)`` for each message of ``topic`` with ``schema``; CorruptRecording if bad."""
+        for channel, message in self.messages({topic}):
+            if self.schema_name(channel) != schema:
                 continue
             try:
-                strain = _recorded_strain(rs.StrainField.FromString(message.data))
+                value = decode(message.data)
             except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
-                raise CorruptRecording(f"{self.name} is corrupt: strain message at log time {message.log_time} "
+                raise CorruptRecording(f"{self.name} is corrupt: {what} message at log time {message.log_time} "
                                        f"({error if isinstance(error, rs.WireError) else type(error).__name__})"
                                        ) from None
-            yield strain
+            yield value
+
+    def strain_fields(self):
+        """Yield ``RecordedStrain`` per frame from ``/dic/strain`` (nothing for a recording without strain)."""
+        yield from self._decoded(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA,
+                                 lambda data: _recorded_strain(rs.StrainField.FromString(data)), "strain")
 
     def extensometer_samples(self):
         """Yield ``RecordedExtensometerSample`` from ``/dic/extensometers``: per frame, one per extensometer."""
-        for channel, message in self.messages({rs.TOPIC_EXTENSOMETERS}):
-            if self.schema_name(channel) != rs.EXTENSOMETER_SAMPLE_SCHEMA:
-                continue
-            try:
-                sample = rs.ExtensometerSample.FromString(message.data)
-            except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
-                raise CorruptRecording(f"{self.name} is corrupt: extensometer message at log time "
-                                       f"{message.log_time} ({type(error).__name__})") from None
+        for sample in self._decoded(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA,
+                                    rs.ExtensometerSample.FromString, "extensometer"):
             yield RecordedExtensometerSample(
                 frame_index=sample.frame_index, timestamp_ns=sample.timestamp_ns, name=sample.name,
                 l0_px=sample.l0_px, l_px=sample.l_px, eng_strain=sample.eng_strain, true_strain=sample.true_strain,
@@ -597,14 +596,7 @@ class Recording:
 
     def force_samples(self):
         """Yield ``RecordedForceSample`` from ``/machine/force``: one per tracked frame, none in older recordings."""
-        for channel, message in self.messages({rs.TOPIC_FORCE}):
-            if self.schema_name(channel) != rs.FORCE_SAMPLE_SCHEMA:
-                continue
-            try:
-                sample = rs.ForceSample.FromString(message.data)
-            except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
-                raise CorruptRecording(f"{self.name} is corrupt: force message at log time "
-                                       f"{message.log_time} ({type(error).__name__})") from None
+        for sample in self._decoded(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA, rs.ForceSample.FromString, "force"):
             yield RecordedForceSample(frame_index=sample.frame_index, timestamp_ns=sample.timestamp_ns,
                                       force_N=sample.force_N, stress_MPa=sample.stress_MPa, ok=sample.ok,
                                       source=sample.source)
