@@ -578,6 +578,76 @@ class Tracker:
             result = _take(result, slice(None), Measurement)
         return result
 
+    def resume(self, previous, *, last_good=None):
+        """Start the next ``track`` from a known earlier result, as if the frames before had been tracked here.
+
+        ``track`` starts each frame from what it keeps of the frames before: the previous
+        result (displacement, gradients, ZNCC) and each point's last ok result. Offline,
+        where a recording holds what the tracker measured in every frame, setting that
+        state from the recording lets any frame be measured on its own, in any order and
+        on any machine (``livedic replay --workers``), by this same ``track``; with the
+        recorded result of the frame tracked just before, IC-GN starts where the live
+        tracker started.
+
+        Parameters
+        ----------
+        previous : dic.result.Measurement or None
+            The result of the frame tracked before (``u, v, zncc, ok`` and, for first-order
+            methods, ``ux, uy, vx, vy``; shape (N,) in this tracker's point order). None: no
+            frame before (the state of a new tracker, as for the reference frame).
+        last_good : dict of str -> ndarray (N,), optional
+            Each point's last ok result up to that frame: ``u, v`` and ``ux, uy, vx, vy``
+            (0 where never ok, as ``track`` keeps them) and ``ever`` (bool: ok in some frame).
+            Default: ``previous``'s own where ok, 0 elsewhere (no point lost before it).
+
+        Not restored: the back-off of the wide re-find search (a point lost for several
+        frames is searched for at once, not after waiting ``REFIND_MAX_WAIT`` frames), the
+        IC-GN window (it grows as ``track`` needs it) and icgn2's second-order start terms
+        (0: they are not part of a ``Measurement``; icgn2 refines them from there).
+
+        Raises
+        ------
+        ValueError
+            ``previous`` or ``last_good`` of another number of points.
+        """
+        n = self.n_points
+        zeros = np.zeros(n)
+        self._refind_wait = np.zeros(n, dtype=np.int64)
+        self._refind_skip = np.zeros(n, dtype=np.int64)
+        if previous is None:
+            self._prev = {name: zeros.copy() for name in ("u", "v") + self._shape_terms}
+            self._prev_zncc = np.full(n, np.nan)
+            self._good_u, self._good_v = zeros.copy(), zeros.copy()
+            self._good_grad = {name: zeros.copy() for name in _SHAPE}
+            self._ever_good = np.zeros(n, dtype=bool)
+            return
+        ok = np.asarray(previous.ok, dtype=bool)
+        if ok.shape != (n,):
+            raise ValueError(f"resume: the earlier result has {ok.size} points, the tracker {n}")
+        nan = np.full(n, np.nan)
+
+        def where_ok(values, otherwise):
+            return otherwise.copy() if values is None else np.where(ok, np.asarray(values, dtype=np.float64),
+                                                                     otherwise)
+
+        self._prev = {name: where_ok(getattr(previous, name, None), nan) for name in ("u", "v") + _SHAPE}
+        for name in self._shape_terms[len(_SHAPE):]:
+            self._prev[name] = zeros.copy()
+        if previous.ux is None:
+            for name in _SHAPE:
+                self._prev[name] = zeros.copy()
+        self._prev_zncc = where_ok(previous.zncc, nan)
+        if last_good is None:
+            last_good = {name: where_ok(getattr(previous, name, None), zeros) for name in ("u", "v") + _SHAPE}
+            last_good["ever"] = ok
+        for name in ("u", "v", "ever") + _SHAPE:
+            if np.shape(last_good[name]) != (n,):
+                raise ValueError(f"resume: last_good[{name!r}] is not one value per point ({n})")
+        self._good_u = np.array(last_good["u"], dtype=np.float64)
+        self._good_v = np.array(last_good["v"], dtype=np.float64)
+        self._good_grad = {name: np.array(last_good[name], dtype=np.float64) for name in _SHAPE}
+        self._ever_good = np.array(last_good["ever"], dtype=bool)
+
     def _at_the_edge(self, start_u, start_v):
         """Points whose start (previous result) puts their subset at the image's edge.
 
@@ -755,6 +825,25 @@ class Tracker:
             if values is not None:
                 self._good_grad[name] = np.where(ok, values, self._good_grad[name])
         self._ever_good |= ok
+
+
+def last_good_after(last_good, result):
+    """Each point's last ok result (``Tracker.resume``'s ``last_good``) once ``result`` has been tracked.
+
+    ``last_good``: the dict before ``result`` (None: before the first frame, every value 0, never ok);
+    ``result``: a ``Measurement`` (``u, v, ok`` and, when it has them, ``ux, uy, vx, vy``). The rule is
+    the tracker's own: ok values replace, the others keep what was there.
+    """
+    ok = np.asarray(result.ok, dtype=bool)
+    if last_good is None:
+        last_good = {name: np.zeros(ok.size) for name in ("u", "v") + _SHAPE}
+        last_good["ever"] = np.zeros(ok.size, dtype=bool)
+    out = {"ever": last_good["ever"] | ok}
+    for name in ("u", "v") + _SHAPE:
+        values = getattr(result, name, None)
+        out[name] = last_good[name] if values is None else np.where(ok, np.asarray(values, dtype=np.float64),
+                                                                    last_good[name])
+    return out
 
 
 def _gradients_of(measurement):

@@ -114,6 +114,14 @@ def add_replay_arguments(parser):
                              "(default: exactly the frames with recorded results, in order: the replay then "
                              "equals the recording bit for bit)")
     parser.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1)")
+    parallel = parser.add_argument_group("parallel replay on Dask (default: sequential, in this process)")
+    where = parallel.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, metavar="N",
+                       help="measure the frames in parallel on a local Dask cluster of N worker processes "
+                            "(1 thread each), seeded by the recorded results")
+    where.add_argument("--cluster", metavar="ADDRESS",
+                       help="... on the Dask scheduler at ADDRESS (tcp://HOST:8786), its workers started with "
+                            "dask-worker (livedic installed there)")
     parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                         help="progress bar on stderr (default auto: when stderr is a terminal)")
     add_strain_arguments(parser, recorded=True)
@@ -298,6 +306,7 @@ class ReplayReport:
     notes: list = field(default_factory=list)
     truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
     strain: dict = None              # stream.strain.StrainStage.summary() of the replay (final extensometers)
+    parallel: object = None          # stream.parallel_replay.ParallelStats when measured on Dask (--workers, --cluster)
 
     @property
     def exact(self):
@@ -403,7 +412,7 @@ def _compare(report, measurement, recorded):
 
 
 def replay(path, given=None, *, point_options=None, all_frames=False, on_result=None, progress=None,
-           threads=1, strain=None):
+           threads=1, strain=None, workers=None, cluster=None, in_flight=None):
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
 
     Parameters
@@ -426,20 +435,62 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     strain : dict, optional
         Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``); the
         strain fields and extensometers are recomputed on the replayed displacements.
+    workers : int, optional
+        Measure the frames in parallel on a local Dask cluster of this many worker processes
+        (``stream.parallel_replay``); the outputs are the sequential replay's.
+    cluster : str, optional
+        ... on the Dask scheduler at this address (``tcp://HOST:8786``) instead.
+    in_flight : int, optional
+        Parallel: frames submitted ahead of the one being written (default 4 per worker thread).
 
     Raises
     ------
     ValueError
         Bad parameters, or a recording that is missing, not MCAP, not livedic,
-        corrupt, or holds nothing to replay (``RecordingError`` is a ValueError).
+        corrupt, or holds nothing to replay (``RecordingError`` is a ValueError); in parallel
+        also ``ClusterError`` (no scheduler at ``cluster``) and ``ParallelReplayLimit`` (what the
+        parallel replay does not follow yet: a reference update or a fracture).
     SourceError
         The frames cannot be read (``RecordingSourceError``).
     """
-    from livedic.acquire.mcap_replay import McapSource, Recording
-
     path = os.fspath(path)
     point_options = point_options or PointOptions()
     point_options.check()
+    if workers is not None or cluster is not None:
+        from livedic.stream.parallel_replay import dask_client
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ValueError(f"--workers must be a positive integer, got {workers!r}")
+        _check_parallel_input(path, given, all_frames)
+        with dask_client(workers, cluster) as client:
+            return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain,
+                           client=client, in_flight=in_flight,
+                           where=f"the Dask scheduler at {cluster}" if cluster is not None
+                           else f"a local Dask cluster of {workers} worker process(es)")
+    return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain)
+
+
+def _check_parallel_input(path, given, all_frames):
+    """What the parallel replay refuses before any cluster starts (one line): nothing to seed from, a reference
+    move or a fracture in the recording."""
+    from livedic.acquire.mcap_replay import Recording
+    from livedic.stream.parallel_replay import ParallelReplayLimit, recorded_limits
+    results = list(Recording(path).results())
+    if not results:
+        if not all_frames:
+            return                 # the sequential replay's own error says it
+        raise ParallelReplayLimit(f"{path} holds no tracking results to seed the frames from: replay it without "
+                                  f"--workers/--cluster")
+    reference_update = (given or {}).get("reference_update")
+    limit = recorded_limits(results, moves=reference_update is None or str(reference_update) != "never")
+    if limit is not None:
+        raise ParallelReplayLimit(f"{path}: {limit}: replay it without --workers/--cluster")
+
+
+def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, *, client=None,
+            in_flight=None, where=None):
+    """``replay``: sequential (``client`` None) or on the Dask ``client``."""
+    from livedic.acquire.mcap_replay import McapSource, Recording
+
     with reader_notes() as notes:
         metadata, session_note = read_session_or_note(path)
         recording = Recording(path)
@@ -496,8 +547,17 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         if progress is not None:
             sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
         frames = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
+        if client is None:
+            make_session = Session
+        else:
+            from functools import partial
+
+            from livedic.stream.parallel_replay import ParallelSession
+            again = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
+            make_session = partial(ParallelSession, client=client, frames_again=again, recorded=recorded,
+                                   in_flight=in_flight)
         started = time.perf_counter()
-        with Session(config, source=frames, points=points, sinks=sinks) as session:
+        with make_session(config, source=frames, points=points, sinks=sinks) as session:
             try:
                 session.prepare()
             except NoFrame:
@@ -507,6 +567,9 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
             point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded_ids)
             session.start()
             session.run()
+            if client is not None:
+                report.parallel = session.finish_parallel()
+                report.parallel.where = where
         report.strain = session.strain.summary() if session.strain is not None else None
         if session.source_error is not None:
             raise session.source_error
@@ -594,6 +657,14 @@ class _Comparison:
 
 # ----------------------------------------------------------------------------- the command
 
+def describe_parallel(stats):
+    """One line: where the frames were measured, the tracker's own time and what travelled."""
+    per_frame = stats.image_bytes / stats.frames if stats.frames else 0.0
+    return (f"parallel: {stats.frames} frames measured on {stats.where} ({stats.workers} worker thread(s)): "
+            f"{stats.compute_seconds:.1f} s of tracking in the tasks; {per_frame / 1e6:.2f} MB of image "
+            f"(as recorded) and {stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent")
+
+
 def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
     check_output_csv(args.output, args.recording)
@@ -629,11 +700,13 @@ def replay_command(args):
         if to_file:
             with StagedFile(args.output) as out:
                 report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                                on_result=write_rows(out), progress=progress, threads=args.threads, strain=strain)
+                                on_result=write_rows(out), progress=progress, threads=args.threads, strain=strain,
+                                workers=args.workers, cluster=args.cluster)
                 out.commit()
         else:
             report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                            on_result=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain)
+                            on_result=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
+                            workers=args.workers, cluster=args.cluster)
             sys.stdout.flush()
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
@@ -651,6 +724,8 @@ def replay_command(args):
     say(f"replayed {report.frames} frames x {report.points} points ({frames_text}; "
         f"{report.params['search']}+{report.params['subpixel']}) in {report.seconds:.1f} s ({rate}){where}")
     say(report.verdict())
+    if report.parallel is not None:
+        say(describe_parallel(report.parallel))
     for line in format_strain_summary(report.strain):
         say(line.strip())
     return 0
