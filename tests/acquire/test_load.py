@@ -177,7 +177,7 @@ def test_a_bad_csv_is_one_line_naming_file_and_line(tmp_path, content, where):
 
 
 @pytest.mark.parametrize("uri, where", [
-    ("modbus://127.0.0.1:502?register=1&scale=0.1", "not built yet"),
+    ("modbus://127.0.0.1:502?scale=0.1", "register= is required"),
     ("synthetic", "pass source="),
     ("synthetic:translate", "has no force"),
     ("synthetic:tensile?frames=1", "frames"),
