@@ -381,6 +381,9 @@ class SessionConfig:
     area_mm2 : float or None
         Original cross-section A0 (``--area``, or ``--width`` x ``--thickness``); None: the simulated
         test's own with ``--load synthetic``, else no stress.
+    publish : tuple of str
+        Where each frame's extensometer strain goes out (``--publish udp://HOST:PORT`` or
+        ``modbus://HOST:PORT``, ``stream.publish``); needs extensometers.
     """
     source: str = DEFAULT_SOURCE
     frames: int = None
@@ -405,6 +408,7 @@ class SessionConfig:
     load: str = None
     load_offset: float = 0.0
     area_mm2: float = None
+    publish: tuple = ()
 
     def __post_init__(self):
         if self.frames is not None and self.frames < 1:
@@ -430,9 +434,23 @@ class SessionConfig:
                 raise ValueError(f"--reconnect-timeout must be a positive number of seconds, got "
                                  f"{self.reconnect_timeout}")
 
+        object.__setattr__(self, "publish", tuple(self.publish or ()))
+        if self.publish:
+            from livedic.stream.publish import parse_publish_uris
+            parse_publish_uris(self.publish)      # now: a bad URI is one line before anything opens
+            if self.strain.gauge_length is None and not self.strain.extensometers:
+                raise ValueError("--publish sends extensometer strain: add --gauge-length L[,W] or --extensometer "
+                                 "NAME=x1,y1,x2,y2")
+
         if self.reconnect and self.scheme not in CAMERA_SCHEMES:
             raise ValueError(f"--reconnect applies to cameras (aravis:, v4l2:); {self.source} is a {self.scheme} "
                              f"source")
+
+    @property
+    def publish_targets(self):
+        """``publish`` parsed (``stream.publish.PublishTarget``); ValueError (one line) for a bad URI."""
+        from livedic.stream.publish import parse_publish_uris
+        return parse_publish_uris(self.publish)
 
     @property
     def scheme(self):
@@ -475,4 +493,4 @@ class SessionConfig:
             show_progress=args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty()),
             threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
             reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args),
-            **_load_from_args(args))
+            publish=tuple(getattr(args, "publish", None) or ()), **_load_from_args(args))

@@ -110,6 +110,13 @@ def add_run_arguments(parser):
     parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
     add_strain_arguments(parser)
     add_stress_arguments(parser)
+    parser.add_argument("--publish", action="append", metavar="URI",
+                        help="send each tracked frame's extensometer strain to a machine controller as soon as it "
+                             "exists (needs --gauge-length or --extensometer; repeatable): udp://HOST:PORT, one JSON "
+                             "datagram per frame {frame, time_s, strain: {name: value or null}, ok}; "
+                             "modbus://HOST:PORT, a Modbus TCP server with the values in holding registers (map in "
+                             "the README). Without a host: 127.0.0.1; modbus://0.0.0.0:PORT listens on every "
+                             "interface")
     parser.add_argument("--reconnect", action="store_true",
                         help="cameras (aravis:, v4l2:): when the camera is lost, keep the session and the recording "
                              "open and reopen it every second until it is back (or Ctrl-C); the session then goes on "

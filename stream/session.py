@@ -53,6 +53,7 @@ from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, check_point_count, read_points_csv
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
+from livedic.stream.publish import format_publish_summary
 from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
@@ -275,6 +276,8 @@ class Session:
         Where P0 is and why (None when ``points`` were given).
     strain : stream.strain.StrainStage or None
         The strain and extensometer stage on the points, from ``prepare``.
+    publishers : list of stream.publish.PublishStage
+        The ``--publish`` outlets, opened in ``prepare`` (before any output), closed by ``close``.
     reference : Reference or None
         The reference frame's points, once the tracker is built on it.
     total_frames : int or None
@@ -306,6 +309,7 @@ class Session:
         self.strain = None
         self.load = None
         self.load_stage = None
+        self.publishers = []
         self.reference_updates = None
         self.fractures = None
         self.reference = None
@@ -400,6 +404,7 @@ class Session:
         self._place_points(self._ahead.frame)
 
         self._open_load()
+        self._open_publishers()
         self.phase = Phase.OPENING_OUTPUTS
         self._open_outputs(scheme)
         self.phase = Phase.READY
@@ -418,6 +423,7 @@ class Session:
                                              reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
         sinks = [stage for stage in (self.strain, self.load_stage) if stage is not None]
+        sinks.extend(self.publishers)         # strain out as soon as it exists: before the recording and the view
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method,
                                        strain_window=self.strain.windows.window if self.strain is not None else None,
@@ -452,6 +458,8 @@ class Session:
             self.acquisition.stop()
             self.queue.close()          # frees a put blocked on a full queue ("block" policy)
             self.acquisition.join(timeout=10.0)
+            for publisher in self.publishers:
+                self._close_quietly(publisher.finish, publisher.name)
         self.bar.update(self.acquisition.frames, self.bar.last_text, force=True)
         self.bar.close()
         self._report_end()
@@ -496,6 +504,9 @@ class Session:
         if self.load is not None:
             load, self.load = self.load, None
             self._close_quietly(load.close, "force source")
+        publishers, self.publishers = self.publishers, []
+        for publisher in publishers:
+            self._close_quietly(publisher.close, publisher.name)
         if self.recorder is not None and not self.recorder.closed:
             self.recorder.close()
         if self.viewer is not None:
@@ -606,6 +617,22 @@ class Session:
             area = (getattr(self.load, "specimen", None) or {}).get("A0_mm2")
         self.load_stage = LoadStage(self.load, area, lambda kind, message, level: self.event(
             kind, message, level, tell=level != "info"))
+
+    def _open_publishers(self):
+        """The ``--publish`` outlets (sockets, Modbus servers listening), before any output opens.
+
+        ValueError (one line) when one cannot open (a host that does not resolve, a port in use):
+        nothing is recorded then.
+        """
+        config = self.config
+        if not config.publish:
+            return
+        from livedic.stream.publish import open_publishers
+        names = [e.name for e in self.strain.extensometers] if self.strain is not None else []
+        self.publishers = open_publishers(config.publish_targets, names, lambda kind, message, level: self.event(
+            kind, message, level, tell=level != "info"))
+        for publisher in self.publishers:
+            self.say(publisher.outlet.note())
 
     def _place_strain(self, shape):
         """The strain stage on the points as the tracker uses them (pixel centres); ValueError for an
@@ -750,6 +777,7 @@ class Session:
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=self.strain.summary() if self.strain is not None else None,
             force=self.load_stage.summary() if self.load_stage is not None else None,
+            publish=[publisher.summary() for publisher in self.publishers] or None,
             reference_update=config.tracking.reference_update,
             **(self.reference_updates.summary() if self.reference_updates is not None else {}),
             **(self.fractures.summary() if self.fractures is not None else {}))
@@ -802,6 +830,7 @@ def format_summary(summary, reference, recorder):
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
     lines.extend(format_strain_summary(summary.get("strain")))
     lines.extend(format_force_summary(summary.get("force")))
+    lines.extend(format_publish_summary(summary.get("publish")))
     if recorder is not None:
         size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
         if recorder.error:

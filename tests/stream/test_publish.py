@@ -1,0 +1,415 @@
+"""Strain out (``--publish``): UDP JSON datagrams and a Modbus TCP register map, checked against the recording.
+
+Every value a controller receives is compared with what the same session recorded for the
+same frame (``/dic/extensometers``, read back): UDP's JSON numbers exactly (a float64's
+shortest repr round-trips), Modbus's float32 registers exactly as float32 of the recorded
+double. Bad URIs and a port in use are one line, exit 2, no recording.
+"""
+
+import dataclasses
+import errno
+import json
+import math
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from livedic.acquire.mcap_replay import Recording, read_events
+from livedic.dic.extensometer import ExtensometerStatus
+from livedic.stream.config import SessionConfig, ViewerConfig
+from livedic.stream.publish import (EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED, FrameValues,
+                                    decode_registers, encode_registers, parse_publish_uri, parse_publish_uris,
+                                    register_count)
+from livedic.stream.session import Session
+from livedic.stream.strain import StrainConfig
+
+SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
+SMALL = "synthetic:tensile?size=192x256&frames=3&fps=1000"
+
+
+# --------------------------------------------------------------------------- URIs
+
+@pytest.mark.parametrize("text, scheme, host, port", [
+    ("udp://127.0.0.1:9870", "udp", "127.0.0.1", 9870),
+    ("udp://:9870", "udp", "127.0.0.1", 9870),                    # no host: loopback, never every interface
+    ("UDP://localhost:9870", "udp", "localhost", 9870),
+    ("modbus://:5020", "modbus", "127.0.0.1", 5020),
+    ("modbus://0.0.0.0:5020", "modbus", "0.0.0.0", 5020),
+    ("modbus://[::1]:5020/", "modbus", "::1", 5020),
+    ("modbus://127.0.0.1:0", "modbus", "127.0.0.1", 0),            # any free port, said at the start
+])
+def test_publish_uris_parse(text, scheme, host, port):
+    target = parse_publish_uri(text)
+    assert (target.scheme, target.host, target.port) == (scheme, host, port)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("127.0.0.1:9870", "expected udp://HOST:PORT or modbus://HOST:PORT"),
+    ("tcp://127.0.0.1:9870", "unknown scheme 'tcp'"),
+    ("udp://127.0.0.1", "a port is needed"),
+    ("udp://127.0.0.1:0", "port must be 1..65535, got 0"),
+    ("udp://127.0.0.1:70000", "Port out of range"),
+    ("udp://127.0.0.1:abc", "Port could not be cast"),
+    ("modbus://127.0.0.1:5020?register=3", "only HOST:PORT may follow modbus://"),
+    ("udp://127.0.0.1:9870/strain", "only HOST:PORT may follow udp://"),
+])
+def test_bad_publish_uris_are_one_line(text, message):
+    with pytest.raises(ValueError, match=None) as error:
+        parse_publish_uri(text)
+    assert message in str(error.value) and "\n" not in str(error.value)
+    assert str(error.value).startswith("--publish ")
+
+
+def test_the_same_target_twice_is_refused():
+    with pytest.raises(ValueError, match="given twice"):
+        parse_publish_uris(["udp://:9870", "udp://127.0.0.1:9870"])
+    assert len(parse_publish_uris(["udp://:9870", "modbus://:9870"])) == 2
+
+
+def test_publish_needs_extensometers():
+    with pytest.raises(ValueError, match="--publish sends extensometer strain: add --gauge-length"):
+        SessionConfig(source=SOURCE, publish=("udp://:9870",))
+    assert SessionConfig(source=SOURCE, publish=["udp://:9870"], strain=StrainConfig(gauge_length=200)).publish == \
+        ("udp://:9870",)
+
+
+# --------------------------------------------------------------------------- the message and the register map
+
+def _values(valid=(True, False)):
+    return FrameValues(frame=41, time_s=0.82, names=("axial", "transverse"), eng_strain=(0.00123, math.nan),
+                       true_strain=(math.log1p(0.00123), math.nan), valid=valid)
+
+
+def test_json_has_the_contract_keys_and_null_never_nan():
+    message = json.loads(_values().as_json().decode("utf-8"))
+    assert list(message)[:4] == ["frame", "time_s", "strain", "ok"]
+    assert message["frame"] == 41 and message["time_s"] == 0.82
+    assert message["strain"] == {"axial": 0.00123, "transverse": None}
+    assert message["ok"] is False                        # one extensometer without a reading
+    assert "force_N" not in message                      # only with --load
+    assert b"NaN" not in _values().as_json()
+    both = FrameValues(frame=1, time_s=0.0, names=("axial",), eng_strain=(0.5,), true_strain=(0.4,), valid=(True,),
+                       force_N=math.nan, stress_MPa=math.nan)
+    message = json.loads(both.as_json())
+    assert message["ok"] is True and message["force_N"] is None and message["stress_MPa"] is None
+    # A value marked valid but NaN is still null: NaN is never serialised.
+    odd = dataclasses.replace(both, eng_strain=(math.nan,))
+    assert json.loads(odd.as_json())["strain"] == {"axial": None}
+
+
+def test_register_map_round_trip_as_the_readme_states_it():
+    values = dataclasses.replace(_values(), force_N=1234.5, stress_MPa=61.7)
+    registers = encode_registers(values, update_count=70_000)
+    assert len(registers) == register_count(2) == HEADER_REGISTERS + 2 * EXTENSOMETER_REGISTERS == 28
+    assert all(0 <= r <= 0xFFFF for r in registers)
+    back = decode_registers(registers)
+    assert back["update_count"] == 70_000 and registers[0:2] == [1, 70_000 - 65_536]    # high word first
+    assert back["frame"] == 41 and back["ok"] is False and back["state"] == 1 and back["extensometers"] == 2
+    assert back["time_s"] == np.float32(0.82) and back["force_N"] == np.float32(1234.5)
+    assert back["eng_strain"][0] == np.float32(0.00123) and math.isnan(back["eng_strain"][1])
+    assert back["valid"] == [True, False]
+    # Big-endian bytes in big-endian words: the float's 4 bytes in order across two registers.
+    assert struct.pack(">HH", *registers[16:18]) == struct.pack(">f", 0.00123)
+
+
+# --------------------------------------------------------------------------- sessions
+
+def _config(record, publish, **more):
+    return SessionConfig(source=SOURCE, viewer=ViewerConfig("none"), record=record, warm_up=False,
+                         strain=StrainConfig(gauge_length=200), publish=tuple(publish), **more)
+
+
+def _receiver():
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    return receiver
+
+
+def _drain(receiver):
+    """Every datagram waiting on ``receiver`` (the session has ended: all were sent)."""
+    receiver.setblocking(False)
+    out = []
+    while True:
+        try:
+            out.append(receiver.recv(65536))
+        except BlockingIOError:
+            return out
+
+
+def _recorded(path):
+    """{frame: (time_s as export gives it, eng_strain array, ok array)} from the recording."""
+    recording = Recording(path)
+    frames = [r.frame_index for r in recording.results()]
+    first_ns = next(iter(Recording(path).results())).timestamp_ns
+    readings = {frame: ((int(ts) - int(first_ns)) / 1e9, r) for frame, ts, r in recording.extensometer_readings()}
+    return frames, readings
+
+
+@pytest.fixture(scope="module")
+def udp_session(tmp_path_factory):
+    record = str(tmp_path_factory.mktemp("udp") / "session.mcap")
+    receiver = _receiver()
+    port = receiver.getsockname()[1]
+    said = []
+    with Session(_config(record, [f"udp://:{port}"]), say=said.append) as session:
+        session.execute()
+    datagrams = _drain(receiver)
+    receiver.close()
+    return session, record, datagrams, said
+
+
+def test_one_datagram_per_tracked_frame_with_the_recorded_strain(udp_session):
+    session, record, datagrams, said = udp_session
+    frames, readings = _recorded(record)
+    assert session.stats.frames == len(frames) == 14 and len(datagrams) == len(frames)
+    messages = [json.loads(d.decode("utf-8")) for d in datagrams]
+    assert [m["frame"] for m in messages] == frames                     # in order, each once
+    for message in messages:
+        assert set(message) == {"frame", "time_s", "strain", "ok", "true_strain"}
+        time_s, recorded = readings[message["frame"]]
+        assert message["time_s"] == time_s                              # as the recording and export give it
+        assert list(message["strain"]) == list(recorded.names) == ["axial", "transverse"]
+        for name, eng, true in zip(recorded.names, recorded.eng_strain, recorded.true_strain):
+            assert message["strain"][name] == float(eng)                # exactly the recorded double
+            assert message["true_strain"][name] == float(true)
+        assert message["ok"] is bool(recorded.ok.all()) is True
+    assert messages[-1]["strain"]["axial"] > 0.05                       # the test went well into plasticity
+    assert any(f"publishing strain to udp://127.0.0.1:" in line for line in said)
+
+
+def test_summary_counts_the_datagrams_and_their_latency(udp_session):
+    session, _, _, _ = udp_session
+    (entry,) = session.summary()["publish"]
+    assert entry["sent"] == session.stats.frames and entry["failed"] == 0
+    assert 0 < entry["upstream_p50_ms"] <= entry["latency_p50_ms"] <= entry["latency_p99_ms"]
+    assert f"  publish    {entry['uri']}: {entry['sent']} frames sent; result -> sent p50" in session.summary_text()
+
+
+def _lose_transverse_on_odd_frames(session):
+    """The strain stage's readings with the transverse extensometer lost (NaN, END_LOST) on odd frames."""
+    stage = session.strain
+    compute = stage.compute
+    calls = []
+
+    def lossy(u, v, ok):
+        strain, readings = compute(u, v, ok)
+        calls.append(None)
+        if len(calls) % 2 == 0:
+            eng, true, status = (readings.eng_strain.copy(), readings.true_strain.copy(), readings.status.copy())
+            eng[1] = true[1] = np.nan
+            status[1] = int(ExtensometerStatus.END_LOST)
+            readings = dataclasses.replace(readings, eng_strain=eng, true_strain=true, status=status)
+        return strain, readings
+    stage.compute = lossy
+
+
+def test_a_lost_extensometer_is_null_and_the_frame_not_ok(tmp_path):
+    record = str(tmp_path / "lossy.mcap")
+    receiver = _receiver()
+    with Session(_config(record, [f"udp://127.0.0.1:{receiver.getsockname()[1]}"], frames=6), say=lambda m: None) \
+            as session:
+        session.prepare()
+        _lose_transverse_on_odd_frames(session)
+        session.start()
+        session.run()
+    messages = [json.loads(d) for d in _drain(receiver)]
+    receiver.close()
+    _, readings = _recorded(record)
+    assert len(messages) == 6
+    lost = [m for m in messages if m["strain"]["transverse"] is None]
+    assert len(lost) == 3
+    for message in messages:
+        _, recorded = readings[message["frame"]]
+        assert message["ok"] is bool(recorded.ok.all())
+        if message["strain"]["transverse"] is None:
+            assert not recorded.ok[1] and np.isnan(recorded.eng_strain[1]) and message["ok"] is False
+            assert message["strain"]["axial"] == float(recorded.eng_strain[0])   # the other one still goes out
+        else:
+            assert message["ok"] is True and message["strain"]["transverse"] == float(recorded.eng_strain[1])
+
+
+class _FailingSocket:
+    """A UDP socket whose sends fail for frames 3..5 (ENETUNREACH), then work again."""
+
+    def __init__(self, real):
+        self.real = real
+        self.calls = 0
+
+    def sendto(self, data, address):
+        self.calls += 1
+        if 4 <= self.calls <= 6:
+            raise OSError(errno.ENETUNREACH, "Network is unreachable")
+        return self.real.sendto(data, address)
+
+    def close(self):
+        self.real.close()
+
+
+def test_a_failing_send_is_a_warning_and_the_session_and_recording_go_on(tmp_path):
+    record = str(tmp_path / "failing.mcap")
+    receiver = _receiver()
+    said = []
+    with Session(_config(record, [f"udp://127.0.0.1:{receiver.getsockname()[1]}"], frames=10), say=said.append) \
+            as session:
+        session.prepare()
+        outlet = session.publishers[0].outlet
+        outlet.socket = _FailingSocket(outlet.socket)
+        session.start()
+        session.run()
+    received = _drain(receiver)
+    receiver.close()
+    frames, _ = _recorded(record)
+    assert len(frames) == session.stats.frames == 10                     # every frame recorded
+    (entry,) = session.summary()["publish"]
+    assert entry["sent"] == len(received) == 7 and entry["failed"] == 3
+    assert "3 NOT sent" in session.summary_text()
+    events = [e for e in read_events(record) if e.kind == "publish"]
+    assert [e.level for e in events] == ["warning", "info"]
+    assert "not sent (" in events[0].message and "Network is unreachable" in events[0].message
+    assert "sending again from frame" in events[1].message
+    assert sum("warning: udp://127.0.0.1:" in line for line in said) == 1     # said once, not per frame
+    assert not session.sink_errors
+
+
+def test_force_and_stress_go_out_with_a_load(tmp_path):
+    record = str(tmp_path / "force.mcap")
+    receiver = _receiver()
+    with Session(_config(record, [f"udp://127.0.0.1:{receiver.getsockname()[1]}"], frames=5, load="synthetic"),
+                 say=lambda m: None) as session:
+        session.execute()
+    messages = [json.loads(d) for d in _drain(receiver)]
+    receiver.close()
+    force = {s.frame_index: s for s in Recording(record).force_samples()}
+    assert len(messages) == 5
+    for message in messages:
+        sample = force[message["frame"]]
+        assert message["force_N"] == (sample.force_N if math.isfinite(sample.force_N) else None)
+        assert message["stress_MPa"] == (sample.stress_MPa if math.isfinite(sample.stress_MPa) else None)
+    assert messages[-1]["force_N"] > 0
+
+
+# --------------------------------------------------------------------------- Modbus
+
+def _read_map(client, count):
+    response = client.read_holding_registers(0, count=count)
+    assert not response.isError(), response
+    return response.registers
+
+
+def test_modbus_serves_each_frame_whole_and_the_last_one_after_the_session(tmp_path):
+    from pymodbus.client import ModbusTcpClient
+    record = str(tmp_path / "modbus.mcap")
+    said = []
+    reads, stop = [], threading.Event()
+    with Session(_config(record, ["modbus://127.0.0.1:0"]), say=said.append) as session:
+        session.prepare()
+        outlet = session.publishers[0].outlet
+        count = register_count(2)
+        client = ModbusTcpClient("127.0.0.1", port=outlet.port, timeout=5)
+        assert client.connect()
+        before = decode_registers(_read_map(client, count))
+        assert before["state"] == 0 and before["update_count"] == 0 and before["extensometers"] == 2
+
+        def poll():
+            while not stop.is_set():
+                reads.append(decode_registers(_read_map(client, count)))
+                time.sleep(0.002)
+        poller = threading.Thread(target=poll)
+        poller.start()
+        try:
+            session.start()
+            session.run()
+        finally:
+            stop.set()
+            poller.join()
+        after = decode_registers(_read_map(client, count))
+        # pymodbus's own decoding agrees with the map: float32, big-endian word order
+        raw = _read_map(client, count)
+        axial = client.convert_from_registers(raw[16:18], data_type=client.DATATYPE.FLOAT32, word_order="big")
+        frame = client.convert_from_registers(raw[2:4], data_type=client.DATATYPE.UINT32, word_order="big")
+        refused = client.write_register(20, 1)
+        client.close()
+        port = outlet.port
+    frames, readings = _recorded(record)
+    last = frames[-1]
+    time_s, recorded = readings[last]
+    assert after["state"] == STATE_ENDED and after["update_count"] == session.stats.frames == len(frames)
+    assert after["frame"] == frame == last and after["ok"] is True and after["valid"] == [True, True]
+    assert after["time_s"] == np.float32(time_s)
+    assert after["eng_strain"] == [np.float32(v) for v in recorded.eng_strain]
+    assert after["true_strain"] == [np.float32(v) for v in recorded.true_strain]
+    assert axial == np.float32(recorded.eng_strain[0])
+    assert math.isnan(after["force_N"]) and math.isnan(after["stress_MPa"])      # no --load
+    assert refused.isError()                                                    # writes are refused
+    # Every read during the session is one frame whole: its time and strains are that frame's.
+    during = [r for r in reads if r["update_count"] > 0]
+    assert during, "no read landed during the session"
+    for read in during:
+        t, frame_readings = readings[read["frame"]]
+        assert read["time_s"] == np.float32(t)
+        assert read["eng_strain"] == [np.float32(v) for v in frame_readings.eng_strain]
+    assert [r["update_count"] for r in reads] == sorted(r["update_count"] for r in reads)
+    assert any(f"publishing strain on modbus://127.0.0.1:{port}" in line and "axial at 16, transverse at 22" in line
+               for line in said)
+    # Closed with the session: the port is free again.
+    probe = socket.socket()
+    probe.bind(("127.0.0.1", port))
+    probe.close()
+
+
+# --------------------------------------------------------------------------- the command line
+
+def _run(tmp_path, *extra):
+    record = tmp_path / "s.mcap"
+    argv = ["run", "--viewer", "none", "--record", str(record), "--progress", "off", "--source", SMALL, *extra]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=120)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
+    return done, errors, record
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--gauge-length", "100", "--publish", "udp://127.0.0.1"], "--publish udp://127.0.0.1: a port is needed"),
+    (["--gauge-length", "100", "--publish", "mqtt://127.0.0.1:1883"], "unknown scheme 'mqtt'"),
+    (["--publish", "udp://127.0.0.1:9870"], "--publish sends extensometer strain: add --gauge-length"),
+    (["--gauge-length", "100", "--publish", "udp://no-such-host.invalid:9870"], "cannot resolve host"),
+])
+def test_bad_publish_input_is_one_line_exit_2_and_no_file(tmp_path, extra, message):
+    done, errors, record = _run(tmp_path, *extra)
+    assert done.returncode == 2, done.stderr
+    assert len(errors) == 1 and message in errors[0], done.stderr
+    assert "Traceback" not in done.stderr and not record.exists()
+
+
+def test_a_modbus_port_in_use_is_one_line_exit_2_and_no_file(tmp_path):
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen(1)
+    port = busy.getsockname()[1]
+    try:
+        done, errors, record = _run(tmp_path, "--gauge-length", "100", "--publish", "udp://:9870",
+                                    "--publish", f"modbus://127.0.0.1:{port}")
+    finally:
+        busy.close()
+    assert done.returncode == 2, done.stderr
+    assert len(errors) == 1 and f"cannot listen on 127.0.0.1:{port}" in errors[0], done.stderr
+    assert "Address already in use" in errors[0] and not record.exists()
+    assert "Traceback" not in done.stderr
+
+
+def test_run_publishes_from_the_command_line(tmp_path):
+    receiver = _receiver()
+    done, errors, record = _run(tmp_path, "--gauge-length", "100", "--publish",
+                                f"udp://localhost:{receiver.getsockname()[1]}")
+    messages = [json.loads(d) for d in _drain(receiver)]
+    receiver.close()
+    assert done.returncode == 0 and not errors, done.stderr
+    assert len(messages) == 3 and [m["frame"] for m in messages] == _recorded(str(record))[0]
+    assert "  publish    udp://localhost:" in done.stdout and "3 frames sent" in done.stdout
