@@ -367,6 +367,71 @@ def test_memory_is_bounded_by_max_samples_and_keep_s():
             assert np.all(np.diff(t) == 1.0)
 
 
+def test_garbage_is_one_bad_data_event_per_connection_and_counted():
+    with serving(send_then_hold(b"1,10\nabc\n2,20\n#x\n??\n3,30\n")) as server, \
+            loading(f"tcp://127.0.0.1:{server.port}?clock=sender", max_gap_s=2.0) as load:
+        wait_until(lambda: load.samples()[0].size == 3 and load.warnings.garbage_lines == 3)
+        assert [event.kind for event in load.events()] == [LoadEventKind.CONNECTED, LoadEventKind.BAD_DATA]
+        bad = load.events()[1]
+        assert bad.kind.is_trouble and "'abc'" in bad.message and "counted" in bad.message
+        assert load.warnings.total() == 3
+
+
+def test_the_session_offset_shifts_a_streams_samples():
+    """``--load-offset`` reaches every load (the session passes it): a stream shifts its times by it."""
+    with serving(send_then_hold(b"1,10\n2,20\n")) as server, \
+            loading(f"tcp://127.0.0.1:{server.port}?clock=sender", offset_s=-0.5, max_gap_s=2.0) as load:
+        wait_until(lambda: load.samples()[0].size == 2)
+        np.testing.assert_array_equal(load.samples()[0], [0.5, 1.5])
+        assert load.force_at(1.0) == 15.0 and load.last_sample_time_s == 1.5
+        assert load.settings["offset_s"] == -0.5
+        assert load.force_when_known(1.0) == 15.0
+
+
+def test_force_when_known_waits_for_the_sample_after_a_live_frame():
+    """A frame arriving between two lines has no force until the next line: asked at once it is NaN."""
+    frame_time = {}
+
+    def script(sock, stop):
+        sock.sendall(b"100\n")
+        time.sleep(0.05)
+        frame_time["t"] = time.monotonic()              # a frame arrives here, between two lines
+        time.sleep(0.1)
+        sock.sendall(b"200\n")
+        stop.wait(5)
+
+    with serving(script) as server, loading(f"tcp://127.0.0.1:{server.port}") as load:
+        wait_until(lambda: "t" in frame_time)
+        at_once = load.force_at(frame_time["t"])
+        known = load.force_when_known(frame_time["t"])
+        t, f = load.samples()
+        assert t.size == 2 and t[0] < frame_time["t"] < t[1]
+        expected = 100 + 100 * (frame_time["t"] - t[0]) / (t[1] - t[0])
+        assert math.isnan(at_once) and known == pytest.approx(expected, abs=1e-9)
+
+
+def test_force_when_known_does_not_wait_on_a_stalled_stream_or_a_file(tmp_path):
+    with serving(send_then_hold(b"5\n")) as server, loading(f"tcp://127.0.0.1:{server.port}", max_gap_s=0.05) as load:
+        wait_until(lambda: load.samples()[0].size == 1)
+        time.sleep(0.1)                                  # longer than max_gap_s: the stream stalled
+        assert math.isnan(load.force_when_known(time.monotonic()))
+    path = write_csv(tmp_path / "f.csv", [(0, 0), (1, 100)])
+    with loading(f"csv:{path}") as load:
+        assert load.force_when_known(0.25) == 25.0 and math.isnan(load.force_when_known(2.0))
+
+
+def test_an_arrival_stamped_stream_is_nan_across_a_reconnection():
+    """retry_s shorter than max_gap_s: the outage still is NaN (a marker where the connection was lost)."""
+    with serving(send_then_hold(b"10\n"), send_then_hold(b"30\n")) as server:
+        with loading(f"tcp://127.0.0.1:{server.port}", retry_s=0.01, max_gap_s=5.0) as load:
+            wait_until(lambda: load.samples()[0].size == 1)
+            server.stop.set()                            # the first connection ends, the second sends 30 at once
+            wait_until(lambda: np.any(load.samples()[1] == 30.0))
+            t, f = load.samples()
+            assert np.isnan(f[1]) and list(f[[0, 2]]) == [10.0, 30.0]
+            assert np.isnan(load.force_at(np.linspace(t[0], t[2], 7)[1:-1])).all()
+
+
 # --- the issue's target: a delayed stream aligned with 50 fps frames -----------------------------
 
 FPS = 50.0
