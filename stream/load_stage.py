@@ -8,8 +8,10 @@ the frame's time (seconds since the first frame for files and the simulator, the
 monotonic clock for a stream), interpolated, never extrapolated, NaN where the source has none
 (a stalled or lost stream: never a stale value), and the engineering stress F / A0, attaches both
 to the ``FrameResult`` (``result.force_N``, ``result.stress_MPa``) for the sinks after it
-(recording, progress line), reports the source's events (connected, stalled, lost) and keeps the
-numbers for the summary.
+(recording, Rerun's stress-strain curve, progress line), with the true strain and true stress of
+the ``axial`` extensometer while the elongation may be uniform (``result.true_strain``,
+``result.true_stress_MPa``; ``stream.stress.UniformElongationWatch``), reports the source's
+events (connected, stalled, lost) and keeps the numbers for the summary.
 """
 
 import math
@@ -18,6 +20,8 @@ import time
 import numpy as np
 
 from livedic.acquire.load import open_load
+from livedic.stream.strain import AXIAL
+from livedic.stream.stress import UniformElongationWatch
 
 
 def open_session_load(uri, *, offset_s, camera):
@@ -57,6 +61,7 @@ class LoadStage:
         self.last_stress_MPa = math.nan
         self.seconds = 0.0
         self._events_seen = 0
+        self.uniform = UniformElongationWatch(area_mm2) if area_mm2 else None
 
     def __call__(self, result, stats):
         started = time.perf_counter()
@@ -68,6 +73,8 @@ class LoadStage:
         force = float(np.asarray(self.load.force_at(np.atleast_1d(when)), dtype=np.float64)[0])
         stress = force / self.area_mm2 if self.area_mm2 and math.isfinite(force) else math.nan
         result.force_N, result.stress_MPa = force, stress
+        if self.uniform is not None:
+            result.true_strain, result.true_stress_MPa = self.uniform(force, axial_strain(result))
         self.frames += 1
         if math.isfinite(force):
             self.max_force_N = max(self.max_force_N, force)
@@ -87,6 +94,15 @@ class LoadStage:
                 "max_stress_MPa": top / self.area_mm2 if self.area_mm2 and math.isfinite(top) else math.nan,
                 "final_force_N": self.last_force_N, "final_stress_MPa": self.last_stress_MPa,
                 "frames_without_force": self.frames_without_force, "frames": self.frames}
+
+
+def axial_strain(result):
+    """The ``axial`` extensometer's engineering strain in ``result`` (NaN without one or without a reading)."""
+    readings = result.extensometers
+    if readings is None or AXIAL not in readings.names:
+        return math.nan
+    strain, _, ok = readings.reading(AXIAL)
+    return strain if ok else math.nan
 
 
 def _is_trouble(event):

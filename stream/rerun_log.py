@@ -45,6 +45,16 @@ Entity tree (paths are the constants below)::
                         the time cursor (strain_xy/data/curve), and the current point with the two
                         strains and Poisson's ratio -e_t/e_a once |e_axial| >= 5e-4 (strain_xy/now)
 
+  with the machine's force (``start(load=stage)``, the session's ``stream.load_stage.LoadStage``):
+
+    machine/force       the force (kN) against time; nothing logged for a frame without a force, a gap
+    stress_strain       with a cross-section and an "axial" extensometer: engineering stress (MPa)
+                        against axial strain (%) (stress_strain/data/curve) and the true curve up to
+                        uniform elongation (stress_strain/data/true; live, while the force is within
+                        0.5 % of its maximum so far: ``stream.stress.UniformElongationWatch``), drawn
+                        like strain_xy, with the current strain, stress, force and true stress
+                        (stress_strain/now); a frame without a force or an axial strain is a gap
+
 Related values share one entity as a multi-series ``Scalars`` (one log call
 each: a scalar costs ~0.15 ms to log, about as much as an image).
 
@@ -105,6 +115,8 @@ from collections import deque
 import numpy as np
 
 from livedic.dic.extensometer import end_displacements
+from livedic.dic.tensile_properties import FRACTURE_DROP
+from livedic.stream.load_stage import axial_strain
 from livedic.stream.strain import AXIAL, TRANSVERSE
 
 APPLICATION_ID = "livedic"
@@ -147,6 +159,12 @@ STRAIN_XY_CURVE = "strain_xy/data/curve"
 STRAIN_XY_NOW = "strain_xy/now"
 STRAIN_XY_AXES = "strain_xy/axes"
 STRAIN_XY_TICKS = "strain_xy/ticks"
+# force and stress (only with the session's load stage: ``start(load=...)``)
+FORCE = "machine/force"                          # the force (kN) against time
+STRESS_STRAIN = "stress_strain"                  # the stress-strain plot, an _XYPlot like strain_xy
+STRESS_STRAIN_CURVE = "stress_strain/data/curve"   # engineering stress (MPa) against axial strain (%)
+STRESS_STRAIN_TRUE = "stress_strain/data/true"     # true stress against true strain, up to Ag
+STRESS_STRAIN_NOW = "stress_strain/now"
 
 TIMELINE_FRAME = "frame"
 TIMELINE_TIME = "time"
@@ -154,6 +172,7 @@ TIMELINE_TIME = "time"
 MIN_COLOUR_LIMIT_PX = 0.05       # the automatic scale starts at +-this, so reference-frame noise is one colour
 MIN_COLOUR_LIMIT_STRAIN = 1e-3   # e_yy's scale starts at +-0.1 %: strain noise (~1e-4) is one colour
 MIN_XY_LIMIT_STRAIN = 5e-4       # the transverse-vs-axial axes start at +-0.05 % (where Poisson's ratio starts)
+MIN_XY_LIMIT_STRESS_MPA = 100.0  # the stress-strain plot's stress axis starts at 0-100 MPa
 _NICE_MANTISSAS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
 _AXIS_MANTISSAS = (1.0, 2.0, 5.0, 10.0)   # the transverse-vs-axial axes grow in fewer, bigger steps
 _LIMIT_PERCENTILES = (0.5, 99.5)
@@ -176,6 +195,7 @@ _BLACK = 0x000000FF              # packed opaque black
 # drawn below its anchor, so a horizontal line's label needs the room, a vertical one's hardly any.
 _LABEL_OFFSET = (0.16, 0.03)
 _EXTENSOMETER_DRAW_ORDER = 50.0  # above the lost/low-ZNCC squares and P0
+_STRESS_COLOURS = ((255, 150, 0), (255, 90, 200))   # engineering, true: apart from the extensometers' colours
 _XY_BOX = (100.0, 25.0)          # the transverse-vs-axial plot's box (width, height) in scene units
 _XY_FRAME_COLOUR = (160, 160, 160)
 _XY_ZERO_COLOUR = (210, 210, 210)
@@ -424,6 +444,124 @@ def _fmt(value):
     return f"{value:+.3g}" if abs(value) < 1000 else f"{value:+.0f}"
 
 
+class _XYPlot:
+    """An XY plot in a 2D view (Rerun has no XY plot): a fixed box whose axes grow with the data.
+
+    The curve is logged in data units (x, -y) under ``ROOT/data``, whose transform maps the current
+    limits onto the box (``_XY_BOX``; image coordinates run down, hence -y); the limits start at
+    ``x_start``/``y_start`` (lo <= 0 <= hi) and only grow, to 1, 2 or 5 times a power of ten, and each
+    growth logs one new transform (the whole curve rescales: the segments already logged stay as they
+    are) and new axes. One segment a frame, shown up to the time cursor (``history_override``); a
+    frame without a value leaves a gap and clears the current point.
+
+    Entities: ``ROOT/data/curve`` (and ``ROOT/data/SECOND`` for a second curve), ``ROOT/now`` (the
+    current point, and the numbers above the box), ``ROOT/axes``, ``ROOT/ticks``.
+    """
+
+    def __init__(self, root, *, x_title, y_title, x_start, y_start, colours, second=None, x_title_under_zero=True,
+                 mantissas=_AXIS_MANTISSAS):
+        self.root = root
+        self.data, self.curve, self.now = f"{root}/data", f"{root}/data/curve", f"{root}/now"
+        self.axes, self.ticks = f"{root}/axes", f"{root}/ticks"
+        self.second = f"{root}/data/{second}" if second else None
+        self.x_title, self.y_title = x_title, y_title
+        self.x_title_under_zero = x_title_under_zero     # inside the box, under the x axis; else above the bottom
+        self.mantissas = mantissas                        # the nice numbers the limits grow to
+        self.colours = colours
+        self.limits = {"x": tuple(x_start), "y": tuple(y_start)}
+        self._axes_logged = None
+        self._last = {self.curve: None, self.second: None}    # each curve's previous point, None after a gap
+        self.transform = ((1.0, 1.0), (0.0, 0.0))
+
+    def view(self, name):
+        import rerun.blueprint as rrb
+        history = rrb.VisibleTimeRanges([
+            rrb.VisibleTimeRange(timeline, start=rrb.TimeRangeBoundary.infinite(),
+                                 end=rrb.TimeRangeBoundary.cursor_relative())
+            for timeline in (TIMELINE_FRAME, TIMELINE_TIME)])
+        width, height = _XY_BOX
+        curves = [self.curve] + ([self.second] if self.second else [])
+        return rrb.Spatial2DView(name=name, origin=self.root, overrides={f"/{c}": history for c in curves},
+                                 visual_bounds=rrb.VisualBounds2D(x_range=[-0.08 * width, 1.03 * width],
+                                                                  y_range=[-0.4 * height, 1.2 * height]))
+
+    def start(self, rr, rec):
+        """The curves' and the current point's styles (static: logged once)."""
+        rec.log(self.curve, rr.LineStrips2D.from_fields(radii=-1.5, colors=[self.colours[0]]), static=True)
+        if self.second:
+            rec.log(self.second, rr.LineStrips2D.from_fields(radii=-1.5, colors=[self.colours[1]]), static=True)
+        rec.log(self.now, rr.Points2D.from_fields(radii=[0.0, -4.0], colors=[_LABEL_TEXT_COLOUR, (255, 255, 255)],
+                                                  show_labels=True, draw_order=_MARKER_DRAW_ORDER), static=True)
+
+    def add(self, rr, rec, x, y, text, second=None):
+        """This frame's point (x, y) in data units with its text; ``second``: (x, y) of the second curve or None."""
+        self._grow(x, y)
+        if second is not None:
+            self._grow(*second)
+        if self._axes_logged != self.limits:
+            self._log_axes(rr, rec)
+        point = (x, -y)
+        self._segment(rr, rec, self.curve, point)
+        if self.second:
+            self._segment(rr, rec, self.second, None if second is None else (second[0], -second[1]))
+        (kx, ky), (bx, by) = self.transform
+        width, height = _XY_BOX
+        # two labels for two points (one label alone would go to the middle of both): the numbers above the box,
+        # right of its title, then the current point, unlabelled
+        rec.log(self.now, rr.Points2D.from_fields(positions=[(0.68 * width, -0.3 * height),
+                                                             (kx * point[0] + bx, ky * point[1] + by)],
+                                                  labels=[text, ""]))
+
+    def gap(self, rr, rec):
+        """No value this frame: a gap in the curves, the current point cleared."""
+        if self._last[self.curve] is not None:
+            rec.log(self.now, rr.Clear(recursive=False))
+        self._last = {key: None for key in self._last}
+
+    def _segment(self, rr, rec, entity, point):
+        if point is not None and self._last[entity] is not None:
+            rec.log(entity, rr.LineStrips2D.from_fields(strips=[[self._last[entity], point]]))
+        self._last[entity] = point
+
+    def _grow(self, x, y):
+        self.limits = {"x": grow_to_cover(self.limits["x"], x, self.mantissas),
+                       "y": grow_to_cover(self.limits["y"], y, self.mantissas)}
+
+    def _log_axes(self, rr, rec):
+        """The box for the current limits: frame, zero lines, grid and tick labels, and the transform."""
+        width, height = _XY_BOX
+        (x_lo, x_hi), (y_lo, y_hi) = self.limits["x"], self.limits["y"]
+        kx, ky = width / (x_hi - x_lo), height / (y_hi - y_lo)
+        bx, by = -kx * x_lo, ky * y_hi                    # box X = kx * x + bx, box Y = ky * (-y) + by
+        self.transform = ((kx, ky), (bx, by))
+        rec.log(self.data, rr.Transform3D(translation=[bx, by, 0.0], scale=[kx, ky, 1.0]))
+        x_ticks, y_ticks = _ticks(x_lo, x_hi), _ticks(y_lo, y_hi)
+        strips, colours = [], []
+        for tick in x_ticks:
+            x = kx * tick + bx
+            strips.append([(x, 0.0), (x, height)])
+            colours.append(_XY_ZERO_COLOUR if tick == 0 else _XY_GRID_COLOUR)
+        for tick in y_ticks:
+            y = -ky * tick + by
+            strips.append([(0.0, y), (width, y)])
+            colours.append(_XY_ZERO_COLOUR if tick == 0 else _XY_GRID_COLOUR)
+        strips.append([(0.0, 0.0), (width, 0.0), (width, height), (0.0, height), (0.0, 0.0)])
+        colours.append(_XY_FRAME_COLOUR)
+        rec.log(self.axes, rr.LineStrips2D(strips, radii=-0.75, colors=colours, draw_order=0.0))
+        positions = [(kx * tick + bx, height + 0.02 * height) for tick in x_ticks]
+        positions += [(-0.04 * width, -ky * tick + by - 0.07 * height) for tick in y_ticks]
+        labels = [_tick_label(tick) for tick in x_ticks] + [_tick_label(tick) for tick in y_ticks]
+        # the axis titles: y's above the box's left side; x's inside the box at the right, under the zero line
+        # (a tensile test's transverse-vs-axial curve runs down and right from 0, far from there), or just above
+        # the bottom (a stress-strain curve is high up at large strains)
+        x_title_y = by + 0.04 * height if self.x_title_under_zero else 0.78 * height
+        positions += [(0.06 * width, -0.3 * height), (0.92 * width, x_title_y)]
+        labels += [self.y_title, self.x_title]
+        rec.log(self.ticks, rr.Points2D(positions, radii=0.0, labels=labels, show_labels=True,
+                                        colors=[_LABEL_TEXT_COLOUR]))
+        self._axes_logged = dict(self.limits)
+
+
 class RerunLogger:
     """Sends a live session to Rerun (see module notes).
 
@@ -499,11 +637,13 @@ class RerunLogger:
         self._end_u = self._end_v = None         # last known displacement of each extensometer end
         self._series_shown = {}                  # extensometer name -> its strain series has a value now
         self._xy_pair = None                     # (axial index, transverse index) for the transverse-vs-axial plot
-        self._xy_limits = {"axial": (-MIN_XY_LIMIT_STRAIN, MIN_XY_LIMIT_STRAIN),
-                           "transverse": (-MIN_XY_LIMIT_STRAIN, MIN_XY_LIMIT_STRAIN)}
-        self._xy_axes_logged = None
-        self._xy_last = None                     # the plot's previous point (%), None after a gap
-        self._xy_transform = ((1.0, 1.0), (0.0, 0.0))
+        self._strain_xy = None                   # that plot (_XYPlot), from start()
+        self._load = None                        # the session's stream.load_stage.LoadStage, from start()
+        self._stress_xy = None                   # the stress-strain plot (_XYPlot): with a load, A0 and "axial"
+        self._force_shown = False
+        self._fractured = False                  # a fracture was detected (result.fracture)
+        self._broken = False                     # ... and the force fell below FRACTURE_DROP of its maximum
+        self._max_force_N = -np.inf
         self.log_seconds = 0.0
         self.frames_logged = 0
         self.thin_when_behind = bool(thin_when_behind)
@@ -525,24 +665,26 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- setup
     def start(self, *, image_shape, roi=None, p0_index=None, points=None, has_truth=False, title=None,
-              source_settings=None, strain=None):
+              source_settings=None, strain=None, load=None):
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
 
         ``strain`` is the session's ``stream.strain.StrainStage`` (None: no strain): with it the view
-        adds e_yy, the extensometers and their plots (module notes).
+        adds e_yy, the extensometers and their plots (module notes). ``load`` is the session's
+        ``stream.load_stage.LoadStage`` (None: no force): with it the force against time and, with
+        a cross-section and an ``axial`` extensometer, the stress-strain curve.
         """
         if not self.enabled:
             return
         rr = self.rr
         self._strain = strain
-        self._xy_pair = _axial_transverse_pair(strain)
+        self._load = load
         height, width = image_shape
         scale = 1
         while max(height, width) / scale > self.image_max_side:
             scale += 1
         self._scale = scale
         self._p0 = p0_index
-        blueprint = self._make_blueprint(has_truth, strain)
+        blueprint = self._make_blueprint(has_truth, strain, load)
         if self.mode == "save":
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
@@ -571,6 +713,11 @@ class RerunLogger:
             self._first_bars[legend] = (limits, colour_bar_image(self._lut, *limits, unit=unit, factor=factor))
         if strain is not None:
             self._start_strain(strain)
+        if load is not None:
+            rec.log(FORCE, rr.SeriesLines(names=["force (kN)"], colors=[_STRESS_COLOURS[0]], widths=[2.0]),
+                    static=True)
+        if self._stress_xy is not None:
+            self._stress_xy.start(rr, rec)
         if self.color_range is not None:      # fixed: static; automatic: logged with the first frame
             for legend in (LEGEND_U, LEGEND_V):
                 self._log_limits(legend, static=True)
@@ -582,6 +729,22 @@ class RerunLogger:
             lines += ["", "| setting | value |", "|---|---|"]
             lines += [f"| {k} | {v} |" for k, v in source_settings.items()]
         rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
+
+    def _plan_plots(self, strain, load):
+        """The XY plots this session shows: transverse vs axial, stress-strain (None where it has not the data)."""
+        self._xy_pair = _axial_transverse_pair(strain)
+        self._strain_xy = self._stress_xy = None
+        if self._xy_pair is not None:
+            self._strain_xy = _XYPlot(STRAIN_XY, x_title="axial (%)", y_title="transverse (%)",
+                                      x_start=(-100 * MIN_XY_LIMIT_STRAIN, 100 * MIN_XY_LIMIT_STRAIN),
+                                      y_start=(-100 * MIN_XY_LIMIT_STRAIN, 100 * MIN_XY_LIMIT_STRAIN),
+                                      colours=[_extensometer_colour(0)])
+        has_axial = strain is not None and AXIAL in [e.name for e in strain.extensometers]
+        if load is not None and load.area_mm2 and has_axial:
+            self._stress_xy = _XYPlot(STRESS_STRAIN, x_title="axial strain (%)", y_title="stress (MPa)",
+                                      x_start=(-100 * MIN_XY_LIMIT_STRAIN, 100 * MIN_XY_LIMIT_STRAIN),
+                                      y_start=(0.0, MIN_XY_LIMIT_STRESS_MPA), colours=_STRESS_COLOURS,
+                                      second="true", x_title_under_zero=False, mantissas=_NICE_MANTISSAS)
 
     def _spawn_viewer(self):
         if _port_open("127.0.0.1", DEFAULT_PORT):
@@ -604,8 +767,9 @@ class RerunLogger:
         raise ValueError(f"the Rerun viewer did not start listening on 127.0.0.1:{DEFAULT_PORT} within 10 s; "
                          "use --viewer save FILE.rrd instead")
 
-    def _make_blueprint(self, has_truth, strain=None):
+    def _make_blueprint(self, has_truth, strain=None, load=None):
         import rerun.blueprint as rrb
+        self._plan_plots(strain, load)
         field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
         extensometers = [f"/{EXTENSOMETER_LINES}"] if strain is not None else []
         image_views = [
@@ -633,6 +797,10 @@ class RerunLogger:
             cells = [(image_views[0], texts), (eyy, eyy_bar), (image_views[1], u_bar), (image_views[2], v_bar)]
             left = rrb.Grid(*(rrb.Vertical(view, under, row_shares=[5, 1]) for view, under in cells), grid_columns=2)
             strain_plots = self._strain_plots(strain)
+        if self._stress_xy is not None:    # what a tensile test is run for: the first plot
+            strain_plots.insert(0, self._stress_xy.view("stress-strain (MPa, %)"))
+        if load is not None:
+            strain_plots.append(rrb.TimeSeriesView(name="force (kN)", origin=FORCE))
         performance = [
             rrb.TimeSeriesView(name="throughput", origin=THROUGHPUT),
             rrb.TimeSeriesView(name="latency (ms)", origin=LATENCY),
@@ -664,17 +832,8 @@ class RerunLogger:
         if not strain.extensometers:
             return []
         plots = [rrb.TimeSeriesView(name="extensometer strain (%)", origin=EXTENSOMETER_STRAIN)]
-        if self._xy_pair is not None:
-            # the curve is one segment a frame, all shown up to the time cursor (on either timeline)
-            history = rrb.VisibleTimeRanges([
-                rrb.VisibleTimeRange(timeline, start=rrb.TimeRangeBoundary.infinite(),
-                                     end=rrb.TimeRangeBoundary.cursor_relative())
-                for timeline in (TIMELINE_FRAME, TIMELINE_TIME)])
-            width, height = _XY_BOX
-            plots.append(rrb.Spatial2DView(name="transverse vs axial strain (%)", origin=STRAIN_XY,
-                                           overrides={f"/{STRAIN_XY_CURVE}": history},
-                                           visual_bounds=rrb.VisualBounds2D(x_range=[-0.08 * width, 1.03 * width],
-                                                                            y_range=[-0.4 * height, 1.2 * height])))
+        if self._strain_xy is not None:
+            plots.append(self._strain_xy.view("transverse vs axial strain (%)"))
         return plots
 
     # ----------------------------------------------------------------- per frame
@@ -704,6 +863,8 @@ class RerunLogger:
             self.fields_skipped += 1
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
             self._log_extensometer_series(result.extensometers)
+        if self._load is not None:
+            self._log_force(result)
         p0 = self._p0
         if p0 is not None and 0 <= p0 < m.u.size and ok[p0]:
             rec.log(P0, rr.Scalars([float(m.u[p0]), float(m.v[p0])]))
@@ -838,13 +999,8 @@ class RerunLogger:
             radii = ([0.0] * count if count > 1 else []) + [-3.0] * count + [-1.5] * count
             rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(radii=radii, show_labels=True,
                                                                     draw_order=_EXTENSOMETER_DRAW_ORDER), static=True)
-        if self._xy_pair is not None:
-            rec.log(STRAIN_XY_CURVE, rr.LineStrips2D.from_fields(radii=-1.5, colors=[_extensometer_colour(0)]),
-                    static=True)
-            rec.log(STRAIN_XY_NOW, rr.Points2D.from_fields(radii=[0.0, -4.0],
-                                                           colors=[_LABEL_TEXT_COLOUR, (255, 255, 255)],
-                                                           show_labels=True, draw_order=_MARKER_DRAW_ORDER),
-                    static=True)
+        if self._strain_xy is not None:
+            self._strain_xy.start(rr, rec)
 
     def _log_strain_field(self, strain, ok, px, py, radius):
         """e_yy at every point drawn (ok displacement): colour-mapped where it has a strain, grey where not."""
@@ -911,73 +1067,51 @@ class RerunLogger:
             self._log_strain_xy(readings)
 
     def _log_strain_xy(self, readings):
-        """One segment of the transverse-vs-axial curve, the current point and its numbers, the axes when they grow.
-
-        The curve is logged in strain (%) as (axial, -transverse) under ``STRAIN_XY_DATA``, whose transform maps
-        the current limits onto the fixed plot box: when the limits grow, one new transform rescales the
-        whole curve, and the segments already logged stay as they are.
-        """
-        rr, rec = self.rr, self.rec
+        """This frame's point of the transverse-vs-axial plot with the two strains and Poisson's ratio (or a gap)."""
         a, t = self._xy_pair
         if not (readings.ok[a] and readings.ok[t]):
-            if self._xy_last is not None:
-                self._xy_last = None                      # a gap in the curve
-                rec.log(STRAIN_XY_NOW, rr.Clear(recursive=False))
+            self._strain_xy.gap(self.rr, self.rec)
             return
         axial, transverse = float(readings.eng_strain[a]), float(readings.eng_strain[t])
-        self._xy_limits = {"axial": grow_to_cover(self._xy_limits["axial"], axial),
-                           "transverse": grow_to_cover(self._xy_limits["transverse"], transverse)}
-        if self._xy_axes_logged != self._xy_limits:
-            self._log_xy_axes()
-        point = (100.0 * axial, -100.0 * transverse)
-        if self._xy_last is not None:
-            rec.log(STRAIN_XY_CURVE, rr.LineStrips2D.from_fields(strips=[[self._xy_last, point]]))
-        self._xy_last = point
         ratio = self._strain.poisson(readings)
         text = f"axial {100 * axial:.3f} %   transverse {100 * transverse:.3f} %"
         text += f"   Poisson {ratio:.3f}" if np.isfinite(ratio) else "   Poisson: from 0.05 % axial"
-        # two labels for two points: the text at the top of the box, none at the current point (one label
-        # alone would go to the middle of both)
-        (kx, ky), (bx, by) = self._xy_transform
-        width, height = _XY_BOX
-        # the numbers above the box, right of its title (the first point carries the label), then the current point
-        rec.log(STRAIN_XY_NOW, rr.Points2D.from_fields(positions=[(0.68 * width, -0.3 * height),
-                                                                  (kx * point[0] + bx,
-                                                                                         ky * point[1] + by)],
-                                                       labels=[text, ""]))
+        self._strain_xy.add(self.rr, self.rec, 100.0 * axial, 100.0 * transverse, text)
 
-    def _log_xy_axes(self):
-        """The plot box for the current limits: frame, zero lines, grid and tick labels (%), and the transform."""
+    # ----------------------------------------------------------------- force and stress
+    def _log_force(self, result):
+        """The force against time (a gap where unknown) and this frame's point of the stress-strain curve."""
         rr, rec = self.rr, self.rec
-        width, height = _XY_BOX
-        (a_lo, a_hi), (t_lo, t_hi) = (tuple(100.0 * v for v in self._xy_limits[k]) for k in ("axial", "transverse"))
-        kx, ky = width / (a_hi - a_lo), height / (t_hi - t_lo)
-        bx, by = -kx * a_lo, ky * t_hi                    # X = kx * axial + bx, Y = ky * (-transverse) + by
-        self._xy_transform = ((kx, ky), (bx, by))
-        rec.log(STRAIN_XY_DATA, rr.Transform3D(translation=[bx, by, 0.0], scale=[kx, ky, 1.0]))
-        x_ticks, y_ticks = _ticks(a_lo, a_hi), _ticks(t_lo, t_hi)
-        strips, colours = [], []
-        for tick in x_ticks:
-            x = kx * tick + bx
-            strips.append([(x, 0.0), (x, height)])
-            colours.append(_XY_ZERO_COLOUR if tick == 0 else _XY_GRID_COLOUR)
-        for tick in y_ticks:
-            y = -ky * tick + by
-            strips.append([(0.0, y), (width, y)])
-            colours.append(_XY_ZERO_COLOUR if tick == 0 else _XY_GRID_COLOUR)
-        strips.append([(0.0, 0.0), (width, 0.0), (width, height), (0.0, height), (0.0, 0.0)])
-        colours.append(_XY_FRAME_COLOUR)
-        rec.log(STRAIN_XY_AXES, rr.LineStrips2D(strips, radii=-0.75, colors=colours, draw_order=0.0))
-        positions = [(kx * tick + bx, height + 0.02 * height) for tick in x_ticks]
-        positions += [(-0.04 * width, -ky * tick + by - 0.07 * height) for tick in y_ticks]
-        labels = [_tick_label(tick) for tick in x_ticks] + [_tick_label(tick) for tick in y_ticks]
-        # the axis titles: "transverse" above the box's left side, "axial" inside it at the right, under the
-        # zero line (a tensile test's curve runs down and right from 0, far from there)
-        positions += [(0.06 * width, -0.3 * height), (0.92 * width, by + 0.04 * height)]
-        labels += ["transverse (%)", "axial (%)"]
-        rec.log(STRAIN_XY_TICKS, rr.Points2D(positions, radii=0.0, labels=labels, show_labels=True,
-                                             colors=[_LABEL_TEXT_COLOUR]))
-        self._xy_axes_logged = dict(self._xy_limits)
+        force = result.force_N
+        if force is not None and np.isfinite(force):
+            rec.log(FORCE, rr.Scalars(force / 1000.0))
+            self._force_shown = True
+        elif self._force_shown:
+            rec.log(FORCE, rr.Clear(recursive=False))        # a gap in the line, never the last value
+            self._force_shown = False
+        plot = self._stress_xy
+        if plot is None or self._broken:
+            return
+        # The broken specimen's frames are not on the curve (a machine stops there; the simulator goes on
+        # pulling the halves apart): the curve ends with the force's fall, at the first frame, after a fracture
+        # was detected, below FRACTURE_DROP of the maximum force (the report's rule for A).
+        self._fractured |= result.fracture is not None
+        if force is not None and np.isfinite(force):
+            self._max_force_N = max(self._max_force_N, force)
+            self._broken = self._fractured and force < FRACTURE_DROP * self._max_force_N
+        stress, strain = result.stress_MPa, axial_strain(result)
+        if stress is None or not (np.isfinite(stress) and np.isfinite(strain)):
+            plot.gap(rr, rec)
+            return
+        true_stress = result.true_stress_MPa
+        true = None
+        text = f"{100 * strain:.3f} %   {stress:.1f} MPa   F {force / 1000.0:.3f} kN"
+        if true_stress is not None and np.isfinite(true_stress):
+            true = (100.0 * result.true_strain, true_stress)
+            text += f"   true {true_stress:.1f} MPa"
+        if self._broken:
+            text += "   broken"
+        plot.add(rr, rec, 100.0 * strain, stress, text, second=true)
 
     def _last_displacement(self, m):
         """Displacement per point, the last ok one where a point is not ok now (0 before its first)."""

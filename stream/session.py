@@ -718,7 +718,7 @@ class Session:
         if self.viewer is not None:
             self.viewer.start(image_shape=frame.image.shape, roi=self.reference.roi, p0_index=0, points=self.points,
                               has_truth=has_truth, title=f"livedic run: {config.source}",
-                              source_settings=self._settings, strain=self.strain)
+                              source_settings=self._settings, strain=self.strain, load=self.load_stage)
         self.event("note", note, tell=False)
         if self.strain is not None:
             self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))

@@ -9,6 +9,11 @@ the neck concentrates the deformation, the gauge length no longer strains unifor
 cross-section in the neck is smaller than ``A0 / (1 + e)``: both formulas would be wrong, so
 the table gives NaN there (ISO 6892-1 and ASTM E8 read nothing from them past Ag either).
 
+Live, the frame of maximum force is not known yet: ``UniformElongationWatch`` gives true values
+while the force stays within ``NECKING_DROP`` (0.5 %) of its running maximum and ends them for good
+at the first frame below it (a provisional rule: it may show a few frames past the maximum that
+the table, which knows the maximum, leaves out; it never shows one from the neck's deep descent).
+
 Force comes from an ``acquire.load.LoadSource`` interpolated onto the frames' times (NaN
 where the source has no sample around a frame: never extrapolated), the frame time being
 seconds since the first frame with results, the load file's time base.
@@ -21,13 +26,16 @@ import numpy as np
 
 __all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
            "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
-           "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY"]
+           "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY", "UniformElongationWatch", "NECKING_DROP"]
 
 STRESS_STRAIN_COLUMNS = ("frame", "time_s", "force_N", "eng_strain", "eng_stress_MPa", "true_strain",
                          "true_stress_MPa")
 AXIAL = "axial"
 RECORDED_FORCE = "recorded:/machine/force"   # StressOptions.load when the force is the recording's own channel
 AREA_METADATA_KEY = "area_mm2"               # session metadata key of A0, when the session had a cross-section
+# Live: the uniform elongation is over once the force falls this fraction below its running maximum. Load cells
+# of class 0.5 or better stay well inside it while the force still climbs or holds (their noise is ~0.1 %).
+NECKING_DROP = 0.005
 
 
 def cross_section_mm2(*, area=None, width=None, thickness=None):
@@ -111,6 +119,42 @@ def stress_strain_table(frame, time_s, force_N, eng_strain, area_mm2):
     true_stress[past] = np.nan
     return StressStrainTable(np.asarray(frame, dtype=np.int64), np.asarray(time_s, dtype=np.float64), force, strain,
                              stress, true_strain, true_stress, uniform, area)
+
+
+class UniformElongationWatch:
+    """Live true strain and true stress, frame by frame, while the elongation may still be uniform.
+
+    The offline table (``stress_strain_table``) ends the true values at the frame of maximum
+    force; live that frame is known only once the force has fallen. Here they are given while
+    the force is within ``drop`` (a fraction) of its running maximum, and NaN from the first
+    frame below that on, for good (necking does not undo itself; an unloading is not uniform
+    plastic flow either).
+
+    Parameters
+    ----------
+    area_mm2 : float
+        Original cross-section A0, positive.
+    drop : float
+        The fall below the running maximum force that ends the uniform elongation.
+    """
+
+    def __init__(self, area_mm2, drop=NECKING_DROP):
+        self.area_mm2 = _positive("area", float(area_mm2))
+        self.drop = float(drop)
+        self.max_force_N = -math.inf
+        self.ended = False              # the force has fallen below the running maximum: Ag is behind
+
+    def __call__(self, force_N, eng_strain):
+        """(true_strain, true_stress_MPa) of one frame: NaN where the force or strain is unknown, or past Ag."""
+        nan = math.nan
+        if not math.isfinite(force_N):
+            return nan, nan
+        if force_N < (1.0 - self.drop) * self.max_force_N:
+            self.ended = True
+        self.max_force_N = max(self.max_force_N, force_N)
+        if self.ended or not math.isfinite(eng_strain) or eng_strain <= -1.0:
+            return nan, nan
+        return math.log1p(eng_strain), force_N / self.area_mm2 * (1.0 + eng_strain)
 
 
 def stress_strain_rows(table, csv_rows):

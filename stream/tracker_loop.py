@@ -64,6 +64,8 @@ class FrameResult:
     strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
     force_N: float = None         # the machine's force at this frame (stream.load_stage), NaN when unknown
     stress_MPa: float = None      # ... and the engineering stress
+    true_strain: float = None     # ln(1 + e) of the axial extensometer while the elongation may be uniform, else NaN
+    true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stress.UniformElongationWatch)
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
 
     @property
