@@ -40,6 +40,21 @@ tracker thread, after ``Tracker.track``. Its cost per frame (the summary's
 as a share of the tracking time in the same session, with the issue-11 target:
 strain + two extensometers <= 2 ms per frame at 1,000 points (judged on the
 p50 of the 1,000-point IC-GN case; its p99 is printed next to it).
+
+Every session also publishes its strain (``livedic run --publish udp://127.0.0.1:PORT``,
+``stream.publish``) to a UDP socket this process reads in a thread (``StrainOutReceiver``),
+and the strain-out latency is printed per case, from the tracker's result (the moment
+``Tracker.track`` returns, ``FrameResult.done_ns``: the strain and load stages, which
+compute what is sent, are inside it) to
+
+* the send returning (``sendto``, in the tracker thread; the session's own number);
+* the datagram's arrival in the receiving socket (the kernel's receive timestamp,
+  ``SO_TIMESTAMPNS``, on Linux): when a controller reading that socket could have it;
+* the receiving thread's read returning (this process: it waits for the GIL the tracker
+  thread holds, so it is an upper bound on what a controller in its own process sees).
+
+The issue-13 target: p99 <= 5 ms at 50 fps on loopback, judged on the arrival in the
+socket (the thread's read where the kernel gives no timestamp) of the 1,000-point IC-GN case.
 """
 
 import json
@@ -47,7 +62,11 @@ import math
 import os
 import platform
 import shutil
+import socket
+import struct
+import sys
 import tempfile
+import threading
 import time
 
 POINT_COUNTS = (400, 1000, 2500)
@@ -57,6 +76,7 @@ TARGET_METHOD = "icgn"
 TARGET_FPS = 50.0
 TARGET_P99_MS = 30.0
 TARGET_STRAIN_MS = 2.0
+TARGET_STRAIN_OUT_P99_MS = 5.0
 GAUGE_LENGTH_PX = 400.0       # the main job's --gauge-length (setup.sh, README)
 
 
@@ -71,6 +91,119 @@ def _num(value, fmt, missing="n/a"):
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return missing
     return format(value, fmt)
+
+
+# Linux: SO_TIMESTAMPNS (= SCM_TIMESTAMPNS) stamps each datagram with its arrival (CLOCK_REALTIME, timespec).
+_SO_TIMESTAMPNS = 35
+
+
+class StrainOutReceiver:
+    """A UDP socket on 127.0.0.1 that a thread reads the session's ``--publish`` datagrams from.
+
+    Per datagram it keeps the frame, its arrival in the socket (the kernel's timestamp, on the
+    monotonic clock; None where the system gives none) and when the thread's read returned.
+    """
+
+    def __init__(self):
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.socket.bind(("127.0.0.1", 0))
+        self.socket.settimeout(0.05)
+        self.kernel_stamps = sys.platform.startswith("linux")
+        if self.kernel_stamps:
+            try:
+                self.socket.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            except OSError:
+                self.kernel_stamps = False
+        self.uri = f"udp://127.0.0.1:{self.socket.getsockname()[1]}"
+        self.received = []                  # (datagram, arrival ns or None, read ns), monotonic clock
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._read, name="livedic bench strain-out receiver", daemon=True)
+        self._thread.start()
+
+    def _read(self):
+        while not self._stop.is_set():
+            try:
+                data, ancillary, _, _ = self.socket.recvmsg(65536, socket.CMSG_SPACE(16))
+            except (socket.timeout, BlockingIOError):
+                continue
+            read_ns = time.monotonic_ns()
+            offset = _wall_minus_monotonic_ns()
+            arrival = None
+            for level, kind, payload in ancillary:
+                if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(payload) >= 16:
+                    seconds, nanoseconds = struct.unpack("qq", payload[:16])
+                    arrival = seconds * 1_000_000_000 + nanoseconds - offset
+            self.received.append((data, arrival, read_ns))
+
+    def stop(self):
+        """Stop reading (what arrived is read first); returns [(frame, arrival ns or None, read ns)]."""
+        time.sleep(0.1)
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self.socket.close()
+        return [(json.loads(data)["frame"], arrival, read) for data, arrival, read in self.received]
+
+
+def _wall_minus_monotonic_ns(tries=5):
+    """The wall clock - the monotonic clock, now (ns): the kernel's receive stamp is on the wall clock.
+
+    Read between two monotonic readings, kept from the try where they were closest: a preemption
+    between the readings would shift it by the time lost. Read per datagram, so a step of the wall
+    clock between datagrams does not matter.
+    """
+    best = None
+    for _ in range(tries):
+        before = time.monotonic_ns()
+        wall = time.time_ns()
+        after = time.monotonic_ns()
+        if best is None or after - before < best[0]:
+            best = (after - before, wall - (before + after) // 2)
+        if after - before < 20_000:
+            break
+    return best[1]
+
+
+class ResultTimes:
+    """A session sink keeping each frame's result time (``FrameResult.done_ns``), where strain-out latency starts."""
+    name = "result times"
+    required = False
+
+    def __init__(self):
+        self.done_ns = {}
+
+    def __call__(self, result, stats):
+        self.done_ns[result.frame.index] = result.done_ns
+
+
+def _percentiles_ms(values_ns):
+    """(p50, p99) in ms of ``values_ns``, (None, None) when empty."""
+    if not values_ns:
+        return None, None
+    import numpy as np
+    values = np.asarray(values_ns, dtype=np.float64) / 1e6
+    return float(np.percentile(values, 50)), float(np.percentile(values, 99))
+
+
+def strain_out_numbers(publish, done_ns, received):
+    """The strain-out latency of one session: the ``publish`` summary entry, result times, the receiver's datagrams.
+
+    Returns
+    -------
+    dict
+        ``sent``, ``failed``, ``received``, ``frames``; ``sent_p50_ms``/``sent_p99_ms`` (result -> send
+        returned), ``upstream_p50_ms`` (result -> the publisher's start), ``arrival_p50_ms``/``arrival_p99_ms``
+        (result -> in the receiving socket; None without kernel timestamps), ``read_p50_ms``/``read_p99_ms``
+        (result -> the receiving thread's read).
+    """
+    arrivals = [arrival - done_ns[frame] for frame, arrival, _ in received if frame in done_ns and arrival is not None]
+    reads = [read - done_ns[frame] for frame, _, read in received if frame in done_ns]
+    arrival_p50, arrival_p99 = _percentiles_ms(arrivals)
+    read_p50, read_p99 = _percentiles_ms(reads)
+    return {"sent": publish.get("sent"), "failed": publish.get("failed"), "received": len(received),
+            "frames": len(done_ns), "sent_p50_ms": publish.get("latency_p50_ms"),
+            "sent_p99_ms": publish.get("latency_p99_ms"), "upstream_p50_ms": publish.get("upstream_p50_ms"),
+            "upstream_p99_ms": publish.get("upstream_p99_ms"), "arrival_p50_ms": arrival_p50,
+            "arrival_p99_ms": arrival_p99, "read_p50_ms": read_p50, "read_p99_ms": read_p99}
 
 
 def gauge_length_for(size):
@@ -98,26 +231,34 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
     gauge_length = gauge_length_for(size) if gauge_length is None else gauge_length
     row = dict(points_wanted=n_points, subpixel=subpixel, search=search, record=record, paced=paced,
                fps_offered=fps if paced else None, size=size, frames_offered=frames, error=None, render_s=None,
-               gauge_length=gauge_length, summary={})
+               gauge_length=gauge_length, summary={}, strain_out=None)
     said = []
     session = None
+    receiver = StrainOutReceiver()
+    times = ResultTimes()
     started = time.perf_counter()
     try:
         config = SessionConfig(source=uri, points=PointsConfig(n_points=n_points),
                                tracking=TrackingConfig(subset=subset, search=search, subpixel=subpixel),
                                record=record_path if record else None, threads=threads,
-                               command="livedic bench live", strain=StrainConfig(gauge_length=gauge_length))
-        with Session(config, say=lambda message: said.append(f"livedic: {message}")) as session:
+                               command="livedic bench live", strain=StrainConfig(gauge_length=gauge_length),
+                               publish=(receiver.uri,))
+        with Session(config, sinks=[times], say=lambda message: said.append(f"livedic: {message}")) as session:
             session.execute()
         if session.source_error is not None:
             row["error"] = f"{type(session.source_error).__name__}: {session.source_error}"
     except Exception as error:  # noqa: BLE001 - one failed case must not hide the others
         row["error"] = f"{type(error).__name__}: {error}"
+    finally:
+        received = receiver.stop()
     row["wall_s"] = time.perf_counter() - started
     if session is not None:
         row["render_s"] = session.render_seconds
         if session.summary() is not None:
             row["summary"] = json.loads(json_text(session.summary()))     # None where a number is missing
+            publish = (row["summary"].get("publish") or [{}])[0]
+            row["strain_out"] = strain_out_numbers(publish, times.done_ns, received)
+            row["strain_out"]["kernel_stamps"] = receiver.kernel_stamps
     if echo is not None:
         echo("\n".join(said + ([session.summary_text()] if session is not None and session.summary_text() else [])))
     if os.path.exists(record_path):
@@ -222,6 +363,46 @@ def judge_strain_cost(row, *, quick=False):
                     f"{_num(track, '.1f')} ms) in the same session ({row['size']}x{row['size']}, {s.get('points')} "
                     f"points, IC-GN, window {strain.get('strain_window')}, VSG {_num(strain.get('vsg_px'), 'g')} px, "
                     f"extensometers {', '.join(names) or 'none'}, axial {row['gauge_length']:g} px){note}")
+
+
+def strain_out_line(row):
+    """One line: ``row``'s strain-out latency (result -> sent, -> in the receiving socket, -> read by a thread)."""
+    out = row.get("strain_out")
+    if not out:
+        return f"  {row['points_wanted']:>6d} {_label(row):34s} n/a ({row['error'] or 'nothing published'})"
+    s = row["summary"]
+    failed = f", {out['failed']} NOT sent" if out["failed"] else ""
+    arrival = (f"in the socket p50 {_num(out['arrival_p50_ms'], '.2f')} ms, p99 {_num(out['arrival_p99_ms'], '.2f')} ms; "
+               if out["arrival_p99_ms"] is not None else "in the socket n/a (no kernel timestamps); ")
+    return (f"  {s.get('points', row['points_wanted']):>6d} {_label(row):34s} {out['sent']}/{out['frames']} sent"
+            f"{failed}, {out['received']} received; result -> sent p50 {_num(out['sent_p50_ms'], '.2f')} ms, "
+            f"p99 {_num(out['sent_p99_ms'], '.2f')} ms (before the publisher p50 {_num(out['upstream_p50_ms'], '.2f')} "
+            f"ms); {arrival}read by a thread p50 {_num(out['read_p50_ms'], '.2f')} ms, "
+            f"p99 {_num(out['read_p99_ms'], '.2f')} ms")
+
+
+def judge_strain_out(row, *, quick=False):
+    """(passed: bool, one line) for the issue-13 target on ``row``: strain-out latency p99 <= 5 ms at 50 fps."""
+    title = (f"target strain-out latency p99 <= {TARGET_STRAIN_OUT_P99_MS:g} ms at {TARGET_FPS:g} fps on loopback "
+             f"(1,000 points IC-GN)")
+    out = (row or {}).get("strain_out")
+    if not out or not out.get("sent"):
+        why = (row or {}).get("error") or "nothing was published"
+        return False, f"FAIL  {title}: {why}"
+    if out["arrival_p99_ms"] is not None:
+        judged, p50, where = out["arrival_p99_ms"], out["arrival_p50_ms"], "in the receiving socket (kernel timestamp)"
+    else:
+        judged, p50, where = out["read_p99_ms"], out["read_p50_ms"], "read by a thread of this process"
+    offered = row["fps_offered"] or 0.0
+    passed = judged is not None and judged <= TARGET_STRAIN_OUT_P99_MS and offered >= TARGET_FPS
+    all_sent = out["received"] == out["sent"] == out["frames"]
+    note = "  [quick mode: not the 1 MP configuration of the target]" if quick else ""
+    return passed, (f"{'PASS' if passed else 'FAIL'}  {title}: result -> {where} p99 {_num(judged, '.2f')} ms "
+                    f"(p50 {_num(p50, '.2f')} ms); result -> send returned p99 {_num(out['sent_p99_ms'], '.2f')} ms; "
+                    f"{out['received']} datagrams for {out['frames']} tracked frames"
+                    f"{'' if all_sent else ' (NOT one per frame)'}; offered {offered:g} fps "
+                    f"({row['size']}x{row['size']}, {row['summary'].get('points')} points, {row['search']} + IC-GN, "
+                    f"recording on){note}")
 
 
 def _fit_cost(rows):
@@ -375,9 +556,16 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
         say(strain_cost_line(row))
     strain_passed, strain_line = judge_strain_cost(target_row, quick=quick)
     say(strain_line)
+    say("strain out (--publish udp://127.0.0.1:PORT, one JSON datagram per tracked frame, read by a thread of this "
+        "process; latency from the tracker's result, the strain stage included):")
+    for row in rows:
+        say(strain_out_line(row))
+    strain_out_passed, strain_out_line_text = judge_strain_out(target_row, quick=quick)
+    say(strain_out_line_text)
     say("what limits it:")
     for text in explain_limits(rows, fps):
         say(text)
     say(f"total {time.perf_counter() - started:.0f} s; {_load()} at end")
     return dict(rows=rows, target_passed=passed, target_line=line, variant_line=variant_line,
-                strain_passed=strain_passed, strain_line=strain_line, lines=printed)
+                strain_passed=strain_passed, strain_line=strain_line, strain_out_passed=strain_out_passed,
+                strain_out_line=strain_out_line_text, lines=printed)

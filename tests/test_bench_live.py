@@ -93,6 +93,50 @@ def test_quick_live_benchmark_prints_its_table_and_the_target_line(capsys):
     strain = [line for line in lines if "target strain + two extensometers <= 2 ms per frame at 1,000 points" in line]
     assert len(strain) == 1 and strain[0][:4] in ("PASS", "FAIL") and "quick mode" in strain[0]
     assert "of the tracking time" in strain[0] and "VSG" in strain[0]
+    # strain out (issue 13): every session publishes over UDP; one datagram per tracked frame, its latency
+    heading = [i for i, line in enumerate(lines) if line.startswith("strain out (--publish udp://127.0.0.1:PORT")]
+    assert len(heading) == 1
+    for row, label in zip(lines[heading[0] + 1:heading[0] + 6], labels):
+        assert label.strip() in row and "result -> sent p50" in row and "read by a thread p50" in row, row
+        sent, frames = row.split(" sent")[0].split()[-1].split("/")
+        received = int(row.split(" received")[0].split()[-1])
+        assert int(sent) == int(frames) == received > 0, row           # one datagram per tracked frame, each read
+        sent_latency = row.split("result -> sent ")[1]
+        p50, p99 = float(sent_latency.split("p50 ")[1].split()[0]), float(sent_latency.split("p99 ")[1].split()[0])
+        assert 0.0 < p50 <= p99, row
+    out = [line for line in lines if "target strain-out latency p99 <= 5 ms at 50 fps on loopback" in line]
+    assert len(out) == 1 and out[0][:4] in ("PASS", "FAIL") and "quick mode" in out[0]
+    assert "NOT one per frame" not in out[0] and "result -> send returned p99" in out[0]
+
+
+def test_strain_out_receiver_pairs_each_datagram_with_its_result():
+    import json
+    import socket
+    import time
+
+    from livedic.bench.live import StrainOutReceiver, strain_out_numbers
+    receiver = StrainOutReceiver()
+    port = int(receiver.uri.rsplit(":", 1)[1])
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    done = {}
+    for frame in (3, 4, 7):
+        done[frame] = time.monotonic_ns()
+        sender.sendto(json.dumps({"frame": frame}).encode(), ("127.0.0.1", port))
+    sent_ns = time.monotonic_ns()
+    sender.close()
+    received = receiver.stop()
+    assert [frame for frame, _, _ in received] == [3, 4, 7]
+    # The kernel's wall-clock stamp moved onto the monotonic clock: between the send and the read
+    # (0.5 ms allowed for reading the two clocks apart on a loaded machine).
+    for frame, arrival, read in received:
+        assert done[frame] <= read
+        if receiver.kernel_stamps:
+            assert done[frame] - 500_000 <= arrival <= min(read, sent_ns) + 500_000
+    numbers = strain_out_numbers({"sent": 3, "failed": 0, "latency_p50_ms": 0.1, "latency_p99_ms": 0.2}, done,
+                                 received)
+    assert numbers["received"] == numbers["frames"] == numbers["sent"] == 3
+    assert numbers["read_p50_ms"] <= numbers["read_p99_ms"]
+    assert (numbers["arrival_p99_ms"] is not None) == receiver.kernel_stamps
 
 
 # --------------------------------------------------------------------------- bench soak
