@@ -36,6 +36,7 @@ the tracker's result to the send returning (``latency_ms``): the strain-out late
 ``livedic bench live`` prints.
 """
 
+import errno
 import json
 import math
 import socket
@@ -431,7 +432,7 @@ def _check_listen(target):
         probe.listen(1)
     except OSError as error:
         why = error.strerror or str(error)
-        hint = "; choose another port" if error.errno in (98, 48) else ""
+        hint = "; choose another port" if error.errno == errno.EADDRINUSE else ""
         raise ValueError(f"--publish {target.uri}: cannot listen on {_bracketed(target.host)}:{target.port}: "
                          f"{why}{hint}") from None
     finally:
@@ -551,12 +552,9 @@ def open_publishers(targets, names, report):
 
 def format_publish_summary(publish):
     """The summary's lines for the outlets (none without ``--publish``)."""
-    lines = []
-    for entry in publish or ():
-        def num(value):
-            return "n/a" if value is None or not math.isfinite(value) else f"{value:.2f}"
-        text = (f"  publish    {entry['uri']}: {entry['sent']} frames sent"
-                + (f", {entry['failed']} NOT sent" if entry["failed"] else "")
-                + f"; result -> sent p50 {num(entry['latency_p50_ms'])} ms, p99 {num(entry['latency_p99_ms'])} ms")
-        lines.append(text)
-    return lines
+    def num(value):
+        return "n/a" if value is None or not math.isfinite(value) else f"{value:.2f}"
+    return [f"  publish    {entry['uri']}: {entry['sent']} frames sent"
+            + (f", {entry['failed']} NOT sent" if entry["failed"] else "")
+            + f"; result -> sent p50 {num(entry['latency_p50_ms'])} ms, p99 {num(entry['latency_p99_ms'])} ms"
+            for entry in publish or ()]
