@@ -315,6 +315,21 @@ def uniform_elongation(Rm, E_GPa, *, strain_at_zero_stress=0.0):
     return UniformElongation(float(plastic), float(total), method)
 
 
+def fracture_frame(strain, stress, *, drop=FRACTURE_DROP):
+    """The first frame whose stress falls below ``drop`` x Rm after the frame of Rm (-1: none).
+
+    Only frames with both a strain and a stress count. The frames from this one on are the
+    broken specimen's: the stress-strain curve ends here.
+    """
+    _, stress, frames = _valid(strain, stress)
+    if frames.size == 0:
+        return -1
+    s = stress[frames]
+    peak = int(np.argmax(s))
+    fallen = np.flatnonzero(s[peak:] < drop * s[peak])
+    return int(frames[peak + fallen[0]]) if fallen.size else -1
+
+
 def elongation_after_fracture(strain, stress, E_GPa, *, drop=FRACTURE_DROP,
                               strain_at_zero_stress=0.0):
     """A: plastic elongation at fracture, percent.
@@ -342,12 +357,10 @@ def elongation_after_fracture(strain, stress, E_GPa, *, drop=FRACTURE_DROP,
         return ElongationAfterFracture(_NAN, -1, method, Reason.NO_MODULUS)
     if frames.size == 0:
         return ElongationAfterFracture(_NAN, -1, method, Reason.NO_DATA)
-    s = stress[frames]
-    peak = int(np.argmax(s))
-    fallen = np.flatnonzero(s[peak:] < drop * s[peak])
-    if fallen.size == 0:
+    broken = fracture_frame(strain, stress, drop=drop)
+    if broken < 0:
         return ElongationAfterFracture(_NAN, -1, method, Reason.NO_FRACTURE)
-    frame = int(frames[peak + fallen[0] - 1])
+    frame = int(frames[np.searchsorted(frames, broken) - 1])
     plastic = 100.0 * _plastic_strain(strain[frame], stress[frame], E_GPa, strain_at_zero_stress)
     return ElongationAfterFracture(float(plastic), frame, method)
 

@@ -165,17 +165,24 @@ def stress_strain_rows(table, csv_rows):
 def plot_stress_strain(handle, table, *, title, properties=None):
     """Write the stress-strain plot (PNG) to ``handle``.
 
-    The engineering curve over all frames with a force and a strain, the true curve up to
-    uniform elongation (its last point marked Ag); with ``properties`` (``TensileProperties``)
+    The engineering curve over the frames with a force and a strain up to the fall at fracture
+    (``dic.tensile_properties.fracture_frame``), the true curve up to uniform elongation (its last point marked Ag); with ``properties`` (``TensileProperties``)
     Rp0.2 and Rm are marked.
     """
     from matplotlib.figure import Figure
 
+    from livedic.dic.tensile_properties import fracture_frame
+
     figure = Figure(figsize=(8, 5), dpi=100, layout="constrained")
     axes = figure.add_subplot()
-    strain_pct = 100.0 * table.eng_strain
-    axes.plot(strain_pct, table.eng_stress_MPa, marker=".", markersize=3, linewidth=1.2,
-              label="engineering: F / A0 against (L - L0) / L0")
+    # the curve ends with the force's fall at fracture: the broken halves' frames after it (a simulator, or a
+    # machine still moving) would only stretch the strain axis with the crack's opening at zero force
+    broken = fracture_frame(table.eng_strain, table.eng_stress_MPa)
+    shown = slice(None) if broken < 0 else slice(0, broken + 1)
+    after = "" if broken < 0 or broken + 1 >= table.frame.size else \
+        f" (ends at fracture, frame {int(table.frame[broken])}; {table.frame.size - broken - 1} later frames not drawn)"
+    axes.plot(100.0 * table.eng_strain[shown], table.eng_stress_MPa[shown], marker=".", markersize=3, linewidth=1.2,
+              label="engineering: F / A0 against (L - L0) / L0" + after)
     if table.uniform_frame >= 0 and np.isfinite(table.true_stress_MPa).any():
         axes.plot(100.0 * table.true_strain, table.true_stress_MPa, marker=".", markersize=3, linewidth=1.2,
                   label="true: F / A0 (1 + e) against ln(1 + e), up to Ag (maximum force)")

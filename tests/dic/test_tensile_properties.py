@@ -196,3 +196,17 @@ def test_as_dict_has_the_report_keys_with_value_and_method():
     assert d["A_percent"]["reason"] == Reason.NO_FRACTURE.value
     assert d["E_GPa"]["reason"] is None
     json.dumps(d)                                  # plain types (NaN is the caller's to map)
+
+
+def test_fracture_frame_is_the_first_fall_below_a_tenth_of_rm_after_rm():
+    from livedic.dic.tensile_properties import fracture_frame
+    strain = np.linspace(0.0, 0.2, 11)
+    stress = np.array([0, 400, 800, 900, 1000, 950, 900, 500, 90, 0, 0], dtype=float)
+    assert fracture_frame(strain, stress) == 8                 # 90 < 100 = 10 % of Rm, after Rm
+    stress_gap = stress.copy()
+    stress_gap[8] = np.nan                                     # no reading there: the next frame with one
+    assert fracture_frame(strain, stress_gap) == 9
+    assert fracture_frame(strain[:8], stress[:8]) == -1        # not broken (yet)
+    assert fracture_frame(strain, np.full(11, np.nan)) == -1
+    # the toe at the start (stress below 10 % of Rm before Rm) is not a fracture
+    assert fracture_frame(strain[:5], stress[:5]) == -1
