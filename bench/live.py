@@ -191,7 +191,8 @@ def strain_out_numbers(publish, done_ns, received):
     -------
     dict
         ``sent``, ``failed``, ``received``, ``frames``; ``sent_p50_ms``/``sent_p99_ms`` (result -> send
-        returned), ``upstream_p50_ms`` (result -> the publisher's start), ``arrival_p50_ms``/``arrival_p99_ms``
+        returned), ``upstream_p50_ms``/``upstream_p99_ms`` (result -> the publisher's start), ``stage_p50_ms``/
+        ``stage_p99_ms`` (inside the publisher), ``arrival_p50_ms``/``arrival_p99_ms``
         (result -> in the receiving socket; None without kernel timestamps), ``read_p50_ms``/``read_p99_ms``
         (result -> the receiving thread's read).
     """
@@ -202,7 +203,8 @@ def strain_out_numbers(publish, done_ns, received):
     return {"sent": publish.get("sent"), "failed": publish.get("failed"), "received": len(received),
             "frames": len(done_ns), "sent_p50_ms": publish.get("latency_p50_ms"),
             "sent_p99_ms": publish.get("latency_p99_ms"), "upstream_p50_ms": publish.get("upstream_p50_ms"),
-            "upstream_p99_ms": publish.get("upstream_p99_ms"), "arrival_p50_ms": arrival_p50,
+            "upstream_p99_ms": publish.get("upstream_p99_ms"), "stage_p50_ms": publish.get("stage_p50_ms"),
+            "stage_p99_ms": publish.get("stage_p99_ms"), "arrival_p50_ms": arrival_p50,
             "arrival_p99_ms": arrival_p99, "read_p50_ms": read_p50, "read_p99_ms": read_p99}
 
 
@@ -371,14 +373,15 @@ def strain_out_line(row):
     if not out:
         return f"  {row['points_wanted']:>6d} {_label(row):34s} n/a ({row['error'] or 'nothing published'})"
     s = row["summary"]
+
+    def pair(key):
+        return f"p50 {_num(out[key + '_p50_ms'], '.2f')} ms, p99 {_num(out[key + '_p99_ms'], '.2f')} ms"
     failed = f", {out['failed']} NOT sent" if out["failed"] else ""
-    arrival = (f"in the socket p50 {_num(out['arrival_p50_ms'], '.2f')} ms, p99 {_num(out['arrival_p99_ms'], '.2f')} ms; "
-               if out["arrival_p99_ms"] is not None else "in the socket n/a (no kernel timestamps); ")
+    arrival = (f"in the socket {pair('arrival')}; " if out["arrival_p99_ms"] is not None
+               else "in the socket n/a (no kernel timestamps); ")
     return (f"  {s.get('points', row['points_wanted']):>6d} {_label(row):34s} {out['sent']}/{out['frames']} sent"
-            f"{failed}, {out['received']} received; result -> sent p50 {_num(out['sent_p50_ms'], '.2f')} ms, "
-            f"p99 {_num(out['sent_p99_ms'], '.2f')} ms (before the publisher p50 {_num(out['upstream_p50_ms'], '.2f')} "
-            f"ms); {arrival}read by a thread p50 {_num(out['read_p50_ms'], '.2f')} ms, "
-            f"p99 {_num(out['read_p99_ms'], '.2f')} ms")
+            f"{failed}, {out['received']} received; result -> sent {pair('sent')} (before the publisher "
+            f"{pair('upstream')}; in it {pair('stage')}); {arrival}read by a thread {pair('read')}")
 
 
 def judge_strain_out(row, *, quick=False):

@@ -508,13 +508,18 @@ class PublishStage:
                                    f"(not sent since frame {self._failing})", "info")
             self._failing = None
 
-    def latency_ms(self, percentile, *, upstream=False):
-        """The strain-out latency's ``percentile`` (ms; ``upstream``: its part before this stage), NaN
-        before any frame was sent."""
-        values = self.upstream_ns if upstream else self.latencies_ns
-        if not values:
+    def latency_ms(self, percentile, *, part="all"):
+        """The strain-out latency's ``percentile`` (ms), NaN before any frame was sent.
+
+        ``part``: ``"all"`` (result -> sent), ``"upstream"`` (result -> this stage's start) or
+        ``"stage"`` (this stage's start -> sent: the message built and sent).
+        """
+        if not self.latencies_ns:
             return math.nan
-        return float(np.percentile(np.array(values, np.int64), percentile)) / 1e6
+        values = {"all": lambda: np.array(self.latencies_ns, np.int64),
+                  "upstream": lambda: np.array(self.upstream_ns, np.int64),
+                  "stage": lambda: np.array(self.latencies_ns, np.int64) - np.array(self.upstream_ns, np.int64)}
+        return float(np.percentile(values[part](), percentile)) / 1e6
 
     def finish(self):
         """The session ended (a Modbus map says so; the last values stay)."""
@@ -527,8 +532,10 @@ class PublishStage:
         """This outlet's numbers for the session summary."""
         return {"uri": self.outlet.where, "sent": self.sent, "failed": self.failed,
                 "latency_p50_ms": self.latency_ms(50), "latency_p99_ms": self.latency_ms(99),
-                "latency_max_ms": self.latency_ms(100), "upstream_p50_ms": self.latency_ms(50, upstream=True),
-                "upstream_p99_ms": self.latency_ms(99, upstream=True)}
+                "latency_max_ms": self.latency_ms(100),
+                "upstream_p50_ms": self.latency_ms(50, part="upstream"),
+                "upstream_p99_ms": self.latency_ms(99, part="upstream"),
+                "stage_p50_ms": self.latency_ms(50, part="stage"), "stage_p99_ms": self.latency_ms(99, part="stage")}
 
 
 def open_publishers(targets, names, report):
