@@ -16,7 +16,8 @@ from livedic.stream.config import subpixel_method
 
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
-    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain")
+    bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
+                                             "fracture, tensile")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
     paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
@@ -87,6 +88,15 @@ def add_bench_commands(commands):
     fracture.add_argument("--data", metavar="DIR", help="folder with mudic_tensile_dogbone (e.g. ../shared/datasets)")
     fracture.add_argument("-o", "--output", default="results/fracture", metavar="DIR", help="results folder")
     fracture.set_defaults(handler=_cmd_bench_fracture)
+    tensile = bench_commands.add_parser(
+        "tensile", help="E, Rp0.2, Rm, Ag, A recovered from the simulated tensile test with a known law",
+        description="Runs the simulated tensile test (E 200 GPa, Rp0.2 816 MPa, Rm 1200 MPa, fracture) through "
+                    "livedic run --load synthetic and livedic report, and prints each property against the law "
+                    "and against the same methods on the exact strain, with the targets (E 2 %%, Rp0.2 and Rm "
+                    "1 %%). Writes tensile.csv, the recording and the report.")
+    tensile.add_argument("--quick", action="store_true", help="512x512, 150 frames (about 15 s) instead of 1 MP")
+    tensile.add_argument("-o", "--output", default="results/tensile", metavar="DIR", help="results folder")
+    tensile.set_defaults(handler=_cmd_bench_tensile)
 
 
 def build_parser():
@@ -160,6 +170,13 @@ def _cmd_bench_fracture(args):
         run(quick=args.quick, data=args.data, output=args.output, say=lambda line: print(line, flush=True))
     except ValueError as error:
         raise UsageError(str(error)) from None
+    return 0
+
+
+def _cmd_bench_tensile(args):
+    from livedic.bench.tensile import run_tensile_benchmark
+    _check_results_folder(args.output)
+    run_tensile_benchmark(quick=args.quick, output=args.output, say=lambda line: print(line, flush=True))
     return 0
 
 
