@@ -227,9 +227,11 @@ class StressOptions:
 def add_stress_arguments(parser, *, load_required=False):
     """Add ``--load --load-offset --area --width --thickness`` to an argparse parser."""
     group = parser.add_argument_group("force and stress (the stress-strain curve)")
-    group.add_argument("--load", required=load_required, metavar="csv:FILE",
-                       help="the testing machine's force: a CSV with header time_s,force_N, time_s in seconds since "
-                            "the session's first frame")
+    group.add_argument("--load", required=load_required, metavar="URI",
+                       help="the testing machine's force: csv:FILE (header time_s,force_N, time_s in seconds since "
+                            "the session's first frame); live sessions also tcp://HOST:PORT[?clock=sender] (text "
+                            "lines force_N or time_s,force_N), modbus://HOST:PORT?register=N[&scale=K] (a PLC's "
+                            "register, polled) and synthetic (the simulated test's own law)")
     group.add_argument("--load-offset", type=float, default=0.0, metavar="S",
                        help="shift the load file's times by S seconds (a sample at time_s belongs to the frame at "
                             "time_s + S; default 0)")
