@@ -291,6 +291,7 @@ class UdpOutlet:
         self.where = target.describe()
 
     def note(self):
+        """What the session says at the start."""
         return f"publishing strain to {self.where} (one UDP JSON datagram per tracked frame)"
 
     def send(self, values, update_count):
@@ -298,7 +299,7 @@ class UdpOutlet:
         self.socket.sendto(values.as_json(), self.address)
 
     def finish(self):
-        pass
+        """The session ended: nothing to say over UDP (the datagrams stop)."""
 
     def close(self):
         self.socket.close()
@@ -306,6 +307,13 @@ class UdpOutlet:
 
 class ModbusOutlet:
     """A Modbus TCP server (pymodbus) in a background thread serving ``REGISTER_MAP``.
+
+    Attributes
+    ----------
+    port : int
+        The port it listens on (the one asked for, or the one the system chose for port 0).
+    where : str
+        ``modbus://HOST:PORT`` as it listens.
 
     Raises
     ------
@@ -338,6 +346,7 @@ class ModbusOutlet:
         self.where = f"modbus://{_bracketed(target.host)}:{self.port}"
 
     def note(self):
+        """What the session says at the start: where it listens, where each extensometer's block is."""
         blocks = ", ".join(f"{name} at {HEADER_REGISTERS + EXTENSOMETER_REGISTERS * k}"
                            for k, name in enumerate(self.names))
         return (f"publishing strain on {self.where} (Modbus TCP, holding registers 0..{self.count - 1}: header at 0, "
