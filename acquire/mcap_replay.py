@@ -69,7 +69,7 @@ from livedic.acquire.mcap_io import (MAGIC, ChunkedWriter, Damaged, RecordScan, 
 from livedic.dic.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
 
-__all__ = ["CorruptRecording", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
+__all__ = ["CorruptRecording", "FrameReader", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
            "RecordedExtensometerSample", "RecordedForceSample", "RecordedResults", "RecordedStrain", "Recording",
            "RecordingError", "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results",
            "read_events", "read_extensometer_samples", "read_force_samples", "read_results", "read_session",
@@ -811,6 +811,77 @@ class McapSource(FrameSource):
                 break
             time.sleep(min(left, 0.1))
         return first
+
+
+class FrameReader:
+    """One frame's image at a time, by its (index, timestamp), from an indexed recording.
+
+    For readers that need a few frames out of many, in any order (a worker of the parallel
+    replay reading the frames it was given from a shared file system): only the image chunk
+    whose time range holds the frame is read (the chunk index's message start and end times),
+    and the last chunk read is kept, as consecutive frames share chunks when images are small.
+    The frame is the ``/camera/image`` message logged at ``timestamp_ns`` (the one with MCAP
+    sequence ``index`` where two share the time): ``McapSource``'s frame of that key.
+
+    Raises
+    ------
+    RecordingError
+        Not a readable livedic recording, or one without a sound index (truncated: ``recover``
+        rewrites it indexed); ``image`` raises it for a frame the file does not hold or a
+        damaged chunk.
+    """
+
+    def __init__(self, path):
+        self._recording = Recording(path)
+        recording = self._recording
+        if recording.summary is None:
+            raise RecordingError(f"{recording.name} has no index ({recording.summary_problem or 'truncated'}): its "
+                                 f"frames cannot be read one by one; `recover` rewrites it indexed")
+        self._image_ids = {cid for cid, channel in recording.channels.items()
+                           if channel.topic == rs.TOPIC_IMAGE and recording.schema_name(channel) == rs.RAW_IMAGE_SCHEMA}
+        self._chunk = (None, [])            # (offset, its records): the last chunk read
+        self.chunks_read = 0
+
+    @property
+    def path(self):
+        return self._recording.path
+
+    def _candidates(self, timestamp_ns):
+        for index in self._recording.summary.chunk_indexes:
+            held = set(index.message_index_offsets)
+            if held and not held & self._image_ids:
+                continue
+            if index.message_start_time <= timestamp_ns <= index.message_end_time:
+                yield index
+
+    def _records(self, index):
+        offset = index.chunk_start_offset
+        if self._chunk[0] != offset:
+            with self._recording._open_file() as f:
+                try:
+                    records = open_chunk(read_record_at(f, offset, index.chunk_length, Opcode.CHUNK))
+                except Damaged as bad:
+                    raise self._recording._corrupt("a chunk", offset, bad) from None
+            self._chunk = (offset, records)
+            self.chunks_read += 1
+        return self._chunk[1]
+
+    def image(self, index, timestamp_ns):
+        """The image (H, W) uint8/uint16 of frame ``index`` logged at ``timestamp_ns`` (read-only)."""
+        timestamp_ns, index = int(timestamp_ns), int(index)
+        for chunk in self._candidates(timestamp_ns):
+            found = [record for record in self._records(chunk) if isinstance(record, Message)
+                     and record.channel_id in self._image_ids and record.log_time == timestamp_ns]
+            if len(found) > 1:
+                found = [record for record in found if record.sequence == (index & 0xFFFFFFFF)] or found[:1]
+            if found:
+                try:
+                    image, _, _, _ = rs.decode_raw_image(found[0].data)
+                except rs.WireError as bad:
+                    raise CorruptRecording(f"{self._recording.name} is corrupt: image message at log time "
+                                           f"{timestamp_ns} ({bad})") from None
+                return image
+        raise RecordingError(f"{self._recording.name} holds no image of frame {index} at {timestamp_ns} ns")
 
 
 # ----------------------------------------------------------------------------- recover

@@ -72,6 +72,8 @@ IN_FLIGHT_PER_WORKER = 4
 # reassigned, up to distributed's allowed-failures).
 TASK_RETRIES = 2
 CONNECT_TIMEOUT_S = 10
+# No dashboard; the scheduler's HTTP routes (health, metrics) on a free port, not 8787 (taken by a second cluster).
+LOCAL_SCHEDULER_OPTIONS = {"dashboard_address": ":0"}
 
 
 class ParallelReplayLimit(ValueError):
@@ -85,7 +87,7 @@ class ClusterError(ValueError):
 # ----------------------------------------------------------------------------- the cluster
 
 @contextmanager
-def dask_client(workers=None, cluster=None, *, timeout_s=CONNECT_TIMEOUT_S):
+def dask_client(workers=None, cluster=None, *, timeout_s=None):
     """A ``distributed.Client``: on a new LocalCluster of ``workers`` processes, or on the scheduler ``cluster``.
 
     The LocalCluster runs one thread per worker process (numba uses 1 thread per task, see ``measure_frame``),
@@ -96,6 +98,7 @@ def dask_client(workers=None, cluster=None, *, timeout_s=CONNECT_TIMEOUT_S):
     from distributed import Client, LocalCluster
     if cluster is not None:
         address = str(cluster)
+        timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
         try:
             client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError, TypeError) as error:
@@ -110,7 +113,7 @@ def dask_client(workers=None, cluster=None, *, timeout_s=CONNECT_TIMEOUT_S):
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"--workers must be a positive integer, got {workers!r}")
     local = LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, dashboard_address=None,
-                         silence_logs=logging.ERROR)
+                         scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.CRITICAL)
     try:
         client = Client(local, set_as_default=False)
         try:
@@ -150,6 +153,27 @@ class FrameMeasured:
 
 
 _TRACKERS = {}          # per worker process: job token -> Tracker (the reference prepared once)
+_READERS = {}           # per worker process: recording path -> acquire.mcap_replay.FrameReader
+
+
+@dataclass(frozen=True)
+class FrameAt:
+    """A frame for the worker to read itself from the recording at ``path`` (``--shared-path``)."""
+    path: str
+    index: int
+    timestamp_ns: int
+
+
+def _image_of(frame):
+    """The image a task was given, or read from the shared recording (one reader per path and worker)."""
+    if not isinstance(frame, FrameAt):
+        return frame
+    from livedic.acquire.mcap_replay import FrameReader
+    reader = _READERS.get(frame.path)
+    if reader is None:
+        _READERS.clear()
+        reader = _READERS[frame.path] = FrameReader(frame.path)
+    return reader.image(frame.index, frame.timestamp_ns)
 
 
 def tracker_options(tracking):
@@ -180,8 +204,8 @@ def measure_frame(job, position, key, image, previous, last_good):
         The frame's place in the replay's order (0: the reference).
     key : (int, int)
         Its (frame index, timestamp ns).
-    image : ndarray (H, W)
-        As recorded (uint8 or uint16).
+    image : ndarray (H, W) or FrameAt
+        As recorded (uint8 or uint16), or where the worker reads it (``--shared-path``).
     previous, last_good
         ``Tracker.resume``'s arguments (None, None for the reference frame).
     """
@@ -190,6 +214,7 @@ def measure_frame(job, position, key, image, previous, last_good):
         numba.set_num_threads(job.threads)
     started = time.perf_counter()
     tracker = _tracker_for(job)
+    image = _image_of(image)
     tracker.resume(previous, last_good=last_good)
     measurement = tracker.track(image)
     return FrameMeasured(position=position, key=key, measurement=measurement, refound=tracker.last_refound.copy(),
@@ -291,7 +316,7 @@ class OrderedResults:
     """Submit the frames of ``frames`` to ``client`` (at most ``in_flight`` ahead) and hand their results back
     in order, each exactly once (``take(position, key)`` checks both)."""
 
-    def __init__(self, client, job, frames, seeds, in_flight):
+    def __init__(self, client, job, frames, seeds, in_flight, shared_path=None):
         self.client = client
         self.job_future = client.scatter(job, broadcast=True, hash=False)
         self.token = job.token
@@ -302,8 +327,10 @@ class OrderedResults:
         self.submitted = 0
         self.taken = 0
         self.exhausted = False
-        self.image_bytes = 0         # what the frames weighed on the wire (their images)
+        self.shared_path = shared_path
+        self.image_bytes = 0         # what the frames weighed on the wire (their images; 0 when workers read them)
         self.seed_bytes = 0
+        self.wait_seconds = 0.0      # the client blocked on the next result (the rest of its time is its own work)
 
     def _submit_more(self):
         while not self.exhausted and self.submitted < self.taken + self.in_flight:
@@ -313,9 +340,12 @@ class OrderedResults:
                 return
             key = (int(frame.index), int(frame.timestamp_ns))
             previous, last_good = self.seeds.next(key)
-            image = np.ascontiguousarray(frame.image)
+            if self.shared_path is None:
+                image = np.ascontiguousarray(frame.image)
+                self.image_bytes += image.nbytes
+            else:
+                image = FrameAt(self.shared_path, *key)
             position = self.submitted
-            self.image_bytes += image.nbytes
             self.seed_bytes += _nbytes(previous) + _nbytes(last_good)
             self.pending[position] = self.client.submit(
                 measure_frame, self.job_future, position, key, image, previous, last_good,
@@ -331,7 +361,15 @@ class OrderedResults:
         if future is None:
             raise RuntimeError(f"parallel replay: no task for the frame at position {position} (frame {key[0]}): "
                                f"the session and the submitted frames disagree")
-        answer = future.result()
+        started = time.perf_counter()
+        try:
+            answer = future.result()
+        except ValueError as error:             # RecordingError: a worker could not read the shared recording
+            if self.shared_path is None:
+                raise
+            raise ValueError(f"a worker could not read frame {key[0]} from {self.shared_path} ({error}); "
+                             f"--shared-path must name the recording as every worker sees it") from None
+        self.wait_seconds += time.perf_counter() - started
         future.release()
         if answer.position != position or tuple(answer.key) != tuple(key):
             raise RuntimeError(f"parallel replay: the result for position {position} is frame {answer.key[0]} "
@@ -465,12 +503,15 @@ class ParallelStats:
     compute_seconds: float = 0.0          # summed over the tasks (the tracker's own time)
     image_bytes: int = 0
     seed_bytes: int = 0
+    shared_path: str = None               # where the workers read the frames (None: sent from the client)
+    wait_seconds: float = 0.0             # the replaying process waiting for results (the rest: its own work)
 
 
 class ParallelSession(Session):
     """The replay's ``Session`` with its frames measured on a Dask cluster (``ServedTracker``); same sinks."""
 
-    def __init__(self, config, *, client, frames_again, recorded, in_flight=None, stats=None, **kwargs):
+    def __init__(self, config, *, client, frames_again, recorded, in_flight=None, shared_path=None, stats=None,
+                 **kwargs):
         self._keys = deque()
         source = kwargs.pop("source")
         super().__init__(config, source=KeyedFrames(source, self._keys), **kwargs)
@@ -478,6 +519,7 @@ class ParallelSession(Session):
         self._frames_again = frames_again
         self._recorded = recorded
         self._in_flight = in_flight
+        self._shared_path = shared_path
         self.parallel = stats if stats is not None else ParallelStats()
         self.served = None
         self.results = None
@@ -491,7 +533,7 @@ class ParallelSession(Session):
                         threads=1)
         seeds = Seeds(self._recorded, tracker.x, tracker.y)
         in_flight = self._in_flight or IN_FLIGHT_PER_WORKER * threads
-        self.results = OrderedResults(self._client, job, self._frames_again, seeds, in_flight)
+        self.results = OrderedResults(self._client, job, self._frames_again, seeds, in_flight, self._shared_path)
         self.served = ServedTracker(tracker, self.results, self._keys, UpdatePolicy.parse(tracking.reference_update),
                                     tracking.subset)
         self.parallel.workers = threads
@@ -507,6 +549,8 @@ class ParallelSession(Session):
         stats.compute_seconds = self.served.compute_seconds
         stats.image_bytes = self.results.image_bytes
         stats.seed_bytes = self.results.seed_bytes
+        stats.shared_path = self.results.shared_path
+        stats.wait_seconds = self.results.wait_seconds
         return stats
 
     def close(self):

@@ -1,0 +1,167 @@
+"""``livedic bench replay``: the offline replay sequential and on Dask (``--workers 1``, ``--workers 2``), one run.
+
+Setup: one recording (given, or made here by ``livedic run`` on the simulated tensile test
+with ``--reference-update never``, as the parallel replay follows no reference updates yet),
+replayed by ``stream.replay.replay`` sequentially in this process, then on a LocalCluster of
+1 and of 2 worker processes (1 thread each: ``stream.parallel_replay.dask_client``), the largest
+also with ``--shared-path`` (the workers read the frames from the file instead of receiving
+them from the replaying process). Each
+cluster is started and warmed up before it is timed (every worker tracks a small frame pair:
+numba's cached kernels load on first use), so the times are the replay's, not the start's;
+the start is reported apart.
+
+Per mode: wall time, frames/s and the ratio to the sequential rate; the tracker's own time
+per frame inside the tasks; the overhead per frame, (wall x worker threads - tracking time in
+the tasks) / frames: the worker time that went to anything but tracking (scheduling, moving
+the image, waiting for the client to read and submit the next frames); the replaying process's
+own time per frame (wall minus its waits for results: reading and submitting frames, strain,
+comparison, CSV), the serial part that bounds the rate whatever the number of workers; and on
+each cluster a
+no-op task's round trip (one at a time: the latency a frame pays) and the cost per task of a
+batch of no-op tasks carrying a frame-sized uint8 image (the scheduler's throughput). The
+replays' verdicts against the recording must be the same in every mode.
+"""
+
+import json
+import os
+import tempfile
+import time
+
+import numpy as np
+
+NOOP_TASKS = 100
+
+
+def _noop(image=None):
+    return 0 if image is None else int(image.shape[0])
+
+
+def warm_tracker():
+    """Track a small shifted frame once: numba's kernels (search, IC-GN) loaded in this process."""
+    from livedic.dic.speckle import SpecklePattern, render
+    from livedic.dic.tracking import Tracker
+    pattern = SpecklePattern((96, 96), n_speckles=150, seed=1)
+    tracker = Tracker(render(pattern), [(48, 48), (40, 56)], subpixel="icgn")
+    tracker.track(render(pattern, (0.4, -0.3)))
+    return True
+
+
+def noop_overhead(client, image, tasks=NOOP_TASKS):
+    """(round trip of one no-op task at a time, s; cost per task of ``tasks`` no-op tasks with ``image``, s)."""
+    one = []
+    for _ in range(10):
+        started = time.perf_counter()
+        client.submit(_noop, pure=False).result()
+        one.append(time.perf_counter() - started)
+    started = time.perf_counter()
+    futures = [client.submit(_noop, image, pure=False) for _ in range(tasks)]
+    client.gather(futures)
+    batch = (time.perf_counter() - started) / tasks
+    return float(np.median(one)), batch
+
+
+def make_recording(folder, *, frames, size, points, log):
+    """A ``livedic run`` recording of the simulated tensile test (reference kept) in ``folder``."""
+    from livedic.stream.cli import main
+    path = os.path.join(folder, "bench-replay.mcap")
+    code = main(["run", "--source", f"synthetic:tensile?size={size}&frames={frames}&pace=0", "--record", path,
+                 "--viewer", "none", "--n-points", str(points), "--progress", "off", "--reference-update", "never"])
+    if code != 0:
+        raise RuntimeError(f"livedic run could not make the bench recording (exit {code})")
+    log(f"recording: {frames} frames of {size}, {points} points wanted: {path}")
+    return path
+
+
+def _mode(name, report, wall, threads):
+    frames = report.frames
+    compute = report.parallel.compute_seconds if report.parallel is not None else None
+    row = {"mode": name, "frames": frames, "wall_s": wall, "frames_per_s": frames / wall if wall > 0 else float("nan"),
+           "worker_threads": threads, "verdict": report.verdict(), "agreement": report.agreement.name}
+    if compute is not None:
+        row["tracking_ms_per_frame"] = 1e3 * compute / frames
+        row["overhead_ms_per_frame"] = 1e3 * (wall * threads - compute) / frames
+        row["image_bytes_per_frame"] = report.parallel.image_bytes / frames
+        row["seed_bytes_per_frame"] = report.parallel.seed_bytes / frames
+        # what the replaying process itself spends per frame (reading, submitting, strain, comparison, CSV):
+        # the serial part, which bounds the rate whatever the number of workers
+        row["client_ms_per_frame"] = 1e3 * (wall - report.parallel.wait_seconds) / frames
+    else:
+        row["tracking_ms_per_frame"] = 1e3 * wall / frames
+    return row
+
+
+def run_replay_benchmark(*, recording=None, frames=60, size="512x512", points=1000, workers=(1, 2), output=None,
+                         log=print):
+    """Replay one recording sequentially and on LocalClusters of ``workers`` processes; returns the rows.
+
+    Parameters
+    ----------
+    recording : str, optional
+        A livedic recording; default: one made here (``frames``, ``size`` "WxH", ``points`` wanted).
+    workers : sequence of int
+        Worker processes of each LocalCluster timed.
+    output : str, optional
+        Folder for ``replay.json``.
+    log : callable
+        Takes each line of the report.
+    """
+    from livedic.stream.parallel_replay import dask_client
+    from livedic.stream.replay import replay
+
+    with tempfile.TemporaryDirectory(prefix="livedic-bench-replay-") as folder:
+        path = recording or make_recording(folder, frames=frames, size=size, points=points, log=log)
+        from livedic.acquire.mcap_replay import McapSource
+        with McapSource(path) as source:
+            image = np.ascontiguousarray(next(iter(source)).image)
+        warm_tracker()
+        started = time.perf_counter()
+        report = replay(path)
+        rows = [_mode("sequential", report, time.perf_counter() - started, 1)]
+        log(f"sequential: {report.frames} frames x {report.points} points in {rows[0]['wall_s']:.2f} s")
+        for count in workers:
+            started = time.perf_counter()
+            with dask_client(count) as client:
+                client.run(warm_tracker)
+                start_s = time.perf_counter() - started
+                one, batch = noop_overhead(client, image)
+                address = client.scheduler.address
+                for shared in ((None, "") if count == max(workers) else (None,)):
+                    name = f"--workers {count}" + (" --shared-path" if shared is not None else "")
+                    started = time.perf_counter()
+                    report = replay(path, cluster=address, shared_path=shared)
+                    row = _mode(name, report, time.perf_counter() - started, count)
+                    row.update(cluster_start_s=start_s, noop_round_trip_ms=1e3 * one,
+                               noop_batch_ms_per_task=1e3 * batch)
+                    rows.append(row)
+                    log(f"{name}: cluster up and warm in {start_s:.1f} s, replay {row['wall_s']:.2f} s")
+    base = rows[0]["frames_per_s"]
+    for row in rows:
+        row["ratio_vs_sequential"] = row["frames_per_s"] / base
+    for line in format_rows(rows):
+        log(line)
+    if len({row["agreement"] for row in rows}) != 1:
+        log("warning: the modes do not agree with the recording alike: " + "; ".join(
+            f"{row['mode']}: {row['verdict']}" for row in rows))
+    if output:
+        os.makedirs(output, exist_ok=True)
+        with open(os.path.join(output, "replay.json"), "w") as f:
+            json.dump({"cpu_count": os.cpu_count(), "rows": rows}, f, indent=2)
+        log(f"wrote {os.path.join(output, 'replay.json')}")
+    return rows
+
+
+def format_rows(rows):
+    """The table: one line per mode."""
+    lines = [f"{'mode':<26} {'frames/s':>9} {'x seq':>6} {'track ms/f':>10} {'overhead ms/f':>13} "
+             f"{'no-op rt ms':>11} {'no-op ms/task':>13} {'client ms/f':>11} {'MB/f sent':>9}  verdict"]
+    for row in rows:
+        def num(key, fmt):
+            value = row.get(key)
+            return format(value, fmt) if value is not None else "-"
+        sent = f"{row['image_bytes_per_frame'] / 1e6:.2f}" if "image_bytes_per_frame" in row else "-"
+        lines.append(f"{row['mode']:<26} {row['frames_per_s']:>9.1f} {row['ratio_vs_sequential']:>6.2f} "
+                     f"{num('tracking_ms_per_frame', '.1f'):>10} {num('overhead_ms_per_frame', '.1f'):>13} "
+                     f"{num('noop_round_trip_ms', '.2f'):>11} {num('noop_batch_ms_per_task', '.2f'):>13} "
+                     f"{num('client_ms_per_frame', '.1f'):>11} "
+                     f"{sent:>9}  {row['agreement']}")
+    return lines

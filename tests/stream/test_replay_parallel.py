@@ -1,0 +1,170 @@
+"""``livedic replay --workers N`` / ``--cluster ADDRESS``: the frames measured on Dask give the sequential replay's
+outputs (CSV rows in order, comparison verdict), survive a worker that dies, and refuse what they cannot follow.
+
+One LocalCluster of 2 worker processes serves the module (started once: a few seconds, plus numba's cached
+kernels loading in each worker on its first frame)."""
+
+import csv
+import os
+
+import numpy as np
+import pytest
+
+from livedic.stream.cli import main
+
+pytest.importorskip("distributed")
+
+POSITION_TO_KILL = 5          # the frame (replay position) whose task kills its worker, once
+
+
+@pytest.fixture(autouse=True)
+def _no_debug(monkeypatch):
+    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
+
+
+def _record(path, *extra):
+    code = main(["run", "--source", "synthetic:tensile?size=128x256&frames=12&noise=0.5&pace=0",
+                 "--record", str(path), "--viewer", "none", "--n-points", "60", "--progress", "off", *extra])
+    assert code == 0 and path.exists()
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """A short session recorded by ``livedic run`` with the reference kept (``--reference-update never``)."""
+    return _record(tmp_path_factory.mktemp("never") / "session.mcap", "--reference-update", "never")
+
+
+@pytest.fixture(scope="module")
+def moved(tmp_path_factory):
+    """The same test with the default ``--reference-update auto``: the 12 % strain moves the reference."""
+    return _record(tmp_path_factory.mktemp("auto") / "session.mcap")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """The address of a LocalCluster of 2 worker processes (1 thread each), closed after the module."""
+    import logging
+
+    from distributed import LocalCluster
+
+    from livedic.stream.parallel_replay import LOCAL_SCHEDULER_OPTIONS
+    with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None,
+                      scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.ERROR) as local:
+        yield local.scheduler_address
+
+
+@pytest.fixture(scope="module")
+def sequential(recording, tmp_path_factory):
+    """The sequential replay's CSV rows and its verdict line."""
+    out = tmp_path_factory.mktemp("sequential") / "seq.csv"
+    return _replay(recording, out)
+
+
+def _replay(recording, out, *extra, capsys=None):
+    import contextlib
+    import io
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(["replay", recording, "-o", str(out), "--progress", "off", *extra])
+    assert code == 0, err.getvalue()
+    with open(out, newline="") as f:
+        rows = list(csv.reader(f))
+    verdict = [line for line in err.getvalue().splitlines() if "replay matches" in line or "replay agrees" in line
+               or "replay differs" in line]
+    return rows, verdict, err.getvalue()
+
+
+def _assert_same(parallel, sequential):
+    """Same header, same (frame, point) rows in the same order, ok/status equal, numbers within 1e-4 px."""
+    rows, verdict, _ = parallel
+    seq_rows, seq_verdict, _ = sequential
+    assert rows[0] == seq_rows[0]
+    assert len(rows) == len(seq_rows)
+    header = rows[0]
+    keys = [tuple(r[:3]) for r in rows[1:]]
+    assert keys == [tuple(r[:3]) for r in seq_rows[1:]]
+    assert len(set(keys)) == len(keys)                       # every (frame, timestamp, point) exactly once
+    a = np.array([[float(v) for v in r] for r in rows[1:]])
+    b = np.array([[float(v) for v in r] for r in seq_rows[1:]])
+    for name in ("ok", "status"):
+        column = header.index(name)
+        assert np.array_equal(a[:, column], b[:, column]), name
+    for name, tolerance in (("u", 1e-4), ("v", 1e-4), ("zncc", 1e-6), ("exx", 1e-4), ("eyy", 1e-4)):
+        column = header.index(name)
+        assert np.array_equal(np.isnan(a[:, column]), np.isnan(b[:, column])), name
+        both = np.isfinite(a[:, column])
+        assert np.max(np.abs(a[both, column] - b[both, column])) <= tolerance, name
+    assert verdict == seq_verdict
+
+
+def test_parallel_replay_equals_sequential(recording, cluster, sequential, tmp_path):
+    parallel = _replay(recording, tmp_path / "par.csv", "--cluster", cluster)
+    _assert_same(parallel, sequential)
+    assert len(sequential[0]) == 1 + 12 * 59                   # 12 frames x 59 points (the grid for 60 wanted)
+    assert "replay matches the recording exactly" in sequential[1][0]
+    assert "parallel: 12 frames measured on the Dask scheduler at" in parallel[2]
+
+
+class KillOnce:
+    """A worker plugin: the worker that starts the task of replay position ``POSITION_TO_KILL`` dies (os._exit),
+    once (the flag file is removed first), as a worker lost to a crash or a pre-empted node."""
+
+    def __init__(self, flag):
+        self.flag = flag
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish == "executing" and str(key).startswith("livedic-replay-frame-") \
+                and str(key).endswith(f"-{POSITION_TO_KILL}"):
+            try:
+                os.remove(self.flag)
+            except FileNotFoundError:
+                return
+            os._exit(1)
+
+
+def test_worker_killed_mid_replay_still_gives_every_frame_once(recording, cluster, sequential, tmp_path):
+    import cloudpickle
+    from distributed import Client
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    import tests.stream.test_replay_parallel as this
+    cloudpickle.register_pickle_by_value(this)          # the workers need not import the test module
+
+    class Plugin(KillOnce, WorkerPlugin):
+        pass
+
+    flag = tmp_path / "kill-once"
+    flag.write_text("the first worker to start the flagged frame removes this and dies\n")
+    with Client(cluster, set_as_default=False) as client:
+        client.register_plugin(Plugin(str(flag)), name="kill-once")
+        try:
+            parallel = _replay(recording, tmp_path / "par.csv", "--cluster", cluster)
+        finally:
+            client.unregister_worker_plugin("kill-once")
+    assert not flag.exists()                            # a worker did die on that frame
+    _assert_same(parallel, sequential)
+
+
+def test_workers_option_starts_its_own_local_cluster(recording, sequential, tmp_path):
+    _assert_same(_replay(recording, tmp_path / "par.csv", "--workers", "2"), sequential)
+
+
+def test_bad_cluster_address_one_line_exit_2_nothing_written(recording, tmp_path, capsys, monkeypatch):
+    import livedic.stream.parallel_replay as parallel_replay
+    monkeypatch.setattr(parallel_replay, "CONNECT_TIMEOUT_S", 1)
+    out = tmp_path / "out.csv"
+    code = main(["replay", recording, "-o", str(out), "--progress", "off", "--cluster", "tcp://127.0.0.1:9"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("livedic: error: --cluster tcp://127.0.0.1:9: no Dask scheduler")
+    assert not out.exists() and os.listdir(tmp_path) == []
+
+
+def test_reference_moves_are_refused_before_any_work(moved, tmp_path, capsys):
+    out = tmp_path / "out.csv"
+    code = main(["replay", moved, "-o", str(out), "--progress", "off", "--workers", "2"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "the reference moved to frame" in err and "does not follow reference updates yet" in err
+    assert not out.exists()
