@@ -168,3 +168,46 @@ def test_reference_moves_are_refused_before_any_work(moved, tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1
     assert "the reference moved to frame" in err and "does not follow reference updates yet" in err
     assert not out.exists()
+
+
+def test_shared_path_workers_read_the_frames_themselves(recording, cluster, sequential, tmp_path):
+    parallel = _replay(recording, tmp_path / "par.csv", "--cluster", cluster, "--shared-path")
+    _assert_same(parallel, sequential)
+    assert f"the images read by the workers from {os.path.abspath(recording)}" in parallel[2]
+
+
+def test_frame_reader_reads_any_frame_as_the_source_gives_it(recording, tmp_path):
+    from livedic.acquire.mcap_replay import FrameReader, McapSource, RecordingError
+    frames = list(McapSource(recording))
+    reader = FrameReader(recording)
+    for frame in reversed(frames):
+        assert np.array_equal(reader.image(frame.index, frame.timestamp_ns), frame.image)
+    with pytest.raises(RecordingError, match="holds no image of frame 99"):
+        reader.image(99, frames[-1].timestamp_ns + 1)
+    cut = tmp_path / "cut.mcap"
+    data = open(recording, "rb").read()
+    cut.write_bytes(data[:len(data) // 2])
+    with pytest.raises(RecordingError, match="has no index"):
+        FrameReader(cut)
+
+
+def test_a_reference_move_met_mid_replay_stops_it_with_one_line_and_no_output(recording, cluster, tmp_path, capsys):
+    """The recording kept its reference; asked to move it every 5 frames, the replay would move it at the 5th
+    frame tracked (frame 4): the parallel replay, which cannot follow, stops there instead of writing other
+    numbers."""
+    out = tmp_path / "out.csv"
+    code = main(["replay", recording, "-o", str(out), "--progress", "off", "--cluster", cluster,
+                 "--reference-update", "every:5"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("livedic: error: frame 4: the replay moves the reference there (every 5 frames")
+    assert not out.exists() and os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("option", [["--workers", "0"], ["--workers", "2", "--cluster", "tcp://127.0.0.1:9"]])
+def test_bad_parallel_options_one_line_exit_2(recording, tmp_path, capsys, option):
+    out = tmp_path / "out.csv"
+    code = main(["replay", recording, "-o", str(out), "--progress", "off", *option])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and err.startswith("livedic: error: ")
+    assert not out.exists()
