@@ -45,8 +45,9 @@ where a connection was lost or a Modbus poll got no value, so nothing is interpo
 0.5 s or 5 median sample intervals of the file, whichever is longer.
 
 A live frame usually arrives before the stream's next sample: ``force_when_known(time_s)`` waits
-for it, bounded (until ``time_s + max_gap_s`` on the monotonic clock, not at all when the stream
-has stalled), and is ``force_at`` for a file or the simulator.
+for it, bounded (until ``time_s`` plus two recent sample intervals and the delivery lag, at most
+``max_gap_s``, on the monotonic clock; not at all when the stream has stalled), and is
+``force_at`` for a file or the simulator.
 
 TCP source
 ----------
@@ -252,8 +253,10 @@ class LoadSource(ABC):
         extrapolated: asked at once, it would be NaN. A file or the simulator knows every sample
         already: this is ``force_at(time_s)``. A stream (``StreamingLoad``) waits until it has a
         sample at or after ``time_s``, at most until ``time_s + wait_s`` on the monotonic clock
-        (default ``max_gap_s``, after which the gap is a stall anyway), and not at all when its
-        newest sample is more than ``max_gap_s`` before ``time_s`` (a stalled stream: NaN at once).
+        (default: two of its recent sample intervals plus its delivery lag, at most ``max_gap_s``),
+        and not at all when its newest sample is more than ``max_gap_s`` before ``time_s`` (a
+        stalled stream: NaN at once). A session is thus never more than ``wait_s`` behind a frame's
+        arrival because of its force, and waits never add up.
         """
         return float(np.asarray(self.force_at(np.atleast_1d(np.float64(time_s))), np.float64)[0])
 
@@ -519,6 +522,8 @@ class StreamingLoad(LoadSource):
         self._buffer = _SampleBuffer(float(keep_s), int(max_samples))
         self._lock = threading.Lock()
         self._arrived = threading.Condition(self._lock)      # notified with every sample stored
+        self._last_arrival_s = -math.inf                       # monotonic time the newest sample was stored
+        self.nominal_interval_s = None                         # a source that polls knows its period
         self._events = []
         self._counts = dict.fromkeys(counts, 0)
         self._stop = threading.Event()
@@ -547,11 +552,13 @@ class StreamingLoad(LoadSource):
             return float(self._buffer.last_time) + self.offset_s if len(self._buffer) else math.nan
 
     def force_when_known(self, time_s, *, wait_s=None):
-        # Why the deadline is time_s + wait_s and not "now + wait_s": a session that is behind (its
-        # frames queued) does not wait again for frames whose samples are long known, so waits never add up.
+        # Why the deadline is time_s + wait and not "now + wait": a session that is behind (its frames
+        # queued) does not wait for frames whose samples are long known, so waits never add up; and
+        # why the wait is about two sample intervals, not max_gap_s: at the start of a stall every
+        # frame waits its full wait, and a lag of max_gap_s (0.5 s) would fill the frame queue.
         t = float(time_s) - self.offset_s                     # on the stored clock (monotonic)
-        deadline = t + (self.max_gap_s if wait_s is None else float(wait_s))
         with self._arrived:
+            deadline = t + (self._default_wait_s() if wait_s is None else float(wait_s))
             while not self._stop.is_set():
                 last = self._buffer.last_time
                 if last >= t or last < t - self.max_gap_s:    # known, or the stream stalled before t
@@ -562,6 +569,18 @@ class StreamingLoad(LoadSource):
                 self._arrived.wait(remaining)
             times, forces = self._buffer.view()
             return float(interpolate_force(times, forces, np.float64(t), self.max_gap_s))
+
+    def _default_wait_s(self):
+        """Two sample intervals (the median of the last few, else ``nominal_interval_s``) plus the
+        newest sample's delivery lag (arrival minus its time: a sender's delay, a Modbus round
+        trip), at most ``max_gap_s``; 0 while the interval is unknown. Called with the lock held."""
+        times, _ = self._buffer.view()
+        recent = np.diff(times[-9:])
+        interval = float(np.median(recent)) if recent.size else self.nominal_interval_s
+        if interval is None or not math.isfinite(interval):
+            return 0.0
+        lag = max(0.0, self._last_arrival_s - float(self._buffer.last_time)) if times.size else 0.0
+        return min(self.max_gap_s, 2.0 * interval + lag)
 
     def events(self, since=0):
         with self._lock:
@@ -614,9 +633,14 @@ class StreamingLoad(LoadSource):
         with self._lock:
             if time_s > self._buffer.last_time:
                 self._buffer.append(time_s, force_n)
-                self._arrived.notify_all()
+                self._stored()
                 return True
             return False
+
+    def _stored(self):
+        """After samples were stored (lock held): note when, and wake ``force_when_known``."""
+        self._last_arrival_s = time.monotonic()
+        self._arrived.notify_all()
 
 
 class TcpLoad(StreamingLoad):
@@ -746,14 +770,14 @@ class TcpLoad(StreamingLoad):
                 arrival_s = arrival_ns / 1e9
                 if arrival_s > self._buffer.last_time:
                     self._buffer.append(arrival_s, parsed[-1][1])
-                    self._arrived.notify_all()
+                    self._stored()
                 return
             for time_s, force_n in parsed:
                 if time_s is None or time_s <= self._buffer.last_time:
                     self._counts["out_of_order" if time_s is not None else "garbage_lines"] += 1
                     continue
                 self._buffer.append(time_s, force_n)
-            self._arrived.notify_all()
+            self._stored()
 
 
 # --- modbus:// -----------------------------------------------------------------------------------
@@ -857,6 +881,7 @@ class ModbusLoad(StreamingLoad):
         self.rate_hz, self.timeout_s = rate_hz, float(timeout_s)
         self.uri = uri or f"modbus://{host}:{port}?register={self.register}&scale={self.scale:g}"
         self._count_registers = modbus_register_count(value_type)
+        self.nominal_interval_s = 1.0 / rate_hz
         self._client = None
         _quiet_pymodbus()
         self._start_thread()

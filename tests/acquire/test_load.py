@@ -389,24 +389,26 @@ def test_the_session_offset_shifts_a_streams_samples():
 
 
 def test_force_when_known_waits_for_the_sample_after_a_live_frame():
-    """A frame arriving between two lines has no force until the next line: asked at once it is NaN."""
+    """A frame arriving between two lines has no force until the next line: asked at once it is NaN.
+    (A generous ``wait_s`` here: the default bound, two sample intervals, is checked by the session tests.)"""
     frame_time = {}
 
     def script(sock, stop):
-        sock.sendall(b"100\n")
-        time.sleep(0.05)
+        for k in range(4):
+            sock.sendall(f"{100 * k}\n".encode())
+            time.sleep(0.05 if k < 3 else 0.01)
         frame_time["t"] = time.monotonic()              # a frame arrives here, between two lines
-        time.sleep(0.1)
-        sock.sendall(b"200\n")
+        time.sleep(0.04)
+        sock.sendall(b"400\n")
         stop.wait(5)
 
     with serving(script) as server, loading(f"tcp://127.0.0.1:{server.port}") as load:
         wait_until(lambda: "t" in frame_time)
         at_once = load.force_at(frame_time["t"])
-        known = load.force_when_known(frame_time["t"])
+        known = load.force_when_known(frame_time["t"], wait_s=5.0)
         t, f = load.samples()
-        assert t.size == 2 and t[0] < frame_time["t"] < t[1]
-        expected = 100 + 100 * (frame_time["t"] - t[0]) / (t[1] - t[0])
+        assert t.size == 5 and t[3] < frame_time["t"] < t[4]
+        expected = 300 + 100 * (frame_time["t"] - t[3]) / (t[4] - t[3])
         assert math.isnan(at_once) and known == pytest.approx(expected, abs=1e-9)
 
 

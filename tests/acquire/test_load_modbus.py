@@ -280,7 +280,7 @@ def test_force_when_known_waits_for_the_next_poll_and_not_for_a_stalled_one(serv
     with polling(f"modbus://127.0.0.1:{server.port}?register=70&rate=50") as load:
         wait_until(lambda: load.samples()[0].size >= 2)
         frame_time = time.monotonic()                       # a frame that arrives now: no sample after it yet
-        assert load.force_when_known(frame_time) == 250.0   # waited for the next poll, then interpolated
+        assert load.force_when_known(frame_time, wait_s=5.0) == 250.0   # waited for the next poll
         assert load.last_sample_time_s >= frame_time
         server.silent = True
         wait_until(lambda: LoadEventKind.STALLED in kinds(load))
