@@ -991,7 +991,11 @@ class ModbusLoad(StreamingLoad):
             self._count("exception_responses")
             return (f"the server answered a read of the {self._where()} with exception "
                     f"{_exception_name(response.exception_code)}: check register=, kind=, type= and unit=")
-        value = decode_registers(response.registers, self.value_type, self.word_order)
+        try:
+            value = decode_registers(response.registers, self.value_type, self.word_order)
+        except Exception as error:       # why: a device answering the wrong register count must not end the thread
+            self._count("bad_values")
+            return f"the answer from the {self._where()} does not decode ({_first_line(error)})"
         force_n = float(value) * self.scale
         if not math.isfinite(force_n):
             self._count("bad_values")
