@@ -14,10 +14,9 @@ the ``axial`` extensometer while the elongation may be uniform (``result.true_st
 events (connected, stalled, lost) and keeps the numbers for the summary.
 """
 
+import dataclasses
 import math
 import time
-
-import numpy as np
 
 from livedic.acquire.load import open_load
 from livedic.stream.strain import AXIAL
@@ -70,7 +69,7 @@ class LoadStage:
             self.first_ns = frame.timestamp_ns
         when = self.load.frame_time_s(since_first_frame_s=(frame.timestamp_ns - self.first_ns) / 1e9,
                                       arrival_ns=result.arrival_ns)
-        force = float(np.asarray(self.load.force_at(np.atleast_1d(when)), dtype=np.float64)[0])
+        force = self.load.force_when_known(float(when))     # a live stream: waits (bounded) for its next sample
         stress = force / self.area_mm2 if self.area_mm2 and math.isfinite(force) else math.nan
         result.force_N, result.stress_MPa = force, stress
         if self.uniform is not None:
@@ -84,16 +83,18 @@ class LoadStage:
         events = self.load.events(since=self._events_seen)
         self._events_seen += len(events)
         for event in events:
-            self.report("load", f"force source: {event.message}", "warning" if _is_trouble(event) else "info")
+            self.report("load", f"force source: {event.message}", "warning" if event.kind.is_trouble else "info")
         self.seconds += time.perf_counter() - started
 
     def summary(self):
         """The force numbers for the session summary (NaN/None where missing)."""
         top = self.max_force_N if math.isfinite(self.max_force_N) else math.nan
+        counts = dataclasses.asdict(self.load.warnings)
         return {"load": self.load.uri, "area_mm2": self.area_mm2, "max_force_N": top,
                 "max_stress_MPa": top / self.area_mm2 if self.area_mm2 and math.isfinite(top) else math.nan,
                 "final_force_N": self.last_force_N, "final_stress_MPa": self.last_stress_MPa,
-                "frames_without_force": self.frames_without_force, "frames": self.frames}
+                "frames_without_force": self.frames_without_force, "frames": self.frames,
+                "source_warnings": {name: n for name, n in counts.items() if n and name != "trimmed"}}
 
 
 def axial_strain(result):
@@ -103,10 +104,6 @@ def axial_strain(result):
         return math.nan
     strain, _, ok = readings.reading(AXIAL)
     return strain if ok else math.nan
-
-
-def _is_trouble(event):
-    return event.kind.name in ("CONNECT_FAILED", "DISCONNECTED", "STALLED")
 
 
 def format_force_summary(force):
@@ -123,4 +120,7 @@ def format_force_summary(force):
             + f"; final {num(force['final_force_N'], ',.0f')} N")
     if missing:
         text += f"; {missing} of {force['frames']} frames without force (NaN)"
+    skipped = force.get("source_warnings") or {}
+    if skipped:
+        text += "; source: " + ", ".join(f"{n} {name.replace('_', ' ')}" for name, n in sorted(skipped.items()))
     return [text]

@@ -247,9 +247,6 @@ def test_each_tcp_fault_is_an_event_in_the_recording(tcp_session):
     assert missing >= 15 and f"{missing} of {frames} frames without force (NaN)" in tcp_session["stdout"]
 
 
-@pytest.mark.xfail(strict=True, reason="stream/load_stage.py: bad_data (and read_failed) events must be warnings "
-                                       "(event.kind.is_trouble) and the summary must count the source's warnings: "
-                                       "/work/notes/issue13_load_stage_faults.patch")
 def test_garbage_lines_are_a_warning_event_and_counted_in_the_summary(tcp_session):
     events = [event for event in load_events(tcp_session["record"]) if "skipped a line" in event.message]
     assert events and all(event.level == "warning" for event in events)
@@ -257,9 +254,6 @@ def test_garbage_lines_are_a_warning_event_and_counted_in_the_summary(tcp_sessio
     assert counted >= 5 and f"source: {counted} garbage lines" in tcp_session["stdout"]   # 0.6 s at 20 Hz: ~12
 
 
-@pytest.mark.xfail(strict=True, reason="stream/load_stage.py: LoadStage asks force_at once, before the stream's "
-                                       "next sample exists; load.force_when_known(when) waits for it (bounded): "
-                                       "/work/notes/issue13_load_stage_faults.patch")
 def test_frames_outside_the_faults_all_have_force(tcp_session):
     marks = tcp_session["sender"].marks
     _, arrival, force = tcp_session["spy"].table()
