@@ -11,11 +11,11 @@ its result and its ``/machine/force`` sample in the recording, equal to what the
 a frame that arrived inside a fault (the stall, the outage; 0.1 s margins for delivery) has NaN,
 never a stale or bridged value; a finite force is the ramp's at the frame's arrival within the
 ramp's change over 50 ms (delivery and stamping; interpolation of the linear ramp between lines is
-exact; a stale value would be hundreds of N off); each fault is an event in the recording and the summary counts frames without force.
+exact; a stale value would be hundreds of N off); each fault is an event in the recording and the
+summary counts frames without force.
 """
 
 import json
-import math
 import socket
 import threading
 import time
