@@ -10,6 +10,10 @@ cluster is started and warmed up before it is timed (every worker tracks a small
 numba's cached kernels load on first use), so the times are the replay's, not the start's;
 the start is reported apart.
 
+Every mode formats the CSV lines as ``livedic replay -o OUT.csv`` does (written to the null
+device): at full precision that costs ~20 us a point, as much as tracking, so a rate without
+it would not be the command's.
+
 Per mode: wall time, frames/s and the ratio to the sequential rate; the tracker's own time
 per frame inside the tasks; the overhead per frame, (wall x worker threads - tracking time in
 the tasks) / frames: the worker time that went to anything but tracking (scheduling, moving
@@ -30,10 +34,33 @@ import time
 import numpy as np
 
 NOOP_TASKS = 100
+QUICK = dict(frames=30, size="256x256", points=300, workers=(1, 2))
+
+
+def parse_workers(text):
+    """``"1,2"`` -> (1, 2): the worker counts to time; ValueError (one line) otherwise."""
+    try:
+        counts = tuple(int(part) for part in str(text).split(","))
+    except ValueError:
+        counts = ()
+    if not counts or any(count < 1 for count in counts):
+        raise ValueError(f"--workers {text!r}: give worker counts like 1,2 (each >= 1)")
+    return counts
 
 
 def _noop(image=None):
     return 0 if image is None else int(image.shape[0])
+
+
+class CsvSink:
+    """The replay's CSV lines written to the null device: formatted as ``livedic replay -o`` formats them
+    (in this process sequentially, on the workers in parallel), not kept."""
+
+    def __init__(self):
+        self.out = open(os.devnull, "w")
+
+    def __call__(self, header, lines):
+        self.out.write(lines)
 
 
 def warm_tracker():
@@ -90,8 +117,8 @@ def _mode(name, report, wall, threads):
     return row
 
 
-def run_replay_benchmark(*, recording=None, frames=60, size="512x512", points=1000, workers=(1, 2), output=None,
-                         log=print):
+def run_replay_benchmark(*, recording=None, frames=100, size="512x512", points=1000, workers=(1, 2), output=None,
+                         quick=False, log=print):
     """Replay one recording sequentially and on LocalClusters of ``workers`` processes; returns the rows.
 
     Parameters
@@ -102,20 +129,25 @@ def run_replay_benchmark(*, recording=None, frames=60, size="512x512", points=10
         Worker processes of each LocalCluster timed.
     output : str, optional
         Folder for ``replay.json``.
+    quick : bool
+        ``QUICK``'s smaller recording (when none is given) and worker counts (a minute).
     log : callable
         Takes each line of the report.
     """
     from livedic.stream.parallel_replay import dask_client
     from livedic.stream.replay import replay
 
+    if quick:
+        frames, size, points, workers = QUICK["frames"], QUICK["size"], QUICK["points"], QUICK["workers"]
     with tempfile.TemporaryDirectory(prefix="livedic-bench-replay-") as folder:
         path = recording or make_recording(folder, frames=frames, size=size, points=points, log=log)
         from livedic.acquire.mcap_replay import McapSource
         with McapSource(path) as source:
             image = np.ascontiguousarray(next(iter(source)).image)
         warm_tracker()
+        sink = CsvSink()
         started = time.perf_counter()
-        report = replay(path)
+        report = replay(path, on_rows=sink)
         rows = [_mode("sequential", report, time.perf_counter() - started, 1)]
         log(f"sequential: {report.frames} frames x {report.points} points in {rows[0]['wall_s']:.2f} s")
         for count in workers:
@@ -128,7 +160,7 @@ def run_replay_benchmark(*, recording=None, frames=60, size="512x512", points=10
                 for shared in ((None, "") if count == max(workers) else (None,)):
                     name = f"--workers {count}" + (" --shared-path" if shared is not None else "")
                     started = time.perf_counter()
-                    report = replay(path, cluster=address, shared_path=shared)
+                    report = replay(path, cluster=address, shared_path=shared, on_rows=sink)
                     row = _mode(name, report, time.perf_counter() - started, count)
                     row.update(cluster_start_s=start_s, noop_round_trip_ms=1e3 * one,
                                noop_batch_ms_per_task=1e3 * batch)

@@ -73,12 +73,12 @@ from livedic.stream.config import (DEFAULT_POINTS, PointsConfig, SessionConfig, 
 from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, read_points_csv
 from livedic.stream.progress import ProgressBar
+from livedic.stream.replay_rows import frame_rows
 from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
 from livedic.stream.strain import StrainConfig, add_strain_arguments, overrides_from_args
 
-from livedic.stream.export import (EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, check_output_csv, csv_rows,
-                           read_session_or_note, reader_notes, result_columns, say)
+from livedic.stream.export import StagedFile, check_output_csv, read_session_or_note, reader_notes, say
 
 # A replay on another machine agrees within these (see the module notes). Rounding differences of the
 # compiled kernels moved u and v by 1.8e-6 px on the sample session (issue 8, another x86_64 CPU);
@@ -425,7 +425,7 @@ def _compare(report, measurement, recorded):
 
 
 def replay(path, given=None, *, point_options=None, all_frames=False, on_result=None, progress=None,
-           threads=1, strain=None, workers=None, cluster=None, in_flight=None, shared_path=None):
+           threads=1, strain=None, workers=None, cluster=None, in_flight=None, shared_path=None, on_rows=None):
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
 
     Parameters
@@ -441,6 +441,9 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     on_result : callable, optional
         ``on_result(frame, measurement, point_ids, strain)`` for each tracked frame, in order
         (``strain``: its ``dic.strain.StrainField``).
+    on_rows : callable, optional
+        ``on_rows(header, lines)`` for each tracked frame, in order: its CSV column names and lines
+        (``stream.replay_rows.frame_rows``; formatted on the worker that measured the frame when parallel).
     progress : callable, optional
         ``progress(frames_done)``.
     threads : int
@@ -482,11 +485,11 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
             shared_path = os.path.abspath(path)
             FrameReader(shared_path)                # indexed? (one line otherwise)
         with dask_client(workers, cluster) as client:
-            return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain,
+            return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows,
                            client=client, in_flight=in_flight, shared_path=shared_path,
                            where=f"the Dask scheduler at {cluster}" if cluster is not None
                            else f"a local Dask cluster of {workers} worker process(es)")
-    return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain)
+    return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows)
 
 
 def _check_parallel_input(path, given, all_frames):
@@ -506,8 +509,8 @@ def _check_parallel_input(path, given, all_frames):
         raise ParallelReplayLimit(f"{path}: {limit}: replay it without --workers/--cluster")
 
 
-def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, *, client=None,
-            in_flight=None, shared_path=None, where=None):
+def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows=None, *,
+            client=None, in_flight=None, shared_path=None, where=None):
     """``replay``: sequential (``client`` None) or on the Dask ``client``."""
     from livedic.acquire.mcap_replay import McapSource, Recording
 
@@ -564,6 +567,15 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
             sinks.append(FunctionSink(lambda result, stats: on_result(result.frame, result.measurement, point_ids[0],
                                                                       result.strain),
                                       "output", required=True))
+        served = []                   # the parallel session (its tracker holds the worker-formatted lines)
+        if on_rows is not None:
+            def rows(result, stats):
+                if served:
+                    on_rows(*served[0].rows_of(result.frame))
+                else:
+                    on_rows(*frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
+                                        result.measurement, result.strain))
+            sinks.append(FunctionSink(rows, "output", required=True))
         if progress is not None:
             sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
         frames = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
@@ -575,9 +587,12 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
             from livedic.stream.parallel_replay import ParallelSession
             again = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
             make_session = partial(ParallelSession, client=client, frames_again=again, recorded=recorded,
-                                   in_flight=in_flight, shared_path=shared_path)
+                                   in_flight=in_flight, shared_path=shared_path, point_ids=point_ids,
+                                   rows=on_rows is not None)
         started = time.perf_counter()
         with make_session(config, source=frames, points=points, sinks=sinks) as session:
+            if client is not None:
+                served.append(session)
             try:
                 session.prepare()
             except NoFrame:
@@ -699,21 +714,12 @@ def replay_command(args):
     state = {"header": None}
 
     def write_rows(out):
-        def on_result(frame, m, point_ids, strain):
-            extras = {"status": np.asarray(m.status, dtype=np.int64)}
-            for name in ("ux", "uy", "vx", "vy", "iterations"):
-                value = getattr(m, name)
-                if value is not None:
-                    extras[name] = value
+        def on_rows(header, lines):
             if state["header"] is None:
-                state["header"] = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras] \
-                    + list(STRAIN_COLUMNS)
-                out.write(",".join(state["header"]) + "\n")
-            columns = result_columns(frame.index, frame.timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc,
-                                     m.ok, extras)
-            columns.update(exx=strain.exx, eyy=strain.eyy, exy=strain.exy)
-            out.write(csv_rows(columns, len(m.u)))
-        return on_result
+                state["header"] = header
+                out.write(",".join(header) + "\n")
+            out.write(lines)
+        return on_rows
 
     def progress(done):
         bar.update(done, "frames replayed")
@@ -722,12 +728,12 @@ def replay_command(args):
         if to_file:
             with StagedFile(args.output) as out:
                 report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                                on_result=write_rows(out), progress=progress, threads=args.threads, strain=strain,
+                                on_rows=write_rows(out), progress=progress, threads=args.threads, strain=strain,
                                 workers=args.workers, cluster=args.cluster, shared_path=args.shared_path)
                 out.commit()
         else:
             report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                            on_result=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
+                            on_rows=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
                             workers=args.workers, cluster=args.cluster, shared_path=args.shared_path)
             sys.stdout.flush()
     except BrokenPipeError:
