@@ -14,9 +14,10 @@ Every mode formats the CSV lines as ``livedic replay -o OUT.csv`` does (written 
 device): at full precision that costs ~20 us a point, as much as tracking, so a rate without
 it would not be the command's.
 
-Per mode: wall time, frames/s and the ratio to the sequential rate; the tracker's own time
-per frame inside the tasks; the overhead per frame, (wall x worker threads - tracking time in
-the tasks) / frames: the worker time that went to anything but tracking (scheduling, moving
+Per mode: wall time, frames/s and the ratio to the sequential rate (sequential: its time per
+frame is all of it, tracking and CSV lines); the tracker's own time per frame inside the tasks
+and the CSV lines' (strain and formatting on the worker); the overhead per frame, (wall x
+worker threads - those two) / frames: the worker time that went to anything else (scheduling, moving
 the image, waiting for the client to read and submit the next frames); the replaying process's
 own time per frame (wall minus its waits for results: reading and submitting frames, strain,
 comparison, CSV), the serial part that bounds the rate whatever the number of workers; and on
@@ -105,8 +106,10 @@ def _mode(name, report, wall, threads):
     row = {"mode": name, "frames": frames, "wall_s": wall, "frames_per_s": frames / wall if wall > 0 else float("nan"),
            "worker_threads": threads, "verdict": report.verdict(), "agreement": report.agreement.name}
     if compute is not None:
+        rows_s = report.parallel.rows_seconds
         row["tracking_ms_per_frame"] = 1e3 * compute / frames
-        row["overhead_ms_per_frame"] = 1e3 * (wall * threads - compute) / frames
+        row["csv_ms_per_frame"] = 1e3 * rows_s / frames
+        row["overhead_ms_per_frame"] = 1e3 * (wall * threads - compute - rows_s) / frames
         row["image_bytes_per_frame"] = report.parallel.image_bytes / frames
         row["seed_bytes_per_frame"] = report.parallel.seed_bytes / frames
         # what the replaying process itself spends per frame (reading, submitting, strain, comparison, CSV):
@@ -184,7 +187,7 @@ def run_replay_benchmark(*, recording=None, frames=100, size="512x512", points=1
 
 def format_rows(rows):
     """The table: one line per mode."""
-    lines = [f"{'mode':<26} {'frames/s':>9} {'x seq':>6} {'track ms/f':>10} {'overhead ms/f':>13} "
+    lines = [f"{'mode':<26} {'frames/s':>9} {'x seq':>6} {'track ms/f':>10} {'csv ms/f':>8} {'overhead ms/f':>13} "
              f"{'no-op rt ms':>11} {'no-op ms/task':>13} {'client ms/f':>11} {'MB/f sent':>9}  verdict"]
     for row in rows:
         def num(key, fmt):
@@ -192,7 +195,8 @@ def format_rows(rows):
             return format(value, fmt) if value is not None else "-"
         sent = f"{row['image_bytes_per_frame'] / 1e6:.2f}" if "image_bytes_per_frame" in row else "-"
         lines.append(f"{row['mode']:<26} {row['frames_per_s']:>9.1f} {row['ratio_vs_sequential']:>6.2f} "
-                     f"{num('tracking_ms_per_frame', '.1f'):>10} {num('overhead_ms_per_frame', '.1f'):>13} "
+                     f"{num('tracking_ms_per_frame', '.1f'):>10} {num('csv_ms_per_frame', '.1f'):>8} "
+                     f"{num('overhead_ms_per_frame', '.1f'):>13} "
                      f"{num('noop_round_trip_ms', '.2f'):>11} {num('noop_batch_ms_per_task', '.2f'):>13} "
                      f"{num('client_ms_per_frame', '.1f'):>11} "
                      f"{sent:>9}  {row['agreement']}")

@@ -165,6 +165,7 @@ class FrameMeasured:
     seconds: float
     header: list = None                   # the frame's CSV columns and lines (stream.replay_rows.frame_rows)
     lines: str = None
+    rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
 
 
 _TRACKERS = {}          # per worker process: job token -> Tracker (the reference prepared once)
@@ -238,7 +239,8 @@ def measure_frame(job, position, key, image, previous, last_good):
         strain, _ = job.strain.compute(measurement.u, measurement.v, measurement.ok)
         header, lines = frame_rows(key[0], key[1], job.point_ids, measurement, strain)
     return FrameMeasured(position=position, key=key, measurement=measurement, refound=tracker.last_refound.copy(),
-                         refind_attempts=tracker.last_refind_attempts, seconds=seconds, header=header, lines=lines)
+                         refind_attempts=tracker.last_refind_attempts, seconds=seconds, header=header, lines=lines,
+                         rows_seconds=time.perf_counter() - started - seconds)
 
 
 # ----------------------------------------------------------------------------- seeds
@@ -442,6 +444,7 @@ class ServedTracker:
         self.last_update = None
         self.last_fracture = None
         self.compute_seconds = 0.0
+        self.rows_seconds = 0.0
         self.last_answer = None
         self._previous = None
         n = tracker.n_points
@@ -473,6 +476,7 @@ class ServedTracker:
         m = answer.measurement
         self.frames_tracked += 1
         self.compute_seconds += answer.seconds
+        self.rows_seconds += answer.rows_seconds
         self.last_refound = answer.refound
         self.last_refind_attempts = answer.refind_attempts
         self.last_answer = answer
@@ -526,6 +530,7 @@ class ParallelStats:
     where: str = ""
     frames: int = 0
     compute_seconds: float = 0.0          # summed over the tasks (the tracker's own time)
+    rows_seconds: float = 0.0             # ... and the CSV lines' (strain and formatting on the workers)
     image_bytes: int = 0
     seed_bytes: int = 0
     shared_path: str = None               # where the workers read the frames (None: sent from the client)
@@ -583,6 +588,7 @@ class ParallelSession(Session):
         stats = self.parallel
         stats.frames = self.results.taken
         stats.compute_seconds = self.served.compute_seconds
+        stats.rows_seconds = self.served.rows_seconds
         stats.image_bytes = self.results.image_bytes
         stats.seed_bytes = self.results.seed_bytes
         stats.shared_path = self.results.shared_path
