@@ -44,8 +44,8 @@ p50 of the 1,000-point IC-GN case; its p99 is printed next to it).
 Every session also publishes its strain (``livedic run --publish udp://127.0.0.1:PORT``,
 ``stream.publish``) to a UDP socket this process reads in a thread (``StrainOutReceiver``),
 and the strain-out latency is printed per case, from the tracker's result (the moment
-``Tracker.track`` returns, ``FrameResult.done_ns``: the strain and load stages, which
-compute what is sent, are inside it) to
+``Tracker.track`` returns, ``FrameResult.done_ns``: the strain stage, which computes what
+is sent, is inside it) to
 
 * the send returning (``sendto``, in the tracker thread; the session's own number);
 * the datagram's arrival in the receiving socket (the kernel's receive timestamp,

@@ -15,8 +15,7 @@ extensometer readings out as soon as the frame's result exists:
     (L - L0) / L0), ``null`` where the extensometer has no valid reading in this frame
     (an end lost: NaN is never written); ``ok`` is true only when every extensometer has a
     valid reading; ``time_s`` is seconds since the session's first frame (as the recording
-    and ``livedic export`` give it). ``true_strain`` (ln(L / L0)) always comes along, and
-    ``force_N`` and ``stress_MPa`` (``null`` when unknown) with ``--load``. The socket
+    and ``livedic export`` give it). ``true_strain`` (ln(L / L0)) comes along. The socket
     never blocks the tracker: a datagram the system cannot take at once is not sent,
     and counted.
 
@@ -28,8 +27,10 @@ extensometer readings out as soon as the frame's result exists:
     half of one frame and half of the next: the tracker thread replaces one immutable
     snapshot, and a read copies it whole into the registers in the server's thread.
 
-``PublishStage`` is a session sink placed right after the strain and load stages, before
-the recording and the view, so the values leave as early as they exist. A send that fails
+``PublishStage`` is a session sink placed right after the strain stage, before the load
+stage, the recording and the view, so the values leave as early as they exist. No force
+goes out: the controller has its own load cell, and the load stage may wait (bounded) for
+a live force stream's next sample, which strain out must not. A send that fails
 (network unreachable, no route) is a warning event once, counted, and publishing goes on;
 it never costs the session or its recording. The stage keeps, per frame, the time from
 the tracker's result to the send returning (``latency_ms``): the strain-out latency
@@ -70,9 +71,7 @@ REGISTER_MAP = (
     (7, 1, "uint16", "state", "0 waiting for the first frame, 1 running, 2 session ended (values final)"),
     (8, 1, "uint16", "age_ms", "milliseconds since these values were written, when read (65535 at most)"),
     (9, 1, "uint16", "extensometers", "N, the number of extensometer blocks that follow"),
-    (10, 2, "float32", "force_N", "the machine's force (--load); NaN without one or when unknown"),
-    (12, 2, "float32", "stress_MPa", "engineering stress; NaN without --area or force"),
-    (14, 2, "-", "reserved", "0"),
+    (10, 6, "-", "reserved", "0"),
 )
 EXTENSOMETER_MAP = (
     # (offset in the block, registers, type, name, meaning)
@@ -118,8 +117,7 @@ def encode_registers(values, *, update_count, state=STATE_RUNNING):
         ``register_count(len(values.names))`` values, 0..65535 each.
     """
     registers = (_words("I", update_count & 0xFFFFFFFF) + _words("I", values.frame & 0xFFFFFFFF)
-                 + _float32(values.time_s) + [int(values.ok), state, 0, len(values.names)]
-                 + _float32(values.force_N) + _float32(values.stress_MPa) + [0, 0])
+                 + _float32(values.time_s) + [int(values.ok), state, 0, len(values.names)] + [0] * 6)
     for eng, true, valid in zip(values.eng_strain, values.true_strain, values.valid):
         registers += _float32(eng if valid else math.nan) + _float32(true if valid else math.nan) + [int(valid), 0]
     return registers
@@ -142,7 +140,6 @@ def decode_registers(registers):
     blocks = [HEADER_REGISTERS + EXTENSOMETER_REGISTERS * k for k in range(n)]
     return {"update_count": u32(0), "frame": u32(2), "time_s": f32(4), "ok": bool(registers[6]),
             "state": registers[7], "age_ms": registers[_AGE_ADDRESS], "extensometers": n,
-            "force_N": f32(10), "stress_MPa": f32(12),
             "eng_strain": [f32(at) for at in blocks], "true_strain": [f32(at + 2) for at in blocks],
             "valid": [bool(registers[at + 4]) for at in blocks]}
 
@@ -219,8 +216,6 @@ class FrameValues:
     eng_strain: tuple
     true_strain: tuple
     valid: tuple
-    force_N: float = None
-    stress_MPa: float = None
 
     @property
     def ok(self):
@@ -236,9 +231,6 @@ class FrameValues:
                    "strain": {n: number(e, v) for n, e, v in zip(self.names, self.eng_strain, self.valid)},
                    "ok": self.ok,
                    "true_strain": {n: number(t, v) for n, t, v in zip(self.names, self.true_strain, self.valid)}}
-        if self.force_N is not None:
-            message["force_N"] = number(self.force_N)
-            message["stress_MPa"] = number(self.stress_MPa)
         return json.dumps(message, allow_nan=False, separators=(",", ":")).encode("utf-8")
 
 
@@ -259,8 +251,7 @@ def frame_values(result, names, time_s):
             eng[k], true[k] = float(readings.eng_strain[i]), float(readings.true_strain[i])
             valid[k] = bool(readings.ok[i]) and math.isfinite(eng[k])
     return FrameValues(frame=int(result.frame.index), time_s=time_s, names=tuple(names), eng_strain=tuple(eng),
-                       true_strain=tuple(true), valid=tuple(valid), force_N=result.force_N,
-                       stress_MPa=result.stress_MPa)
+                       true_strain=tuple(true), valid=tuple(valid))
 
 
 # ----------------------------------------------------------------------------- outlets
@@ -474,11 +465,11 @@ class PublishStage:
         Frames sent, and frames not sent (the system refused the datagram).
     latencies_ns : array of int
         Per frame sent: the send returning - the tracker's result (``FrameResult.done_ns``),
-        monotonic clock; the strain and load stages before this one are inside it.
+        monotonic clock; the strain stage before this one is inside it.
     upstream_ns : array of int
         Per frame sent: this stage's start - the tracker's result (the part of the latency spent
         before it: the loop's bookkeeping, on the simulator its error against the truth, the
-        strain and load stages).
+        strain stage).
     """
     required = False
 

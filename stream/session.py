@@ -422,8 +422,9 @@ class Session:
         self.acquisition = AcquisitionThread(self._ahead, self.queue, max_frames=config.frames, on_frame=on_frame,
                                              reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
-        sinks = [stage for stage in (self.strain, self.load_stage) if stage is not None]
-        sinks.extend(self.publishers)         # strain out as soon as it exists: before the recording and the view
+        # Strain out as soon as it exists: right after the strain stage, before the load stage (which may
+        # wait for a live force stream's next sample), the recording and the view.
+        sinks = [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method,
                                        strain_window=self.strain.windows.window if self.strain is not None else None,

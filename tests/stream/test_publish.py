@@ -92,26 +92,23 @@ def test_json_has_the_contract_keys_and_null_never_nan():
     assert message["frame"] == 41 and message["time_s"] == 0.82
     assert message["strain"] == {"axial": 0.00123, "transverse": None}
     assert message["ok"] is False                        # one extensometer without a reading
-    assert "force_N" not in message                      # only with --load
     assert b"NaN" not in _values().as_json()
-    both = FrameValues(frame=1, time_s=0.0, names=("axial",), eng_strain=(0.5,), true_strain=(0.4,), valid=(True,),
-                       force_N=math.nan, stress_MPa=math.nan)
+    both = FrameValues(frame=1, time_s=0.0, names=("axial",), eng_strain=(0.5,), true_strain=(0.4,), valid=(True,))
     message = json.loads(both.as_json())
-    assert message["ok"] is True and message["force_N"] is None and message["stress_MPa"] is None
+    assert message["ok"] is True and message["strain"] == {"axial": 0.5}
     # A value marked valid but NaN is still null: NaN is never serialised.
     odd = dataclasses.replace(both, eng_strain=(math.nan,))
     assert json.loads(odd.as_json())["strain"] == {"axial": None}
 
 
 def test_register_map_round_trip_as_the_readme_states_it():
-    values = dataclasses.replace(_values(), force_N=1234.5, stress_MPa=61.7)
-    registers = encode_registers(values, update_count=70_000)
+    registers = encode_registers(_values(), update_count=70_000)
     assert len(registers) == register_count(2) == HEADER_REGISTERS + 2 * EXTENSOMETER_REGISTERS == 28
     assert all(0 <= r <= 0xFFFF for r in registers)
     back = decode_registers(registers)
     assert back["update_count"] == 70_000 and registers[0:2] == [1, 70_000 - 65_536]    # high word first
     assert back["frame"] == 41 and back["ok"] is False and back["state"] == 1 and back["extensometers"] == 2
-    assert back["time_s"] == np.float32(0.82) and back["force_N"] == np.float32(1234.5)
+    assert back["time_s"] == np.float32(0.82) and registers[10:16] == [0] * 6           # reserved
     assert back["eng_strain"][0] == np.float32(0.00123) and math.isnan(back["eng_strain"][1])
     assert back["valid"] == [True, False]
     # Big-endian bytes in big-endian words: the float's 4 bytes in order across two registers.
@@ -278,21 +275,29 @@ def test_a_failing_send_is_a_warning_and_the_session_and_recording_go_on(tmp_pat
     assert not session.sink_errors
 
 
-def test_force_and_stress_go_out_with_a_load(tmp_path):
-    record = str(tmp_path / "force.mcap")
+def test_strain_goes_out_before_the_load_stage_waits_for_force(tmp_path):
+    """The publisher is the sink right after the strain stage: a force stream's wait never delays strain out."""
     receiver = _receiver()
-    with Session(_config(record, [f"udp://127.0.0.1:{receiver.getsockname()[1]}"], frames=5, load="synthetic"),
+    seen = []
+    with Session(_config(None, [f"udp://127.0.0.1:{receiver.getsockname()[1]}"], frames=3, load="synthetic"),
                  say=lambda m: None) as session:
-        session.execute()
+        session.prepare()
+        session.start()
+        sinks = session.loop.sinks
+        publisher = session.publishers[0]
+        assert sinks[:3] == [session.strain, publisher, session.load_stage]
+
+        def watched(result, stats):               # what the frame holds when the publisher runs
+            seen.append((result.extensometers is not None, result.force_N))
+            publisher(result, stats)
+        sinks[1] = watched
+        session.run()
     messages = [json.loads(d) for d in _drain(receiver)]
     receiver.close()
-    force = {s.frame_index: s for s in Recording(record).force_samples()}
-    assert len(messages) == 5
-    for message in messages:
-        sample = force[message["frame"]]
-        assert message["force_N"] == (sample.force_N if math.isfinite(sample.force_N) else None)
-        assert message["stress_MPa"] == (sample.stress_MPa if math.isfinite(sample.stress_MPa) else None)
-    assert messages[-1]["force_N"] > 0
+    assert seen == [(True, None)] * 3                 # strain computed, force not yet looked up
+    assert len(messages) == 3 and all(m["ok"] for m in messages)
+    assert "force_N" not in messages[0]               # the controller has its own load cell
+    assert session.summary()["force"]["frames"] == 3  # and the load stage still ran on every frame
 
 
 # --------------------------------------------------------------------------- Modbus
@@ -346,7 +351,6 @@ def test_modbus_serves_each_frame_whole_and_the_last_one_after_the_session(tmp_p
     assert after["eng_strain"] == [np.float32(v) for v in recorded.eng_strain]
     assert after["true_strain"] == [np.float32(v) for v in recorded.true_strain]
     assert axial == np.float32(recorded.eng_strain[0])
-    assert math.isnan(after["force_N"]) and math.isnan(after["stress_MPa"])      # no --load
     assert refused.isError()                                                    # writes are refused
     # Every read during the session is one frame whole: its time and strains are that frame's.
     during = [r for r in reads if r["update_count"] > 0]
