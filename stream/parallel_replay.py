@@ -17,7 +17,8 @@ Rebuilt points (``--roi``, ``--step`` ...) start from the nearest recorded point
 
 The pipeline: the client reads the recorded frames in replay order and submits one
 task per frame (the image as recorded, uint8/uint16, plus its seed; the reference
-and the tracker settings go to every worker once, ``Client.scatter``), at most
+and the tracker settings go to every worker once, as one task's result that the
+scheduler can compute again if its worker dies), at most
 ``in_flight`` ahead of the frame being written, so memory stays bounded on a
 20,000-frame recording. Each worker keeps one ``dic.Tracker`` per replay (the
 reference prepared once). The results come back to the replay's own session
@@ -201,6 +202,10 @@ def tracker_options(tracking):
     return options
 
 
+def _the_job(job):
+    return job
+
+
 def _tracker_for(job):
     tracker = _TRACKERS.get(job.token)
     if tracker is None:
@@ -343,7 +348,9 @@ class OrderedResults:
 
     def __init__(self, client, job, frames, seeds, in_flight, shared_path=None):
         self.client = client
-        self.job_future = client.scatter(job, broadcast=True, hash=False)
+        # A task, not Client.scatter: the scheduler keeps what it was made from, so a worker that dies holding
+        # the only copy costs a recomputation, not the replay (scattered data would be lost with it).
+        self.job_future = client.submit(_the_job, job, key=f"livedic-replay-job-{job.token}", pure=False)
         self.token = job.token
         self.frames = iter(frames)
         self.seeds = seeds

@@ -123,7 +123,8 @@ class KillOnce:
             os._exit(1)
 
 
-def test_worker_killed_mid_replay_still_gives_every_frame_once(recording, cluster, sequential, tmp_path):
+def _replay_killing_once(recording, address, tmp_path):
+    """The replay on the cluster at ``address`` while a worker dies as it starts the flagged frame."""
     import cloudpickle
     from distributed import Client
     from distributed.diagnostics.plugin import WorkerPlugin
@@ -136,14 +137,31 @@ def test_worker_killed_mid_replay_still_gives_every_frame_once(recording, cluste
 
     flag = tmp_path / "kill-once"
     flag.write_text("the first worker to start the flagged frame removes this and dies\n")
-    with Client(cluster, set_as_default=False) as client:
+    with Client(address, set_as_default=False) as client:
         client.register_plugin(Plugin(str(flag)), name="kill-once")
         try:
-            parallel = _replay(recording, tmp_path / "par.csv", "--cluster", cluster)
+            parallel = _replay(recording, tmp_path / "par.csv", "--cluster", address)
         finally:
             client.unregister_worker_plugin("kill-once")
     assert not flag.exists()                            # a worker did die on that frame
-    _assert_same(parallel, sequential)
+    return parallel
+
+
+def test_worker_killed_mid_replay_still_gives_every_frame_once(recording, cluster, sequential, tmp_path):
+    _assert_same(_replay_killing_once(recording, cluster, tmp_path), sequential)
+
+
+def test_the_only_worker_killed_loses_nothing(recording, sequential, tmp_path):
+    """With one worker, its death loses everything it held (the reference, finished frames): the scheduler
+    computes them again from their tasks when the nanny has restarted it."""
+    import logging
+
+    from distributed import LocalCluster
+
+    from livedic.stream.parallel_replay import LOCAL_SCHEDULER_OPTIONS
+    with LocalCluster(n_workers=1, processes=True, threads_per_worker=1, dashboard_address=None,
+                      scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.CRITICAL) as local:
+        _assert_same(_replay_killing_once(recording, local.scheduler_address, tmp_path), sequential)
 
 
 def test_workers_option_starts_its_own_local_cluster(recording, sequential, tmp_path):
