@@ -69,9 +69,9 @@ from livedic.acquire.mcap_io import (MAGIC, ChunkedWriter, Damaged, RecordScan, 
 from livedic.dic.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
 
-__all__ = ["CorruptRecording", "FrameReader", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap", "RecordedEvent",
-           "RecordedExtensometerSample", "RecordedForceSample", "RecordedResults", "RecordedStrain", "Recording",
-           "RecordingError", "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results",
+__all__ = ["CorruptRecording", "FrameReader", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap",
+           "RecordedEvent", "RecordedExtensometerSample", "RecordedForceSample", "RecordedResults", "RecordedStrain",
+           "Recording", "RecordingError", "RecordingInfo", "RecordingSourceError", "inspect_recording", "iter_results",
            "read_events", "read_extensometer_samples", "read_force_samples", "read_results", "read_session",
            "read_strain_fields", "recover"]
 
