@@ -120,7 +120,7 @@ def _mode(name, report, wall, threads):
     return row
 
 
-def run_replay_benchmark(*, recording=None, frames=100, size="512x512", points=1000, workers=(1, 2), output=None,
+def run_replay_benchmark(*, recording=None, frames=60, size="1024x1024", points=2000, workers=(1, 2), output=None,
                          quick=False, log=print):
     """Replay one recording sequentially and on LocalClusters of ``workers`` processes; returns the rows.
 
