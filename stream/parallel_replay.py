@@ -136,6 +136,33 @@ def dask_client(workers=None, cluster=None, *, timeout_s=None):
         local.close()
 
 
+def _worker_version():
+    from livedic.acquire.mcap_io import software_version
+    return software_version()
+
+
+def check_workers(client, timeout_s=None):
+    """The cluster's workers can run the replay: livedic importable on each (one line otherwise); returns
+    notes (a worker with another livedic version than this process: its numbers may differ by rounding)."""
+    from livedic.acquire.mcap_io import software_version
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+        versions = client.run(_worker_version)
+    except (ImportError, AttributeError) as error:
+        raise ClusterError(f"the Dask workers cannot run livedic ({type(error).__name__}: {error}): install it "
+                           f"(the same version) where the workers run") from None
+    except TimeoutError:
+        raise ClusterError(f"the Dask scheduler has no worker (none joined within {timeout_s} s): start some "
+                           f"with dask-worker ADDRESS") from None
+    mine = software_version()
+    others = sorted({version for version in versions.values() if version != mine})
+    if others:
+        return [f"Dask workers run livedic {', '.join(others)}, this process {mine}: their numbers may differ "
+                f"from this version's by rounding"]
+    return []
+
+
 def cluster_threads(client):
     """Worker threads of the cluster now (at least 1)."""
     return max(1, sum(client.nthreads().values()))

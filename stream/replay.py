@@ -476,7 +476,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     point_options = point_options or PointOptions()
     point_options.check()
     if workers is not None or cluster is not None:
-        from livedic.stream.parallel_replay import dask_client
+        from livedic.stream.parallel_replay import check_workers, dask_client
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise ValueError(f"--workers must be a positive integer, got {workers!r}")
         _check_parallel_input(path, given, all_frames)
@@ -485,10 +485,11 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
             shared_path = os.path.abspath(path)
             FrameReader(shared_path)                # indexed? (one line otherwise)
         with dask_client(workers, cluster) as client:
+            worker_notes = check_workers(client)
             return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows,
                            client=client, in_flight=in_flight, shared_path=shared_path,
                            where=f"the Dask scheduler at {cluster}" if cluster is not None
-                           else f"a local Dask cluster of {workers} worker process(es)")
+                           else f"a local Dask cluster of {workers} worker process(es)", worker_notes=worker_notes)
     return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows)
 
 
@@ -510,7 +511,7 @@ def _check_parallel_input(path, given, all_frames):
 
 
 def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows=None, *,
-            client=None, in_flight=None, shared_path=None, where=None):
+            client=None, in_flight=None, shared_path=None, where=None, worker_notes=()):
     """``replay``: sequential (``client`` None) or on the Dask ``client``."""
     from livedic.acquire.mcap_replay import McapSource, Recording
 
@@ -522,6 +523,7 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
             metadata, given or {}, results[0].method if results else "")
         tracking = check_parameters(params, threads)
         notes.extend(param_notes)
+        notes.extend(worker_notes)
         if session_note:
             notes.append(session_note)
         changed = [(key, recorded_params.get(key), params[key]) for key in METHOD_KEYS

@@ -243,3 +243,21 @@ def test_the_shipped_sample_recorded_on_another_machine(cluster, tmp_path):
     assert parallel[1][0].startswith("livedic: replay agrees with the recording within floating-point rounding")
     parallel = (parallel[0], sequential[1], parallel[2])      # the verdicts name their own max difference
     _assert_same(parallel, sequential)
+
+
+def test_a_scheduler_without_workers_one_line_exit_2(recording, tmp_path, capsys, monkeypatch):
+    import logging
+
+    from distributed import LocalCluster
+
+    import livedic.stream.parallel_replay as parallel_replay
+    from livedic.stream.parallel_replay import LOCAL_SCHEDULER_OPTIONS
+    monkeypatch.setattr(parallel_replay, "CONNECT_TIMEOUT_S", 1)
+    out = tmp_path / "out.csv"
+    with LocalCluster(n_workers=0, processes=True, dashboard_address=None, scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS,
+                      silence_logs=logging.CRITICAL) as bare:
+        code = main(["replay", recording, "-o", str(out), "--progress", "off", "--cluster", bare.scheduler_address])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "the Dask scheduler has no worker (none joined within 1 s)" in err
+    assert not out.exists()
