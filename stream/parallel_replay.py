@@ -122,8 +122,7 @@ def dask_client(workers=None, cluster=None, *, timeout_s=None):
         finally:
             client.close()
         return
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"--workers must be a positive integer, got {workers!r}")
+    check_worker_count(workers)
     local = LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, dashboard_address=None,
                          scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.CRITICAL)
     try:
@@ -134,6 +133,12 @@ def dask_client(workers=None, cluster=None, *, timeout_s=None):
             client.close()
     finally:
         local.close()
+
+
+def check_worker_count(workers):
+    """ValueError (one line) unless ``workers`` is a positive integer (``--workers N``)."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"--workers must be a positive integer, got {workers!r}")
 
 
 def _worker_version():

@@ -476,10 +476,10 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     point_options = point_options or PointOptions()
     point_options.check()
     if workers is not None or cluster is not None:
-        from livedic.stream.parallel_replay import check_workers, dask_client
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            raise ValueError(f"--workers must be a positive integer, got {workers!r}")
-        _check_parallel_input(path, given, all_frames)
+        from livedic.stream.parallel_replay import check_worker_count, check_workers, dask_client
+        if workers is not None:
+            check_worker_count(workers)
+        _check_parallel_input(path, given, all_frames, threads)
         if shared_path == "":
             from livedic.acquire.mcap_replay import FrameReader
             shared_path = os.path.abspath(path)
@@ -493,12 +493,16 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows)
 
 
-def _check_parallel_input(path, given, all_frames):
-    """What the parallel replay refuses before any cluster starts (one line): nothing to seed from, a reference
-    move or a fracture in the recording."""
+def _check_parallel_input(path, given, all_frames, threads):
+    """What the parallel replay refuses before any cluster starts (one line, as the sequential replay words
+    it, or its own): bad parameters, nothing to seed from, a reference move or a fracture in the recording."""
     from livedic.acquire.mcap_replay import Recording
     from livedic.stream.parallel_replay import ParallelReplayLimit, recorded_limits
-    results = list(Recording(path).results())
+    with reader_notes():                   # the replay itself says what the reader notes (a truncated file)
+        metadata, _ = read_session_or_note(path)
+        results = list(Recording(path).results())
+    params, _, _ = resolve_parameters(metadata, given or {}, results[0].method if results else "")
+    check_parameters(params, threads)
     if not results:
         if not all_frames:
             return                 # the sequential replay's own error says it
