@@ -22,8 +22,8 @@ def _no_debug(monkeypatch):
     monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
 
 
-def _record(path, *extra):
-    code = main(["run", "--source", "synthetic:tensile?size=128x256&frames=12&noise=0.5&pace=0",
+def _record(path, *extra, source="synthetic:tensile?size=128x256&frames=12&noise=0.5&pace=0"):
+    code = main(["run", "--source", source,
                  "--record", str(path), "--viewer", "none", "--n-points", "60", "--progress", "off", *extra])
     assert code == 0 and path.exists()
     return str(path)
@@ -260,4 +260,25 @@ def test_a_scheduler_without_workers_one_line_exit_2(recording, tmp_path, capsys
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
     assert "the Dask scheduler has no worker (none joined within 1 s)" in err
+    assert not out.exists()
+
+
+def test_a_truncated_recording_replays_in_parallel_as_sequentially(cluster, tmp_path):
+    """A recording cut short by a kill (paced, so its chunks were written as live; cut inside the last image
+    chunk): both replays replay what can be recovered, the same; --shared-path says the file has no index."""
+    from mcap.reader import make_reader
+    path = tmp_path / "paced.mcap"
+    _record(path, "--reference-update", "never", source="synthetic:tensile?size=128x256&frames=30&fps=25&noise=0.5")
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    images = {cid for cid, channel in summary.channels.items() if channel.topic == "/camera/image"}
+    last = max((c for c in summary.chunk_indexes if set(c.message_index_offsets) & images),
+               key=lambda c: c.chunk_start_offset)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[:last.chunk_start_offset + last.chunk_length // 2])
+    sequential = _replay(str(cut), tmp_path / "seq.csv")
+    assert "is truncated" in sequential[2]
+    _assert_same(_replay(str(cut), tmp_path / "par.csv", "--cluster", cluster), sequential)
+    out = tmp_path / "shared.csv"
+    assert main(["replay", str(cut), "-o", str(out), "--cluster", cluster, "--shared-path"]) == 2
     assert not out.exists()
