@@ -670,6 +670,7 @@ class Session:
             if self.strain is not None else [],
             "load": config.load, "load_offset_s": config.load_offset,
             "area_mm2": self.load_stage.area_mm2 if self.load_stage is not None else config.area_mm2,
+            "publish": list(config.publish or ()),          # where the strain went (--publish)
         }
 
     def _open_outputs(self, scheme):
