@@ -52,6 +52,6 @@ fi
 case "$mode" in
   install) say "done: activate with 'source $venv/bin/activate' or call $venv/bin/livedic" ;;
   test) exec "$venv/bin/python" -m pytest -q ;;
-  run) exec "$venv/bin/livedic" run --gauge-length 400 ;;
+  run) exec "$venv/bin/livedic" run --gauge-length 400 --load synthetic ;;
   *) say "unknown mode '$mode': use run, test or install"; exit 2 ;;
 esac
