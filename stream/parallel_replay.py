@@ -1,64 +1,71 @@
 """``livedic replay --workers N`` / ``--cluster ADDRESS``: the replay's frames measured in parallel on Dask.
 
-Why it can be parallel. A tracker measures every frame against the reference
-(frame 0); what it carries from frame to frame is only where to start: the
-previous frame's result and each point's last ok result (``dic.Tracker.resume``
-names that state). A recording holds the result of every frame the live run
-tracked, so each frame can be measured on its own, on any worker, by the same
-``Tracker.track`` started from the recorded result of the frame tracked just
-before it (and the last ok result of every point before that): IC-GN then starts
-where the sequential replay starts, and with the recorded parameters it ends where
-it ends. Frames without recorded results (``--all-frames``: frames the live run
-dropped) and points that were not ok start from the last recorded result before
-them: ``track``'s own coarse pass (the seeded integer search for doubtful points,
-then the wide re-find search around the point's last good displacement or its
-nearest good neighbour's) finds them, as it finds points after a jump live.
-Rebuilt points (``--roi``, ``--step`` ...) start from the nearest recorded point.
+Why it can be parallel. The sequential replay tracks with a ``dic.KeyFrameTracker``:
+every frame is measured against the current key frame (frame 0 until the reference
+moves) and composed back to frame 0; what the tracker carries from frame to frame is
+only where to start (the previous frame's result, each point's last ok result) and
+the key-frame state, which changes only at a reference move or a fracture. A
+recording holds the result of every frame the live run tracked, so each frame can be
+measured on its own, on any worker, by the same ``KeyFrameTracker.track``: a copy of
+the tracker as the last move (or fracture) left it, resumed from the recorded result
+of the frame tracked just before (``dic.tracking.resume_key_frames``, which maps it
+onto the key frame; ``Tracker.resume`` below it). With the recorded parameters IC-GN
+then starts where the sequential replay starts it and ends where it ends. Frames
+without recorded results (``--all-frames``: frames the live run dropped) and points
+that were not ok start from the last recorded result before them: ``track``'s own
+coarse pass (the seeded integer search for doubtful points, then the wide re-find
+search around the point's last good displacement or its nearest good neighbour's)
+finds them, as it finds points after a jump live. Rebuilt points (``--roi``,
+``--step`` ...) start from the nearest recorded point.
+
+Key frames and fractures. The workers' trackers move the reference and detect
+fractures themselves, as sequentially (same policy, same counts of frames since the
+key frame). A frame whose result moved the reference or broke the specimen starts a
+new segment: its tracker comes back with the result, goes out again as a task, and
+the frames submitted after that frame (measured ahead against the earlier state) are
+submitted again against it. Measuring ahead costs at most ``in_flight`` frames per
+move, ~2 % of a 20,000-frame test with 50 moves.
 
 The pipeline: the client reads the recorded frames in replay order and submits one
-task per frame (the image as recorded, uint8/uint16, plus its seed; the reference
-and the tracker settings go to every worker once, as one task's result that the
-scheduler can compute again if its worker dies), at most
-``in_flight`` ahead of the frame being written, so memory stays bounded on a
-20,000-frame recording. Each worker keeps one ``dic.Tracker`` per replay (the
-reference prepared once). The results come back to the replay's own session
-(``stream.session.Session``: the same strain stage, comparison with the recording,
-CSV rows and progress line as the sequential replay) in frame order: the session's
-tracker (``ServedTracker``) hands it the next frame's result, checking that it is
-the result of that very frame (position and key), so a frame is never lost,
-duplicated or out of place. A worker that dies has its running and held tasks
-re-run elsewhere by the scheduler (``distributed`` reassigns them; ``retries=``
-re-runs a task that raised).
+task per frame (the image as recorded, uint8/uint16, plus its seed; the segment's
+tracker goes to each worker once, as a task's result that the scheduler can compute
+again if its worker dies), at most ``in_flight`` ahead of the frame being written,
+so memory stays bounded on a 20,000-frame recording. The results come back to the
+replay's own session (``stream.session.Session``: the same strain stage, comparison
+with the recording, reference-update and fracture events, CSV rows and progress line
+as the sequential replay) in frame order: the session's tracker (``ServedTracker``)
+hands it the next frame's result, checking that it is the result of that very frame
+(position and key), so a frame is never lost, duplicated or out of place. A worker
+that dies has its running and held tasks re-run elsewhere by the scheduler
+(``distributed`` reassigns them; ``retries=`` re-runs a task that raised). The CSV
+lines are formatted on the worker (``stream.replay_rows``; after a fracture in the
+client, whose strain stage splits the windows at the crack).
 
-What it does not follow (yet). The sequential replay runs ``dic.KeyFrameTracker``:
-it moves the reference to a key frame when ``--reference-update`` says so and stops
-tracking the points across a crack once it detects a fracture; both change how every
-later frame is measured. The parallel replay checks, frame by frame in order, with
-the same ``UpdatePolicy.reason`` and ``dic.fracture.detect_fracture`` calls, that
-neither would have happened, and stops with one line (``ParallelReplayLimit``, exit
-2, no output written) where one would; a recording whose results show a reference
-move or separated points is refused before any work. Recordings made with
-``--reference-update never``, or ``auto`` where the reference never moved, without a
-fracture, replay in parallel.
-
-Equality with the sequential replay. With the recorded parameters, on the machine that
-recorded, the tracker starts every frame from the state the sequential replay starts it
-from, and the outputs are bit for bit the same (``tests/stream/test_replay_parallel.py``).
-Elsewhere (the shipped sample, recorded on another CPU) the recorded starts differ from
-the sequential replay's own by rounding: within 2e-6 px of it, the same points ok. Not
-restored from a recording: the wide re-find search's back-off (``Tracker.resume``), which
-the results do not show; a point lost for several frames (an occlusion) may be searched
-for, and found, a frame earlier or later than sequentially, which the comparison then
-reports (ok differs). Changed parameters (another subset, other points) start from the
-recorded results as seeds: measured within 1e-5 px of the sequential replay.
+Equality with the sequential replay. Up to the first reference move, with the
+recorded parameters, on the machine that recorded, the outputs are bit for bit the
+same (``tests/stream/test_replay_parallel.py``). After a move the recorded result is
+mapped onto the key frame, which rounds: ~1e-14 px from the sequential replay, the
+same points ok, the same moves and fractures at the same frames. Elsewhere (the
+shipped sample, recorded on another CPU) the recorded starts differ from the
+sequential replay's own by rounding: within 2e-6 px of it, the same points ok. Not
+restored from a recording: the wide re-find search's back-off (``Tracker.resume``),
+which the results do not show; a point lost for several frames (an occlusion) may be
+searched for, and found, a frame earlier or later than sequentially, which the
+comparison then reports (ok differs). Changed parameters (another subset, other
+points) start from the recorded results as seeds: measured within 1e-5 px of the
+sequential replay.
 
 What travels (measured by ``livedic bench replay``, 2-core machine): the image as
 recorded (1.05 MB a frame at 1 MP 8-bit) and its seed (~110 B a point when some point
-was lost, ~57 B otherwise); a batch of no-op tasks carrying a 1 MB image cost 8 ms a task,
-3 ms with 64 kB. ``--shared-path`` sends only the frame's key, the workers reading the
-image from the file (``acquire.mcap_replay.FrameReader``: one chunk through the index).
+was lost, ~57 B otherwise); a batch of no-op tasks carrying a 1 MB image cost 5-9 ms a
+task, 3 ms with 64 kB; a segment's tracker (~7.5 kB a point: the prepared reference
+subsets) once per move. ``--shared-path`` sends only the frame's key, the workers
+reading the image from the file (``acquire.mcap_replay.FrameReader``: one chunk through
+the index).
 """
 
+import copy
+import threading
 import time
 import uuid
 from collections import deque
@@ -67,13 +74,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livedic.dic.fracture import detect_fracture
-from livedic.dic.key_frames import UpdatePolicy
-from livedic.dic.neighbours import typical_spacing
-from livedic.dic.quality import Gates
 from livedic.dic.result import Measurement
-from livedic.dic.status import NOT_IN_KEY_FRAME, SEPARATED
-from livedic.dic.tracking import Tracker, last_good_after
+from livedic.dic.tracking import last_good_after, resume_key_frames
 from livedic.stream.replay_rows import frame_rows
 from livedic.stream.session import Session
 
@@ -86,10 +88,6 @@ TASK_RETRIES = 2
 CONNECT_TIMEOUT_S = 10
 # No dashboard; the scheduler's HTTP routes (health, metrics) on a free port, not 8787 (taken by a second cluster).
 LOCAL_SCHEDULER_OPTIONS = {"dashboard_address": ":0"}
-
-
-class ParallelReplayLimit(ValueError):
-    """The parallel replay cannot give what the sequential one gives here (one line: where, why, what to do)."""
 
 
 class ClusterError(ValueError):
@@ -177,14 +175,25 @@ def cluster_threads(client):
 
 @dataclass(frozen=True)
 class ReplayJob:
-    """What every worker needs once per replay: the reference, the points and the tracker settings."""
+    """What every worker needs once per replay (besides the key-frame trackers): CSV settings and numba threads."""
     token: str
-    reference: np.ndarray
-    points: np.ndarray
-    tracker_options: dict
     threads: int = 1
     point_ids: np.ndarray = None          # with ``strain``: the CSV lines are formatted on the worker
     strain: object = None                 # the session's stream.strain.StrainStage (its compute)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Frames measured against one state of the key-frame tracker: from ``start + 1`` on.
+
+    ``start`` is the position of the frame that built the tracker's inner tracker (-1: the new tracker,
+    before the reference frame; else a key frame or a fracture); ``key`` that of the current key frame
+    (-1: the first frame). Its tracker, as it was right after frame ``start``, is the task ``future``.
+    """
+    token: str
+    start: int
+    key: int
+    future: object = None
 
 
 @dataclass
@@ -195,13 +204,17 @@ class FrameMeasured:
     measurement: Measurement
     refound: np.ndarray
     refind_attempts: int
+    trackable: np.ndarray
     seconds: float
+    update: object = None                 # dic.key_frames.ReferenceUpdate: the reference moved to this frame
+    fracture: object = None               # dic.fracture.Fracture detected in this frame
+    tracker: object = None                # the KeyFrameTracker after this frame, when one of them happened
     header: list = None                   # the frame's CSV columns and lines (stream.replay_rows.frame_rows)
     lines: str = None
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
 
 
-_TRACKERS = {}          # per worker process: job token -> Tracker (the reference prepared once)
+_TRACKERS = {}          # per worker thread: (segment token, thread) -> its KeyFrameTracker (a working copy)
 _READERS = {}           # per worker process: recording path -> acquire.mcap_replay.FrameReader
 
 
@@ -225,34 +238,34 @@ def _image_of(frame):
     return reader.image(frame.index, frame.timestamp_ns)
 
 
-def tracker_options(tracking):
-    """``dic.Tracker`` keyword arguments of a ``stream.config.TrackingConfig``: what ``TrackingConfig.tracker``
-    gives its ``KeyFrameTracker`` for every inner tracker (the quality gates from ``min_zncc``)."""
-    options = tracking.as_dict()
-    options.pop("reference_update")
-    options["gates"] = Gates(min_zncc=options.pop("min_zncc"))
-    return options
+def _the_data(value):
+    return value
 
 
-def _the_job(job):
-    return job
+def _tracker_for(segment_token, tracker):
+    """This worker thread's copy of a segment's tracker (the task's own object stays as it is: tasks share it),
+    made once per segment and thread; returns (cache key, copy)."""
+    cache_key = (segment_token, threading.get_ident())
+    working = _TRACKERS.get(cache_key)
+    if working is None:
+        for old in [k for k in _TRACKERS if k[1] == cache_key[1]]:
+            del _TRACKERS[old]              # this thread's earlier segments are done
+        working = _TRACKERS[cache_key] = copy.deepcopy(tracker)
+    return cache_key, working
 
 
-def _tracker_for(job):
-    tracker = _TRACKERS.get(job.token)
-    if tracker is None:
-        _TRACKERS.clear()                   # one replay at a time per worker: free the previous reference
-        tracker = Tracker(job.reference, job.points, **job.tracker_options)
-        _TRACKERS[job.token] = tracker
-    return tracker
-
-
-def measure_frame(job, position, key, image, previous, last_good):
-    """Measure one frame on a worker: the job's tracker resumed from the seed, then ``Tracker.track``.
+def measure_frame(job, segment_token, tracker, segment_start, key_start, position, key, image, previous,
+                  last_good):
+    """Measure one frame on a worker: the segment's ``KeyFrameTracker`` resumed from the seed, then ``track``.
 
     Parameters
     ----------
     job : ReplayJob
+    segment_token : str
+    tracker : dic.key_frames.KeyFrameTracker
+        As it was right after the frame at ``segment_start`` (``Segment``).
+    segment_start, key_start : int
+        Positions of that frame and of the current key frame (-1: none).
     position : int
         The frame's place in the replay's order (0: the reference).
     key : (int, int)
@@ -260,24 +273,30 @@ def measure_frame(job, position, key, image, previous, last_good):
     image : ndarray (H, W) or FrameAt
         As recorded (uint8 or uint16), or where the worker reads it (``--shared-path``).
     previous, last_good
-        ``Tracker.resume``'s arguments (None, None for the reference frame).
+        ``dic.tracking.resume_key_frames``'s seed: the recorded result before the frame, the last ok ones
+        since ``segment_start``.
     """
     import numba
     if numba.get_num_threads() != job.threads:
         numba.set_num_threads(job.threads)
     started = time.perf_counter()
-    tracker = _tracker_for(job)
     image = _image_of(image)
-    tracker.resume(previous, last_good=last_good)
-    measurement = tracker.track(image)
+    cache_key, working = _tracker_for(segment_token, tracker)
+    resume_key_frames(working, previous, last_good=last_good, frames_tracked=position,
+                      frames_since_key=position - key_start - 1, frames_since_rebuild=position - segment_start - 1)
+    measurement = working.track(image)
     seconds = time.perf_counter() - started
-    header = lines = None
-    if job.strain is not None:
+    answer = FrameMeasured(position=position, key=key, measurement=measurement,
+                           refound=working.last_refound.copy(), refind_attempts=working.last_refind_attempts,
+                           trackable=working.trackable.copy(), seconds=seconds, update=working.last_update,
+                           fracture=working.last_fracture)
+    if answer.update is not None or answer.fracture is not None:
+        answer.tracker = _TRACKERS.pop(cache_key)          # its state moved on: the next segment's tracker
+    if job.strain is not None and not working.fractures:  # after a fracture the client's strain stage splits
         strain, _ = job.strain.compute(measurement.u, measurement.v, measurement.ok)
-        header, lines = frame_rows(key[0], key[1], job.point_ids, measurement, strain)
-    return FrameMeasured(position=position, key=key, measurement=measurement, refound=tracker.last_refound.copy(),
-                         refind_attempts=tracker.last_refind_attempts, seconds=seconds, header=header, lines=lines,
-                         rows_seconds=time.perf_counter() - started - seconds)
+        answer.header, answer.lines = frame_rows(key[0], key[1], job.point_ids, measurement, strain)
+    answer.rows_seconds = time.perf_counter() - started - seconds
+    return answer
 
 
 # ----------------------------------------------------------------------------- seeds
@@ -286,17 +305,16 @@ _SEED_FIELDS = ("u", "v", "zncc", "ok", "ux", "uy", "vx", "vy")
 
 
 def _slim(measurement, take=None):
-    """The fields ``Tracker.resume`` reads (float64/bool), for the points ``take`` (None: all)."""
+    """The fields a resumed tracker reads (float64/bool), for the points ``take`` (None: all)."""
     def pick(name, dtype):
         values = getattr(measurement, name)
         if values is None:
             return None
         values = np.asarray(values, dtype=dtype)
         return np.ascontiguousarray(values if take is None else values[take])
-    ok = pick("ok", bool)
     empty = np.zeros(0)
     return Measurement(x=empty, y=empty, u=pick("u", np.float64), v=pick("v", np.float64),
-                       zncc=pick("zncc", np.float64), ok=ok, status=np.zeros(0, dtype=np.int8),
+                       zncc=pick("zncc", np.float64), ok=pick("ok", bool), status=np.zeros(0, dtype=np.int8),
                        **{name: pick(name, np.float64) for name in ("ux", "uy", "vx", "vy")})
 
 
@@ -310,22 +328,19 @@ def nearest_recorded(x, y, recorded_x, recorded_y):
     return out
 
 
-class Seeds:
-    """The start of each frame in replay order: the last recorded result before it and every point's last ok one.
-
-    ``next(key)`` returns (previous, last_good) for the frame ``key`` = (index, timestamp) and then takes
-    that frame's recorded result (if any) into account for the frames after it.
-    """
+class RecordedSeeds:
+    """Each frame's recorded result on this replay's points (``of(key)``: a slim ``Measurement`` or None)."""
 
     def __init__(self, recorded, x, y):
         self.recorded = recorded
         self.x, self.y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-        self.previous = None
-        self.last_good = None
         self._layouts = {}
 
-    def _on_points(self, result):
-        """``result`` on this replay's points: as it is when recorded on them, else from the nearest recorded."""
+    def of(self, key):
+        """The recorded result of frame ``key``: as recorded when on these points, else from the nearest recorded."""
+        result = self.recorded.get(key)
+        if result is None:
+            return None
         m = result.measurement
         if len(m.x) == len(self.x) and np.array_equal(m.x, self.x) and np.array_equal(m.y, self.y):
             return _slim(m)
@@ -335,66 +350,82 @@ class Seeds:
             take = self._layouts[layout] = nearest_recorded(self.x, self.y, m.x, m.y)
         return _slim(m, take)
 
-    def next(self, key):
+
+class SeedRun:
+    """The seeds of consecutive frames of one segment: (the last recorded result before the frame, the last ok
+    one of every point since the segment's start). ``next(recorded)`` gives the frame's seed and then takes its
+    recorded result (None: none) into account."""
+
+    def __init__(self, previous):
+        self.previous = previous
+        self.last_good = None
+
+    def next(self, recorded):
         last_good = self.last_good
         if last_good is not None and not np.any(last_good["ever"] & ~self.previous.ok):
             last_good = None        # every point ever ok is ok in the previous frame: resume's default is the same
         seed = (self.previous, last_good)
-        result = self.recorded.get(key)
-        if result is not None:
-            self.previous = self._on_points(result)
-            self.last_good = last_good_after(self.last_good, self.previous)
+        if recorded is not None:
+            self.previous = recorded
+            self.last_good = last_good_after(self.last_good, recorded)
         return seed
-
-
-def recorded_limits(results, *, moves=True):
-    """Why a recording cannot be replayed in parallel, from its results, or None.
-
-    A fracture (points ``SEPARATED``) and, with ``moves`` (the replay's policy may move the reference), a
-    reference move (``reference_frame_index`` changes, points ``NOT_IN_KEY_FRAME``).
-    """
-    if not results:
-        return None
-    first_reference = int(results[0].reference_frame_index)
-    for result in results:
-        if moves and int(result.reference_frame_index) != first_reference:
-            return (f"the reference moved to frame {result.reference_frame_index} (a key frame) in the recording, "
-                    f"and the parallel replay does not follow reference updates yet")
-        status = None if result.status is None else np.asarray(result.status)
-        if status is None:
-            continue
-        if np.any(status == SEPARATED):
-            return (f"points are separated by a fracture from frame {result.frame_index} on in the recording, "
-                    f"and the parallel replay does not follow fractures yet")
-        if moves and np.any(status == NOT_IN_KEY_FRAME):
-            return (f"points were left out of a key frame at frame {result.frame_index} in the recording, "
-                    f"and the parallel replay does not follow reference updates yet")
-    return None
 
 
 # ----------------------------------------------------------------------------- the client side
 
+@dataclass
+class _Pending:
+    key: tuple
+    image: object                 # what the task is given: the image, or where to read it
+    recorded: object              # the frame's recorded result (seed of the next ones), or None
+    future: object = None
+
+
 class OrderedResults:
     """Submit the frames of ``frames`` to ``client`` (at most ``in_flight`` ahead) and hand their results back
-    in order, each exactly once (``take(position, key)`` checks both)."""
+    in order, each exactly once (``take(position, key)`` checks both).
 
-    def __init__(self, client, job, frames, seeds, in_flight, shared_path=None):
+    The frames are measured against the current ``Segment``'s tracker; a frame whose result moved the reference
+    or detected a fracture starts a new segment: the frames submitted after it are submitted again against the
+    tracker as it left that frame (the results already computed for them were measured against the old one).
+    """
+
+    def __init__(self, client, job, tracker, frames, seeds, in_flight, shared_path=None):
         self.client = client
-        # A task, not Client.scatter: the scheduler keeps what it was made from, so a worker that dies holding
-        # the only copy costs a recomputation, not the replay (scattered data would be lost with it).
-        self.job_future = client.submit(_the_job, job, key=f"livedic-replay-job-{job.token}", pure=False)
         self.token = job.token
+        # Tasks, not Client.scatter: the scheduler keeps what they were made from, so a worker that dies holding
+        # the only copy costs a recomputation, not the replay (scattered data would be lost with it).
+        self.job_future = client.submit(_the_data, job, key=f"livedic-replay-job-{job.token}", pure=False)
+        self.segment = self._segment(tracker, start=-1, key=-1)
+        self.segments = 1
         self.frames = iter(frames)
         self.seeds = seeds
+        self.run = SeedRun(None)
+        self.taken_previous = None   # the last recorded result up to the last frame taken
         self.in_flight = max(1, int(in_flight))
-        self.pending = {}            # position -> future
+        self.pending = {}            # position -> _Pending
         self.submitted = 0
         self.taken = 0
         self.exhausted = False
         self.shared_path = shared_path
         self.image_bytes = 0         # what the frames weighed on the wire (their images; 0 when workers read them)
         self.seed_bytes = 0
+        self.resubmitted = 0         # frames submitted again after a reference move or a fracture
         self.wait_seconds = 0.0      # the client blocked on the next result (the rest of its time is its own work)
+
+    def _segment(self, tracker, *, start, key):
+        token = f"{self.token}-{start}"
+        future = self.client.submit(_the_data, tracker, key=f"livedic-replay-tracker-{token}", pure=False)
+        return Segment(token=token, start=start, key=key, future=future)
+
+    def _submit(self, position, pending):
+        previous, last_good = self.run.next(pending.recorded)
+        self.seed_bytes += _nbytes(previous) + _nbytes(last_good)
+        segment = self.segment
+        pending.future = self.client.submit(
+            measure_frame, self.job_future, segment.token, segment.future, segment.start, segment.key, position,
+            pending.key, pending.image, previous, last_good,
+            key=f"livedic-replay-frame-{segment.token}-{position}", retries=TASK_RETRIES, pure=False)
 
     def _submit_more(self):
         while not self.exhausted and self.submitted < self.taken + self.in_flight:
@@ -403,42 +434,55 @@ class OrderedResults:
                 self.exhausted = True
                 return
             key = (int(frame.index), int(frame.timestamp_ns))
-            previous, last_good = self.seeds.next(key)
             if self.shared_path is None:
                 image = np.ascontiguousarray(frame.image)
                 self.image_bytes += image.nbytes
             else:
                 image = FrameAt(self.shared_path, *key)
-            position = self.submitted
-            self.seed_bytes += _nbytes(previous) + _nbytes(last_good)
-            self.pending[position] = self.client.submit(
-                measure_frame, self.job_future, position, key, image, previous, last_good,
-                key=f"livedic-replay-frame-{self.token}-{position}", retries=TASK_RETRIES, pure=False)
+            pending = self.pending[self.submitted] = _Pending(key=key, image=image, recorded=self.seeds.of(key))
+            self._submit(self.submitted, pending)
             self.submitted += 1
+
+    def _new_segment(self, position, answer):
+        """The frame at ``position`` moved the reference or broke: the frames after it against its tracker."""
+        key = position if answer.update is not None else self.segment.key
+        self.segment = self._segment(answer.tracker, start=position, key=key)
+        self.segments += 1
+        self.run = SeedRun(self.taken_previous)
+        for later in sorted(self.pending):
+            pending = self.pending[later]
+            pending.future.cancel()
+            self._submit(later, pending)
+            self.resubmitted += 1
 
     def take(self, position, key):
         """The result of the frame at ``position`` (0 first), which must be the frame ``key``."""
         if position != self.taken:
             raise RuntimeError(f"parallel replay: frame at position {position} asked for, {self.taken} expected")
         self._submit_more()
-        future = self.pending.pop(position, None)
-        if future is None:
+        pending = self.pending.pop(position, None)
+        if pending is None:
             raise RuntimeError(f"parallel replay: no task for the frame at position {position} (frame {key[0]}): "
                                f"the session and the submitted frames disagree")
         started = time.perf_counter()
         try:
-            answer = future.result()
+            answer = pending.future.result()
         except ValueError as error:             # RecordingError: a worker could not read the shared recording
             if self.shared_path is None:
                 raise
             raise ValueError(f"a worker could not read frame {key[0]} from {self.shared_path} ({error}); "
                              f"--shared-path must name the recording as every worker sees it") from None
         self.wait_seconds += time.perf_counter() - started
-        future.release()
-        if answer.position != position or tuple(answer.key) != tuple(key):
+        pending.future.release()
+        if answer.position != position or tuple(answer.key) != tuple(key) or tuple(pending.key) != tuple(key):
             raise RuntimeError(f"parallel replay: the result for position {position} is frame {answer.key[0]} "
                                f"at position {answer.position}, not frame {key[0]}")
         self.taken += 1
+        if pending.recorded is not None:
+            self.taken_previous = pending.recorded
+        if answer.tracker is not None:
+            self._new_segment(position, answer)
+            answer.tracker = None
         self._submit_more()
         return answer
 
@@ -449,8 +493,9 @@ class OrderedResults:
                                f"(written {self.taken} of {self.submitted})")
 
     def cancel(self):
-        for future in self.pending.values():
-            future.cancel()
+        for pending in self.pending.values():
+            if pending.future is not None:
+                pending.future.cancel()
         self.pending.clear()
 
 
@@ -464,19 +509,16 @@ def _nbytes(value):
 class ServedTracker:
     """What the replay session tracks with: each frame's result measured on the cluster, in order.
 
-    It stands in the session for the ``KeyFrameTracker`` it wraps (built on the reference by the session, as
-    sequentially: points, ``trackable``) and checks, with the calls ``KeyFrameTracker.track`` makes, that the
-    sequential replay would neither have moved the reference nor detected a fracture at this frame
-    (``ParallelReplayLimit`` otherwise).
+    It stands in the session for the ``KeyFrameTracker`` the session built on the reference (the workers'
+    copies of it did the tracking) and says what they said: reference updates, fractures, re-found points.
     """
 
-    def __init__(self, tracker, results, keys, policy, subset):
+    def __init__(self, tracker, results, keys):
         self.tracker = tracker
-        self.subset = int(subset)
         self.results = results
         self.keys = keys
-        self.policy = policy
         self.frames_tracked = 0
+        self.trackable = tracker.trackable
         self.last_refound = np.zeros(tracker.n_points, dtype=bool)
         self.last_refind_attempts = 0
         self.last_seed_searches = 0
@@ -485,17 +527,10 @@ class ServedTracker:
         self.compute_seconds = 0.0
         self.rows_seconds = 0.0
         self.last_answer = None
-        self._previous = None
-        n = tracker.n_points
-        self._step = typical_spacing(np.column_stack([tracker.x, tracker.y])) if n > 1 else 1.0
 
     @property
     def n_points(self):
         return self.tracker.n_points
-
-    @property
-    def trackable(self):
-        return self.tracker.trackable
 
     @property
     def window(self):
@@ -512,34 +547,16 @@ class ServedTracker:
     def track(self, image):
         key = self.keys.popleft()
         answer = self.results.take(self.frames_tracked, key)
-        m = answer.measurement
         self.frames_tracked += 1
         self.compute_seconds += answer.seconds
         self.rows_seconds += answer.rows_seconds
         self.last_refound = answer.refound
         self.last_refind_attempts = answer.refind_attempts
+        self.trackable = answer.trackable
+        self.last_update = answer.update
+        self.last_fracture = answer.fracture
         self.last_answer = answer
-        self._check_same_course(key, m)
-        self._previous = (m.ok.copy(), m.u.copy(), m.v.copy())
-        return m
-
-    def _check_same_course(self, key, m):
-        """``ParallelReplayLimit`` where ``KeyFrameTracker.track`` would detect a fracture or move the reference."""
-        trackable = self.tracker.trackable
-        if self._previous is not None and getattr(self.tracker, "detect_fractures", True):
-            ok_before, u_before, v_before = self._previous
-            fracture = detect_fracture(self.tracker.x, self.tracker.y, ok_before, m.ok, u_before, v_before, m.u, m.v,
-                                       step=self._step, subset=self.subset, trackable=trackable)
-            if fracture is not None:
-                raise ParallelReplayLimit(
-                    f"frame {key[0]}: the replay detects a fracture there, which the parallel replay does not "
-                    f"follow yet: replay without --workers/--cluster")
-        reason = self.policy.reason(self.frames_tracked, m, trackable)
-        if reason is not None:
-            raise ParallelReplayLimit(
-                f"frame {key[0]}: the replay moves the reference there ({reason}; --reference-update "
-                f"{self.policy}), which the parallel replay does not follow yet: replay without --workers/--cluster, "
-                f"or with --reference-update never")
+        return answer.measurement
 
 
 class KeyedFrames:
@@ -574,6 +591,8 @@ class ParallelStats:
     seed_bytes: int = 0
     shared_path: str = None               # where the workers read the frames (None: sent from the client)
     wait_seconds: float = 0.0             # the replaying process waiting for results (the rest: its own work)
+    segments: int = 1                     # trackers measured against: 1 + reference moves + fractures
+    resubmitted: int = 0                  # frames measured again against a new segment's tracker
 
 
 class ParallelSession(Session):
@@ -596,28 +615,26 @@ class ParallelSession(Session):
         self.results = None
 
     def _make_tracker(self, frame):
-        tracker = super()._make_tracker(frame)
-        tracking = self.config.tracking
+        tracker = super()._make_tracker(frame)       # the KeyFrameTracker a sequential replay would use
         threads = cluster_threads(self._client)
         rows = self._rows and self.strain is not None
-        job = ReplayJob(token=uuid.uuid4().hex, reference=np.ascontiguousarray(frame.image),
-                        points=np.asarray(self.points, dtype=np.float64), tracker_options=tracker_options(tracking),
-                        threads=1, point_ids=np.asarray(self._point_ids[0]) if rows else None,
+        job = ReplayJob(token=uuid.uuid4().hex, threads=1, point_ids=np.asarray(self._point_ids[0]) if rows else None,
                         strain=self.strain if rows else None)
-        seeds = Seeds(self._recorded, tracker.x, tracker.y)
+        seeds = RecordedSeeds(self._recorded, tracker.x, tracker.y)
         in_flight = self._in_flight or IN_FLIGHT_PER_WORKER * threads
-        self.results = OrderedResults(self._client, job, self._frames_again, seeds, in_flight, self._shared_path)
-        self.served = ServedTracker(tracker, self.results, self._keys, UpdatePolicy.parse(tracking.reference_update),
-                                    tracking.subset)
+        self.results = OrderedResults(self._client, job, copy.deepcopy(tracker), self._frames_again, seeds, in_flight,
+                                      self._shared_path)
+        self.served = ServedTracker(tracker, self.results, self._keys)
         self.parallel.workers = threads
         return self.served
 
     def rows_of(self, frame):
-        """(header, lines) of ``frame``, the frame just tracked, as its worker formatted them."""
+        """(header, lines) of ``frame``, the frame just tracked, as its worker formatted them; None when it did
+        not (after a fracture: the strain windows split by the crack are the session's)."""
         answer = self.served.last_answer
-        if answer is None or tuple(answer.key) != (int(frame.index), int(frame.timestamp_ns)) or answer.lines is None:
-            raise RuntimeError(f"parallel replay: no formatted rows for frame {frame.index}")
-        return answer.header, answer.lines
+        if answer is None or tuple(answer.key) != (int(frame.index), int(frame.timestamp_ns)):
+            raise RuntimeError(f"parallel replay: no result for frame {frame.index}")
+        return None if answer.lines is None else (answer.header, answer.lines)
 
     def finish_parallel(self):
         """After ``run``: every frame taken once (RuntimeError otherwise); fills ``parallel``."""
@@ -625,13 +642,16 @@ class ParallelSession(Session):
             return self.parallel
         self.results.check_complete()
         stats = self.parallel
-        stats.frames = self.results.taken
+        results = self.results
+        stats.frames = results.taken
         stats.compute_seconds = self.served.compute_seconds
         stats.rows_seconds = self.served.rows_seconds
-        stats.image_bytes = self.results.image_bytes
-        stats.seed_bytes = self.results.seed_bytes
-        stats.shared_path = self.results.shared_path
-        stats.wait_seconds = self.results.wait_seconds
+        stats.image_bytes = results.image_bytes
+        stats.seed_bytes = results.seed_bytes
+        stats.shared_path = results.shared_path
+        stats.wait_seconds = results.wait_seconds
+        stats.segments = results.segments
+        stats.resubmitted = results.resubmitted
         return stats
 
     def close(self):

@@ -55,8 +55,10 @@ the recorded result of the frame before it (``stream.parallel_replay``), and the
 come back in frame order to the same session: the CSV, the comparison and its verdict are
 the sequential replay's (u, v within 1e-4 px; bit for bit on the tests' recordings).
 ``--shared-path`` lets the workers read the frames from the file instead of receiving
-them. What it does not follow yet, reference updates and fractures, it refuses with one
-line (exit 2, nothing written) rather than give other numbers.
+them. Reference updates and fractures are followed as sequentially (the frames after one
+are measured against the tracker that frame left); from there on the numbers are equal
+within rounding (~1e-14 px), not bit for bit: each frame starts from the recorded result
+before it mapped onto the key frame.
 """
 
 import enum
@@ -366,6 +368,9 @@ class ReplayReport:
             within = (f"within floating-point rounding (max {self.max_difference_px:.2g} px <= "
                       f"{_short(ROUNDING_TOLERANCE_PX)} px tolerance): {size}, the same points ok; bit-exact only "
                       f"on the machine that recorded it")
+            if self.parallel is not None and self.parallel.segments > 1:
+                within += (", and in parallel after a reference move or a fracture (each frame starts from the "
+                           "recorded result before it, mapped onto the key frame)")
             if changes:
                 return f"replay with changed parameters ({changes}) agrees with the recording {within}"
             return f"replay agrees with the recording {within}"
@@ -467,8 +472,8 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     ValueError
         Bad parameters, or a recording that is missing, not MCAP, not livedic,
         corrupt, or holds nothing to replay (``RecordingError`` is a ValueError); in parallel
-        also ``ClusterError`` (no scheduler at ``cluster``) and ``ParallelReplayLimit`` (what the
-        parallel replay does not follow yet: a reference update or a fracture).
+        also ``ClusterError`` (no scheduler at ``cluster``, no worker, livedic missing there) and
+        a recording without results to seed the frames from (``--all-frames``).
     SourceError
         The frames cannot be read (``RecordingSourceError``).
     """
@@ -495,23 +500,16 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
 
 def _check_parallel_input(path, given, all_frames, threads):
     """What the parallel replay refuses before any cluster starts (one line, as the sequential replay words
-    it, or its own): bad parameters, nothing to seed from, a reference move or a fracture in the recording."""
+    it, or its own): bad parameters, nothing to seed the frames from."""
     from livedic.acquire.mcap_replay import Recording
-    from livedic.stream.parallel_replay import ParallelReplayLimit, recorded_limits
     with reader_notes():                   # the replay itself says what the reader notes (a truncated file)
         metadata, _ = read_session_or_note(path)
         results = list(Recording(path).results())
     params, _, _ = resolve_parameters(metadata, given or {}, results[0].method if results else "")
     check_parameters(params, threads)
-    if not results:
-        if not all_frames:
-            return                 # the sequential replay's own error says it
-        raise ParallelReplayLimit(f"{path} holds no tracking results to seed the frames from: replay it without "
-                                  f"--workers/--cluster")
-    reference_update = (given or {}).get("reference_update")
-    limit = recorded_limits(results, moves=reference_update is None or str(reference_update) != "never")
-    if limit is not None:
-        raise ParallelReplayLimit(f"{path}: {limit}: replay it without --workers/--cluster")
+    if not results and all_frames:
+        raise ValueError(f"{path} holds no tracking results to seed the frames from: replay it without "
+                         f"--workers/--cluster")
 
 
 def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows=None, *,
@@ -576,11 +574,11 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
         served = []                   # the parallel session (its tracker holds the worker-formatted lines)
         if on_rows is not None:
             def rows(result, stats):
-                if served:
-                    on_rows(*served[0].rows_of(result.frame))
-                else:
-                    on_rows(*frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
-                                        result.measurement, result.strain))
+                formatted = served[0].rows_of(result.frame) if served else None
+                if formatted is None:
+                    formatted = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
+                                           result.measurement, result.strain)
+                on_rows(*formatted)
             sinks.append(FunctionSink(rows, "output", required=True))
         if progress is not None:
             sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
@@ -703,9 +701,13 @@ def describe_parallel(stats):
     per_frame = stats.image_bytes / stats.frames if stats.frames else 0.0
     images = f"{per_frame / 1e6:.2f} MB of image (as recorded)" if stats.shared_path is None \
         else f"the images read by the workers from {stats.shared_path}"
+    moves = ""
+    if stats.segments > 1:
+        moves = (f"; {stats.segments - 1} reference move(s) or fracture(s): {stats.resubmitted} frame(s) measured "
+                 f"ahead against the earlier reference were measured again")
     return (f"parallel: {stats.frames} frames measured on {stats.where} ({stats.workers} worker thread(s)): "
             f"{stats.compute_seconds:.1f} s of tracking in the tasks; {images} and "
-            f"{stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent")
+            f"{stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent{moves}")
 
 
 def replay_command(args):

@@ -50,3 +50,31 @@ def test_resume_refuses_another_number_of_points(frames):
     other = Tracker(frames[0], POINTS[:3]).track(frames[1])
     with pytest.raises(ValueError, match="3 points, the tracker 25"):
         tracker.resume(other)
+
+
+def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(frames):
+    """``resume_key_frames`` on a copy of the tracker as the last move left it: each frame measured on its own
+    moves the reference at the same frames (every 3) and gives the sequence's numbers within rounding (the
+    recorded result is mapped onto the key frame)."""
+    import copy
+
+    from livedic.dic.key_frames import KeyFrameTracker
+    from livedic.dic.tracking import resume_key_frames
+    sequence = KeyFrameTracker(frames[0], POINTS, reference_update="every:3")
+    expected = [sequence.track(frame) for frame in frames]
+    assert [update.frame for update in sequence.updates] == [2, 5]
+    segment, start, moves = KeyFrameTracker(frames[0], POINTS, reference_update="every:3"), -1, []
+    for k, frame in enumerate(frames):
+        tracker = copy.deepcopy(segment)
+        last_good = None
+        for result in expected[start + 1:k]:
+            last_good = last_good_after(last_good, result)
+        resume_key_frames(tracker, expected[k - 1] if k else None, last_good=last_good, frames_tracked=k,
+                          frames_since_key=k - start - 1, frames_since_rebuild=k - start - 1)
+        m = tracker.track(frame)
+        assert np.array_equal(m.ok, expected[k].ok) and np.array_equal(m.status, expected[k].status)
+        assert np.nanmax(np.abs(m.u - expected[k].u)) <= 1e-12 and np.nanmax(np.abs(m.v - expected[k].v)) <= 1e-12
+        if tracker.last_update is not None:
+            moves.append(tracker.last_update.frame)
+            segment, start = tracker, k
+    assert moves == [2, 5]
