@@ -114,7 +114,7 @@ def dask_client(workers=None, cluster=None, *, timeout_s=None):
         except (OSError, TimeoutError, ValueError, TypeError) as error:
             raise ClusterError(f"--cluster {address}: no Dask scheduler answered there "
                                f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}); "
-                               f"start one with dask-scheduler, or use --workers N") from None
+                               f"start one with `dask scheduler`, or use --workers N") from None
         try:
             yield client
         finally:
@@ -157,7 +157,7 @@ def check_workers(client, timeout_s=None):
                            f"(the same version) where the workers run") from None
     except TimeoutError:
         raise ClusterError(f"the Dask scheduler has no worker (none joined within {timeout_s} s): start some "
-                           f"with dask-worker ADDRESS") from None
+                           f"with `dask worker ADDRESS`") from None
     mine = software_version()
     others = sorted({version for version in versions.values() if version != mine})
     if others:

@@ -132,7 +132,7 @@ def add_replay_arguments(parser):
                             "(1 thread each), seeded by the recorded results")
     where.add_argument("--cluster", metavar="ADDRESS",
                        help="... on the Dask scheduler at ADDRESS (tcp://HOST:8786), its workers started with "
-                            "dask-worker (livedic installed there)")
+                            "`dask worker` (livedic installed there)")
     parallel.add_argument("--shared-path", nargs="?", const="", metavar="PATH",
                           help="the workers read the frames from the recording themselves (a shared file system; "
                                "PATH: the recording as the workers see it, default the same path) instead of "
