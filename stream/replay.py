@@ -504,10 +504,10 @@ def _check_parallel_input(path, given, all_frames, threads):
     from livedic.acquire.mcap_replay import Recording
     with reader_notes():                   # the replay itself says what the reader notes (a truncated file)
         metadata, _ = read_session_or_note(path)
-        results = list(Recording(path).results())
-    params, _, _ = resolve_parameters(metadata, given or {}, results[0].method if results else "")
+        first = next(iter(Recording(path).results()), None)
+    params, _, _ = resolve_parameters(metadata, given or {}, first.method if first is not None else "")
     check_parameters(params, threads)
-    if not results and all_frames:
+    if first is None and all_frames:
         raise ValueError(f"{path} holds no tracking results to seed the frames from: replay it without "
                          f"--workers/--cluster")
 
