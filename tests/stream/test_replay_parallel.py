@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from livedic.stream.cli import main
+from tests.stream.test_replay_export import dropped  # noqa: F401 - the fixture: a recording with dropped frames
 
 pytest.importorskip("distributed")
 
@@ -319,3 +320,17 @@ def test_a_truncated_recording_replays_in_parallel_as_sequentially(cluster, tmp_
     out = tmp_path / "shared.csv"
     assert main(["replay", str(cut), "-o", str(out), "--cluster", cluster, "--shared-path"]) == 2
     assert not out.exists()
+
+
+@pytest.mark.parametrize("extra", [[], ["--all-frames"]], ids=["recorded-frames", "all-frames"])
+def test_frames_the_live_run_dropped(dropped, cluster, tmp_path, extra):
+    """Frames 3, 6 and 7 have images but no recorded results. By default both replays track the recorded
+    frame set; with ``--all-frames`` the parallel one starts a dropped frame from the last recorded result
+    before it (the tracker's own search finds the points from there), the sequential one from its own
+    previous frame: within 1e-4 px all the same."""
+    path, _ = dropped
+    sequential = _replay(path, tmp_path / "seq.csv", *extra)
+    parallel = _replay(path, tmp_path / "par.csv", "--cluster", cluster, *extra)
+    _assert_same(parallel, sequential, verdict=not extra)
+    frames = {int(r[0]) for r in parallel[0][1:]}
+    assert frames == (set(range(10)) if extra else set(range(10)) - {3, 6, 7})
