@@ -121,8 +121,9 @@ def dask_client(workers=None, cluster=None, *, timeout_s=None):
             client.close()
         return
     check_worker_count(workers)
-    local = LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, dashboard_address=None,
-                         scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.CRITICAL)
+    with _workers_ignore_ctrl_c():
+        local = LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, dashboard_address=None,
+                             scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.CRITICAL)
     try:
         client = Client(local, set_as_default=False)
         try:
@@ -131,6 +132,21 @@ def dask_client(workers=None, cluster=None, *, timeout_s=None):
             client.close()
     finally:
         local.close()
+
+
+@contextmanager
+def _workers_ignore_ctrl_c():
+    """Worker processes started inside ignore SIGINT (they inherit it): Ctrl-C in the terminal reaches the whole
+    process group, and the replay, not each worker with its own traceback, stops them (closing the cluster)."""
+    import signal
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def check_worker_count(workers):
