@@ -894,6 +894,14 @@ def resume_key_frames(tracker, previous, *, last_good=None, frames_tracked, fram
     inner.resume(start, last_good=good)
 
 
+def key_frame_state(tracker):
+    """An opaque token of a ``KeyFrameTracker``'s key-frame state (compare with ``is``): it changes whenever
+    ``track`` rebuilds the inner tracker: a reference move, a fracture, or a known crack widening (which
+    stops tracking more points without a new ``last_fracture``). To be moved into ``dic.key_frames`` with
+    ``resume_key_frames``."""
+    return tracker._inner
+
+
 def _key_frame_view(tracker, fields):
     """``fields`` of an outer result (``u, v`` and ``ux, uy, vx, vy`` from the first frame at X; ``zncc, ok``,
     ``ever`` as they are) on the inner tracker's points, from its key frame at p_r: ``_compose`` inverted."""

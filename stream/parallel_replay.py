@@ -75,7 +75,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livedic.dic.result import Measurement
-from livedic.dic.tracking import last_good_after, resume_key_frames
+from livedic.dic.tracking import key_frame_state, last_good_after, resume_key_frames
 from livedic.stream.replay_rows import frame_rows
 from livedic.stream.session import Session
 
@@ -224,7 +224,7 @@ class FrameMeasured:
     seconds: float
     update: object = None                 # dic.key_frames.ReferenceUpdate: the reference moved to this frame
     fracture: object = None               # dic.fracture.Fracture detected in this frame
-    tracker: object = None                # the KeyFrameTracker after this frame, when one of them happened
+    tracker: object = None                # the KeyFrameTracker after this frame, when this frame rebuilt it
     header: list = None                   # the frame's CSV columns and lines (stream.replay_rows.frame_rows)
     lines: str = None
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
@@ -300,13 +300,14 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
     cache_key, working = _tracker_for(segment_token, tracker)
     resume_key_frames(working, previous, last_good=last_good, frames_tracked=position,
                       frames_since_key=position - key_start - 1, frames_since_rebuild=position - segment_start - 1)
+    state = key_frame_state(working)
     measurement = working.track(image)
     seconds = time.perf_counter() - started
     answer = FrameMeasured(position=position, key=key, measurement=measurement,
                            refound=working.last_refound.copy(), refind_attempts=working.last_refind_attempts,
                            trackable=working.trackable.copy(), seconds=seconds, update=working.last_update,
                            fracture=working.last_fracture)
-    if answer.update is not None or answer.fracture is not None:
+    if key_frame_state(working) is not state:     # a move, a fracture or the crack widening rebuilt it
         answer.tracker = _TRACKERS.pop(cache_key)          # its state moved on: the next segment's tracker
     if job.strain is not None and not working.fractures:  # after a fracture the client's strain stage splits
         strain, _ = job.strain.compute(measurement.u, measurement.v, measurement.ok)

@@ -78,3 +78,18 @@ def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(f
             moves.append(tracker.last_update.frame)
             segment, start = tracker, k
     assert moves == [2, 5]
+
+
+def test_key_frame_state_changes_exactly_when_the_inner_tracker_is_rebuilt(frames):
+    from livedic.dic.key_frames import KeyFrameTracker
+    from livedic.dic.tracking import key_frame_state
+    tracker = KeyFrameTracker(frames[0], POINTS, reference_update="every:3")
+    changed = []
+    for k, frame in enumerate(frames):
+        before = key_frame_state(tracker)
+        tracker.track(frame)
+        changed.append(key_frame_state(tracker) is not before)
+    assert [k for k, c in enumerate(changed) if c] == [2, 5]          # the moves
+    before = key_frame_state(tracker)
+    tracker.stop_tracking(np.arange(len(POINTS)) < 3)                # what a fracture (or its widening) does
+    assert key_frame_state(tracker) is not before
