@@ -63,7 +63,7 @@ from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
-from livedic.dic.tracking import ICGN_MAX_ITERATIONS, Tracker
+from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, Tracker
 
 AUTO_ZNCC = 0.9
 AUTO_STRAIN = 0.05
@@ -430,6 +430,78 @@ class KeyFrameTracker:
         """Points whose own result in this frame may be carried into it as a key frame (module notes)."""
         with np.errstate(invalid="ignore"):
             return result.ok & (result.zncc >= self._inner.refind_zncc) & (near_failures == 0)
+
+    def resume(self, previous, *, last_good=None, frames_tracked, frames_since_key, frames_since_rebuild):
+        """``Tracker.resume`` for key frames: the next ``track`` starts as it would in sequence.
+
+        For ``livedic replay --workers``, which measures frames apart and follows reference updates and
+        fractures. The tracker must be a copy of the tracker as it was right after the frame that built its current
+        inner tracker (a new tracker; the last key frame or fracture): only the per-frame state changes
+        between then and any later frame of the same key frame, and this sets it. ``previous`` (a
+        ``Measurement`` as ``track`` returned it: displacements from the first frame) is the result of
+        the frame tracked just before; ``last_good`` (``last_good_after`` over the frames tracked since
+        the inner tracker was built, on those results) each point's last ok one. They are mapped onto the
+        inner tracker's points as displacements from the key frame, the inverse of the composition
+        (u_0->k = u_0->r + u_r->k(p_r) + G (x_r - p_r), F_0->k = (I + G) F_0->r).
+
+        Parameters
+        ----------
+        frames_tracked : int
+            Frames tracked before the next one (its ``frames_tracked`` then).
+        frames_since_key : int
+            Of those, since the current key frame (the update policy counts them; 0 right after a move).
+        frames_since_rebuild : int
+            Of those, since the inner tracker was built (at a key frame or a fracture): 0 = it is new, as it
+            is then in sequence, and ``previous`` only feeds the fracture test.
+        """
+        self.frames_tracked = int(frames_tracked)
+        self._since_key = int(frames_since_key)
+        self.last_update = self.last_fracture = None
+        self._previous = None if previous is None else (np.asarray(previous.ok, dtype=bool).copy(),
+                                                            np.asarray(previous.u, dtype=np.float64).copy(),
+                                                            np.asarray(previous.v, dtype=np.float64).copy())
+        inner = self._inner
+        if previous is None or frames_since_rebuild == 0:
+            inner.resume(None)
+            return
+        mapped = self._key_frame_view({name: getattr(previous, name)
+                                       for name in ("u", "v", "zncc", "ok") + _SHAPE})
+        empty = np.zeros(0)
+        start = Measurement(x=empty, y=empty, status=np.zeros(0, dtype=np.int8), **mapped)
+        good = None
+        if last_good is not None:
+            good = self._key_frame_view(dict(last_good))
+            ever = np.asarray(good["ever"], dtype=bool)
+            good = {name: (np.zeros(ever.size) if good.get(name) is None else np.where(ever, good[name], 0.0))
+                    for name in ("u", "v") + _SHAPE} | {"ever": ever}
+        inner.resume(start, last_good=good)
+
+    @property
+    def state(self):
+        """An opaque token of the key-frame state (compare with ``is``): it changes whenever ``track``
+        rebuilds the inner tracker: a reference move, a fracture, or a known crack widening (which stops
+        tracking more points without a new ``last_fracture``)."""
+        return self._inner
+
+    def _key_frame_view(self, fields):
+        """``fields`` of an outer result (``u, v`` and ``ux, uy, vx, vy`` from the first frame at X; ``zncc, ok``,
+        ``ever`` as they are) on the inner tracker's points, from its key frame at p_r: ``_compose`` inverted."""
+        members = self._members
+        if self.key_frame == 0 and members.size == self.n_points:
+            return {name: (None if value is None else np.asarray(value)) for name, value in fields.items()}
+        out = {name: (None if value is None else np.asarray(value)[members]) for name, value in fields.items()}
+        u = out["u"].astype(np.float64) - self._u0[members]
+        v = out["v"].astype(np.float64) - self._v0[members]
+        if out.get("ux") is not None:
+            f = np.stack([np.stack([1.0 + out["ux"], out["uy"]], axis=-1),
+                          np.stack([out["vx"], 1.0 + out["vy"]], axis=-1)], axis=1)
+            g = np.einsum("nij,njk->nik", f, np.linalg.inv(self._f0[members])) - np.eye(2)
+            known = np.all(np.isfinite(g.reshape(len(g), 4)), axis=1)
+            correction = np.einsum("nij,nj->ni", np.where(known[:, None, None], g, 0.0), self._offset)
+            u, v = u - correction[:, 0], v - correction[:, 1]
+            out["ux"], out["uy"], out["vx"], out["vy"] = g[:, 0, 0], g[:, 0, 1], g[:, 1, 0], g[:, 1, 1]
+        out["u"], out["v"] = u, v
+        return out
 
     def _rebuild(self, key_image, members, positions, offset):
         """A new inner Tracker on ``key_image`` for the outer points ``members`` at pixel ``positions``."""

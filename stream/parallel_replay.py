@@ -8,7 +8,7 @@ the key-frame state, which changes only at a reference move or a fracture. A
 recording holds the result of every frame the live run tracked, so each frame can be
 measured on its own, on any worker, by the same ``KeyFrameTracker.track``: a copy of
 the tracker as the last move (or fracture) left it, resumed from the recorded result
-of the frame tracked just before (``dic.tracking.resume_key_frames``, which maps it
+of the frame tracked just before (``dic.key_frames.KeyFrameTracker.resume``, which maps it
 onto the key frame; ``Tracker.resume`` below it). With the recorded parameters IC-GN
 then starts where the sequential replay starts it and ends where it ends. Frames
 without recorded results (``--all-frames``: frames the live run dropped) and points
@@ -78,7 +78,7 @@ import numpy as np
 
 from livedic.dic.result import Measurement
 from livedic.dic.status import SEPARATED
-from livedic.dic.tracking import key_frame_state, last_good_after, resume_key_frames
+from livedic.dic.tracking import last_good_after
 from livedic.stream.replay_rows import frame_rows
 from livedic.stream.session import Session
 
@@ -292,7 +292,7 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
     image : ndarray (H, W) or FrameAt
         As recorded (uint8 or uint16), or where the worker reads it (``--shared-path``).
     previous, last_good
-        ``dic.tracking.resume_key_frames``'s seed: the recorded result before the frame, the last ok ones
+        ``dic.key_frames.KeyFrameTracker.resume``'s seed: the recorded result before the frame, the last ok ones
         since ``segment_start``.
     """
     import numba
@@ -301,16 +301,16 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
     started = time.perf_counter()
     image = _image_of(image)
     cache_key, working = _tracker_for(segment_token, tracker)
-    resume_key_frames(working, previous, last_good=last_good, frames_tracked=position,
+    working.resume(previous, last_good=last_good, frames_tracked=position,
                       frames_since_key=position - key_start - 1, frames_since_rebuild=position - segment_start - 1)
-    state = key_frame_state(working)
+    state = working.state
     measurement = working.track(image)
     seconds = time.perf_counter() - started
     answer = FrameMeasured(position=position, key=key, measurement=measurement,
                            refound=working.last_refound.copy(), refind_attempts=working.last_refind_attempts,
                            trackable=working.trackable.copy(), seconds=seconds, update=working.last_update,
                            fracture=working.last_fracture)
-    if key_frame_state(working) is not state:     # a move, a fracture or the crack widening rebuilt it
+    if working.state is not state:     # a move, a fracture or the crack widening rebuilt it
         answer.tracker = _TRACKERS.pop(cache_key)          # its state moved on: the next segment's tracker
     if job.strain is not None and not working.fractures:  # after a fracture the client's strain stage splits
         strain, _ = job.strain.compute(measurement.u, measurement.v, measurement.ok)

@@ -53,13 +53,12 @@ def test_resume_refuses_another_number_of_points(frames):
 
 
 def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(frames):
-    """``resume_key_frames`` on a copy of the tracker as the last move left it: each frame measured on its own
+    """``KeyFrameTracker.resume`` on a copy of the tracker as the last move left it: each frame measured on its own
     moves the reference at the same frames (every 3) and gives the sequence's numbers within rounding (the
     recorded result is mapped onto the key frame)."""
     import copy
 
     from livedic.dic.key_frames import KeyFrameTracker
-    from livedic.dic.tracking import resume_key_frames
     sequence = KeyFrameTracker(frames[0], POINTS, reference_update="every:3")
     expected = [sequence.track(frame) for frame in frames]
     assert [update.frame for update in sequence.updates] == [2, 5]
@@ -69,7 +68,7 @@ def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(f
         last_good = None
         for result in expected[start + 1:k]:
             last_good = last_good_after(last_good, result)
-        resume_key_frames(tracker, expected[k - 1] if k else None, last_good=last_good, frames_tracked=k,
+        tracker.resume(expected[k - 1] if k else None, last_good=last_good, frames_tracked=k,
                           frames_since_key=k - start - 1, frames_since_rebuild=k - start - 1)
         m = tracker.track(frame)
         assert np.array_equal(m.ok, expected[k].ok) and np.array_equal(m.status, expected[k].status)
@@ -82,14 +81,13 @@ def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(f
 
 def test_key_frame_state_changes_exactly_when_the_inner_tracker_is_rebuilt(frames):
     from livedic.dic.key_frames import KeyFrameTracker
-    from livedic.dic.tracking import key_frame_state
     tracker = KeyFrameTracker(frames[0], POINTS, reference_update="every:3")
     changed = []
     for k, frame in enumerate(frames):
-        before = key_frame_state(tracker)
+        before = tracker.state
         tracker.track(frame)
-        changed.append(key_frame_state(tracker) is not before)
+        changed.append(tracker.state is not before)
     assert [k for k, c in enumerate(changed) if c] == [2, 5]          # the moves
-    before = key_frame_state(tracker)
+    before = tracker.state
     tracker.stop_tracking(np.arange(len(POINTS)) < 3)                # what a fracture (or its widening) does
-    assert key_frame_state(tracker) is not before
+    assert tracker.state is not before
