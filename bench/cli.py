@@ -17,7 +17,7 @@ from livedic.stream.config import subpixel_method
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
-                                             "fracture, tensile")
+                                             "fracture, tensile, replay")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
     paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
@@ -88,6 +88,24 @@ def add_bench_commands(commands):
     fracture.add_argument("--data", metavar="DIR", help="folder with mudic_tensile_dogbone (e.g. ../shared/datasets)")
     fracture.add_argument("-o", "--output", default="results/fracture", metavar="DIR", help="results folder")
     fracture.set_defaults(handler=_cmd_bench_fracture)
+    replay = bench_commands.add_parser(
+        "replay", help="offline replay: sequential vs Dask --workers 1 and 2 (frames/s, overhead per frame)",
+        description="Replays one recording sequentially, then on local Dask clusters of 1 and 2 worker processes "
+                    "(the largest also with --shared-path): frames/s, the ratio to sequential, the tracking, CSV "
+                    "and scheduling time per frame. Without --recording it records the simulated tensile test first.")
+    replay.add_argument("--recording", metavar="FILE.mcap",
+                        help="replay this recording (default: one made here by livedic run)")
+    replay.add_argument("--frames", type=int, default=60, metavar="N",
+                        help="frames of the recording made here (default 60)")
+    replay.add_argument("--size", default="1024x1024", metavar="WxH",
+                        help="image size of the recording made here (default 1024x1024)")
+    replay.add_argument("--points", type=int, default=2000, metavar="N", help="points wanted (default 2000)")
+    replay.add_argument("--workers", default="1,2", metavar="N,M",
+                        help="worker processes of each local cluster timed (default 1,2)")
+    replay.add_argument("--quick", action="store_true", help="30 frames of 256x256, 300 points (about 20 s)")
+    replay.add_argument("-o", "--output", default="results/replay", metavar="DIR",
+                        help="results folder (replay.json; default results/replay)")
+    replay.set_defaults(handler=_cmd_bench_replay)
     tensile = bench_commands.add_parser(
         "tensile", help="E, Rp0.2, Rm, Ag, A recovered from the simulated tensile test with a known law",
         description="Runs the simulated tensile test (E 200 GPa, Rp0.2 816 MPa, Rm 1200 MPa, fracture) through "
@@ -170,6 +188,23 @@ def _cmd_bench_fracture(args):
         run(quick=args.quick, data=args.data, output=args.output, say=lambda line: print(line, flush=True))
     except ValueError as error:
         raise UsageError(str(error)) from None
+    return 0
+
+
+def _cmd_bench_replay(args):
+    from livedic.bench.replay import parse_workers, run_replay_benchmark
+    try:
+        workers = parse_workers(args.workers)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.frames < 2 or args.points < 1:
+        raise UsageError("--frames >= 2 and --points >= 1 please")
+    if args.recording is not None and not os.path.isfile(args.recording):
+        raise UsageError(f"--recording {args.recording} is not a file")
+    _check_results_folder(args.output)
+    run_replay_benchmark(recording=args.recording, frames=args.frames, size=args.size, points=args.points,
+                         workers=workers, output=args.output, quick=args.quick,
+                         log=lambda line: print(line, flush=True))
     return 0
 
 
