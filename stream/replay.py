@@ -75,10 +75,12 @@ from livedic.stream.config import (DEFAULT_POINTS, PointsConfig, SessionConfig, 
 from livedic.stream.p0 import choose_p0
 from livedic.stream.points import build_points, read_points_csv
 from livedic.stream.progress import ProgressBar
-from livedic.stream.replay_rows import frame_rows
+from livedic.stream.replay_rows import frame_rows, with_force_columns
 from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
+from livedic.stream.load_stage import format_force_summary
 from livedic.stream.strain import StrainConfig, add_strain_arguments, overrides_from_args
+from livedic.stream.stress import add_stress_arguments, stress_options_from_args
 
 from livedic.stream.export import StagedFile, check_output_csv, read_session_or_note, reader_notes, say
 
@@ -140,6 +142,7 @@ def add_replay_arguments(parser):
     parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                         help="progress bar on stderr (default auto: when stderr is a terminal)")
     add_strain_arguments(parser, recorded=True)
+    add_stress_arguments(parser)
     return parser
 
 
@@ -322,6 +325,7 @@ class ReplayReport:
     truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
     strain: dict = None              # stream.strain.StrainStage.summary() of the replay (final extensometers)
     parallel: object = None          # stream.parallel_replay.ParallelStats when measured on Dask (--workers, --cluster)
+    force: dict = None               # stream.load_stage.LoadStage.summary() with --load
 
     @property
     def exact(self):
@@ -430,7 +434,8 @@ def _compare(report, measurement, recorded):
 
 
 def replay(path, given=None, *, point_options=None, all_frames=False, on_result=None, progress=None,
-           threads=1, strain=None, workers=None, cluster=None, in_flight=None, shared_path=None, on_rows=None):
+           threads=1, strain=None, workers=None, cluster=None, in_flight=None, shared_path=None, on_rows=None,
+           stress=None):
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
 
     Parameters
@@ -466,6 +471,10 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     shared_path : str, optional
         Parallel: the workers read the frames from the recording at this path themselves ("": ``path``,
         made absolute) instead of receiving each image (``acquire.mcap_replay.FrameReader``).
+    stress : stream.stress.StressOptions, optional
+        The machine's force (``--load csv:FILE``, its offset, A0): each frame's force and engineering
+        stress, from the session's load stage as in ``livedic run``, become the rows' last columns
+        (``FORCE_COLUMNS``) and ``report.force`` its summary.
 
     Raises
     ------
@@ -492,10 +501,11 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         with dask_client(workers, cluster) as client:
             worker_notes = check_workers(client)
             return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows,
-                           client=client, in_flight=in_flight, shared_path=shared_path,
+                           stress=stress, client=client, in_flight=in_flight, shared_path=shared_path,
                            where=f"the Dask scheduler at {cluster}" if cluster is not None
                            else f"a local Dask cluster of {workers} worker process(es)", worker_notes=worker_notes)
-    return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows)
+    return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows,
+                   stress=stress)
 
 
 def _check_parallel_input(path, given, all_frames, threads):
@@ -513,7 +523,7 @@ def _check_parallel_input(path, given, all_frames, threads):
 
 
 def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows=None, *,
-            client=None, in_flight=None, shared_path=None, where=None, worker_notes=()):
+            stress=None, client=None, in_flight=None, shared_path=None, where=None, worker_notes=()):
     """``replay``: sequential (``client`` None) or on the Dask ``client``."""
     from livedic.acquire.mcap_replay import McapSource, Recording
 
@@ -561,9 +571,11 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
             points = recorded_xy
         # The session: the recorded frames -> a blocking queue (nothing dropped) -> tracker -> comparison,
         # rows out, progress (each required: a failure there ends the replay with its error).
+        force = {} if stress is None else {"load": stress.load, "load_offset": stress.offset_s,
+                                           "area_mm2": stress.area_mm2}
         config = SessionConfig(source=f"mcap:{path}", tracking=tracking, threads=threads, drop="block",
                                warm_up=False, command="livedic replay",
-                               strain=StrainConfig.from_metadata(metadata, **(strain or {})))
+                               strain=StrainConfig.from_metadata(metadata, **(strain or {})), **force)
         point_ids = []
         comparison = _Comparison(report, recorded, recorded_xy)
         sinks = [comparison]
@@ -578,6 +590,8 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
                 if formatted is None:
                     formatted = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
                                            result.measurement, result.strain)
+                if stress is not None:
+                    formatted = with_force_columns(*formatted, result.force_N, result.stress_MPa)
                 on_rows(*formatted)
             sinks.append(FunctionSink(rows, "output", required=True))
         if progress is not None:
@@ -610,6 +624,7 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
                 report.parallel = session.finish_parallel()
                 report.parallel.where = where
         report.strain = session.strain.summary() if session.strain is not None else None
+        report.force = session.load_stage.summary() if session.load_stage is not None else None
         if session.source_error is not None:
             raise session.source_error
         report.seconds = time.perf_counter() - started
@@ -716,6 +731,7 @@ def replay_command(args):
     given = {key: getattr(args, key) for key in METHOD_KEYS}
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0)
     strain = overrides_from_args(args)
+    stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")
     show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
     bar = ProgressBar(None, enabled=show_progress)
@@ -737,12 +753,14 @@ def replay_command(args):
             with StagedFile(args.output) as out:
                 report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
                                 on_rows=write_rows(out), progress=progress, threads=args.threads, strain=strain,
-                                workers=args.workers, cluster=args.cluster, shared_path=args.shared_path)
+                                workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
+                                stress=stress)
                 out.commit()
         else:
             report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
                             on_rows=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
-                            workers=args.workers, cluster=args.cluster, shared_path=args.shared_path)
+                            workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
+                            stress=stress)
             sys.stdout.flush()
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
@@ -762,6 +780,6 @@ def replay_command(args):
     say(report.verdict())
     if report.parallel is not None:
         say(describe_parallel(report.parallel))
-    for line in format_strain_summary(report.strain):
+    for line in format_strain_summary(report.strain) + format_force_summary(report.force):
         say(line.strip())
     return 0

@@ -43,3 +43,21 @@ def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain):
     columns = result_columns(frame_index, timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc, m.ok, extras)
     columns.update(exx=strain.exx, eyy=strain.eyy, exy=strain.exy)
     return header, csv_rows(columns, len(m.u))
+
+
+FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
+
+
+def with_force_columns(header, lines, force_N, stress_MPa):
+    """``frame_rows``' (header, lines) with the frame's force and engineering stress appended to every row.
+
+    ``livedic replay --load``: one value per frame, repeated on its points' rows (the long format of
+    the other per-frame columns, frame and timestamp_ns); ``nan`` where unknown (no sample around the
+    frame), as the other columns write a missing number.
+    """
+    cells = ",".join(_cell(value) for value in (force_N, stress_MPa))
+    return list(header) + list(FORCE_COLUMNS), lines.replace("\n", f",{cells}\n")
+
+
+def _cell(value):
+    return "nan" if value is None or not np.isfinite(value) else repr(float(value))
