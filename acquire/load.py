@@ -1026,16 +1026,22 @@ def _option(name, value, low=None, low_open=False, integer=False):
         raise LoadError(f"load option {name}={value!r}: {error}") from None
 
 
-def _open_tcp(uri, options):
+def _address_and_options(uri, options, form):
+    """(host, port, options of the query updated with ``options``) of a stream URI; LoadError naming ``form``."""
     parts = urlsplit(uri)
     try:
         host, port = parts.hostname, parts.port
     except ValueError:
         host, port = None, None
     if not host or not port or parts.path not in ("", "/"):
-        raise LoadError(f"load {uri!r}: expected tcp://HOST:PORT (port 1-65535)[?clock=arrival|sender]")
+        raise LoadError(f"load {uri!r}: expected {form}")
     merged = dict(parse_qsl(parts.query, keep_blank_values=True))
     merged.update(options)
+    return host, port, merged
+
+
+def _open_tcp(uri, options):
+    host, port, merged = _address_and_options(uri, options, "tcp://HOST:PORT (port 1-65535)[?clock=arrival|sender]")
     clock = str(merged.pop("clock", "arrival")).strip().lower()
     if clock not in ("arrival", "sender"):
         raise LoadError(f"load {uri!r}: clock={clock!r}; use clock=arrival (stamp lines on arrival) "
@@ -1057,15 +1063,7 @@ def _open_tcp(uri, options):
 
 def _open_modbus(uri, options):
     """``modbus://HOST:PORT?register=N&...`` (see ``ModbusLoad`` and the module notes)."""
-    parts = urlsplit(uri)
-    try:
-        host, port = parts.hostname, parts.port
-    except ValueError:
-        host, port = None, None
-    if not host or not port or parts.path not in ("", "/"):
-        raise LoadError(f"load {uri!r}: expected {MODBUS_FORM} (port 1-65535)")
-    merged = dict(parse_qsl(parts.query, keep_blank_values=True))
-    merged.update(options)
+    host, port, merged = _address_and_options(uri, options, f"{MODBUS_FORM} (port 1-65535)")
     if "register" not in merged:
         raise LoadError(f"load {uri!r}: register= is required (the force register's 0-based address); "
                         f"expected {MODBUS_FORM}")
