@@ -12,7 +12,10 @@ the same on Linux). Two policies:
     sees an unbroken run of older frames followed by a gap.
 
 Either way ``dropped`` counts every discarded frame and ``dropped_indices``
-keeps the frame indices of the most recent ones (bounded).
+keeps the frame indices of the most recent ones (bounded). The first frame put is
+never dropped: it is the session's reference (its frame 0 and the start of its
+clock), and a tracker slow to take it (set-up, a server starting) must not move the
+reference to a later, already-deformed frame; the frame after it goes instead.
 
 A third policy, ``"block"``, makes ``put`` wait for room instead: for sources
 where waiting loses nothing (a recording or image files replayed as fast as
@@ -64,6 +67,8 @@ class FrameQueue:
         self.dropped = 0
         self.dropped_indices = collections.deque(maxlen=1000)
         self.max_depth = 0
+        self._first = None              # the first frame put, until it is taken: never dropped
+        self._first_seen = False
 
     def put(self, item):
         """Queue ``item``; returns the item dropped to make room (or ``item`` itself), else None.
@@ -77,10 +82,14 @@ class FrameQueue:
             if self._closed:
                 raise QueueClosed("frame queue is closed")
             self.put_count += 1
+            if not self._first_seen:
+                self._first, self._first_seen = item, True
             victim = None
             if len(self._items) >= self.maxsize:
-                if self.policy == DROP_OLDEST:
-                    victim = self._items.popleft()
+                protected = self._items[0] is self._first and self._first is not None
+                if self.policy == DROP_OLDEST and not (protected and len(self._items) < 2):
+                    victim = self._items[1] if protected else self._items[0]
+                    del self._items[1 if protected else 0]
                     self._items.append(item)
                 else:
                     victim = item
@@ -99,6 +108,8 @@ class FrameQueue:
                 self._cond.wait(timeout)
             if self._items:
                 item = self._items.popleft()
+                if item is self._first:
+                    self._first = None
                 self._cond.notify_all()   # room for a blocked put
                 return item
             if self._closed:

@@ -49,11 +49,25 @@ class ListSource(FrameSource):
 
 def test_drop_oldest_keeps_the_newest_and_counts():
     queue = FrameQueue(3, DROP_OLDEST)
+    assert queue.put(_item(0)) is None and queue.get().frame.index == 0    # the first frame taken: no longer special
+    victims = [queue.put(_item(i)) for i in range(1, 11)]
+    assert queue.dropped == 7 and queue.put_count == 11
+    assert [v.frame.index for v in victims if v is not None] == list(range(1, 8))
+    assert [queue.get().frame.index for _ in range(3)] == [8, 9, 10]
+    assert list(queue.dropped_indices) == list(range(1, 8))
+
+
+def test_the_first_frame_is_never_dropped_it_is_the_reference():
+    """A tracker slow to take the first frame (set-up, a server starting) must not lose the reference: the
+    frames after it go instead, and once it is taken the oldest goes as usual."""
+    queue = FrameQueue(3, DROP_OLDEST)
     victims = [queue.put(_item(i)) for i in range(10)]
-    assert queue.dropped == 7 and queue.put_count == 10
-    assert [v.frame.index for v in victims if v is not None] == list(range(7))
-    assert [queue.get().frame.index for _ in range(3)] == [7, 8, 9]
-    assert list(queue.dropped_indices) == list(range(7))
+    assert [v.frame.index for v in victims if v is not None] == list(range(1, 8))
+    assert [queue.get().frame.index for _ in range(3)] == [0, 8, 9]
+    single = FrameQueue(1, DROP_OLDEST)
+    assert single.put(_item(0)) is None and single.put(_item(1)).frame.index == 1     # the incoming one goes
+    assert single.get().frame.index == 0
+    assert single.put(_item(2)) is None and single.put(_item(3)).frame.index == 2
 
 
 def test_drop_newest_keeps_the_oldest_and_counts():
@@ -141,7 +155,7 @@ def test_a_stalled_consumer_never_blocks_the_producer(policy):
     assert finished.is_set(), "put waited for a consumer that never came"
     assert queue.dropped == 296 and len(queue) == 4 and queue.put_count == 300
     kept = [queue.get().frame.index for _ in range(4)]
-    assert kept == ([296, 297, 298, 299] if policy == DROP_OLDEST else [0, 1, 2, 3])
+    assert kept == ([0, 297, 298, 299] if policy == DROP_OLDEST else [0, 1, 2, 3])    # the first: the reference
 
 
 @pytest.mark.parametrize("policy", [DROP_OLDEST, DROP_NEWEST])
