@@ -55,6 +55,8 @@ class Reason(enum.Enum):
     NO_MODULUS = "needs E, which is NaN"
     NEVER_CROSSED = "the curve does not cross the offset line before maximum force"
     NO_FRACTURE = "the stress never falls below the fracture share of Rm after Rm"
+    FORCE_MISSING_AT_MAXIMUM = ("the force is missing right next to the maximum (frames with strain but no force): "
+                                "the true maximum may lie there")
 
 
 @dataclass(frozen=True)
@@ -278,13 +280,21 @@ def tensile_strength(strain, stress):
     -------
     TensileStrength
         Rm (MPa), the first frame with it and the strain there. After fracture the force
-        is ~0, so the maximum is the one before fracture.
+        is ~0, so the maximum is the one before fracture. NaN with ``FORCE_MISSING_AT_MAXIMUM``
+        when the frame just before or after the maximum (among the frames with a strain) has
+        no stress: a force stream that stopped, or stalled, while the force still rose could
+        have its true maximum there, and the largest value seen is not Rm.
     """
     method = "maximum engineering stress (maximum force), first frame with it"
     strain, stress, frames = _valid(strain, stress)
     if frames.size == 0:
         return TensileStrength(_NAN, -1, _NAN, method, Reason.NO_DATA)
     frame = int(frames[np.argmax(stress[frames])])
+    strained = np.flatnonzero(np.isfinite(strain))
+    at = int(np.searchsorted(strained, frame))
+    beside = strained[max(at - 1, 0):at + 2]
+    if not np.isfinite(stress[beside]).all():
+        return TensileStrength(_NAN, -1, _NAN, method, Reason.FORCE_MISSING_AT_MAXIMUM)
     return TensileStrength(float(stress[frame]), frame, float(strain[frame]), method)
 
 

@@ -573,14 +573,16 @@ def stress_from_args(args):
 
 def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
     """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
-    from livedic.stream.stress import AXIAL, plot_stress_strain, stress_strain_rows, stress_strain_table
+    from livedic.stream.stress import (AXIAL, force_coverage_notes, plot_stress_strain, stress_strain_rows,
+                                       stress_strain_table)
     times = np.asarray(times, dtype=np.float64)
     force = _force_on_frames(load, frames, times)
     table = stress_strain_table(frames, times, force, eng[:, list(names).index(AXIAL)], area_mm2)
     staged["stress_strain.csv"].write(stress_strain_rows(table, csv_rows))
     plot_stress_strain(staged["stress_strain.png"].handle, table, title=title)
     return {"frames_with_force": int(np.isfinite(force).sum()), "uniform_frame_row": table.uniform_frame,
-            "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else -1}
+            "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else -1,
+            "notes": force_coverage_notes(table.frame, table.time_s, table.force_N, table.eng_strain)}
 
 
 def axial_series(path, strain=None):
@@ -676,6 +678,10 @@ def export_command(args):
         f"to {summary['directory']}/ "
         f"({', '.join(os.path.basename(name) for name in summary['files'])})")
     if summary["stress"] is not None:
-        say(f"stress-strain: force at {summary['stress']['frames_with_force']} of {summary['frames']} frames, "
-            f"maximum force at frame {summary['stress']['uniform_frame']} (true values up to it)")
+        stress_summary = summary["stress"]
+        for note in stress_summary.get("notes", []):
+            say(f"note: {note}")
+        if stress_summary["uniform_frame"] >= 0:
+            say(f"stress-strain: force at {stress_summary['frames_with_force']} of {summary['frames']} frames, "
+                f"maximum force at frame {stress_summary['uniform_frame']} (true values up to it)")
     return 0

@@ -118,7 +118,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     from livedic.acquire.mcap_replay import Recording
     from livedic.dic.tensile_properties import tensile_properties
     from livedic.stream.export import RecordedForce, axial_series, reader_notes
-    from livedic.stream.stress import plot_stress_strain, stress_strain_table
+    from livedic.stream.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
@@ -143,7 +143,9 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
               "load_offset_s": stress.offset_s, "frames": int(table.frame.size),
               "frames_with_force": int(sum(math.isfinite(f) for f in table.force_N)),
               "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else None,
-              "strain": series["strain"], "notes": series["notes"],
+              "strain": series["strain"],
+              "notes": series["notes"] + force_coverage_notes(table.frame, table.time_s, table.force_N,
+                                                              table.eng_strain),
               **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
     report = report_json(properties, specimen, source)

@@ -26,7 +26,8 @@ import numpy as np
 
 __all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
            "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
-           "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY", "UniformElongationWatch", "NECKING_DROP"]
+           "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY", "UniformElongationWatch", "NECKING_DROP",
+           "force_coverage_notes"]
 
 STRESS_STRAIN_COLUMNS = ("frame", "time_s", "force_N", "eng_strain", "eng_stress_MPa", "true_strain",
                          "true_stress_MPa")
@@ -157,6 +158,38 @@ class UniformElongationWatch:
         return math.log1p(eng_strain), force_N / self.area_mm2 * (1.0 + eng_strain)
 
 
+def force_coverage_notes(frame, time_s, force_N, eng_strain):
+    """What a stress-strain table lacks, in words: no force at all, or the runs of frames with a strain and no force.
+
+    Parameters
+    ----------
+    frame, time_s, force_N, eng_strain : array_like (n,)
+        As ``stress_strain_table`` takes them.
+
+    Returns
+    -------
+    list of str
+        Empty when every frame with a strain has a force.
+    """
+    frame = np.asarray(frame)
+    force = np.asarray(force_N, dtype=np.float64)
+    strained = np.isfinite(np.asarray(eng_strain, dtype=np.float64))
+    if frame.size == 0:
+        return []
+    times = np.asarray(time_s, dtype=np.float64)
+    if not np.isfinite(force).any():
+        return [f"no frame has a force: the force's times (seconds since the first frame with results) do not "
+                f"cover the frames' {times[0]:g}-{times[-1]:g} s; check the load's time base and --load-offset"]
+    missing = strained & ~np.isfinite(force)
+    if not missing.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], missing.astype(np.int8), [0]])))
+    runs = [f"{frame[a]}" if b - a == 1 else f"{frame[a]}-{frame[b - 1]}" for a, b in zip(edges[0::2], edges[1::2])]
+    shown = ", ".join(runs[:6]) + (f" and {len(runs) - 6} more" if len(runs) > 6 else "")
+    return [f"no force at {int(missing.sum())} of {int(strained.sum())} frames with a strain (frames {shown}): "
+            f"those frames have no stress; a property next to them is reported missing, never guessed"]
+
+
 def stress_strain_rows(table, csv_rows):
     """The CSV text of ``table``: header then one line per frame, through the exporter's ``csv_rows``."""
     return ",".join(STRESS_STRAIN_COLUMNS) + "\n" + csv_rows(table.columns(), len(table.frame))
@@ -166,8 +199,8 @@ def plot_stress_strain(handle, table, *, title, properties=None):
     """Write the stress-strain plot (PNG) to ``handle``.
 
     The engineering curve over the frames with a force and a strain up to the fall at fracture
-    (``dic.tensile_properties.fracture_frame``), the true curve up to uniform elongation (its last point marked Ag); with ``properties`` (``TensileProperties``)
-    Rp0.2 and Rm are marked.
+    (``dic.tensile_properties.fracture_frame``), the true curve up to uniform elongation (its last
+    point marked Ag); with ``properties`` (``TensileProperties``) Rp0.2 and Rm are marked.
     """
     from matplotlib.figure import Figure
 

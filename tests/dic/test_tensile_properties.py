@@ -210,3 +210,19 @@ def test_fracture_frame_is_the_first_fall_below_a_tenth_of_rm_after_rm():
     assert fracture_frame(strain, np.full(11, np.nan)) == -1
     # the toe at the start (stress below 10 % of Rm before Rm) is not a fracture
     assert fracture_frame(strain[:5], stress[:5]) == -1
+
+
+def test_rm_is_not_claimed_when_the_force_is_missing_next_to_the_maximum():
+    """A force stream that stopped (or stalled) while the force still rose: the largest stress seen is not Rm."""
+    from livedic.dic.tensile_properties import Reason, tensile_strength, uniform_elongation
+    strain = np.linspace(0.0, 0.1, 11)
+    stress = np.array([0, 400, 800, 850, 900, 950, np.nan, np.nan, np.nan, np.nan, np.nan])
+    rm = tensile_strength(strain, stress)
+    assert math.isnan(rm.value) and rm.reason is Reason.FORCE_MISSING_AT_MAXIMUM
+    assert math.isnan(uniform_elongation(rm, 200.0).value)                 # Ag rests on Rm
+    gap = np.array([0, 400, 800, 900, np.nan, 950, 940, 900, 800, 50, 0])  # a stall just before the maximum
+    assert tensile_strength(strain, gap).reason is Reason.FORCE_MISSING_AT_MAXIMUM
+    away = np.array([0, np.nan, 800, 900, 950, 1000, 990, 900, 800, 50, 0])  # a gap far from it: Rm stands
+    assert tensile_strength(strain, away).value == 1000.0
+    broken = np.array([0, 400, 800, 900, 950, 1000, 990, 900, 800, 50, np.nan])   # no force after fracture: fine
+    assert tensile_strength(strain, broken).value == 1000.0

@@ -413,3 +413,19 @@ def test_report_command_without_load_reads_the_recorded_force_or_says_what_is_mi
     with pytest.raises(ValueError, match="the report needs the machine's force"):
         report_command(_report_args(test_run["recording"], none))
     assert not none.exists()
+
+
+def test_force_coverage_notes_say_what_is_missing():
+    from livedic.stream.stress import force_coverage_notes
+    frames = np.arange(10)
+    times = frames * 0.02
+    strain = np.full(10, 0.01)
+    assert force_coverage_notes(frames, times, np.ones(10), strain) == []
+    none, = force_coverage_notes(frames, times, np.full(10, np.nan), strain)
+    assert "no frame has a force" in none and "0-0.18 s" in none and "--load-offset" in none
+    force = np.ones(10)
+    force[[2, 3, 7]] = np.nan
+    gaps, = force_coverage_notes(frames, times, force, strain)
+    assert "no force at 3 of 10 frames with a strain (frames 2-3, 7)" in gaps
+    strain[7] = np.nan                      # no strain there either: nothing is missing for the curve
+    assert "(frames 2-3)" in force_coverage_notes(frames, times, force, strain)[0]
