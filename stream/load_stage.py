@@ -23,6 +23,9 @@ from livedic.stream.strain import AXIAL
 from livedic.stream.stress import UniformElongationWatch
 
 
+MISALIGNED_FRAMES = 25    # frames without force while samples arrive before the misalignment warning (0.5 s at 50 fps)
+
+
 def open_session_load(uri, *, offset_s, camera):
     """The load source for ``uri`` (``--load``): ``synthetic`` uses the session's simulated camera.
 
@@ -61,6 +64,9 @@ class LoadStage:
         self.seconds = 0.0
         self._events_seen = 0
         self.uniform = UniformElongationWatch(area_mm2) if area_mm2 else None
+        self._arriving_without_force = 0       # frames in a row with no force while new samples kept arriving
+        self._last_sample_s = math.nan
+        self.misaligned_warned = False
 
     def __call__(self, result, stats):
         started = time.perf_counter()
@@ -80,11 +86,30 @@ class LoadStage:
         else:
             self.frames_without_force += 1
         self.last_force_N, self.last_stress_MPa = force, stress
+        self._check_alignment(force, when)
         events = self.load.events(since=self._events_seen)
         self._events_seen += len(events)
         for event in events:
             self.report("load", f"force source: {event.message}", "warning" if event.kind.is_trouble else "info")
         self.seconds += time.perf_counter() - started
+
+    def _check_alignment(self, force, when):
+        """Warn once when samples keep arriving but none lies at the frames' times (a stall sends none).
+
+        A sender whose ``time_s`` is on another clock than livedic's (``?clock=sender`` with the time since
+        its own start) or a wrong ``--load-offset`` otherwise gives NaN at every frame without a word.
+        """
+        newest = self.load.last_sample_time_s
+        arriving = math.isfinite(newest) and newest != self._last_sample_s
+        self._last_sample_s = newest
+        self._arriving_without_force = self._arriving_without_force + 1 \
+            if (not math.isfinite(force) and arriving) else 0
+        if self._arriving_without_force >= MISALIGNED_FRAMES and not self.misaligned_warned:
+            self.misaligned_warned = True
+            self.report("load", f"force source: samples keep arriving but none lies at the frames' times (newest "
+                                f"sample at {newest:.3f} s, this frame at {when:.3f} s on the same clock): no force "
+                                f"for {MISALIGNED_FRAMES} frames; check the stream's ?clock=sender and --load-offset",
+                        "warning")
 
     def summary(self):
         """The force numbers for the session summary (NaN/None where missing)."""
