@@ -316,6 +316,8 @@ def _load_from_args(args):
     offset = float(getattr(args, "load_offset", 0.0) or 0.0)
     if not math.isfinite(offset):
         raise ValueError(f"--load-offset {offset!r}: must be a finite number of seconds")
+    if offset and load is None:
+        raise ValueError("--load-offset without --load: it shifts the machine's force, give --load URI")
     return {"load": load, "load_offset": offset, "area_mm2": area}
 
 

@@ -558,13 +558,17 @@ def stress_from_args(args):
     from livedic.acquire.mcap_replay import Recording
     from livedic.acquire.recording_schema import TOPIC_FORCE
     from livedic.stream.stress import stress_options_from_args
-    if getattr(args, "load", None) is not None:
+    load = getattr(args, "load", None)
+    section = any(getattr(args, name, None) is not None for name in ("area", "width", "thickness"))
+    if load is not None and section:
         stress = stress_options_from_args(args)               # bad options: one line, before anything is read
     with reader_notes():                                      # the command's own read reports them, once
         recording = Recording(os.fspath(args.recording))
         recorded = RecordedForce.read(recording)
-        metadata = session_or_note(recording)[0] if recorded.forces else {}
-    if getattr(args, "load", None) is not None:
+        metadata = session_or_note(recording)[0] if recorded.forces or (load is not None and not section) else {}
+    if load is not None:
+        if not section:                                       # A0 from the session, when it recorded one
+            stress = stress_options_from_args(args, metadata=metadata)
         notes = [f"--load {stress.load} is the force here, not the one recorded on {TOPIC_FORCE} "
                  f"({_plural(len(recorded.forces), 'frame')})"] if recorded.forces else []
         return stress, notes

@@ -55,7 +55,7 @@ from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
 from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
-from livedic.stream.strain import StrainConfig
+from livedic.stream.strain import AXIAL, StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
 
 
@@ -243,6 +243,11 @@ def _remove_quietly(path):
         pass
 
 
+def _needs_the_camera(load):
+    """``--load synthetic`` reads the session's simulated camera: it opens after the source."""
+    return load is not None and str(load).strip().lower() == "synthetic"
+
+
 class Session:
     """One tracking session (see the module notes for the lifecycle).
 
@@ -369,6 +374,8 @@ class Session:
             check_viewer_reachable(config.viewer.target)
         self._record_path_was_free = bool(config.record) and not os.path.exists(config.record)
 
+        if not _needs_the_camera(config.load):
+            self._open_load()           # a bad --load URI or file: one line now, not after the source's set-up
         self.phase = Phase.OPENING_SOURCE
         scheme = config.scheme
         if scheme == "synthetic" and config.frames is not None and "frames=" not in config.source:
@@ -403,7 +410,8 @@ class Session:
         self.phase = Phase.CHECKING_POINTS
         self._place_points(self._ahead.frame)
 
-        self._open_load()
+        if self.load is None:
+            self._open_load()           # the simulator's own force law needs the simulator
         self._open_publishers()
         self.phase = Phase.OPENING_OUTPUTS
         self._open_outputs(scheme)
@@ -607,7 +615,10 @@ class Session:
         self._place_strain(first.image.shape)
 
     def _open_load(self):
-        """The machine's force source (``--load``), checked before any output opens (one line if bad)."""
+        """The machine's force source (``--load``), checked before any output opens (one line if bad).
+
+        Opened before the frame source, except ``synthetic`` (the simulator's law needs the simulator).
+        """
         config = self.config
         if config.load is None:
             return
@@ -724,6 +735,10 @@ class Session:
         self.event("note", note, tell=False)
         if self.strain is not None:
             self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))
+        names = [e.name for e in self.strain.extensometers] if self.strain is not None else []
+        if self.load_stage is not None and AXIAL not in names:
+            self.event("note", "force without an axial extensometer: force and stress are recorded, but the "
+                               "stress-strain curve and livedic report need one (--gauge-length L)", tell=True)
         warning = self.p0.warning()
         if warning:
             self.event("p0_weak", warning, "warning")

@@ -284,7 +284,7 @@ def stress_options_from_args(args, *, recorded_force=False, metadata=None):
         The recording holds force samples (``/machine/force``). Without ``--load`` they are the
         force then (``StressOptions.load`` is ``RECORDED_FORCE``), with A0 from ``--area`` or
         ``--width --thickness``, else from the session metadata's ``area_mm2``. With ``--load``
-        the load wins.
+        the load wins (A0 from the options, else from the metadata too).
     metadata : dict, optional
         The recording's session metadata (for ``area_mm2``).
 
@@ -299,6 +299,8 @@ def stress_options_from_args(args, *, recorded_force=False, metadata=None):
     """
     load = getattr(args, "load", None)
     section = {name: getattr(args, name, None) for name in ("area", "width", "thickness")}
+    if load is None and getattr(args, "load_offset", 0.0):
+        raise ValueError("--load-offset without --load: it shifts a force file's times, give --load csv:FILE")
     if load is None and recorded_force:
         return StressOptions(RECORDED_FORCE, 0.0, _recorded_area(section, metadata))
     if load is None:
@@ -312,6 +314,9 @@ def stress_options_from_args(args, *, recorded_force=False, metadata=None):
     offset = getattr(args, "load_offset", 0.0)
     if offset is None or not math.isfinite(offset):
         raise ValueError(f"--load-offset {offset!r}: must be a finite number of seconds")
+    given = any(value is not None for value in section.values())
+    if not given and (metadata or {}).get(AREA_METADATA_KEY) is not None:
+        return StressOptions(str(load).strip(), float(offset), _recorded_area(section, metadata))
     return StressOptions(str(load).strip(), float(offset), cross_section_mm2(**section))
 
 

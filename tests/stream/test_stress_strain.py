@@ -429,3 +429,22 @@ def test_force_coverage_notes_say_what_is_missing():
     assert "no force at 3 of 10 frames with a strain (frames 2-3, 7)" in gaps
     strain[7] = np.nan                      # no strain there either: nothing is missing for the curve
     assert "(frames 2-3)" in force_coverage_notes(frames, times, force, strain)[0]
+
+
+def test_a_force_file_takes_the_recorded_cross_section_when_none_is_given(test_run, force_recordings, tmp_path,
+                                                                          capsys):
+    """--load csv:FILE without --area on a recording whose session holds A0: that A0 (the stress is F / A0);
+    without one in the recording the cross-section is asked for, one line."""
+    out = tmp_path / "with"
+    assert main(["export", force_recordings["with_area"], "-o", str(out), "--load",
+                 f"csv:{test_run['force_csv']}"]) == 0
+    _, rows = _rows(out / "stress_strain.csv")
+    force, stress = _col(rows, "force_N"), _col(rows, "eng_stress_MPa")
+    finite = np.isfinite(force)
+    assert finite.any()
+    np.testing.assert_allclose(stress[finite], force[finite] / AREA_MM2, rtol=1e-12)
+    capsys.readouterr()
+    missing = tmp_path / "without"
+    assert main(["export", force_recordings["without_area"], "-o", str(missing), "--load",
+                 f"csv:{test_run['force_csv']}"]) == 2
+    assert "cross-section" in _one_error_line(capsys.readouterr().err) and not missing.exists()
