@@ -26,13 +26,20 @@ extensometer readings out as soon as the frame's result exists:
     reads the same). Writes are refused. A read of one block is one frame's values, never
     half of one frame and half of the next: the tracker thread replaces one immutable
     snapshot, and a read copies it whole into the registers in the server's thread.
+    When the session ends the last frame's values stay, with state 2 (ended), and the
+    server keeps answering for ``linger_s`` seconds (``?linger_s=SECONDS``, default
+    ``DEFAULT_LINGER_S``, 0..60) before it closes, so a polling controller reads the end;
+    the session's exit waits for what is left of it (the summary is said meanwhile).
 
 ``PublishStage`` is a session sink placed right after the strain stage, before the load
 stage, the recording and the view, so the values leave as early as they exist. No force
 goes out: the controller has its own load cell, and the load stage may wait (bounded) for
 a live force stream's next sample, which strain out must not. A send that fails
 (network unreachable, no route) is a warning event once, counted, and publishing goes on;
-it never costs the session or its recording. The stage keeps, per frame, the time from
+it never costs the session or its recording. pymodbus is imported by ``preload`` before the
+session reads its first frame (~0.1-0.2 s on 2 busy cores): imported when the server opens,
+between the first frame and the start, it held back a paced source, whose frames then
+came in a burst and 2-4 were dropped by the queue. The stage keeps, per frame, the time from
 the tracker's result to the send returning (``latency_ms``): the strain-out latency
 ``livedic bench live`` prints.
 """
@@ -52,6 +59,8 @@ import numpy as np
 
 SCHEMES = ("udp", "modbus")
 DEFAULT_HOST = "127.0.0.1"
+DEFAULT_LINGER_S = 1.0       # a controller polling every 5-100 ms reads the ended state several times
+MAX_LINGER_S = 60.0
 
 # ----------------------------------------------------------------------------- the register map
 
@@ -148,11 +157,15 @@ def decode_registers(registers):
 
 @dataclass(frozen=True)
 class PublishTarget:
-    """Where strain goes out: ``scheme`` udp or modbus, ``host`` and ``port`` (see the module notes)."""
+    """Where strain goes out: ``scheme`` udp or modbus, ``host`` and ``port`` (see the module notes).
+
+    ``linger_s``: how long a Modbus server keeps answering after the session ended.
+    """
     uri: str
     scheme: str
     host: str
     port: int
+    linger_s: float = DEFAULT_LINGER_S
 
     def describe(self):
         """``udp://127.0.0.1:9870`` (the host as used; an IPv6 one in brackets)."""
@@ -163,7 +176,8 @@ class PublishTarget:
 def parse_publish_uri(text):
     """``--publish`` ``udp://HOST:PORT`` or ``modbus://HOST:PORT`` -> ``PublishTarget``.
 
-    No host (``udp://:9870``) means 127.0.0.1. A modbus port may be 0 (any free port).
+    No host (``udp://:9870``) means 127.0.0.1. A modbus port may be 0 (any free port); a modbus
+    URI may end in ``?linger_s=SECONDS`` (0..60, default ``DEFAULT_LINGER_S``).
 
     Raises
     ------
@@ -183,14 +197,38 @@ def parse_publish_uri(text):
     if scheme not in SCHEMES:
         raise ValueError(f"--publish {raw}: unknown scheme {parts.scheme!r}: use udp://HOST:PORT or "
                          f"modbus://HOST:PORT")
-    if parts.path not in ("", "/") or parts.query or parts.fragment or parts.username or parts.password:
-        raise ValueError(f"--publish {raw}: only HOST:PORT may follow {scheme}:// ({example})")
+    linger_s = _linger_option(raw, scheme, parts.query)
+    if parts.path not in ("", "/") or parts.fragment or parts.username or parts.password or linger_s is None:
+        also = ", and ?linger_s=SECONDS" if scheme == "modbus" else ""
+        raise ValueError(f"--publish {raw}: only HOST:PORT may follow {scheme}://{also} ({example})")
     if port is None:
         raise ValueError(f"--publish {raw}: a port is needed, {example}")
     lowest = 0 if scheme == "modbus" else 1
     if not lowest <= port <= 65535:
         raise ValueError(f"--publish {raw}: port must be {lowest}..65535, got {port}")
-    return PublishTarget(uri=raw, scheme=scheme, host=parts.hostname or DEFAULT_HOST, port=port)
+    return PublishTarget(uri=raw, scheme=scheme, host=parts.hostname or DEFAULT_HOST, port=port, linger_s=linger_s)
+
+
+def _linger_option(raw, scheme, query):
+    """A URI's ``linger_s`` (the default without a query); None for a query that is not one modbus ``linger_s``.
+
+    Raises
+    ------
+    ValueError
+        ``linger_s`` not a number in 0..60 (one line).
+    """
+    if not query:
+        return DEFAULT_LINGER_S
+    key, _, text = query.partition("=")
+    if scheme != "modbus" or key != "linger_s" or "&" in text:
+        return None
+    try:
+        linger_s = float(text)
+    except ValueError:
+        linger_s = math.nan
+    if not 0.0 <= linger_s <= MAX_LINGER_S:
+        raise ValueError(f"--publish {raw}: linger_s must be seconds in 0..{MAX_LINGER_S:g}, got {text!r}")
+    return linger_s
 
 
 def parse_publish_uris(texts):
@@ -321,6 +359,7 @@ class ModbusOutlet:
         # (registers, monotonic ns written): replaced whole by the tracker thread, read once per request.
         self._snapshot = (tuple(encode_registers(empty, update_count=0, state=STATE_WAITING)), time.monotonic_ns())
         self._last = None
+        self._ended_ns = None              # monotonic ns when the session ended (finish)
         self._loop = None
         self._server = None
         self._error = None
@@ -349,7 +388,8 @@ class ModbusOutlet:
         self._snapshot = (tuple(encode_registers(values, update_count=update_count)), time.monotonic_ns())
 
     def finish(self):
-        """The session ended: the last frame's values stay, with state 2 (ended)."""
+        """The session ended: the last frame's values stay, with state 2 (ended), ``linger_s`` more seconds."""
+        self._ended_ns = time.monotonic_ns()
         if self._last is None:
             registers = list(self._snapshot[0])
             registers[7] = STATE_ENDED
@@ -396,8 +436,22 @@ class ModbusOutlet:
         self._ready.set()
         await server.serving
 
+    def linger_left_s(self):
+        """Seconds the server still answers before ``close`` stops it: what is left of ``linger_s``
+        since ``finish`` (0 when the session did not end: ``close`` after a failure stops at once)."""
+        if self._ended_ns is None:
+            return 0.0
+        return max(0.0, self.target.linger_s - (time.monotonic_ns() - self._ended_ns) / 1e9)
+
     def close(self):
-        """Stop the server (its port is free afterwards) and its thread."""
+        """Stop the server (its port is free afterwards) and its thread, after what is left of the linger."""
+        try:
+            if self._server is not None:
+                time.sleep(self.linger_left_s())
+        finally:
+            self._shutdown()
+
+    def _shutdown(self):
         server, loop = self._server, self._loop
         self._server = None
         if server is not None and loop is not None and loop.is_running():
@@ -437,6 +491,19 @@ def _check_listen(target):
                          f"{why}{hint}") from None
     finally:
         probe.close()
+
+
+def preload(targets):
+    """Import now what opening ``targets`` needs (pymodbus and asyncio for a Modbus server).
+
+    The session calls it before it reads its first frame: the imports take ~0.1-0.2 s, and
+    between the first frame and the start a paced source's frames pile up and come late, in a
+    burst the queue drops from. ``open_outlet`` afterwards takes a few ms.
+    """
+    if any(target.scheme == "modbus" for target in targets):
+        import asyncio  # noqa: F401
+        from pymodbus.server import ModbusTcpServer  # noqa: F401
+        from pymodbus.simulator import DataType, SimData, SimDevice  # noqa: F401
 
 
 def open_outlet(target, names):

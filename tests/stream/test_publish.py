@@ -23,9 +23,9 @@ import pytest
 from livedic.acquire.mcap_replay import Recording, read_events
 from livedic.dic.extensometer import ExtensometerStatus
 from livedic.stream.config import SessionConfig, ViewerConfig
-from livedic.stream.publish import (EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED, FrameValues,
-                                    decode_registers, encode_registers, parse_publish_uri, parse_publish_uris,
-                                    register_count)
+from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED,
+                                    FrameValues, decode_registers, encode_registers, parse_publish_uri,
+                                    parse_publish_uris, register_count)
 from livedic.stream.session import Session
 from livedic.stream.strain import StrainConfig
 
@@ -64,6 +64,43 @@ def test_bad_publish_uris_are_one_line(text, message):
         parse_publish_uri(text)
     assert message in str(error.value) and "\n" not in str(error.value)
     assert str(error.value).startswith("--publish ")
+
+
+@pytest.mark.parametrize("text, linger_s", [
+    ("modbus://:5020", DEFAULT_LINGER_S),
+    ("modbus://:5020?linger_s=2.5", 2.5),
+    ("modbus://:5020/?linger_s=0", 0.0),                                   # close at once
+    ("udp://:9870", DEFAULT_LINGER_S),                                     # (unused: UDP has no end state)
+])
+def test_the_modbus_linger_is_a_uri_option(text, linger_s):
+    assert parse_publish_uri(text).linger_s == linger_s
+
+
+@pytest.mark.parametrize("text, message", [
+    ("modbus://:5020?linger_s=-1", "linger_s must be seconds in 0..60, got '-1'"),
+    ("modbus://:5020?linger_s=61", "linger_s must be seconds in 0..60"),
+    ("modbus://:5020?linger_s=nan", "linger_s must be seconds in 0..60"),
+    ("modbus://:5020?linger_s=soon", "linger_s must be seconds in 0..60, got 'soon'"),
+    ("modbus://:5020?linger=1", "only HOST:PORT may follow modbus://, and ?linger_s=SECONDS"),
+    ("modbus://:5020?linger_s=1&register=3", "only HOST:PORT may follow modbus://"),
+    ("udp://:9870?linger_s=1", "only HOST:PORT may follow udp://"),
+])
+def test_bad_linger_options_are_one_line(text, message):
+    with pytest.raises(ValueError) as error:
+        parse_publish_uri(text)
+    assert message in str(error.value) and "\n" not in str(error.value) and str(error.value).startswith("--publish ")
+
+
+def test_preload_imports_the_modbus_server_and_only_for_modbus():
+    """What opening a Modbus server imports is imported by ``preload`` (before the session's first frame)."""
+    script = ("import sys; from livedic.stream.publish import parse_publish_uris, preload; "
+              "preload(parse_publish_uris(sys.argv[1:])); print('pymodbus.server' in sys.modules)")
+    def imported(*uris):
+        done = subprocess.run([sys.executable, "-c", script, *uris], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip() == "True"
+    assert not imported("udp://:9870")
+    assert imported("udp://:9870", "modbus://:0")
 
 
 def test_the_same_target_twice_is_refused():
@@ -364,6 +401,59 @@ def test_modbus_serves_each_frame_whole_and_the_last_one_after_the_session(tmp_p
                for line in said)
     # Closed with the session: the port is free again.
     probe = socket.socket()
+    probe.bind(("127.0.0.1", port))
+    probe.close()
+
+
+def test_modbus_answers_the_ended_state_for_the_linger_then_closes(tmp_path):
+    """A controller polling while the session closes reads state 2 with the last frame's values.
+
+    The reads start only once the session's tracking has ended and ``close`` is called: the
+    server answers them for ``linger_s`` (the new-user trial: it was shut down right after
+    state 2 was written, and a client polling every 5 ms never saw it), then the port is free.
+    """
+    from pymodbus.client import ModbusTcpClient
+    record = str(tmp_path / "linger.mcap")
+    count = register_count(2)
+    reads, closing = [], threading.Event()
+
+    def poll_from_closing(client):
+        closing.wait()
+        while True:
+            try:
+                response = client.read_holding_registers(0, count=count)
+            except Exception:  # noqa: BLE001 - pymodbus's "connection closed": the server stopped
+                return
+            if response.isError():
+                return
+            reads.append(decode_registers(response.registers))
+            time.sleep(0.005)
+
+    with Session(_config(record, ["modbus://127.0.0.1:0?linger_s=0.5"], frames=6), say=lambda m: None) as session:
+        session.prepare()
+        port = session.publishers[0].outlet.port
+        client = ModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
+        assert client.connect()
+        poller = threading.Thread(target=poll_from_closing, args=(client,))
+        poller.start()
+        try:
+            session.start()
+            session.run()
+        finally:
+            closing.set()              # the session's tracking has ended; the context now closes it
+    poller.join(timeout=10)
+    client.close()
+    assert not poller.is_alive()                                  # the server did stop answering
+    frames, readings = _recorded(record)
+    time_s, recorded = readings[frames[-1]]
+    assert len(reads) >= 2, "no read was answered after the session ended"
+    for read in reads:
+        assert read["state"] == STATE_ENDED and read["update_count"] == session.stats.frames == len(frames) == 6
+        assert read["frame"] == frames[-1] and read["ok"] is True and read["time_s"] == np.float32(time_s)
+        assert read["eng_strain"] == [np.float32(v) for v in recorded.eng_strain]
+        assert read["true_strain"] == [np.float32(v) for v in recorded.true_strain]
+    assert reads[-1]["age_ms"] >= reads[0]["age_ms"]             # the same values, older
+    probe = socket.socket()                                       # closed: the port is free again
     probe.bind(("127.0.0.1", port))
     probe.close()
 
