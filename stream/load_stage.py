@@ -136,13 +136,17 @@ def format_force_summary(force):
     if not force:
         return []
 
-    def num(value, fmt):
-        return "n/a" if value is None or not math.isfinite(value) else format(value, fmt)
+    def known(value):
+        return value is not None and math.isfinite(value)
     missing = force["frames_without_force"]
-    text = (f"  force      {force['load']}: max {num(force['max_force_N'], ',.0f')} N"
-            + (f" = {num(force['max_stress_MPa'], '.1f')} MPa on A0 {force['area_mm2']:g} mm^2" if force["area_mm2"]
-               else " (no --area: no stress)")
-            + f"; final {num(force['final_force_N'], ',.0f')} N")
+    if known(force["max_force_N"]):
+        text = f"  force      {force['load']}: max {force['max_force_N']:,.0f} N"
+        text += (f" = {force['max_stress_MPa']:.1f} MPa on A0 {force['area_mm2']:g} mm^2" if force["area_mm2"]
+                 else " (no --area: no stress)")
+        final = force["final_force_N"]
+        text += f"; final {final:,.0f} N" if known(final) else "; no force at the last frame"
+    else:
+        text = f"  force      {force['load']}: no force at any frame"
     if missing:
         text += f"; {missing} of {force['frames']} frames without force (NaN)"
     skipped = force.get("source_warnings") or {}
