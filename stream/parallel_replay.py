@@ -89,6 +89,11 @@ IN_FLIGHT_PER_WORKER = 4
 # reassigned, up to distributed's allowed-failures).
 TASK_RETRIES = 2
 CONNECT_TIMEOUT_S = 10
+# The first contact with a --cluster scheduler: a scheduler that answers does so in milliseconds (a busy one within
+# a second or two); nothing listening there (a wrong port, a stopped scheduler) must not keep the user 10 s.
+FIRST_CONNECT_TIMEOUT_S = 4
+# Schemes with a HOST:PORT location (inproc:// addresses name a process, and only that process can reach them).
+_HOST_PORT_SCHEMES = ("tcp", "tls", "ucx", "ws", "wss")
 # No dashboard; the scheduler's HTTP routes (health, metrics) on a free port, not 8787 (taken by a second cluster).
 LOCAL_SCHEDULER_OPTIONS = {"dashboard_address": ":0"}
 
@@ -99,25 +104,95 @@ class ClusterError(ValueError):
 
 # ----------------------------------------------------------------------------- the cluster
 
+def check_cluster_address(address):
+    """The ``--cluster`` address as ``distributed`` reads it; ``ClusterError`` (one line) when it cannot be one.
+
+    Checks the form only, before any connection: a scheme ``distributed`` knows (``tcp://``, ``tls://``,
+    ``inproc://``, ``ucx://``, ``ws://``, ``wss://``; none: its default, ``tcp``) and, except for ``inproc``,
+    ``HOST:PORT`` with a port from 1 to 65535. A malformed address given to ``distributed.Client`` fails inside
+    its constructor, which leaves a half-started client whose ``__del__`` prints a traceback 20 s later.
+    """
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+    address = str(address)
+    shown = address if address.strip() else repr(address)
+    usage = "give tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786, what `dask scheduler` prints) or HOST:PORT"
+    if not address.strip():
+        raise ClusterError(f"--cluster {shown}: no scheduler address; {usage}")
+    scheme, location = parse_address(address)
+    if scheme not in backends:
+        raise ClusterError(f"--cluster {shown}: unknown scheme {scheme!r} (Dask knows {', '.join(sorted(backends))}); "
+                           f"{usage}")
+    if scheme in _HOST_PORT_SCHEMES:
+        try:
+            host, port = parse_host_port(location)
+        except ValueError:
+            raise ClusterError(f"--cluster {shown}: not HOST:PORT after {scheme}://; {usage}") from None
+        if not host or not 1 <= port <= 65535:
+            raise ClusterError(f"--cluster {shown}: " + ("no host" if not host else f"port {port} out of 1-65535")
+                               + f"; {usage}")
+    return address
+
+
+def _first_contact(address, timeout_s):
+    """Connect to the scheduler at ``address`` once and hang up (``ClusterError``, one line, when it does not
+    answer within ``timeout_s`` or cannot be reached): the ``Client`` is made only where a scheduler answered."""
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def contact():
+        comm = await connect(address, timeout=timeout_s, **Security().get_connection_args("client"))
+        await comm.close()
+
+    outcome = {}
+
+    def run():            # its own thread and event loop: replay() may be called from a running loop (Jupyter)
+        try:
+            asyncio.run(contact())
+        except Exception as error:      # noqa: BLE001 - reported as one line below, whatever distributed raised
+            outcome["error"] = error
+
+    thread = threading.Thread(target=run, name="livedic-cluster-contact", daemon=True)
+    thread.start()
+    thread.join(timeout_s + 5)
+    error = outcome.get("error")
+    if thread.is_alive() or isinstance(error, (OSError, TimeoutError)):
+        raise ClusterError(f"--cluster {address}: no Dask scheduler answered at {address} within {timeout_s:g} s; "
+                           f"start one with `dask scheduler`, or use --workers N")
+    if error is not None:           # TLS not configured, the ucx backend not installed, another process' inproc
+        hint = "; ucx:// needs the distributed-ucxx package" if address.startswith("ucx://") else ""
+        raise ClusterError(f"--cluster {address}: cannot connect ({_first_line(error)}){hint}")
+
+
+def _first_line(error):
+    text = str(error).strip()
+    return f"{type(error).__name__}: {text.splitlines()[0]}" if text else type(error).__name__
+
+
 @contextmanager
 def dask_client(workers=None, cluster=None, *, timeout_s=None):
     """A ``distributed.Client``: on a new LocalCluster of ``workers`` processes, or on the scheduler ``cluster``.
 
     The LocalCluster runs one thread per worker process (numba uses 1 thread per task, see ``measure_frame``),
-    no dashboard; it is closed on exit. ``ClusterError`` (one line) when ``cluster`` cannot be reached.
+    no dashboard; it is closed on exit. ``ClusterError`` (one line) when ``cluster`` is not an address
+    (``check_cluster_address``) or no scheduler answers there within ``FIRST_CONNECT_TIMEOUT_S``.
     """
     import logging
 
     from distributed import Client, LocalCluster
     if cluster is not None:
-        address = str(cluster)
+        address = check_cluster_address(cluster)
+        _first_contact(address, FIRST_CONNECT_TIMEOUT_S)
         timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
         try:
             client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
-        except (OSError, TimeoutError, ValueError, TypeError) as error:
-            raise ClusterError(f"--cluster {address}: no Dask scheduler answered there "
-                               f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}); "
+        except (OSError, TimeoutError) as error:        # the scheduler went away since (Client closed itself)
+            raise ClusterError(f"--cluster {address}: the Dask scheduler stopped answering ({_first_line(error)}); "
                                f"start one with `dask scheduler`, or use --workers N") from None
+        except ImportError as error:                    # its reply names what this process lacks (Client closed)
+            raise ClusterError(f"--cluster {address}: cannot connect ({_first_line(error)})") from None
         try:
             yield client
         finally:

@@ -490,9 +490,11 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     point_options = point_options or PointOptions()
     point_options.check()
     if workers is not None or cluster is not None:
-        from livedic.stream.parallel_replay import check_worker_count, check_workers, dask_client
+        from livedic.stream.parallel_replay import check_cluster_address, check_worker_count, check_workers, dask_client
         if workers is not None:
             check_worker_count(workers)
+        if cluster is not None:
+            check_cluster_address(cluster)          # its form, before the recording is read (one line otherwise)
         _check_parallel_input(path, given, all_frames, threads)
         if shared_path == "":
             from livedic.acquire.mcap_replay import FrameReader
