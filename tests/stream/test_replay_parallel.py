@@ -183,13 +183,68 @@ def test_workers_option_starts_its_own_local_cluster(recording, sequential, tmp_
 
 def test_bad_cluster_address_one_line_exit_2_nothing_written(recording, tmp_path, capsys, monkeypatch):
     import livedic.stream.parallel_replay as parallel_replay
-    monkeypatch.setattr(parallel_replay, "CONNECT_TIMEOUT_S", 1)
+    monkeypatch.setattr(parallel_replay, "FIRST_CONNECT_TIMEOUT_S", 1)
     out = tmp_path / "out.csv"
     code = main(["replay", recording, "-o", str(out), "--progress", "off", "--cluster", "tcp://127.0.0.1:9"])
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and err.startswith("livedic: error: --cluster tcp://127.0.0.1:9: no Dask scheduler")
     assert not out.exists() and os.listdir(tmp_path) == []
+
+
+def _replay_in_a_new_process(recording, out, cluster):
+    """``livedic replay`` in a process of its own: what a user sees on stderr (a ``Client.__del__`` traceback at
+    exit included), and its exit code. The timeout only keeps a hung replay from hanging the suite."""
+    import subprocess
+    import sys
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", "replay", recording, "-o", str(out),
+                           "--progress", "off", "--cluster", cluster], capture_output=True, text=True, timeout=180)
+    return done.returncode, done.stderr
+
+
+@pytest.mark.parametrize("address, says", [
+    ("nonsense://x", "unknown scheme 'nonsense'"),
+    ("", "no scheduler address"),
+    ("tcp://127.0.0.1", "not HOST:PORT after tcp://"),
+    ("127.0.0.1:99999", "port 99999 out of 1-65535"),
+    ("tcp://:8786", "no host"),
+])
+def test_a_malformed_cluster_address_is_one_line_and_nothing_else(recording, tmp_path, address, says):
+    """Refused before any Client exists: no half-started Client left whose ``__del__`` prints a traceback."""
+    out = tmp_path / "out.csv"
+    code, err = _replay_in_a_new_process(recording, out, address)
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("livedic: error: --cluster ") and says in err, err
+    assert not out.exists() and os.listdir(tmp_path) == []
+
+
+def test_no_scheduler_at_a_well_formed_address_is_one_line_naming_the_wait(recording, tmp_path):
+    """A port bound but not listening refuses every connection: one line saying how long it waited."""
+    import socket
+
+    from livedic.stream.parallel_replay import FIRST_CONNECT_TIMEOUT_S
+    out = tmp_path / "out.csv"
+    with socket.socket() as closed:
+        closed.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{closed.getsockname()[1]}"
+        code, err = _replay_in_a_new_process(recording, out, address)
+    assert code == 2, err
+    assert err == (f"livedic: error: --cluster {address}: no Dask scheduler answered at {address} within "
+                   f"{FIRST_CONNECT_TIMEOUT_S:g} s; start one with `dask scheduler`, or use --workers N\n")
+    assert not out.exists() and os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("address", ["tcp://10.0.0.5:8786", "10.0.0.5:8786", "sched.example:8786", "[::1]:8786",
+                                     "tls://10.0.0.5:8786", "ws://h:1", "wss://h:65535", "inproc://10.0.0.5/42/1"])
+def test_the_addresses_distributed_reads_pass_the_form_check(address):
+    from livedic.stream.parallel_replay import check_cluster_address
+    assert check_cluster_address(address) == address
+
+
+def test_a_scheduler_given_as_host_port_without_scheme(recording, cluster, sequential, tmp_path):
+    """``HOST:PORT``: distributed's default scheme, tcp."""
+    assert cluster.startswith("tcp://")
+    _assert_same(_replay(recording, tmp_path / "par.csv", "--cluster", cluster[len("tcp://"):]), sequential)
 
 
 def _events(stderr):
