@@ -396,6 +396,9 @@ class Session:
                 import livedic.stream.recorder  # noqa: F401
             except ImportError:
                 pass                    # _open_recorder says so
+        if config.publish:
+            from livedic.stream.publish import preload
+            preload(config.publish_targets)     # pymodbus's import (0.1-0.3 s) would land between the first frames
         frames = getattr(self.source, "frames", None)
         if frames and isinstance(frames, int):
             self.total_frames = min(self.total_frames, frames) if self.total_frames else frames
@@ -513,14 +516,16 @@ class Session:
         if self.load is not None:
             load, self.load = self.load, None
             self._close_quietly(load.close, "force source")
-        publishers, self.publishers = self.publishers, []
-        for publisher in publishers:
-            self._close_quietly(publisher.close, publisher.name)
         if self.recorder is not None and not self.recorder.closed:
             self.recorder.close()
         if self.viewer is not None:
             viewer, self.viewer = self.viewer, None
             self._close_quietly(viewer.close, "Rerun stream")
+        # Last: a Modbus server answers "ended" for a short linger first, and a second Ctrl-C during it must
+        # not leave the recording unfinished.
+        publishers, self.publishers = self.publishers, []
+        for publisher in publishers:
+            self._close_quietly(publisher.close, publisher.name)
         if self._previous_threads is not None:
             import numba
             numba.set_num_threads(self._previous_threads)

@@ -480,8 +480,6 @@ with session_module.Session(config, say=lambda m: None) as session:
 """
 
 
-@pytest.mark.xfail(strict=True, reason="needs stream/session.py's prepare to call stream.publish.preload before "
-                                       "the first frame (issue 13 strain-out report); remove this mark with it")
 def test_the_modbus_server_is_imported_before_the_first_frame():
     """pymodbus is imported before the session reads its first frame, not while the server opens between the
     first frame and the start: a paced source's frames then came late, in a burst (2-10 dropped at 50 fps)."""
