@@ -615,9 +615,52 @@ class StreamingLoad(LoadSource):
 
     # -- for the reader thread --
 
-    @abstractmethod
     def _run(self):
-        """The reader thread: connect, read, reconnect every ``retry_s``, until ``_stop``."""
+        """The reader thread: connect, read until the connection ends, reconnect every ``retry_s``, until ``_stop``.
+
+        A failed connection is one event until one succeeds; each loss is an event, and a gap
+        marker where the source stamps samples on arrival (never interpolated across an outage).
+        """
+        failing = False
+        while not self._stop.is_set():
+            connection, message = self._connect()
+            if connection is None:
+                if not failing:
+                    self._event(LoadEventKind.CONNECT_FAILED, f"{message}; retrying every {self.retry_s:g} s")
+                    failing = True
+                self._stop.wait(self.retry_s)
+                continue
+            failing = False
+            self.connected = True
+            self._event(LoadEventKind.CONNECTED, message)
+            try:
+                reason = self._read_until_lost(connection)
+            finally:
+                self.connected = False
+                self._hang_up(connection)
+            if self._stop.is_set():
+                break
+            if self._outage_is_a_gap:
+                self._append(time.monotonic(), math.nan)   # why: never interpolate across an outage
+            self._event(LoadEventKind.DISCONNECTED, f"{reason}; reconnecting every {self.retry_s:g} s")
+            self._stop.wait(self.retry_s)
+
+    @abstractmethod
+    def _connect(self):
+        """(connection, "connected ..." message), or (None, "cannot connect ...") for the event."""
+
+    @abstractmethod
+    def _read_until_lost(self, connection):
+        """Read samples until the connection is lost or ``close()``; the reason it ended, in words."""
+
+    @abstractmethod
+    def _hang_up(self, connection):
+        """Close ``connection`` (the reader thread's; after ``_read_until_lost``)."""
+
+    @property
+    def _outage_is_a_gap(self):
+        """Whether a lost connection adds a NaN gap marker (sources stamping samples on arrival)."""
+        return True
 
     def _event(self, kind, message):
         with self._lock:
@@ -677,37 +720,24 @@ class TcpLoad(StreamingLoad):
 
     # -- the reader thread --
 
-    def _run(self):
-        failing = False
-        while not self._stop.is_set():
-            try:
-                sock = socket.create_connection((self.host, self.port), timeout=self.connect_timeout_s)
-            except OSError as error:
-                if not failing:
-                    self._event(LoadEventKind.CONNECT_FAILED,
-                                f"cannot connect ({error.strerror or error}); retrying every {self.retry_s:g} s")
-                    failing = True
-                self._stop.wait(self.retry_s)
-                continue
-            failing = False
-            self._socket = sock
-            self._garbage_told = False
-            self.connected = True
-            self._event(LoadEventKind.CONNECTED, "connected")
-            try:
-                reason = self._read(sock)
-            finally:
-                self.connected = False
-                self._socket = None
-                sock.close()
-            if self._stop.is_set():
-                break
-            if self.clock == "arrival":
-                self._append(time.monotonic(), math.nan)   # why: never interpolate across an outage
-            self._event(LoadEventKind.DISCONNECTED, f"{reason}; reconnecting every {self.retry_s:g} s")
-            self._stop.wait(self.retry_s)
+    def _connect(self):
+        try:
+            sock = socket.create_connection((self.host, self.port), timeout=self.connect_timeout_s)
+        except OSError as error:
+            return None, f"cannot connect ({error.strerror or error})"
+        self._socket = sock
+        self._garbage_told = False
+        return sock, "connected"
 
-    def _read(self, sock):
+    def _hang_up(self, sock):
+        self._socket = None
+        sock.close()
+
+    @property
+    def _outage_is_a_gap(self):
+        return self.clock == "arrival"      # sender times: the gap shows in the samples' own times
+
+    def _read_until_lost(self, sock):
         """Read until the stream ends, fails or ``close()``; the reason it ended."""
         sock.settimeout(self.poll_s)
         pending = b""
@@ -906,36 +936,20 @@ class ModbusLoad(StreamingLoad):
     def _where(self):
         return f"{self.kind} register {self.register} ({self.value_type}) of unit {self.unit}"
 
-    def _run(self):
+    def _connect(self):
         from pymodbus.client import ModbusTcpClient
-        failing = False
-        while not self._stop.is_set():
-            client = ModbusTcpClient(self.host, port=self.port, timeout=self.timeout_s, retries=0)
-            if not client.connect():
-                client.close()
-                if not failing:
-                    self._event(LoadEventKind.CONNECT_FAILED, f"cannot connect to the Modbus server; "
-                                                              f"retrying every {self.retry_s:g} s")
-                    failing = True
-                self._stop.wait(self.retry_s)
-                continue
-            failing = False
-            self._client = client
-            self.connected = True
-            self._event(LoadEventKind.CONNECTED, f"connected; polling the {self._where()} at {self.rate_hz:g} Hz")
-            try:
-                reason = self._poll(client)
-            finally:
-                self.connected = False
-                self._client = None
-                client.close()
-            if self._stop.is_set():
-                break
-            self._append(time.monotonic(), math.nan)       # why: never interpolate across an outage
-            self._event(LoadEventKind.DISCONNECTED, f"{reason}; reconnecting every {self.retry_s:g} s")
-            self._stop.wait(self.retry_s)
+        client = ModbusTcpClient(self.host, port=self.port, timeout=self.timeout_s, retries=0)
+        if not client.connect():
+            client.close()
+            return None, "cannot connect to the Modbus server"
+        self._client = client
+        return client, f"connected; polling the {self._where()} at {self.rate_hz:g} Hz"
 
-    def _poll(self, client):
+    def _hang_up(self, client):
+        self._client = None
+        client.close()
+
+    def _read_until_lost(self, client):
         """Poll until the connection is lost or ``close()``; the reason it ended."""
         from pymodbus.exceptions import ConnectionException, ModbusException
         read = client.read_holding_registers if self.kind == "holding" else client.read_input_registers
