@@ -1,6 +1,8 @@
-"""Fixtures shared by the stream tests."""
+"""Fixtures and helpers shared by the stream tests."""
 
 import os
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -78,3 +80,17 @@ def _signal_when(process, ready, signum, *, timeout_s=120):
         if process.poll() is None:
             process.kill()
     return bytes(err).decode(errors="replace"), out
+
+
+def refused_run(tmp_path, extra, *, source="synthetic:tensile?size=192x256&frames=3&fps=1000"):
+    """``livedic run ... extra`` in a subprocess, which must refuse: exit 2, exactly one ``livedic: error``
+    line (returned), no traceback, and no recording left at the ``--record`` path it was given."""
+    record = tmp_path / "refused.mcap"
+    argv = ["run", "--viewer", "none", "--record", str(record), "--progress", "off", "--source", source, *extra]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=120)
+    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
+    assert done.returncode == 2, done.stderr
+    assert len(errors) == 1 and "Traceback" not in done.stderr, done.stderr
+    assert not record.exists()
+    return errors[0]

@@ -5,12 +5,11 @@ default) and a force file with a known ramp give exact values at the frames' tim
 """
 
 import json
-import subprocess
-import sys
 
 import pytest
 
 from livedic.stream.cli import main
+from tests.stream.conftest import refused_run
 
 SOURCE = "synthetic:tensile?size=384x512&frames=40&pace=0"
 
@@ -50,15 +49,7 @@ def test_a_force_file_is_read_at_the_frame_times(tmp_path):
     (["--load", "synthetic", "--area", "-1"], "--area"),
 ])
 def test_bad_load_options_are_one_line_exit_2_and_leave_no_file(tmp_path, extra, message):
-    record = tmp_path / "s.mcap"
-    argv = ["run", "--viewer", "none", "--record", str(record), "--progress", "off",
-            "--source", "synthetic:tensile?size=192x256&frames=3&fps=1000", *extra]
-    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
-                          timeout=120)
-    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
-    assert done.returncode == 2, done.stderr
-    assert len(errors) == 1 and message in errors[0], done.stderr
-    assert not record.exists()
+    assert message in refused_run(tmp_path, extra)
 
 
 def test_recorded_force_gives_the_simulators_properties(tmp_path):

@@ -7,8 +7,6 @@ with noise sigma = 1), as a length error at the small gauge lengths these images
 """
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -17,6 +15,7 @@ from livedic.dic.extensometer import ExtensometerStatus
 from livedic.stream.config import SessionConfig, ViewerConfig
 from livedic.stream.session import Session
 from livedic.stream.strain import StrainConfig, parse_extensometer, parse_gauge_length
+from tests.stream.conftest import refused_run
 
 SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
 
@@ -132,15 +131,7 @@ def test_option_parsing():
     (["--scale", "-2", "--gauge-length", "10"], "--scale must be a positive number"),
 ])
 def test_bad_strain_options_are_one_line_exit_2_and_leave_no_file(tmp_path, extra, message):
-    record = tmp_path / "s.mcap"
-    argv = ["run", "--viewer", "none", "--record", str(record), "--progress", "off",
-            "--source", "synthetic:tensile?size=192x256&frames=3&fps=1000", *extra]
-    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
-                          timeout=120)
-    errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
-    assert done.returncode == 2, done.stderr
-    assert len(errors) == 1 and message in errors[0], done.stderr
-    assert not record.exists()
+    assert message in refused_run(tmp_path, extra)
 
 
 def test_replay_recomputes_the_same_extensometers(tmp_path):
