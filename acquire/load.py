@@ -369,10 +369,30 @@ def csv_max_gap_s(time_s):
     return max(DEFAULT_MAX_GAP_S, 5.0 * float(np.median(np.diff(time_s))))
 
 
-class CsvLoad(LoadSource):
-    """Force from a CSV file; times are seconds since the session's first frame, plus ``offset_s``."""
+class _KnownSamples(LoadSource):
+    """A force known in full before the session (a file, the simulator's law), on session time.
+
+    Read in place: the per-frame look-ups (``force_at``, ``last_sample_time_s``) copy nothing, whatever
+    the length of the file (a 1 kHz log of a long test holds 10^5-10^6 samples).
+    """
 
     time_base = TIME_BASE_SESSION
+    _time = np.zeros(0)
+    _force = np.zeros(0)
+
+    def samples(self):
+        return self._time.copy(), self._force.copy()
+
+    def force_at(self, times_s):
+        return interpolate_force(self._time, self._force, times_s, self.max_gap_s)
+
+    @property
+    def last_sample_time_s(self):
+        return float(self._time[-1]) if self._time.size else math.nan
+
+
+class CsvLoad(_KnownSamples):
+    """Force from a CSV file; times are seconds since the session's first frame, plus ``offset_s``."""
 
     def __init__(self, path, *, offset_s=0.0, max_gap_s=None, uri=None):
         self.path = str(path)
@@ -382,9 +402,6 @@ class CsvLoad(LoadSource):
         self._time = time_s + self.offset_s
         self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(time_s)
 
-    def samples(self):
-        return self._time.copy(), self._force.copy()
-
     @property
     def settings(self):
         return {**super().settings, "offset_s": self.offset_s}
@@ -392,7 +409,7 @@ class CsvLoad(LoadSource):
 
 # --- synthetic ----------------------------------------------------------------------------------
 
-class SyntheticLoad(LoadSource):
+class SyntheticLoad(_KnownSamples):
     """The simulated tensile test's force: one sample per frame, frame i at ``i / fps`` s (session time).
 
     Parameters
@@ -412,8 +429,6 @@ class SyntheticLoad(LoadSource):
         The source's ``specimen`` (A0, E, yield, Rp0.2, Rm): what the stress-strain curve needs.
     """
 
-    time_base = TIME_BASE_SESSION
-
     def __init__(self, source, *, uri="synthetic", offset_s=0.0, max_gap_s=None):
         self.uri = uri
         self.source_uri = getattr(source, "uri", None)
@@ -422,12 +437,6 @@ class SyntheticLoad(LoadSource):
         self._time = np.arange(int(source.frames), dtype=np.float64) / float(source.fps) + self.offset_s
         self._force = np.asarray(source.forces_N(), dtype=np.float64)
         self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(self._time)
-
-    def samples(self):
-        return self._time.copy(), self._force.copy()
-
-    def force_at(self, times_s):
-        return interpolate_force(self._time, self._force, times_s, self.max_gap_s)
 
     @property
     def settings(self):
