@@ -77,6 +77,8 @@ class Modulus:
         Where the fitted line crosses zero stress (toe correction); 0 when NaN.
     method : str
     reason : Reason or None
+    basis : str
+        Where the stress range comes from ("10% to 40% of Rp0.2", ...).
     """
     value: float
     standard_error: float
@@ -85,6 +87,7 @@ class Modulus:
     strain_at_zero_stress: float
     method: str
     reason: Reason = None
+    basis: str = ""
 
 
 @dataclass(frozen=True)
@@ -208,21 +211,30 @@ def modulus(strain, stress, *, stress_range=None, rp02_MPa=None, min_points=MIN_
         peak = stress[frames].max()
         low, high = lo_share * peak, hi_share * peak
         basis = f"{lo_share:.0%} to {hi_share:.0%} of the maximum stress"
-    s, e = stress[frames], strain[frames]
-    above = np.flatnonzero(s > high)
-    branch = slice(0, above[0] if above.size else s.size)
-    s, e = s[branch], e[branch]
-    inside = (s >= low) & (s <= high)
-    n = int(inside.sum())
+    inside = elastic_fit_frames(strain, stress, low, high)
+    n = int(inside.size)
     method = (f"least-squares line of stress on strain over {low:.1f} to {high:.1f} MPa "
               f"({basis}) of the loading branch, {n} frames")
     if n < max(min_points, 3):
-        return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.TOO_FEW_POINTS)
-    slope, intercept, error = _fit_line(e[inside], s[inside])
+        return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.TOO_FEW_POINTS, basis)
+    slope, intercept, error = _fit_line(strain[inside], stress[inside])
     if not slope > 0:
-        return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.NOT_POSITIVE)
+        return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.NOT_POSITIVE, basis)
     return Modulus(float(slope / 1000.0), float(error / 1000.0), n, (float(low), float(high)),
-                   float(-intercept / slope), method)
+                   float(-intercept / slope), method, basis=basis)
+
+
+def elastic_fit_frames(strain, stress, low, high):
+    """Indices of the frames the elastic fit uses: stress within [low, high] on the loading branch.
+
+    The loading branch is the frames (with both values finite) before the stress first exceeds
+    ``high``, so an unloading or the falling branch after Rm is never among them.
+    """
+    strain, stress, frames = _valid(strain, stress)
+    s = stress[frames]
+    above = np.flatnonzero(s > high)
+    branch = frames[:above[0] if above.size else s.size]
+    return branch[(stress[branch] >= low) & (stress[branch] <= high)]
 
 
 def proof_strength(strain, stress, E_GPa, offset=PROOF_OFFSET, *, strain_at_zero_stress=0.0):
