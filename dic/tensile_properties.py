@@ -43,6 +43,9 @@ DEFAULT_RANGE = (0.10, 0.40)   # share of Rp0.2 (or of the maximum stress) fitte
 MIN_POINTS = 5                 # fewest frames in the range to fit E
 PROOF_OFFSET = 0.002           # 0.2 % strain
 FRACTURE_DROP = 0.10           # fracture: stress below this share of Rm, after Rm
+# Uniform elongation is over once the force falls this fraction below its (running) maximum. Load cells of class
+# 0.5 or better stay well inside it while the force still climbs or holds (their noise is ~0.1 %).
+NECKING_DROP = 0.005
 
 _NAN = float("nan")
 
@@ -157,7 +160,7 @@ def _valid(strain, stress):
     return strain, stress, frames
 
 
-def _fit_line(x, y):
+def fit_line(x, y):
     """Least squares y = a x + b: slope, intercept, standard error of the slope (NaN if x is constant)."""
     if np.ptp(x) == 0:
         return _NAN, _NAN, _NAN
@@ -217,7 +220,7 @@ def modulus(strain, stress, *, stress_range=None, rp02_MPa=None, min_points=MIN_
               f"({basis}) of the loading branch, {n} frames")
     if n < max(min_points, 3):
         return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.TOO_FEW_POINTS, basis)
-    slope, intercept, error = _fit_line(strain[inside], stress[inside])
+    slope, intercept, error = fit_line(strain[inside], stress[inside])
     if not slope > 0:
         return Modulus(_NAN, _NAN, n, (float(low), float(high)), 0.0, method, Reason.NOT_POSITIVE, basis)
     return Modulus(float(slope / 1000.0), float(error / 1000.0), n, (float(low), float(high)),

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from livedic.dic.tensile_properties import NECKING_DROP
+
 __all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
            "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
            "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY", "UniformElongationWatch", "NECKING_DROP",
@@ -34,9 +36,6 @@ STRESS_STRAIN_COLUMNS = ("frame", "time_s", "force_N", "eng_strain", "eng_stress
 AXIAL = "axial"
 RECORDED_FORCE = "recorded:/machine/force"   # StressOptions.load when the force is the recording's own channel
 AREA_METADATA_KEY = "area_mm2"               # session metadata key of A0, when the session had a cross-section
-# Live: the uniform elongation is over once the force falls this fraction below its running maximum. Load cells
-# of class 0.5 or better stay well inside it while the force still climbs or holds (their noise is ~0.1 %).
-NECKING_DROP = 0.005
 
 
 def cross_section_mm2(*, area=None, width=None, thickness=None):
