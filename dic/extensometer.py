@@ -194,6 +194,31 @@ def read_extensometers(placed, points, u, v, ok, *, point_labels=None, end_label
                                 status=status)
 
 
+def strain_noise(placed, points, point_noise_px):
+    """Expected standard deviation of each extensometer's strain, from the points' displacement noise.
+
+    Each end's displacement is a linear combination of its neighbours' (``field_fit.fit_weights``), and the
+    length changes by the difference of the two ends' along the line: for independent point errors of
+    ``point_noise_px`` in u and v, sigma_L = point_noise_px |w2 - w1| (a point shared by both ends counts
+    once), and the strain's sigma_L / L0. Neighbouring subsets overlap and their errors correlate, so the
+    fit averages less than this: ``expected_strain_noise`` applies the measured factor.
+
+    Returns
+    -------
+    ndarray (E,)
+        Strain standard deviation of each extensometer (NaN where an end cannot be fitted).
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    out = np.empty(len(placed.extensometers))
+    for k, e in enumerate(placed.extensometers):
+        weights = np.zeros(len(points))
+        for end, sign in ((2 * k, -1.0), (2 * k + 1, 1.0)):
+            held = placed.index[placed.start[end]:placed.start[end + 1]]
+            np.add.at(weights, held, sign * field_fit.fit_weights(placed.ends[end], held, points, placed.step))
+        out[k] = point_noise_px * math.sqrt(float(np.sum(weights * weights))) / e.length_px
+    return out
+
+
 def poisson_ratio(e_axial, e_transverse, *, min_axial=POISSON_MIN_AXIAL):
     """-e_transverse / e_axial; NaN where either is NaN or |e_axial| < ``min_axial`` (noise over noise)."""
     e_axial = np.asarray(e_axial, dtype=np.float64)

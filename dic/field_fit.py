@@ -178,3 +178,18 @@ def displacement_at(where, points, u, v, ok, step):
     """
     start, index = neighbourhoods(where, points, step)
     return fit_at(where, start, index, points, u, v, ok, step)
+
+
+def fit_weights(where, index, points, step):
+    """The weights w of the quadratic fit at ``where`` (x, y) over ``points[index]``: u(where) = w . u[index].
+
+    All the points valid; the fit is linear in the displacements, so a point noise sigma (independent
+    between points) gives the fitted value a noise sigma |w|. NaN weights where the fit is not possible.
+    """
+    index = np.asarray(index, dtype=np.int64)
+    offsets = (np.asarray(points, dtype=np.float64).reshape(-1, 2)[index] - np.asarray(where, dtype=np.float64)) / step
+    px, py = offsets[:, 0], offsets[:, 1]
+    design = np.column_stack([np.ones_like(px), px, py, px * px, px * py, py * py])
+    if index.size < MIN_POINTS or np.linalg.matrix_rank(design) < 6:
+        return np.full(index.size, np.nan)
+    return np.linalg.pinv(design)[0]
