@@ -557,6 +557,10 @@ class AravisCamera(FrameSource):
 
     # ------------------------------------------------------------- settings
     @property
+    def live(self):
+        return True          # a camera: frames at its own pace
+
+    @property
     def settings(self):
         """What the camera actually uses (read back), what was asked, and stream counters."""
         out = {"source": SCHEME, "uri": self.uri, **self._info}

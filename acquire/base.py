@@ -46,6 +46,14 @@ class FrameSource(ABC):
         ...
 
     @property
+    def live(self) -> bool:
+        """Frames come at the pace of a real clock (a camera; a file or the simulator delivered at its frame
+        rate): the time from a frame's arrival to its result is a latency, and a slow consumer must drop
+        frames. False (files, unpaced): frames come as fast as they are taken, so only the processing time
+        and the rate achieved mean something."""
+        return False
+
+    @property
     def settings(self) -> dict:
         return {}
 

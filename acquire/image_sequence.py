@@ -87,6 +87,10 @@ class ImageSequence(FrameSource):
         self._closed = False
 
     @property
+    def live(self):
+        return self.realtime          # delivered at the frames' own pace, like a camera
+
+    @property
     def settings(self):
         out = {"source": SCHEME, "uri": self.uri, "pattern": self.pattern, "n_files": len(self.files),
                "first_file": self.files[0], "last_file": self.files[-1], "frame_rate": self.frame_rate,

@@ -733,6 +733,10 @@ class McapSource(FrameSource):
         return self._recording.info
 
     @property
+    def live(self):
+        return self.realtime          # delivered at the frames' own pace, like a camera
+
+    @property
     def settings(self):
         return {"kind": "mcap_replay", "path": self.path, "realtime": self.realtime,
                 "recorded_source_uri": self.session.get("source_uri", ""),

@@ -197,6 +197,10 @@ class OpenCVCapture(FrameSource):
 
     # ------------------------------------------------------------- settings
     @property
+    def live(self):
+        return self.is_device or self.realtime     # a camera, or a file delivered at its timestamps
+
+    @property
     def settings(self):
         """Source description; stays available after close (taken when the stream was probed)."""
         out = {"source": self.kind, "uri": self.uri, "target": str(self.target)}

@@ -965,6 +965,10 @@ class _PrerenderedSource(FrameSource):
         return None
 
     @property
+    def live(self):
+        return bool(self.options.get("pace", True))     # paced: a simulated camera
+
+    @property
     def full_scale(self):
         return _FULL_SCALE[self.bit]
 
