@@ -366,7 +366,8 @@ def tensile_study(*, quick, say):
         final = {r["name"]: r for r in extensometer_rows if r["frame"] == frames - 1}
         measured = -final[TRANSVERSE]["measured"] / final[AXIAL]["measured"]
         exact = -final[TRANSVERSE]["exact"] / final[AXIAL]["exact"]
-        say(f"  Poisson's ratio -e_transverse/e_axial at the last frame: {measured:.4f} (exact readings {exact:.4f})")
+        say(f"  contraction ratio -e_transverse/e_axial at the last frame (plastic: not Poisson's ratio): {measured:.4f} "
+            f"(exact readings {exact:.4f})")
     axial = summary.get(AXIAL)
     verdict = (f"{'MET' if axial and axial['met'] else 'NOT MET'}  target extensometer L >= 400 px within 50 microstrain "
                f"+ 0.5 % of the exact reading over the whole simulated test: axial L0 "

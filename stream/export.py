@@ -596,7 +596,8 @@ def axial_series(path, strain=None):
     -------
     dict
         ``metadata``, ``frames`` (indices), ``time_s`` (since the first frame with results),
-        ``eng_strain`` (NaN where not read), ``l0_px``, ``scale`` (px/mm or None), ``truncated``,
+        ``eng_strain`` (NaN where not read), ``transverse_eng_strain`` (the ``transverse``
+        extensometer's, all NaN without one: ``has_transverse``), ``l0_px``, ``scale`` (px/mm or None), ``truncated``,
         ``notes``, ``strain`` (the stage's one-line description).
 
     Raises
@@ -605,7 +606,7 @@ def axial_series(path, strain=None):
         Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
     """
     from livedic.acquire.mcap_replay import Recording
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.strain import TRANSVERSE, StrainConfig
     from livedic.stream.stress import AXIAL
     with reader_notes() as notes:
         recording = Recording(os.fspath(path))
@@ -623,7 +624,8 @@ def axial_series(path, strain=None):
                              f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
                              f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
         column = list(names).index(AXIAL)
-        frames, times, eng = [], [], []
+        across = list(names).index(TRANSVERSE) if TRANSVERSE in names else None
+        frames, times, eng, transverse = [], [], [], []
         t0 = None
         for result in _chain(first, results):
             if np.array_equal(result.point_id, first.point_id):
@@ -634,10 +636,12 @@ def axial_series(path, strain=None):
             frames.append(int(result.frame_index))
             times.append((int(result.timestamp_ns) - t0) / 1e9)
             eng.append(float(readings.eng_strain[column]))
+            transverse.append(float(readings.eng_strain[across]) if across is not None else math.nan)
         truncated = recording.info.truncated
     l0 = stage.extensometers[column].length_px if stage is not None else math.nan
     return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
             "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
+            "transverse_eng_strain": np.asarray(transverse, dtype=np.float64), "has_transverse": across is not None,
             "l0_px": float(l0), "scale": config.scale, "truncated": truncated, "notes": list(notes),
             "strain": stage.describe() if stage is not None else ""}
 

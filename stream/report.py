@@ -9,11 +9,15 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
 ``report.json``
     ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``: each
     ``{"value": number or null, "method": text, "reason": text or null}`` (``reason`` says why a
-    value is null), then ``specimen`` (cross-section, gauge length) and ``source`` (recording, load
-    file, frames, strain settings). Strict JSON: no NaN.
+    value is null); ``poisson_ratio`` (fitted over the elastic range, ``dic.poisson``) and
+    ``plastic_contraction_ratio`` (the same slope over the plastic range, never called Poisson's
+    ratio; in this file only), each ``{"value", "stderr", "label", "n_frames", "frames",
+    "axial_strain_range", "axial_noise", "basis", "method", "reason"}`` (null with a reason without
+    the ``transverse`` extensometer); then ``specimen`` (cross-section, gauge length) and ``source``
+    (recording, load file, frames, strain settings). Strict JSON: no NaN.
 ``report.md``
-    The same for people: specimen, gauge length, the properties with the method of each, and the
-    stress-strain plot.
+    The same for people: specimen, gauge length, the properties with the method of each, Poisson's
+    ratio labelled with its frames and axial strain range, and the stress-strain plot.
 ``stress_strain.png``
     Engineering curve, true curve up to uniform elongation, Rp0.2 and Rm marked.
 
@@ -36,20 +40,35 @@ __all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_command"
 
 REPORT_FILES = ("report.md", "report.json", "stress_strain.png")
 PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent")
+POISSON_KEY = "poisson_ratio"
+CONTRACTION_KEYS = (POISSON_KEY, "plastic_contraction_ratio")   # report.json only: the plastic one is no property
 PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa": ("Rm", "MPa"),
                    "Ag_percent": ("Ag", "%"), "A_percent": ("A", "%")}
 
 
-def report_json(properties, specimen, source):
-    """The ``report.json`` object: the five properties (NaN as null), ``specimen`` and ``source``."""
+def report_json(properties, specimen, source, contraction=None):
+    """The ``report.json`` object: the five properties (NaN as null), Poisson's ratio and the plastic contraction
+    ratio (``contraction``: the pair of ``dic.poisson.ContractionRatio``; NaN with NO_PAIR when None),
+    ``specimen`` and ``source``."""
+    from livedic.dic.poisson import without_pair
     out = {}
     for key, item in properties.as_dict().items():
         value = item["value"]
         out[key] = {"value": value if math.isfinite(value) else None, "method": item["method"],
                     "reason": item["reason"]}
+    for key, ratio in zip(CONTRACTION_KEYS, contraction or without_pair()):
+        out[key] = {name: _finite_or_none(value) for name, value in ratio.as_dict().items()}
     out["specimen"] = specimen
     out["source"] = source
     return out
+
+
+def _finite_or_none(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, list):
+        return [_finite_or_none(v) for v in value]
+    return value
 
 
 def report_markdown(report, plot_name, title):
@@ -70,6 +89,9 @@ def report_markdown(report, plot_name, title):
         item = report[key]
         value = "n/a" if item["value"] is None else f"{item['value']:.4g}"
         lines.append(f"| {name} | {value} | {unit} | {_cell(item['method'])} | {_cell(item['reason'] or '')} |")
+    nu = report[POISSON_KEY]
+    value = "n/a" if nu["value"] is None else f"{nu['value']:.3f} +- {nu['stderr']:.3f}"
+    lines.append(f"| {nu['label']} | {value} | - | {_cell(nu['method'])} (ASTM E132) | {_cell(nu['reason'] or '')} |")
     lines += ["", "## Stress-strain curve", "", f"![stress-strain curve]({plot_name})", "",
               "Engineering stress F / A0 against the axial extensometer's engineering strain; true stress and "
               "strain only up to uniform elongation (maximum force), where the uniform-deformation formulas "
@@ -116,6 +138,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     """
     from livedic.acquire.load import open_load
     from livedic.acquire.mcap_replay import Recording
+    from livedic.dic.poisson import contraction_ratios
     from livedic.dic.tensile_properties import tensile_properties
     from livedic.stream.export import RecordedForce, axial_series, reader_notes
     from livedic.stream.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
@@ -136,6 +159,8 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
         force = open_load(stress.load, offset_s=stress.offset_s).force_at(series["time_s"])
     table = stress_strain_table(series["frames"], series["time_s"], force, series["eng_strain"], stress.area_mm2)
     properties = tensile_properties(table.eng_strain, table.eng_stress_MPa)
+    contraction = (contraction_ratios(series["eng_strain"], series["transverse_eng_strain"], force=table.force_N,
+                                      frames=table.frame) if series["has_transverse"] else None)
     scale = series["scale"]
     specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
                 "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale}
@@ -148,7 +173,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
                                                               table.eng_strain),
               **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
-    report = report_json(properties, specimen, source)
+    report = report_json(properties, specimen, source, contraction)
     title = os.path.basename(path)
     with atomic_files(targets, binary={name for name in targets if name.endswith(".png")}) as staged:
         staged["report.json"].write(json_text(report))
@@ -179,5 +204,7 @@ def report_command(args):
         name, unit = PROPERTY_TITLES[key]
         value = report[key]["value"]
         values.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
+    nu = report[POISSON_KEY]["value"]
+    values.append(f"Poisson's ratio (elastic) {'n/a' if nu is None else f'{nu:.3f}'}")
     say(f"report: {', '.join(values)}; written to {args.output}/ ({', '.join(REPORT_FILES)})")
     return 0

@@ -42,8 +42,10 @@ Entity tree (paths are the constants below)::
     strain_xy           transverse vs axial strain (%), when the extensometers "axial" and
                         "transverse" exist (``--gauge-length``): axes, grid and tick labels
                         (strain_xy/axes, strain_xy/ticks), the curve, one segment a frame, shown up to
-                        the time cursor (strain_xy/data/curve), and the current point with the two
-                        strains and Poisson's ratio -e_t/e_a once |e_axial| >= 5e-4 (strain_xy/now)
+                        the time cursor (strain_xy/data/curve), Poisson's ratio's elastic fit so far as a
+                        dark line over its range (strain_xy/data/fit; ``stream.poisson``), and the current
+                        point with the two strains and, below them, that fit's value, error and frames
+                        (strain_xy/now)
 
   with the machine's force (``start(load=stage)``, the session's ``stream.load_stage.LoadStage``):
 
@@ -157,6 +159,7 @@ STRAIN_XY = "strain_xy"
 STRAIN_XY_DATA = "strain_xy/data"                # the transform from strain (%) to the plot box
 STRAIN_XY_CURVE = "strain_xy/data/curve"
 STRAIN_XY_NOW = "strain_xy/now"
+STRAIN_XY_FIT = "strain_xy/data/fit"             # Poisson's ratio's elastic fit, over its range
 STRAIN_XY_AXES = "strain_xy/axes"
 STRAIN_XY_TICKS = "strain_xy/ticks"
 # force and stress (only with the session's load stage: ``start(load=...)``)
@@ -171,7 +174,7 @@ TIMELINE_TIME = "time"
 
 MIN_COLOUR_LIMIT_PX = 0.05       # the automatic scale starts at +-this, so reference-frame noise is one colour
 MIN_COLOUR_LIMIT_STRAIN = 1e-3   # e_yy's scale starts at +-0.1 %: strain noise (~1e-4) is one colour
-MIN_XY_LIMIT_STRAIN = 5e-4       # the transverse-vs-axial axes start at +-0.05 % (where Poisson's ratio starts)
+MIN_XY_LIMIT_STRAIN = 5e-4       # the transverse-vs-axial axes start at +-0.05 %
 MIN_XY_LIMIT_STRESS_MPA = 100.0  # the stress-strain plot's stress axis starts at 0-100 MPa
 _NICE_MANTISSAS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
 _AXIS_MANTISSAS = (1.0, 2.0, 5.0, 10.0)   # the transverse-vs-axial axes grow in fewer, bigger steps
@@ -196,6 +199,7 @@ _BLACK = 0x000000FF              # packed opaque black
 _LABEL_OFFSET = (0.16, 0.03)
 _EXTENSOMETER_DRAW_ORDER = 50.0  # above the lost/low-ZNCC squares and P0
 _STRESS_COLOURS = ((255, 150, 0), (255, 90, 200))   # engineering, true: apart from the extensometers' colours
+_FIT_COLOUR = (25, 25, 25)       # the elastic fit, drawn over the transverse-vs-axial curve on the light plot
 _XY_BOX = (100.0, 25.0)          # the transverse-vs-axial plot's box (width, height) in scene units
 _XY_FRAME_COLOUR = (160, 160, 160)
 _XY_ZERO_COLOUR = (210, 210, 210)
@@ -438,10 +442,65 @@ def _tick_label(value):
     return "0" if value == 0 else f"{value:g}"
 
 
+def _poisson_text(poisson):
+    """Poisson's ratio's elastic fit in a few words: "Poisson 0.300 +- 0.002 (elastic fit, frames 0-45)"."""
+    if poisson is None:
+        return "Poisson: no fit yet"
+    if not np.isfinite(poisson.value):
+        return f"Poisson: n/a ({poisson.reason.value})"
+    return (f"Poisson {poisson.value:.3f} +- {poisson.standard_error:.3f} "
+            f"(elastic fit, frames {poisson.frames[0]}-{poisson.frames[1]})")
+
+
 def _fmt(value):
     if not np.isfinite(value):
         return "n/a"
     return f"{value:+.3g}" if abs(value) < 1000 else f"{value:+.0f}"
+
+
+class _RrdFile:
+    """The .rrd of ``--viewer save``: Rerun's own file sink writes into a pipe, a thread here into the file.
+
+    Rerun's file sink (``RecordingStream.save``), when its file cannot be written (a full disk), logs its
+    own error lines and then hangs ``disconnect`` for good (rerun-sdk 0.41): the session would never end
+    nor print its summary. Through a pipe the sink never fails; a write that fails here is one
+    ``on_error(message)`` line, the file keeps the bytes written (Rerun's viewer opens such a cut
+    stream up to the cut), and the rest of the stream is read and dropped. ``sink_path`` is what to
+    give ``save``; ``close`` after the recording stream's ``disconnect``.
+    """
+
+    def __init__(self, path, on_error):
+        self.path = path
+        self.on_error = on_error
+        self.error = None
+        self.bytes_written = 0
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._read_end, self._write_end = os.pipe()
+        self.sink_path = f"/dev/fd/{self._write_end}"
+        self._thread = threading.Thread(target=self._copy, name="livedic-rrd-writer", daemon=True)
+        self._thread.start()
+
+    def _copy(self):
+        while data := os.read(self._read_end, 1 << 20):
+            if self.error is not None:
+                continue                  # drained, so the sink never waits on a full pipe
+            try:
+                view = memoryview(data)
+                while view:
+                    written = os.write(self._fd, view)
+                    self.bytes_written += written
+                    view = view[written:]
+            except OSError as error:
+                self.error = f"{self.path}: {error.strerror or error}"
+                self.on_error(f"Rerun view file stopped: cannot write {self.error}; the session goes on, the file "
+                              f"keeps its first {self.bytes_written / 1e6:.1f} MB")
+        os.close(self._read_end)
+
+    def close(self):
+        """After the sink let go of the pipe: the copy ends at the pipe's end, the file is closed."""
+        os.close(self._write_end)
+        self._thread.join(timeout=30.0)
+        os.close(self._fd)
 
 
 class _XYPlot:
@@ -588,6 +647,10 @@ class RerunLogger:
         A live session whose queue drops frames: while frames wait in the queue, leave out the
         images and fields (at most ``FIELDS_SKIP_MAX`` frames in a row; plots get every frame), so
         the display never costs the measurement a frame. Off: every frame is drawn (files, replays).
+    on_error : callable, optional
+        ``on_error(message)`` once when the .rrd of mode "save" cannot be written (a full disk): one
+        line, from the file's writer thread; logging stops there, the file keeps what was written
+        (``_RrdFile``).
 
     Raises
     ------
@@ -597,7 +660,8 @@ class RerunLogger:
     """
 
     def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
-                 image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8, thin_when_behind=False):
+                 image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8, thin_when_behind=False,
+                 on_error=None):
         if color_range is not None:
             lo, hi = (float(value) for value in color_range)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
@@ -638,6 +702,7 @@ class RerunLogger:
         self._series_shown = {}                  # extensometer name -> its strain series has a value now
         self._xy_pair = None                     # (axial index, transverse index) for the transverse-vs-axial plot
         self._strain_xy = None                   # that plot (_XYPlot), from start()
+        self._fit_drawn = None                   # (value, frames) of the elastic fit drawn on it
         self._load = None                        # the session's stream.load_stage.LoadStage, from start()
         self._stress_xy = None                   # the stress-strain plot (_XYPlot): with a load, A0 and "axial"
         self._force_shown = False
@@ -649,6 +714,8 @@ class RerunLogger:
         self.thin_when_behind = bool(thin_when_behind)
         self.fields_skipped = 0                # frames whose images and fields were left out (queue not empty)
         self._fields_skipped_in_a_row = 0
+        self._file = None                        # _RrdFile of mode "save"
+        self.on_error = on_error
         if mode == "none":
             return
         import rerun as rr
@@ -661,7 +728,17 @@ class RerunLogger:
 
     @property
     def enabled(self):
-        return self.rec is not None
+        return self.rec is not None and not (self._file is not None and self._file.error)
+
+    @property
+    def file_error(self):
+        """Why the .rrd of mode "save" stopped (a full disk), or None."""
+        return self._file.error if self._file is not None else None
+
+    def _file_failed(self, message):
+        """The .rrd could not be written (full disk): told once; logging stops, the session goes on."""
+        if self.on_error is not None:
+            self.on_error(message)
 
     # ----------------------------------------------------------------- setup
     def start(self, *, image_shape, roi=None, p0_index=None, points=None, has_truth=False, title=None,
@@ -688,7 +765,8 @@ class RerunLogger:
         if self.mode == "save":
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
-            self.rec.save(self.target, default_blueprint=blueprint)
+            self._file = _RrdFile(self.target, self._file_failed)
+            self.rec.save(self._file.sink_path, default_blueprint=blueprint)
         elif self.mode == "connect":
             self.rec.connect_grpc(self.target, default_blueprint=blueprint)
         elif self.mode == "spawn":
@@ -862,7 +940,7 @@ class RerunLogger:
             self._fields_skipped_in_a_row += 1
             self.fields_skipped += 1
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
-            self._log_extensometer_series(result.extensometers)
+            self._log_extensometer_series(result.extensometers, result.poisson)
         if self._load is not None:
             self._log_force(result)
         p0 = self._p0
@@ -1001,6 +1079,8 @@ class RerunLogger:
                                                                     draw_order=_EXTENSOMETER_DRAW_ORDER), static=True)
         if self._strain_xy is not None:
             self._strain_xy.start(rr, rec)
+            rec.log(STRAIN_XY_FIT, rr.LineStrips2D.from_fields(radii=-2.5, colors=[_FIT_COLOUR],
+                                                               draw_order=_MARKER_DRAW_ORDER), static=True)
 
     def _log_strain_field(self, strain, ok, px, py, radius):
         """e_yy at every point drawn (ok displacement): colour-mapped where it has a strain, grey where not."""
@@ -1052,7 +1132,7 @@ class RerunLogger:
         rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(strips=np.concatenate(strips),
                                                                 colors=np.concatenate(strip_colours), labels=labels))
 
-    def _log_extensometer_series(self, readings):
+    def _log_extensometer_series(self, readings, poisson=None):
         """Each extensometer's strain series (a gap where it has no reading) and the transverse-vs-axial plot."""
         rr, rec, ok = self.rr, self.rec, readings.ok
         for name, e, good in zip(readings.names, readings.eng_strain, ok):
@@ -1064,19 +1144,31 @@ class RerunLogger:
                 rec.log(path, rr.Clear(recursive=False))    # a gap in the line, never the last value
                 self._series_shown[name] = False
         if self._xy_pair is not None:
-            self._log_strain_xy(readings)
+            self._log_strain_xy(readings, poisson)
 
-    def _log_strain_xy(self, readings):
-        """This frame's point of the transverse-vs-axial plot with the two strains and Poisson's ratio (or a gap)."""
+    def _log_strain_xy(self, readings, poisson):
+        """This frame's point of the transverse-vs-axial plot with the two strains, and Poisson's ratio's elastic
+        fit so far (``dic.poisson.ContractionRatio``, or None) as a line over its range and in the numbers."""
+        self._log_elastic_fit(poisson)
         a, t = self._xy_pair
         if not (readings.ok[a] and readings.ok[t]):
             self._strain_xy.gap(self.rr, self.rec)
             return
         axial, transverse = float(readings.eng_strain[a]), float(readings.eng_strain[t])
-        ratio = self._strain.poisson(readings)
-        text = f"axial {100 * axial:.3f} %   transverse {100 * transverse:.3f} %"
-        text += f"   Poisson {ratio:.3f}" if np.isfinite(ratio) else "   Poisson: from 0.05 % axial"
+        text = f"axial {100 * axial:.3f} %   transverse {100 * transverse:.3f} %\n" + _poisson_text(poisson)
         self._strain_xy.add(self.rr, self.rec, 100.0 * axial, 100.0 * transverse, text)
+
+    def _log_elastic_fit(self, poisson):
+        """The elastic fit's line over its axial range (in the plot's data units), when it changed; cleared when NaN."""
+        drawn = None if poisson is None or not np.isfinite(poisson.value) else (poisson.value, poisson.frames)
+        if drawn == self._fit_drawn:
+            return
+        self._fit_drawn = drawn
+        if drawn is None:
+            self.rec.log(STRAIN_XY_FIT, self.rr.Clear(recursive=False))
+            return
+        ends = [(100.0 * x, -100.0 * (poisson.intercept - poisson.value * x)) for x in poisson.axial_range]
+        self.rec.log(STRAIN_XY_FIT, self.rr.LineStrips2D.from_fields(strips=[ends]))
 
     # ----------------------------------------------------------------- force and stress
     def _log_force(self, result):
@@ -1180,7 +1272,7 @@ class RerunLogger:
 
     def close(self):
         """Flush and close the sink (the spawned viewer keeps running)."""
-        if not self.enabled:
+        if self.rec is None:
             return
         self._closing.set()
         if self._flusher is not None:
@@ -1190,3 +1282,5 @@ class RerunLogger:
         finally:
             self.rec.disconnect()
             self.rec = None
+            if self._file is not None:
+                self._file.close()

@@ -180,6 +180,19 @@ class _Interrupt:
 
 # ----------------------------------------------------------------------------- the command
 
+def write_summary_json(path, summary, say):
+    """``--summary-json``: written whole or not at all; a failure (a full disk) is one warning, not an error.
+
+    The outputs were checked before the session; what fails now is the disk, and the summary has been
+    printed already: the session's outcome (its exit code) stays what the measurement made it.
+    """
+    try:
+        write_text_atomic(path, json_text(summary))
+    except OSError as error:
+        say(f"warning: the summary JSON was not written: {path}: {error.strerror or error} "
+            f"(the summary is printed above)")
+
+
 def run_session(args):
     """Run ``livedic run`` with parsed ``args`` (see ``add_run_arguments``); returns the exit code.
 
@@ -219,7 +232,7 @@ def run_session(args):
         session.run()
     print(session.summary_text(), flush=True)
     if config.summary_json:
-        write_text_atomic(config.summary_json, json_text(session.summary()))
+        write_summary_json(config.summary_json, session.summary(), session.say)
     error = session.source_error
     if error is not None:
         if session.acquisition.frames:

@@ -45,11 +45,13 @@ import numpy as np
 
 from livedic.acquire import sources
 from livedic.dic import field_fit
+from livedic.dic.status import Status
 from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
-from livedic.stream.config import CAMERA_SCHEMES, VIEWER_NONE
+from livedic.stream.config import VIEWER_NONE
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
 from livedic.stream.p0 import choose_p0
+from livedic.stream.poisson import ContractionWatch, format_poisson, has_pair
 from livedic.stream.points import build_points, check_point_count, read_points_csv
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
@@ -197,15 +199,16 @@ def default_roi(source):
     return None
 
 
-def drop_policy(choice, source, scheme):
+def is_live(source):
+    """Whether frames come at a real clock's pace (``FrameSource.live``; a source without it is a file)."""
+    return bool(getattr(source, "live", False))
+
+
+def drop_policy(choice, source):
     """Queue policy: as chosen, or (auto) drop the oldest for live sources and block for files."""
     if choice != "auto":
         return {"oldest": DROP_OLDEST, "newest": DROP_NEWEST, "block": BLOCK}[choice]
-    if scheme in CAMERA_SCHEMES:
-        return DROP_OLDEST
-    if scheme == "synthetic":
-        return DROP_OLDEST if source.options.get("pace", True) else BLOCK
-    return DROP_OLDEST if getattr(source, "realtime", False) else BLOCK
+    return DROP_OLDEST if is_live(source) else BLOCK
 
 
 # Per-process keys that mean nothing in a recording (the host's monotonic clock).
@@ -281,6 +284,8 @@ class Session:
         Where P0 is and why (None when ``points`` were given).
     strain : stream.strain.StrainStage or None
         The strain and extensometer stage on the points, from ``prepare``.
+    poisson : stream.poisson.ContractionWatch or None
+        Poisson's ratio over the elastic range, with the ``axial``/``transverse`` pair, from ``start``.
     publishers : list of stream.publish.PublishStage
         The ``--publish`` outlets, opened in ``prepare`` (before any output), closed by ``close``.
     reference : Reference or None
@@ -312,6 +317,7 @@ class Session:
         self.points = None
         self.p0 = None
         self.strain = None
+        self.poisson = None
         self.load = None
         self.load_stage = None
         self.publishers = []
@@ -405,7 +411,7 @@ class Session:
         if hasattr(self.source, "prepare"):
             self.phase = Phase.RENDERING
             self._render()
-        self.drop_policy = drop_policy(config.drop, self.source, scheme)
+        self.drop_policy = drop_policy(config.drop, self.source)
 
         # The first frame: its size checks the points before any output exists.
         self.phase = Phase.FIRST_FRAME
@@ -436,6 +442,9 @@ class Session:
         # Strain out as soon as it exists: right after the strain stage, before the load stage (which may
         # wait for a live force stream's next sample), the recording and the view.
         sinks = [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
+        if has_pair(self.strain):
+            self.poisson = ContractionWatch()       # after the load stage: the force picks the elastic range
+            sinks.append(self.poisson)
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method,
                                        strain_window=self.strain.windows.window if self.strain is not None else None,
@@ -476,6 +485,11 @@ class Session:
         self.bar.close()
         self._report_end()
         self.phase = Phase.FINISHED
+        if self.viewer is not None and self.viewer.enabled:
+            try:
+                self.viewer.flush()             # a .rrd that cannot be written is known to the summary
+            except Exception:  # noqa: BLE001 - a slow flush: close() flushes again and reports
+                pass
         self._summary = self._make_summary()
         self._summary_text = format_summary(self._summary, self.reference, self.recorder)
         if self.viewer is not None:
@@ -701,7 +715,8 @@ class Session:
             self.say(config.viewer.note)
         self.viewer = RerunLogger(config.viewer.mode, config.viewer.target, recording_name=config.name,
                                   image_max_side=config.image_max_side, color_range=config.color_range,
-                                  low_zncc=config.tracking.refind_zncc, thin_when_behind=self.drop_policy != BLOCK)
+                                  low_zncc=config.tracking.refind_zncc, thin_when_behind=self.drop_policy != BLOCK,
+                                  on_error=lambda message: self.event("viewer_file_stopped", message, "warning"))
 
     def _open_recorder(self, path, metadata, *, start_time_ns=None):
         try:
@@ -740,6 +755,8 @@ class Session:
         self.event("note", note, tell=False)
         if self.strain is not None:
             self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))
+            for warning in self.strain.noise_warnings():
+                self.event("extensometer_noise", warning, "warning")
         names = [e.name for e in self.strain.extensometers] if self.strain is not None else []
         if self.load_stage is not None and AXIAL not in names:
             self.event("note", "force without an axial extensometer: force and stress are recorded, but the "
@@ -779,14 +796,18 @@ class Session:
         viewer = self.viewer
         reference = self.reference
         summary = self.loop.stats.summary()
+        live = is_live(self.source)
+        if not live:
+            # frames taken as fast as the tracker takes them: no clock to be late against, no latency
+            summary.update(latency_p50_ms=None, latency_p99_ms=None, latency_max_ms=None, latency_from=None)
         summary.update(
-            source=config.source, method=config.tracking.method, acquired=acquisition.frames,
+            source=config.source, live=live, method=config.tracking.method, acquired=acquisition.frames,
             lost_upstream=lost_upstream(acquisition), stopped_by=self.stopped_by,
             source_losses=list(acquisition.losses), reconnects=acquisition.reconnects,
             outage_s=round(acquisition.outage_s, 3),
             source_error=str(acquisition.error) if acquisition.error is not None else None,
             recording=config.record if self.recorder is not None else None,
-            rerun=config.viewer.describe(),
+            rerun=config.viewer.describe(), rerun_error=viewer.file_error if viewer is not None else None,
             points_shape=list(reference.shape) if reference else [],
             roi=list(reference.roi) if reference else None,
             step=reference.step if reference else None,
@@ -797,7 +818,8 @@ class Session:
                                      if viewer is not None and viewer.frames_logged else None),
             viewer_fields_skipped=viewer.fields_skipped if viewer is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
-            strain=self.strain.summary() if self.strain is not None else None,
+            strain=({**self.strain.summary(), **(self.poisson.summary() if self.poisson is not None else {})}
+                    if self.strain is not None else None),
             force=self.load_stage.summary() if self.load_stage is not None else None,
             publish=[publisher.summary() for publisher in self.publishers] or None,
             reference_update=config.tracking.reference_update,
@@ -824,12 +846,21 @@ def format_summary(summary, reference, recorder):
     if reference is not None:
         points = reference.points
         lines.append(f"  points     {len(points)} (P0 at {points[0, 0]:g}, {points[0, 1]:g}); "
-                     f"{num(100 * summary['ok_fraction'], '.1f')} % ok; {summary['refound']} re-found")
-    lines.append(f"  rate       {num(summary['fps'], '.1f')} fps, {num(summary['poi_per_s'], ',.0f')} POI/s")
-    lines.append(f"  latency    p50 {num(summary['latency_p50_ms'], '.1f')} ms, "
-                 f"p99 {num(summary['latency_p99_ms'], '.1f')} ms from frame {summary['latency_from']} to result "
-                 f"(tracking p50 {num(summary['processing_p50_ms'], '.1f')} ms, "
-                 f"p99 {num(summary['processing_p99_ms'], '.1f')} ms)")
+                     f"{num(100 * summary['ok_fraction'], '.1f')} % ok over all of them and all frames; "
+                     f"{summary['refound']} re-found")
+        losses = format_point_losses(summary)
+        if losses:
+            lines.append(f"             {losses}")
+    lines.append(f"  rate       {num(summary['fps'], '.1f')} fps, {num(summary['poi_per_s'], ',.0f')} POI/s"
+                 + ("" if summary.get("live", True) else " achieved (a file: frames taken as fast as tracked)"))
+    tracking = (f"tracking p50 {num(summary['processing_p50_ms'], '.1f')} ms, "
+                f"p99 {num(summary['processing_p99_ms'], '.1f')} ms")
+    if summary.get("live", True):
+        lines.append(f"  latency    p50 {num(summary['latency_p50_ms'], '.1f')} ms, "
+                     f"p99 {num(summary['latency_p99_ms'], '.1f')} ms from frame {summary['latency_from']} to "
+                     f"result ({tracking})")
+    else:
+        lines.append(f"  processing {tracking} a frame (no latency: the source is not paced by a clock)")
     extra = f"reference set-up {num(summary['setup_ms'], '.0f')} ms"
     if summary.get("delivery_delay_p99_ms") is not None:
         extra += f"; frame delivery delay p99 {num(summary['delivery_delay_p99_ms'], '.1f')} ms"
@@ -865,10 +896,27 @@ def format_summary(summary, reference, recorder):
         losses = len(summary["source_losses"])
         lines.append(f"  camera     lost {losses} time(s), back {summary['reconnects']} time(s); "
                      f"{summary['outage_s']:.1f} s without frames")
-    lines.append(f"  rerun      {summary['rerun']}")
+    lines.append(f"  rerun      {summary['rerun']}"
+                 + (f" STOPPED EARLY ({summary['rerun_error']}); see the warning above" if summary.get("rerun_error")
+                    else ""))
     if summary.get("stopped_by"):
         lines.append(f"  stopped    on {summary['stopped_by']}")
     return "\n".join(lines)
+
+
+_POINT_LOSSES = (("points_never_trackable", "never trackable"),
+                 ("points_lost_later", "lost later, not ok in the last frame"))
+
+
+def format_point_losses(summary):
+    """"12 never trackable (8 reference subset has no texture, ...); 5 lost later (...)", or "" when none."""
+    parts = []
+    for key, what in _POINT_LOSSES:
+        item = summary.get(key) or {}
+        if item.get("count"):
+            reasons = ", ".join(f"{n} {Status[name].description}" for name, n in item["by_status"].items())
+            parts.append(f"{item['count']} {what} ({reasons})")
+    return "; ".join(parts)
 
 
 def format_strain_summary(strain):
@@ -883,7 +931,6 @@ def format_strain_summary(strain):
         error = final.get("error_max_vs_truth")
         versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
         lines.append(f"  extensom.  {name}: L0 {final['L0_px']:.1f} px, final {reading}{versus}")
-    poisson = strain.get("poisson_ratio")
-    if poisson is not None and math.isfinite(poisson):
-        lines.append(f"  Poisson    -e_transverse / e_axial = {poisson:.3f} (last frame)")
+    if strain.get("poisson_ratio"):
+        lines.append(f"  Poisson    {format_poisson(strain['poisson_ratio'])}")
     return lines

@@ -33,11 +33,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.extensometer import Extensometer, place_extensometers, poisson_ratio, read_extensometers
+from livedic.dic.extensometer import Extensometer, place_extensometers, read_extensometers, strain_noise
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 
 TRANSVERSE_FRACTION = 0.8
 AXIAL, TRANSVERSE = "axial", "transverse"
+# An extensometer's expected noise at placement, for the warning below: the point displacement noise of IC-GN on
+# good 8-bit speckle is 0.01-0.02 px (0.006 px measured on the simulator); the low end, so that the warning is
+# never a false alarm. dic.extensometer.strain_noise turns it into strain: sigma_e = 0.01 px |w2 - w1| / L0
+# (w: the ends' fit weights), about 0.007 px / L0 on a 10-14 px grid (17 microstrain at L0 = 400 px); on the
+# simulator's rigid translation the readings' scatter matched it within 0.8-1.4 x for L0 = 12-384 px.
+EXPECTED_POINT_NOISE_PX = 0.01
+# ISO 9513 class 1 (what ISO 6892-1 asks for Rp0.2, the small-strain property an axial extensometer serves;
+# class 0.5 is for E, which a DIC session fits over many frames) allows 1 % of the reading; at the 0.2 % strain
+# of the proof point that is 20 microstrain, and the expected noise must stay within it: sigma_e <= 0.01 x 0.002;
+# sigma_e falls as 1 / L0, so the length needed is L0 x sigma_e / 2e-5. (Its other limit, 3 um of displacement,
+# is 0.03 px at 10 px/mm: any length meets it, so it cannot tell a usable extensometer from a 12 px one.)
+CLASS_1_RELATIVE_ERROR = 0.01
+SMALL_STRAIN = 0.002
+NOISE_LIMIT = CLASS_1_RELATIVE_ERROR * SMALL_STRAIN
+MIN_AUTO_TRANSVERSE_SUBSETS = 3    # an automatic transverse shorter than this many subsets is no extensometer
 _NAME = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")
 
 
@@ -184,14 +199,27 @@ class StrainConfig:
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         windows = strain_window(points, window=self.window, step=step, subset=subset)
+        x_range = (points[:, 0].min(), points[:, 0].max()) if len(points) else None
+        resolved = self.resolve_extensometers(p0, roi, x_range)
+        self._check_automatic_transverse(resolved, p0, x_range, subset)
         try:
-            x_range = (points[:, 0].min(), points[:, 0].max()) if len(points) else None
-            extensometers = place_extensometers(self.resolve_extensometers(p0, roi, x_range), points,
-                                                step=windows.step)
+            extensometers = place_extensometers(resolved, points, step=windows.step)
         except ValueError as error:
             unit = f" ({self.scale:g} px/mm)" if self.scale else ""
             raise ValueError(f"{error}{unit}") from None
         return StrainStage(self, points, windows, extensometers)
+
+    def _check_automatic_transverse(self, resolved, p0, x_range, subset):
+        """ValueError (one line) when the automatic transverse is shorter than one subset: its two ends would
+        be measured from the same points (``StrainStage.noise_warnings`` warns below a few subsets)."""
+        if self.gauge_length is None or self.gauge_width is not None:
+            return
+        transverse = next(e for e in resolved if e.name == TRANSVERSE)
+        if transverse.length_px < subset:
+            raise ValueError(f"the automatic transverse extensometer would be {transverse.length_px:.0f} px, less than "
+                             f"one subset ({subset} px): P0 at x {p0[0]:g} and the tracked points at x "
+                             f"{x_range[0]:g}..{x_range[1]:g}; widen the ROI, move P0 (--p0) towards its middle, or "
+                             f"give --gauge-length L,W")
 
     def as_metadata(self):
         """The settings as a recording's session metadata keys (``from_metadata`` reads them back)."""
@@ -326,19 +354,42 @@ class StrainStage:
                 if ok:
                     self.truth_errors[name] = max(self.truth_errors.get(name, 0.0), float(e))
 
-    def poisson(self, readings=None):
-        """-e_transverse / e_axial of ``readings`` (default the last), NaN without the pair or below 5e-4 axial."""
-        readings = readings if readings is not None else self.last_readings
-        if readings is None or AXIAL not in readings.names or TRANSVERSE not in readings.names:
-            return float("nan")
-        axial, _, axial_ok = readings.reading(AXIAL)
-        transverse, _, transverse_ok = readings.reading(TRANSVERSE)
-        if not (axial_ok and transverse_ok):
-            return float("nan")
-        return float(poisson_ratio(axial, transverse))
-
     def ms_per_frame(self, percentile=50):
         return float(np.percentile(np.array(self.seconds), percentile)) * 1e3 if self.seconds else float("nan")
+
+    def expected_noise(self, point_noise_px=EXPECTED_POINT_NOISE_PX):
+        """Each extensometer's expected strain noise (standard deviation) for a point noise, in order."""
+        return strain_noise(self.placed, self.points, point_noise_px)
+
+    def noise_warnings(self, point_noise_px=EXPECTED_POINT_NOISE_PX):
+        """One line per extensometer too short for ISO 9513 class 1 at small strain (see NOISE_LIMIT), or an
+        automatic transverse shorter than MIN_AUTO_TRANSVERSE_SUBSETS subsets: its noise and the length needed."""
+        lines = []
+        subset = self.windows.subset
+        automatic = self.config.gauge_length is not None and self.config.gauge_width is None
+        for e, noise in zip(self.extensometers, self.expected_noise(point_noise_px)):
+            needed = e.length_px * noise / NOISE_LIMIT
+            short_auto = automatic and e.name == TRANSVERSE and e.length_px < MIN_AUTO_TRANSVERSE_SUBSETS * subset
+            if not (noise > NOISE_LIMIT or short_auto):
+                continue
+            text = (f"extensometer {e.name}: L0 {self._length(e.length_px)} expects ~{1e6 * noise:.0f} microstrain "
+                    f"of noise ({point_noise_px:g} px point noise), above ISO 9513 class 1's "
+                    f"{1e6 * NOISE_LIMIT:.0f} microstrain at {100 * SMALL_STRAIN:g} % strain; it needs L0 >= "
+                    f"{self._length(needed)}")
+            if short_auto:
+                text += (f"; the automatic transverse (0.8 x the ROI width, kept on the points) is shorter than "
+                         f"{MIN_AUTO_TRANSVERSE_SUBSETS} subsets ({MIN_AUTO_TRANSVERSE_SUBSETS * subset} px): widen "
+                         f"the ROI or give --gauge-length L,W")
+            elif e.name in (AXIAL, TRANSVERSE):
+                text += "; lengthen it with --gauge-length L,W where the specimen allows"
+            else:
+                text += "; move its ends apart"
+            lines.append(text)
+        return lines
+
+    def _length(self, px):
+        scale = self.config.scale
+        return f"{px:.0f} px" + (f" ({px / scale:.2f} mm)" if scale else "")
 
     def describe(self):
         """One line: the strain window, VSG and measure, and the extensometers."""
@@ -362,4 +413,4 @@ class StrainStage:
                                "error_max_vs_truth": self.truth_errors.get(name)}
         return {"strain_measure": self.config.measure, "strain_window": self.windows.window,
                 "vsg_px": self.vsg_px, "strain_ms_p50": self.ms_per_frame(50),
-                "strain_ms_p99": self.ms_per_frame(99), "extensometers": final, "poisson_ratio": self.poisson()}
+                "strain_ms_p99": self.ms_per_frame(99), "extensometers": final}

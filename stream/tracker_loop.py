@@ -20,6 +20,10 @@ Timing, all on the host's monotonic clock:
   (it pays for building the tracker) and its setup time is reported on its own;
 * **processing** = time inside ``Tracker.track``;
 * **fps** = frames tracked / (last result - first arrival);
+* **ok fraction** = ok points / every placed point, over all frames: a point that could never be
+  tracked (no texture in its reference subset, subset off the image) counts as not ok; the
+  summary also gives those never-trackable points and the points lost later (trackable in the
+  reference, not ok in the last frame), each by ``dic.Status``;
 * **POI/s** = points tracked per second of that same wall time.
 
 A sink that raises is switched off and its error kept in ``sink_errors`` (a
@@ -35,6 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from livedic.dic.status import Status
 from livedic.stream.frame_queue import QueueClosed
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
@@ -67,6 +72,7 @@ class FrameResult:
     true_strain: float = None     # ln(1 + e) of the axial extensometer while the elongation may be uniform, else NaN
     true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stress.UniformElongationWatch)
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
+    poisson: object = None        # dic.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.poisson)
 
     @property
     def origin_ns(self):
@@ -94,7 +100,8 @@ class SessionStats:
     first_arrival_ns: int = None
     last_done_ns: int = None
     setup_ns: int = 0
-    points_tracked: int = 0
+    points_placed: int = 0        # every point, every frame
+    points_tracked: int = 0       # the trackable ones
     points_ok: int = 0
     refound: int = 0
     # Per tracked frame, as packed 64-bit integers (8 bytes each, not a Python int object and
@@ -107,6 +114,9 @@ class SessionStats:
     error_count: int = 0
     error_max: float = float("nan")
     truth_frames: int = 0
+    trackable_at_reference: np.ndarray = None   # (N,) bool: trackable when the reference was set
+    reference_status: np.ndarray = None         # (N,) the reference frame's statuses (why not trackable)
+    last_status: np.ndarray = None              # (N,) the last frame's statuses
 
     @property
     def elapsed_s(self):
@@ -145,7 +155,29 @@ class SessionStats:
 
     @property
     def ok_fraction(self):
+        """Ok points over every placed point (the never-trackable count as not ok)."""
+        return self.points_ok / self.points_placed if self.points_placed else float("nan")
+
+    @property
+    def ok_fraction_of_trackable(self):
+        """Ok points over the points the tracker could track."""
         return self.points_ok / self.points_tracked if self.points_tracked else float("nan")
+
+    def point_losses(self):
+        """``{"points_never_trackable": {"count", "by_status"}, "points_lost_later": {...}}`` (status names).
+
+        Never trackable: not trackable in the reference frame. Lost later: trackable there, not ok
+        in the last frame."""
+        def counted(statuses):
+            codes, counts = np.unique(np.asarray(statuses, dtype=np.int64), return_counts=True)
+            return {"count": int(counts.sum()),
+                    "by_status": {Status(int(code)).name: int(n) for code, n in zip(codes, counts)}}
+        if self.trackable_at_reference is None:
+            return {"points_never_trackable": counted([]), "points_lost_later": counted([])}
+        never = ~self.trackable_at_reference
+        lost = self.trackable_at_reference & (self.last_status != int(Status.OK))
+        return {"points_never_trackable": counted(self.reference_status[never]),
+                "points_lost_later": counted(self.last_status[lost])}
 
     def summary(self):
         """Plain dict of the headline numbers (JSON-friendly)."""
@@ -156,7 +188,8 @@ class SessionStats:
             "processing_p99_ms": self.processing_ms(99), "latency_from": self.latency_from,
             "delivery_delay_p99_ms": self.delivery_delay_ms(99) if self.delivery_delays_ns else None,
             "setup_ms": self.setup_ns / 1e6, "dropped": self.dropped,
-            "ok_fraction": self.ok_fraction, "refound": self.refound,
+            "ok_fraction": self.ok_fraction, "ok_fraction_of_trackable": self.ok_fraction_of_trackable,
+            **self.point_losses(), "refound": self.refound,
             "error_rms_px": self.error_rms_px if self.truth_frames else None,
             "error_max_px": self.error_max if self.truth_frames else None,
         }
@@ -259,8 +292,13 @@ class TrackerLoop:
         stats.frames += 1
         stats.last_done_ns = result.done_ns
         stats.dropped = result.dropped_total
-        tracked = int(self.tracker.trackable.sum())
-        stats.points_tracked += tracked
+        trackable = self.tracker.trackable
+        if result.is_reference:
+            stats.trackable_at_reference = np.array(trackable, dtype=bool)
+            stats.reference_status = np.array(m.status, dtype=np.int64)
+        stats.last_status = m.status
+        stats.points_placed += int(m.ok.size)
+        stats.points_tracked += int(trackable.sum())
         stats.points_ok += int(m.ok.sum())
         stats.refound += result.refound
         if not result.is_reference:

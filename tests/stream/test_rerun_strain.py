@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from livedic.stream import rerun_log
+from livedic.stream.poisson import ContractionWatch
 from livedic.stream.rerun_log import RerunLogger, nice_ceil
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import SessionStats
@@ -58,12 +59,14 @@ def _session(path, *, strain=True, lose=(), stage_config=None, feed_strain=True)
     options = {"strain": stage} if strain else {}
     logger.start(image_shape=SHAPE, roi=ROI, p0_index=0, points=points, **options)
     readings = []
+    watch = ContractionWatch()
     for i in range(FRAMES):
         u, v = _field(i, x, y)
         ok = _isolate_top_end(stage, x, y) if i in lose else None
         result = _frame_result(i, x, y, u, v, ok=ok)
         if feed_strain:
             stage(result, SessionStats())
+            watch(result, SessionStats())
             readings.append(result.extensometers)
         logger.log_frame(result, SessionStats())
     logger.close()
@@ -120,9 +123,15 @@ def test_strain_view_logs_eyy_extensometers_and_the_transverse_vs_axial_plot(tmp
     assert sorted(curve) == list(range(1, FRAMES))
     np.testing.assert_allclose(curve[FRAMES - 1][0], [[100 * EYY * (FRAMES - 2), -100 * EXX * (FRAMES - 2)],
                                                       [100 * EYY * (FRAMES - 1), -100 * EXX * (FRAMES - 1)]], atol=1e-9)
+    # Poisson's ratio: the elastic fit over every frame so far (the field is linear), from the 5th frame on,
+    # drawn as a line over its axial range
     now = _rows(path, f"/{rerun_log.STRAIN_XY_NOW}", "Points2D:labels")
-    assert "Poisson 0.400" in now[FRAMES - 1][0]
-    assert "Poisson" in now[0][0] and "0.400" not in now[0][0]    # axial 0 in the reference: no ratio yet
+    assert f"Poisson 0.400 +- 0.000 (elastic fit, frames 0-{FRAMES - 1})" in now[FRAMES - 1][0]
+    assert "Poisson: n/a (too few frames" in now[3][0] and "0.400" not in now[3][0]
+    fit = _rows(path, f"/{rerun_log.STRAIN_XY_FIT}", "LineStrips2D:strips")
+    assert sorted(fit) == list(range(4, FRAMES))                 # redrawn as the range grows
+    np.testing.assert_allclose(fit[FRAMES - 1][0], [[0.0, 0.0], [100 * EYY * (FRAMES - 1), -100 * EXX * (FRAMES - 1)]],
+                               atol=1e-9)
 
 
 def test_strain_view_is_in_the_blueprint_next_to_u_and_v_and_the_plots():

@@ -198,6 +198,14 @@ def test_report_recovers_the_laws_properties(test_run, tmp_path, capsys):
     assert report["A_percent"]["value"] is None and report["A_percent"]["reason"]
     text = (out / "report.md").read_text()
     assert "![stress-strain curve](stress_strain.png)" in text and "| Rp0.2 |" in text and "200.0 px" in text
+    # Poisson's ratio: labelled with its frames and range, in the table; the plastic ratio in report.json only.
+    # (This force law is not the simulator's own: its E range reaches past the images' elastic 0.4 %, so only
+    # the form is checked here; tests/stream/test_session_numbers.py checks the value on the simulator's law.)
+    nu = report["poisson_ratio"]
+    assert set(nu) >= {"value", "stderr", "label", "frames", "axial_strain_range", "basis", "method", "reason"}
+    assert nu["label"].startswith("Poisson's ratio (elastic") and f"| {nu['label']} |" in text
+    assert report["plastic_contraction_ratio"]["label"].startswith("plastic contraction ratio")
+    assert "plastic contraction" not in text
 
 
 @pytest.mark.parametrize("options, says", [
@@ -261,6 +269,10 @@ def test_report_without_any_force_says_why_each_value_is_missing(test_run, tmp_p
     for key in KEYS:
         assert report[key]["value"] is None and report[key]["reason"], key
     assert "n/a" in (out / "report.md").read_text()
+    # Poisson's ratio needs no force: the linear part of transverse vs axial
+    assert report["poisson_ratio"]["basis"] == "linear_part"
+    assert report["poisson_ratio"]["method"].startswith("elastic range: ")
+    assert "transverse against axial strain" in report["poisson_ratio"]["method"]
 
 
 def test_existing_report_files_are_kept_without_overwrite(test_run, tmp_path, capsys):

@@ -1,0 +1,93 @@
+"""Poisson's ratio in a session: the ``axial`` and ``transverse`` readings (and the force) kept, fitted.
+
+``ContractionWatch`` is a session sink placed after the strain and load stages when the
+session has the ``axial``/``transverse`` pair (``--gauge-length``). It keeps each frame's two
+engineering strains (NaN without a reading) and force (NaN without one), and fits
+``dic.poisson.contraction_ratios`` on them: Poisson's ratio over the elastic range, labelled
+"Poisson's ratio (elastic, frames a-b, axial strain x-y %)", and the plastic contraction ratio
+apart (never called Poisson's ratio). The fit so far goes on each ``FrameResult``
+(``result.poisson``) for the live view; it is refitted every frame at first and then every
+``n / REFIT_SHARE`` frames (a fit is O(n): about REFIT_SHARE x ln(n) fits a session). The
+summary holds both ratios as objects (``as_dict``).
+"""
+
+from array import array
+
+import numpy as np
+
+from livedic.dic.poisson import contraction_ratios
+from livedic.stream.strain import AXIAL, TRANSVERSE
+
+REFIT_SHARE = 50      # the live fit is redone after n / REFIT_SHARE new frames
+
+
+def has_pair(strain):
+    """Whether a ``StrainStage`` has the axial/transverse pair."""
+    names = [e.name for e in strain.extensometers] if strain is not None else []
+    return AXIAL in names and TRANSVERSE in names
+
+
+class ContractionWatch:
+    """Axial and transverse strain and force per frame, and Poisson's ratio fitted on them (a session sink)."""
+    name = "Poisson's ratio"
+    required = False
+
+    def __init__(self):
+        self.frames = array("q")
+        self.axial = array("d")
+        self.transverse = array("d")
+        self.force = array("d")
+        self.current = None              # the last live fit (dic.poisson.ContractionRatio)
+        self._fitted_at = 0
+
+    def __call__(self, result, stats):
+        readings = result.extensometers
+        self.frames.append(int(result.frame.index))
+        self.axial.append(_reading(readings, AXIAL))
+        self.transverse.append(_reading(readings, TRANSVERSE))
+        force = result.force_N
+        self.force.append(float("nan") if force is None else float(force))
+        result.poisson = self.live()
+
+    def live(self):
+        """The elastic fit so far, refitted when enough new frames came (see the module notes)."""
+        n = len(self.frames)
+        if self.current is None or n - self._fitted_at >= max(1, n // REFIT_SHARE):
+            self.current = self.fit()[0]
+            self._fitted_at = n
+        return self.current
+
+    def fit(self):
+        """(Poisson's ratio, plastic contraction ratio) over every frame so far (``dic.poisson``)."""
+        force = np.asarray(self.force)
+        return contraction_ratios(np.asarray(self.axial), np.asarray(self.transverse),
+                                  force=force if np.isfinite(force).any() else None,
+                                  frames=np.asarray(self.frames))
+
+    def summary(self):
+        """``{"poisson_ratio": {...}, "plastic_contraction_ratio": {...}}`` (``ContractionRatio.as_dict``)."""
+        nu, plastic = self.fit()
+        return {"poisson_ratio": nu.as_dict(), "plastic_contraction_ratio": plastic.as_dict()}
+
+
+def _reading(readings, name):
+    if readings is None or name not in readings.names:
+        return float("nan")
+    strain, _, ok = readings.reading(name)
+    return strain if ok else float("nan")
+
+
+_RANGE_WORDS = {"force": "below the proportional limit, where force vs axial strain is linear",
+                "linear_part": "the initial linear part of transverse vs axial"}
+
+
+def format_poisson(item, digits=3):
+    """"LABEL = 0.300 +- 0.002 (range: ...)" or "LABEL: n/a (reason)" from an ``as_dict`` object."""
+    value = item.get("value")
+    if value is None or not np.isfinite(value):
+        return f"{item['label']}: n/a ({item['reason']})"
+    error = item.get("stderr")
+    spread = f" +- {error:.{digits}f}" if error is not None and np.isfinite(error) else ""
+    where = ("every frame: transverse vs axial never left its line, nothing tells elastic from plastic"
+             if item.get("linear_to_end") else _RANGE_WORDS.get(item.get("basis"), ""))
+    return f"{item['label']} = {value:.{digits}f}{spread}" + (f" (range: {where})" if where else "")
