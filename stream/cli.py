@@ -16,7 +16,7 @@ import sys
 import threading
 
 from livedic.stream.config import UsageError, search_method, subpixel_method
-from livedic.stream.points import read_points_table
+from livedic.stream.points import add_region_arguments, read_points_table
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.strain import add_strain_arguments
@@ -145,6 +145,7 @@ def build_parser(extensions=()):
     where.add_argument("--grid", type=int, metavar="STEP", help="points on a grid every STEP pixels")
     where.add_argument("--points", metavar="FILE.csv",
                        help="CSV with header x,y (other columns are carried through to the output)")
+    add_region_arguments(measure, points=False)
     _add_method_options(measure, SEARCH_METHODS, SUBPIXEL_METHODS)
     measure.add_argument("-o", "--output", metavar="OUT.csv",
                          help="output CSV (default: stdout): x,y,u,v,zncc,ok,status, then the method's columns, "
@@ -236,7 +237,6 @@ def _cmd_measure(args):
     import numpy as np
 
     from livedic.acquire.image_io import read_grey_image
-    from livedic.dic.tracking import grid_in_roi
     from livedic.stream.csv_output import check_output_file, write_csv
 
     to_file = args.output not in (None, "-")
@@ -252,10 +252,9 @@ def _cmd_measure(args):
         raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
                          f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
     extras = {}
-    if args.grid is not None:
-        points = grid_in_roi(reference.shape, None, args.grid, args.subset)
-    else:
-        points, extras = read_points_table(args.points)
+    points, extras, left_out = _measure_points(args, reference)
+    if left_out:
+        print(f"livedic: {left_out}", file=sys.stderr)
     progress = None
     if args.progress != "off":
         in_place = args.progress == "on" or sys.stderr.isatty()
@@ -283,6 +282,39 @@ def _cmd_measure(args):
     if to_file:
         print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
     return 0
+
+
+def _measure_points(args, reference):
+    """``(points (N, 2), extra columns, note or None)``: the grid (``--grid``, over ``--roi``, ``--mask``, less
+    ``--exclude``; the whole image by default) or the points file (less those a mask or exclusion leaves out)."""
+    from livedic.dic.region import grid_in_region
+    from livedic.stream.config import ROI_FULL, PointsConfig
+    from livedic.stream.points import placeable_points, where_points_go
+    if args.points is not None and args.roi is not None:
+        raise UsageError("--roi places a grid: use it with --grid (with --points, --mask and --exclude leave "
+                         "points out)")
+    if args.grid is not None and args.grid < 1:
+        raise UsageError(f"grid step must be a positive integer number of pixels, got {args.grid}")
+    region = PointsConfig.region_from_args(args)
+    if region["roi"] is None:
+        region["roi"] = ROI_FULL
+    wanted = PointsConfig(step=args.grid, **region)
+    spec, _, allowed, _, _ = where_points_go(reference, wanted, subset=args.subset)
+    if args.grid is not None:
+        points = grid_in_region(allowed, args.grid)
+        if not len(points):
+            raise UsageError(f"{spec.describe()} holds no whole {args.subset}x{args.subset} subset: enlarge the "
+                             f"region or use a smaller --subset")
+        return points, {}, None
+    points, extras = read_points_table(args.points)
+    if spec.mask is None and not spec.exclude:
+        return points, extras, None
+    keep = placeable_points(points, allowed)
+    if not keep.any():
+        raise UsageError(f"every point's subset reaches outside {spec.describe()}: none is left to measure")
+    extras = {name: [value for value, k in zip(values, keep) if k] for name, values in extras.items()}
+    note = f"{int((~keep).sum())} of {len(keep)} points left out: their subset reaches outside {spec.describe()}"
+    return points[keep], extras, note if not keep.all() else None
 
 
 def _measure_strain_config(args):

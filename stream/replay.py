@@ -70,10 +70,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.stream.config import (DEFAULT_POINTS, PointsConfig, SessionConfig, TrackingConfig, parse_p0, parse_roi,
+from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsConfig, SessionConfig, TrackingConfig,
+                                   parse_exclusion, parse_p0, parse_roi, read_mask,
                                    search_method, subpixel_method)
-from livedic.stream.p0 import choose_p0
-from livedic.stream.points import build_points, read_points_csv
+from livedic.stream.points import add_region_arguments, place_points, read_points_csv
 from livedic.stream.progress import ProgressBar
 from livedic.stream.replay_rows import frame_rows, with_force_columns
 from livedic.stream.session import NoFrame, Session, format_strain_summary
@@ -116,9 +116,7 @@ def add_replay_arguments(parser):
     method.add_argument("--reference-update", metavar="WHEN", help="auto, never or every:N (reference updates)")
     method.add_argument("--seed", type=int, help="seed of the stochastic searches")
     points = parser.add_argument_group("point options (default: the recorded points)")
-    where = points.add_mutually_exclusive_group()
-    where.add_argument("--roi", metavar="X,Y,W,H", help="grid over this region of interest")
-    where.add_argument("--points", metavar="FILE.csv", help="track these points (CSV with header x,y)")
+    add_region_arguments(points)
     points.add_argument("--step", type=int, metavar="S", help="grid step in pixels")
     points.add_argument("--n-points", type=int, metavar="N", help="points wanted when --step is not given")
     points.add_argument("--p0", metavar="X,Y", help="the traced point P0 (point 0)")
@@ -218,15 +216,26 @@ class PointOptions:
     step: int = None
     n_points: int = None
     p0: str = None
+    mask: str = None
+    exclude: tuple = None
 
     @property
     def given(self):
-        return any(value is not None for value in (self.roi, self.points, self.step, self.n_points, self.p0))
+        return any(value is not None for value in (self.roi, self.points, self.step, self.n_points, self.p0,
+                                                   self.mask, self.exclude))
+
+    @property
+    def region_given(self):
+        return any(value is not None for value in (self.roi, self.mask, self.exclude))
+
+    def region(self):
+        """``PointsConfig``'s region fields from what was given (``PointsConfig.region_from_args``)."""
+        return PointsConfig.region_from_args(self)
 
     def check(self):
         """ValueError (one line) for a bad option: ``PointsConfig``'s checks, on what was given."""
-        PointsConfig(roi=parse_roi(self.roi), step=self.step,
-                     n_points=self.n_points if self.n_points is not None else DEFAULT_POINTS, p0=parse_p0(self.p0))
+        PointsConfig(step=self.step, n_points=self.n_points if self.n_points is not None else DEFAULT_POINTS,
+                     p0=parse_p0(self.p0), **self.region())
 
 
 def _list_of_numbers(value, count):
@@ -236,29 +245,51 @@ def _list_of_numbers(value, count):
     return None
 
 
+def recorded_region(metadata):
+    """The region a recording's points were placed in, as ``PointsConfig`` fields (``roi``, ``exclude``).
+
+    ``region`` (recordings since masks) says how; older ones give ``roi`` as X,Y,W,H or "full image".
+    A recorded mask file is read again when it is still there, else its region's bounding box is used.
+    """
+    region = metadata.get("region") if isinstance(metadata.get("region"), dict) else {}
+    exclude = tuple(parse_exclusion(text) for text in region.get("exclude") or ())
+    placed_by = region.get("placed_by")
+    if placed_by == "specimen":
+        return {"roi": ROI_AUTO, "exclude": exclude}
+    if placed_by == "given_region":
+        fields = {"roi": parse_roi(region["roi"]) if region.get("roi") else None, "exclude": exclude}
+        mask_file = region.get("mask")
+        if mask_file and os.path.exists(mask_file):
+            fields.update(mask=read_mask(mask_file), mask_file=mask_file)
+        elif mask_file and fields["roi"] is None:
+            bounds = _list_of_numbers(region.get("bounds"), 4)
+            fields["roi"] = tuple(int(v) for v in bounds) if bounds else None
+        return fields
+    recorded_roi = _list_of_numbers(metadata.get("roi"), 4)
+    if recorded_roi:
+        return {"roi": tuple(int(v) for v in recorded_roi), "exclude": exclude}
+    return {"roi": ROI_FULL, "exclude": exclude}
+
+
 def replay_points_config(metadata, options, recorded_xy):
     """The points to rebuild (``PointsConfig``): the options given, the rest from the session metadata.
 
-    What the user did not give comes from the session metadata (ROI, step, points
+    What the user did not give comes from the session metadata (region, step, points
     wanted, P0); a recording made from a points file keeps its recorded points.
     """
     defaults = run_defaults()
     given_points = points_file = None
     if options.points is not None:
         given_points, points_file = read_points_csv(options.points), options.points
-    elif options.roi is None and options.step is None and options.n_points is None \
+    elif not options.region_given and options.step is None and options.n_points is None \
             and metadata.get("points_file") not in (None, ""):
         if recorded_xy is None:
             raise ValueError(f"the recording tracked points from {metadata['points_file']}: give --points FILE.csv")
         given_points, points_file = recorded_xy, str(metadata["points_file"])
-    if options.roi is not None:
-        roi = parse_roi(options.roi)
-    else:
-        recorded_roi = _list_of_numbers(metadata.get("roi"), 4)
-        roi = tuple(int(v) for v in recorded_roi) if recorded_roi else None
+    region = options.region() if options.region_given else recorded_region(metadata)
     if options.step is not None:
         step = options.step
-    elif options.roi is not None or options.n_points is not None:
+    elif options.region_given or options.n_points is not None:
         step = None
     else:
         step = _recorded_value("subset", metadata.get("step"))     # an int or None (then from n_points)
@@ -266,7 +297,7 @@ def replay_points_config(metadata, options, recorded_xy):
     if n_points is None:
         n_points = _recorded_value("subset", metadata.get("n_points_wanted")) or defaults["n_points"]
     p0 = parse_p0(options.p0) if options.p0 is not None else _list_of_numbers(metadata.get("p0"), 2)
-    return PointsConfig(roi=roi, points_file=points_file, xy=given_points, step=step, n_points=n_points, p0=p0)
+    return PointsConfig(points_file=points_file, xy=given_points, step=step, n_points=n_points, p0=p0, **region)
 
 
 def build_replay_points(image, metadata, subset, options, recorded_xy):
@@ -277,13 +308,7 @@ def build_replay_points(image, metadata, subset, options, recorded_xy):
     places it now.
     """
     wanted = replay_points_config(metadata, options, recorded_xy)
-    grid = dict(roi=wanted.roi, step=wanted.step, n_points=wanted.n_points, subset=subset, points=wanted.xy)
-    p0 = wanted.p0
-    if p0 is None:
-        build_points(image.shape, **grid)                        # the ROI checked first
-        p0 = choose_p0(image, wanted.roi, subset).xy
-    points, _, _ = build_points(image.shape, p0=p0, **grid)
-    return points
+    return place_points(image, wanted, subset=subset).points
 
 
 # ----------------------------------------------------------------------------- the replay
@@ -731,7 +756,8 @@ def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
     check_output_csv(args.output, args.recording)
     given = {key: getattr(args, key) for key in METHOD_KEYS}
-    options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0)
+    options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
+                           mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
     strain = overrides_from_args(args)
     stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")

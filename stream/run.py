@@ -27,6 +27,7 @@ from livedic.stream.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, DEFAULT_S
                                    PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
                                    subpixel_method)
 from livedic.stream.csv_output import json_text, write_text_atomic
+from livedic.stream.points import add_region_arguments
 from livedic.stream.session import Session
 from livedic.stream.strain import add_strain_arguments
 from livedic.stream.stress import add_stress_arguments
@@ -42,12 +43,7 @@ def add_run_arguments(parser):
                              "aravis:[ID], v4l2:/dev/videoN, video:FILE, images:GLOB, mcap:FILE")
     parser.add_argument("--frames", type=int, metavar="N",
                         help="stop after N frames (synthetic: also the length of the test; default 300)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--roi", metavar="X,Y,W,H",
-                       help="region of interest for the point grid (default: the specimen gauge section for "
-                            "synthetic:tensile, else the whole image)")
-    where.add_argument("--points", metavar="FILE.csv",
-                       help="track these points (CSV with header x,y) instead of a grid")
+    add_region_arguments(parser)
     parser.add_argument("--step", type=int, metavar="S",
                         help="grid step in pixels (default: about --n-points points over the ROI)")
     parser.add_argument("--n-points", type=int, default=DEFAULT_POINTS, metavar="N",

@@ -49,8 +49,7 @@ from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.config import CAMERA_SCHEMES, VIEWER_NONE
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
-from livedic.stream.p0 import choose_p0
-from livedic.stream.points import build_points, check_point_count, read_points_csv
+from livedic.stream.points import PlacedBy, check_point_count, place_points, read_points_csv
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
@@ -311,6 +310,7 @@ class Session:
         self.bar = None
         self.points = None
         self.p0 = None
+        self.placement = None
         self.strain = None
         self.load = None
         self.load_stage = None
@@ -606,17 +606,17 @@ class Session:
             self._place_strain(first.image.shape)
             return
         wanted = config.points
-        subset = config.tracking.subset
-        given = self._given_xy
-        self._roi = wanted.roi if wanted.roi is not None else (None if given is not None else default_roi(self.source))
-        preview, _, preview_step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
-                                                n_points=wanted.n_points, subset=subset, p0=wanted.p0, points=given)
-        check_point_count(len(preview), wanted.max_points, how=wanted.how(preview_step), frames=self.total_frames,
-                          recording=config.record is not None)
-        self.p0 = choose_p0(first.image, self._roi, subset, p0=wanted.p0)
-        self.points, _, self._step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
-                                                  n_points=wanted.n_points, subset=subset, p0=self.p0.xy,
-                                                  points=given)
+        if self._given_xy is not None and wanted.xy is None:
+            wanted = dataclasses.replace(wanted, xy=self._given_xy)
+        suggested = default_roi(self.source) if wanted.xy is None else None
+        self.placement = place_points(first.image, wanted, subset=config.tracking.subset, suggested_roi=suggested)
+        check_point_count(len(self.placement.points), wanted.max_points, how=wanted.how(self.placement.step),
+                          frames=self.total_frames, recording=config.record is not None)
+        self.p0 = self.placement.p0
+        self.points = self.placement.points
+        self._step = self.placement.step
+        whole = self.placement.placed_by in (PlacedBy.POINTS, PlacedBy.WHOLE_IMAGE)
+        self._roi = None if whole else self.placement.bounds
         self._place_strain(first.image.shape)
 
     def _open_load(self):
@@ -675,6 +675,7 @@ class Session:
         return {
             "command": config.command, "source_uri": config.source, "source_settings": self._settings,
             "roi": list(self._roi) if self._roi else "full image", "step": wanted.step, "grid_step": self._step,
+            "region": self.placement.as_metadata() if self.placement is not None else None,
             "n_points_wanted": wanted.n_points, "points_file": wanted.points_file, "p0": list(p0),
             "p0_choice": self.p0.describe() if self.p0 is not None else "given with the points",
             **config.tracking.as_dict(),
@@ -728,10 +729,10 @@ class Session:
         if self.p0 is None:
             return tracker                      # given points: the caller's session (a replay) says what they are
         wanted = config.points
-        note = (f"reference frame {frame.index}: {len(self.points)} points"
-                + (f", grid step {self._step} px over ROI {','.join(map(str, self.reference.roi))}"
-                   if self._given_xy is None else f" from {wanted.points_file or 'the given points'}")
-                + f"; {self.p0.describe()}")
+        placed = self.placement.describe()
+        if self._given_xy is not None:
+            placed += f" from {wanted.points_file or 'the given points'}"
+        note = f"reference frame {frame.index}: {placed}; {self.p0.describe()}"
         has_truth = callable((frame.metadata or {}).get("truth"))
         if self.viewer is not None:
             self.viewer.start(image_shape=frame.image.shape, roi=self.reference.roi, p0_index=0, points=self.points,

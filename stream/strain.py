@@ -160,7 +160,8 @@ class StrainConfig:
         """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others.
 
         The default transverse length is 0.8 x the ROI width, shortened where needed to keep both
-        ends within ``x_range`` (the tracked points' x extent), P0 not being at the ROI's centre.
+        ends within ``x_range`` (the tracked points' x extent across P0's row: a specimen narrower there
+        than the ROI, P0 not at the ROI's centre).
         """
         placed = []
         if self.gauge_length is not None:
@@ -185,7 +186,7 @@ class StrainConfig:
         points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         windows = strain_window(points, window=self.window, step=step, subset=subset)
         try:
-            x_range = (points[:, 0].min(), points[:, 0].max()) if len(points) else None
+            x_range = _row_extent(points, p0, windows.step)
             extensometers = place_extensometers(self.resolve_extensometers(p0, roi, x_range), points,
                                                 step=windows.step)
         except ValueError as error:
@@ -219,6 +220,15 @@ class StrainConfig:
                         scale=_float_or_none(metadata.get("scale_px_per_mm")))
         recorded.update(overrides)
         return cls(**recorded)
+
+
+def _row_extent(points, p0, step):
+    """(x_min, x_max) of the points on P0's row (within half a grid step of it), else of all points; None if none."""
+    if not len(points):
+        return None
+    row = points[np.abs(points[:, 1] - float(p0[1])) <= 0.5 * float(step)]
+    chosen = row if len(row) >= 2 else points
+    return float(chosen[:, 0].min()), float(chosen[:, 0].max())
 
 
 def overrides_from_args(args):
