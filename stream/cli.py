@@ -17,6 +17,7 @@ import threading
 
 from livedic.stream.config import UsageError, search_method, subpixel_method
 from livedic.stream.points import add_region_arguments, read_points_table
+from livedic.stream.preview import add_preview_arguments, preview_command
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.strain import add_strain_arguments
@@ -137,6 +138,16 @@ def build_parser(extensions=()):
     run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
     add_run_arguments(run)
     run.set_defaults(handler=run_session)
+
+    preview = commands.add_parser("preview", help="draw a test's set-up before it starts: region, points, P0, "
+                                                  "extensometers, and what the image offers DIC",
+                                  description="Take the source's first frame, place the points, P0 and the "
+                                              "extensometers as livedic run would with the same options, and draw "
+                                              "them over it, beside the speckle contrast per subset (mean "
+                                              "intensity gradient) and the clipped pixels; the figures and any "
+                                              "advice are printed too.")
+    add_preview_arguments(preview)
+    preview.set_defaults(handler=preview_command)
 
     measure = commands.add_parser("measure", help="displacements of points between two images")
     measure.add_argument("reference", metavar="REF", help="reference image (8/16-bit grey PNG or TIFF)")

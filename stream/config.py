@@ -258,6 +258,12 @@ class TrackingConfig:
         return KeyFrameTracker(image, points, gates=Gates(min_zncc=min_zncc), **settings)
 
 
+def add_subset_argument(parser):
+    """``--subset``, declared once for ``run`` and ``preview`` (its default: ``TrackingConfig``'s)."""
+    parser.add_argument("--subset", type=int, default=TrackingConfig.subset, metavar="N",
+                        help=f"odd subset side, pixels (default {TrackingConfig.subset})")
+
+
 # ----------------------------------------------------------------------------- points
 
 @dataclass(frozen=True)

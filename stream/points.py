@@ -21,7 +21,7 @@ import numpy as np
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.validation import check_subset
 from livedic.dic.region import Rectangle, Region, Specimen, find_specimen, grid_in_region, placeable
-from livedic.stream.config import ROI_AUTO, ROI_FULL, UsageError
+from livedic.stream.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS, ROI_AUTO, ROI_FULL, UsageError
 from livedic.stream.p0 import P0Choice, choose_p0
 
 # Around a found specimen's edge a subset keeps this many px more inside it: the edge is found to about
@@ -83,6 +83,17 @@ def read_points_table(path):
     return xy, extras
 
 
+def default_roi(source):
+    """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
+    roi = getattr(source, "suggested_roi", None)
+    if roi is not None:
+        return tuple(int(v) for v in roi)
+    session = getattr(source, "session", None)
+    if isinstance(session, dict) and isinstance(session.get("roi"), (list, tuple)) and len(session["roi"]) == 4:
+        return tuple(int(v) for v in session["roi"])
+    return None
+
+
 def add_region_arguments(parser, *, points: bool = True) -> None:
     """Declare ``--roi``, ``--mask``, ``--exclude`` (and ``--points`` when ``points``) on an argparse parser.
 
@@ -102,6 +113,23 @@ def add_region_arguments(parser, *, points: bool = True) -> None:
     parser.add_argument("--exclude", action="append", metavar="SHAPE",
                         help="leave out an area no subset may reach into (a hole, a clip, a marker): circle:X,Y,R, "
                              "rect:X,Y,W,H or polygon:X1,Y1,X2,Y2,X3,Y3[,...] (px; repeatable)")
+
+
+def add_point_arguments(parser) -> None:
+    """Declare the point options of ``livedic run`` and ``preview``: the region (``add_region_arguments``),
+    ``--step``, ``--n-points``, ``--p0``, ``--max-points``."""
+    add_region_arguments(parser)
+    parser.add_argument("--step", type=int, metavar="S",
+                        help="grid step in pixels (default: about --n-points points over the region)")
+    parser.add_argument("--n-points", type=int, default=DEFAULT_POINTS, metavar="N",
+                        help=f"points wanted when --step is not given (default {DEFAULT_POINTS})")
+    parser.add_argument("--p0", metavar="X,Y",
+                        help="the traced point P0 (default: the best-textured point near the region's centre, never "
+                             "on a hole or background; a given P0 on weak texture is warned about)")
+    parser.add_argument("--max-points", type=int, default=DEFAULT_MAX_POINTS, metavar="N",
+                        help=f"refuse to start with more than N points (default {DEFAULT_MAX_POINTS:,}: about "
+                             f"{DEFAULT_MAX_POINTS * 7 // 1000} MB of tracker memory and a few frames a second on one "
+                             "core); raise it for slow tests on a big machine")
 
 
 class PlacedBy(enum.Enum):

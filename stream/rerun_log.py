@@ -4,7 +4,13 @@ Entity tree (paths are the constants below)::
 
     camera/image        the camera frame (Mono8 for display; downsampled by an integer
                         factor when larger than ``image_max_side``)
-    camera/roi          the region of interest (static box)
+    camera/roi          the region where the points go (static outline: the ROI's rectangle or polygon,
+                        the mask's or the found specimen's edge), and the exclusions in red
+    setup/...           the set-up as ``livedic preview`` draws it (static, its own view): the reference
+                        frame (setup/image), the speckle contrast per subset (setup/mig, colour-mapped,
+                        with clipped pixels red), the region and exclusions, the points (weak contrast in
+                        orange), P0 with its subset, the extensometers labelled with L0; setup_notes the
+                        preview's figures and advice
     camera/p0           the traced point P0 at its current position
     camera/field_u      u at every ok point, drawn at its current position, colour-mapped
     camera/field_v      v, the same way
@@ -129,6 +135,8 @@ VIEWER_MODES = ("spawn", "connect", "save", "none")
 CAMERA = "camera"
 CAMERA_IMAGE = "camera/image"
 CAMERA_ROI = "camera/roi"
+SETUP = "setup"
+SETUP_NOTES = "setup_notes"
 CAMERA_P0 = "camera/p0"
 FIELD_U = "camera/field_u"
 FIELD_V = "camera/field_v"
@@ -665,8 +673,11 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- setup
     def start(self, *, image_shape, roi=None, p0_index=None, points=None, has_truth=False, title=None,
-              source_settings=None, strain=None, load=None):
+              source_settings=None, strain=None, load=None, setup=None):
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
+
+        ``setup`` is the session's ``stream.preview.SetupOverlay`` (None: the ROI's box only): the region's
+        outline on the camera view and the set-up view (``log_setup``).
 
         ``strain`` is the session's ``stream.strain.StrainStage`` (None: no strain): with it the view
         adds e_yy, the extensometers and their plots (module notes). ``load`` is the session's
@@ -684,7 +695,7 @@ class RerunLogger:
             scale += 1
         self._scale = scale
         self._p0 = p0_index
-        blueprint = self._make_blueprint(has_truth, strain, load)
+        blueprint = self._make_blueprint(has_truth, strain, load, setup=setup is not None)
         if self.mode == "save":
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
@@ -701,7 +712,9 @@ class RerunLogger:
             if path == ERROR and not has_truth:
                 continue
             rec.log(path, rr.SeriesLines(names=names, colors=colours), static=True)
-        if roi is not None:
+        if setup is not None:
+            self.log_setup(setup)
+        elif roi is not None:
             x, y, w, h = roi
             rec.log(CAMERA_ROI, rr.Boxes2D(mins=[[x / scale - 0.5, y / scale - 0.5]], sizes=[[w / scale, h / scale]],
                                            colors=[(255, 200, 0)], labels=["ROI"]), static=True)
@@ -729,6 +742,74 @@ class RerunLogger:
             lines += ["", "| setting | value |", "|---|---|"]
             lines += [f"| {k} | {v} |" for k, v in source_settings.items()]
         rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
+
+    def log_setup(self, setup):
+        """The set-up (a ``stream.preview.SetupOverlay``): the region's outline on the camera view, and the
+        set-up view as ``livedic preview`` draws it (module notes). Static: logged once, at the start."""
+        rr, rec = self.rr, self.rec
+        preview = setup                 # the overlay carries the palette the preview draws in
+        scale = float(self._scale)
+
+        def strips(polylines):
+            return [np.asarray(line, dtype=np.float64) / scale for line in polylines]
+
+        region = strips(setup.outlines)
+        excluded = strips(setup.exclusions)
+        outline = rr.LineStrips2D(region + excluded, radii=-1.5, colors=[preview.REGION_COLOUR] * len(region)
+                                  + [preview.EXCLUDED_COLOUR] * len(excluded))
+        # Rerun puts a strip's label at its middle, where P0 and the extensometers cross: the labels are
+        # points of their own, at the places ``livedic preview`` puts them
+        x0, y0 = (min(float(line[:, k].min()) for line in region) if region else 0.0 for k in (0, 1))
+        labels = [((x0, y0), setup.region_label, preview.REGION_COLOUR)]
+        labels += [((float(line[:, 0].max()), float(line[:, 1].min())), "excluded", preview.EXCLUDED_COLOUR)
+                   for line in excluded]
+        for path in (CAMERA_ROI, f"{SETUP}/region"):
+            rec.log(path, outline, static=True)
+        rec.log(f"{CAMERA_ROI}/labels", self._label_points(labels), static=True)
+        image = setup.image
+        rec.log(f"{SETUP}/image", rr.Image(self._display_image(image, setup.pixel_format)), static=True)
+        quality = setup.quality
+        inside = setup.placement.region
+        top = float(np.percentile(quality.mig[inside], 99)) if inside.any() else 1.0
+        index = np.clip(quality.mig / max(top, 1e-6) * 255.0, 0, 255).astype(np.uint8)
+        rgba = np.dstack([self._lut[index], np.where(inside, 150, 0).astype(np.uint8)])
+        rgba[quality.clipped & inside] = (*preview.CLIPPED_COLOUR, 255)
+        if self._scale > 1:
+            rgba = np.ascontiguousarray(rgba[::self._scale, ::self._scale])
+        rec.log(f"{SETUP}/mig", rr.Image(rgba), static=True)
+        points = setup.placement.points / scale
+        colours = np.where(setup.weak[:, None], preview.WEAK_POINT_COLOUR, preview.POINT_COLOUR).astype(np.uint8)
+        rec.log(f"{SETUP}/points", rr.Points2D(points, colors=colours, radii=-1.5), static=True)
+        half = setup.subset / 2.0 / scale
+        p0 = points[0]
+        rec.log(f"{SETUP}/p0", rr.Boxes2D(mins=[p0 - half], sizes=[[2 * half, 2 * half]], colors=[preview.P0_COLOUR],
+                                          radii=-1.5), static=True)
+        labels.append(((float(p0[0] - half), float(p0[1] + half)), f"P0 ({setup.subset} px subset)",
+                       preview.P0_COLOUR))
+        if setup.extensometers:
+            colours = [preview.EXTENSOMETER_COLOURS[k % len(preview.EXTENSOMETER_COLOURS)]
+                       for k in range(len(setup.extensometers))]
+            rec.log(f"{SETUP}/extensometers",
+                    rr.LineStrips2D([[(e.x1 / scale, e.y1 / scale), (e.x2 / scale, e.y2 / scale)]
+                                     for e in setup.extensometers], colors=colours, radii=-2.0), static=True)
+            for e, colour in zip(setup.extensometers, colours):
+                # the far end along x, the upper end along y: clear of the crossing at P0
+                along_y = abs(e.y2 - e.y1) >= abs(e.x2 - e.x1)
+                end = min(((e.x1, e.y1), (e.x2, e.y2)), key=lambda p: p[1] if along_y else -p[0])
+                labels.append(((end[0] / scale, end[1] / scale), setup.extensometer_label(e), colour))
+        rec.log(f"{SETUP}/labels", self._label_points(labels), static=True)
+        advice = setup.advice()
+        notes = ["# set-up", "", *(f"- {line}" for line in setup.lines()), "",
+                 "**check:**" if advice else "nothing to check: pattern, exposure and focus look fit for DIC",
+                 *(f"- {line}" for line in advice)]
+        rec.log(SETUP_NOTES, rr.TextDocument("\n".join(notes), media_type=rr.MediaType.MARKDOWN), static=True)
+
+    def _label_points(self, labels):
+        """Points2D that carry ``labels`` [((x, y) display px, text, colour)]: small dots, labels shown."""
+        rr = self.rr
+        return rr.Points2D([xy for xy, _, _ in labels], labels=[text for _, text, _ in labels],
+                           colors=[colour for _, _, colour in labels], radii=-2.0, show_labels=True,
+                           draw_order=_MARKER_DRAW_ORDER + 2)
 
     def _plan_plots(self, strain, load):
         """The XY plots this session shows: transverse vs axial, stress-strain (None where it has not the data)."""
@@ -767,13 +848,17 @@ class RerunLogger:
         raise ValueError(f"the Rerun viewer did not start listening on 127.0.0.1:{DEFAULT_PORT} within 10 s; "
                          "use --viewer save FILE.rrd instead")
 
-    def _make_blueprint(self, has_truth, strain=None, load=None):
+    def _make_blueprint(self, has_truth, strain=None, load=None, *, setup=False):
         import rerun.blueprint as rrb
         self._plan_plots(strain, load)
         field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
         extensometers = [f"/{EXTENSOMETER_LINES}"] if strain is not None else []
+        camera = rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi/**", *extensometers])
+        if setup:      # the set-up a tab behind the camera: one click away, the live image in front
+            camera = rrb.Tabs(camera, rrb.Spatial2DView(name="set-up", origin=SETUP),
+                              rrb.TextDocumentView(name="set-up notes", origin=SETUP_NOTES), active_tab=0)
         image_views = [
-            rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi", *extensometers]),
+            camera,
             rrb.Spatial2DView(name="u (px)", origin=CAMERA, contents=[*field, f"/{FIELD_U}"]),
             rrb.Spatial2DView(name="v (px)", origin=CAMERA, contents=[*field, f"/{FIELD_V}"]),
         ]

@@ -49,7 +49,8 @@ from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.config import CAMERA_SCHEMES, VIEWER_NONE
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
-from livedic.stream.points import PlacedBy, check_point_count, place_points, read_points_csv
+from livedic.stream.points import PlacedBy, check_point_count, default_roi, place_points, read_points_csv
+from livedic.stream.preview import setup_overlay
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
@@ -185,17 +186,6 @@ def check_viewer_reachable(url, timeout_s=1.0):
                          f"--viewer save FILE.rrd or --viewer none") from None
 
 
-def default_roi(source):
-    """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
-    roi = getattr(source, "suggested_roi", None)
-    if roi is not None:
-        return tuple(int(v) for v in roi)
-    session = getattr(source, "session", None)
-    if isinstance(session, dict) and isinstance(session.get("roi"), (list, tuple)) and len(session["roi"]) == 4:
-        return tuple(int(v) for v in session["roi"])
-    return None
-
-
 def drop_policy(choice, source, scheme):
     """Queue policy: as chosen, or (auto) drop the oldest for live sources and block for files."""
     if choice != "auto":
@@ -311,6 +301,7 @@ class Session:
         self.points = None
         self.p0 = None
         self.placement = None
+        self._setup = None                      # the set-up drawn in the view (stream.preview.SetupOverlay)
         self.strain = None
         self.load = None
         self.load_stage = None
@@ -618,6 +609,11 @@ class Session:
         whole = self.placement.placed_by in (PlacedBy.POINTS, PlacedBy.WHOLE_IMAGE)
         self._roi = None if whole else self.placement.bounds
         self._place_strain(first.image.shape)
+        # the set-up as livedic preview draws it: its advice said now, the overlay in the view
+        self._setup = setup_overlay(first.image, self.placement, self.strain, subset=config.tracking.subset,
+                                    scale=config.strain.scale, source=config.source,
+                                    bit_depth=(first.metadata or {}).get("bit_depth"),
+                                    pixel_format=first.pixel_format)
 
     def _open_load(self):
         """The machine's force source (``--load``), checked before any output opens (one line if bad).
@@ -737,8 +733,12 @@ class Session:
         if self.viewer is not None:
             self.viewer.start(image_shape=frame.image.shape, roi=self.reference.roi, p0_index=0, points=self.points,
                               has_truth=has_truth, title=f"livedic run: {config.source}",
-                              source_settings=self._settings, strain=self.strain, load=self.load_stage)
-        self.event("note", note, tell=False)
+                              source_settings=self._settings, strain=self.strain, load=self.load_stage,
+                              setup=self._setup)
+        # an automatic choice is said: the user did not say where the points go
+        self.event("note", note, tell=self.placement is not None and self.placement.placed_by is PlacedBy.SPECIMEN)
+        for line in self._setup.advice() if self._setup is not None else ():
+            self.event("note", f"set-up: {line}", tell=True)
         if self.strain is not None:
             self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))
         names = [e.name for e in self.strain.extensometers] if self.strain is not None else []
