@@ -105,12 +105,13 @@ def add_field_arguments(parser):
                             f"DIR/{PVD_FILE}, the time series (default; --no-vtk: none)")
     group.add_argument("--map-range", action="append", metavar="Q=LO,HI",
                        help="fixed colour range of quantity Q, in the unit of its colour bar (px, mm with --scale, "
-                            "% or microstrain), e.g. eyy=0,20 (repeatable; default: automatic, one range for the "
+                            "%% or microstrain), e.g. eyy=0,20 (repeatable; default: automatic, one range for the "
                             "whole sequence)")
     group.add_argument("--map-opacity", type=float, default=DEFAULT_OPACITY, metavar="A",
                        help=f"opacity of the field over the camera image, 0..1 (default {DEFAULT_OPACITY:g})")
     group.add_argument("--strain-unit", choices=tuple(STRAIN_UNITS), default=DEFAULT_STRAIN_UNIT,
-                       help=f"unit of strain on the maps (default {DEFAULT_STRAIN_UNIT}); the CSV and VTK files "
+                       help=f"unit of strain on the maps (default {DEFAULT_STRAIN_UNIT.replace('%', '%%')}); the CSV "
+                            f"and VTK files "
                             f"hold plain numbers")
     return parser
 

@@ -371,3 +371,11 @@ def test_a_signal_during_the_export_says_what_was_left_in_one_line(signum, code,
     assert len(_rows(out / "p0_trace.csv")) == 24 and len(_rows(out / "fields.csv")) == 24 * 211
     assert json.loads((out / "session.json").read_text())["livedic.export"]["frames_with_results"] == 24
     assert _partial_files(out) == [] and not (out / "fields.pvd").exists() and not (out / "overlay_eyy.mp4").exists()
+
+
+def test_export_help_lists_the_field_options(capsys):
+    """--help prints (the '%' of the strain unit must not break argparse's help formatting)."""
+    assert main(["export", "--help"]) == 0
+    text = capsys.readouterr().out
+    assert all(option in text for option in ("--maps", "--every", "--video", "--no-vtk", "--map-range",
+                                             "--strain-unit {%,microstrain}", "--progress"))
