@@ -16,8 +16,10 @@ import sys
 import threading
 
 from livedic.stream.config import UsageError, search_method, subpixel_method
+from livedic.stream.field_export import add_field_arguments
 from livedic.stream.points import add_region_arguments, read_points_table
 from livedic.stream.preview import add_preview_arguments, preview_command
+from livedic.stream.progress import add_progress_argument
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.strain import add_strain_arguments
@@ -200,7 +202,7 @@ def build_parser(extensions=()):
     replay.set_defaults(handler=replay_command)
 
     export = commands.add_parser("export", help="write a recording's results as CSV (P0 trace, fields, strain, "
-                                                "extensometers, events)",
+                                                "extensometers, events), maps, an overlay video and VTK",
                                  description="Write DIR/p0_trace.csv, DIR/fields.csv (with the strain exx,eyy,exy), "
                                              "DIR/events.csv, DIR/session.json, DIR/extensometers.csv and "
                                              "DIR/extensometers.png from a recording (complete or truncated). "
@@ -208,12 +210,18 @@ def build_parser(extensions=()):
                                              "displacements with the recorded settings, or the options below. "
                                              "With --load csv:FILE and the cross-section (--area, or --width and "
                                              "--thickness) also DIR/stress_strain.csv and DIR/stress_strain.png "
-                                             "(strain of the axial extensometer).")
+                                             "(strain of the axial extensometer). Then the fields as pictures: "
+                                             "PNG maps over the camera images (DIR/maps/), an overlay video "
+                                             "(DIR/overlay_eyy.mp4) and VTK for ParaView (DIR/vtk/, "
+                                             "DIR/fields.pvd). Ctrl-C or SIGTERM stops it: the files finished "
+                                             "are kept whole, exit 130 or 143.")
     export.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
     add_strain_arguments(export, recorded=True)
     add_stress_arguments(export)
+    add_field_arguments(export)
+    add_progress_argument(export)
     export.set_defaults(handler=_cmd_export)
 
     report = commands.add_parser("report", help="tensile test report: E, Rp0.2, Rm, Ag, A (ISO 6892-1) from a "

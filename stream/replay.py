@@ -74,7 +74,7 @@ from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsCon
                                    parse_exclusion, parse_p0, parse_roi, read_mask,
                                    search_method, subpixel_method)
 from livedic.stream.points import add_region_arguments, place_points, read_points_csv
-from livedic.stream.progress import ProgressBar
+from livedic.stream.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay_rows import frame_rows, with_force_columns
 from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
@@ -137,8 +137,7 @@ def add_replay_arguments(parser):
                           help="the workers read the frames from the recording themselves (a shared file system; "
                                "PATH: the recording as the workers see it, default the same path) instead of "
                                "receiving each image from this process")
-    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
-                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+    add_progress_argument(parser)
     add_strain_arguments(parser, recorded=True)
     add_stress_arguments(parser)
     return parser
@@ -761,8 +760,7 @@ def replay_command(args):
     strain = overrides_from_args(args)
     stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")
-    show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
-    bar = ProgressBar(None, enabled=show_progress)
+    bar = ProgressBar(None, enabled=progress_enabled(args.progress))
     state = {"header": None}
 
     def write_rows(out):

@@ -278,6 +278,14 @@ def colormap_lut():
     return cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)[:, 0, ::-1].copy()
 
 
+def display_gray(image, pixel_format=""):
+    """A camera image as 8-bit grey for display: 16-bit images shifted down (Mono12 by 4 bits, others by 8)."""
+    if image.dtype != np.uint8:
+        shift = 4 if pixel_format == "Mono12" else 8
+        image = (image >> shift).astype(np.uint8)
+    return image
+
+
 def pack_colours(rgb):
     """(N, 3) uint8 RGB -> (N,) uint32 0xRRGGBBAA, opaque: what Rerun stores, without its per-call conversion."""
     rgb = np.asarray(rgb, dtype=np.uint32).reshape(-1, 3)
@@ -1017,9 +1025,7 @@ class RerunLogger:
         self.rec.log(EVENTS, rr.TextLog(message, level=levels.get(level, rr.TextLogLevel.INFO)))
 
     def _display_image(self, image, pixel_format):
-        if image.dtype != np.uint8:
-            shift = 4 if pixel_format == "Mono12" else 8
-            image = (image >> shift).astype(np.uint8)
+        image = display_gray(image, pixel_format)
         if self._scale > 1:
             import cv2
             h, w = image.shape

@@ -4,6 +4,7 @@ the CSV files, bad input, and the sample shipped in recordings/."""
 import csv
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -197,13 +198,20 @@ def test_replay_of_a_truncated_recording_uses_the_recovered_frames(killed, tmp_p
 # --------------------------------------------------------------------------- export
 
 EXPORTED = ["events.csv", "extensometers.csv", "extensometers.png", "fields.csv", "p0_trace.csv", "session.json"]
+PICTURES = ["fields.pvd", "maps", "overlay_eyy.mp4", "vtk"]     # the fields as pictures: test_export_fields.py
+
+
+def _file_bytes(folder):
+    """Relative path -> contents of every file under ``folder``."""
+    paths = [os.path.join(top, name) for top, _, names in os.walk(folder) for name in names]
+    return {os.path.relpath(path, folder): Path(path).read_bytes() for path in paths}
 
 
 def test_export_writes_the_six_files_and_refuses_to_overwrite(recording, tmp_path, capsys):
     target = tmp_path / "export"
     capsys.readouterr()
     assert main(["export", recording, "-o", str(target)]) == 0
-    assert sorted(os.listdir(target)) == EXPORTED
+    assert sorted(os.listdir(target)) == sorted(EXPORTED + PICTURES)
     results = read_results(recording)
     n = results[0].u.size
     header, trace = _rows(target / "p0_trace.csv")
@@ -223,13 +231,13 @@ def test_export_writes_the_six_files_and_refuses_to_overwrite(recording, tmp_pat
     assert session["subpixel"] == recorded["subpixel"] == "icgn" and session["roi"] == recorded["roi"]
     assert session["livedic.export"]["truncated"] is False and session["livedic.export"]["p0_id"] == 0
 
-    before = {name: (target / name).read_bytes() for name in os.listdir(target)}
+    before = _file_bytes(target)
     capsys.readouterr()
     assert main(["export", recording, "-o", str(target)]) == 2
     assert "--overwrite" in _one_error_line(capsys.readouterr().err)
-    assert {name: (target / name).read_bytes() for name in os.listdir(target)} == before
+    assert _file_bytes(target) == before
     assert main(["export", recording, "-o", str(target), "--overwrite"]) == 0
-    assert sorted(os.listdir(target)) == EXPORTED
+    assert sorted(os.listdir(target)) == sorted(EXPORTED + PICTURES)
 
 
 def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
@@ -443,7 +451,9 @@ def test_replay_and_export_files_get_the_usual_permissions_and_strict_json(recor
     assert main(["replay", recording, "-o", str(tmp_path / "replay.csv"), "--progress", "off"]) == 0
     assert main(["export", recording, "-o", str(tmp_path / "export")]) == 0
     assert (tmp_path / "replay.csv").stat().st_mode & 0o777 == expected
-    for name in os.listdir(tmp_path / "export"):
+    written = _file_bytes(tmp_path / "export")          # every file, the maps, video and VTK files too
+    assert len(written) > len(EXPORTED)
+    for name in written:
         assert (tmp_path / "export" / name).stat().st_mode & 0o777 == expected, name
     text = (tmp_path / "export" / "session.json").read_text()
     json.loads(text, parse_constant=lambda name: pytest.fail(f"session.json holds {name}: not JSON"))
