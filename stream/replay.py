@@ -53,12 +53,10 @@ In parallel (``--workers N``: a local Dask cluster of N worker processes; ``--cl
 ADDRESS``: an existing Dask scheduler) every frame is measured on its own, started from
 the recorded result of the frame before it (``stream.parallel_replay``), and the results
 come back in frame order to the same session: the CSV, the comparison and its verdict are
-the sequential replay's (u, v within 1e-4 px; bit for bit on the tests' recordings).
-``--shared-path`` lets the workers read the frames from the file instead of receiving
-them. Reference updates and fractures are followed as sequentially (the frames after one
-are measured against the tracker that frame left); from there on the numbers are equal
-within rounding (~1e-14 px), not bit for bit: each frame starts from the recorded result
-before it mapped onto the key frame.
+the sequential replay's (bit for bit on the machine that recorded; within rounding of it
+elsewhere). ``--shared-path`` lets the workers read the frames from the file instead of
+receiving them. Reference updates and fractures are followed as sequentially (the frames
+after one are measured against the tracker that frame left).
 """
 
 import enum
@@ -372,9 +370,6 @@ class ReplayReport:
             within = (f"within floating-point rounding (max {self.max_difference_px:.2g} px <= "
                       f"{_short(ROUNDING_TOLERANCE_PX)} px tolerance): {size}, the same points ok; bit-exact only "
                       f"on the machine that recorded it")
-            if self.parallel is not None and self.parallel.segments > 1:
-                within += (", and in parallel after a reference move or a fracture (each frame starts from the "
-                           "recorded result before it, mapped onto the key frame)")
             if changes:
                 return f"replay with changed parameters ({changes}) agrees with the recording {within}"
             return f"replay agrees with the recording {within}"
