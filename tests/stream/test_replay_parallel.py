@@ -87,8 +87,9 @@ def _replay(recording, out, *extra, capsys=None):
 
 
 def _assert_same(parallel, sequential, *, verdict=True):
-    """Same header, same (frame, point) rows in the same order, ok/status equal, numbers within 1e-4 px (and the
-    same verdict line: ``verdict``)."""
+    """Same header, same (frame, point) rows in the same order, ok/status equal, numbers within the replay's rounding
+    tolerances (u, v and the strains 1e-4, ZNCC ``ROUNDING_TOLERANCE_ZNCC``; and the same verdict line: ``verdict``)."""
+    from livedic.stream.replay import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC
     rows, _, _ = parallel
     seq_rows, seq_verdict, _ = sequential
     assert rows[0] == seq_rows[0]
@@ -102,7 +103,8 @@ def _assert_same(parallel, sequential, *, verdict=True):
     for name in ("ok", "status"):
         column = header.index(name)
         assert np.array_equal(a[:, column], b[:, column]), name
-    for name, tolerance in (("u", 1e-4), ("v", 1e-4), ("zncc", 1e-6), ("exx", 1e-4), ("eyy", 1e-4)):
+    for name, tolerance in (("u", ROUNDING_TOLERANCE_PX), ("v", ROUNDING_TOLERANCE_PX), ("zncc", ROUNDING_TOLERANCE_ZNCC),
+                            ("exx", 1e-4), ("eyy", 1e-4)):
         column = header.index(name)
         assert np.array_equal(np.isnan(a[:, column]), np.isnan(b[:, column])), name
         both = np.isfinite(a[:, column])
