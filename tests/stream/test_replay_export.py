@@ -399,15 +399,17 @@ def _ok_flipped(i, m):
     ("rounding", "WITHIN_ROUNDING", "agrees with the recording within floating-point rounding (max 1.8e-06 px <= "
                                     "1e-4 px tolerance): 6 frames x"),
     ("beyond", "DIFFERS", "replay differs from the recording on 5 of 6 frames x"),
+    ("zncc-rounding", "WITHIN_ROUNDING", "agrees with the recording within floating-point rounding (max 0 px <= "),
     ("zncc", "DIFFERS", "replay differs from the recording on 5 of 6 frames x"),
     ("ok-flip", "DIFFERS", "ok differs at 1 and NaN at 0 point-frames"),
 ])
 def test_replay_says_exact_within_rounding_or_differs(case, agreement, words, tmp_path, capsys):
-    """Bit for bit, within floating-point rounding (1e-4 px, ZNCC 1e-6, the same points ok), or different:
-    the verdict is the report's ``agreement`` (data), and the line says the same."""
-    from livedic.stream.replay import Agreement, replay
+    """Bit for bit, within floating-point rounding (1e-4 px, ZNCC ``ROUNDING_TOLERANCE_ZNCC``, the same points ok),
+    or different: the verdict is the report's ``agreement`` (data), and the line says the same."""
+    from livedic.stream.replay import ROUNDING_TOLERANCE_ZNCC, Agreement, replay
     change = {"same": _shifted(0.0), "rounding": _shifted(1.8e-6), "beyond": _shifted(2e-4),
-              "zncc": _shifted(0.0, dzncc=1e-5), "ok-flip": _ok_flipped}[case]
+              "zncc-rounding": _shifted(0.0, dzncc=0.5 * ROUNDING_TOLERANCE_ZNCC),
+              "zncc": _shifted(0.0, dzncc=2 * ROUNDING_TOLERANCE_ZNCC), "ok-flip": _ok_flipped}[case]
     path = _recording_with_offsets(tmp_path / f"{case}.mcap", change)
     report = replay(path)
     assert report.agreement is Agreement[agreement]
