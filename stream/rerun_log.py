@@ -114,6 +114,7 @@ from collections import deque
 
 import numpy as np
 
+from livedic.acquire.pixel_formats import FRAME_BIT_DEPTH
 from livedic.dic.extensometer import end_displacements
 from livedic.dic.tensile_properties import FRACTURE_DROP
 from livedic.stream.load_stage import axial_strain
@@ -933,7 +934,8 @@ class RerunLogger:
 
     def _display_image(self, image, pixel_format):
         if image.dtype != np.uint8:
-            shift = 4 if pixel_format == "Mono12" else 8
+            # the top 8 of the significant bits: a 10- or 12-bit camera's uint16 holds 0..1023 or 0..4095
+            shift = FRAME_BIT_DEPTH.get(pixel_format, 16) - 8
             image = (image >> shift).astype(np.uint8)
         if self._scale > 1:
             import cv2
