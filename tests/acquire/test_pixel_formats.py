@@ -72,3 +72,29 @@ def test_short_buffers_and_values_too_wide_are_refused():
         pack(np.array([[4096]]), FORMATS["Mono12p"])
     with pytest.raises(ValueError, match="not a packed format"):
         unpack(np.zeros(8, np.uint8), FORMATS["Mono16"], 2, 2)
+
+
+def test_a_12_bit_camera_is_tracked_as_its_8_bit_twin():
+    """No grey-level threshold assumes 8 bits or a full 16-bit range: the same scene with 4 more bits
+    (x 16, what a 12-bit camera holds in its uint16) gives the same points, statuses and displacements,
+    a hole and a flat background included (the texture gate and P0's choice are relative)."""
+    from livedic import dic
+    from livedic.dic.speckle import SpecklePattern, affine, render
+    from livedic.stream.p0 import choose_p0
+
+    pattern = SpecklePattern((160, 200), radius=3.0, seed=11)
+    reference = render(pattern, bit_depth=8)
+    deformed = render(pattern, affine(u=0.6, v=-0.3, vy=0.004, centre=(100, 80)), bit_depth=8)
+    for image in (reference, deformed):
+        image[:, :40] = 30                                   # background
+        image[60:100, 120:160] = 250                         # a saturated hole
+    points = [(x, y) for y in range(20, 141, 12) for x in range(20, 181, 12)]
+    eight = dic.measure(reference, deformed, points, subpixel="icgn")
+    twelve = dic.measure(reference.astype(np.uint16) << 4, deformed.astype(np.uint16) << 4, points,
+                         subpixel="icgn")
+    assert 0 < eight.ok.sum() < len(points)                   # the gates had something to say
+    assert np.array_equal(twelve.status, eight.status)
+    np.testing.assert_allclose(twelve.u[eight.ok], eight.u[eight.ok], atol=1e-6)
+    np.testing.assert_allclose(twelve.v[eight.ok], eight.v[eight.ok], atol=1e-6)
+    np.testing.assert_allclose(twelve.zncc[eight.ok], eight.zncc[eight.ok], atol=1e-9)
+    assert choose_p0(reference.astype(np.uint16) << 4, None, 21) == choose_p0(reference, None, 21)
