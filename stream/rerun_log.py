@@ -120,6 +120,7 @@ from collections import deque
 
 import numpy as np
 
+from livedic.acquire.pixel_formats import FRAME_BIT_DEPTH
 from livedic.dic.extensometer import end_displacements
 from livedic.dic.tensile_properties import FRACTURE_DROP
 from livedic.stream.load_stage import axial_strain
@@ -279,9 +280,10 @@ def colormap_lut():
 
 
 def display_gray(image, pixel_format=""):
-    """A camera image as 8-bit grey for display: 16-bit images shifted down (Mono12 by 4 bits, others by 8)."""
+    """A camera image as 8-bit grey for display: the top 8 of its significant bits (a 10- or 12-bit camera's
+    uint16 holds 0..1023 or 0..4095; Mono16 and unknown formats 16 bits)."""
     if image.dtype != np.uint8:
-        shift = 4 if pixel_format == "Mono12" else 8
+        shift = FRAME_BIT_DEPTH.get(pixel_format, 16) - 8
         image = (image >> shift).astype(np.uint8)
     return image
 
