@@ -305,10 +305,14 @@ def place_points(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple
         region_for_p0 = allowed if (spec.mask is not None or spec.exclude) else None
     else:
         if not allowed.any():
+            if placed_by is PlacedBy.SPECIMEN and not specimen.mask.any():
+                raise ValueError("no speckled area in the first frame (a blank, unpainted or out-of-focus view?): "
+                                 "point the camera at the speckled specimen, or say where the points go with "
+                                 "--roi X,Y,W,H (--roi full: the whole image)")
             where = spec.describe() if placed_by is PlacedBy.GIVEN_REGION else placed_by.value
-            raise ValueError(f"{where} holds no whole {subset}x{subset} subset"
-                             + (" (no speckled area found: give --roi)" if placed_by is PlacedBy.SPECIMEN else
-                                ": enlarge the region or use a smaller --subset"))
+            raise ValueError(f"{where} holds no whole {subset}x{subset} subset: "
+                             + ("give --roi, or a smaller --subset" if placed_by is PlacedBy.SPECIMEN else
+                                "enlarge the region or use a smaller --subset"))
         step = wanted.step if wanted.step is not None else _step_for(allowed, wanted.n_points)
         grid = grid_in_region(allowed, step)
         region_for_p0 = allowed

@@ -85,7 +85,8 @@ def test_livedic_run_streams_every_uri_livedic_cameras_prints(arv_fake_gv, tmp_p
     assert "aravis:Aravis-Fake-GV01" in printed, listing.stdout
     for uri in [*printed, "aravis:", "aravis:127.0.0.1"]:
         summary = tmp_path / "summary.json"
-        done = livedic("run", "--source", uri, "--frames", "6", "--drop", "block", "--n-points", "50",
+        # the simulator's picture is a ramp, not speckle: the points go over the whole image (--roi full)
+        done = livedic("run", "--source", uri, "--frames", "6", "--drop", "block", "--n-points", "50", "--roi", "full",
                        "--no-record", "--viewer", "none", "--progress", "off", "--summary-json", str(summary),
                        cwd=tmp_path)
         assert done.returncode == 0, (uri, done.stderr)
@@ -191,7 +192,7 @@ def test_the_recording_keeps_what_the_camera_reported(arv_fake_gv, tmp_path):
     from livedic.acquire.mcap_replay import read_session
     record = tmp_path / "camera.mcap"
     done = livedic("run", "--source", f"aravis:Aravis-Fake-GV01?{RAMP}&roi=0,0,256,192&feature.GainRaw=0"
-                   "&feature.TestBoolean=true", "--frames", "4", "--n-points", "30", "--record", str(record),
+                   "&feature.TestBoolean=true", "--frames", "4", "--n-points", "30", "--roi", "full", "--record", str(record),
                    "--viewer", "none", "--progress", "off", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     settings = read_session(str(record))["source_settings"]
