@@ -5,10 +5,14 @@ runs compare as numbers). ``images:run1`` (a folder) takes every PNG/TIFF in it.
 The path after ``images:`` is taken verbatim (``?`` and ``*`` are glob wildcards),
 so options go as keyword arguments of :func:`open_uri`, never in the URI.
 
-Files are read one at a time by :func:`acquire.image_io.read_grey_image`: a
-missing, corrupt, truncated, float or 32-bit file raises ``SourceError`` naming
-it when its turn comes; so does a file whose size or bit depth differs from the
-first. Colour files are converted to grey with a note logged once.
+Before the first frame every file's header is read (``read_image_header``: the
+size, and the bit depth of grey files): a file of another size or bit depth than
+the first, or one that is no image, is refused when the source opens, so the
+session never starts on a sequence it cannot finish. Files are then decoded one
+at a time by :func:`acquire.image_io.read_grey_image`: a truncated or corrupt
+file, a float or 32-bit one, or a colour file whose bit depth differs (headers
+do not tell it) raises ``SourceError`` naming it when its turn comes. Colour
+files are converted to grey with a note logged once.
 Timestamps are ``index / frame_rate`` (default 1 fps): files carry no capture time.
 """
 
@@ -19,7 +23,7 @@ import re
 import time
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
-from livedic.acquire.image_io import read_grey_image
+from livedic.acquire.image_io import read_grey_image, read_image_header
 from livedic.acquire.options import as_bool, as_float
 
 __all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
@@ -48,6 +52,25 @@ def _find(pattern):
     return sorted(names, key=natural_key)
 
 
+def _check_alike(files):
+    """SourceError (one line) at the first file whose header differs in size or bit depth from the first's."""
+    try:
+        first = read_image_header(files[0])
+        for path in files[1:]:
+            header = read_image_header(path)
+            if (header.width, header.height) != (first.width, first.height):
+                raise SourceError(
+                    f"{path} is {header.width}x{header.height} but the first image {files[0]} is "
+                    f"{first.width}x{first.height}: every image of a sequence must have the same size "
+                    f"(remove it, or crop all images alike)")
+            if None not in (header.bits, first.bits) and header.bits != first.bits:
+                raise SourceError(
+                    f"{path} is {header.bits}-bit but the first image {files[0]} is {first.bits}-bit: every "
+                    f"image of a sequence must have the same bit depth (save them all alike)")
+    except ValueError as error:
+        raise SourceError(str(error)) from None
+
+
 class ImageSequence(FrameSource):
     """Frames from image files in natural order.
 
@@ -65,8 +88,8 @@ class ImageSequence(FrameSource):
     Raises
     ------
     SourceError
-        No file matches; later, a file that cannot be read as an 8/16-bit grey
-        image or whose size/bit depth differs from the first.
+        No file matches, or a file's header shows another size or bit depth than the
+        first's; later, a file that cannot be decoded as an 8/16-bit grey image.
     """
 
     OPTIONS = {"frame_rate": "frames per second for timestamps (default 1)",
@@ -82,6 +105,7 @@ class ImageSequence(FrameSource):
         if not self.files:
             raise SourceError(f"no image files match '{self.pattern}' (give a glob such as "
                               f"'frames/img_*.png' or a folder of PNG/TIFF files)")
+        _check_alike(self.files)
         self.notes = []
         self._first = None  # (shape, dtype, name) of the first image
         self._closed = False
