@@ -61,3 +61,15 @@ def test_an_image_of_another_size_in_a_sequence_is_refused_before_the_session(tm
     error = refused_run(tmp_path, [], source=f"images:{images}/f_*.png")
     assert error == (f"livedic: error: {images}/f_2.png is 160x120 but the first image {images}/f_0.png is 160x128: "
                      f"every image of a sequence must have the same size (remove it, or crop all images alike)")
+
+
+def test_a_file_that_is_no_video_is_one_line_with_nothing_from_ffmpeg(tmp_path):
+    """FFmpeg's own lines ("moov atom not found") used to come first: the whole of stderr is livedic's one line."""
+    fake = tmp_path / "clip.mp4"
+    fake.write_text("not a video at all\n")
+    argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", f"video:{fake}"]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [f"livedic: error: video source {fake}: OpenCV could not open it (not a video, "
+                                        f"or a codec FFmpeg lacks)"]
