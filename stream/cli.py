@@ -10,6 +10,7 @@ that sits above them: ``livedic.bench.cli`` passes ``extensions`` to ``main``
 """
 
 import argparse
+import logging
 import os
 import signal
 import sys
@@ -96,6 +97,7 @@ def entry_point(extensions=()):
     synced, so the process ends at once instead (``os._exit``, after flushing the
     standard streams). ``main()`` itself never does this: tests and scripts call it.
     """
+    _say_log_lines()
     code = main(extensions=extensions)
     aravis = sys.modules.get("livedic.acquire.aravis")
     pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
@@ -108,6 +110,22 @@ def entry_point(extensions=()):
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+class _LogLine(logging.StreamHandler):
+    """What livedic's modules log (a truncated recording's note, a colour file converted ...), said as
+    ``livedic: MESSAGE`` like every other line livedic writes, not as Python's bare last-resort output."""
+
+    def format(self, record):
+        clear = "\r\033[K" if self.stream.isatty() else ""     # clear of an in-place progress line
+        return f"{clear}livedic: {record.getMessage()}"
+
+
+def _say_log_lines():
+    """Send the ``livedic`` loggers' warnings to stderr through ``_LogLine`` (once per process)."""
+    logger = logging.getLogger("livedic")
+    if not any(isinstance(handler, _LogLine) for handler in logger.handlers):
+        logger.addHandler(_LogLine(sys.stderr))
 
 
 def _error_kind(error):
