@@ -256,6 +256,7 @@ def _cmd_measure(args):
     from livedic.acquire.image_io import read_grey_image
     from livedic.dic.tracking import grid_in_roi
     from livedic.stream.csv_output import check_output_file, write_csv
+    from livedic.stream.sinks import bit_depth_change
 
     to_file = args.output not in (None, "-")
     strain = _measure_strain_config(args)            # bad values: one line, before anything is read
@@ -266,6 +267,9 @@ def _cmd_measure(args):
     for note in (note_ref, note_def):
         if note:
             print(f"livedic: note: {note}", file=sys.stderr)
+    depths = bit_depth_change(reference.dtype, deformed.dtype, f"the reference {args.reference}", args.deformed)
+    if depths:
+        print(f"livedic: warning: {depths}", file=sys.stderr)
     if reference.shape != deformed.shape:
         raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
                          f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")

@@ -54,7 +54,8 @@ from livedic.stream.points import build_points, check_point_count, read_points_c
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
-from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
+from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
+                                  ReferenceUpdates)
 from livedic.stream.strain import AXIAL, StrainConfig
 from livedic.stream.tracker_loop import TrackerLoop
 
@@ -449,6 +450,7 @@ class Session:
         sinks.append(self.fractures)
         if self.p0 is not None:
             sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
+        sinks.append(BitDepthWatch(self.event))
         sinks.append(ProgressLine(self.bar, self.acquisition))
         sinks.extend(self._extra_sinks)
         self.loop = TrackerLoop(self.queue, self._make_tracker, sinks=sinks)
