@@ -56,7 +56,7 @@ from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
 from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                   ReferenceUpdates)
-from livedic.stream.strain import AXIAL, StrainConfig
+from livedic.stream.strain import AXIAL, StrainConfig, format_length
 from livedic.stream.tracker_loop import TrackerLoop
 
 
@@ -884,7 +884,8 @@ def format_strain_summary(strain):
                    if final["ok"] else "no reading in the last frame (an end lost)")
         error = final.get("error_max_vs_truth")
         versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
-        lines.append(f"  extensom.  {name}: L0 {final['L0_px']:.1f} px, final {reading}{versus}")
+        lines.append(f"  extensom.  {name}: L0 {format_length(final['L0_px'], final.get('L0_mm'))}, final "
+                     f"{reading}{versus}")
     poisson = strain.get("poisson_ratio")
     if poisson is not None and math.isfinite(poisson):
         lines.append(f"  Poisson    -e_transverse / e_axial = {poisson:.3f} (last frame)")
