@@ -2,8 +2,10 @@
 
 ``images:run1/frame_*.tif`` yields frame_2 before frame_10 (natural sort: digit
 runs compare as numbers). ``images:run1`` (a folder) takes every PNG/TIFF in it.
-The path after ``images:`` is taken verbatim (``?`` and ``*`` are glob wildcards),
-so options go as keyword arguments of :func:`open_uri`, never in the URI.
+Options go in a query string after the pattern, as for the other sources:
+``images:run1/frame_*.tif?frame_rate=5&realtime=1``. ``?`` is also a glob
+wildcard, so only a tail of ``name=value`` pairs (``&``-separated) after the last
+``?`` is read as options; keyword arguments of :func:`open_uri` override them.
 
 Before the first frame every file's header is read (``read_image_header``: the
 size, and the bit depth of grey files): a file of another size or bit depth than
@@ -21,6 +23,7 @@ import logging
 import os
 import re
 import time
+from urllib.parse import parse_qsl
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.image_io import read_grey_image, read_image_header
@@ -33,6 +36,8 @@ log = logging.getLogger("livedic.acquire.images")
 SCHEME = "images"
 IMAGE_EXTENSIONS = (".png", ".tif", ".tiff")
 _DIGITS = re.compile(r"(\d+)")
+# An options tail "name=value&name=value" (a glob's own "?" is followed by anything else).
+_QUERY = re.compile(r"\w+=[^&=]*(&\w+=[^&=]*)*")
 
 
 def natural_key(path):
@@ -170,10 +175,13 @@ class ImageSequence(FrameSource):
 
 
 def open_uri(uri, **options):
-    """``images:PATTERN`` -> :class:`ImageSequence`; options as keywords (``frame_rate``, ``realtime``, ``loop``)."""
+    """``images:PATTERN[?frame_rate=F&realtime=0|1&loop=0|1]`` -> :class:`ImageSequence` (keywords override)."""
     if uri[:len(SCHEME) + 1].lower() != SCHEME + ":":
         raise SourceError(f"not an images URI: {uri!r} (expected 'images:GLOB' or 'images:FOLDER')")
     pattern = uri[len(SCHEME) + 1:]
+    glob_part, mark, query = pattern.rpartition("?")
+    if mark and _QUERY.fullmatch(query):
+        pattern, options = glob_part, {**dict(parse_qsl(query, keep_blank_values=True)), **options}
     if not pattern:
         raise SourceError("images: needs a glob or folder, e.g. 'images:frames/img_*.png'")
     unknown = sorted(set(options) - set(ImageSequence.OPTIONS))

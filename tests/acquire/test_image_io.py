@@ -279,6 +279,21 @@ def test_image_header_agrees_with_the_decoded_image(tmp_path):
         read_image_header(tmp_path / "empty.png")
 
 
+def test_sequence_options_in_the_uri_and_question_mark_still_a_wildcard(tmp_path):
+    """``images:GLOB?frame_rate=5`` as the README gives it (the command line has no other way to pass it);
+    a ``?`` not followed by name=value pairs is the glob's own wildcard."""
+    for i in (1, 2, 3):
+        write(tmp_path / f"q{i}.png", GREY8)
+    with open_uri(f"images:{tmp_path}/q*.png?frame_rate=5&loop=0") as source:
+        assert len(source) == 3 and source.frame_rate == 5.0 and not source.loop
+        assert [f.timestamp_ns for f in source] == [0, 200_000_000, 400_000_000]
+    with open_uri(f"images:{tmp_path}/q?.png") as source:
+        assert len(source) == 3 and source.frame_rate == 1.0
+    assert open_uri(f"images:{tmp_path}/q*.png?frame_rate=5", frame_rate=2).frame_rate == 2.0   # keywords win
+    with pytest.raises(SourceError, match="unknown images option.s. fps; known: frame_rate"):
+        open_uri(f"images:{tmp_path}/q*.png?fps=5")
+
+
 def test_sequence_realtime_and_loop(tmp_path):
     for i in range(3):
         write(tmp_path / f"r{i}.png", GREY8)
