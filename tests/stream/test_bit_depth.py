@@ -44,9 +44,9 @@ def test_measure_of_a_16_bit_reference_against_an_8_bit_image_is_right_and_warne
     mixed, mixed_err, (ref, deformed) = _measure(tmp_path, capsys, 16, 8)
     assert not any("warning" in line for line in same_err)
     warnings = [line for line in mixed_err if line.startswith("livedic: warning: ")]
-    assert warnings == [f"livedic: warning: {deformed} is 8-bit but the reference {ref} is 16-bit: measured anyway (ZNCC does not "
-                        f"depend on the grey-level scale), but the grey levels of the two differ in resolution; "
-                        f"check both were taken with the same camera settings"]
+    assert warnings == [f"livedic: warning: {deformed} is 8-bit but the reference {ref} is 16-bit: measured anyway "
+                        f"(ZNCC does not depend on the grey-level scale), but the grey levels of the two differ in "
+                        f"resolution; check both were taken with the same camera settings"]
     # Why a warning and not a refusal: the same points are ok, and they moved as at one bit depth.
     ok = same["ok"] == 1                                 # (the points at the border are not)
     assert np.array_equal(mixed["ok"], same["ok"]) and ok.sum() >= 30
