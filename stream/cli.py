@@ -10,6 +10,7 @@ that sits above them: ``livedic.bench.cli`` passes ``extensions`` to ``main``
 """
 
 import argparse
+import logging
 import os
 import signal
 import sys
@@ -99,6 +100,7 @@ def entry_point(extensions=()):
     synced, so the process ends at once instead (``os._exit``, after flushing the
     standard streams). ``main()`` itself never does this: tests and scripts call it.
     """
+    _say_log_lines()
     code = main(extensions=extensions)
     aravis = sys.modules.get("livedic.acquire.aravis")
     pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
@@ -111,6 +113,22 @@ def entry_point(extensions=()):
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+class _LogLine(logging.StreamHandler):
+    """What livedic's modules log (a truncated recording's note, a colour file converted ...), said as
+    ``livedic: MESSAGE`` like every other line livedic writes, not as Python's bare last-resort output."""
+
+    def format(self, record):
+        clear = "\r\033[K" if self.stream.isatty() else ""     # clear of an in-place progress line
+        return f"{clear}livedic: {record.getMessage()}"
+
+
+def _say_log_lines():
+    """Send the ``livedic`` loggers' warnings to stderr through ``_LogLine`` (once per process)."""
+    logger = logging.getLogger("livedic")
+    if not any(isinstance(handler, _LogLine) for handler in logger.handlers):
+        logger.addHandler(_LogLine(sys.stderr))
 
 
 def _error_kind(error):
@@ -257,6 +275,7 @@ def _cmd_measure(args):
 
     from livedic.acquire.image_io import read_grey_image
     from livedic.stream.csv_output import check_output_file, write_csv
+    from livedic.stream.sinks import bit_depth_change
 
     to_file = args.output not in (None, "-")
     strain = _measure_strain_config(args)            # bad values: one line, before anything is read
@@ -267,6 +286,9 @@ def _cmd_measure(args):
     for note in (note_ref, note_def):
         if note:
             print(f"livedic: note: {note}", file=sys.stderr)
+    depths = bit_depth_change(reference.dtype, deformed.dtype, f"the reference {args.reference}", args.deformed)
+    if depths:
+        print(f"livedic: warning: {depths}", file=sys.stderr)
     if reference.shape != deformed.shape:
         raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
                          f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")

@@ -34,8 +34,9 @@
     replaces the recorded force (a note says so).
 ``session.json``
     The session metadata (method, parameters, source, ROI, ...), plus a
-    ``livedic.export`` entry saying where the files came from and whether the
-    recording was complete.
+    ``livedic.export`` entry saying where the files came from, whether the
+    recording was complete, and how many frames the session delivered in the end
+    (``frames_delivered``, counted in the recording; ``frames_delivered_from`` says so).
 
 Strain and extensometers are *recomputed* from the recorded displacements with the
 settings the recording was made with (``stream.strain.StrainConfig.from_metadata``: the
@@ -505,11 +506,12 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                                                       title=f"{os.path.basename(path)}: stress-strain (A0 "
                                                             f"{stress.area_mm2:g} mm^2, force "
                                                             f"{_force_label(stress)})")
-            truncated = recording.info.truncated
             session = dict(metadata)
+            delivered = _frames_delivered(recording, session)
+            truncated = recording.info.truncated
             session[EXPORT_KEY] = {
                 "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
-                "frames_with_results": frames, "points": points, "events": len(events),
+                "frames_with_results": frames, **delivered, "points": points, "events": len(events),
                 "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
                 "truncated": truncated, "notes": list(notes),
                 "strain": _strain_settings(stage, config, strain)}
@@ -662,6 +664,26 @@ def _stopped_in(state):
         if not stopped.state:
             stopped.state = state() if callable(state) else state
         raise
+
+
+def _frames_delivered(recording, session):
+    """How many frames the session delivered in the end, and how that is known, for ``session.json``.
+
+    The recording holds every frame the source delivered (recorded before the queue, dropped or not), so
+    they are counted there (the file's statistics, else a scan). The session metadata was written when
+    the first frame came: a source's own ``frames_delivered`` in it (a camera's) was that moment's count,
+    so ``session`` (the metadata, copied) gets the final count there, the snapshot kept beside it.
+    """
+    from livedic.acquire.recording_schema import TOPIC_IMAGE
+    count = recording.count(TOPIC_IMAGE)
+    how = f"the frames in the recording ({TOPIC_IMAGE}), where the session records every frame its source delivers"
+    if recording.info.truncated:
+        how += "; the recording was cut short: at least this many"
+    settings = session.get("source_settings")
+    if isinstance(settings, dict) and "frames_delivered" in settings:
+        session["source_settings"] = {**settings, "frames_delivered": count,
+                                      "frames_delivered_at_start": settings["frames_delivered"]}
+    return {"frames_delivered": count, "frames_delivered_from": how}
 
 
 class RecordedForce:

@@ -54,8 +54,9 @@ from livedic.stream.preview import setup_overlay
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
-from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
-from livedic.stream.strain import AXIAL, StrainConfig
+from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
+                                  ReferenceUpdates)
+from livedic.stream.strain import AXIAL, StrainConfig, format_length
 from livedic.stream.tracker_loop import TrackerLoop
 
 
@@ -440,6 +441,7 @@ class Session:
         sinks.append(self.fractures)
         if self.p0 is not None:
             sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
+        sinks.append(BitDepthWatch(self.event))
         sinks.append(ProgressLine(self.bar, self.acquisition))
         sinks.extend(self._extra_sinks)
         self.loop = TrackerLoop(self.queue, self._make_tracker, sinks=sinks)
@@ -883,7 +885,8 @@ def format_strain_summary(strain):
                    if final["ok"] else "no reading in the last frame (an end lost)")
         error = final.get("error_max_vs_truth")
         versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
-        lines.append(f"  extensom.  {name}: L0 {final['L0_px']:.1f} px, final {reading}{versus}")
+        lines.append(f"  extensom.  {name}: L0 {format_length(final['L0_px'], final.get('L0_mm'))}, final "
+                     f"{reading}{versus}")
     poisson = strain.get("poisson_ratio")
     if poisson is not None and math.isfinite(poisson):
         lines.append(f"  Poisson    -e_transverse / e_axial = {poisson:.3f} (last frame)")

@@ -156,6 +156,10 @@ class StrainConfig:
         """A length as given (mm with ``scale``, else px) in px."""
         return length * self.scale if self.scale else length
 
+    def in_mm(self, length_px):
+        """A length in px in mm (float), or None without ``scale``."""
+        return float(length_px) / self.scale if self.scale else None
+
     def resolve_extensometers(self, p0, roi, x_range=None):
         """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others.
 
@@ -249,6 +253,11 @@ def overrides_from_args(args):
         given.update(gauge_length=length[0] if length else None, gauge_width=length[1] if length else None,
                      extensometers=extra)
     return given
+
+
+def format_length(length_px, length_mm=None):
+    """``"400.0 px"``, or ``"400.0 px (32.00 mm)"`` with the length in mm (``--scale``)."""
+    return f"{length_px:.1f} px" + (f" ({length_mm:.2f} mm)" if length_mm is not None else "")
 
 
 def _float_or_none(value):
@@ -356,8 +365,8 @@ class StrainStage:
                 f"+ subset {self.windows.subset} = VSG {self.vsg_px:g} px")
         if self.extensometers:
             text += "; extensometers " + ", ".join(
-                f"{e.name} L0 {e.length_px:.1f} px" + (f" ({e.length_px / self.config.scale:.2f} mm)"
-                                                       if self.config.scale else "") for e in self.extensometers)
+                f"{e.name} L0 {format_length(e.length_px, self.config.in_mm(e.length_px))}"
+                for e in self.extensometers)
         return text
 
     def summary(self):
@@ -366,7 +375,8 @@ class StrainStage:
         final = {}
         if readings is not None:
             for i, name in enumerate(readings.names):
-                final[name] = {"L0_px": float(readings.l0_px[i]), "L_px": float(readings.length_px[i]),
+                final[name] = {"L0_px": float(readings.l0_px[i]), "L0_mm": self.config.in_mm(readings.l0_px[i]),
+                               "L_px": float(readings.length_px[i]),
                                "eng_strain": float(readings.eng_strain[i]),
                                "true_strain": float(readings.true_strain[i]), "ok": bool(readings.ok[i]),
                                "error_max_vs_truth": self.truth_errors.get(name)}

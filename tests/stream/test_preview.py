@@ -92,7 +92,9 @@ def test_run_logs_the_same_set_up_to_the_view(images, tmp_path):
     rrd = tmp_path / "v.rrd"
     assert main(["run", "--source", f"images:{images}", "--n-points", "300", "--exclude", "circle:150,200,20",
                  "--gauge-length", "200", "--viewer", "save", str(rrd), "--no-record"]) == 0
-    labels = _rows(rrd, "/setup/labels", "Points2D:labels")["static"]
+    labels = _rows(rrd, "/setup/labels", "Points2D:labels")["static"] + \
+        _rows(rrd, "/setup/region/label", "Points2D:labels")["static"]
+    assert "specimen (found)" in str(_rows(rrd, "/camera/roi/label", "Points2D:labels")["static"])
     text = " ".join(str(t) for t in labels)
     assert "specimen (found)" in text and "excluded" in text and "axial L0 200 px" in text and "P0" in text
     points = _rows(rrd, "/setup/points", "Points2D:positions")["static"]

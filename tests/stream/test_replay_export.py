@@ -254,6 +254,35 @@ def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
     assert [int(row["frame"]) for row in trace] == [r.frame_index for r in recovered]
 
 
+def test_session_json_gives_the_frames_delivered_in_the_end_not_at_the_start(tmp_path, capsys):
+    """A camera's ``frames_delivered`` in the session metadata is its count when recording began (1); the
+    export gives the final count, from the frames recorded, and says so; a cut recording: at least those."""
+    from livedic.acquire.base import Frame
+    from livedic.stream.recorder import Recorder
+
+    path = tmp_path / "camera.mcap"
+    metadata = {"command": "livedic run", "source_uri": "aravis:Fake", "source_settings": {"frames_delivered": 1}}
+    with Recorder(str(path), metadata, start_time_ns=0) as recorder:
+        for i in range(7):
+            recorder.write_frame(Frame(i, i * 20_000_000, np.full((16, 24), i, np.uint8), "Mono8"))
+    assert main(["export", str(path), "-o", str(tmp_path / "out")]) == 0
+    session = json.loads((tmp_path / "out" / "session.json").read_text())
+    export = session["livedic.export"]
+    assert export["frames_delivered"] == 7 and export["frames_with_results"] == 0
+    assert export["frames_delivered_from"].startswith("the frames in the recording (/camera/image)")
+    assert session["source_settings"] == {"frames_delivered": 7, "frames_delivered_at_start": 1}
+
+
+def test_session_json_of_a_cut_recording_counts_the_frames_it_kept(killed, tmp_path, capsys):
+    from livedic.acquire.mcap_replay import McapSource
+    full, half = killed
+    assert main(["export", half, "-o", str(tmp_path / "out")]) == 0
+    export = json.loads((tmp_path / "out" / "session.json").read_text())["livedic.export"]
+    kept = sum(1 for _ in McapSource(half))
+    assert 0 < export["frames_delivered"] == kept < sum(1 for _ in McapSource(full)) == 30
+    assert export["frames_delivered_from"].endswith("the recording was cut short: at least this many")
+
+
 def test_export_of_a_recording_without_session_metadata_says_so(tmp_path, capsys):
     """No ``livedic.session`` metadata is a note (the reader's ``NoSessionMetadata``), not an error."""
     import numpy as np
