@@ -215,20 +215,20 @@ def render_preview(overlay: SetupOverlay, path: str) -> None:
         "nothing to check: pattern, exposure and focus look fit for DIC"
     text_lines = notes.count("\n") + checks.count("\n") + 2
     side_by_side = height >= 0.75 * width
-    if side_by_side:                              # a coupon standing up: the two pictures side by side
+    if side_by_side:                              # a coupon standing up: the three pictures side by side
         panel_h = min(8.0, max(4.0, 6.5 * height / width))
         panel_w = panel_h * width / height
-        size = (max(2 * panel_w + 2.2, 11.0), panel_h + 0.9 + 0.17 * text_lines)
+        size = (max(3 * panel_w + 3.4, 12.0), panel_h + 0.9 + 0.17 * text_lines)
         figure = plt.figure(figsize=size, dpi=110, layout="constrained")
         rows = figure.subfigures(2, 1, height_ratios=[panel_h + 0.6, 0.17 * text_lines + 0.3])
-        setup_axes, quality_axes = rows[0].subplots(1, 2, width_ratios=[1.0, 1.15])
+        setup_axes, quality_axes, focus_axes = rows[0].subplots(1, 3, width_ratios=[1.0, 1.15, 1.15])
     else:                                         # a wide field: one above the other
         panel_w = 11.0
-        panel_h = min(5.0, panel_w * height / width)
-        size = (panel_w + 1.5, 2 * panel_h + 1.4 + 0.17 * text_lines)
+        panel_h = min(4.0, panel_w * height / width)
+        size = (panel_w + 1.5, 3 * panel_h + 1.7 + 0.17 * text_lines)
         figure = plt.figure(figsize=size, dpi=110, layout="constrained")
-        rows = figure.subfigures(2, 1, height_ratios=[2 * panel_h + 1.1, 0.17 * text_lines + 0.3])
-        setup_axes, quality_axes = rows[0].subplots(2, 1)
+        rows = figure.subfigures(2, 1, height_ratios=[3 * panel_h + 1.4, 0.17 * text_lines + 0.3])
+        setup_axes, quality_axes, focus_axes = rows[0].subplots(3, 1)
     text_axes = rows[1].add_subplot()
     halo = [effects.withStroke(linewidth=2.5, foreground="black")]
 
@@ -288,7 +288,19 @@ def render_preview(overlay: SetupOverlay, path: str) -> None:
     bar.ax.tick_params(labelsize=7)
     quality_axes.set_title(f"speckle contrast: MIG median {quality.mig_median:.1f}; clipped pixels in red "
                            f"({100 * quality.clipped_share:.2f} %)", fontsize=10)
-    for axes in (setup_axes, quality_axes):
+    # --- focus: sharpness per subset against the specimen's median (defocus takes the fine detail first)
+    sharp = quality.sharpness
+    median = float(np.nanmedian(sharp[region])) if region.any() else float("nan")
+    relative = np.ma.masked_where(~region | ~np.isfinite(sharp), sharp / median if median > 0 else sharp)
+    focus_axes.imshow(image, cmap="gray", vmin=0, vmax=1, interpolation="antialiased")
+    focus = focus_axes.imshow(relative, cmap="RdYlGn", vmin=0.5, vmax=1.5, alpha=0.9, interpolation="nearest")
+    bar = rows[0].colorbar(focus, ax=focus_axes, fraction=0.06, pad=0.02, shrink=0.9)
+    bar.set_label("sharpness (|Laplacian| / |gradient|) over the specimen's median", fontsize=8)
+    bar.ax.tick_params(labelsize=7)
+    spread = quality.sharpness_spread
+    focus_axes.set_title("focus: " + ("n/a" if not math.isfinite(spread) else
+                                      f"spread {spread:.2f}x across the specimen (1 = even)"), fontsize=10)
+    for axes in (setup_axes, quality_axes, focus_axes):
         axes.set_xlim(-0.5, width - 0.5)
         axes.set_ylim(height - 0.5, -0.5)
         axes.tick_params(labelsize=7)
