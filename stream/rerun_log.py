@@ -849,14 +849,16 @@ class RerunLogger:
         labels = [((float(line[:, 0].max()), float(line[:, 1].min())), "excluded") for line in excluded]
         image = setup.image
         rec.log(f"{SETUP}/image", rr.Image(self._display_image(image, setup.pixel_format)), static=True)
-        quality = setup.quality
-        inside = setup.placement.region
-        top = float(np.percentile(quality.mig[inside], 99)) if inside.any() else 1.0
-        index = np.clip(quality.mig / max(top, 1e-6) * 255.0, 0, 255).astype(np.uint8)
-        rgba = np.dstack([self._lut[index], np.where(inside, 150, 0).astype(np.uint8)])
-        rgba[quality.clipped & inside] = (*preview.CLIPPED_COLOUR, 255)
-        if self._scale > 1:
-            rgba = np.ascontiguousarray(rgba[::self._scale, ::self._scale])
+        # at the display's scale: this runs as the first frame is tracked, every ms of it a ms of latency
+        quality, step = setup.quality, self._scale
+        inside = setup.placement.region[::step, ::step]
+        mig = quality.mig[::step, ::step]
+        top = float(np.percentile(mig[inside], 99)) if inside.any() else 1.0
+        index = np.clip(mig * (255.0 / max(top, 1e-6)), 0, 255).astype(np.uint8)
+        rgba = np.empty(mig.shape + (4,), dtype=np.uint8)
+        rgba[..., :3] = self._lut[index]
+        rgba[..., 3] = np.where(inside, 150, 0)
+        rgba[quality.clipped[::step, ::step] & inside] = (*preview.CLIPPED_COLOUR, 255)
         rec.log(f"{SETUP}/mig", rr.Image(rgba), static=True)
         points = setup.placement.points / scale
         colours = np.where(setup.weak[:, None], preview.WEAK_POINT_COLOUR, preview.POINT_COLOUR).astype(np.uint8)
