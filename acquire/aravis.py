@@ -1,10 +1,35 @@
 """GenICam cameras (GigE Vision, USB3 Vision, Aravis's Fake camera) through Aravis 0.8 and gi.
 
 URIs: ``aravis:`` opens the first camera found, ``aravis:DEVICE_ID`` a given
-one (its Aravis id, serial number, physical id or, for GigE, IP address).
-Options ride in a query string (``aravis:Fake_1?exposure_us=2000&roi=0,0,640,480``)
-or as keyword arguments of :func:`open_uri`; see ``AravisCamera.OPTIONS``.
-``livedic cameras`` lists ids with :func:`list_cameras`.
+one (its Aravis id as ``livedic cameras`` lists it, serial number, MAC or, for
+GigE, IP address). Options ride in a query string
+(``aravis:Fake_1?exposure_us=2000&roi=0,0,640,480&feature.GainRaw=3``) or as
+keyword arguments of :func:`open_uri`; see ``AravisCamera.OPTIONS``.
+
+Finding the camera: an id, serial or MAC is looked up by discovery (about 1 s)
+and a GigE camera is then opened by its IP address, so Aravis streams to the
+interface on the camera's subnet. (Opened by id alone, Aravis takes the first
+interface whose discovery broadcast got an answer: a camera that answers on
+several interfaces, as Aravis's simulator on 127.0.0.1 does on eth0 too, then
+streams to an address it cannot reach, and no frame ever arrives.)
+
+A known state: every open stops an acquisition left running (by a session that
+ended without stopping it, whose stream address the camera would keep using),
+loads the camera's ``Default`` user set when it has one (``user_set=NAME``
+another, ``user_set=none`` none), then sets what the session depends on to
+livedic's defaults unless asked otherwise: continuous acquisition, triggers off
+(``trigger=``), binning 1 (``binning=``), Mono8 (``pixel_format=``) and the full
+sensor (``roi=``). A ROI left by an earlier run is reset, and the notes say so.
+On the loopback address (a simulator) the GigE packet size defaults to 9000
+bytes: 1400-byte packets halve the frame rate of a full 2048x2048 frame there.
+Every setting is checked against the camera's bounds, applied, then READ BACK;
+``settings`` reports what the camera actually uses next to what was asked.
+``feature.NAME=VALUE`` sets any GenICam feature by its type (``acquire.genicam``).
+
+Pixel formats (``acquire.pixel_formats``): Mono8, and Mono10/Mono12/Mono16
+unpacked or packed (Mono10p, Mono12p, Mono10Packed, Mono12Packed), delivered as
+uint16 with the camera's grey levels; ``settings["bit_depth"]`` and each
+frame's ``metadata["bit_depth"]`` give the significant bits.
 
 Zero copy on the hot path: the stream owns a pool of numpy arrays wrapped by
 ``Aravis.Buffer.new_full``, so the camera writes straight into them. A
@@ -14,16 +39,21 @@ the image (or any view of it) is dropped. Holding frames therefore holds
 buffers; when the consumer holds nearly all of them the pool grows (up to
 ``4 * n_buffers``, with a warning), then frames are copied out (counted in
 ``settings["frames_copied"]``) rather than starving the camera. ``copy=True``
-always hands out copies and re-queues at once.
+always hands out copies and re-queues at once. Packed formats are unpacked
+into a new array and the buffer re-queued at once.
 
-Settings are declared in ``AravisCamera.SETTINGS`` (CRAPPY style): each is
-checked against the camera's bounds, applied, then READ BACK; ``settings``
-reports what the camera actually uses next to what was asked.
+Triggers: ``trigger=software`` fires TriggerSoftware from the reading thread
+at ``frame_rate`` (the trigger rate; the camera's own frame-rate limit is
+switched off), so a session runs paced by it; ``trigger=line:N`` waits for the
+hardware with no time limit unless ``timeout_s`` is given.
 
-A lost camera (no complete frame for ``timeout_s``, default
+No frame: a camera that never delivered a frame within ``timeout_s`` plus a
+2 s start-up allowance raises ``NoFirstFrame`` (what to check: trigger, GigE
+packet size and firewall, another program holding the camera). A camera lost
+after delivering (no complete frame for ``timeout_s``, default
 ``max(0.5 s, 3 frame periods + exposure)``, or GigE control lost) raises
-``SourceError`` naming the camera and the stream counters. Teardown stops
-acquisition, then drops the stream, then the camera, in that order (the
+``SourceError`` ("lost") naming the camera and the stream counters. Teardown
+stops acquisition, then drops the stream, then the camera, in that order (the
 process can abort at exit otherwise); an ``atexit`` hook closes sources the
 caller forgot. After a loss the GigE teardown waits on register-write
 timeouts (about 7 s in Aravis 0.8.26), so it runs in a background
@@ -33,6 +63,7 @@ timeouts (about 7 s in Aravis 0.8.26), so it runs in a background
 import atexit
 import contextlib
 import ctypes
+import ipaddress
 import logging
 import math
 import threading
@@ -44,23 +75,21 @@ from urllib.parse import parse_qsl
 
 import numpy as np
 
-from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.acquire import genicam
+from livedic.acquire import pixel_formats
+from livedic.acquire.base import Frame, FrameSource, NoFirstFrame, SourceError
 from livedic.acquire.options import as_bool, as_float, as_int
 
 __all__ = ["AravisCamera", "list_cameras", "open_uri", "parse_uri", "load_aravis",
-           "SUPPORTED_PIXEL_FORMATS", "SCHEME"]
+           "SUPPORTED_PIXEL_FORMATS", "SCHEME", "FEATURE_PREFIX"]
 
 log = logging.getLogger("livedic.acquire.aravis")
 
 SCHEME = "aravis"
+FEATURE_PREFIX = "feature."      # feature.NAME=VALUE: any GenICam feature by name
 
-# GenICam PFNC codes of the formats livedic reads; Mono12 is unpacked, stored in uint16.
-SUPPORTED_PIXEL_FORMATS = {
-    "Mono8": (0x01080001, np.uint8),
-    "Mono12": (0x01100005, np.uint16),
-    "Mono16": (0x01100007, np.uint16),
-}
-_FORMAT_BY_CODE = {code: (name, dtype) for name, (code, dtype) in SUPPORTED_PIXEL_FORMATS.items()}
+# The formats livedic reads, by GenICam name (acquire.pixel_formats).
+SUPPORTED_PIXEL_FORMATS = tuple(pixel_formats.FORMATS)
 
 _POP_SLICE_US = 100_000          # wait for buffers in 100 ms slices so close() is honoured quickly
 _MIN_FREE_BUFFERS = 2           # grow the pool when the consumer leaves fewer buffers than this
@@ -69,6 +98,10 @@ _FIRST_FRAME_EXTRA_S = 2.0       # start-up allowance added to timeout_s for the
 # while a scheduling hiccup of a few hundred ms on a loaded machine is not taken for a loss.
 _LOST_FLOOR_S = 0.5
 _GV_ID_WRAP = 65535              # GigE Vision 16-bit block ids go 65535 -> 1 (0 is skipped)
+# GigE packet size on the loopback address (a simulator) unless asked: a full 2048x2048 Mono8 frame from
+# arv-fake-gv-camera-0.8 came at 12 fps with its 1400-byte default and 24-25 fps (its 25 fps) with 9000.
+_LOOPBACK_PACKET_SIZE = 9000
+_NO_USER_SET = "none"            # user_set=none: load no user set
 
 # In-process Fake devices: device id -> attach(arv_camera) -> keep-alive object.
 # ``acquire.fake_genicam.InProcessFakeCamera`` registers here so that opening
@@ -124,7 +157,7 @@ def list_cameras(*, include_fake=False):
         One per camera: ``id`` (what ``aravis:ID`` takes), ``vendor``, ``model``,
         ``serial``, ``protocol`` (``GigEVision``, ``USB3Vision``, ``Fake``),
         ``interface`` (``gige``, ``usb3``, ``fake``), ``address`` (IP for GigE),
-        ``physical_id`` (MAC for GigE), ``uri``.
+        ``physical_id`` (MAC for GigE), ``uri`` (``aravis:ID``: opens this camera).
     """
     Aravis, _ = load_aravis()
     if include_fake:
@@ -150,6 +183,37 @@ def list_cameras(*, include_fake=False):
 
 def _interface_name(protocol):
     return {"GigEVision": "gige", "USB3Vision": "usb3", "Fake": "fake"}.get(protocol, (protocol or "?").lower())
+
+
+def _is_ip_address(text):
+    try:
+        ipaddress.ip_address(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _address_text(get):
+    """``get()``'s IP address as text (a GInetSocketAddress without its port), None if unreadable."""
+    try:
+        address = get()
+        if hasattr(address, "get_address"):
+            address = address.get_address()
+        return address.to_string()
+    except Exception:  # noqa: BLE001 - informative only
+        return None
+
+
+def _find_listed(cameras, device_id):
+    """The listed camera ``device_id`` names (its id, serial or MAC); the first one (not a fake) for None."""
+    if device_id is None:
+        real = [c for c in cameras if c["protocol"] != "Fake"]
+        return (real or cameras or [None])[0]
+    wanted = device_id.strip().lower()
+    for camera in cameras:
+        if wanted in {str(camera.get(key) or "").lower() for key in ("id", "serial", "physical_id")}:
+            return camera
+    return None
 
 
 def parse_uri(uri):
@@ -194,13 +258,28 @@ def _as_roi(name, value):
     return (x, y, w, h)
 
 
+def _as_binning(name, value):
+    parts = [p for p in str(value).replace("x", ",").split(",") if p.strip()] if isinstance(value, str) \
+        else list(value) if isinstance(value, (tuple, list)) else [value]
+    if len(parts) not in (1, 2):
+        raise SourceError(f"option {name}={value!r}: write H or H,V (pixels binned across, down)")
+    numbers = [as_int(name, p, low=1) for p in parts]
+    return (numbers[0], numbers[-1])
+
+
 def _as_pixel_format(name, value):
+    fmt = pixel_formats.by_name(value)
+    if fmt is None:
+        raise SourceError(f"pixel format {str(value).strip()!r} is not supported: livedic reads "
+                          f"{', '.join(SUPPORTED_PIXEL_FORMATS)} (10 to 16 bits as uint16)")
+    return fmt.name
+
+
+def _as_user_set(name, value):
     text = str(value).strip()
-    for known in SUPPORTED_PIXEL_FORMATS:
-        if text.lower() == known.lower():
-            return known
-    raise SourceError(f"pixel format {text!r} is not supported: livedic reads "
-                      f"{', '.join(SUPPORTED_PIXEL_FORMATS)} (Mono12 unpacked, stored in uint16)")
+    if not text:
+        raise SourceError(f"option {name}=: name a user set (e.g. Default, UserSet1) or none")
+    return _NO_USER_SET if text.lower() == _NO_USER_SET else text
 
 
 # --------------------------------------------------------------------------- #
@@ -209,12 +288,17 @@ def _as_pixel_format(name, value):
 
 @dataclass(frozen=True)
 class Setting:
-    """A camera setting: parsed, checked against bounds, applied, then read back."""
+    """A camera setting: parsed, checked against bounds, applied, then read back.
+
+    ``default(source)`` is what an open sets when the option is not given (the known
+    state), None to leave the camera's value (after its user set).
+    """
     name: str
     parse: Callable
     apply: Callable      # apply(source, value) -> None, raises SourceError with bounds
     read: Callable       # read(source) -> value actually in use
     doc: str
+    default: Callable = lambda source: None
 
 
 def _check_range(name, value, low, high, unit):
@@ -222,9 +306,19 @@ def _check_range(name, value, low, high, unit):
         raise SourceError(f"{name}={value:g} is outside this camera's range [{low:g}, {high:g}] {unit}".rstrip())
 
 
+def _offered_pixel_formats(source):
+    return list(source._camera.dup_available_pixel_formats_as_strings() or [])
+
+
+def _default_pixel_format(source):
+    """Mono8, else the first format livedic reads that the camera offers (a 12-bit-only camera)."""
+    offered = _offered_pixel_formats(source)
+    return next((name for name in SUPPORTED_PIXEL_FORMATS if name in offered), "Mono8")
+
+
 def _apply_pixel_format(source, value):
     cam = source._camera
-    offered = list(cam.dup_available_pixel_formats_as_strings() or [])
+    offered = _offered_pixel_formats(source)
     if value not in offered:
         usable = [f for f in SUPPORTED_PIXEL_FORMATS if f in offered]
         raise SourceError(
@@ -238,18 +332,57 @@ def _read_pixel_format(source):
     return source._camera.get_pixel_format_as_string()
 
 
+def _default_binning(source):
+    return (1, 1) if source._camera.is_binning_available() else None
+
+
+def _apply_binning(source, value):
+    cam = source._camera
+    if not cam.is_binning_available():
+        raise SourceError(f"binning={value[0]},{value[1]}: camera {source._label} has no binning control")
+    for feature, factor in (("BinningHorizontal", value[0]), ("BinningVertical", value[1])):
+        bounds = source._call(f"read the bounds of {feature}", cam.get_integer_bounds, feature)
+        _check_range(f"binning ({feature})", factor, bounds.min, bounds.max, "")
+    source._call(f"set binning={value[0]},{value[1]}", cam.set_binning, *value)
+
+
+def _read_binning(source):
+    cam = source._camera
+    if not cam.is_binning_available():
+        return None
+    binning = cam.get_binning()
+    return (binning.dx, binning.dy)
+
+
+_FULL_SENSOR = "full"            # the roi default: the whole sensor (at the binning in use)
+
+
+def _default_roi(source):
+    return _FULL_SENSOR
+
+
 def _apply_roi(source, value):
     cam = source._camera
+    if value == _FULL_SENSOR:
+        # Offsets to 0 first: the widest Width a camera allows shrinks with OffsetX.
+        region = cam.get_region()
+        source._call("set roi offsets to 0", cam.set_region, 0, 0, region.width, region.height)
+        value = (0, 0, cam.get_width_bounds().max, cam.get_height_bounds().max)
+        source._call(f"set roi to the full sensor {value}", cam.set_region, *value)
+        return
     x, y, w, h = value
     sensor = cam.get_sensor_size()
+    binning = _read_binning(source) or (1, 1)
+    wide, high = sensor.width // binning[0], sensor.height // binning[1]
     wb, hb = cam.get_width_bounds(), cam.get_height_bounds()
     problems = []
     if not (wb.min <= w <= wb.max):
         problems.append(f"width {w} not in [{wb.min}, {wb.max}]")
     if not (hb.min <= h <= hb.max):
         problems.append(f"height {h} not in [{hb.min}, {hb.max}]")
-    if x + w > sensor.width or y + h > sensor.height:
-        problems.append(f"x + w = {x + w}, y + h = {y + h} exceed the sensor {sensor.width}x{sensor.height}")
+    if x + w > wide or y + h > high:
+        problems.append(f"x + w = {x + w}, y + h = {y + h} exceed the sensor {wide}x{high}"
+                        + (f" (binned {binning[0]}x{binning[1]})" if binning != (1, 1) else ""))
     if problems:
         raise SourceError(f"roi={value} does not fit camera {source._label}: {'; '.join(problems)}")
     # Offsets first to 0 so a larger width fits, then size, then offsets (what set_region does).
@@ -296,6 +429,8 @@ def _read_gain(source):
 
 
 def _apply_frame_rate(source, value):
+    if source._software_trigger:
+        return   # the rate livedic fires the trigger at; the camera's own limit is off (genicam.apply_trigger)
     cam = source._camera
     if not cam.is_frame_rate_available():
         raise SourceError(f"camera {source._label} has no frame rate control")
@@ -307,6 +442,12 @@ def _apply_frame_rate(source, value):
 def _read_frame_rate(source):
     cam = source._camera
     return cam.get_frame_rate() if cam.is_frame_rate_available() else None
+
+
+def _default_packet_size(source):
+    address = source._info.get("address")
+    loopback = address is not None and _is_ip_address(address) and ipaddress.ip_address(address).is_loopback
+    return _LOOPBACK_PACKET_SIZE if loopback and source._camera.is_gv_device() else None
 
 
 def _apply_packet_size(source, value):
@@ -321,65 +462,116 @@ def _read_packet_size(source):
     return cam.gv_get_packet_size() if cam.is_gv_device() else None
 
 
+def _apply_trigger(source, value):
+    genicam.apply_trigger(source._camera, source._call, value)
+
+
+def _read_trigger(source):
+    return genicam.read_trigger(source._camera, source._call)
+
+
+def _shown(value):
+    """A setting as a note shows it: 0,0,64,48 for a region, mode=On source=Line0 for a trigger."""
+    if isinstance(value, (tuple, list)):
+        return ",".join(str(v) for v in value)
+    if isinstance(value, dict):
+        return " ".join(f"{key}={item}" for key, item in value.items() if item is not None)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
 class AravisCamera(FrameSource):
     """A GenICam camera through Aravis, yielding ``Frame`` objects (zero copy).
 
     Parameters
     ----------
     device_id : str or None
-        Aravis device id (``livedic cameras``), serial, physical id or GigE IP
-        address; ``None`` opens the first camera found.
+        Aravis device id (``livedic cameras``), serial, MAC or GigE IP address;
+        ``None`` opens the first camera found.
     exposure_us, gain_db, frame_rate : float, optional
-        Applied (auto modes switched off) and read back; ``None`` leaves the camera's value.
+        Applied (auto modes switched off) and read back; ``None`` leaves the camera's value
+        (as its user set has it). With ``trigger=software``, ``frame_rate`` is the trigger rate.
     roi : (x, y, w, h) or "x,y,w,h", optional
-        Sensor region; the camera may round to its increments (read back).
-    pixel_format : {"Mono8", "Mono12", "Mono16"}, optional
-        ``None`` keeps the camera's format if supported, else sets Mono8.
+        Sensor region (in binned pixels); the camera may round to its increments (read back).
+        Default: the full sensor.
+    binning : (h, v) or "H[,V]", optional
+        BinningHorizontal, BinningVertical (default 1, 1 where the camera bins).
+    pixel_format : str, optional
+        One of ``SUPPORTED_PIXEL_FORMATS`` (default Mono8, or the first the camera offers).
+    trigger : str, optional
+        ``free`` (default), ``software`` or ``line:N[:rising|falling]`` (``genicam.parse_trigger``).
+    user_set : str, optional
+        The user set loaded at open (default ``Default`` when the camera has one; ``none``: no user set).
     packet_size : int, optional
-        GigE Vision packet size in bytes (jumbo frames need the NIC MTU).
+        GigE Vision packet size in bytes (jumbo frames need the NIC MTU; 9000 on loopback).
     n_buffers : int
         Buffers in the pool (default 10); frames held by the consumer hold buffers.
     timeout_s : float, optional
         No complete frame for this long means the camera is lost
         (default ``max(0.5, 3 / frame_rate + exposure)``; 1 s + exposure when the
-        camera has no frame rate control).
+        camera has no frame rate control; no limit for a line trigger).
     copy : bool
         Hand out copies and re-queue each buffer at once (default False: zero copy).
+    **features
+        ``feature.NAME=VALUE``: GenICam feature NAME set by its type and read back (after the
+        settings above, so an explicit feature wins).
 
     Raises
     ------
     SourceError
         Aravis missing, unknown device (the message lists available ids),
         unsupported pixel format (lists the supported ones), a setting out of
-        the camera's range, or the camera lost while streaming.
+        the camera's range, an unknown feature or a refused value, or the camera
+        lost while streaming.
+    NoFirstFrame
+        The camera opened but never delivered a frame (a ``SourceError``).
     """
 
     SETTINGS = (
         Setting("pixel_format", _as_pixel_format, _apply_pixel_format, _read_pixel_format,
-                "Mono8, Mono12 (uint16) or Mono16"),
-        Setting("roi", _as_roi, _apply_roi, _read_roi, "sensor region x,y,w,h in pixels"),
-        Setting("packet_size", as_int, _apply_packet_size, _read_packet_size, "GigE packet size, bytes"),
+                "Mono8, Mono10, Mono12, Mono16 or packed Mono10p, Mono12p, Mono10Packed, Mono12Packed (default Mono8)",
+                _default_pixel_format),
+        Setting("binning", _as_binning, _apply_binning, _read_binning, "H[,V] pixels binned (default 1)",
+                _default_binning),
+        Setting("roi", _as_roi, _apply_roi, _read_roi, "sensor region x,y,w,h in pixels (default: full sensor)",
+                _default_roi),
+        Setting("packet_size", as_int, _apply_packet_size, _read_packet_size, "GigE packet size, bytes",
+                _default_packet_size),
         Setting("exposure_us", as_float, _apply_exposure, _read_exposure, "exposure time, microseconds"),
         Setting("gain_db", as_float, _apply_gain, _read_gain, "analog gain, dB"),
-        Setting("frame_rate", as_float, _apply_frame_rate, _read_frame_rate, "frames per second"),
+        Setting("trigger", genicam.parse_trigger, _apply_trigger, _read_trigger,
+                "free, software (fired at frame_rate) or line:N[:rising|falling] (default free)",
+                lambda source: genicam.FREE_RUNNING),
+        Setting("frame_rate", as_float, _apply_frame_rate, _read_frame_rate,
+                "frames per second (with trigger=software: the trigger rate)"),
     )
-    # Other options: how the stream behaves rather than what the camera does.
+    # Other options: how the source opens and streams rather than one camera setting.
     OPTIONS = {s.name: s.doc for s in SETTINGS} | {
+        "user_set": "user set loaded at open (default Default where the camera has one; none: no user set)",
+        f"{FEATURE_PREFIX}NAME": "any GenICam feature by name, set by its type and read back",
         "n_buffers": "buffers in the pool (default 10)",
-        "timeout_s": "seconds without a frame before the camera counts as lost",
+        "timeout_s": "seconds without a frame before the camera counts as lost (line trigger: no limit)",
         "copy": "1 to copy frames out of the pool (default 0: zero copy)",
     }
 
-    def __init__(self, device_id=None, *, uri=None, n_buffers=10, timeout_s=None, copy=False, **settings):
-        unknown = sorted(set(settings) - {s.name for s in self.SETTINGS})
-        if unknown:
-            raise SourceError(f"unknown aravis option(s) {', '.join(unknown)}; known: {', '.join(self.OPTIONS)}")
+    def __init__(self, device_id=None, *, uri=None, n_buffers=10, timeout_s=None, copy=False,
+                 user_set=genicam.DEFAULT_USER_SET, **settings):
+        features = {key[len(FEATURE_PREFIX):]: value for key, value in settings.items()
+                    if key.startswith(FEATURE_PREFIX)}
+        unknown = sorted(set(settings) - {s.name for s in self.SETTINGS} - {FEATURE_PREFIX + f for f in features})
+        if unknown or "" in features:
+            raise SourceError(f"unknown aravis option(s) {', '.join(unknown) or FEATURE_PREFIX}; "
+                              f"known: {', '.join(self.OPTIONS)}")
         requested = {}
         for setting in self.SETTINGS:
             value = settings.get(setting.name)
             if value is not None and value != "":
                 requested[setting.name] = setting.parse(setting.name, value)
         self._requested = requested
+        self._features_asked = {name: str(value) for name, value in features.items()}
+        self._user_set_asked = _as_user_set("user_set", user_set)
+        self._software_trigger = requested.get("trigger", genicam.FREE_RUNNING).mode == "software"
         self._n_buffers = as_int("n_buffers", n_buffers)
         if self._n_buffers < 2:
             raise SourceError(f"n_buffers={self._n_buffers}: need at least 2")
@@ -416,9 +608,16 @@ class AravisCamera(FrameSource):
         self._first_id = None
         self._last_id = None
         self._index = -1
+        self._waiting_first = True
+        self._trigger_period_s = None
+        self._next_trigger_t = 0.0
+        self._triggers_fired = 0
         self._label = device_id or "(first camera)"
         self._info = {}
         self._applied = {}
+        self._found = {}
+        self._features = {}
+        self._user_set = None
         try:
             self._open(device_id)
         except BaseException as error:
@@ -444,88 +643,144 @@ class AravisCamera(FrameSource):
         function = args = None
         raise SourceError(message)
 
-    def _open(self, device_id):
+    def _camera_new(self, device_id, *, asked, cameras=None):
+        """``Aravis.Camera.new(device_id)``; SourceError naming ``asked`` and what is available."""
         Aravis, GLib = load_aravis()
-        fake = device_id is not None and device_id.lower().startswith("fake")
-        if fake:
-            Aravis.enable_interface("Fake")
         try:
-            self._camera = Aravis.Camera.new(device_id)
+            return Aravis.Camera.new(device_id)
         except GLib.Error as error:
-            self._camera = None
+            reason = _gerror_message(error)
+        if cameras is None:
             try:
-                available = list_cameras(include_fake=fake)
+                cameras = list_cameras(include_fake=asked is not None and asked.lower().startswith("fake"))
             except Exception:  # noqa: BLE001 - the open error is the one to report
-                available = []
-            ids = ", ".join(f"{c['id']} ({c['protocol']}, {c['address']})" for c in available) or "none found"
-            if device_id is None:
-                raise SourceError(
-                    f"no GenICam camera found by Aravis ({_gerror_message(error)}): check power and cable; "
-                    "a GigE camera must be on this computer's subnet; 'livedic cameras' lists what is seen") from None
-            raise SourceError(f"camera '{device_id}' not found ({_gerror_message(error)}); available: {ids}") from None
+                cameras = []
+        ids = ", ".join(f"{c['id']} ({c['protocol']}, {c['address']})" for c in cameras) or "none found"
+        if asked is None:
+            raise SourceError(
+                f"no GenICam camera found by Aravis ({reason}): check power and cable; "
+                "a GigE camera must be on this computer's subnet; 'livedic cameras' lists what is seen")
+        raise SourceError(f"camera '{asked}' not found ({reason}); available: {ids}")
 
+    def _connect(self, device_id):
+        """Open the camera ``device_id`` names: (Aravis.Camera, its listing entry or None); see the module notes."""
+        Aravis, _ = load_aravis()
+        if device_id is not None and device_id.lower().startswith("fake"):
+            Aravis.enable_interface("Fake")
+            return self._camera_new(device_id, asked=device_id), None
+        if device_id is not None and _is_ip_address(device_id):
+            return self._camera_new(device_id, asked=device_id), None
+        cameras = list_cameras()
+        listed = _find_listed(cameras, device_id)
+        if listed is None:
+            # Not listed by id, serial or MAC (a user-defined name, a host name): Aravis may still know it.
+            return self._camera_new(device_id, asked=device_id, cameras=cameras), None
+        by = listed["address"] if listed["protocol"] == "GigEVision" and listed["address"] else listed["id"]
+        return self._camera_new(by, asked=device_id, cameras=cameras), listed
+
+    def _describe(self, device_id, listed):
+        """``self._info``: what the camera says it is (model, serial, firmware, sensor, address)."""
         cam = self._camera
-        self._device = cam.get_device()
         protocol = "GigEVision" if cam.is_gv_device() else "USB3Vision" if cam.is_uv_device() else "Fake"
-        address = None
+        address = interface_address = None
         if cam.is_gv_device():
-            try:
-                address = self._device.get_device_address()
-                if hasattr(address, "get_address"):  # a GInetSocketAddress: drop the GVCP port
-                    address = address.get_address()
-                address = address.to_string()
-            except Exception:  # noqa: BLE001 - informative only
-                address = None
+            address = _address_text(self._device.get_device_address)
+            interface_address = _address_text(self._device.get_interface_address)   # where it streams to
         vendor, model, serial = cam.get_vendor_name(), cam.get_model_name(), cam.get_device_serial_number()
-        info = {
-            # the id it was opened with, else Aravis's "vendor-model-serial" naming
-            "device_id": device_id or f"{vendor}-{model}-{serial}",
-            "vendor": vendor,
-            "model": model,
-            "serial": serial,
-            "protocol": protocol,
-            "interface": _interface_name(protocol),
-            "address": address,
-        }
+        # the id it was opened with (or found by, for the first camera), else Aravis's "vendor-model-serial"
+        name = device_id or (listed or {}).get("id") or f"{vendor}-{model}-{serial}"
+        info = {"device_id": name, "vendor": vendor, "model": model, "serial": serial, "protocol": protocol,
+                "interface": _interface_name(protocol), "address": address, "interface_address": interface_address}
+        for key, feature in (("firmware", "DeviceFirmwareVersion"), ("device_version", "DeviceVersion")):
+            info[key] = self._call(f"read {feature}", cam.get_string, feature) \
+                if cam.is_feature_available(feature) else None
         sensor = cam.get_sensor_size()
         info["sensor_size"] = [sensor.width, sensor.height]
         self._info = info
-        self._label = f"{info['device_id']} ({vendor} {model} #{serial}, {protocol})"
+        self._label = f"{name} ({vendor} {model} #{serial}, {protocol})"
         self._wrap16 = protocol == "GigEVision"
 
+    def _open(self, device_id):
+        self._camera, listed = self._connect(device_id)
+        cam = self._camera
+        self._device = cam.get_device()
+        self._describe(device_id, listed)
         hook = FAKE_FILL_HOOKS.get(device_id) if device_id else None
         if hook is not None:
             self._keepalive = hook(cam)
-
-        # pixel format: default keeps a supported current one, else Mono8
-        requested = dict(self._requested)
-        if "pixel_format" not in requested:
-            current = cam.get_pixel_format_as_string()
-            if current not in SUPPORTED_PIXEL_FORMATS:
-                requested["pixel_format"] = "Mono8"
-                self._note(f"camera pixel format was {current}; set to Mono8")
-        for setting in self.SETTINGS:
-            if setting.name in requested:
-                setting.apply(self, requested[setting.name])
+        self._known_state()
+        self._apply_features()
         for setting in self.SETTINGS:
             self._applied[setting.name] = setting.read(self)
+        for name in self._features:      # a later feature may have changed an earlier one
+            self._features[name]["read"] = genicam.read_feature(cam, self._call, name)
+        self._check_applied()
+        self._start_stream()
+
+    def _known_state(self):
+        """Stop, load the user set, reset what the session depends on, apply the settings asked (module notes)."""
+        cam = self._camera
+        # A session that ended without stopping the camera leaves it sending to that session's address;
+        # the next AcquisitionStart would not make it take the new one.
+        self._call("stop a running acquisition", cam.stop_acquisition)
+        self._found = {setting.name: setting.read(self) for setting in self.SETTINGS}
+        if self._user_set_asked != _NO_USER_SET:
+            if genicam.load_user_set(cam, self._call, self._user_set_asked):
+                self._user_set = self._user_set_asked
+            elif self._user_set_asked != genicam.DEFAULT_USER_SET:
+                offered = genicam.user_sets(cam, self._call)
+                raise SourceError(f"user_set={self._user_set_asked}: camera {self._label} "
+                                  + (f"offers {', '.join(offered)}" if offered else "has no user sets"))
+        if cam.is_feature_available("AcquisitionMode"):
+            self._call("set AcquisitionMode=Continuous", cam.set_string, "AcquisitionMode", "Continuous")
+        for setting in self.SETTINGS:
+            value = self._requested[setting.name] if setting.name in self._requested else setting.default(self)
+            if value is not None:
+                setting.apply(self, value)
+        changed = []
+        for setting in self.SETTINGS:
+            was, now = self._found[setting.name], setting.read(self)
+            if setting.name not in self._requested and now != was:
+                changed.append(f"{setting.name} {_shown(was)} -> {_shown(now)}")
+        if changed:
+            self._note("the camera was not in livedic's default state; set at open: " + "; ".join(changed))
+
+    def _apply_features(self):
+        for name, text in self._features_asked.items():
+            asked, got, note = genicam.set_feature(self._camera, self._call, name, text)
+            self._features[name] = {"asked": asked, "read": got}
+            if note:
+                self._note(note)
+
+    def _check_applied(self):
         pixel_format = self._applied["pixel_format"]
-        if pixel_format not in SUPPORTED_PIXEL_FORMATS:
+        if pixel_formats.by_name(pixel_format) is None:
             raise SourceError(f"camera {self._label} streams {pixel_format}, not one of "
                               f"{', '.join(SUPPORTED_PIXEL_FORMATS)}")
-        for name, asked in requested.items():
+        for name, asked in self._requested.items():
             got = self._applied.get(name)
-            if got is None:
+            if got is None or name == "frame_rate" and self._software_trigger:
                 continue
             if isinstance(asked, float) and not math.isclose(asked, got, rel_tol=1e-3, abs_tol=1e-6):
                 self._note(f"{name}: asked {asked:g}, camera set {got:g}")
             elif isinstance(asked, tuple) and tuple(got) != asked:
                 self._note(f"{name}: asked {asked}, camera set {tuple(got)}")
 
-        frame_rate = self._applied.get("frame_rate") or 0.0
+    def _start_stream(self):
+        cam = self._camera
+        trigger = self._requested.get("trigger", genicam.FREE_RUNNING)
         exposure_s = (self._applied.get("exposure_us") or 0.0) * 1e-6
+        frame_rate = self._applied.get("frame_rate") or 0.0
+        if self._software_trigger:
+            frame_rate = self._requested.get("frame_rate") or frame_rate
+            if not frame_rate > 0:
+                raise SourceError(f"trigger=software: give frame_rate=F, the rate livedic fires the trigger at "
+                                  f"(camera {self._label} has no frame rate to take it from)")
+            self._trigger_period_s = 1.0 / frame_rate
         if self._timeout_option is not None:
             self._timeout_s = self._timeout_option
+        elif trigger.mode == "line":
+            self._timeout_s = None   # the hardware decides when frames come
         else:
             period = 3.0 / frame_rate if frame_rate > 0 else 1.0
             self._timeout_s = max(_LOST_FLOOR_S, period + exposure_s)
@@ -562,11 +817,19 @@ class AravisCamera(FrameSource):
 
     @property
     def settings(self):
-        """What the camera actually uses (read back), what was asked, and stream counters."""
+        """What the camera reports (read back), what was asked, and stream counters (the session metadata)."""
         out = {"source": SCHEME, "uri": self.uri, **self._info}
-        out.update({k: (list(v) if isinstance(v, tuple) else v) for k, v in self._applied.items()})
-        out["requested"] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self._requested.items()}
+        out.update({k: _plain(v) for k, v in self._applied.items()})
+        fmt = pixel_formats.by_name(self._applied.get("pixel_format") or "")
+        out["bit_depth"] = fmt.bit_depth if fmt is not None else None
+        out["frame_pixel_format"] = fmt.frame_format if fmt is not None else None
+        out["requested"] = {k: _plain(v) for k, v in self._requested.items()}
         out.update({
+            "user_set": self._user_set,
+            "features": {name: dict(values) for name, values in self._features.items()},
+            "software_trigger_rate": 1.0 / self._trigger_period_s if self._trigger_period_s else None,
+            "software_triggers": self._triggers_fired,
+            "found_at_open": {k: _plain(v) for k, v in self._found.items()},
             "n_buffers": len(self._pool) or self._n_buffers,
             "payload_bytes": self._payload,
             "timeout_s": getattr(self, "_timeout_s", None),
@@ -608,19 +871,33 @@ class AravisCamera(FrameSource):
             if not self._started and self._camera is not None and not self._closed:
                 self._call("start acquisition", self._camera.start_acquisition)
                 self._started = True
-                self._progress_t = time.monotonic()
                 self._waiting_first = True
+                self._next_trigger_t = time.monotonic()
+
+    def _fire_trigger(self, now):
+        """With trigger=software: fire TriggerSoftware when due; the seconds until the next one."""
+        if now >= self._next_trigger_t:
+            self._call("software trigger", self._camera.software_trigger)
+            self._triggers_fired += 1
+            # Paced from the last trigger; after a pause (the consumer busy) start again, no burst.
+            self._next_trigger_t = max(self._next_trigger_t + self._trigger_period_s, now)
+        return self._next_trigger_t - now
 
     def _next_frame(self):
-        """The next complete frame, ``None`` once closed; ``SourceError`` when the camera is lost."""
+        """The next complete frame, ``None`` once closed; ``NoFirstFrame`` or ``SourceError`` (lost) on failure.
+
+        The time limit counts from this call (a consumer that paused, e.g. between the first frame and
+        the session's start, is no camera failure), or from the last frame while frames come.
+        """
         Aravis, _ = load_aravis()
         success = Aravis.BufferStatus.SUCCESS
         error = None
+        waiting_since = time.monotonic()
         while error is None:
             if self._closing or self._closed:
                 return None
             if self._control_lost:
-                error = self._lost_error("GigE control channel lost (heartbeat unanswered)")
+                error = self._failure("GigE control channel lost (heartbeat unanswered)")
                 break
             with self._lock:
                 stream = self._stream
@@ -628,22 +905,30 @@ class AravisCamera(FrameSource):
                     return None
                 if len(self._pool) - self._n_leased < _MIN_FREE_BUFFERS:
                     self._grow_pool()  # the consumer holds (almost) every buffer
-                buffer = stream.timeout_pop_buffer(_POP_SLICE_US)
+                wait_us = _POP_SLICE_US
+                if self._trigger_period_s is not None:
+                    try:
+                        wait_us = min(wait_us, max(1000, int(1e6 * self._fire_trigger(time.monotonic()))))
+                    except SourceError as trigger_error:
+                        error = self._failure(f"{trigger_error}")
+                        break
+                buffer = stream.timeout_pop_buffer(wait_us)
                 now = time.monotonic()
-                limit = self._timeout_s + (_FIRST_FRAME_EXTRA_S if self._waiting_first else 0.0)
+                waited = now - waiting_since
+                limit = None if self._timeout_s is None else \
+                    self._timeout_s + (_FIRST_FRAME_EXTRA_S if self._waiting_first else 0.0)
                 if buffer is None:
-                    if now - self._progress_t > limit:
-                        error = self._lost_error(f"no frame for {now - self._progress_t:.1f} s")
+                    if limit is not None and waited > limit:
+                        error = self._failure(f"no frame for {waited:.1f} s")
                     continue
                 if buffer.get_status() != success:
                     self._incomplete += 1
                     status = buffer.get_status()
                     self._last_status = getattr(status, "value_nick", str(status))
                     stream.push_buffer(buffer)
-                    if now - self._progress_t > limit:
-                        error = self._lost_error(f"no complete frame for {now - self._progress_t:.1f} s")
+                    if limit is not None and waited > limit:
+                        error = self._failure(f"no complete frame for {waited:.1f} s")
                     continue
-                self._progress_t = now
                 self._waiting_first = False
                 return self._make_frame(buffer, stream)
         # As in _call: drop gi references before raising (the traceback keeps this frame).
@@ -662,17 +947,42 @@ class AravisCamera(FrameSource):
             if self._stream_alive:
                 self._add_buffer()
 
-    def _lost_error(self, why):
-        self._lost = True
+    def _stream_counts(self):
         stats = self.stream_statistics()
         status = f", last incomplete buffer status {self._last_status}" if self._last_status else ""
+        return (f"stream: {stats.get('n_completed', 0)} completed, {stats.get('n_failures', 0)} failed, "
+                f"{stats.get('n_underruns', 0)} underruns, {stats.get('n_missing_packets', 0)} missing packets, "
+                f"{self._incomplete} incomplete buffers{status}")
+
+    def _failure(self, why):
+        """The error for a stream that stopped: ``NoFirstFrame`` before any frame, else a loss."""
+        self._lost = True
+        timeout = "no limit" if self._timeout_s is None else f"timeout_s={self._timeout_s:g}"
+        if self._waiting_first:
+            return self._no_first_frame(why, timeout)
         hint = ("check power, cable and network (is the camera still on the same subnet?)"
                 if self._info.get("protocol") == "GigEVision" else "check power and cable")
-        return SourceError(
-            f"camera {self._label} lost: {why} (timeout_s={self._timeout_s:g}); stream: "
-            f"{stats.get('n_completed', 0)} completed, {stats.get('n_failures', 0)} failed, "
-            f"{stats.get('n_underruns', 0)} underruns, {stats.get('n_missing_packets', 0)} missing packets, "
-            f"{self._incomplete} incomplete buffers{status}; {hint}, or raise timeout_s for slow triggers")
+        return SourceError(f"camera {self._label} lost: {why} ({timeout}); {self._stream_counts()}; {hint}, "
+                           "or raise timeout_s for slow triggers")
+
+    def _no_first_frame(self, why, timeout):
+        trigger = self._requested.get("trigger", genicam.FREE_RUNNING)
+        checks = []
+        if trigger.mode == "line":
+            checks.append(f"the trigger (trigger={trigger} waits for a {trigger.edge} edge on {trigger.source}; "
+                          "trigger=free runs without one)")
+        elif trigger.mode == "software":
+            checks.append(f"the trigger ({self._triggers_fired} software triggers fired, no frame came back)")
+        if self._info.get("protocol") == "GigEVision":
+            checks.append(f"the GigE packet size (packet_size={self._applied.get('packet_size')}: at most the "
+                          "network's MTU) and a firewall letting the camera's UDP stream in")
+        checks.append("that no other program (arv-viewer, the vendor's viewer) holds the camera")
+        wait = "" if self._timeout_s is None else f" + {_FIRST_FRAME_EXTRA_S:g} s start-up"
+        listed = "; ".join(f"({i}) {check}" for i, check in enumerate(checks, 1))
+        return NoFirstFrame(
+            f"camera {self._label} opened but sent no frame since acquisition started: {why} ({timeout}{wait}); "
+            f"{self._stream_counts()}; it never started streaming (not a lost camera); check {listed}",
+            checks=tuple(checks))
 
     def _frame_index(self, frame_id):
         if self._first_id is None:
@@ -694,18 +1004,18 @@ class AravisCamera(FrameSource):
         key = hash(buffer)
         array, _ = self._pool[key]
         code = buffer.get_image_pixel_format()
-        name, dtype = _FORMAT_BY_CODE.get(code, (None, None))
-        if name is None:
+        fmt = pixel_formats.by_code(code)
+        if fmt is None:
             stream.push_buffer(buffer)
             raise SourceError(f"camera {self._label} sent pixel format 0x{code:08x}, not one of "
                               f"{', '.join(SUPPORTED_PIXEL_FORMATS)}")
         width, height = buffer.get_image_width(), buffer.get_image_height()
-        itemsize = np.dtype(dtype).itemsize
         x_padding = buffer.get_image_padding()[0] if hasattr(buffer, "get_image_padding") else 0
-        row_bytes = width * itemsize + x_padding
-        if row_bytes * height > self._payload:
+        row_bytes = fmt.line_bytes(width) + x_padding
+        size = row_bytes * height if x_padding or not fmt.packed else -(-width * height * fmt.bits_per_pixel // 8)
+        if size > self._payload:
             stream.push_buffer(buffer)
-            raise SourceError(f"camera {self._label} sent a {width}x{height} {name} image larger than "
+            raise SourceError(f"camera {self._label} sent a {width}x{height} {fmt.name} image larger than "
                               f"the {self._payload}-byte buffers")
         frame_id = buffer.get_frame_id()
         timestamp = buffer.get_timestamp()
@@ -713,6 +1023,21 @@ class AravisCamera(FrameSource):
         index, dropped = self._frame_index(frame_id)
         self._dropped += dropped
         stats = self._stats(stream)
+        if fmt.packed:
+            # Unpacked into a new array: the buffer goes back to the camera at once.
+            image = pixel_formats.unpack(array[:size], fmt, width, height, row_bytes if x_padding else None)
+            stream.push_buffer(buffer)
+        else:
+            image = self._image_view(buffer, stream, array, (height, width), fmt.dtype, row_bytes)
+        self._frames += 1
+        metadata = {"frame_id": int(frame_id), "system_timestamp_ns": int(system_ts),
+                    "dropped_before": int(dropped), "bit_depth": fmt.bit_depth, "stream": stats}
+        return Frame(index=index, timestamp_ns=int(timestamp or system_ts), image=image,
+                     pixel_format=fmt.frame_format, metadata=metadata)
+
+    def _image_view(self, buffer, stream, array, shape, dtype, row_bytes):
+        """The image in ``buffer``: a view lent to the consumer (zero copy), or a copy (see the module notes)."""
+        height, width = shape
         must_copy = not self._copy and len(self._pool) - self._n_leased < _MIN_FREE_BUFFERS
         if must_copy:
             # Pool at its cap and the consumer keeps every frame: copy rather than starve the camera.
@@ -722,21 +1047,16 @@ class AravisCamera(FrameSource):
                             "that lasts (copy the frames you keep, or open with copy=1)", self._label, len(self._pool))
         if self._copy or must_copy:
             flat = array[: row_bytes * height]
-            image = np.ndarray((height, width), dtype, flat, 0, (row_bytes, itemsize)).copy()
+            image = np.ndarray(shape, dtype, flat, 0, (row_bytes, dtype.itemsize)).copy()
             stream.push_buffer(buffer)
-        else:
-            lease = _lease_type(self._payload).from_address(array.ctypes.data)
-            lease.owner = self
-            lease.buffer = buffer
-            lease.array = array
-            with self._recycle_lock:
-                self._n_leased += 1
-            image = np.ndarray((height, width), dtype, lease, 0, (row_bytes, itemsize))
-        self._frames += 1
-        metadata = {"frame_id": int(frame_id), "system_timestamp_ns": int(system_ts),
-                    "dropped_before": int(dropped), "stream": stats}
-        return Frame(index=index, timestamp_ns=int(timestamp or system_ts), image=image,
-                     pixel_format=name, metadata=metadata)
+            return image
+        lease = _lease_type(self._payload).from_address(array.ctypes.data)
+        lease.owner = self
+        lease.buffer = buffer
+        lease.array = array
+        with self._recycle_lock:
+            self._n_leased += 1
+        return np.ndarray(shape, dtype, lease, 0, (row_bytes, dtype.itemsize))
 
     def _recycle(self, buffer):
         with self._recycle_lock:
@@ -755,7 +1075,7 @@ class AravisCamera(FrameSource):
                 return
             self._closed = True
             _OPEN_SOURCES.discard(self)
-            self._teardown(background=self._lost)
+            self._teardown(background=self._lost and self._frames > 0)
 
     def _teardown(self, *, background):
         with self._recycle_lock:
@@ -772,7 +1092,8 @@ class AravisCamera(FrameSource):
         pool, self._pool = self._pool, {}
         handler, self._lost_handler = self._lost_handler, None
         keepalive, self._keepalive = self._keepalive, None
-        stop = self._started and not self._lost
+        # A camera lost mid-stream would make the stop wait on register writes; one that never delivered answers.
+        stop = self._started and not (self._lost and self._frames)
         label = self._label
         objects = [stream, camera, device, keepalive, pool]
         del stream, camera, device, keepalive, pool
@@ -852,6 +1173,13 @@ class _FrameIterator:
 # --------------------------------------------------------------------------- #
 
 _LEASE_TYPES = {}
+
+
+def _plain(value):
+    """A setting for JSON metadata: tuples as lists, a trigger as its URI text."""
+    if isinstance(value, genicam.Trigger):
+        return str(value)
+    return list(value) if isinstance(value, tuple) else value
 
 
 def _lease_del(self):

@@ -46,6 +46,10 @@ class AtomicFile:
     binary : bool
         Open the temporary file for bytes (``"wb"``) instead of text (``"w"``, no newline
         translation).
+    suffix : str
+        Ending of the temporary name after ``.partial`` (e.g. ``".mp4"``), for writers that
+        take a path (``tmp``) and choose the format by its extension, such as OpenCV's video
+        writer.
 
     The file gets the permissions ``open(path, "w")`` would give it (``0666 & ~umask``;
     ``tempfile.mkstemp`` alone makes 0600). ``discard()``, or leaving the ``with``
@@ -58,14 +62,14 @@ class AtomicFile:
         The folder does not exist, or ``path`` is a folder.
     """
 
-    def __init__(self, path, *, binary=False):
+    def __init__(self, path, *, binary=False, suffix=""):
         self.path = os.fspath(path)
         if os.path.isdir(self.path):
             raise OutputError(f"{self.path} is a folder: give a file name")
         directory = os.path.dirname(os.path.abspath(self.path))
         if not os.path.isdir(directory):
             raise OutputError(f"cannot write {self.path}: folder {directory} does not exist")
-        fd, self.tmp = tempfile.mkstemp(prefix=TEMP_PREFIX, suffix=".partial", dir=directory)
+        fd, self.tmp = tempfile.mkstemp(prefix=TEMP_PREFIX, suffix=".partial" + suffix, dir=directory)
         try:
             os.fchmod(fd, 0o666 & ~current_umask())
             self.handle = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", newline="")

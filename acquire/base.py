@@ -10,6 +10,18 @@ class SourceError(RuntimeError):
     """A source could not be opened or stopped delivering frames; the message says what to do."""
 
 
+class NoFirstFrame(SourceError):
+    """A source opened but delivered no frame within its time limit: not lost, it never started.
+
+    ``checks`` lists what to look at (a camera: its trigger, the GigE packet size and
+    firewall, another program holding it), each a short phrase; the message has them too.
+    """
+
+    def __init__(self, message, *, checks=()):
+        super().__init__(message)
+        self.checks = tuple(checks)
+
+
 class SourceLost(SourceError):
     """A source that had delivered frames failed mid-session (``livedic run`` exits 3, recording kept)."""
 
@@ -21,7 +33,8 @@ class Frame:
     index : int            frame number from the source, 0-based (gaps mean frames lost upstream)
     timestamp_ns : int     acquisition time in nanoseconds (camera clock when it has one)
     image : ndarray        2-D uint8 or uint16 grey image, shape (H, W)
-    pixel_format : str     "Mono8", "Mono12" or "Mono16" (Mono12 is stored in uint16)
+    pixel_format : str     "Mono8", "Mono10", "Mono12" or "Mono16" (10 to 16 bits are stored in uint16,
+                           least significant bit first: a 12-bit image holds 0..4095)
     metadata : dict        per-frame extras, e.g. "truth_u"/"truth_v" for synthetic sources
     """
     index: int

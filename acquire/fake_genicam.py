@@ -22,8 +22,13 @@ the callback on return), so ``arv_fake_camera_set_fill_pattern`` is called from
 referenced for the camera's whole life (released only after the stream and the
 camera are destroyed). The callback copies the image into the buffer Aravis
 hands it: the camera's ROI offset crops a larger image like a real sensor; a
-smaller image is zero-padded; uint8 images are scaled by 257 for Mono16 and
-uint16 images shifted right by 8 for Mono8.
+smaller image is zero-padded; :func:`served_as` converts it to the pixel format's
+bit depth (uint8 x 257 for Mono16, uint16 >> 8 for Mono8) and packed formats are
+packed (``acquire.pixel_formats.pack``).
+
+Aravis's fakes offer Mono8 and Mono16 only and no user sets;
+:func:`extended_genicam_xml` adds the 10/12-bit formats (packed and unpacked),
+more trigger entries and a user set selector for tests (``genicam=`` of each fake).
 
 Run a GigE fake camera by hand (Ctrl-C stops it)::
 
@@ -51,14 +56,15 @@ import time
 import numpy as np
 
 from livedic.acquire import aravis as _aravis
+from livedic.acquire import pixel_formats
 from livedic.acquire.base import SourceError
 
-__all__ = ["SpeckleMotion", "InProcessFakeCamera", "GigEFakeCamera", "FillPattern", "GVCP_PORT"]
+__all__ = ["SpeckleMotion", "InProcessFakeCamera", "GigEFakeCamera", "ArvFakeGvCamera", "FillPattern", "GVCP_PORT",
+           "ARV_FAKE_GV_CAMERA", "extended_genicam_xml", "served_as"]
 
 log = logging.getLogger("livedic.acquire.fake_genicam")
 
 GVCP_PORT = 3956
-_PIXEL_BITS_SHIFT = 16  # PFNC: bits per pixel in bits 16..23 of the code
 
 
 # --------------------------------------------------------------------------- #
@@ -201,6 +207,14 @@ def _libaravis():
     return _LIB
 
 
+def _set_fake_genicam(path):
+    """``arv_set_fake_camera_genicam_filename`` (through ctypes: gi refuses None, which restores Aravis's XML)."""
+    lib = _libaravis()
+    lib.arv_set_fake_camera_genicam_filename.argtypes = [ctypes.c_char_p]
+    lib.arv_set_fake_camera_genicam_filename.restype = None
+    lib.arv_set_fake_camera_genicam_filename(None if path is None else path.encode())
+
+
 def _gobject_address(obj):
     """C address of the GObject behind a gi wrapper."""
     get = ctypes.pythonapi.PyCapsule_GetPointer
@@ -237,31 +251,95 @@ class FillPattern:
             height = lib.arv_buffer_get_image_height(buffer)
             x0 = lib.arv_buffer_get_image_x(buffer)
             y0 = lib.arv_buffer_get_image_y(buffer)
-            bits = (pixel_format >> _PIXEL_BITS_SHIFT) & 0xFF
-            dtype = np.uint8 if bits <= 8 else np.uint16
+            fmt = pixel_formats.by_code(pixel_format)
             address = lib.arv_buffer_get_data(buffer, None)  # (its size out-param reads 0 while filling)
-            if not address or width <= 0 or height <= 0:
+            if fmt is None or not address or width <= 0 or height <= 0:
                 return
-            out = np.ctypeslib.as_array(ctypes.cast(address, ctypes.POINTER(ctypes.c_uint8)),
-                                        (height * width * np.dtype(dtype).itemsize,))
-            out = out.view(dtype).reshape(height, width)
-            image = np.asarray(self.image_fn(k))
-            if image.dtype != dtype:
-                if dtype == np.uint16:
-                    image = image.astype(np.uint16) * 257 if image.dtype == np.uint8 else image.astype(np.uint16)
-                else:
-                    image = (image >> 8).astype(np.uint8) if image.dtype == np.uint16 else image.astype(np.uint8)
+            nbytes = -(-width * height * fmt.bits_per_pixel // 8)
+            raw = np.ctypeslib.as_array(ctypes.cast(address, ctypes.POINTER(ctypes.c_uint8)), (nbytes,))
+            image = served_as(np.asarray(self.image_fn(k)), fmt.bit_depth)
             crop = image[y0:y0 + height, x0:x0 + width]
-            if crop.shape == (height, width):
-                np.copyto(out, crop)
+            if crop.shape != (height, width):    # a smaller image is zero-padded
+                padded = np.zeros((height, width), image.dtype)
+                padded[:crop.shape[0], :crop.shape[1]] = crop
+                crop = padded
+            if fmt.packed:
+                raw[...] = pixel_formats.pack(crop, fmt)
             else:
-                out[...] = 0
-                out[:crop.shape[0], :crop.shape[1]] = crop
+                np.copyto(raw.view(fmt.dtype).reshape(height, width), crop)
         except BaseException as error:  # noqa: BLE001
             self.errors += 1
             if self.last_error is None:
                 log.error("fake camera fill pattern failed: %r", error)
             self.last_error = repr(error)
+
+
+def served_as(image, bit_depth):
+    """``image`` (uint8 or uint16) as a ``bit_depth``-bit camera sends it: uint8 for 8 bits, else uint16.
+
+    8-bit images are stretched to the full range (x 257 for 16 bits: 255 -> 65535), 16-bit ones keep
+    their top bits (>> 4 for 12 bits). What the fake cameras serve in each pixel format.
+    """
+    image = np.asarray(image)
+    source_bits = 8 if image.dtype == np.uint8 else 16
+    if bit_depth == source_bits:
+        values = image
+    elif source_bits == 16:
+        values = image >> (16 - bit_depth)
+    else:
+        values = image.astype(np.uint32) * ((1 << bit_depth) - 1) // 255
+    return values.astype(np.uint8 if bit_depth <= 8 else np.uint16)
+
+
+# --------------------------------------------------------------------------- #
+# A GenICam description with what Aravis's fake lacks
+# --------------------------------------------------------------------------- #
+
+_EXTRA_PIXEL_FORMATS = ("Mono10", "Mono12", "Mono10p", "Mono12p", "Mono10Packed", "Mono12Packed")
+# Registers of the added user-set features: free in the fake's memory (its own end at TestRegister 0x1f0).
+USER_SET_SELECTOR_REGISTER = 0x1F4
+USER_SET_LOAD_REGISTER = 0x1F8
+
+
+def _int_reg(name, address):
+    return (f'\t<IntReg Name="{name}" NameSpace="Custom">\n\t\t<Address>0x{address:x}</Address>\n'
+            "\t\t<Length>4</Length>\n\t\t<AccessMode>RW</AccessMode>\n\t\t<pPort>Device</pPort>\n"
+            "\t\t<Sign>Unsigned</Sign>\n\t\t<Endianess>BigEndian</Endianess>\n\t</IntReg>\n\n")
+
+
+def _entry(name, value):
+    return f'\t\t<EnumEntry Name="{name}" NameSpace="Standard">\n\t\t\t<Value>{value}</Value>\n\t\t</EnumEntry>\n'
+
+
+def _insert_before(xml, anchor, text):
+    if anchor not in xml:
+        raise SourceError(f"Aravis's fake-camera XML has changed: {anchor.strip()!r} not found")
+    return xml.replace(anchor, text + anchor, 1)
+
+
+def extended_genicam_xml():
+    """Aravis's fake-camera GenICam XML (this Aravis's own) with more for tests.
+
+    Added: the pixel formats Mono10, Mono12, Mono10p, Mono12p, Mono10Packed and Mono12Packed (the
+    fakes size and stamp each frame by the code, and :class:`FillPattern` packs it); TriggerSource
+    Line1 and TriggerActivation FallingEdge; UserSetSelector (Default, UserSet1) and UserSetLoad on
+    registers that only store what is written (``UserSetLoadRegister`` reads 1 once a set was loaded).
+    The registers are the fake's, so both fakes serve it (``genicam=`` of each).
+    """
+    Aravis, _ = _aravis.load_aravis()
+    xml = Aravis.FakeCamera.new("XML").get_genicam_xml()[0]
+    formats = "".join(_entry(name, pixel_formats.FORMATS[name].code) for name in _EXTRA_PIXEL_FORMATS)
+    xml = _insert_before(xml, "\t\t<pValue>PixelFormatRegister</pValue>", formats)
+    xml = _insert_before(xml, "\t\t<pValue>TriggerSourceRegister</pValue>", _entry("Line1", 2))
+    xml = _insert_before(xml, "\t\t<pValue>TriggerActivationRegister</pValue>", _entry("FallingEdge", 1))
+    user_sets = (
+        '\t<Enumeration Name="UserSetSelector" NameSpace="Standard">\n' + _entry("Default", 0)
+        + _entry("UserSet1", 1) + "\t\t<pValue>UserSetSelectorRegister</pValue>\n\t</Enumeration>\n\n"
+        + _int_reg("UserSetSelectorRegister", USER_SET_SELECTOR_REGISTER)
+        + '\t<Command Name="UserSetLoad" NameSpace="Standard">\n\t\t<pValue>UserSetLoadRegister</pValue>\n'
+        "\t\t<CommandValue>1</CommandValue>\n\t</Command>\n\n"
+        + _int_reg("UserSetLoadRegister", USER_SET_LOAD_REGISTER))
+    return _insert_before(xml, "\t<!-- Port -->", user_sets)
 
 
 # --------------------------------------------------------------------------- #
@@ -271,9 +349,11 @@ class FillPattern:
 class InProcessFakeCamera:
     """While active, ``aravis:Fake_1`` serves ``image_fn(k)`` (Aravis's in-process Fake device).
 
-    Sensor 2048x2048 (ROI default 512x512), Mono8 and Mono16. Each time an
-    ``AravisCamera`` opens the device a fresh :class:`FillPattern` is attached
-    (``k`` restarts at 0) and kept alive by that source until it is closed.
+    Sensor 2048x2048 (ROI default 512x512), Mono8 and Mono16 (more with
+    ``genicam=`` a file holding :func:`extended_genicam_xml`). Each time an
+    ``AravisCamera`` opens the device it is a new device in its power-on state and
+    a fresh :class:`FillPattern` is attached (``k`` restarts at 0), kept alive by
+    that source until it is closed.
 
     Examples
     --------
@@ -283,9 +363,10 @@ class InProcessFakeCamera:
     ...         frame = next(iter(camera))
     """
 
-    def __init__(self, image_fn=None, *, device_id="Fake_1"):
+    def __init__(self, image_fn=None, *, device_id="Fake_1", genicam=None):
         self.image_fn = image_fn if image_fn is not None else SpeckleMotion()
         self.device_id = device_id
+        self.genicam = genicam
         self.patterns = []  # one FillPattern per open, newest last
 
     @property
@@ -301,12 +382,16 @@ class InProcessFakeCamera:
     def start(self):
         Aravis, _ = _aravis.load_aravis()
         Aravis.enable_interface("Fake")
+        if self.genicam is not None:
+            _set_fake_genicam(str(self.genicam))   # read by each new Fake device
         _aravis.FAKE_FILL_HOOKS[self.device_id] = self._attach
         return self
 
     def stop(self):
         if _aravis.FAKE_FILL_HOOKS.get(self.device_id) == self._attach:
             del _aravis.FAKE_FILL_HOOKS[self.device_id]
+        if self.genicam is not None:
+            _set_fake_genicam(None)                # Aravis's own XML again
 
     def __enter__(self):
         return self.start()
@@ -323,7 +408,7 @@ class InProcessFakeCamera:
 def _serve_gige_child():
     """Child process body (``python -m acquire.fake_genicam --child``).
 
-    stdin: 8-byte length + pickle of ``(image_fn, address, serial)``, then command
+    stdin: 8-byte length + pickle of ``(image_fn, address, serial, genicam)``, then command
     lines (``stats``, ``reset``, ``stop``); EOF (the parent died) also stops. stdout: one
     JSON line per answer, the first being ``{"ready": ...}`` or ``{"error": ...}``.
     """
@@ -337,9 +422,9 @@ def _serve_gige_child():
     camera = pattern = None
     try:
         size = int.from_bytes(stdin.read(8), "little")
-        image_fn, address, serial = pickle.loads(stdin.read(size))
+        image_fn, address, serial, genicam = pickle.loads(stdin.read(size))
         Aravis, _ = _aravis.load_aravis()
-        camera = Aravis.GvFakeCamera.new(address, serial)
+        camera = Aravis.GvFakeCamera.new_full(address, serial, genicam)
         if camera is None or not camera.is_running():
             answer(error=f"Aravis.GvFakeCamera did not start on {address}:{GVCP_PORT}")
             return 1
@@ -376,7 +461,113 @@ def _port_in_use(address, port):
     return False
 
 
-class GigEFakeCamera:
+class _GvcpAddressLock:
+    """Who may run a GigE simulator on ``address``: one at a time on this machine (GVCP port 3956).
+
+    A lock file in the temp folder serialises livedic's simulators (waits up to ``timeout_s``); a port probe
+    catches one started by other means. ``acquire()`` also waits for the teardown of a camera lost earlier
+    in this process (its GVCP writes time out for ~7 s) so that they cannot reach the new simulator.
+    """
+
+    def __init__(self, address, timeout_s):
+        self.address = address
+        self.timeout_s = timeout_s
+        self._file = None
+
+    def acquire(self):
+        path = os.path.join(tempfile.gettempdir(), f"livedic-fake-gige-{self.address}.lock")
+        lock_file = open(path, "a+")
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            try:
+                fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    lock_file.close()
+                    raise SourceError(f"another livedic fake GigE camera holds {self.address}:{GVCP_PORT} "
+                                      f"(lock {path}) for more than {self.timeout_s:g} s") from None
+                time.sleep(0.1)
+        self._file = lock_file
+        try:
+            for thread in list(_aravis._TEARDOWN_THREADS):
+                thread.join(timeout=15)
+            if _port_in_use(self.address, GVCP_PORT):
+                raise SourceError(f"UDP {self.address}:{GVCP_PORT} is already in use (another GigE Vision "
+                                  "camera simulator, e.g. arv-fake-gv-camera-0.8?): stop it first")
+        except BaseException:
+            self.release()
+            raise
+
+    def release(self):
+        if self._file is not None:
+            try:
+                fcntl.flock(self._file, fcntl.LOCK_UN)
+            finally:
+                self._file.close()
+                self._file = None
+
+
+def _stop_process(process, polite):
+    """End a simulator process: ``polite()`` (may be None), then SIGTERM, then SIGKILL; waits for it."""
+    steps = ([polite] if polite is not None else []) + [process.terminate, process.kill]
+    for step in steps:
+        if process.poll() is not None:
+            break
+        with contextlib.suppress(OSError, ValueError):
+            step()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(timeout=5)
+    for pipe in (process.stdin, process.stdout, process.stderr):
+        if pipe is not None:
+            with contextlib.suppress(OSError, ValueError):
+                pipe.close()
+
+
+def _load_prctl():
+    try:
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+_PRCTL = _load_prctl()           # looked up here: the forked child only calls it
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent():
+    """``preexec_fn``: the kernel kills the child when the thread that started it dies (a killed test run
+    leaves no simulator holding port 3956). Linux only; elsewhere a no-op."""
+    if _PRCTL is not None:
+        _PRCTL(_PR_SET_PDEATHSIG, int(signal.SIGKILL))
+
+
+class _Simulator:
+    """A GigE simulator process (``serial``, ``_process``): ``with simulator:`` starts it and stops it;
+    dropping it stops it too (the address is freed)."""
+
+    @property
+    def device_id(self):
+        """The Aravis id discovery lists it by."""
+        return f"Aravis-Fake-{self.serial}"
+
+    @property
+    def alive(self):
+        return self._process is not None and self._process.poll() is None
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+        return False
+
+    def __del__(self):
+        with contextlib.suppress(Exception):
+            self.stop()
+
+
+class GigEFakeCamera(_Simulator):
     """A GigE Vision fake camera on 127.0.0.1, in a child process, serving ``image_fn(k)``.
 
     Only one can listen on an address (GVCP port 3956): a lock file in the
@@ -394,26 +585,25 @@ class GigEFakeCamera:
         Serial number; the Aravis device id is ``"Aravis-Fake-" + serial``.
     address : str
         IPv4 address of a local interface to listen on (loopback by default).
+    genicam : str, optional
+        A GenICam XML file to serve instead of Aravis's (e.g. :func:`extended_genicam_xml`).
 
     Notes
     -----
-    Loopback throughput depends on the packet size: open with ``packet_size=9000``
-    (or more) rather than the camera's default 1400 bytes.
+    Loopback throughput depends on the packet size: livedic opens a loopback camera with
+    9000-byte packets unless ``packet_size`` says otherwise (the camera's default is 1400).
     """
 
-    def __init__(self, image_fn=None, *, serial="LIVEDIC0", address="127.0.0.1", start_timeout_s=20.0,
-                 lock_timeout_s=60.0):
+    def __init__(self, image_fn=None, *, serial="LIVEDIC0", address="127.0.0.1", genicam=None,
+                 start_timeout_s=20.0, lock_timeout_s=60.0):
         self.image_fn = image_fn if image_fn is not None else SpeckleMotion()
         self.serial = serial
         self.address = address
+        self.genicam = None if genicam is None else str(genicam)
         self.start_timeout_s = start_timeout_s
         self.lock_timeout_s = lock_timeout_s
         self._process = None
-        self._lock_file = None
-
-    @property
-    def device_id(self):
-        return f"Aravis-Fake-{self.serial}"
+        self._lock = _GvcpAddressLock(address, lock_timeout_s)
 
     @property
     def uri(self):
@@ -424,54 +614,19 @@ class GigEFakeCamera:
     def pid(self):
         return self._process.pid if self._process is not None else None
 
-    @property
-    def alive(self):
-        return self._process is not None and self._process.poll() is None
-
-    def _acquire_lock(self):
-        path = os.path.join(tempfile.gettempdir(), f"livedic-fake-gige-{self.address}.lock")
-        lock_file = open(path, "a+")
-        deadline = time.monotonic() + self.lock_timeout_s
-        while True:
-            try:
-                fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() > deadline:
-                    lock_file.close()
-                    raise SourceError(f"another livedic fake GigE camera holds {self.address}:{GVCP_PORT} "
-                                      f"(lock {path}) for more than {self.lock_timeout_s:g} s") from None
-                time.sleep(0.1)
-        self._lock_file = lock_file
-
-    def _release_lock(self):
-        if self._lock_file is not None:
-            try:
-                fcntl.flock(self._lock_file, fcntl.LOCK_UN)
-            finally:
-                self._lock_file.close()
-                self._lock_file = None
-
     def start(self):
         """Start the child and wait until the camera listens; returns self."""
         if self._process is not None:
             return self
-        self._acquire_lock()
+        self._lock.acquire()
         try:
-            # A camera lost earlier in this process may still be tearing down (GVCP writes
-            # time out for ~7 s): its writes must not reach the new simulator.
-            for thread in list(_aravis._TEARDOWN_THREADS):
-                thread.join(timeout=15)
-            if _port_in_use(self.address, GVCP_PORT):
-                raise SourceError(f"UDP {self.address}:{GVCP_PORT} is already in use (another GigE Vision "
-                                  "camera simulator, e.g. arv-fake-gv-camera-0.8?): stop it first")
-            payload = pickle.dumps((self.image_fn, self.address, self.serial))
+            payload = pickle.dumps((self.image_fn, self.address, self.serial, self.genicam))
             root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
             env = dict(os.environ)
             env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
             self._process = subprocess.Popen(
                 [sys.executable, "-m", "livedic.acquire.fake_genicam", "--child"], stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE, cwd=root, env=env, start_new_session=True)
+                stdout=subprocess.PIPE, cwd=root, env=env, start_new_session=True, preexec_fn=_die_with_parent)
             self._process.stdin.write(len(payload).to_bytes(8, "little") + payload)
             self._process.stdin.flush()
             message = self._read_answer(self.start_timeout_s)
@@ -525,31 +680,116 @@ class GigEFakeCamera:
         process, self._process = self._process, None
         try:
             if process is not None:
-                if process.poll() is None:
-                    with contextlib.suppress(OSError, ValueError):
-                        process.stdin.write(b"stop\n")
-                        process.stdin.flush()
-                    try:
-                        process.wait(timeout=5)
-                    except subprocess.TimeoutExpired:
-                        process.kill()
-                        process.wait(timeout=5)
-                for pipe in (process.stdin, process.stdout):
-                    with contextlib.suppress(OSError, ValueError):
-                        pipe.close()
+                def ask():
+                    process.stdin.write(b"stop\n")
+                    process.stdin.flush()
+                _stop_process(process, ask)
         finally:
-            self._release_lock()
+            self._lock.release()
 
-    def __enter__(self):
-        return self.start()
 
-    def __exit__(self, *exc):
-        self.stop()
-        return False
 
-    def __del__(self):
-        with contextlib.suppress(Exception):
+# --------------------------------------------------------------------------- #
+# Aravis's own GigE Vision simulator (arv-fake-gv-camera-0.8)
+# --------------------------------------------------------------------------- #
+
+ARV_FAKE_GV_CAMERA = "arv-fake-gv-camera-0.8"
+
+
+class ArvFakeGvCamera(_Simulator):
+    """Aravis's GigE Vision simulator program, ``arv-fake-gv-camera-0.8 -i ADDRESS -s SERIAL``, as a user runs it.
+
+    Its images are Aravis's own (a diagonal ramp), not ours; it is what a user tries first, and the
+    camera livedic must open exactly as ``livedic cameras`` lists it. ``start()`` returns once GigE
+    discovery finds the camera (not after a sleep); ``stop()`` ends it (SIGTERM, then SIGKILL) and the
+    kernel kills it if this process dies. One simulator per address: it shares
+    :class:`GigEFakeCamera`'s lock.
+
+    Parameters
+    ----------
+    serial : str
+        ``-s``: the Aravis id is ``"Aravis-Fake-" + serial``.
+    address : str
+        ``-i``: the address to listen on (loopback by default).
+    genicam : str, optional
+        ``-g``: a GenICam XML file to serve instead of the built-in one (its registers must be the fake's).
+    program : str
+        The simulator executable (looked up on PATH).
+
+    Raises
+    ------
+    SourceError
+        The program is missing, the address is taken, or discovery does not find it within
+        ``start_timeout_s`` (its stderr is quoted).
+    """
+
+    def __init__(self, *, serial="GV01", address="127.0.0.1", genicam=None, program=ARV_FAKE_GV_CAMERA,
+                 start_timeout_s=20.0, lock_timeout_s=60.0):
+        self.serial = serial
+        self.address = address
+        self.genicam = genicam
+        self.program = program
+        self.start_timeout_s = start_timeout_s
+        self._lock = _GvcpAddressLock(address, lock_timeout_s)
+        self._process = None
+        self._log = None
+        self.listing = None            # the list_cameras() entry that found it
+
+    def start(self):
+        """Run the program and wait until GigE discovery lists it; returns self."""
+        import shutil
+        if self._process is not None:
+            return self
+        executable = shutil.which(self.program)
+        if executable is None:
+            raise SourceError(f"{self.program} is not installed (Debian package aravis-tools; "
+                              "scripts/install_system.sh installs it)")
+        self._lock.acquire()
+        try:
+            command = [executable, "-i", self.address, "-s", self.serial]
+            if self.genicam:
+                command += ["-g", str(self.genicam)]
+            self._log = tempfile.TemporaryFile()
+            self._process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=self._log,
+                                             stderr=subprocess.STDOUT, start_new_session=True,
+                                             preexec_fn=_die_with_parent)
+            self.listing = self._wait_for_discovery()
+        except BaseException:
             self.stop()
+            raise
+        return self
+
+    def _wait_for_discovery(self):
+        deadline = time.monotonic() + self.start_timeout_s
+        while time.monotonic() < deadline:
+            if self._process.poll() is not None:
+                raise SourceError(f"{self.program} exited with code {self._process.returncode}: {self.output()}")
+            # each discovery listens for answers until 1 s of silence: this is the wait
+            found = [c for c in _aravis.list_cameras() if c["id"] == self.device_id]
+            if found and found[0]["address"] == self.address:
+                return found[0]
+        raise SourceError(f"GigE discovery did not find {self.device_id} on {self.address} within "
+                          f"{self.start_timeout_s:g} s; {self.program} said: {self.output() or 'nothing'}")
+
+    def output(self):
+        """What the program printed (stdout and stderr), for error messages."""
+        if self._log is None:
+            return ""
+        self._log.seek(0)
+        return self._log.read().decode(errors="replace").strip()[-2000:]
+
+    def stop(self):
+        """End the program and free the address."""
+        process, self._process = self._process, None
+        try:
+            if process is not None:
+                _stop_process(process, None)
+        finally:
+            if self._log is not None:
+                self._log.close()
+                self._log = None
+            self._lock.release()
+
 
 
 # --------------------------------------------------------------------------- #

@@ -2,13 +2,19 @@
 
 ``images:run1/frame_*.tif`` yields frame_2 before frame_10 (natural sort: digit
 runs compare as numbers). ``images:run1`` (a folder) takes every PNG/TIFF in it.
-The path after ``images:`` is taken verbatim (``?`` and ``*`` are glob wildcards),
-so options go as keyword arguments of :func:`open_uri`, never in the URI.
+Options go in a query string after the pattern, as for the other sources:
+``images:run1/frame_*.tif?frame_rate=5&realtime=1``. ``?`` is also a glob
+wildcard, so only a tail of ``name=value`` pairs (``&``-separated) after the last
+``?`` is read as options; keyword arguments of :func:`open_uri` override them.
 
-Files are read one at a time by :func:`acquire.image_io.read_grey_image`: a
-missing, corrupt, truncated, float or 32-bit file raises ``SourceError`` naming
-it when its turn comes; so does a file whose size or bit depth differs from the
-first. Colour files are converted to grey with a note logged once.
+Before the first frame every file's header is read (``read_image_header``: the
+size, and the bit depth of grey files): a file of another size or bit depth than
+the first, or one that is no image, is refused when the source opens, so the
+session never starts on a sequence it cannot finish. Files are then decoded one
+at a time by :func:`acquire.image_io.read_grey_image`: a truncated or corrupt
+file, a float or 32-bit one, or a colour file whose bit depth differs (headers
+do not tell it) raises ``SourceError`` naming it when its turn comes. Colour
+files are converted to grey with a note logged once.
 Timestamps are ``index / frame_rate`` (default 1 fps): files carry no capture time.
 """
 
@@ -17,9 +23,10 @@ import logging
 import os
 import re
 import time
+from urllib.parse import parse_qsl
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
-from livedic.acquire.image_io import read_grey_image
+from livedic.acquire.image_io import read_grey_image, read_image_header
 from livedic.acquire.options import as_bool, as_float
 
 __all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
@@ -29,6 +36,8 @@ log = logging.getLogger("livedic.acquire.images")
 SCHEME = "images"
 IMAGE_EXTENSIONS = (".png", ".tif", ".tiff")
 _DIGITS = re.compile(r"(\d+)")
+# An options tail "name=value&name=value" (a glob's own "?" is followed by anything else).
+_QUERY = re.compile(r"\w+=[^&=]*(&\w+=[^&=]*)*")
 
 
 def natural_key(path):
@@ -48,6 +57,25 @@ def _find(pattern):
     return sorted(names, key=natural_key)
 
 
+def _check_alike(files):
+    """SourceError (one line) at the first file whose header differs in size or bit depth from the first's."""
+    try:
+        first = read_image_header(files[0])
+        for path in files[1:]:
+            header = read_image_header(path)
+            if (header.width, header.height) != (first.width, first.height):
+                raise SourceError(
+                    f"{path} is {header.width}x{header.height} but the first image {files[0]} is "
+                    f"{first.width}x{first.height}: every image of a sequence must have the same size "
+                    f"(remove it, or crop all images alike)")
+            if None not in (header.bits, first.bits) and header.bits != first.bits:
+                raise SourceError(
+                    f"{path} is {header.bits}-bit but the first image {files[0]} is {first.bits}-bit: every "
+                    f"image of a sequence must have the same bit depth (save them all alike)")
+    except ValueError as error:
+        raise SourceError(str(error)) from None
+
+
 class ImageSequence(FrameSource):
     """Frames from image files in natural order.
 
@@ -65,8 +93,8 @@ class ImageSequence(FrameSource):
     Raises
     ------
     SourceError
-        No file matches; later, a file that cannot be read as an 8/16-bit grey
-        image or whose size/bit depth differs from the first.
+        No file matches, or a file's header shows another size or bit depth than the
+        first's; later, a file that cannot be decoded as an 8/16-bit grey image.
     """
 
     OPTIONS = {"frame_rate": "frames per second for timestamps (default 1)",
@@ -82,6 +110,7 @@ class ImageSequence(FrameSource):
         if not self.files:
             raise SourceError(f"no image files match '{self.pattern}' (give a glob such as "
                               f"'frames/img_*.png' or a folder of PNG/TIFF files)")
+        _check_alike(self.files)
         self.notes = []
         self._first = None  # (shape, dtype, name) of the first image
         self._closed = False
@@ -150,10 +179,13 @@ class ImageSequence(FrameSource):
 
 
 def open_uri(uri, **options):
-    """``images:PATTERN`` -> :class:`ImageSequence`; options as keywords (``frame_rate``, ``realtime``, ``loop``)."""
+    """``images:PATTERN[?frame_rate=F&realtime=0|1&loop=0|1]`` -> :class:`ImageSequence` (keywords override)."""
     if uri[:len(SCHEME) + 1].lower() != SCHEME + ":":
         raise SourceError(f"not an images URI: {uri!r} (expected 'images:GLOB' or 'images:FOLDER')")
     pattern = uri[len(SCHEME) + 1:]
+    glob_part, mark, query = pattern.rpartition("?")
+    if mark and _QUERY.fullmatch(query):
+        pattern, options = glob_part, {**dict(parse_qsl(query, keep_blank_values=True)), **options}
     if not pattern:
         raise SourceError("images: needs a glob or folder, e.g. 'images:frames/img_*.png'")
     unknown = sorted(set(options) - set(ImageSequence.OPTIONS))

@@ -43,7 +43,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
-                          Schema)
+                          Schema, Statistics)
 from mcap.stream_reader import CRCValidationError, breakup_chunk
 from mcap.summary import Summary
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
@@ -60,7 +60,8 @@ _HEAD = struct.Struct("<BQ")        # opcode, length: the 9 bytes before every r
 _FOOTER_BYTES = _HEAD.size + 20
 _RECORD_TYPES = {Opcode.HEADER: Header, Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message,
                  Opcode.CHUNK: Chunk, Opcode.METADATA: Metadata, Opcode.CHUNK_INDEX: ChunkIndex,
-                 Opcode.METADATA_INDEX: MetadataIndex, Opcode.DATA_END: DataEnd, Opcode.FOOTER: Footer}
+                 Opcode.METADATA_INDEX: MetadataIndex, Opcode.DATA_END: DataEnd, Opcode.FOOTER: Footer,
+                 Opcode.STATISTICS: Statistics}
 _MESSAGE_HEADER_BYTES = 2 + 4 + 8 + 8
 # What mcap's record parsers raise on bytes that are not what they claim (struct.error: a short field;
 # OverflowError: a length beyond any buffer, inside a chunk).
@@ -267,7 +268,7 @@ def read_summary(f, size, data_start):
 def _parse_summary(data, data_start, data_end):
     """An ``mcap.summary.Summary`` from the summary section's bytes; indexes must point into the data section."""
     summary = Summary()
-    wanted = (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK_INDEX, Opcode.METADATA_INDEX)
+    wanted = (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK_INDEX, Opcode.METADATA_INDEX, Opcode.STATISTICS)
     f = io.BytesIO(data)
     scan = RecordScan(f, 0, len(data))
     for _, opcode, length in scan:
@@ -278,6 +279,8 @@ def _parse_summary(data, data_start, data_end):
             summary.schemas[record.id] = record
         elif opcode == Opcode.CHANNEL:
             summary.channels[record.id] = record
+        elif opcode == Opcode.STATISTICS:
+            summary.statistics = record          # the message counts per channel, without reading the data
         elif opcode == Opcode.CHUNK_INDEX:
             if not (data_start <= record.chunk_start_offset
                     and record.chunk_start_offset + record.chunk_length <= data_end

@@ -500,6 +500,18 @@ class Recording:
             info.note = f"{self.name}: {self.summary_problem}; it was read record by record instead"
             log.warning("note: %s", info.note)
 
+    def count(self, topic):
+        """How many messages ``topic`` holds: from the summary's statistics, else by reading the file.
+
+        A file cut short has no summary: its messages are counted by the recovery scan (a pass over
+        the whole file, as ``results`` makes).
+        """
+        statistics = self.summary.statistics if self.summary is not None else None
+        if statistics is not None:
+            return sum(count for channel_id, count in statistics.channel_message_counts.items()
+                       if channel_id in self.channels and self.channels[channel_id].topic == topic)
+        return sum(1 for _ in self.messages({topic}))
+
     def records(self, *, strict=True):
         """Every schema, channel, metadata and message record in file order, by the recovery scan."""
         return self._scan(strict=strict)

@@ -51,6 +51,15 @@ def _fourcc_bytes(value):
     return code.to_bytes(4, "little", signed=False) if code < 2 ** 32 else _UNKNOWN_FORMAT
 
 
+def _quiet_ffmpeg():
+    """Silence FFmpeg's own stderr lines ("moov atom not found" ...): livedic says what went wrong, in one line.
+
+    OpenCV reads ``OPENCV_FFMPEG_LOGLEVEL`` (an FFmpeg ``AV_LOG_*`` level; -8 is ``AV_LOG_QUIET``) when it first
+    uses FFmpeg, so this must run before the first capture opens. A value the user set (to debug) is kept.
+    """
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
+
 def _quiet(cv2):
     """Context manager silencing OpenCV's own log lines (e.g. the CONVERT_RGB=0 warning)."""
     class _Quiet:
@@ -126,6 +135,7 @@ class OpenCVCapture(FrameSource):
         if self._capture is not None:
             self._capture.release()
         params = [cv2.CAP_PROP_CONVERT_RGB, 1 if convert_rgb else 0] + self._open_params
+        _quiet_ffmpeg()
         with _quiet(cv2):
             capture = cv2.VideoCapture(self.target, self._api, params)
         if not capture.isOpened():

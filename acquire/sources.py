@@ -7,7 +7,7 @@ missing optional dependency such as Aravis only matters to its own URIs)::
     aravis:[DEVICE_ID][?exposure_us=2000&frame_rate=50&...]   GenICam camera through Aravis
     v4l2:[/dev/videoN|N][?width=..&height=..&fourcc=GREY&frame_rate=..]
     video:FILE                                                 a video file (FFV1 .mkv is lossless)
-    images:GLOB_OR_FOLDER                                      PNG/TIFF files in natural order
+    images:GLOB_OR_FOLDER[?frame_rate=1&realtime=0&loop=0]    PNG/TIFF files in natural order
     mcap:FILE.mcap[?realtime=1]                                replay of a livedic recording
 
 A bare path ending in ``.mcap`` is read as ``mcap:PATH``. Keyword options
@@ -22,7 +22,7 @@ from livedic.acquire.base import SourceError
 SCHEMES = ("synthetic", "aravis", "v4l2", "video", "images", "mcap")
 
 USAGE = ("valid sources: synthetic:[tensile|translate][?frames=N&fps=F&size=WxH&bit=8|12&noise=S&seed=K], "
-         "aravis:[DEVICE_ID][?options], v4l2:/dev/videoN[?options], video:FILE, images:GLOB_OR_FOLDER, "
+         "aravis:[DEVICE_ID][?options], v4l2:/dev/videoN[?options], video:FILE, images:GLOB_OR_FOLDER[?frame_rate=F], "
          "mcap:FILE.mcap[?realtime=1]")
 
 

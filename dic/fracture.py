@@ -14,6 +14,12 @@ moves everything (no band). ``detect_fracture`` asks for both:
 2. **A jump**: the ok points on the two sides of that line moved apart since the previous
    frame: the difference of the median displacement increments of the two sides is at
    least ``MIN_JUMP_PX``.
+3. **An opening**: that jump opens the line, it does not slide along it: its component
+   across the line is at least ``MIN_OPENING_SHARE`` of it. A crack opens (a tensile crack
+   straight across, a shear crack at 45 degrees still opens by cos 45); the edge of a
+   specimen moving past a static background, a grip or a ruler is a band of lost points
+   with a jump along the band (seen on a real dog-bone with the whole image as ROI: two
+   "fractures" along its straight edges, both within 6 degrees of the load axis).
 
 A detected fracture names the points to stop tracking (``Fracture.separated``): every point
 within a subset's width of the crack line, lost or not (a subset across a crack measures
@@ -29,6 +35,7 @@ MIN_LOST_SHARE = 0.005
 MAX_BAND_WIDTH = 2.0          # grid steps, across the band
 MIN_BAND_LENGTH = 0.5         # share of the points' extent along the band
 MIN_JUMP_PX = 1.0
+MIN_OPENING_SHARE = 0.5       # cos 60 deg: the jump's share across the band
 
 
 @dataclass(frozen=True)
@@ -110,9 +117,12 @@ def detect_fracture(x, y, ok_before, ok_now, u_before, v_before, u_now, v_now, *
         if chosen.sum() < MIN_LOST_POINTS:
             return None
         increments.append((np.median(du[chosen]), np.median(dv[chosen])))
-    jump = float(np.hypot(increments[1][0] - increments[0][0], increments[1][1] - increments[0][1]))
+    relative = np.subtract(increments[1], increments[0])
+    jump = float(np.hypot(*relative))
     if jump < MIN_JUMP_PX:
         return None
+    if abs(float(relative @ across)) < MIN_OPENING_SHARE * jump:
+        return None             # sliding along the band: an edge passing a static background, not a crack
     # every point there, tracked now or not: one not tracked in this key frame (too little texture left)
     # could be taken up again by a later reference, across the crack
     separated = np.abs(offset) <= max(float(subset), width + 0.5 * subset)

@@ -59,7 +59,7 @@ class Measurement:
 
     x, y : float64 (N,)  point positions actually used (snapped to pixel centres)
     u, v : float64 (N,)  displacement, content at (x, y) in the reference is at (x+u, y+v)
-    zncc : float64 (N,)  correlation of the final match
+    zncc : float64 (N,)  correlation of the final match, within [-1, 1] (NaN where none)
     ok : bool (N,)       True where ``status == Status.OK``
     status : int8 (N,)   ``dic.status.Status`` code per point
     ux, uy, vx, vy       displacement gradients (1st-order sub-pixel methods) or None
@@ -79,3 +79,12 @@ class Measurement:
     vy: np.ndarray = None
     iterations: np.ndarray = None
     evaluations: np.ndarray = None
+
+    def __post_init__(self):
+        # Rounding in the solvers' sums lets a perfect match score a hair above 1 (1.0000002 for a frame
+        # tracked against itself): ZNCC lies within [-1, 1] by definition, so it is clipped here, where every
+        # measurement is assembled, after the gates have judged it (which points are ok does not change).
+        zncc = np.asarray(self.zncc, dtype=np.float64)
+        if np.any(np.abs(zncc) > 1.0):
+            zncc = np.clip(zncc, -1.0, 1.0)
+        self.zncc = zncc

@@ -648,6 +648,25 @@ class Tracker:
         self._good_grad = {name: np.array(last_good[name], dtype=np.float64) for name in _SHAPE}
         self._ever_good = np.array(last_good["ever"], dtype=bool)
 
+    def carry(self, fields):
+        """Start the next frame from ``fields`` instead of the displacements the frame just tracked gave.
+
+        ``fields``: that frame's ``u, v, ok`` and, for first-order methods, ``ux, uy, vx, vy`` (N,), the same
+        points ok and the same numbers up to rounding. ``dic.key_frames`` gives them as ``resume`` rebuilds them
+        from a recording (through the composition to the first frame and back), so that a resumed frame starts
+        where the sequence started it, bit for bit. icgn2's second-order start terms stay as tracked.
+        """
+        ok = np.asarray(fields["ok"], dtype=bool)
+        for name in ("u", "v") + _SHAPE:
+            values = fields.get(name)
+            if values is not None:
+                self._prev[name] = np.where(ok, values, np.nan)
+        self._good_u = np.where(ok, fields["u"], self._good_u)
+        self._good_v = np.where(ok, fields["v"], self._good_v)
+        for name in _SHAPE:
+            if fields.get(name) is not None:
+                self._good_grad[name] = np.where(ok, fields[name], self._good_grad[name])
+
     def _at_the_edge(self, start_u, start_v):
         """Points whose start (previous result) puts their subset at the image's edge.
 

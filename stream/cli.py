@@ -10,13 +10,17 @@ that sits above them: ``livedic.bench.cli`` passes ``extensions`` to ``main``
 """
 
 import argparse
+import logging
 import os
 import signal
 import sys
 import threading
 
 from livedic.stream.config import UsageError, search_method, subpixel_method
-from livedic.stream.points import read_points_table
+from livedic.stream.field_export import add_field_arguments
+from livedic.stream.points import add_region_arguments, read_points_table
+from livedic.stream.preview import add_preview_arguments, preview_command
+from livedic.stream.progress import add_progress_argument
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.strain import add_strain_arguments
@@ -96,6 +100,7 @@ def entry_point(extensions=()):
     synced, so the process ends at once instead (``os._exit``, after flushing the
     standard streams). ``main()`` itself never does this: tests and scripts call it.
     """
+    _say_log_lines()
     code = main(extensions=extensions)
     aravis = sys.modules.get("livedic.acquire.aravis")
     pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
@@ -108,6 +113,22 @@ def entry_point(extensions=()):
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+class _LogLine(logging.StreamHandler):
+    """What livedic's modules log (a truncated recording's note, a colour file converted ...), said as
+    ``livedic: MESSAGE`` like every other line livedic writes, not as Python's bare last-resort output."""
+
+    def format(self, record):
+        clear = "\r\033[K" if self.stream.isatty() else ""     # clear of an in-place progress line
+        return f"{clear}livedic: {record.getMessage()}"
+
+
+def _say_log_lines():
+    """Send the ``livedic`` loggers' warnings to stderr through ``_LogLine`` (once per process)."""
+    logger = logging.getLogger("livedic")
+    if not any(isinstance(handler, _LogLine) for handler in logger.handlers):
+        logger.addHandler(_LogLine(sys.stderr))
 
 
 def _error_kind(error):
@@ -138,6 +159,16 @@ def build_parser(extensions=()):
     add_run_arguments(run)
     run.set_defaults(handler=run_session)
 
+    preview = commands.add_parser("preview", help="draw a test's set-up before it starts: region, points, P0, "
+                                                  "extensometers, and what the image offers DIC",
+                                  description="Take the source's first frame, place the points, P0 and the "
+                                              "extensometers as livedic run would with the same options, and draw "
+                                              "them over it, beside the speckle contrast per subset (mean "
+                                              "intensity gradient) and the clipped pixels; the figures and any "
+                                              "advice are printed too.")
+    add_preview_arguments(preview)
+    preview.set_defaults(handler=preview_command)
+
     measure = commands.add_parser("measure", help="displacements of points between two images")
     measure.add_argument("reference", metavar="REF", help="reference image (8/16-bit grey PNG or TIFF)")
     measure.add_argument("deformed", metavar="DEF", help="deformed image, same size")
@@ -145,6 +176,7 @@ def build_parser(extensions=()):
     where.add_argument("--grid", type=int, metavar="STEP", help="points on a grid every STEP pixels")
     where.add_argument("--points", metavar="FILE.csv",
                        help="CSV with header x,y (other columns are carried through to the output)")
+    add_region_arguments(measure, points=False)
     _add_method_options(measure, SEARCH_METHODS, SUBPIXEL_METHODS)
     measure.add_argument("-o", "--output", metavar="OUT.csv",
                          help="output CSV (default: stdout): x,y,u,v,zncc,ok,status, then the method's columns, "
@@ -188,7 +220,7 @@ def build_parser(extensions=()):
     replay.set_defaults(handler=replay_command)
 
     export = commands.add_parser("export", help="write a recording's results as CSV (P0 trace, fields, strain, "
-                                                "extensometers, events)",
+                                                "extensometers, events), maps, an overlay video and VTK",
                                  description="Write DIR/p0_trace.csv, DIR/fields.csv (with the strain exx,eyy,exy), "
                                              "DIR/events.csv, DIR/session.json, DIR/extensometers.csv and "
                                              "DIR/extensometers.png from a recording (complete or truncated). "
@@ -196,12 +228,18 @@ def build_parser(extensions=()):
                                              "displacements with the recorded settings, or the options below. "
                                              "With --load csv:FILE and the cross-section (--area, or --width and "
                                              "--thickness) also DIR/stress_strain.csv and DIR/stress_strain.png "
-                                             "(strain of the axial extensometer).")
+                                             "(strain of the axial extensometer). Then the fields as pictures: "
+                                             "PNG maps over the camera images (DIR/maps/), an overlay video "
+                                             "(DIR/overlay_eyy.mp4) and VTK for ParaView (DIR/vtk/, "
+                                             "DIR/fields.pvd). Ctrl-C or SIGTERM stops it: the files finished "
+                                             "are kept whole, exit 130 or 143.")
     export.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
     export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
     add_strain_arguments(export, recorded=True)
     add_stress_arguments(export)
+    add_field_arguments(export)
+    add_progress_argument(export)
     export.set_defaults(handler=_cmd_export)
 
     report = commands.add_parser("report", help="tensile test report: E, Rp0.2, Rm, Ag, A (ISO 6892-1) from a "
@@ -236,8 +274,8 @@ def _cmd_measure(args):
     import numpy as np
 
     from livedic.acquire.image_io import read_grey_image
-    from livedic.dic.tracking import grid_in_roi
     from livedic.stream.csv_output import check_output_file, write_csv
+    from livedic.stream.sinks import bit_depth_change
 
     to_file = args.output not in (None, "-")
     strain = _measure_strain_config(args)            # bad values: one line, before anything is read
@@ -248,14 +286,16 @@ def _cmd_measure(args):
     for note in (note_ref, note_def):
         if note:
             print(f"livedic: note: {note}", file=sys.stderr)
+    depths = bit_depth_change(reference.dtype, deformed.dtype, f"the reference {args.reference}", args.deformed)
+    if depths:
+        print(f"livedic: warning: {depths}", file=sys.stderr)
     if reference.shape != deformed.shape:
         raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
                          f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
     extras = {}
-    if args.grid is not None:
-        points = grid_in_roi(reference.shape, None, args.grid, args.subset)
-    else:
-        points, extras = read_points_table(args.points)
+    points, extras, left_out = _measure_points(args, reference)
+    if left_out:
+        print(f"livedic: {left_out}", file=sys.stderr)
     progress = None
     if args.progress != "off":
         in_place = args.progress == "on" or sys.stderr.isatty()
@@ -283,6 +323,39 @@ def _cmd_measure(args):
     if to_file:
         print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
     return 0
+
+
+def _measure_points(args, reference):
+    """``(points (N, 2), extra columns, note or None)``: the grid (``--grid``, over ``--roi``, ``--mask``, less
+    ``--exclude``; the whole image by default) or the points file (less those a mask or exclusion leaves out)."""
+    from livedic.dic.region import grid_in_region
+    from livedic.stream.config import ROI_FULL, PointsConfig
+    from livedic.stream.points import placeable_points, where_points_go
+    if args.points is not None and args.roi is not None:
+        raise UsageError("--roi places a grid: use it with --grid (with --points, --mask and --exclude leave "
+                         "points out)")
+    if args.grid is not None and args.grid < 1:
+        raise UsageError(f"grid step must be a positive integer number of pixels, got {args.grid}")
+    region = PointsConfig.region_from_args(args)
+    if region["roi"] is None:
+        region["roi"] = ROI_FULL
+    wanted = PointsConfig(step=args.grid, **region)
+    spec, _, allowed, _, _ = where_points_go(reference, wanted, subset=args.subset)
+    if args.grid is not None:
+        points = grid_in_region(allowed, args.grid)
+        if not len(points):
+            raise UsageError(f"{spec.describe()} holds no whole {args.subset}x{args.subset} subset: enlarge the "
+                             f"region or use a smaller --subset")
+        return points, {}, None
+    points, extras = read_points_table(args.points)
+    if spec.mask is None and not spec.exclude:
+        return points, extras, None
+    keep = placeable_points(points, allowed)
+    if not keep.any():
+        raise UsageError(f"every point's subset reaches outside {spec.describe()}: none is left to measure")
+    extras = {name: [value for value, k in zip(values, keep) if k] for name, values in extras.items()}
+    note = f"{int((~keep).sum())} of {len(keep)} points left out: their subset reaches outside {spec.describe()}"
+    return points[keep], extras, note if not keep.all() else None
 
 
 def _measure_strain_config(args):

@@ -25,8 +25,11 @@ import sys
 from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
 
+import numpy as np
+
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.dic.quality import MIN_ZNCC
+from livedic.dic.region import Circle, Polygon, Rectangle, Region, parse_shape
 from livedic.stream.strain import StrainConfig
 
 DEFAULT_SOURCE = "synthetic:tensile"
@@ -94,11 +97,56 @@ def parse_numbers(text, count, what, example):
     return values
 
 
+ROI_AUTO = "auto"      # --roi auto: the speckled specimen found in the image
+ROI_FULL = "full"      # --roi full: the whole image
+
+
 def parse_roi(text):
-    """``--roi`` "X,Y,W,H" -> a tuple of four ints (rounded), or None when not given."""
+    """``--roi``: None when not given, ``"auto"``, ``"full"``, or a ``dic.region`` Rectangle or Polygon.
+
+    ``X,Y,W,H`` is a rectangle (rounded to whole pixels); ``rect:X,Y,W,H`` and
+    ``polygon:X1,Y1,X2,Y2,X3,Y3[,...]`` name their shape.
+    """
     if text is None:
         return None
-    return tuple(int(round(v)) for v in parse_numbers(text, 4, "--roi", "100,50,400,800"))
+    word = str(text).strip().lower()
+    if word in (ROI_AUTO, ROI_FULL):
+        return word
+    if ":" not in word:
+        x, y, w, h = (int(round(v)) for v in parse_numbers(text, 4, "--roi", "100,50,400,800"))
+        if w <= 0 or h <= 0:
+            raise ValueError(f"--roi width and height must be positive, got {text!r}")
+        return Rectangle(x, y, w, h)
+    try:
+        shape = parse_shape(text)
+    except ValueError as error:
+        raise ValueError(f"--roi {error}") from None
+    if isinstance(shape, Circle):
+        raise ValueError(f"--roi {text}: a region is a rectangle (X,Y,W,H) or a polygon (polygon:X1,Y1,...); "
+                         f"circles are for --exclude")
+    return shape
+
+
+def read_mask(path: str) -> np.ndarray:
+    """``--mask FILE.png``: True where the image is white (above half its grey range); UsageError if unusable."""
+    from livedic.acquire.image_io import read_grey_image
+    try:
+        image, _ = read_grey_image(path)
+    except ValueError as error:
+        raise UsageError(f"--mask {error}") from None
+    full = 255 if image.dtype == np.uint8 else 65535
+    mask = image > full // 2
+    if not mask.any():
+        raise UsageError(f"--mask {path} has no white pixel: white (or light grey) marks the specimen, black the rest")
+    return mask
+
+
+def parse_exclusion(text: str):
+    """``--exclude`` ``circle:X,Y,R``, ``rect:X,Y,W,H`` or ``polygon:X1,Y1,...`` -> a ``dic.region`` shape."""
+    try:
+        return parse_shape(text)
+    except ValueError as error:
+        raise ValueError(f"--exclude {error}") from None
 
 
 def parse_p0(text):
@@ -210,32 +258,48 @@ class TrackingConfig:
         return KeyFrameTracker(image, points, gates=Gates(min_zncc=min_zncc), **settings)
 
 
+def add_subset_argument(parser):
+    """``--subset``, declared once for ``run`` and ``preview`` (its default: ``TrackingConfig``'s)."""
+    parser.add_argument("--subset", type=int, default=TrackingConfig.subset, metavar="N",
+                        help=f"odd subset side, pixels (default {TrackingConfig.subset})")
+
+
 # ----------------------------------------------------------------------------- points
 
 @dataclass(frozen=True)
 class PointsConfig:
-    """Which points a session tracks (P0, the traced point, is always point 0).
+    """Which points a session tracks (P0, the traced point, is always point 0); ``stream.points.place_points``.
 
     Attributes
     ----------
-    roi : tuple (x, y, w, h) or None
-        Region of the grid; None: the source's suggestion (the simulator's gauge section,
-        a replayed recording's ROI), else the whole image.
+    roi : dic.region Rectangle or Polygon, "auto", "full", or None
+        Where the grid goes (``--roi``): a rectangle (an ``(x, y, w, h)`` tuple is taken as one) or a
+        polygon; ``auto`` the speckled specimen found in the image; ``full`` the whole image. None:
+        the source's suggestion (the simulator's gauge section, a replayed recording's ROI), else auto.
+    mask : ndarray (H, W) of bool, or None
+        ``--mask``: True on the specimen (read from ``mask_file``).
+    mask_file : str or None
+        The mask's file, for messages and the metadata.
+    exclude : tuple of dic.region shapes
+        ``--exclude``: areas no subset may reach into.
     points_file : str or None
         Track the points of this CSV (header x, y) instead of a grid.
     xy : array (N, 2) or None
         Track these points instead of a grid (already read: a points file, or a
         recording's points); ``points_file`` then only names where they come from.
     step : int or None
-        Grid step, pixels; None: about ``n_points`` points over the ROI.
+        Grid step, pixels; None: about ``n_points`` points over the region.
     n_points : int
         Points wanted when ``step`` is None.
     p0 : (x, y) or None
-        P0; None: the best-textured point near the ROI centre (``stream.p0``).
+        P0; None: the best-textured point near the region's centre (``stream.p0``).
     max_points : int
         A live session refuses to start with more points (their cost is in the message).
     """
-    roi: tuple = None
+    roi: object = None
+    mask: object = field(default=None, compare=False, repr=False)
+    mask_file: str = None
+    exclude: tuple = ()
     points_file: str = None
     xy: object = field(default=None, compare=False, repr=False)
     step: int = None
@@ -244,12 +308,16 @@ class PointsConfig:
     max_points: int = DEFAULT_MAX_POINTS
 
     def __post_init__(self):
-        if self.roi is not None:
-            if len(self.roi) != 4:
-                raise ValueError(f"--roi must be 4 comma-separated numbers, e.g. 100,50,400,800; got {self.roi!r}")
-            object.__setattr__(self, "roi", tuple(int(v) for v in self.roi))
-            if self.roi[2] <= 0 or self.roi[3] <= 0:
-                raise ValueError(f"--roi width and height must be positive, got {','.join(map(str, self.roi))!r}")
+        roi = self.roi
+        if isinstance(roi, (tuple, list)):
+            if len(roi) != 4:
+                raise ValueError(f"--roi must be 4 comma-separated numbers, e.g. 100,50,400,800; got {roi!r}")
+            if int(roi[2]) <= 0 or int(roi[3]) <= 0:
+                raise ValueError(f"--roi width and height must be positive, got {','.join(map(str, roi))!r}")
+            object.__setattr__(self, "roi", Rectangle(*(int(v) for v in roi)))
+        elif not (roi is None or roi in (ROI_AUTO, ROI_FULL) or isinstance(roi, (Rectangle, Polygon))):
+            raise ValueError(f"--roi {roi!r}: give X,Y,W,H, polygon:X1,Y1,..., auto or full")
+        object.__setattr__(self, "exclude", tuple(self.exclude or ()))
         if self.p0 is not None:
             object.__setattr__(self, "p0", tuple(float(v) for v in self.p0))
         if self.step is not None and self.step < 1:
@@ -258,6 +326,26 @@ class PointsConfig:
             raise ValueError(f"--n-points must be >= 1, got {self.n_points}")
         if self.max_points < 1:
             raise ValueError(f"--max-points must be >= 1, got {self.max_points}")
+
+    @classmethod
+    def region_from_args(cls, args) -> dict:
+        """``roi``, ``mask``, ``mask_file``, ``exclude`` from ``--roi --mask --exclude`` (``add_region_arguments``).
+
+        Raises
+        ------
+        ValueError
+            A malformed region or exclusion, an unreadable mask (one line).
+        """
+        mask_file = getattr(args, "mask", None)
+        return {"roi": parse_roi(getattr(args, "roi", None)),
+                "mask": read_mask(mask_file) if mask_file else None, "mask_file": mask_file,
+                "exclude": tuple(parse_exclusion(t) for t in (getattr(args, "exclude", None) or ()))}
+
+    @property
+    def region(self):
+        """What the user gave as a ``dic.region.Region`` (outline, mask, exclusions)."""
+        outline = self.roi if self.roi not in (None, ROI_AUTO, ROI_FULL) else None
+        return Region(outline=outline, mask=self.mask, mask_name=self.mask_file, exclude=self.exclude)
 
     @property
     def given(self):
@@ -478,8 +566,8 @@ class SessionConfig:
                                   seed_radius=args.seed_radius, refind_radius=args.refind_radius,
                                   refind_zncc=args.refind_zncc, min_zncc=args.min_zncc, seed=args.seed,
                                   reference_update=args.reference_update)
-        points = PointsConfig(roi=parse_roi(args.roi), points_file=args.points, step=args.step,
-                              n_points=args.n_points, p0=parse_p0(args.p0), max_points=args.max_points)
+        points = PointsConfig(points_file=args.points, step=args.step, n_points=args.n_points, p0=parse_p0(args.p0),
+                              max_points=args.max_points, **PointsConfig.region_from_args(args))
         if args.record is not None and args.record.endswith(".mcap") and os.path.exists(args.record):
             raise ValueError(f"--record file {args.record} exists: choose a new name (recordings are never "
                              f"overwritten)")

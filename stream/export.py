@@ -34,8 +34,9 @@
     replaces the recorded force (a note says so).
 ``session.json``
     The session metadata (method, parameters, source, ROI, ...), plus a
-    ``livedic.export`` entry saying where the files came from and whether the
-    recording was complete.
+    ``livedic.export`` entry saying where the files came from, whether the
+    recording was complete, and how many frames the session delivered in the end
+    (``frames_delivered``, counted in the recording; ``frames_delivered_from`` says so).
 
 Strain and extensometers are *recomputed* from the recorded displacements with the
 settings the recording was made with (``stream.strain.StrainConfig.from_metadata``: the
@@ -50,9 +51,18 @@ Numbers are written at full precision (the shortest text that reads back as the
 same float64), NaN as ``nan``, ``ok`` as 1/0: a value read back from these files is
 bit-for-bit the recorded one.
 
+Then the fields as pictures (``stream.field_export``, options ``--maps --every --video
+--vtk --map-range ...``): ``maps/Q/Q_FRAME.png``, ``overlay_Q.mp4``, ``vtk/frame_FRAME.vtu``
+and ``fields.pvd``, in a second pass over the recording (the colour ranges, one per quantity
+for the whole test, are known only after the first), and ``session.json`` again with a
+``fields`` entry saying what was written.
+
 Every file is written under a temporary name and all six are renamed into place
 only when all are complete, so an error or Ctrl-C never leaves a half-written
-file. Existing files are not replaced unless ``--overwrite``. A truncated recording
+file. The pictures are each written whole as they come. Ctrl-C or SIGTERM
+(``StopSignals``) stops the export at the next frame: while the CSV files are
+written nothing is left; later the CSV files and the pictures finished stay, and
+one line says so (exit 130 or 143). Existing files are not replaced unless ``--overwrite``. A truncated recording
 (crash, kill, disk full) exports what can be recovered and says so in a note; the
 ``truncated`` flag is the reader's (``RecordingInfo.truncated``), never read from
 the note's text.
@@ -67,14 +77,20 @@ import logging
 import math
 import os
 import re
+import signal
 import sys
+import threading
 from contextlib import contextmanager
 from datetime import datetime, timezone
 
 import numpy as np
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.csv_output import AtomicFile, OutputError, check_output_file, check_output_folder, json_text
+from livedic.stream.csv_output import (AtomicFile, OutputError, check_output_file, check_output_folder, json_text,
+                                       write_text_atomic)
+from livedic.stream.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
+                                         FieldWriter, RecordedImages, quantities, remove_stale, video_name)
+from livedic.stream.progress import ProgressBar, progress_enabled
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
 EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
@@ -321,8 +337,13 @@ def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=Non
 
 # ----------------------------------------------------------------------------- export
 
-def export_recording(path, directory, *, overwrite=False, strain=None, stress=None):
+def export_recording(path, directory, *, overwrite=False, strain=None, stress=None, fields=NO_FIELDS, stop=None,
+                     progress=None):
     """Write ``EXPORT_FILES`` for recording ``path`` into ``directory`` (see module notes).
+
+    The CSV files, plots and ``session.json`` are written first, together (all or none); then, with
+    ``fields``, the maps, video and VTK files (``stream.field_export``), each file whole, and
+    ``session.json`` again with what they are.
 
     Parameters
     ----------
@@ -332,6 +353,11 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
     stress : stream.stress.StressOptions, optional
         Force file and cross-section: also write ``STRESS_FILES``.
+    fields : stream.field_export.FieldOptions
+        The maps, video and VTK to write (default none).
+    stop : callable, optional
+        Called once per frame; raises ``ExportStopped`` to end the export there (``StopSignals.check``).
+    progress : stream.progress.ProgressBar, optional
 
     Returns
     -------
@@ -340,10 +366,13 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         ``points`` (points in the first frame), ``events``, ``p0_id``, ``p0_rows``,
         ``truncated``, ``notes`` (list of lines), ``extensometers`` (names),
         ``strain`` (one line: window, VSG, measure, extensometers; "" without results),
-        ``stress`` (None, or ``frames_with_force`` and ``uniform_frame``, the frame of maximum force or -1).
+        ``stress`` (None, or ``frames_with_force`` and ``uniform_frame``, the frame of maximum force or -1),
+        ``fields`` (None, or a ``stream.field_export.FieldReport``).
 
     Raises
     ------
+    ExportStopped
+        ``stop`` raised it; its ``state`` says what the folder holds.
     ValueError
         ``directory`` is a file, a target exists without ``overwrite``, a strain setting is
         bad or an extensometer lies off the points, or the recording is missing, not MCAP,
@@ -356,7 +385,8 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
     check_output_folder(directory, "-o")
     outputs = EXPORT_FILES + (STRESS_FILES if stress is not None else ())
     targets = {name: os.path.join(directory, name) for name in outputs}
-    existing = [name for name, target in targets.items() if os.path.lexists(target)]
+    existing = [name for name, target in targets.items() if os.path.lexists(target)] + fields.existing(directory)
+    stop = stop or (lambda: None)
     if existing and not overwrite:
         raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
                          f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
@@ -372,8 +402,14 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
         names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
         load = _open_stress_load(stress, names, recording)      # bad load or no axial: before DIR is made
-        with atomic_files(targets, binary=BINARY_FILES) as staged:
-            fields, trace = staged["fields.csv"], staged["p0_trace.csv"]
+        shown = quantities(config.scale, fields.strain_unit, config.measure,
+                           stage.vsg_px if stage is not None else None)
+        ranges = ColourRanges(shown, fields.ranges, fields.coloured)
+        created = not os.path.isdir(directory)
+        with _stopped_in(f"while writing the CSV files: nothing was written"
+                         f"{f' ({directory} removed again)' if created else ''}"), \
+                atomic_files(targets, binary=BINARY_FILES) as staged:
+            fields_csv, trace = staged["fields.csv"], staged["p0_trace.csv"]
             extensometers = staged["extensometers.csv"]
             fields_header = None
             trace.write(",".join(P0_COLUMNS) + "\n")
@@ -384,12 +420,15 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
             extras_seen = None
             times, eng, frame_numbers = [], [], []
             for result in _chain(first, results):
+                stop()
+                if progress is not None:
+                    progress.update(frames, "frames to CSV")
                 extras = {name: getattr(result, name) for name in EXTRA_COLUMNS
                           if getattr(result, name) is not None and len(getattr(result, name)) == len(result.u)}
                 if fields_header is None:
                     extras_seen = [name for name in EXTRA_COLUMNS if name in extras]
                     fields_header = list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)
-                    fields.write(",".join(fields_header) + "\n")
+                    fields_csv.write(",".join(fields_header) + "\n")
                     points = len(result.u)
                 n = len(result.u)
                 for name in extras_seen:          # a frame without an extra the first one had: blank cells
@@ -400,11 +439,12 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                 if np.array_equal(result.point_id, first.point_id):
                     field, readings = stage.compute(result.u, result.v, result.ok)
                     columns.update(exx=field.exx, eyy=field.eyy, exy=field.exy)
+                    ranges.add(columns, np.asarray(result.ok, dtype=bool))
                 else:                             # not the reference's points: no strain to speak of
                     other_points += 1
                     readings = _lost_readings(stage.placed)
                     columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
-                fields.write(csv_rows(columns, n))
+                fields_csv.write(csv_rows(columns, n))
                 if t0 is None:
                     t0 = int(result.timestamp_ns)
                 time_s = (int(result.timestamp_ns) - t0) / 1e9
@@ -426,7 +466,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                     p0_missing += 1
                 frames += 1
             if fields_header is None:
-                fields.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
+                fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
             events = recording.events()
             if t0 is None and events:
                 t0 = min(event.timestamp_ns for event in events)
@@ -466,11 +506,12 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                                                       title=f"{os.path.basename(path)}: stress-strain (A0 "
                                                             f"{stress.area_mm2:g} mm^2, force "
                                                             f"{_force_label(stress)})")
-            truncated = recording.info.truncated
             session = dict(metadata)
+            delivered = _frames_delivered(recording, session)
+            truncated = recording.info.truncated
             session[EXPORT_KEY] = {
                 "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
-                "frames_with_results": frames, "points": points, "events": len(events),
+                "frames_with_results": frames, **delivered, "points": points, "events": len(events),
                 "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
                 "truncated": truncated, "notes": list(notes),
                 "strain": _strain_settings(stage, config, strain)}
@@ -480,10 +521,169 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
                 if isinstance(load, RecordedForce):
                     session[EXPORT_KEY]["stress"]["recorded_source"] = load.source
             staged["session.json"].write(json_text(session))
+        report = None
+        if fields.wanted and frames:
+            report = _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite,
+                                   stop, progress, title_note=os.path.basename(path))
+            session[EXPORT_KEY]["fields"] = _fields_settings(fields, shown, ranges, report, stage)
+            write_text_atomic(targets["session.json"], json_text(session))
+            notes.extend(_field_notes(report))
+        elif fields.wanted:
+            notes.append("no tracking results: no maps, video or VTK files")
     return {"directory": directory, "files": [targets[name] for name in outputs], "frames": frames,
             "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
             "truncated": truncated, "notes": list(notes), "extensometers": list(names),
-            "strain": stage.describe() if stage is not None else "", "stress": stress_summary}
+            "strain": stage.describe() if stage is not None else "", "stress": stress_summary, "fields": report}
+
+
+# ----------------------------------------------------------------------------- maps, video, VTK
+
+def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
+                  title_note):
+    """The second pass over the recording: ``stream.field_export.FieldWriter`` on every frame with results."""
+    from livedic.acquire.mcap_replay import Recording
+    if overwrite:
+        remove_stale(directory, fields)
+    writer = FieldWriter(directory, fields, shown, ranges.limits, (first.x, first.y), stage.windows.step, frames,
+                         title_note=title_note)
+    images = RecordedImages(path) if fields.coloured else None
+    if progress is not None:
+        progress.close()
+        progress.total = frames
+        progress.update(0, "drawing maps, video and VTK", force=True)
+    position = 0
+    try:
+        with _stopped_in(lambda: f"while drawing the maps, video and VTK (frame {position + 1} of {frames}): "
+                                 f"{directory} holds the CSV files, plots and session.json, complete, and "
+                                 f"{writer.report.written(fields)}, each complete"
+                                 f"{_not_written(writer.report, fields)}"):
+            for position, result in enumerate(Recording(path).results()):
+                stop()
+                if progress is not None:
+                    progress.update(position, "drawing maps, video and VTK")
+                if not np.array_equal(result.point_id, first.point_id):
+                    writer.report.other_points += 1
+                    continue
+                field, _ = stage.compute(result.u, result.v, result.ok)
+                values = {"u": result.u, "v": result.v, "exx": field.exx, "eyy": field.eyy, "exy": field.exy,
+                          "zncc": result.zncc, "status": result.status, "point_id": result.point_id}
+                frame = images.at(result.timestamp_ns) if writer.wants_image(position) else None
+                writer.add(position, result.frame_index, (int(result.timestamp_ns) - t0) / 1e9, values, result.ok,
+                           image=None if frame is None else frame.image,
+                           pixel_format="" if frame is None else frame.pixel_format)
+            writer.finish()
+    except BaseException:
+        writer.discard()
+        raise
+    if progress is not None:
+        progress.update(frames, "drawing maps, video and VTK", force=True)
+        progress.close()
+    return writer.report
+
+
+def _not_written(report, fields):
+    missing = ([video_name(fields.video)] if fields.video and not report.video else []) + (
+        [PVD_FILE] if fields.vtk and not report.pvd else [])
+    return f"; not written: {', '.join(missing)}" if missing else ""
+
+
+def _fields_settings(fields, shown, ranges, report, stage):
+    """What ``session.json`` says of the maps, video and VTK files."""
+    return {"maps": list(fields.maps), "every": fields.every, "maps_written": report.maps,
+            "video": os.path.basename(report.video) if report.video else None, "video_frames": report.video_frames,
+            "video_fps": fields.video_fps, "video_codec": VIDEO_FOURCC, "vtu_written": report.vtu,
+            "pvd": os.path.basename(report.pvd) if report.pvd else None, "opacity": fields.opacity,
+            "colour_map": COLOUR_MAP, "surface_step_px": stage.windows.step,
+            "colour_ranges": {name: {"lo": lo, "hi": hi, "unit": shown[name].unit,
+                                     "fixed": name in fields.ranges} for name, (lo, hi) in ranges.limits.items()},
+            "frames_without_image": report.no_image, "frames_with_other_points": report.other_points}
+
+
+def _field_notes(report):
+    notes = []
+    if report.no_image:
+        notes.append(f"{_plural(report.no_image, 'frame')} with results have no camera image in the recording: "
+                     f"no map or video frame for them")
+    if report.other_points:
+        notes.append(f"{_plural(report.other_points, 'frame')} track other points than the first: no map, video "
+                     f"frame or VTK file for them")
+    return notes
+
+
+# ----------------------------------------------------------------------------- stopping
+
+class ExportStopped(Exception):
+    """A stop signal ended the export; ``state`` (one line) says what the folder holds."""
+
+    def __init__(self, signal_name, signum):
+        super().__init__(signal_name)
+        self.signal_name = signal_name
+        self.signum = int(signum)
+        self.state = ""
+
+
+class StopSignals:
+    """SIGINT (Ctrl-C) and SIGTERM during ``livedic export``: the first stops the export at the next frame.
+
+    The handler only takes note; ``check`` (called once per frame) raises ``ExportStopped``, so a
+    stop never lands inside a library call that is writing a file. A second signal gives up at
+    once (``KeyboardInterrupt``). Installed only in the main thread (signals reach no other).
+    """
+
+    def __init__(self):
+        self.received = None
+        self._previous = {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def _handle(self, signum, _frame):
+        if self.received is not None:
+            raise KeyboardInterrupt
+        self.received = signal.Signals(signum)
+
+    def check(self):
+        if self.received is not None:
+            raise ExportStopped(self.received.name, self.received.value)
+
+    def __exit__(self, *exc):
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        return False
+
+
+@contextmanager
+def _stopped_in(state):
+    """Give an ``ExportStopped`` leaving this block its ``state`` (text, or a callable for the text at that time)."""
+    try:
+        yield
+    except ExportStopped as stopped:
+        if not stopped.state:
+            stopped.state = state() if callable(state) else state
+        raise
+
+
+def _frames_delivered(recording, session):
+    """How many frames the session delivered in the end, and how that is known, for ``session.json``.
+
+    The recording holds every frame the source delivered (recorded before the queue, dropped or not), so
+    they are counted there (the file's statistics, else a scan). The session metadata was written when
+    the first frame came: a source's own ``frames_delivered`` in it (a camera's) was that moment's count,
+    so ``session`` (the metadata, copied) gets the final count there, the snapshot kept beside it.
+    """
+    from livedic.acquire.recording_schema import TOPIC_IMAGE
+    count = recording.count(TOPIC_IMAGE)
+    how = f"the frames in the recording ({TOPIC_IMAGE}), where the session records every frame its source delivers"
+    if recording.info.truncated:
+        how += "; the recording was cut short: at least this many"
+    settings = session.get("source_settings")
+    if isinstance(settings, dict) and "frames_delivered" in settings:
+        session["source_settings"] = {**settings, "frames_delivered": count,
+                                      "frames_delivered_at_start": settings["frames_delivered"]}
+    return {"frames_delivered": count, "frames_delivered_from": how}
 
 
 class RecordedForce:
@@ -670,12 +870,26 @@ def _plural(count, word):
 
 
 def export_command(args):
-    """``livedic export FILE.mcap -o DIR [--overwrite] [strain options]``; returns the exit code."""
+    """``livedic export FILE.mcap -o DIR [--overwrite] [strain options] [field options]``; returns the exit code.
+
+    Stopped by SIGINT or SIGTERM: one line saying what the folder holds, exit 128 + the signal's
+    number (130 for Ctrl-C, 143 for SIGTERM), as a shell reports a command a signal ended.
+    """
     from livedic.stream.strain import overrides_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
+    fields = FieldOptions.from_args(args)
     stress, stress_notes = stress_from_args(args)
-    summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides,
-                               stress=stress)
+    bar = ProgressBar(None, enabled=progress_enabled(args.progress))
+    try:
+        with StopSignals() as signals:
+            summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides,
+                                       stress=stress, fields=fields, stop=signals.check, progress=bar)
+    except ExportStopped as stopped:
+        bar.close()
+        say(f"export stopped on {stopped.signal_name} {stopped.state}")
+        return 128 + stopped.signum
+    finally:
+        bar.close()
     for note in stress_notes + summary["notes"]:
         say(f"note: {note}")
     if summary["strain"]:
@@ -685,6 +899,8 @@ def export_command(args):
         f"{summary['p0_id']} ({summary['p0_rows']} rows), {_plural(summary['events'], 'event')} "
         f"to {summary['directory']}/ "
         f"({', '.join(os.path.basename(name) for name in summary['files'])})")
+    if summary["fields"] is not None:
+        say(f"and {summary['fields'].written(fields)}")
     if summary["stress"] is not None:
         stress_summary = summary["stress"]
         for note in stress_summary.get("notes", []):

@@ -118,7 +118,7 @@ def _texture_maps(image, roi, subset):
     return floor, texture, flat, x0, y0
 
 
-def choose_p0(image, roi, subset, p0=None):
+def choose_p0(image, roi, subset, p0=None, allowed=None):
     """P0 on the specimen: the best-textured point near the ROI centre, or the given ``p0`` assessed.
 
     Without ``p0``: among the pixel centres within a radius of the ROI centre whose
@@ -140,6 +140,9 @@ def choose_p0(image, roi, subset, p0=None):
         Odd subset side, pixels.
     p0 : (x, y), optional
         A given P0 (snapped to a pixel centre).
+    allowed : ndarray (H, W) of bool, optional
+        The pixel centres where a point may go (``dic.region.placeable``: its subset inside the region,
+        clear of exclusions); P0 is chosen among them. Default: every centre whose subset fits the image.
 
     Returns
     -------
@@ -157,6 +160,8 @@ def choose_p0(image, roi, subset, p0=None):
     inside = np.zeros(floor.shape, dtype=bool)
     if cx_lo <= cx_hi and cy_lo <= cy_hi:
         inside[cy_lo - y0:cy_hi - y0 + 1, cx_lo - x0:cx_hi - x0 + 1] = True
+    if allowed is not None:
+        inside &= allowed[y0:y0 + rows, x0:x0 + cols]
     typical_texture = float(np.median(texture[inside][::3])) if inside.any() else 0.0
     typical_floor = float(np.median(floor[inside][::3])) if inside.any() else 0.0
 

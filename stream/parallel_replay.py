@@ -43,12 +43,13 @@ that dies has its running and held tasks re-run elsewhere by the scheduler
 lines are formatted on the worker (``stream.replay_rows``; after a fracture in the
 client, whose strain stage splits the windows at the crack).
 
-Equality with the sequential replay. Up to the first reference move, with the
-recorded parameters, on the machine that recorded, the outputs are bit for bit the
-same (``tests/stream/test_replay_parallel.py``). After a move the recorded result is
-mapped onto the key frame, which rounds: ~1e-14 px from the sequential replay, the
-same points ok, the same moves and fractures at the same frames. Elsewhere (the
-shipped sample, recorded on another CPU) the recorded starts differ from the
+Equality with the sequential replay. With the recorded parameters, on the machine
+that recorded, the outputs are bit for bit the same, reference moves and fractures
+included (``tests/stream/test_replay_parallel.py``): after a move the recorded result
+is mapped onto the key frame, which rounds, and the sequential tracker starts each
+frame from its own result mapped the same way (``KeyFrameTracker.track``), since
+IC-GN's float32 row sums turn a start 1e-16 px away into up to ~1e-7 px. Elsewhere
+(the shipped sample, recorded on another CPU) the recorded starts differ from the
 sequential replay's own by rounding: within 2e-6 px of it, the same points ok. Not
 restored from a recording: the wide re-find search's back-off (``Tracker.resume``),
 which the results do not show; a point lost for several frames (an occlusion) may be

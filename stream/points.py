@@ -1,15 +1,32 @@
-"""The points a session tracks: read from a CSV, or a grid over the ROI, with P0 first; and their cost.
+"""The points a session tracks: where they may go, where they are placed (P0 first), and their cost.
 
-``build_points`` places them on the first frame (``livedic run``, ``replay``);
-``check_point_count`` refuses, before anything is opened, more points than a
-live session can take (``--max-points``), saying what they would cost.
+``place_points`` places them on the reference frame for ``livedic run``, ``replay``,
+``preview`` and ``measure``: a grid over the region the user gave (``--roi`` as a
+rectangle or a polygon, ``--mask FILE.png``, ``--exclude`` shapes; ``dic.region``)
+or, without one, over the speckled specimen found in the image, or the points of a
+CSV; no point whose subset reaches outside the region or into an exclusion.
+``add_region_arguments`` declares those options once for every command.
+``check_point_count`` refuses, before anything is opened, more points than a live
+session can take (``--max-points``), saying what they would cost.
 """
 
+from __future__ import annotations
+
 import csv
+import enum
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.stream.config import UsageError
+from livedic.dic.bspline import INTERPOLATION_MARGIN
+from livedic.dic.validation import check_subset
+from livedic.dic.region import Rectangle, Region, Specimen, find_specimen, grid_in_region, placeable
+from livedic.stream.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS, ROI_AUTO, ROI_FULL, UsageError
+from livedic.stream.p0 import P0Choice, choose_p0
+
+# Around a found specimen's edge a subset keeps this many px more inside it: the edge is found to about
+# a pixel, and a subset touching the edge's dark outline would see it move against the background.
+SPECIMEN_MARGIN = 2
 
 
 def read_points_csv(path):
@@ -64,6 +81,250 @@ def read_points_table(path):
     if not np.all(np.isfinite(xy)):
         raise UsageError(f"points file {path} contains NaN or infinite coordinates")
     return xy, extras
+
+
+def default_roi(source):
+    """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
+    roi = getattr(source, "suggested_roi", None)
+    if roi is not None:
+        return tuple(int(v) for v in roi)
+    session = getattr(source, "session", None)
+    if isinstance(session, dict) and isinstance(session.get("roi"), (list, tuple)) and len(session["roi"]) == 4:
+        return tuple(int(v) for v in session["roi"])
+    return None
+
+
+def add_region_arguments(parser, *, points: bool = True) -> None:
+    """Declare ``--roi``, ``--mask``, ``--exclude`` (and ``--points`` when ``points``) on an argparse parser.
+
+    Every command that places points (``run``, ``replay``, ``preview``, ``measure``) takes them from here.
+    """
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--roi", metavar="REGION",
+                       help="where the points go: X,Y,W,H (a rectangle), polygon:X1,Y1,X2,Y2,X3,Y3[,...], auto "
+                            "(the speckled specimen found in the image) or full (the whole image). Default: the "
+                            "simulator's gauge section, a recording's own region, else auto")
+    if points:
+        where.add_argument("--points", metavar="FILE.csv",
+                           help="track these points (CSV with header x,y) instead of a grid")
+    parser.add_argument("--mask", metavar="FILE.png",
+                        help="an image of the camera's size, white on the specimen: points only where their whole "
+                             "subset is white (with --roi: inside both)")
+    parser.add_argument("--exclude", action="append", metavar="SHAPE",
+                        help="leave out an area no subset may reach into (a hole, a clip, a marker): circle:X,Y,R, "
+                             "rect:X,Y,W,H or polygon:X1,Y1,X2,Y2,X3,Y3[,...] (px; repeatable)")
+
+
+def add_point_arguments(parser) -> None:
+    """Declare the point options of ``livedic run`` and ``preview``: the region (``add_region_arguments``),
+    ``--step``, ``--n-points``, ``--p0``, ``--max-points``."""
+    add_region_arguments(parser)
+    parser.add_argument("--step", type=int, metavar="S",
+                        help="grid step in pixels (default: about --n-points points over the region)")
+    parser.add_argument("--n-points", type=int, default=DEFAULT_POINTS, metavar="N",
+                        help=f"points wanted when --step is not given (default {DEFAULT_POINTS})")
+    parser.add_argument("--p0", metavar="X,Y",
+                        help="the traced point P0 (default: the best-textured point near the region's centre, never "
+                             "on a hole or background; a given P0 on weak texture is warned about)")
+    parser.add_argument("--max-points", type=int, default=DEFAULT_MAX_POINTS, metavar="N",
+                        help=f"refuse to start with more than N points (default {DEFAULT_MAX_POINTS:,}: about "
+                             f"{DEFAULT_MAX_POINTS * 7 // 1000} MB of tracker memory and a few frames a second on one "
+                             "core); raise it for slow tests on a big machine")
+
+
+class PlacedBy(enum.Enum):
+    """What decided where the points went."""
+    GIVEN_REGION = "the given region"
+    SOURCE = "the source's region"
+    SPECIMEN = "the speckled specimen found in the image"
+    WHOLE_IMAGE = "the whole image"
+    POINTS = "the given points"
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The points on the reference frame and how they were placed (``place_points``).
+
+    Attributes
+    ----------
+    points : ndarray (N, 2)
+        (x, y) pixel centres, P0 first.
+    p0 : stream.p0.P0Choice
+        Where P0 is and why.
+    step : int or None
+        Grid step, px (None for given points).
+    bounds : (x, y, w, h)
+        The bounding box of the region where points may go (the session's "ROI").
+    region : ndarray (H, W) of bool
+        Where subsets may lie: the outline, mask and specimen, less the exclusions.
+    placed_by : PlacedBy
+    specimen : dic.region.Specimen or None
+        The speckled area found (``--roi auto`` or by default).
+    spec : dic.region.Region
+        What the user gave (outline, mask, exclusions).
+    dropped : int
+        Given points left out because their subset reaches outside the region or into an exclusion.
+    """
+    points: np.ndarray = field(repr=False)
+    p0: P0Choice
+    step: int | None
+    bounds: tuple
+    region: np.ndarray = field(repr=False)
+    placed_by: PlacedBy
+    specimen: Specimen | None
+    spec: Region
+    dropped: int = 0
+
+    def describe(self) -> str:
+        """Where the points went and why, for the session's note."""
+        how = {PlacedBy.GIVEN_REGION: self.spec.describe(),
+               PlacedBy.SOURCE: f"the source's region {','.join(map(str, self.bounds))}",
+               PlacedBy.SPECIMEN: self.specimen.describe() if self.specimen is not None else "",
+               PlacedBy.WHOLE_IMAGE: "the whole image",
+               PlacedBy.POINTS: "the given points"}[self.placed_by]
+        if self.placed_by is not PlacedBy.GIVEN_REGION and self.spec.exclude:
+            how += ", " + ", ".join(f"excluding {shape.describe()}" for shape in self.spec.exclude)
+        text = f"{len(self.points)} points"
+        if self.step is not None:
+            text += f" every {self.step} px"
+        text += f" over {how}"
+        if self.dropped:
+            text += f" ({self.dropped} given points left out: their subset reaches outside the region)"
+        return text
+
+    def as_metadata(self) -> dict:
+        """The placement as the recording's session metadata holds it (``region`` key)."""
+        meta = {"placed_by": self.placed_by.name.lower(), **self.spec.as_metadata(),
+                "bounds": list(self.bounds), "area_px": int(self.region.sum()), "dropped_points": self.dropped}
+        if self.specimen is not None:
+            meta["specimen"] = {"share": round(self.specimen.share, 4), "pieces": self.specimen.pieces,
+                                "separated": self.specimen.separated,
+                                "texture_threshold": round(float(self.specimen.threshold), 6)}
+        return meta
+
+
+def _bounds(mask: np.ndarray) -> tuple:
+    rows, cols = np.nonzero(mask)
+    return (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
+
+
+def _step_for(allowed: np.ndarray, n_points: int) -> int:
+    """The grid step whose grid over ``allowed`` holds the number of points closest to ``n_points``."""
+    area = int(allowed.sum())
+    guess = max(int(np.sqrt(area / max(float(n_points), 1.0))), 1)
+    best, best_error = guess, None
+    for candidate in range(max(guess - 2, 1), guess + 3):
+        error = abs(len(grid_in_region(allowed, candidate)) - n_points)
+        if best_error is None or error < best_error:
+            best, best_error = candidate, error
+    return best
+
+
+def where_points_go(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple | None = None) -> tuple:
+    """``(spec, region, allowed, placed_by, specimen)``: where subsets may lie, and the centres that keep them there.
+
+    ``spec`` is the ``dic.region.Region`` applied (the user's, or the source's rectangle); ``region``
+    the (H, W) pixels a subset may cover; ``allowed`` the pixel centres whose subset does
+    (``dic.region.placeable``); ``placed_by`` a ``PlacedBy``; ``specimen`` the ``dic.region.Specimen``
+    found, or None. The order of the rules is ``place_points``'s.
+    """
+    shape = image.shape[:2]
+    check_subset(subset, shape)
+    spec = wanted.region
+    spec.check(shape)
+    specimen = None
+    margin = 0
+    within = None
+    if wanted.xy is not None:
+        placed_by = PlacedBy.POINTS
+    elif spec.given:
+        placed_by = PlacedBy.GIVEN_REGION
+    elif wanted.roi == ROI_FULL:
+        placed_by = PlacedBy.WHOLE_IMAGE
+    elif suggested_roi is not None and wanted.roi != ROI_AUTO:
+        placed_by = PlacedBy.SOURCE
+        spec = Region(outline=Rectangle(*(int(v) for v in suggested_roi)), exclude=spec.exclude)
+        spec.check(shape)
+    else:
+        placed_by = PlacedBy.SPECIMEN
+        specimen = find_specimen(image, subset)
+        within, margin = specimen.mask.copy(), SPECIMEN_MARGIN
+        # a subset within INTERPOLATION_MARGIN px of the image's edge is never ok (OUTSIDE_TARGET): none placed
+        edge = INTERPOLATION_MARGIN
+        within[:edge], within[-edge:], within[:, :edge], within[:, -edge:] = False, False, False, False
+    region = spec.pixels(shape, within=within)
+    return spec, region, placeable(region, subset, margin), placed_by, specimen
+
+
+def placeable_points(points: np.ndarray, allowed: np.ndarray) -> np.ndarray:
+    """Boolean (N,): the points (snapped to pixel centres, inside the image) whose subset ``allowed`` keeps."""
+    snapped = np.floor(np.asarray(points, dtype=np.float64) + 0.5).astype(np.int64)
+    height, width = allowed.shape
+    inside = (snapped[:, 0] >= 0) & (snapped[:, 1] >= 0) & (snapped[:, 0] < width) & (snapped[:, 1] < height)
+    keep = np.zeros(len(snapped), dtype=bool)
+    keep[inside] = allowed[snapped[inside, 1], snapped[inside, 0]]
+    return keep
+
+
+def place_points(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple | None = None) -> Placement:
+    """The points on the reference ``image`` as ``wanted`` (a ``stream.config.PointsConfig``) asks.
+
+    Where the points go, in order: the given points (``--points``; less those an exclusion or a mask
+    leaves out); the given region (``--roi`` rectangle or polygon, ``--mask``); ``--roi full``; the
+    source's region (``suggested_roi``: the simulator's gauge section, a recording's ROI); else, and with
+    ``--roi auto``, the speckled specimen found in the image (``dic.region.find_specimen``, with
+    ``SPECIMEN_MARGIN``). Exclusions apply to all. No subset reaches outside the region.
+
+    Raises
+    ------
+    ValueError
+        A region beyond the image or holding no whole subset, a mask of another size, given points or
+        P0 outside the image (one line each).
+    """
+    height, width = image.shape[:2]
+    spec, region, allowed, placed_by, specimen = where_points_go(image, wanted, subset=subset,
+                                                                 suggested_roi=suggested_roi)
+    given = wanted.xy
+
+    dropped = 0
+    step = None
+    if given is not None:
+        grid = np.asarray(given, dtype=np.float64).reshape(-1, 2)
+        outside = (grid[:, 0] < 0) | (grid[:, 1] < 0) | (grid[:, 0] > width - 1) | (grid[:, 1] > height - 1)
+        if outside.any():
+            bad = grid[np.argmax(outside)]
+            raise ValueError(f"{int(outside.sum())} of the given points lie outside the {width}x{height} image "
+                             f"(first: {bad[0]:g},{bad[1]:g}): keep 0 <= x <= {width - 1} and 0 <= y <= {height - 1}")
+        if spec.mask is not None or spec.exclude:
+            keep = placeable_points(grid, allowed)
+            dropped = int((~keep).sum())
+            grid = grid[keep]
+            if not len(grid):
+                raise ValueError(f"every given point's subset reaches outside the region ({spec.describe()}): "
+                                 f"none is left to track")
+        region_for_p0 = allowed if (spec.mask is not None or spec.exclude) else None
+    else:
+        if not allowed.any():
+            if placed_by is PlacedBy.SPECIMEN and not specimen.mask.any():
+                raise ValueError("no speckled area in the first frame (a blank, unpainted or out-of-focus view?): "
+                                 "point the camera at the speckled specimen, or say where the points go with "
+                                 "--roi X,Y,W,H (--roi full: the whole image)")
+            where = spec.describe() if placed_by is PlacedBy.GIVEN_REGION else placed_by.value
+            raise ValueError(f"{where} holds no whole {subset}x{subset} subset: "
+                             + ("give --roi, or a smaller --subset" if placed_by is PlacedBy.SPECIMEN else
+                                "enlarge the region or use a smaller --subset"))
+        step = wanted.step if wanted.step is not None else _step_for(allowed, wanted.n_points)
+        grid = grid_in_region(allowed, step)
+        region_for_p0 = allowed
+    bounds = _bounds(region) if region.any() else (0, 0, width, height)
+    p0_choice = choose_p0(image, bounds, subset, p0=wanted.p0, allowed=region_for_p0)
+    p0 = np.floor(np.asarray(p0_choice.xy, dtype=np.float64) + 0.5)
+    if not (0 <= p0[0] < width and 0 <= p0[1] < height):
+        raise ValueError(f"P0 ({p0[0]:g}, {p0[1]:g}) is outside the {width}x{height} image")
+    same = np.all(np.floor(grid + 0.5) == p0[None, :], axis=1)
+    points = np.vstack([p0[None, :], grid[~same]])
+    return Placement(points=points, p0=p0_choice, step=step, bounds=bounds, region=region, placed_by=placed_by,
+                     specimen=specimen, spec=spec, dropped=dropped)
 
 
 def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):

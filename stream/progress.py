@@ -1,7 +1,21 @@
-"""The progress line of ``livedic run`` and ``livedic replay``: one line on stderr, redrawn in place."""
+"""The progress line of ``livedic run``, ``replay`` and ``export``: one line on stderr, redrawn in place."""
 
 import sys
 import time
+
+PROGRESS_CHOICES = ("auto", "on", "off")
+
+
+def add_progress_argument(parser):
+    """Add ``--progress auto|on|off`` (the progress bar of ``replay`` and ``export``) to an argparse parser."""
+    parser.add_argument("--progress", choices=PROGRESS_CHOICES, default="auto",
+                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+    return parser
+
+
+def progress_enabled(choice, stream=None):
+    """Whether ``--progress choice`` shows the bar: on, or auto and ``stream`` (stderr) is a terminal."""
+    return choice == "on" or (choice == "auto" and (stream or sys.stderr).isatty())
 
 
 class ProgressBar:

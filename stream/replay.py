@@ -35,7 +35,7 @@ how the replay compares with the recording (``ReplayReport.agreement``, an
   This is what a replay on the machine (and livedic version) that recorded the
   session gives.
 - ``WITHIN_ROUNDING``: not bit for bit, but every u and v within
-  ``ROUNDING_TOLERANCE_PX`` (1e-4 px) and every ZNCC within ``ROUNDING_TOLERANCE_ZNCC`` (1e-6)
+  ``ROUNDING_TOLERANCE_PX`` (1e-4 px) and every ZNCC within ``ROUNDING_TOLERANCE_ZNCC`` (2e-5)
   of the recorded ones, with the same points ok and the same NaN: ``replay agrees
   with the recording within floating-point rounding (max 1.8e-06 px <= 1e-4 px
   tolerance)``. The compiled kernels round differently on another CPU (vector
@@ -53,12 +53,10 @@ In parallel (``--workers N``: a local Dask cluster of N worker processes; ``--cl
 ADDRESS``: an existing Dask scheduler) every frame is measured on its own, started from
 the recorded result of the frame before it (``stream.parallel_replay``), and the results
 come back in frame order to the same session: the CSV, the comparison and its verdict are
-the sequential replay's (u, v within 1e-4 px; bit for bit on the tests' recordings).
-``--shared-path`` lets the workers read the frames from the file instead of receiving
-them. Reference updates and fractures are followed as sequentially (the frames after one
-are measured against the tracker that frame left); from there on the numbers are equal
-within rounding (~1e-14 px), not bit for bit: each frame starts from the recorded result
-before it mapped onto the key frame.
+the sequential replay's (bit for bit on the machine that recorded; within rounding of it
+elsewhere). ``--shared-path`` lets the workers read the frames from the file instead of
+receiving them. Reference updates and fractures are followed as sequentially (the frames
+after one are measured against the tracker that frame left).
 """
 
 import enum
@@ -70,11 +68,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.stream.config import (DEFAULT_POINTS, PointsConfig, SessionConfig, TrackingConfig, parse_p0, parse_roi,
+from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsConfig, SessionConfig, TrackingConfig,
+                                   parse_exclusion, parse_p0, parse_roi, read_mask,
                                    search_method, subpixel_method)
-from livedic.stream.p0 import choose_p0
-from livedic.stream.points import build_points, read_points_csv
-from livedic.stream.progress import ProgressBar
+from livedic.stream.points import add_region_arguments, place_points, read_points_csv
+from livedic.stream.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay_rows import frame_rows, with_force_columns
 from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
@@ -87,10 +85,14 @@ from livedic.stream.export import StagedFile, check_output_csv, read_session_or_
 # A replay on another machine agrees within these (see the module notes). Rounding differences of the
 # compiled kernels moved u and v by 1.8e-6 px on the sample session (issue 8, another x86_64 CPU);
 # 1e-4 px leaves room for that and is still 40x below the 8-bit rounding noise of a measurement
-# (IC-GN ~4e-3 px SD). ZNCC is summed in float64 and sits at its maximum, where a shift of the
-# displacement changes it only to second order (1e-4 px: ~1e-8), so 1e-6 covers it.
+# (IC-GN ~4e-3 px SD).
 ROUNDING_TOLERANCE_PX = 1e-4
-ROUNDING_TOLERANCE_ZNCC = 1e-6
+# IC-GN forms ZNCC from per-row float32 sums (dic.subpixel.icgn), and its variance, sum g^2 - (sum g)^2 / n,
+# cancels by the subset's mean^2 / var: one machine's rounding is k 2^-24 (mean^2 / var) / sqrt(side), k <= 4.4
+# measured on reference frames (exact ZNCC 1: 953 subsets of the sample and of the simulated test to fracture;
+# up to 2.5e-6 at mean^2 / var = 83, faded paint), and two CPUs differ by up to twice that (k <= 6.6 measured,
+# 1.04e-6 on the sample). 2e-5 covers mean^2 / var up to 175 at subset 21: a grey-level SD down to 1/13 of the mean.
+ROUNDING_TOLERANCE_ZNCC = 2e-5
 
 METHOD_KEYS = TrackingConfig.keys()
 _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
@@ -116,9 +118,7 @@ def add_replay_arguments(parser):
     method.add_argument("--reference-update", metavar="WHEN", help="auto, never or every:N (reference updates)")
     method.add_argument("--seed", type=int, help="seed of the stochastic searches")
     points = parser.add_argument_group("point options (default: the recorded points)")
-    where = points.add_mutually_exclusive_group()
-    where.add_argument("--roi", metavar="X,Y,W,H", help="grid over this region of interest")
-    where.add_argument("--points", metavar="FILE.csv", help="track these points (CSV with header x,y)")
+    add_region_arguments(points)
     points.add_argument("--step", type=int, metavar="S", help="grid step in pixels")
     points.add_argument("--n-points", type=int, metavar="N", help="points wanted when --step is not given")
     points.add_argument("--p0", metavar="X,Y", help="the traced point P0 (point 0)")
@@ -139,8 +139,7 @@ def add_replay_arguments(parser):
                           help="the workers read the frames from the recording themselves (a shared file system; "
                                "PATH: the recording as the workers see it, default the same path) instead of "
                                "receiving each image from this process")
-    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
-                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+    add_progress_argument(parser)
     add_strain_arguments(parser, recorded=True)
     add_stress_arguments(parser)
     return parser
@@ -218,15 +217,26 @@ class PointOptions:
     step: int = None
     n_points: int = None
     p0: str = None
+    mask: str = None
+    exclude: tuple = None
 
     @property
     def given(self):
-        return any(value is not None for value in (self.roi, self.points, self.step, self.n_points, self.p0))
+        return any(value is not None for value in (self.roi, self.points, self.step, self.n_points, self.p0,
+                                                   self.mask, self.exclude))
+
+    @property
+    def region_given(self):
+        return any(value is not None for value in (self.roi, self.mask, self.exclude))
+
+    def region(self):
+        """``PointsConfig``'s region fields from what was given (``PointsConfig.region_from_args``)."""
+        return PointsConfig.region_from_args(self)
 
     def check(self):
         """ValueError (one line) for a bad option: ``PointsConfig``'s checks, on what was given."""
-        PointsConfig(roi=parse_roi(self.roi), step=self.step,
-                     n_points=self.n_points if self.n_points is not None else DEFAULT_POINTS, p0=parse_p0(self.p0))
+        PointsConfig(step=self.step, n_points=self.n_points if self.n_points is not None else DEFAULT_POINTS,
+                     p0=parse_p0(self.p0), **self.region())
 
 
 def _list_of_numbers(value, count):
@@ -236,29 +246,51 @@ def _list_of_numbers(value, count):
     return None
 
 
+def recorded_region(metadata):
+    """The region a recording's points were placed in, as ``PointsConfig`` fields (``roi``, ``exclude``).
+
+    ``region`` (recordings since masks) says how; older ones give ``roi`` as X,Y,W,H or "full image".
+    A recorded mask file is read again when it is still there, else its region's bounding box is used.
+    """
+    region = metadata.get("region") if isinstance(metadata.get("region"), dict) else {}
+    exclude = tuple(parse_exclusion(text) for text in region.get("exclude") or ())
+    placed_by = region.get("placed_by")
+    if placed_by == "specimen":
+        return {"roi": ROI_AUTO, "exclude": exclude}
+    if placed_by == "given_region":
+        fields = {"roi": parse_roi(region["roi"]) if region.get("roi") else None, "exclude": exclude}
+        mask_file = region.get("mask")
+        if mask_file and os.path.exists(mask_file):
+            fields.update(mask=read_mask(mask_file), mask_file=mask_file)
+        elif mask_file and fields["roi"] is None:
+            bounds = _list_of_numbers(region.get("bounds"), 4)
+            fields["roi"] = tuple(int(v) for v in bounds) if bounds else None
+        return fields
+    recorded_roi = _list_of_numbers(metadata.get("roi"), 4)
+    if recorded_roi:
+        return {"roi": tuple(int(v) for v in recorded_roi), "exclude": exclude}
+    return {"roi": ROI_FULL, "exclude": exclude}
+
+
 def replay_points_config(metadata, options, recorded_xy):
     """The points to rebuild (``PointsConfig``): the options given, the rest from the session metadata.
 
-    What the user did not give comes from the session metadata (ROI, step, points
+    What the user did not give comes from the session metadata (region, step, points
     wanted, P0); a recording made from a points file keeps its recorded points.
     """
     defaults = run_defaults()
     given_points = points_file = None
     if options.points is not None:
         given_points, points_file = read_points_csv(options.points), options.points
-    elif options.roi is None and options.step is None and options.n_points is None \
+    elif not options.region_given and options.step is None and options.n_points is None \
             and metadata.get("points_file") not in (None, ""):
         if recorded_xy is None:
             raise ValueError(f"the recording tracked points from {metadata['points_file']}: give --points FILE.csv")
         given_points, points_file = recorded_xy, str(metadata["points_file"])
-    if options.roi is not None:
-        roi = parse_roi(options.roi)
-    else:
-        recorded_roi = _list_of_numbers(metadata.get("roi"), 4)
-        roi = tuple(int(v) for v in recorded_roi) if recorded_roi else None
+    region = options.region() if options.region_given else recorded_region(metadata)
     if options.step is not None:
         step = options.step
-    elif options.roi is not None or options.n_points is not None:
+    elif options.region_given or options.n_points is not None:
         step = None
     else:
         step = _recorded_value("subset", metadata.get("step"))     # an int or None (then from n_points)
@@ -266,7 +298,7 @@ def replay_points_config(metadata, options, recorded_xy):
     if n_points is None:
         n_points = _recorded_value("subset", metadata.get("n_points_wanted")) or defaults["n_points"]
     p0 = parse_p0(options.p0) if options.p0 is not None else _list_of_numbers(metadata.get("p0"), 2)
-    return PointsConfig(roi=roi, points_file=points_file, xy=given_points, step=step, n_points=n_points, p0=p0)
+    return PointsConfig(points_file=points_file, xy=given_points, step=step, n_points=n_points, p0=p0, **region)
 
 
 def build_replay_points(image, metadata, subset, options, recorded_xy):
@@ -277,13 +309,7 @@ def build_replay_points(image, metadata, subset, options, recorded_xy):
     places it now.
     """
     wanted = replay_points_config(metadata, options, recorded_xy)
-    grid = dict(roi=wanted.roi, step=wanted.step, n_points=wanted.n_points, subset=subset, points=wanted.xy)
-    p0 = wanted.p0
-    if p0 is None:
-        build_points(image.shape, **grid)                        # the ROI checked first
-        p0 = choose_p0(image, wanted.roi, subset).xy
-    points, _, _ = build_points(image.shape, p0=p0, **grid)
-    return points
+    return place_points(image, wanted, subset=subset).points
 
 
 # ----------------------------------------------------------------------------- the replay
@@ -372,9 +398,6 @@ class ReplayReport:
             within = (f"within floating-point rounding (max {self.max_difference_px:.2g} px <= "
                       f"{_short(ROUNDING_TOLERANCE_PX)} px tolerance): {size}, the same points ok; bit-exact only "
                       f"on the machine that recorded it")
-            if self.parallel is not None and self.parallel.segments > 1:
-                within += (", and in parallel after a reference move or a fracture (each frame starts from the "
-                           "recorded result before it, mapped onto the key frame)")
             if changes:
                 return f"replay with changed parameters ({changes}) agrees with the recording {within}"
             return f"replay agrees with the recording {within}"
@@ -731,12 +754,12 @@ def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
     check_output_csv(args.output, args.recording)
     given = {key: getattr(args, key) for key in METHOD_KEYS}
-    options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0)
+    options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
+                           mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
     strain = overrides_from_args(args)
     stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")
-    show_progress = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty())
-    bar = ProgressBar(None, enabled=show_progress)
+    bar = ProgressBar(None, enabled=progress_enabled(args.progress))
     state = {"header": None}
 
     def write_rows(out):

@@ -4,7 +4,14 @@ Entity tree (paths are the constants below)::
 
     camera/image        the camera frame (Mono8 for display; downsampled by an integer
                         factor when larger than ``image_max_side``)
-    camera/roi          the region of interest (static box)
+    camera/roi          the region where the points go (static outline: the ROI's rectangle or polygon,
+                        the mask's or the found specimen's edge), and the exclusions in red;
+                        camera/roi/label its name above it, dark on a light box
+    setup/...           the set-up as ``livedic preview`` draws it (static, its own view): the reference
+                        frame (setup/image), the speckle contrast per subset (setup/mig, colour-mapped,
+                        with clipped pixels red), the region and exclusions, the points (weak contrast in
+                        orange), P0 with its subset, the extensometers labelled with L0; setup_notes the
+                        preview's figures and advice
     camera/p0           the traced point P0 at its current position
     camera/field_u      u at every ok point, drawn at its current position, colour-mapped
     camera/field_v      v, the same way
@@ -55,7 +62,8 @@ Entity tree (paths are the constants below)::
                         uniform elongation (stress_strain/data/true; live, while the force is within
                         0.5 % of its maximum so far: ``stream.stress.UniformElongationWatch``), drawn
                         like strain_xy, with the current strain, stress, force and true stress
-                        (stress_strain/now); a frame without a force or an axial strain is a gap
+                        (stress_strain/now), and a legend naming the two curves (stress_strain/legend);
+                        a frame without a force or an axial strain is a gap
 
 Related values share one entity as a multi-series ``Scalars`` (one log call
 each: a scalar costs ~0.15 ms to log, about as much as an image).
@@ -92,7 +100,10 @@ not change are logged once, static).
 Timelines: ``frame`` (frame index) and ``time`` (seconds since the first frame,
 camera clock). A default blueprint lays the views out; with strain, the four fields form a 2 x 2 grid
 (camera and e_yy on top, u and v below, each over its colour bar) and the extensometer plots head the
-plot column, the performance plots sharing one row as tabs.
+plot column, the small plots (P0, ZNCC, throughput, latency, drops, error) two to a row below them (one
+to a row, full width, without strain plots). A small plot's name says which colour is which series and it
+has no legend (Rerun draws a legend over the curves); the strain and force plots keep theirs, in the top
+left corner, which a tensile test's curves leave free.
 
 Viewer modes (``--viewer``): ``spawn`` starts a local viewer bound to
 127.0.0.1 (``rerun --bind 127.0.0.1 --port 9876``; one already listening there
@@ -116,6 +127,7 @@ from collections import deque
 
 import numpy as np
 
+from livedic.acquire.pixel_formats import FRAME_BIT_DEPTH
 from livedic.dic.extensometer import end_displacements
 from livedic.dic.tensile_properties import FRACTURE_DROP
 from livedic.stream.load_stage import axial_strain
@@ -131,6 +143,9 @@ VIEWER_MODES = ("spawn", "connect", "save", "none")
 CAMERA = "camera"
 CAMERA_IMAGE = "camera/image"
 CAMERA_ROI = "camera/roi"
+CAMERA_ROI_LABEL = "camera/roi/label"
+SETUP = "setup"
+SETUP_NOTES = "setup_notes"
 CAMERA_P0 = "camera/p0"
 FIELD_U = "camera/field_u"
 FIELD_V = "camera/field_v"
@@ -193,10 +208,11 @@ _NO_STRAIN_COLOUR = (150, 150, 150)   # an ok point without a strain (too few va
 _EXTENSOMETER_COLOURS = ((0, 220, 255), (70, 240, 70), (255, 150, 0), (185, 125, 255), (255, 255, 255))
 _EXTENSOMETER_LOST_COLOUR = (230, 0, 0)
 _BLACK = 0x000000FF              # packed opaque black
-# An extensometer's label sits beyond its second end, along the line, by these fractions of the image side
-# across and down: a label is wide (half of it ~1/6 of the image side in a view of ~1/4 of the screen) and
-# drawn below its anchor, so a horizontal line's label needs the room, a vertical one's hardly any.
-_LABEL_OFFSET = (0.16, 0.03)
+# Label sizes as fractions of the image side, for an image view ~300 px across (a quarter of a screen): Rerun
+# draws a label centred under its anchor, in UI points (~7 a character, ~16 high) whatever the zoom.
+_LABEL_CHARACTER = 0.024
+_LABEL_HEIGHT = 0.055
+_LABEL_GAP = 0.015
 _EXTENSOMETER_DRAW_ORDER = 50.0  # above the lost/low-ZNCC squares and P0
 _STRESS_COLOURS = ((255, 150, 0), (255, 90, 200))   # engineering, true: apart from the extensometers' colours
 _FIT_COLOUR = (25, 25, 25)       # the elastic fit, drawn over the transverse-vs-axial curve on the light plot
@@ -209,12 +225,23 @@ _LABEL_TEXT_COLOUR = (20, 20, 20)   # labels are drawn on a light box: dark text
 _SERIES_STYLE = {
     P0: (["u (px)", "v (px)"], [(230, 80, 60), (60, 120, 230)]),
     QUALITY: (["ZNCC mean", "ZNCC min", "fraction ok"], [(40, 160, 90), (200, 140, 30), (120, 120, 120)]),
-    THROUGHPUT: (["frames/s", "kPOI/s"], [(40, 120, 200), (200, 90, 40)]),
+    THROUGHPUT: (["frames/s", "kPOI/s"], [(40, 120, 200), (230, 140, 20)]),
     LATENCY: (["latency (ms)", "tracking (ms)"], [(200, 50, 50), (80, 80, 200)]),
     DROPS: (["dropped frames", "queue depth"], [(200, 40, 40), (110, 110, 110)]),
     ERROR: (["RMS error (px)", "max error (px)"], [(130, 60, 170), (220, 120, 200)]),
     LIMITS_U: (["u low (px)", "u high (px)"], [(48, 18, 59), (122, 4, 3)]),
     LIMITS_V: (["v low (px)", "v high (px)"], [(48, 18, 59), (122, 4, 3)]),
+}
+# The small plots' names say which colour is which series: Rerun draws a plot's legend over the plot, where in
+# a plot this small it hides the curves, so it is switched off there (the colours are _SERIES_STYLE's). Short
+# enough (~30 characters) for half of the plot column.
+_SMALL_PLOT_NAMES = {
+    P0: "P0 (px): u red, v blue",
+    QUALITY: "ZNCC: mean green, min orange, ok grey",
+    THROUGHPUT: "frames/s blue, kPOI/s orange",
+    LATENCY: "latency red, tracking blue (ms)",
+    DROPS: "dropped red, queue depth grey",
+    ERROR: "px error: RMS purple, max pink",
 }
 # colour bars: legend -> (the entity of its numeric limits, the unit on the bar, display factor)
 _LEGENDS = {LEGEND_U: (LIMITS_U, "px", 1.0), LEGEND_V: (LIMITS_V, "px", 1.0), LEGEND_EYY: (LIMITS_EYY, "%", 100.0)}
@@ -272,6 +299,15 @@ def colormap_lut():
     import cv2
     ramp = np.arange(256, dtype=np.uint8).reshape(-1, 1)
     return cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)[:, 0, ::-1].copy()
+
+
+def display_gray(image, pixel_format=""):
+    """A camera image as 8-bit grey for display: the top 8 of its significant bits (a 10- or 12-bit camera's
+    uint16 holds 0..1023 or 0..4095; Mono16 and unknown formats 16 bits)."""
+    if image.dtype != np.uint8:
+        shift = FRAME_BIT_DEPTH.get(pixel_format, 16) - 8
+        image = (image >> shift).astype(np.uint8)
+    return image
 
 
 def pack_colours(rgb):
@@ -418,6 +454,43 @@ def _darker(rgb, factor=0.45):
     return tuple(int(c * factor) for c in rgb)
 
 
+def _label_anchors(first, second, labels, side):
+    """Where each extensometer's label goes: beyond its second end, clear of the other lines' labels.
+
+    A mostly vertical line's label sits under its end (over it, for a line drawn upwards); a mostly horizontal
+    line's label starts just beyond its end and is raised above the line. So the labels of an axial and a
+    transverse extensometer crossing at P0 never meet each other or P0's label (under P0), however short the
+    transverse one is. ``first``, ``second``: (N, 2) ends in scene units; ``side``: the image side in them.
+    """
+    step = second - first
+    vertical = np.abs(step[:, 1]) >= np.abs(step[:, 0])
+    down, right = np.where(step[:, 1] >= 0, 1.0, -1.0), np.where(step[:, 0] >= 0, 1.0, -1.0)
+    half_width = np.array([0.5 * len(label) * _LABEL_CHARACTER for label in labels])
+    dx = np.where(vertical, 0.0, right * (half_width + _LABEL_GAP))
+    dy = np.where(vertical, np.where(down > 0, _LABEL_GAP, -_LABEL_GAP - _LABEL_HEIGHT),
+                  -_LABEL_GAP - _LABEL_HEIGHT)
+    return second + side * np.column_stack([dx, dy])
+
+
+def _plot_share(view):
+    """A strain plot's height in the plot column: the XY plots (stress-strain, transverse vs axial) more than
+    the time series, since their box keeps its aspect and their numbers and titles need the room."""
+    return 3.5 if type(view).__name__ == "Spatial2DView" else 2.5
+
+
+def _legend_top_left():
+    """The legend of the strain and force plots: a tensile test's strains and force start at 0 and move away
+    from it as time goes right, so the top left corner stays clear of the curves."""
+    import rerun.blueprint as rrb
+    return rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True)
+
+
+def _small_plot(path):
+    """A small time-series view of ``path``: its name keys the colours, no legend over the curves."""
+    import rerun.blueprint as rrb
+    return rrb.TimeSeriesView(name=_SMALL_PLOT_NAMES[path], origin=path, plot_legend=rrb.PlotLegend(visible=False))
+
+
 def _strain_view_name(strain):
     """The e_yy view's name: the measure and the virtual strain gauge, e.g. "e_yy (%) engineering, VSG 77 px"."""
     return f"e_yy (%) {strain.config.measure}, VSG {strain.vsg_px:g} px"
@@ -514,15 +587,17 @@ class _XYPlot:
     frame without a value leaves a gap and clears the current point.
 
     Entities: ``ROOT/data/curve`` (and ``ROOT/data/SECOND`` for a second curve), ``ROOT/now`` (the
-    current point, and the numbers above the box), ``ROOT/axes``, ``ROOT/ticks``.
+    current point, and the numbers above the box), ``ROOT/axes``, ``ROOT/ticks``, and with ``names`` (one
+    per curve) ``ROOT/legend``: a short line in each curve's colour with its name, in the box's lower right.
     """
 
     def __init__(self, root, *, x_title, y_title, x_start, y_start, colours, second=None, x_title_under_zero=True,
-                 mantissas=_AXIS_MANTISSAS):
+                 mantissas=_AXIS_MANTISSAS, names=None):
         self.root = root
         self.data, self.curve, self.now = f"{root}/data", f"{root}/data/curve", f"{root}/now"
         self.axes, self.ticks = f"{root}/axes", f"{root}/ticks"
         self.second = f"{root}/data/{second}" if second else None
+        self.legend, self.names = f"{root}/legend", names
         self.x_title, self.y_title = x_title, y_title
         self.x_title_under_zero = x_title_under_zero     # inside the box, under the x axis; else above the bottom
         self.mantissas = mantissas                        # the nice numbers the limits grow to
@@ -551,6 +626,23 @@ class _XYPlot:
             rec.log(self.second, rr.LineStrips2D.from_fields(radii=-1.5, colors=[self.colours[1]]), static=True)
         rec.log(self.now, rr.Points2D.from_fields(radii=[0.0, -4.0], colors=[_LABEL_TEXT_COLOUR, (255, 255, 255)],
                                                   show_labels=True, draw_order=_MARKER_DRAW_ORDER), static=True)
+        if self.names:
+            self._log_legend(rr, rec)
+
+    def _log_legend(self, rr, rec):
+        """Which curve is which: a short line in each curve's colour, its name after it (low in the box, left of
+        the x axis' title: a tensile test's stress stays high once it has risen), in a darker shade of the colour."""
+        width, height = _XY_BOX
+        rows = [0.58 * height + 0.2 * height * k for k in range(len(self.names))]
+        strips = [[(0.32 * width, y), (0.38 * width, y)] for y in rows]
+        # a label is drawn centred under its anchor (~1.35 box units a character, ~3 high)
+        anchors = [(0.39 * width + 0.68 * len(name), y - 1.6) for name, y in zip(self.names, rows)]
+        colours = self.colours[:len(self.names)]
+        rec.log(self.legend, rr.LineStrips2D(strips, radii=-1.5, colors=colours, draw_order=_MARKER_DRAW_ORDER),
+                static=True)
+        rec.log(f"{self.legend}/names", rr.Points2D(anchors, radii=0.0, labels=list(self.names),
+                                                    colors=[_darker(colour) for colour in colours], show_labels=True,
+                                                    draw_order=_MARKER_DRAW_ORDER), static=True)
 
     def add(self, rr, rec, x, y, text, second=None):
         """This frame's point (x, y) in data units with its text; ``second``: (x, y) of the second curve or None."""
@@ -742,8 +834,11 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- setup
     def start(self, *, image_shape, roi=None, p0_index=None, points=None, has_truth=False, title=None,
-              source_settings=None, strain=None, load=None):
+              source_settings=None, strain=None, load=None, setup=None):
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
+
+        ``setup`` is the session's ``stream.preview.SetupOverlay`` (None: the ROI's box only): the region's
+        outline on the camera view and the set-up view (``log_setup``).
 
         ``strain`` is the session's ``stream.strain.StrainStage`` (None: no strain): with it the view
         adds e_yy, the extensometers and their plots (module notes). ``load`` is the session's
@@ -761,7 +856,7 @@ class RerunLogger:
             scale += 1
         self._scale = scale
         self._p0 = p0_index
-        blueprint = self._make_blueprint(has_truth, strain, load)
+        blueprint = self._make_blueprint(has_truth, strain, load, setup=setup is not None)
         if self.mode == "save":
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
@@ -779,11 +874,11 @@ class RerunLogger:
             if path == ERROR and not has_truth:
                 continue
             rec.log(path, rr.SeriesLines(names=names, colors=colours), static=True)
-        if roi is not None:
-            x, y, w, h = roi
-            rec.log(CAMERA_ROI, rr.Boxes2D(mins=[[x / scale - 0.5, y / scale - 0.5]], sizes=[[w / scale, h / scale]],
-                                           colors=[(255, 200, 0)], labels=["ROI"]), static=True)
         self._image_side = max(height, width)
+        if setup is not None:
+            self.log_setup(setup)
+        elif roi is not None:
+            self._log_roi(roi)
         # drawn now: OpenCV's first text call takes ~30 ms, which would land on the first frame
         for legend in (LEGEND_U, LEGEND_EYY) if strain is not None else (LEGEND_U,):
             _, unit, factor = _LEGENDS[legend]
@@ -808,6 +903,93 @@ class RerunLogger:
             lines += [f"| {k} | {v} |" for k, v in source_settings.items()]
         rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
 
+    def log_setup(self, setup):
+        """The set-up (a ``stream.preview.SetupOverlay``): the region's outline on the camera view, and the
+        set-up view as ``livedic preview`` draws it (module notes). Static: logged once, at the start."""
+        rr, rec = self.rr, self.rec
+        preview = setup                 # the overlay carries the palette the preview draws in
+        scale = float(self._scale)
+
+        def strips(polylines):
+            return [np.asarray(line, dtype=np.float64) / scale for line in polylines]
+
+        region = strips(setup.outlines)
+        excluded = strips(setup.exclusions)
+        outline = rr.LineStrips2D(region + excluded, radii=-1.5, colors=[preview.REGION_COLOUR] * len(region)
+                                  + [preview.EXCLUDED_COLOUR] * len(excluded))
+        # Rerun puts a strip's label at its middle, where P0 and the extensometers cross: the labels are
+        # points of their own, at the ends ``livedic preview`` labels
+        for path in (CAMERA_ROI, f"{SETUP}/region"):
+            rec.log(path, outline, static=True)
+        region_label = self._roi_label(setup.placement.bounds, setup.region_label)
+        rec.log(CAMERA_ROI_LABEL, region_label, static=True)
+        rec.log(f"{SETUP}/region/label", region_label, static=True)
+        labels = [((float(line[:, 0].max()), float(line[:, 1].min())), "excluded") for line in excluded]
+        image = setup.image
+        rec.log(f"{SETUP}/image", rr.Image(self._display_image(image, setup.pixel_format)), static=True)
+        # at the display's scale: this runs as the first frame is tracked, every ms of it a ms of latency
+        quality, step = setup.quality, self._scale
+        inside = setup.placement.region[::step, ::step]
+        mig = quality.mig[::step, ::step]
+        top = float(np.percentile(mig[inside], 99)) if inside.any() else 1.0
+        index = np.clip(mig * (255.0 / max(top, 1e-6)), 0, 255).astype(np.uint8)
+        rgba = np.empty(mig.shape + (4,), dtype=np.uint8)
+        rgba[..., :3] = self._lut[index]
+        rgba[..., 3] = np.where(inside, 150, 0)
+        rgba[quality.clipped[::step, ::step] & inside] = (*preview.CLIPPED_COLOUR, 255)
+        rec.log(f"{SETUP}/mig", rr.Image(rgba), static=True)
+        points = setup.placement.points / scale
+        colours = np.where(setup.weak[:, None], preview.WEAK_POINT_COLOUR, preview.POINT_COLOUR).astype(np.uint8)
+        rec.log(f"{SETUP}/points", rr.Points2D(points, colors=colours, radii=-1.5), static=True)
+        half = setup.subset / 2.0 / scale
+        p0 = points[0]
+        rec.log(f"{SETUP}/p0", rr.Boxes2D(mins=[p0 - half], sizes=[[2 * half, 2 * half]], colors=[preview.P0_COLOUR],
+                                          radii=-1.5), static=True)
+        labels.append(((float(p0[0] - half), float(p0[1] + half)), f"P0 ({setup.subset} px subset)"))
+        if setup.extensometers:
+            colours = [preview.EXTENSOMETER_COLOURS[k % len(preview.EXTENSOMETER_COLOURS)]
+                       for k in range(len(setup.extensometers))]
+            rec.log(f"{SETUP}/extensometers",
+                    rr.LineStrips2D([[(e.x1 / scale, e.y1 / scale), (e.x2 / scale, e.y2 / scale)]
+                                     for e in setup.extensometers], colors=colours, radii=-2.0), static=True)
+            for e, colour in zip(setup.extensometers, colours):
+                # the far end along x, the upper end along y: clear of the crossing at P0
+                along_y = abs(e.y2 - e.y1) >= abs(e.x2 - e.x1)
+                end = min(((e.x1, e.y1), (e.x2, e.y2)), key=lambda p: p[1] if along_y else -p[0])
+                labels.append(((end[0] / scale, end[1] / scale), setup.extensometer_label(e)))
+        rec.log(f"{SETUP}/labels", self._label_points(labels), static=True)
+        advice = setup.advice()
+        notes = ["# set-up", "", *(f"- {line}" for line in setup.lines()), "",
+                 "**check:**" if advice else "nothing to check: pattern, exposure and focus look fit for DIC",
+                 *(f"- {line}" for line in advice)]
+        rec.log(SETUP_NOTES, rr.TextDocument("\n".join(notes), media_type=rr.MediaType.MARKDOWN), static=True)
+
+    def _label_points(self, labels):
+        """Points2D that carry ``labels`` [((x, y) display px, text)]: dark text on Rerun's light label box."""
+        rr = self.rr
+        return rr.Points2D([xy for xy, _ in labels], labels=[text for _, text in labels],
+                           colors=[_LABEL_TEXT_COLOUR] * len(labels), radii=0.0, show_labels=True,
+                           draw_order=_MARKER_DRAW_ORDER + 2)
+
+    def _roi_label(self, bounds, text):
+        """``text`` above the top-left corner of ``bounds`` (x, y, w, h; image px): clear of what is inside,
+        however narrow the region (labels are drawn centred under their anchor)."""
+        scale = self._scale
+        x, y, _, _ = bounds
+        left, top = x / scale - 0.5, y / scale - 0.5
+        side = self._image_side / scale
+        anchor = (left + 0.5 * len(text) * _LABEL_CHARACTER * side, top - (_LABEL_HEIGHT + _LABEL_GAP) * side)
+        return self._label_points([(anchor, text)])
+
+    def _log_roi(self, roi):
+        """The ROI's box (no set-up drawn), and its name above it in dark text on Rerun's light label box (the
+        box's own label, in its yellow, was unreadable on speckle)."""
+        rr, scale = self.rr, self._scale
+        x, y, w, h = roi
+        self.rec.log(CAMERA_ROI, rr.Boxes2D(mins=[[x / scale - 0.5, y / scale - 0.5]], sizes=[[w / scale, h / scale]],
+                                            colors=[(255, 200, 0)]), static=True)
+        self.rec.log(CAMERA_ROI_LABEL, self._roi_label(roi, "ROI"), static=True)
+
     def _plan_plots(self, strain, load):
         """The XY plots this session shows: transverse vs axial, stress-strain (None where it has not the data)."""
         self._xy_pair = _axial_transverse_pair(strain)
@@ -822,7 +1004,8 @@ class RerunLogger:
             self._stress_xy = _XYPlot(STRESS_STRAIN, x_title="axial strain (%)", y_title="stress (MPa)",
                                       x_start=(-100 * MIN_XY_LIMIT_STRAIN, 100 * MIN_XY_LIMIT_STRAIN),
                                       y_start=(0.0, MIN_XY_LIMIT_STRESS_MPA), colours=_STRESS_COLOURS,
-                                      second="true", x_title_under_zero=False, mantissas=_NICE_MANTISSAS)
+                                      second="true", x_title_under_zero=False, mantissas=_NICE_MANTISSAS,
+                                      names=("engineering", "true (to max. force)"))
 
     def _spawn_viewer(self):
         if _port_open("127.0.0.1", DEFAULT_PORT):
@@ -845,13 +1028,17 @@ class RerunLogger:
         raise ValueError(f"the Rerun viewer did not start listening on 127.0.0.1:{DEFAULT_PORT} within 10 s; "
                          "use --viewer save FILE.rrd instead")
 
-    def _make_blueprint(self, has_truth, strain=None, load=None):
+    def _make_blueprint(self, has_truth, strain=None, load=None, *, setup=False):
         import rerun.blueprint as rrb
         self._plan_plots(strain, load)
         field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
         extensometers = [f"/{EXTENSOMETER_LINES}"] if strain is not None else []
+        camera = rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi/**", *extensometers])
+        if setup:      # the set-up a tab behind the camera: one click away, the live image in front
+            camera = rrb.Tabs(camera, rrb.Spatial2DView(name="set-up", origin=SETUP),
+                              rrb.TextDocumentView(name="set-up notes", origin=SETUP_NOTES), active_tab=0)
         image_views = [
-            rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi", *extensometers]),
+            camera,
             rrb.Spatial2DView(name="u (px)", origin=CAMERA, contents=[*field, f"/{FIELD_U}"]),
             rrb.Spatial2DView(name="v (px)", origin=CAMERA, contents=[*field, f"/{FIELD_V}"]),
         ]
@@ -878,38 +1065,29 @@ class RerunLogger:
         if self._stress_xy is not None:    # what a tensile test is run for: the first plot
             strain_plots.insert(0, self._stress_xy.view("stress-strain (MPa, %)"))
         if load is not None:
-            strain_plots.append(rrb.TimeSeriesView(name="force (kN)", origin=FORCE))
-        performance = [
-            rrb.TimeSeriesView(name="throughput", origin=THROUGHPUT),
-            rrb.TimeSeriesView(name="latency (ms)", origin=LATENCY),
-            rrb.TimeSeriesView(name="drops", origin=DROPS),
-        ]
-        if strain_plots:     # the strain plots take the room: the performance plots share one row, as tabs
-            performance = [rrb.Tabs(*performance, name="performance")]
-        plots = [
-            *strain_plots,
-            rrb.TimeSeriesView(name="P0 displacement (px)", origin=P0),
-            rrb.TimeSeriesView(name="ZNCC quality", origin=QUALITY),
-            *performance,
-        ]
-        if has_truth:
-            plots.append(rrb.TimeSeriesView(name="error vs truth (px)", origin=ERROR))
-        plots.append(rrb.TextLogView(name="events", origin=EVENTS))
-        # the strain plots are what a test engineer watches: three times the height of the others
-        shares = {"row_shares": [3] * len(strain_plots) + [1] * (len(plots) - len(strain_plots))} if strain_plots else {}
-        return rrb.Blueprint(
-            rrb.Horizontal(
-                left,
-                rrb.Vertical(*plots, **shares),
-                column_shares=[3, 2]),
-            collapse_panels=True)
+            strain_plots.append(rrb.TimeSeriesView(name="force (kN)", origin=FORCE, plot_legend=_legend_top_left()))
+        small = [_small_plot(path) for path in (P0, QUALITY, THROUGHPUT, LATENCY, DROPS)]
+        small += [_small_plot(ERROR)] if has_truth else []
+        events = rrb.TextLogView(name="events", origin=EVENTS)
+        if not strain_plots:
+            plots = rrb.Vertical(*small, events)
+        else:
+            # The strain plots are what a test engineer watches: they take the height; the small plots go two to
+            # a row below them (ZNCC, with three series to name, the wider), each still tall enough to read.
+            pairs = [small[k:k + 2] for k in range(0, len(small), 2)]
+            rows = [rrb.Horizontal(*pair, column_shares=([2, 3] if k == 0 else [1, 1])[:len(pair)])
+                    for k, pair in enumerate(pairs)]
+            plots = rrb.Vertical(*strain_plots, *rows, events,
+                                 row_shares=[_plot_share(view) for view in strain_plots] + [2] * len(rows) + [1.2])
+        return rrb.Blueprint(rrb.Horizontal(left, plots, column_shares=[3, 2]), collapse_panels=True)
 
     def _strain_plots(self, strain):
         """The extensometer strain series and the transverse-vs-axial plot (none without extensometers)."""
         import rerun.blueprint as rrb
         if not strain.extensometers:
             return []
-        plots = [rrb.TimeSeriesView(name="extensometer strain (%)", origin=EXTENSOMETER_STRAIN)]
+        plots = [rrb.TimeSeriesView(name="extensometer strain (%)", origin=EXTENSOMETER_STRAIN,
+                                    plot_legend=_legend_top_left())]
         if self._strain_xy is not None:
             plots.append(self._strain_xy.view("transverse vs axial strain (%)"))
         return plots
@@ -1010,9 +1188,7 @@ class RerunLogger:
         self.rec.log(EVENTS, rr.TextLog(message, level=levels.get(level, rr.TextLogLevel.INFO)))
 
     def _display_image(self, image, pixel_format):
-        if image.dtype != np.uint8:
-            shift = 4 if pixel_format == "Mono12" else 8
-            image = (image >> shift).astype(np.uint8)
+        image = display_gray(image, pixel_format)
         if self._scale > 1:
             import cv2
             h, w = image.shape
@@ -1102,10 +1278,10 @@ class RerunLogger:
 
         One LineStrips2D: Rerun puts a strip's label at its middle, and labels only the first strips when
         there are fewer labels than strips: an invisible zero-length strip beyond each second end
-        (``_LABEL_OFFSET``) comes first and carries the label, so "axial" reads below its lower end and "transverse"
-        right of its right end, clear of P0 where the two cross (one extensometer alone is labelled at its
-        middle). Then each line twice: black and wide, then in its colour, so it shows on the speckle and
-        on any colour of the field.
+        (``_label_anchors``) comes first and carries the label, so "axial" reads below its lower end and
+        "transverse" beyond its right end, above the line, clear of P0 where the two cross (one extensometer
+        alone is labelled at its middle). Then each line twice: black and wide, then in its colour, so it shows
+        on the speckle and on any colour of the field.
         """
         rr, rec, strain = self.rr, self.rec, self._strain
         end_u, end_v = end_displacements(strain.placed, strain.points, m.u, m.v, m.ok)
@@ -1125,8 +1301,7 @@ class RerunLogger:
         black = np.full(len(lines), _BLACK, dtype=np.uint32)
         strips, strip_colours = [lines, lines], [black, colours]
         if len(lines) > 1:
-            direction = (second - first) / np.hypot(*(second - first).T)[:, None]
-            anchor = second + direction * np.multiply(_LABEL_OFFSET, self._image_side / scale)
+            anchor = _label_anchors(first, second, labels, self._image_side / scale)
             strips.insert(0, np.stack([anchor, anchor], axis=1))
             strip_colours.insert(0, label_colours)
         rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(strips=np.concatenate(strips),

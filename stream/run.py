@@ -23,10 +23,11 @@ import signal
 import threading
 
 from livedic.acquire.base import SourceError, SourceLost
-from livedic.stream.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, DEFAULT_SOURCE, DROP_CHOICES,
+from livedic.stream.config import (DEFAULT_SOURCE, DROP_CHOICES, add_subset_argument,
                                    PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
                                    subpixel_method)
 from livedic.stream.csv_output import json_text, write_text_atomic
+from livedic.stream.points import add_point_arguments
 from livedic.stream.session import Session
 from livedic.stream.strain import add_strain_arguments
 from livedic.stream.stress import add_stress_arguments
@@ -42,25 +43,8 @@ def add_run_arguments(parser):
                              "aravis:[ID], v4l2:/dev/videoN, video:FILE, images:GLOB, mcap:FILE")
     parser.add_argument("--frames", type=int, metavar="N",
                         help="stop after N frames (synthetic: also the length of the test; default 300)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--roi", metavar="X,Y,W,H",
-                       help="region of interest for the point grid (default: the specimen gauge section for "
-                            "synthetic:tensile, else the whole image)")
-    where.add_argument("--points", metavar="FILE.csv",
-                       help="track these points (CSV with header x,y) instead of a grid")
-    parser.add_argument("--step", type=int, metavar="S",
-                        help="grid step in pixels (default: about --n-points points over the ROI)")
-    parser.add_argument("--n-points", type=int, default=DEFAULT_POINTS, metavar="N",
-                        help=f"points wanted when --step is not given (default {DEFAULT_POINTS})")
-    parser.add_argument("--p0", metavar="X,Y",
-                        help="the traced point P0 (default: the best-textured point near the ROI centre, never on a "
-                             "hole or background; a given P0 on weak texture is warned about)")
-    parser.add_argument("--max-points", type=int, default=DEFAULT_MAX_POINTS, metavar="N",
-                        help=f"refuse to start with more than N points (default {DEFAULT_MAX_POINTS:,}: about "
-                             f"{DEFAULT_MAX_POINTS * 7 // 1000} MB of tracker memory and a few frames a second on one "
-                             "core); raise it for slow tests on a big machine")
-    parser.add_argument("--subset", type=int, default=_TRACKING.subset, metavar="N",
-                        help=f"odd subset side, pixels (default {_TRACKING.subset})")
+    add_point_arguments(parser)
+    add_subset_argument(parser)
     parser.add_argument("--search", type=search_method, default=_TRACKING.search, metavar="NAME",
                         help=f"integer search seeded by the previous frame: {', '.join(SEARCH_METHODS)} "
                              f"(default {_TRACKING.search}; with icgn or newton-raphson it runs only for the points the "

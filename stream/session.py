@@ -50,14 +50,15 @@ from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.config import VIEWER_NONE
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
-from livedic.stream.p0 import choose_p0
 from livedic.stream.poisson import ContractionWatch, format_poisson, has_pair
-from livedic.stream.points import build_points, check_point_count, read_points_csv
+from livedic.stream.points import PlacedBy, check_point_count, default_roi, place_points, read_points_csv
+from livedic.stream.preview import setup_overlay
 from livedic.stream.progress import ProgressBar
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.publish import format_publish_summary
-from livedic.stream.sinks import FractureWatch, P0Watch, ProgressLine, RecordResults, ReferenceUpdates
-from livedic.stream.strain import AXIAL, StrainConfig
+from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
+                                  ReferenceUpdates)
+from livedic.stream.strain import AXIAL, StrainConfig, format_length
 from livedic.stream.tracker_loop import TrackerLoop
 
 
@@ -188,17 +189,6 @@ def check_viewer_reachable(url, timeout_s=1.0):
                          f"--viewer save FILE.rrd or --viewer none") from None
 
 
-def default_roi(source):
-    """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
-    roi = getattr(source, "suggested_roi", None)
-    if roi is not None:
-        return tuple(int(v) for v in roi)
-    session = getattr(source, "session", None)
-    if isinstance(session, dict) and isinstance(session.get("roi"), (list, tuple)) and len(session["roi"]) == 4:
-        return tuple(int(v) for v in session["roi"])
-    return None
-
-
 def is_live(source):
     """Whether frames come at a real clock's pace (``FrameSource.live``; a source without it is a file)."""
     return bool(getattr(source, "live", False))
@@ -316,6 +306,8 @@ class Session:
         self.bar = None
         self.points = None
         self.p0 = None
+        self.placement = None
+        self._setup = None                      # the set-up drawn in the view (stream.preview.SetupOverlay)
         self.strain = None
         self.poisson = None
         self.load = None
@@ -458,6 +450,7 @@ class Session:
         sinks.append(self.fractures)
         if self.p0 is not None:
             sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
+        sinks.append(BitDepthWatch(self.event))
         sinks.append(ProgressLine(self.bar, self.acquisition))
         sinks.extend(self._extra_sinks)
         self.loop = TrackerLoop(self.queue, self._make_tracker, sinks=sinks)
@@ -620,18 +613,23 @@ class Session:
             self._place_strain(first.image.shape)
             return
         wanted = config.points
-        subset = config.tracking.subset
-        given = self._given_xy
-        self._roi = wanted.roi if wanted.roi is not None else (None if given is not None else default_roi(self.source))
-        preview, _, preview_step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
-                                                n_points=wanted.n_points, subset=subset, p0=wanted.p0, points=given)
-        check_point_count(len(preview), wanted.max_points, how=wanted.how(preview_step), frames=self.total_frames,
-                          recording=config.record is not None)
-        self.p0 = choose_p0(first.image, self._roi, subset, p0=wanted.p0)
-        self.points, _, self._step = build_points(first.image.shape, roi=self._roi, step=wanted.step,
-                                                  n_points=wanted.n_points, subset=subset, p0=self.p0.xy,
-                                                  points=given)
+        if self._given_xy is not None and wanted.xy is None:
+            wanted = dataclasses.replace(wanted, xy=self._given_xy)
+        suggested = default_roi(self.source) if wanted.xy is None else None
+        self.placement = place_points(first.image, wanted, subset=config.tracking.subset, suggested_roi=suggested)
+        check_point_count(len(self.placement.points), wanted.max_points, how=wanted.how(self.placement.step),
+                          frames=self.total_frames, recording=config.record is not None)
+        self.p0 = self.placement.p0
+        self.points = self.placement.points
+        self._step = self.placement.step
+        whole = self.placement.placed_by in (PlacedBy.POINTS, PlacedBy.WHOLE_IMAGE)
+        self._roi = None if whole else self.placement.bounds
         self._place_strain(first.image.shape)
+        # the set-up as livedic preview draws it: its advice said now, the overlay in the view
+        self._setup = setup_overlay(first.image, self.placement, self.strain, subset=config.tracking.subset,
+                                    scale=config.strain.scale, source=config.source,
+                                    bit_depth=(first.metadata or {}).get("bit_depth"),
+                                    pixel_format=first.pixel_format)
 
     def _open_load(self):
         """The machine's force source (``--load``), checked before any output opens (one line if bad).
@@ -689,6 +687,7 @@ class Session:
         return {
             "command": config.command, "source_uri": config.source, "source_settings": self._settings,
             "roi": list(self._roi) if self._roi else "full image", "step": wanted.step, "grid_step": self._step,
+            "region": self.placement.as_metadata() if self.placement is not None else None,
             "n_points_wanted": wanted.n_points, "points_file": wanted.points_file, "p0": list(p0),
             "p0_choice": self.p0.describe() if self.p0 is not None else "given with the points",
             **config.tracking.as_dict(),
@@ -743,16 +742,20 @@ class Session:
         if self.p0 is None:
             return tracker                      # given points: the caller's session (a replay) says what they are
         wanted = config.points
-        note = (f"reference frame {frame.index}: {len(self.points)} points"
-                + (f", grid step {self._step} px over ROI {','.join(map(str, self.reference.roi))}"
-                   if self._given_xy is None else f" from {wanted.points_file or 'the given points'}")
-                + f"; {self.p0.describe()}")
+        placed = self.placement.describe()
+        if self._given_xy is not None:
+            placed += f" from {wanted.points_file or 'the given points'}"
+        note = f"reference frame {frame.index}: {placed}; {self.p0.describe()}"
         has_truth = callable((frame.metadata or {}).get("truth"))
         if self.viewer is not None:
             self.viewer.start(image_shape=frame.image.shape, roi=self.reference.roi, p0_index=0, points=self.points,
                               has_truth=has_truth, title=f"livedic run: {config.source}",
-                              source_settings=self._settings, strain=self.strain, load=self.load_stage)
-        self.event("note", note, tell=False)
+                              source_settings=self._settings, strain=self.strain, load=self.load_stage,
+                              setup=self._setup)
+        # an automatic choice is said: the user did not say where the points go
+        self.event("note", note, tell=self.placement is not None and self.placement.placed_by is PlacedBy.SPECIMEN)
+        for line in self._setup.advice() if self._setup is not None else ():
+            self.event("note", f"set-up: {line}", tell=True)
         if self.strain is not None:
             self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))
             for warning in self.strain.noise_warnings():
@@ -930,7 +933,8 @@ def format_strain_summary(strain):
                    if final["ok"] else "no reading in the last frame (an end lost)")
         error = final.get("error_max_vs_truth")
         versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
-        lines.append(f"  extensom.  {name}: L0 {final['L0_px']:.1f} px, final {reading}{versus}")
+        lines.append(f"  extensom.  {name}: L0 {format_length(final['L0_px'], final.get('L0_mm'))}, final "
+                     f"{reading}{versus}")
     if strain.get("poisson_ratio"):
         lines.append(f"  Poisson    {format_poisson(strain['poisson_ratio'])}")
     return lines

@@ -160,6 +160,55 @@ class P0Watch:
         self.report("p0_weak", f"{what} at frame {result.frame.index}: its trace may be wrong from there", "warning")
 
 
+def _depth(dtype):
+    return f"{dtype.itemsize * 8}-bit" if dtype.kind == "u" else str(dtype)
+
+
+def bit_depth_change(reference_dtype, image_dtype, reference_name, image_name):
+    """One line when an image's pixel type (numpy dtype) differs from the reference's (None when alike).
+
+    Measured on pairs of the same speckle at 8 and 16 bits (tests/stream/test_bit_depth.py): the
+    displacements agree, since ZNCC does not depend on the grey-level scale and the quality gates compare
+    each image with itself (texture against the reference's own percentile), so the pair is measured and
+    the change is only warned about: it usually means another camera setting or a converted file.
+    """
+    if reference_dtype == image_dtype:
+        return None
+    return (f"{image_name} is {_depth(image_dtype)} but {reference_name} is {_depth(reference_dtype)}: measured "
+            f"anyway (ZNCC does not depend on the grey-level scale), but the grey levels of the two differ in "
+            f"resolution; check both were taken with the same camera settings")
+
+
+class BitDepthWatch:
+    """Warns once when a frame's pixel type differs from the reference frame's (``bit_depth_change``).
+
+    Parameters
+    ----------
+    report : callable
+        ``report(kind, message, level)``: the session's event (said, shown, recorded).
+    """
+    name = "bit depth check"
+    required = False
+
+    def __init__(self, report):
+        self.report = report
+        self.reference = None          # (dtype, index) of the reference frame
+        self.warned = False
+
+    def __call__(self, result, stats):
+        frame = result.frame
+        if result.is_reference:
+            self.reference = (frame.image.dtype, frame.index)
+            return
+        if self.warned or self.reference is None:
+            return
+        dtype, index = self.reference
+        text = bit_depth_change(dtype, frame.image.dtype, f"the reference frame {index}", f"frame {frame.index}")
+        if text is not None:
+            self.warned = True
+            self.report("bit_depth", text, "warning")
+
+
 class ProgressLine:
     """The session's progress bar: frames acquired, fps, latency, drops, reconnections, error.
 

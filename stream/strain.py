@@ -171,11 +171,16 @@ class StrainConfig:
         """A length as given (mm with ``scale``, else px) in px."""
         return length * self.scale if self.scale else length
 
+    def in_mm(self, length_px):
+        """A length in px in mm (float), or None without ``scale``."""
+        return float(length_px) / self.scale if self.scale else None
+
     def resolve_extensometers(self, p0, roi, x_range=None):
         """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others.
 
         The default transverse length is 0.8 x the ROI width, shortened where needed to keep both
-        ends within ``x_range`` (the tracked points' x extent), P0 not being at the ROI's centre.
+        ends within ``x_range`` (the tracked points' x extent across P0's row: a specimen narrower there
+        than the ROI, P0 not at the ROI's centre).
         """
         placed = []
         if self.gauge_length is not None:
@@ -199,7 +204,7 @@ class StrainConfig:
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         windows = strain_window(points, window=self.window, step=step, subset=subset)
-        x_range = (points[:, 0].min(), points[:, 0].max()) if len(points) else None
+        x_range = _row_extent(points, p0, windows.step)
         resolved = self.resolve_extensometers(p0, roi, x_range)
         self._check_automatic_transverse(resolved, p0, x_range, subset)
         try:
@@ -249,6 +254,15 @@ class StrainConfig:
         return cls(**recorded)
 
 
+def _row_extent(points, p0, step):
+    """(x_min, x_max) of the points on P0's row (within half a grid step of it), else of all points; None if none."""
+    if not len(points):
+        return None
+    row = points[np.abs(points[:, 1] - float(p0[1])) <= 0.5 * float(step)]
+    chosen = row if len(row) >= 2 else points
+    return float(chosen[:, 0].min()), float(chosen[:, 0].max())
+
+
 def overrides_from_args(args):
     """The strain settings given on the command line (a dict for ``StrainConfig``; absent ones left out).
 
@@ -267,6 +281,11 @@ def overrides_from_args(args):
         given.update(gauge_length=length[0] if length else None, gauge_width=length[1] if length else None,
                      extensometers=extra)
     return given
+
+
+def format_length(length_px, length_mm=None):
+    """``"400.0 px"``, or ``"400.0 px (32.00 mm)"`` with the length in mm (``--scale``)."""
+    return f"{length_px:.1f} px" + (f" ({length_mm:.2f} mm)" if length_mm is not None else "")
 
 
 def _float_or_none(value):
@@ -397,8 +416,8 @@ class StrainStage:
                 f"+ subset {self.windows.subset} = VSG {self.vsg_px:g} px")
         if self.extensometers:
             text += "; extensometers " + ", ".join(
-                f"{e.name} L0 {e.length_px:.1f} px" + (f" ({e.length_px / self.config.scale:.2f} mm)"
-                                                       if self.config.scale else "") for e in self.extensometers)
+                f"{e.name} L0 {format_length(e.length_px, self.config.in_mm(e.length_px))}"
+                for e in self.extensometers)
         return text
 
     def summary(self):
@@ -407,7 +426,8 @@ class StrainStage:
         final = {}
         if readings is not None:
             for i, name in enumerate(readings.names):
-                final[name] = {"L0_px": float(readings.l0_px[i]), "L_px": float(readings.length_px[i]),
+                final[name] = {"L0_px": float(readings.l0_px[i]), "L0_mm": self.config.in_mm(readings.l0_px[i]),
+                               "L_px": float(readings.length_px[i]),
                                "eng_strain": float(readings.eng_strain[i]),
                                "true_strain": float(readings.true_strain[i]), "ok": bool(readings.ok[i]),
                                "error_max_vs_truth": self.truth_errors.get(name)}

@@ -19,6 +19,39 @@ def blurred_noise(shape, seed=0, sigma=2.0):
     return cv2.GaussianBlur(noise, (0, 0), sigma)
 
 
+def specimen_scene(shape=(400, 300), noise=2.0, seed=0, hole=None, gain=1.0, strain=0.0, poisson=0.4):
+    """A strip of blurred-noise texture (not the simulator's speckle) on a smooth, unevenly lit, noisy background.
+
+    The strip (columns 100..199 of the reference, a hole ``(x, y, r)`` in it) is stretched along y by
+    ``strain`` about row 0 and narrows by ``poisson * strain`` about its axis, as a tensile specimen between
+    a fixed top grip and a moving bottom one; the background stays still. Returns the image (uint8, or
+    uint16 scaled by ``gain``) and the exact specimen mask of that image.
+    """
+    import cv2
+    rng = np.random.default_rng(seed + 1000 * int(round(1e4 * strain)))
+    height, width = shape
+    texture = blurred_noise(shape, seed=seed, sigma=1.5)
+    texture = 40 + (texture - texture.min()) / np.ptp(texture) * 180
+    rows, cols = np.indices(shape, dtype=np.float32)
+    # where each pixel of this image comes from in the reference (the inverse of the stretch)
+    axis = 149.5
+    source_rows = rows / (1.0 + strain)
+    source_cols = axis + (cols - axis) / (1.0 - poisson * strain)
+    warped = cv2.remap(texture.astype(np.float32), source_cols, source_rows, cv2.INTER_CUBIC,
+                       borderMode=cv2.BORDER_REFLECT)
+    specimen = (source_cols >= 99.5) & (source_cols < 199.5)
+    in_hole = np.zeros(shape, dtype=bool)
+    if hole is not None:
+        x, y, r = hole
+        in_hole = (source_cols - x) ** 2 + (source_rows - y) ** 2 <= r * r
+        specimen &= ~in_hole
+    background = 120 + 30 * np.sin(rows / 90.0) + 0.1 * cols
+    image = np.where(specimen, warped, np.where(in_hole, 15.0, background))
+    image = image + rng.normal(0, noise, shape)
+    image = np.clip(np.round(image * gain), 0, 255 * gain)
+    return image.astype(np.uint8 if gain == 1.0 else np.uint16), specimen
+
+
 def pytest_configure(config):
     config.addinivalue_line("markers", "time_limit(seconds): fail the test after this many seconds "
                                        "(with the time_limit fixture; default 60)")

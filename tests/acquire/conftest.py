@@ -1,4 +1,4 @@
-"""Fixtures for the acquisition tests: physical camera, displacement checks (time limits and
+"""Fixtures for the acquisition tests: physical camera, Aravis's GigE simulator, displacement checks (time limits and
 Aravis are in tests/conftest.py).
 
 The Aravis fake cameras are not hardware: tests using them always run and
@@ -63,3 +63,30 @@ def measure_integer():
 def grid_points():
     """The ``grid(shape, step=48, margin=40)`` helper: (x, y) points inside an image."""
     return grid
+
+
+@pytest.fixture(scope="session")
+def extended_xml(aravis, tmp_path_factory):
+    """A file with ``extended_genicam_xml()``: Aravis's fake camera plus 10/12-bit formats, user sets, Line1."""
+    from livedic.acquire.fake_genicam import extended_genicam_xml
+    path = tmp_path_factory.mktemp("genicam") / "livedic-fake-camera.xml"
+    path.write_text(extended_genicam_xml())
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def arv_fake_gv(aravis):
+    """Aravis's own GigE Vision simulator, ``arv-fake-gv-camera-0.8 -i 127.0.0.1``, for one test module.
+
+    Started once per module (GVCP's port 3956 is fixed: one simulator per address on this machine),
+    ready when GigE discovery finds it, stopped at the end of the module. Skipped only when the
+    program is not installed (``scripts/install_system.sh`` installs it).
+    """
+    import shutil
+
+    from livedic.acquire.fake_genicam import ARV_FAKE_GV_CAMERA, ArvFakeGvCamera
+    if shutil.which(ARV_FAKE_GV_CAMERA) is None:
+        pytest.skip(f"{ARV_FAKE_GV_CAMERA} is not installed (Debian package aravis-tools: "
+                    "run scripts/install_system.sh)")
+    with ArvFakeGvCamera() as camera:
+        yield camera

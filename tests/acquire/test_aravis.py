@@ -19,7 +19,8 @@ import pytest
 from livedic.acquire import aravis as aravis_module
 from livedic.acquire.aravis import AravisCamera, list_cameras, open_uri, parse_uri
 from livedic.acquire.base import SourceError
-from livedic.acquire.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion
+from livedic.acquire.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion, served_as
+from livedic.acquire.pixel_formats import FORMATS
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 
@@ -70,9 +71,9 @@ def served_offset(images_by_index, motion, scale=1):
 
 
 @pytest.fixture(scope="module")
-def gige():
-    """One GigE fake camera for the module (the kill test starts its own)."""
-    with GigEFakeCamera(MOTION8, serial=GIGE_SERIAL) as camera:
+def gige(extended_xml):
+    """One GigE fake camera for the module (the kill test starts its own), with the 10/12-bit formats too."""
+    with GigEFakeCamera(MOTION8, serial=GIGE_SERIAL, genicam=extended_xml) as camera:
         yield camera
 
 
@@ -144,13 +145,13 @@ def test_settings_are_applied_then_read_back():
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"pixel_format": "Mono10"}, "supported: livedic reads Mono8, Mono12, Mono16"),
+    ({"pixel_format": "Mono14"}, "supported: livedic reads Mono8, Mono10, Mono12, Mono16, Mono10p, Mono12p"),
     ({"pixel_format": "Mono12"}, "not offered by camera"),
     ({"exposure_us": 1}, "exposure_us=1 is outside this camera's range [10, "),
     ({"frame_rate": 5000}, "frame_rate=5000 is outside"),
     ({"roi": (2000, 0, 100, 100)}, "exceed the sensor 2048x2048"),
     ({"roi": "1,2,3"}, "must be 4 integers"),
-    ({"exposure": 10}, "unknown aravis option(s) exposure; known: pixel_format, roi"),
+    ({"exposure": 10}, "unknown aravis option(s) exposure; known: pixel_format, binning, roi"),
     ({"n_buffers": 1}, "need at least 2"),
 ])
 def test_bad_settings_give_clean_source_errors(options, message):
@@ -201,6 +202,21 @@ def test_gige_fake_on_loopback_serves_exact_frames_with_known_motion(gige, pixel
     assert [f.index - frames[0].index for f in frames] == [(i - ids[0]) % 65535 for i in ids]
     # after reset_count() frame index i is served image i
     check_lossless_and_motion(frames, MOTION8, measure_integer, grid_points, scale=scale)
+    assert frames[-1].metadata["stream"]["n_missing_packets"] == 0
+
+
+@pytest.mark.parametrize("pixel_format", ["Mono12p", "Mono10p", "Mono12Packed", "Mono10Packed", "Mono12"])
+def test_gige_fake_sends_packed_and_12_bit_formats_that_arrive_exactly(gige, pixel_format):
+    """Packed through GVSP: the simulator packs each frame (acquire.pixel_formats.pack), livedic unpacks it."""
+    bit_depth = FORMATS[pixel_format].bit_depth
+    gige.reset_count()
+    with open_uri(gige.uri, roi=ROI, pixel_format=pixel_format, frame_rate=100) as camera:
+        settings = camera.settings
+        frames = grab(camera, 4)
+    assert settings["pixel_format"] == pixel_format and settings["bit_depth"] == bit_depth
+    for frame in frames:
+        assert frame.pixel_format == f"Mono{bit_depth}" and frame.metadata["bit_depth"] == bit_depth
+        assert np.array_equal(frame.image, served_as(MOTION8(frame.index), bit_depth)), frame.index
     assert frames[-1].metadata["stream"]["n_missing_packets"] == 0
 
 

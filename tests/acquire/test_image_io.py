@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.image_io import read_grey_image
+from livedic.acquire.image_io import read_grey_image, read_image_header
 from livedic.acquire.image_sequence import ImageSequence, natural_key, open_uri
 
 pytestmark = pytest.mark.usefixtures("time_limit")
@@ -229,17 +229,69 @@ def test_sequence_errors(tmp_path):
     write(tmp_path / "f1.png", GREY8)
     write(tmp_path / "f2.png", GREY16)
     (tmp_path / "f3.png").write_bytes(b"\x89PNG\r\n\x1a\n broken")
-    source = ImageSequence(tmp_path / "f*.png")
-    iterator = iter(source)
-    assert next(iterator).image.dtype == np.uint8
-    with pytest.raises(SourceError, match="f2.png: 53x37 uint16 differs from the first image"):
-        next(iterator)
+    with pytest.raises(SourceError, match="f2.png is 16-bit but the first image .*f1.png is 8-bit"):
+        ImageSequence(tmp_path / "f*.png")         # from the headers, before any frame
     os.remove(tmp_path / "f2.png")
     with pytest.raises(SourceError, match="f3.png: truncated or corrupt PNG"):
-        list(ImageSequence(tmp_path / "f*.png"))
+        ImageSequence(tmp_path / "f*.png")         # no header Pillow knows: decoded, and refused, up front
+    (tmp_path / "f3.png").write_bytes(open(write(tmp_path / "f4.png", GREY8), "rb").read()[:200])
+    source = ImageSequence(tmp_path / "f*.png")    # the header is whole: found when its turn comes
+    iterator = iter(source)
+    assert next(iterator).image.dtype == np.uint8
+    with pytest.raises(SourceError, match="f3.png: truncated"):
+        next(iterator)
+    # colour files do not show their bit depth in their header: refused when their turn comes
+    write(tmp_path / "h1.png", COLOUR)
+    write(tmp_path / "h2.png", COLOUR.astype(np.uint16) * 257)
+    iterator = iter(ImageSequence(tmp_path / "h*.png"))
+    next(iterator)
+    with pytest.raises(SourceError, match="h2.png: 53x37 uint16 differs from the first image"):
+        next(iterator)
     write(tmp_path / "g1.tif", GREY16.astype(np.float32))
     with pytest.raises(SourceError, match="g1.tif: 32-bit float images are not supported"):
         list(ImageSequence(tmp_path / "g*.tif"))
+
+
+@pytest.mark.parametrize("ext", ["png", "tif"])
+def test_sequence_of_another_size_is_refused_before_the_first_frame(tmp_path, ext):
+    """One file of another size among many: refused when the source opens, naming it and both sizes."""
+    for i in range(6):
+        write(tmp_path / f"s{i}.{ext}", GREY16[:-3] if i == 4 else GREY16)
+    with pytest.raises(SourceError) as refused:
+        ImageSequence(tmp_path)
+    message = str(refused.value)
+    assert message == (f"{tmp_path}/s4.{ext} is 53x34 but the first image {tmp_path}/s0.{ext} is 53x37: every image "
+                       f"of a sequence must have the same size (remove it, or crop all images alike)")
+
+
+def test_image_header_agrees_with_the_decoded_image(tmp_path):
+    """Size and bit depth from the header alone, as decoding finds them; colour files' bit depth unknown."""
+    cases = {"g8.png": GREY8, "g16.png": GREY16, "g8.tif": GREY8, "g16.tif": GREY16, "c8.png": COLOUR,
+             "c16.tif": COLOUR.astype(np.uint16) * 257}
+    for name, image in cases.items():
+        header = read_image_header(write(tmp_path / name, image))
+        decoded, _ = read_grey_image(tmp_path / name)
+        assert (header.height, header.width) == decoded.shape, name
+        expected_bits = decoded.dtype.itemsize * 8 if image.ndim == 2 else None
+        assert header.bits == expected_bits, name
+    (tmp_path / "empty.png").write_bytes(b"")
+    with pytest.raises(ValueError, match="empty.png: empty file"):
+        read_image_header(tmp_path / "empty.png")
+
+
+def test_sequence_options_in_the_uri_and_question_mark_still_a_wildcard(tmp_path):
+    """``images:GLOB?frame_rate=5`` as the README gives it (the command line has no other way to pass it);
+    a ``?`` not followed by name=value pairs is the glob's own wildcard."""
+    for i in (1, 2, 3):
+        write(tmp_path / f"q{i}.png", GREY8)
+    with open_uri(f"images:{tmp_path}/q*.png?frame_rate=5&loop=0") as source:
+        assert len(source) == 3 and source.frame_rate == 5.0 and not source.loop
+        assert [f.timestamp_ns for f in source] == [0, 200_000_000, 400_000_000]
+    with open_uri(f"images:{tmp_path}/q?.png") as source:
+        assert len(source) == 3 and source.frame_rate == 1.0
+    assert open_uri(f"images:{tmp_path}/q*.png?frame_rate=5", frame_rate=2).frame_rate == 2.0   # keywords win
+    with pytest.raises(SourceError, match="unknown images option.s. fps; known: frame_rate"):
+        open_uri(f"images:{tmp_path}/q*.png?fps=5")
 
 
 def test_sequence_realtime_and_loop(tmp_path):

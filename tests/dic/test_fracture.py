@@ -66,3 +66,28 @@ def test_a_short_band_is_not_a_fracture():
 def test_points_already_lost_do_not_count():
     before = frame(lost=BAND)
     assert detect(before, frame(shift_top=4.0, lost=BAND)) is None
+
+
+def test_a_band_sliding_along_itself_is_not_a_fracture():
+    """A specimen's edge moving past a static background: the edge's points lost at once, the specimen
+    side moving along the edge (the load axis), the background side still: a boundary, not a crack."""
+    edge_x = 250.0
+    band = np.abs(X - edge_x) < 12
+    ok = ~band
+    u_before, v_before = np.zeros(X.size), np.where(X < edge_x, -20.0, 0.0)
+    v_now = np.where(X < edge_x, -24.0, 0.0)                  # the specimen (left) moved 4 px along y
+    now = (ok, np.where(ok, 0.0, np.nan), np.where(ok, v_now, np.nan))
+    before = (np.ones(X.size, dtype=bool), u_before, v_before)
+    assert detect(before, now) is None
+
+
+def test_a_shear_crack_at_45_degrees_opens_enough():
+    """A crack at 45 degrees with the upper part pulled along the load axis (y) still opens it."""
+    distance = (X - 250.0) - (Y - 350.0)                       # the line y - 350 = x - 250
+    band = np.abs(distance) / np.sqrt(2.0) < 8
+    upper = distance > 0
+    before = (np.ones(X.size, dtype=bool), np.zeros(X.size), np.zeros(X.size))
+    ok = ~band
+    now = (ok, np.where(ok, 0.0, np.nan), np.where(ok, np.where(upper, -4.0, 0.0), np.nan))
+    fracture = detect(before, now)
+    assert fracture is not None and fracture.jump_px == pytest.approx(4.0)

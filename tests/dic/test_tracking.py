@@ -193,3 +193,13 @@ def test_gates_reject_a_wrong_but_converged_point():
     m = tracker.track(frames[2].image)
     err = _errors(frames[2], m)
     assert np.all(err[m.ok] < 0.05)
+
+
+def test_zncc_stays_within_one_for_a_frame_tracked_against_itself():
+    """The reference frame tracked against itself scored up to 1.0000002 (CSV showed 1.000000095): ZNCC is
+    clipped to [-1, 1] where the measurement is assembled, and every point stays ok."""
+    source, frames = _translate_frames("frames=2&size=160x160&noise=1")
+    points = grid_in_roi(source.shape, source.suggested_roi, 8, 21)
+    first = Tracker(frames[0].image, points).track(frames[0].image)
+    assert first.ok.all() and first.zncc.dtype == np.float64
+    assert np.all(first.zncc <= 1.0) and np.all(first.zncc > 0.999)

@@ -59,7 +59,8 @@ def _run_child(code, *args, timeout=30):
 # ----------------------------------------------------------------------------- round trip
 
 @pytest.mark.parametrize("dtype,pixel_format,compression", [
-    (np.uint8, "Mono8", None), (np.uint16, "Mono16", None), (np.uint16, "Mono12", "lz4"), (np.uint8, "Mono8", "lz4")])
+    (np.uint8, "Mono8", None), (np.uint16, "Mono16", None), (np.uint16, "Mono12", "lz4"), (np.uint8, "Mono8", "lz4"),
+    (np.uint16, "Mono10", None)])
 def test_round_trip_is_bit_exact(tmp_path, dtype, pixel_format, compression):
     path = tmp_path / "session.mcap"
     images = _frames(7, dtype)

@@ -4,6 +4,7 @@ the CSV files, bad input, and the sample shipped in recordings/."""
 import csv
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -197,13 +198,20 @@ def test_replay_of_a_truncated_recording_uses_the_recovered_frames(killed, tmp_p
 # --------------------------------------------------------------------------- export
 
 EXPORTED = ["events.csv", "extensometers.csv", "extensometers.png", "fields.csv", "p0_trace.csv", "session.json"]
+PICTURES = ["fields.pvd", "maps", "overlay_eyy.mp4", "vtk"]     # the fields as pictures: test_export_fields.py
+
+
+def _file_bytes(folder):
+    """Relative path -> contents of every file under ``folder``."""
+    paths = [os.path.join(top, name) for top, _, names in os.walk(folder) for name in names]
+    return {os.path.relpath(path, folder): Path(path).read_bytes() for path in paths}
 
 
 def test_export_writes_the_six_files_and_refuses_to_overwrite(recording, tmp_path, capsys):
     target = tmp_path / "export"
     capsys.readouterr()
     assert main(["export", recording, "-o", str(target)]) == 0
-    assert sorted(os.listdir(target)) == EXPORTED
+    assert sorted(os.listdir(target)) == sorted(EXPORTED + PICTURES)
     results = read_results(recording)
     n = results[0].u.size
     header, trace = _rows(target / "p0_trace.csv")
@@ -223,13 +231,13 @@ def test_export_writes_the_six_files_and_refuses_to_overwrite(recording, tmp_pat
     assert session["subpixel"] == recorded["subpixel"] == "icgn" and session["roi"] == recorded["roi"]
     assert session["livedic.export"]["truncated"] is False and session["livedic.export"]["p0_id"] == 0
 
-    before = {name: (target / name).read_bytes() for name in os.listdir(target)}
+    before = _file_bytes(target)
     capsys.readouterr()
     assert main(["export", recording, "-o", str(target)]) == 2
     assert "--overwrite" in _one_error_line(capsys.readouterr().err)
-    assert {name: (target / name).read_bytes() for name in os.listdir(target)} == before
+    assert _file_bytes(target) == before
     assert main(["export", recording, "-o", str(target), "--overwrite"]) == 0
-    assert sorted(os.listdir(target)) == EXPORTED
+    assert sorted(os.listdir(target)) == sorted(EXPORTED + PICTURES)
 
 
 def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
@@ -244,6 +252,35 @@ def test_export_of_a_truncated_recording_says_so(killed, tmp_path, capsys):
     recovered = read_results(half)
     assert 0 < len(trace) == len(recovered) < len(read_results(full))
     assert [int(row["frame"]) for row in trace] == [r.frame_index for r in recovered]
+
+
+def test_session_json_gives_the_frames_delivered_in_the_end_not_at_the_start(tmp_path, capsys):
+    """A camera's ``frames_delivered`` in the session metadata is its count when recording began (1); the
+    export gives the final count, from the frames recorded, and says so; a cut recording: at least those."""
+    from livedic.acquire.base import Frame
+    from livedic.stream.recorder import Recorder
+
+    path = tmp_path / "camera.mcap"
+    metadata = {"command": "livedic run", "source_uri": "aravis:Fake", "source_settings": {"frames_delivered": 1}}
+    with Recorder(str(path), metadata, start_time_ns=0) as recorder:
+        for i in range(7):
+            recorder.write_frame(Frame(i, i * 20_000_000, np.full((16, 24), i, np.uint8), "Mono8"))
+    assert main(["export", str(path), "-o", str(tmp_path / "out")]) == 0
+    session = json.loads((tmp_path / "out" / "session.json").read_text())
+    export = session["livedic.export"]
+    assert export["frames_delivered"] == 7 and export["frames_with_results"] == 0
+    assert export["frames_delivered_from"].startswith("the frames in the recording (/camera/image)")
+    assert session["source_settings"] == {"frames_delivered": 7, "frames_delivered_at_start": 1}
+
+
+def test_session_json_of_a_cut_recording_counts_the_frames_it_kept(killed, tmp_path, capsys):
+    from livedic.acquire.mcap_replay import McapSource
+    full, half = killed
+    assert main(["export", half, "-o", str(tmp_path / "out")]) == 0
+    export = json.loads((tmp_path / "out" / "session.json").read_text())["livedic.export"]
+    kept = sum(1 for _ in McapSource(half))
+    assert 0 < export["frames_delivered"] == kept < sum(1 for _ in McapSource(full)) == 30
+    assert export["frames_delivered_from"].endswith("the recording was cut short: at least this many")
 
 
 def test_export_of_a_recording_without_session_metadata_says_so(tmp_path, capsys):
@@ -391,15 +428,17 @@ def _ok_flipped(i, m):
     ("rounding", "WITHIN_ROUNDING", "agrees with the recording within floating-point rounding (max 1.8e-06 px <= "
                                     "1e-4 px tolerance): 6 frames x"),
     ("beyond", "DIFFERS", "replay differs from the recording on 5 of 6 frames x"),
+    ("zncc-rounding", "WITHIN_ROUNDING", "agrees with the recording within floating-point rounding (max 0 px <= "),
     ("zncc", "DIFFERS", "replay differs from the recording on 5 of 6 frames x"),
     ("ok-flip", "DIFFERS", "ok differs at 1 and NaN at 0 point-frames"),
 ])
 def test_replay_says_exact_within_rounding_or_differs(case, agreement, words, tmp_path, capsys):
-    """Bit for bit, within floating-point rounding (1e-4 px, ZNCC 1e-6, the same points ok), or different:
-    the verdict is the report's ``agreement`` (data), and the line says the same."""
-    from livedic.stream.replay import Agreement, replay
+    """Bit for bit, within floating-point rounding (1e-4 px, ZNCC ``ROUNDING_TOLERANCE_ZNCC``, the same points ok),
+    or different: the verdict is the report's ``agreement`` (data), and the line says the same."""
+    from livedic.stream.replay import ROUNDING_TOLERANCE_ZNCC, Agreement, replay
     change = {"same": _shifted(0.0), "rounding": _shifted(1.8e-6), "beyond": _shifted(2e-4),
-              "zncc": _shifted(0.0, dzncc=1e-5), "ok-flip": _ok_flipped}[case]
+              "zncc-rounding": _shifted(0.0, dzncc=0.5 * ROUNDING_TOLERANCE_ZNCC),
+              "zncc": _shifted(0.0, dzncc=2 * ROUNDING_TOLERANCE_ZNCC), "ok-flip": _ok_flipped}[case]
     path = _recording_with_offsets(tmp_path / f"{case}.mcap", change)
     report = replay(path)
     assert report.agreement is Agreement[agreement]
@@ -443,7 +482,9 @@ def test_replay_and_export_files_get_the_usual_permissions_and_strict_json(recor
     assert main(["replay", recording, "-o", str(tmp_path / "replay.csv"), "--progress", "off"]) == 0
     assert main(["export", recording, "-o", str(tmp_path / "export")]) == 0
     assert (tmp_path / "replay.csv").stat().st_mode & 0o777 == expected
-    for name in os.listdir(tmp_path / "export"):
+    written = _file_bytes(tmp_path / "export")          # every file, the maps, video and VTK files too
+    assert len(written) > len(EXPORTED)
+    for name in written:
         assert (tmp_path / "export" / name).stat().st_mode & 0o777 == expected, name
     text = (tmp_path / "export" / "session.json").read_text()
     json.loads(text, parse_constant=lambda name: pytest.fail(f"session.json holds {name}: not JSON"))

@@ -136,6 +136,8 @@ def test_colour_scale_and_display_image():
     logger._scale = 2
     shown = logger._display_image(np.full((8, 12), 4095, np.uint16), "Mono12")
     assert shown.dtype == np.uint8 and shown.shape == (4, 6) and shown.max() == 255
+    # a 10-bit camera's full scale is 1023: white, not a quarter grey
+    assert logger._display_image(np.full((8, 12), 1023, np.uint16), "Mono10").min() == 255
 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")

@@ -144,7 +144,7 @@ def test_strain_view_is_in_the_blueprint_next_to_u_and_v_and_the_plots():
     assert names[:2] == ["camera", "tracking"] and f"e_yy (%) engineering, VSG {stage.vsg_px:g} px" in names
     assert names.index("e_yy colour scale (%)") < names.index("u (px)")          # top row: camera and e_yy
     assert names.index("extensometer strain (%)") < names.index("transverse vs axial strain (%)") \
-        < names.index("P0 displacement (px)")
+        < names.index(rerun_log._SMALL_PLOT_NAMES[rerun_log.P0])
     # a strain field without extensometers: e_yy, no extensometer plots
     views = _views(logger._make_blueprint(True, _stage(points, gauge_length=None, gauge_width=None)))
     names = [name for _, name, _ in views]
@@ -204,10 +204,11 @@ def test_without_strain_the_view_is_unchanged(tmp_path, feed_strain):
     assert not [e for e in entities if e.startswith(STRAIN_ENTITIES)]
     assert {f"/{rerun_log.FIELD_U}", f"/{rerun_log.FIELD_V}", f"/{rerun_log.LEGEND_U}/bar"} <= entities
     views = _views(RerunLogger("save", "unused.rrd")._make_blueprint(True))
+    small = [rerun_log._SMALL_PLOT_NAMES[path] for path in (rerun_log.P0, rerun_log.QUALITY, rerun_log.THROUGHPUT,
+                                                           rerun_log.LATENCY, rerun_log.DROPS, rerun_log.ERROR)]
     assert [name for _, name, _ in views] == [
         "camera", "u (px)", "v (px)", "tracking", "session", "u colour scale (px)", "v colour scale (px)",
-        "P0 displacement (px)", "ZNCC quality", "throughput", "latency (ms)", "drops", "error vs truth (px)",
-        "events"]
+        *small, "events"]
 
 
 def test_a_stage_without_extensometers_shows_only_the_field(tmp_path):

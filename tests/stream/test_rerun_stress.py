@@ -121,7 +121,7 @@ def test_the_plots_are_in_the_blueprint_only_with_what_they_need(tmp_path):
     names = [name for _, name, _ in _views(RerunLogger("save", "unused.rrd")._make_blueprint(
         True, stage, SimpleNamespace(area_mm2=AREA)))]
     assert names.index("stress-strain (MPa, %)") < names.index("extensometer strain (%)") \
-        < names.index("force (kN)") < names.index("P0 displacement (px)")
+        < names.index("force (kN)") < names.index(rerun_log._SMALL_PLOT_NAMES[rerun_log.P0])
     # a force without a cross-section: the force, no curve; no axial extensometer: the same
     for load, strain in ((SimpleNamespace(area_mm2=None), stage),
                          (SimpleNamespace(area_mm2=AREA), _stage(points, gauge_length=None, gauge_width=None))):

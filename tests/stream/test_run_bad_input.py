@@ -3,7 +3,11 @@
 import subprocess
 import sys
 
+import cv2
+import numpy as np
 import pytest
+
+from tests.stream.conftest import refused_run
 
 SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
 
@@ -45,3 +49,27 @@ def test_points_outside_the_image_are_a_clear_error(tmp_path):
     done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2, done.stderr
     assert "1 of the given points lie outside the 96x160 image (first: 500,20)" in done.stderr
+
+
+def test_an_image_of_another_size_in_a_sequence_is_refused_before_the_session(tmp_path):
+    """Not "camera lost" with a 2-frame recording after the first frames: bad input, found in the headers."""
+    images = tmp_path / "images"
+    images.mkdir()
+    speckle = cv2.GaussianBlur(np.random.default_rng(3).integers(0, 256, (128, 160)).astype(np.uint8), (0, 0), 1.5)
+    for i in range(5):
+        assert cv2.imwrite(str(images / f"f_{i}.png"), speckle[:120] if i == 2 else speckle)
+    error = refused_run(tmp_path, [], source=f"images:{images}/f_*.png")
+    assert error == (f"livedic: error: {images}/f_2.png is 160x120 but the first image {images}/f_0.png is 160x128: "
+                     f"every image of a sequence must have the same size (remove it, or crop all images alike)")
+
+
+def test_a_file_that_is_no_video_is_one_line_with_nothing_from_ffmpeg(tmp_path):
+    """FFmpeg's own lines ("moov atom not found") used to come first: the whole of stderr is livedic's one line."""
+    fake = tmp_path / "clip.mp4"
+    fake.write_text("not a video at all\n")
+    argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", f"video:{fake}"]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [f"livedic: error: video source {fake}: OpenCV could not open it (not a video, "
+                                        f"or a codec FFmpeg lacks)"]

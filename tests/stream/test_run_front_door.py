@@ -267,3 +267,18 @@ def test_a_run_on_a_holed_specimen_traces_p0_on_the_speckle_and_says_why(tmp_pat
     # ... and once the frames come, that its trace is doubtful (a flat subset is not measured at all).
     assert "warning: P0 was lost at frame 1: its trace may be wrong from there" in err, err
     assert any(e.kind == "p0_weak" for e in read_events(str(record2)))
+
+
+def test_a_truncated_recording_replayed_says_so_in_a_livedic_line(tmp_path):
+    """The reader's note on a recording cut short is said like every other message: ``livedic: note: ...``."""
+    sample = os.path.join(REPO, "recordings", "sample-tensile.mcap")
+    cut = tmp_path / "cut.mcap"
+    with open(sample, "rb") as whole:
+        cut.write_bytes(whole.read()[:os.path.getsize(sample) * 6 // 10])
+    argv = ["run", "--viewer", "none", "--no-record", "--progress", "off", "--source", f"mcap:{cut}"]
+    done = subprocess.run([sys.executable, "-m", "livedic.stream.cli", *argv], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    lines = done.stderr.splitlines()
+    assert all(line.startswith("livedic: ") for line in lines), done.stderr
+    assert any(line.startswith(f"livedic: note: {cut} is truncated (the recording did not finish") for line in lines)

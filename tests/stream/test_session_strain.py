@@ -165,3 +165,10 @@ def test_the_strain_field_follows_the_simulators_exact_strain(gauge_session):
     rmse = float(np.sqrt(np.mean((stage.last_strain.eyy[ok] - exact[ok]) ** 2)))
     assert rmse < 6e-3, rmse
     assert exact[ok].max() > 0.1                      # the neck is in the field
+
+
+def test_with_a_scale_the_summary_gives_l0_in_mm_too():
+    session, _, _ = run_session(StrainConfig(gauge_length=16.0, scale=12.5), frames=3)
+    axial = session.summary()["strain"]["extensometers"]["axial"]
+    assert axial["L0_px"] == pytest.approx(200.0) and axial["L0_mm"] == pytest.approx(16.0)
+    assert "extensom.  axial: L0 200.0 px (16.00 mm), final" in session.summary_text()

@@ -1,0 +1,392 @@
+"""``livedic preview``: the set-up of a test, drawn before it starts.
+
+``livedic preview --source URI [placement options] -o PREVIEW.png`` takes the
+source's first frame and places the points, P0 and the extensometers exactly as
+``livedic run`` would with the same options (``stream.points.place_points``,
+``StrainConfig.place``), then draws them, labelled, over the frame, beside a map
+of what DIC needs from the image: the speckle contrast per subset (mean intensity
+gradient), clipped pixels, and the figures of ``dic.pattern_quality`` (speckle
+size, focus, predicted noise), with advice where something is off.
+
+``setup_overlay`` gathers what is drawn (``SetupOverlay``); ``render_preview``
+draws it with matplotlib into the PNG; ``livedic run`` hands the same overlay to
+the Rerun view at the start of a session (``RerunLogger.log_setup``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from livedic.dic.pattern_quality import PatternQuality, pattern_quality
+from livedic.dic.region import Circle, Polygon, Rectangle
+from livedic.stream.points import Placement, PlacedBy
+
+__all__ = ["SetupOverlay", "setup_overlay", "region_outlines", "shape_outline", "render_preview",
+           "add_preview_arguments", "preview_command"]
+
+# Colours (RGB 0-255) shared by the PNG and the Rerun view.
+REGION_COLOUR = (255, 200, 0)
+EXCLUDED_COLOUR = (230, 40, 40)
+POINT_COLOUR = (40, 200, 60)
+WEAK_POINT_COLOUR = (255, 140, 0)
+P0_COLOUR = (255, 60, 255)
+EXTENSOMETER_COLOURS = ((0, 200, 255), (255, 90, 200), (120, 255, 120), (255, 255, 90))
+CLIPPED_COLOUR = (255, 0, 0)
+MIG_COLOURMAP = "viridis"
+
+
+@dataclass(frozen=True)
+class SetupOverlay:
+    """What a preview draws, computed once for the PNG and the live view (with the palette both draw in).
+
+    Attributes
+    ----------
+    image : ndarray (H, W)
+        The reference frame.
+    placement : stream.points.Placement
+    extensometers : tuple of dic.extensometer.Extensometer
+        As placed (reference px).
+    scale : float or None
+        px per mm (``--scale``), for the labels.
+    quality : dic.pattern_quality.PatternQuality
+    outlines : list of ndarray (K, 2)
+        Closed polylines (x, y) around the region where subsets may lie (holes included).
+    exclusions : list of ndarray (K, 2)
+        Closed polylines of the ``--exclude`` shapes.
+    weak : ndarray (N,) of bool
+        Points whose subset has little contrast (``PatternQuality.weak_subsets``).
+    subset : int
+    source : str
+    pixel_format : str
+        The frame's ("Mono8", "Mono12", "Mono16"), for display.
+    """
+    image: np.ndarray = field(repr=False)
+    placement: Placement
+    extensometers: tuple
+    scale: float | None
+    quality: PatternQuality
+    outlines: list = field(repr=False)
+    exclusions: list = field(repr=False)
+    weak: np.ndarray = field(repr=False)
+    subset: int
+    source: str
+    pixel_format: str = "Mono8"
+
+    REGION_COLOUR = REGION_COLOUR
+    EXCLUDED_COLOUR = EXCLUDED_COLOUR
+    POINT_COLOUR = POINT_COLOUR
+    WEAK_POINT_COLOUR = WEAK_POINT_COLOUR
+    P0_COLOUR = P0_COLOUR
+    EXTENSOMETER_COLOURS = EXTENSOMETER_COLOURS
+    CLIPPED_COLOUR = CLIPPED_COLOUR
+
+    @property
+    def region_label(self) -> str:
+        return {PlacedBy.SPECIMEN: "specimen (found)", PlacedBy.SOURCE: "ROI (source)",
+                PlacedBy.WHOLE_IMAGE: "whole image", PlacedBy.POINTS: "given points"}.get(
+            self.placement.placed_by, "mask" if self.placement.spec.mask is not None and
+            self.placement.spec.outline is None else "ROI")
+
+    def extensometer_label(self, extensometer) -> str:
+        length = f"L0 {extensometer.length_px:.0f} px"
+        if self.scale:
+            length += f" ({extensometer.length_px / self.scale:.2f} mm)"
+        return f"{extensometer.name} {length}"
+
+    def lines(self) -> list:
+        """The text under the pictures: what was placed, how, and the pattern's figures."""
+        placement = self.placement
+        weak = int(self.weak.sum())
+        lines = [f"{placement.describe()}; subset {self.subset} px"
+                 + (f"; {weak} on weak contrast (orange)" if weak else ""),
+                 placement.p0.describe()]
+        lines += [f"extensometer {self.extensometer_label(e)}: ({e.x1:.0f}, {e.y1:.0f}) - ({e.x2:.0f}, {e.y2:.0f})"
+                  for e in self.extensometers]
+        lines += self.quality.describe()
+        return lines
+
+    def advice(self) -> list:
+        """Problems worth fixing before the test (empty when none was found)."""
+        advice = list(self.quality.advice())
+        if len(self.weak) and self.weak.mean() > 0.05:
+            advice.append(f"{int(self.weak.sum())} of {len(self.weak)} points have little speckle contrast in their "
+                          f"subset: check the paint there, or leave that area out (--exclude, --mask)")
+        warning = placement_warning(self.placement)
+        if warning:
+            advice.append(warning)
+        return advice
+
+
+def placement_warning(placement: Placement) -> str | None:
+    """P0's warning (weak texture), if any."""
+    return placement.p0.warning() if placement.p0 is not None else None
+
+
+def shape_outline(shape) -> np.ndarray:
+    """A closed polyline (K, 2) of a ``dic.region`` shape, in image px."""
+    if isinstance(shape, Circle):
+        angles = np.linspace(0.0, 2.0 * np.pi, 65)
+        return np.column_stack([shape.x + shape.r * np.cos(angles), shape.y + shape.r * np.sin(angles)])
+    if isinstance(shape, Rectangle):
+        x0, y0, x1, y1 = shape.bounds
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]], dtype=np.float64)
+    if isinstance(shape, Polygon):
+        vertices = np.array(shape.vertices, dtype=np.float64)
+        return np.vstack([vertices, vertices[:1]])
+    raise TypeError(f"not a region shape: {shape!r}")
+
+
+def region_outlines(mask: np.ndarray, *, tolerance_px: float = 1.0) -> list:
+    """Closed polylines (x, y) along the boundary of ``mask`` (outer edges and holes), simplified."""
+    import cv2
+    contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_CCOMP,
+                                   cv2.CHAIN_APPROX_SIMPLE)
+    outlines = []
+    for contour in contours:
+        simple = cv2.approxPolyDP(contour, tolerance_px, True).reshape(-1, 2).astype(np.float64)
+        if len(simple) >= 2:
+            outlines.append(np.vstack([simple, simple[:1]]))
+    return outlines
+
+
+def setup_overlay(image: np.ndarray, placement: Placement, strain_stage=None, *, subset: int, scale=None,
+                  source: str = "", bit_depth: int | None = None, pixel_format: str = "Mono8") -> SetupOverlay:
+    """What to draw for ``placement`` on ``image`` (the reference frame) and the session's strain stage."""
+    quality = pattern_quality(image, subset, placement.region if placement.region.any() else None,
+                              bit_depth=bit_depth)
+    extensometers = tuple(strain_stage.extensometers) if strain_stage is not None else ()
+    exclusions = [shape_outline(shape) for shape in placement.spec.exclude]
+    return SetupOverlay(image=image, placement=placement, extensometers=extensometers, scale=scale,
+                        quality=quality, outlines=region_outlines(placement.region), exclusions=exclusions,
+                        weak=quality.weak_subsets(placement.points), subset=int(subset), source=source,
+                        pixel_format=pixel_format)
+
+
+# ----------------------------------------------------------------------------- the PNG
+
+def _display(image: np.ndarray) -> np.ndarray:
+    """Grey levels 0..1 for display: 8 bit as is, deeper images stretched over their 0.1-99.9 percentiles."""
+    f = np.asarray(image, dtype=np.float64)
+    if image.dtype == np.uint8:
+        return f / 255.0
+    lo, hi = np.percentile(f[::4, ::4], [0.1, 99.9])
+    return np.clip((f - lo) / max(hi - lo, 1e-9), 0.0, 1.0)
+
+
+def _rgb(colour) -> tuple:
+    return tuple(c / 255.0 for c in colour)
+
+
+def _label_place(x, y, dx, dy, width, height):
+    """(anchor, offset in points, ha, va) for a line's label: at its top end when it runs along y, its right
+    end when along x, set off to the side; flipped back inside the image near an edge."""
+    if abs(dy) >= abs(dx):                        # along y: the upper end, text to its right
+        anchor = (x[0], y[0]) if y[0] <= y[1] else (x[1], y[1])
+        offset, ha, va = (8, 4), "left", "bottom"
+    else:                                         # along x: the right end, text below it
+        anchor = (x[0], y[0]) if x[0] >= x[1] else (x[1], y[1])
+        offset, ha, va = (4, -10), "left", "top"
+    if anchor[0] > 0.7 * width:
+        offset, ha = (-offset[0], offset[1]), "right"
+    if anchor[1] < 0.05 * height:
+        offset, va = (offset[0], -abs(offset[1]) - 6), "top"
+    return anchor, offset, ha, va
+
+
+def render_preview(overlay: SetupOverlay, path: str) -> None:
+    """Draw ``overlay`` into the PNG ``path`` (written whole or not at all): set-up | speckle contrast, notes under."""
+    import textwrap
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.patheffects as effects
+    import matplotlib.pyplot as plt
+
+    image = _display(overlay.image)
+    height, width = image.shape
+    region = overlay.placement.region
+    notes = "\n".join(textwrap.fill(line, 150, subsequent_indent="    ") for line in overlay.lines())
+    advice = overlay.advice()
+    checks = "\n".join(textwrap.fill("check: " + line, 150, subsequent_indent="    ") for line in advice) or \
+        "nothing to check: pattern, exposure and focus look fit for DIC"
+    text_lines = notes.count("\n") + checks.count("\n") + 2
+    side_by_side = height >= 0.75 * width
+    if side_by_side:                              # a coupon standing up: the three pictures side by side
+        panel_h = min(8.0, max(4.0, 6.5 * height / width))
+        panel_w = panel_h * width / height
+        size = (max(3 * panel_w + 3.4, 12.0), panel_h + 0.9 + 0.17 * text_lines)
+        figure = plt.figure(figsize=size, dpi=110, layout="constrained")
+        rows = figure.subfigures(2, 1, height_ratios=[panel_h + 0.6, 0.17 * text_lines + 0.3])
+        setup_axes, quality_axes, focus_axes = rows[0].subplots(1, 3, width_ratios=[1.0, 1.15, 1.15])
+    else:                                         # a wide field: one above the other
+        panel_w = 11.0
+        panel_h = min(4.0, panel_w * height / width)
+        size = (panel_w + 1.5, 3 * panel_h + 1.7 + 0.17 * text_lines)
+        figure = plt.figure(figsize=size, dpi=110, layout="constrained")
+        rows = figure.subfigures(2, 1, height_ratios=[3 * panel_h + 1.4, 0.17 * text_lines + 0.3])
+        setup_axes, quality_axes, focus_axes = rows[0].subplots(3, 1)
+    text_axes = rows[1].add_subplot()
+    halo = [effects.withStroke(linewidth=2.5, foreground="black")]
+
+    # --- the set-up: region, exclusions, points, P0 and its subset, extensometers
+    setup_axes.imshow(image, cmap="gray", vmin=0, vmax=1, interpolation="antialiased")
+    setup_axes.imshow(np.ma.masked_where(region, np.ones(image.shape)), cmap="gray_r", vmin=0, vmax=1,
+                      alpha=0.5, interpolation="nearest")
+    for k, outline in enumerate(overlay.outlines):
+        setup_axes.plot(outline[:, 0], outline[:, 1], color=_rgb(REGION_COLOUR), linewidth=1.2,
+                        label=overlay.region_label if k == 0 else None)
+    for k, outline in enumerate(overlay.exclusions):
+        setup_axes.fill(outline[:, 0], outline[:, 1], facecolor=(*_rgb(EXCLUDED_COLOUR), 0.3),
+                        edgecolor=_rgb(EXCLUDED_COLOUR), hatch="///", linewidth=1.2,
+                        label="excluded" if k == 0 else None)
+    points = overlay.placement.points
+    dot = float(np.clip(6000.0 / max(len(points), 1), 1.5, 12.0))
+    good = ~overlay.weak
+    setup_axes.scatter(points[good, 0], points[good, 1], s=dot, color=_rgb(POINT_COLOUR), linewidths=0,
+                       label=f"{len(points)} points (every {overlay.placement.step} px)"
+                       if overlay.placement.step else f"{len(points)} points")
+    if overlay.weak.any():
+        setup_axes.scatter(points[~good, 0], points[~good, 1], s=2 * dot, color=_rgb(WEAK_POINT_COLOUR),
+                           linewidths=0, label=f"{int(overlay.weak.sum())} on weak contrast")
+    p0x, p0y = points[0]
+    half = overlay.subset / 2.0
+    setup_axes.add_patch(plt.Rectangle((p0x - half, p0y - half), overlay.subset, overlay.subset, fill=False,
+                                       edgecolor=_rgb(P0_COLOUR), linewidth=1.5, label=f"P0 and its {overlay.subset} "
+                                                                                       f"px subset"))
+    setup_axes.plot([p0x], [p0y], marker="+", markersize=10, color=_rgb(P0_COLOUR), mew=2)
+    setup_axes.annotate("P0", (p0x - half, p0y + half), xytext=(-4, -4), textcoords="offset points",
+                        color=_rgb(P0_COLOUR), fontsize=9, fontweight="bold", ha="right", va="top",
+                        path_effects=halo)
+    for k, extensometer in enumerate(overlay.extensometers):
+        colour = _rgb(EXTENSOMETER_COLOURS[k % len(EXTENSOMETER_COLOURS)])
+        xs, ys = (extensometer.x1, extensometer.x2), (extensometer.y1, extensometer.y2)
+        setup_axes.plot(xs, ys, color=colour, linewidth=2, marker="o", markersize=4)
+        anchor, offset, ha, va = _label_place(xs, ys, xs[1] - xs[0], ys[1] - ys[0], width, height)
+        setup_axes.annotate(overlay.extensometer_label(extensometer), anchor, xytext=offset,
+                            textcoords="offset points", color=colour, fontsize=9, fontweight="bold", ha=ha, va=va,
+                            path_effects=halo)
+    setup_axes.set_title("set-up", fontsize=10)
+    setup_axes.legend(loc="lower left", fontsize=7, framealpha=0.85, markerscale=2)
+
+    # --- what DIC needs: speckle contrast per subset, clipped pixels on the specimen
+    quality = overlay.quality
+    quality_axes.imshow(image, cmap="gray", vmin=0, vmax=1, interpolation="antialiased")
+    top = float(np.percentile(quality.mig[region], 99)) if region.any() else 1.0
+    shown = quality_axes.imshow(np.ma.masked_where(~region, quality.mig), cmap=MIG_COLOURMAP, vmin=0.0,
+                                vmax=max(top, 1e-6), alpha=0.9, interpolation="nearest")
+    clipped = quality.clipped & region
+    if clipped.any():
+        quality_axes.imshow(np.ma.masked_where(~clipped, np.ones(image.shape)),
+                            cmap=matplotlib.colors.ListedColormap([_rgb(CLIPPED_COLOUR)]), vmin=0, vmax=1,
+                            interpolation="nearest")
+    bar = (rows[0]).colorbar(shown, ax=quality_axes, fraction=0.06, pad=0.02, shrink=0.9)
+    bar.set_label(f"MIG over a {overlay.subset} px subset (grey levels/px)", fontsize=8)
+    bar.ax.tick_params(labelsize=7)
+    quality_axes.set_title(f"speckle contrast: MIG median {quality.mig_median:.1f}; clipped pixels in red "
+                           f"({100 * quality.clipped_share:.2f} %)", fontsize=10)
+    # --- focus: sharpness per subset against the specimen's median (defocus takes the fine detail first)
+    sharp = quality.sharpness
+    median = float(np.nanmedian(sharp[region])) if region.any() else float("nan")
+    relative = np.ma.masked_where(~region | ~np.isfinite(sharp), sharp / median if median > 0 else sharp)
+    focus_axes.imshow(image, cmap="gray", vmin=0, vmax=1, interpolation="antialiased")
+    focus = focus_axes.imshow(relative, cmap="RdYlGn", vmin=0.5, vmax=1.5, alpha=0.9, interpolation="nearest")
+    bar = rows[0].colorbar(focus, ax=focus_axes, fraction=0.06, pad=0.02, shrink=0.9)
+    bar.set_label("sharpness (|Laplacian| / |gradient|) over the specimen's median", fontsize=8)
+    bar.ax.tick_params(labelsize=7)
+    spread = quality.sharpness_spread
+    focus_axes.set_title("focus: " + ("n/a" if not math.isfinite(spread) else
+                                      f"spread {spread:.2f}x across the specimen (1 = even)"), fontsize=10)
+    for axes in (setup_axes, quality_axes, focus_axes):
+        axes.set_xlim(-0.5, width - 0.5)
+        axes.set_ylim(height - 0.5, -0.5)
+        axes.tick_params(labelsize=7)
+    rows[0].suptitle(f"livedic preview: {overlay.source}", fontsize=11)
+
+    # --- the notes
+    text_axes.axis("off")
+    text_axes.text(0.0, 1.0, notes, fontsize=8, va="top", ha="left", family="monospace",
+                   transform=text_axes.transAxes, linespacing=1.35)
+    below = (notes.count("\n") + 1) / text_lines
+    text_axes.text(0.0, 1.0 - below, checks, fontsize=8, va="top", ha="left", family="monospace",
+                   transform=text_axes.transAxes, linespacing=1.35, color="#b03000" if advice else "#207020")
+    from livedic.acquire.atomic_file import AtomicFile
+    try:
+        with AtomicFile(path, binary=True) as out:
+            figure.savefig(out.handle, format="png")
+            out.commit()
+    finally:
+        plt.close(figure)
+
+
+# ----------------------------------------------------------------------------- the command
+
+def add_preview_arguments(parser) -> None:
+    """``livedic preview``'s options: the source, the output, and ``livedic run``'s placement options."""
+    from livedic.stream.config import DEFAULT_SOURCE, add_subset_argument
+    from livedic.stream.points import add_point_arguments
+    from livedic.stream.strain import add_strain_arguments
+    parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
+                        help="frame source, as for livedic run (default synthetic:tensile): its first frame is drawn")
+    parser.add_argument("-o", "--output", required=True, metavar="PREVIEW.png", help="the picture to write")
+    add_point_arguments(parser)
+    add_subset_argument(parser)
+    add_strain_arguments(parser)
+
+
+def first_frame(uri: str):
+    """``(frame, the source's suggested ROI or None, its settings)``: the first frame of ``uri``; the source closed.
+
+    The simulator renders only what the first frame needs.
+    """
+    from livedic.acquire import sources
+    from livedic.acquire.base import SourceError
+    from livedic.stream.points import default_roi
+    options = {}
+    if sources.parse_scheme(uri) == "synthetic" and "frames=" not in uri:
+        options["frames"] = 2
+    source = sources.open_source(uri, **options)
+    try:
+        if hasattr(source, "prepare"):
+            source.prepare()
+        try:
+            frame = next(iter(source))
+        except StopIteration:
+            raise SourceError(f"{uri} delivered no frame") from None
+        return frame, default_roi(source), dict(source.settings or {})
+    finally:
+        source.close()
+
+
+def preview_command(args) -> int:
+    """``livedic preview``: place as ``run`` would, draw, write ``-o``, say what was placed. Returns 0."""
+    from livedic.stream.config import PointsConfig, parse_p0
+    from livedic.stream.csv_output import check_output_file
+    from livedic.stream.points import check_point_count, place_points, read_points_csv
+    from livedic.stream.strain import StrainConfig
+    if not args.output.lower().endswith(".png"):
+        raise ValueError(f"-o {args.output}: the preview is a PNG picture: name it PREVIEW.png")
+    check_output_file(args.output, "-o", create_folders=True)
+    strain = StrainConfig.from_args(args)
+    xy = read_points_csv(args.points) if args.points else None
+    wanted = PointsConfig(points_file=args.points, xy=xy, step=args.step, n_points=args.n_points,
+                          p0=parse_p0(args.p0), max_points=args.max_points, **PointsConfig.region_from_args(args))
+    frame, suggested, _ = first_frame(args.source)
+    placement = place_points(frame.image, wanted, subset=args.subset,
+                             suggested_roi=suggested if xy is None else None)
+    check_point_count(len(placement.points), wanted.max_points, how=wanted.how(placement.step))
+    stage = strain.place(placement.points, p0=placement.points[0], roi=placement.bounds, step=placement.step,
+                         subset=args.subset)
+    overlay = setup_overlay(frame.image, placement, stage, subset=args.subset, scale=strain.scale,
+                            source=args.source, bit_depth=(frame.metadata or {}).get("bit_depth"),
+                            pixel_format=frame.pixel_format)
+    render_preview(overlay, args.output)
+    for line in overlay.lines():
+        print(f"livedic: {line}", file=sys.stderr)
+    for line in overlay.advice():
+        print(f"livedic: check: {line}", file=sys.stderr)
+    print(f"livedic: preview written to {args.output}", file=sys.stderr)
+    return 0
