@@ -102,3 +102,17 @@ def test_run_logs_the_same_set_up_to_the_view(images, tmp_path):
     assert _rows(rrd, "/camera/roi", "LineStrips2D:strips")["static"]
     notes = _rows(rrd, "/setup_notes", "TextDocument:text")["static"]
     assert "mean intensity gradient" in str(notes)
+
+
+def test_a_given_region_across_the_specimens_edge_is_pointed_out(images):
+    """The whole image as ROI: the points whose subset lies across the strip's edges or the hole's are named."""
+    image = cv2.imread(str(images / "f0.png"), cv2.IMREAD_GRAYSCALE)
+    placement = place_points(image, PointsConfig(roi="full", step=10), subset=21)
+    overlay = setup_overlay(image, placement, subset=21)
+    x, y = placement.points[:, 0], placement.points[:, 1]
+    near_edge = (np.abs(x - 99.5) < 8) | (np.abs(x - 199.5) < 8) | (np.abs(np.hypot(x - HOLE[0], y - HOLE[1]) - HOLE[2]) < 6)
+    assert overlay.straddle[near_edge].all()
+    assert not overlay.straddle[(np.abs(x - 150) < 25) & (np.hypot(x - HOLE[0], y - HOLE[1]) > HOLE[2] + 20)].any()
+    assert any("across the specimen's edge" in line for line in overlay.advice())
+    found = setup_overlay(image, place_points(image, PointsConfig(step=10), subset=21), subset=21)
+    assert not found.straddle.any()
