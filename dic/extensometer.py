@@ -32,6 +32,14 @@ END_MIN_SPREAD = field_fit.MIN_SPREAD
 POISSON_MIN_AXIAL = 5e-4
 
 
+class ExtensometerOffPoints(ValueError):
+    """An extensometer's end has no tracked points around it (one line); ``name`` is the extensometer's."""
+
+    def __init__(self, message, name):
+        super().__init__(message)
+        self.name = name
+
+
 class ExtensometerStatus(enum.IntEnum):
     """Why an extensometer has no reading in a frame (0: it has one)."""
     OK = 0
@@ -131,9 +139,9 @@ def place_extensometers(extensometers, points, *, step=None):
             held = index[start[end]:start[end + 1]]
             ex, ey = ends[end]
             if len(held) < END_MIN_POINTS or not _spread_enough(points[held] - (ex, ey), step):
-                raise ValueError(
+                raise ExtensometerOffPoints(
                     f"extensometer {e.name}: its end ({ex:g}, {ey:g}) px lies outside the tracked points "
-                    f"(x {x_lo:g}..{x_hi:g}, y {y_lo:g}..{y_hi:g}); shorten it or move it into the ROI")
+                    f"(x {x_lo:g}..{x_hi:g}, y {y_lo:g}..{y_hi:g}); shorten it or move it into the ROI", e.name)
     return ExtensometerSet(extensometers=extensometers, ends=ends, start=start, index=index, step=step)
 
 

@@ -541,6 +541,12 @@ class Tracker:
         # at the image's edge, whose material is leaving the view (_at_the_edge).
         weak = self._weak(result) | self._outliers(result)
         gone = weak & self._at_the_edge(start_u, start_v)
+        stale = np.flatnonzero(weak & ~gone & ~np.isfinite(self._prev["u"]))
+        if stale.size:
+            # lost before this frame: its own last result is where it was, not where its material went;
+            # its nearest tracked neighbour's motion says whether that has left the view
+            nu, nv = self._neighbour_guess(stale)
+            gone[stale] = self._at_the_edge(nu, nv, stale)
         if gone.any():
             result.ok[gone] = False
             result.status[gone] = Status.OUTSIDE_TARGET
@@ -667,8 +673,8 @@ class Tracker:
             if fields.get(name) is not None:
                 self._good_grad[name] = np.where(ok, fields[name], self._good_grad[name])
 
-    def _at_the_edge(self, start_u, start_v):
-        """Points whose start (previous result) puts their subset at the image's edge.
+    def _at_the_edge(self, start_u, start_v, points=None):
+        """Points (all, or the indices ``points``) whose start (previous result) puts their subset at the image's edge.
 
         A doubtful result there (failed, low or falling ZNCC) is taken as the material leaving the
         field of view (the top of a coupon pulled out of the picture): it is not searched for elsewhere,
@@ -677,9 +683,10 @@ class Tracker:
         """
         height, width = self.reference.shape
         edge = self.half + INTERPOLATION_MARGIN + self.seed_radius + 1
+        index = slice(None) if points is None else points
         with np.errstate(invalid="ignore"):
-            x = self.x + start_u
-            y = self.y + start_v
+            x = self.x[index] + start_u
+            y = self.y[index] + start_v
             return (x < edge) | (y < edge) | (x > width - 1 - edge) | (y > height - 1 - edge)
 
     def _outliers(self, result):

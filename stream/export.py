@@ -309,7 +309,8 @@ def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=Non
     """Write ``extensometers.png`` to ``handle``: engineering strain (%) against time, one line each.
 
     ``strains`` is (frames, extensometers), NaN where not ok: the line has a gap there
-    (points drawn too, so a reading between two gaps still shows).
+    (points drawn too, so a reading between two gaps still shows). ``l0_px`` may be shorter than
+    ``names`` (a recording with no results places no extensometer): those have no L0 in the legend.
     """
     from matplotlib.figure import Figure
 
@@ -318,8 +319,9 @@ def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=Non
     times = np.asarray(times, dtype=np.float64)
     strains = np.asarray(strains, dtype=np.float64).reshape(len(times), len(names))
     for k, name in enumerate(names):
-        length = f"L0 {l0_px[k]:.0f} px" + (f" = {l0_px[k] / scale:.2f} mm" if scale else "")
-        axes.plot(times, 100.0 * strains[:, k], marker=".", markersize=3, linewidth=1.2, label=f"{name} ({length})")
+        if k < len(l0_px):
+            name += f" (L0 {l0_px[k]:.0f} px" + (f" = {l0_px[k] / scale:.2f} mm)" if scale else ")")
+        axes.plot(times, 100.0 * strains[:, k], marker=".", markersize=3, linewidth=1.2, label=name)
     axes.set_xlabel("time since the reference frame (s)")
     axes.set_ylabel("engineering strain (L - L0) / L0 (%)")
     axes.set_title(title, fontsize=10)

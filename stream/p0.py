@@ -118,7 +118,7 @@ def _texture_maps(image, roi, subset):
     return floor, texture, flat, x0, y0
 
 
-def choose_p0(image, roi, subset, p0=None, allowed=None):
+def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
     """P0 on the specimen: the best-textured point near the ROI centre, or the given ``p0`` assessed.
 
     Without ``p0``: among the pixel centres within a radius of the ROI centre whose
@@ -143,6 +143,8 @@ def choose_p0(image, roi, subset, p0=None, allowed=None):
     allowed : ndarray (H, W) of bool, optional
         The pixel centres where a point may go (``dic.region.placeable``: its subset inside the region,
         clear of exclusions); P0 is chosen among them. Default: every centre whose subset fits the image.
+    centre : (x, y), optional
+        Where to look for P0 from (a region that is no rectangle: its middle); default the ROI's centre.
 
     Returns
     -------
@@ -151,7 +153,9 @@ def choose_p0(image, roi, subset, p0=None, allowed=None):
     height, width = image.shape
     x, y, w, h = roi if roi is not None else (0, 0, width, height)
     half = int(subset) // 2
-    centre = (float(np.floor(x + (w - 1) / 2.0 + 0.5)), float(np.floor(y + (h - 1) / 2.0 + 0.5)))
+    if centre is None:
+        centre = (x + (w - 1) / 2.0, y + (h - 1) / 2.0)
+    centre = (float(np.floor(centre[0] + 0.5)), float(np.floor(centre[1] + 0.5)))
     floor, texture, flat, x0, y0 = _texture_maps(image, (x, y, w, h), subset)
     rows, cols = floor.shape
     # Candidates: pixel centres of the ROI whose subset lies inside the image.

@@ -20,7 +20,8 @@ import numpy as np
 
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.validation import check_subset
-from livedic.dic.region import Rectangle, Region, Specimen, find_specimen, grid_in_region, placeable
+from livedic.dic.region import (Rectangle, Region, Specimen, bounding_box, find_specimen, grid_in_region,
+                                placeable)
 from livedic.stream.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS, ROI_AUTO, ROI_FULL, UsageError
 from livedic.stream.p0 import P0Choice, choose_p0
 
@@ -203,11 +204,6 @@ class Placement:
         return meta
 
 
-def _bounds(mask: np.ndarray) -> tuple:
-    rows, cols = np.nonzero(mask)
-    return (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
-
-
 def _step_for(allowed: np.ndarray, n_points: int) -> int:
     """The grid step whose grid over ``allowed`` holds the number of points closest to ``n_points``."""
     area = int(allowed.sum())
@@ -254,6 +250,28 @@ def where_points_go(image: np.ndarray, wanted, *, subset: int, suggested_roi: tu
         within[:edge], within[-edge:], within[:, :edge], within[:, -edge:] = False, False, False, False
     region = spec.pixels(shape, within=within)
     return spec, region, placeable(region, subset, margin), placed_by, specimen
+
+
+def region_middle(allowed: np.ndarray) -> tuple:
+    """(x, y): the middle of a region that is no rectangle, where P0 is looked for.
+
+    The row of the region's centroid, and on it the middle of the run of the region that holds the
+    centroid (the centroid itself when it falls in a hole): across a dog-bone's gauge section, not the middle of its box, which shoulders cut off by
+    the image's edge pull aside (the real dog-bone: x 404 for the box, 426 for the gauge section).
+    """
+    per_row, per_column = allowed.sum(axis=1), allowed.sum(axis=0)
+    total = float(per_row.sum())
+    cy = int(round(float(per_row @ np.arange(per_row.size)) / total))
+    cx = float(per_column @ np.arange(per_column.size)) / total
+    line = np.flatnonzero(allowed[cy])
+    if line.size == 0:
+        return cx, float(cy)
+    breaks = np.flatnonzero(np.diff(line) > 1)
+    starts, ends = np.r_[line[0], line[breaks + 1]], np.r_[line[breaks], line[-1]]
+    inside = np.flatnonzero((starts <= cx) & (cx <= ends))
+    if inside.size == 0:            # the centroid falls in a hole: P0 is looked for around it
+        return cx, float(cy)
+    return 0.5 * (starts[inside[0]] + ends[inside[0]]), float(cy)
 
 
 def placeable_points(points: np.ndarray, allowed: np.ndarray) -> np.ndarray:
@@ -316,8 +334,11 @@ def place_points(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple
         step = wanted.step if wanted.step is not None else _step_for(allowed, wanted.n_points)
         grid = grid_in_region(allowed, step)
         region_for_p0 = allowed
-    bounds = _bounds(region) if region.any() else (0, 0, width, height)
-    p0_choice = choose_p0(image, bounds, subset, p0=wanted.p0, allowed=region_for_p0)
+    bounds = bounding_box(region) or (0, 0, width, height)
+    shaped = placed_by is PlacedBy.SPECIMEN or (placed_by is PlacedBy.GIVEN_REGION and
+                                                not isinstance(spec.outline, Rectangle))
+    centre = region_middle(allowed) if shaped and allowed.any() else None
+    p0_choice = choose_p0(image, bounds, subset, p0=wanted.p0, allowed=region_for_p0, centre=centre)
     p0 = np.floor(np.asarray(p0_choice.xy, dtype=np.float64) + 0.5)
     if not (0 <= p0[0] < width and 0 <= p0[1] < height):
         raise ValueError(f"P0 ({p0[0]:g}, {p0[1]:g}) is outside the {width}x{height} image")

@@ -171,7 +171,8 @@ def setup_overlay(image: np.ndarray, placement: Placement, strain_stage=None, *,
     """
     straddle = np.zeros(len(placement.points), dtype=bool)
     measured = placement.region
-    if placement.placed_by is not PlacedBy.SPECIMEN:     # a region given: does it reach off the specimen?
+    # a region given (not the source's, the simulator's gauge section): does it reach off the specimen?
+    if placement.placed_by not in (PlacedBy.SPECIMEN, PlacedBy.SOURCE):
         specimen = find_specimen(image, subset)
         if specimen.separated:
             straddle = straddling(placement.points, specimen.mask, subset)

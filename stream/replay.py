@@ -68,6 +68,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from livedic.dic.extensometer import ExtensometerOffPoints
 from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsConfig, SessionConfig, TrackingConfig,
                                    parse_exclusion, parse_p0, parse_roi, read_mask,
                                    search_method, subpixel_method)
@@ -642,6 +643,12 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
                 what = f"reference frame {reference_key[0] if reference_key else reference_index}" if results \
                     else "frame"
                 raise ValueError(f"{path} holds no image of the {what} (/camera/image): nothing to replay") from None
+            except ExtensometerOffPoints as error:
+                if not rebuild or strain:
+                    raise
+                raise ValueError(f"the recording's {error.name} extensometer does not fit the points asked for "
+                                 f"({error}): give --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2 to "
+                                 f"place extensometers on them") from None
             point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded_ids)
             session.start()
             session.run()

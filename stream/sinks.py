@@ -148,9 +148,15 @@ class P0Watch:
         self.warned = False
 
     def __call__(self, result, stats):
-        if self.warned or result.is_reference:
+        if self.warned:
             return
         m = result.measurement
+        if result.is_reference:
+            if not m.ok[0]:        # never trackable (the set-up's P0 warning says why): nothing is lost later
+                self.warned = True
+                self.report("p0_weak", f"P0 ({m.x[0]:g}, {m.y[0]:g}) is not ok in the reference frame (status "
+                                       f"{int(m.status[0])}): it has no trace", "warning")
+            return
         ok, zncc = bool(m.ok[0]), float(m.zncc[0])
         if ok and zncc >= self.refind_zncc:
             return

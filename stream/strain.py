@@ -33,7 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.extensometer import Extensometer, place_extensometers, read_extensometers, strain_noise
+from livedic.dic.extensometer import (Extensometer, ExtensometerOffPoints, place_extensometers, read_extensometers,
+                                      strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 
 TRANSVERSE_FRACTION = 0.8
@@ -209,6 +210,9 @@ class StrainConfig:
         self._check_automatic_transverse(resolved, p0, x_range, subset)
         try:
             extensometers = place_extensometers(resolved, points, step=windows.step)
+        except ExtensometerOffPoints as error:
+            unit = f" ({self.scale:g} px/mm)" if self.scale else ""
+            raise ExtensometerOffPoints(f"{error}{unit}", error.name) from None
         except ValueError as error:
             unit = f" ({self.scale:g} px/mm)" if self.scale else ""
             raise ValueError(f"{error}{unit}") from None

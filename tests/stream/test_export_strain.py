@@ -250,3 +250,24 @@ def test_recorded_channels_equal_what_export_computes(tensile, tmp_path):
     for field in fields:
         np.testing.assert_array_equal(np.array(by_frame[field.frame_index]), field.eyy)
     assert fields[0].window == 5
+
+
+def test_a_recording_with_extensometers_but_no_results_exports_its_headers(tmp_path, capsys):
+    """A recording cut before its first results (a crash at the start): the files with headers only, one note,
+    exit 0 (it was an IndexError on the extensometers' plot: no results, so no L0 to label them with)."""
+    from livedic.acquire.base import Frame
+    from livedic.stream.recorder import Recorder
+
+    metadata = {"roi": [60, 40, 280, 320], "step": 10, "subset": 21, "point_ids": "P0 is point 0",
+                "strain_window": 5, "strain_measure": "engineering", "gauge_length": 240.0,
+                "extensometers": [["axial", 200.0, 80.0, 200.0, 320.0]]}
+    path = tmp_path / "no-results.mcap"
+    with Recorder(path, metadata, start_time_ns=0) as rec:
+        for i in range(3):
+            rec.write_frame(Frame(i, i * 50_000_000, np.zeros((8, 8), np.uint8), "Mono8"))
+    out = tmp_path / "export"
+    assert main(["export", str(path), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "holds no tracking results" in err and "Traceback" not in err
+    assert (out / "extensometers.csv").read_text() == ",".join(HEADER) + "\n"
+    assert (out / "extensometers.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

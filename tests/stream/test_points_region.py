@@ -179,3 +179,21 @@ def test_run_records_where_the_points_went(stretched_sequence, tmp_path):
     region = session["region"]
     assert region["placed_by"] == "specimen" and region["exclude"] == ["circle:150,200,20"]
     assert 95 <= region["bounds"][0] <= 103
+
+
+def test_replay_in_another_region_places_points_there_or_says_what_to_do(stretched_sequence, tmp_path, capsys):
+    from livedic.bench.cli import main
+    record = tmp_path / "g.mcap"
+    assert main(["run", "--source", f"images:{stretched_sequence}", "--frames", "3", "--viewer", "none",
+                 "--record", str(record), "--gauge-length", "240", "--n-points", "300"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "r.csv"
+    # the recorded extensometers reach beyond a smaller region: one line saying how to place new ones
+    assert main(["replay", str(record), "--roi", "110,150,80,100", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the recording's axial extensometer does not fit" in err and "--gauge-length" in err
+    assert main(["replay", str(record), "--roi", "110,150,80,100", "--gauge-length", "60", "-o", str(out)]) == 0
+    import csv
+    rows = list(csv.DictReader(open(out)))
+    xs, ys = np.array([float(r["x"]) for r in rows]), np.array([float(r["y"]) for r in rows])
+    assert xs.min() >= 110 + HALF and xs.max() <= 189 - HALF and ys.min() >= 150 + HALF and ys.max() <= 249 - HALF
