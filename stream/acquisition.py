@@ -82,6 +82,9 @@ class AcquisitionThread(threading.Thread):
         Frames received from the source and queued (or dropped by the queue).
     first_index, last_index : int or None
         ``Frame.index`` of the first and latest of them (gaps = frames lost upstream).
+    skipped_before_start : int
+        Frames the source skipped between the first (the reference, taken while the session was being
+        prepared: points placed, outputs opened) and the second: a camera goes on streaming meanwhile.
     finished_reason : str
         ``"end"`` (source exhausted), ``"limit"`` (max_frames), ``"stopped"`` or ``"error"``.
     reconnects : int
@@ -106,6 +109,7 @@ class AcquisitionThread(threading.Thread):
         self.frames = 0
         self.first_index = None
         self.last_index = None
+        self.skipped_before_start = 0
         self.finished_reason = None
         self.reconnect = reconnect
         self.reconnects = 0
@@ -180,6 +184,8 @@ class AcquisitionThread(threading.Thread):
             self.frames += 1
             if self.first_index is None:
                 self.first_index = frame.index
+            elif self.frames == 2:
+                self.skipped_before_start = max(0, frame.index - self.first_index - 1)
             self.last_index = frame.index
             self._last = (frame.index, frame.timestamp_ns, arrival_ns, frame.image.shape, frame.image.dtype,
                           frame.pixel_format)

@@ -380,7 +380,7 @@ def _measure_strain(result, config, *, step, subset):
     windows = strain_window(points, window=config.window, step=step, subset=subset)
     field = strain_field(windows, result.u, result.v, result.ok, measure=config.measure)
     how = (f"strain: {config.measure}, window {windows.window} points x step {windows.step:g} px + subset "
-           f"{windows.subset} = VSG {windows.vsg_px:g} px; {int(field.ok.sum())}/{field.ok.size} points with strain")
+           f"{windows.subset} = VSG {windows.vsg_px:.0f} px; {int(field.ok.sum())}/{field.ok.size} points with strain")
     return field, how
 
 

@@ -230,7 +230,7 @@ def quantities(scale=None, strain_unit=DEFAULT_STRAIN_UNIT, measure="engineering
     """name -> ``Quantity``: displacements in px (mm with ``scale`` px/mm), strain in ``strain_unit``."""
     length_unit, length_factor = ("mm", 1.0 / scale) if scale else ("px", 1.0)
     strain_factor = STRAIN_UNITS[strain_unit]
-    gauge = f", VSG {vsg_px:g} px" if vsg_px else ""
+    gauge = f", VSG {vsg_px:.0f} px" if vsg_px else ""
     shown = {"u": ("u", "horizontal displacement"), "v": ("v", "vertical displacement"),
              "exx": ("e_xx", f"{measure} strain along x{gauge}"), "eyy": ("e_yy", f"{measure} strain along y{gauge}"),
              "exy": ("e_xy", f"{measure} shear strain (tensor){gauge}")}

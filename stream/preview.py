@@ -66,6 +66,8 @@ class SetupOverlay:
     source : str
     pixel_format : str
         The frame's ("Mono8", "Mono12", "Mono16"), for display.
+    extensometer_warnings : tuple of str
+        The strain stage's (``StrainStage.noise_warnings``: too short for its noise).
     """
     image: np.ndarray = field(repr=False)
     placement: Placement
@@ -79,6 +81,7 @@ class SetupOverlay:
     subset: int
     source: str
     pixel_format: str = "Mono8"
+    extensometer_warnings: tuple = ()
 
     REGION_COLOUR = REGION_COLOUR
     EXCLUDED_COLOUR = EXCLUDED_COLOUR
@@ -114,7 +117,14 @@ class SetupOverlay:
         return lines
 
     def advice(self) -> list:
-        """Problems worth fixing before the test (empty when none was found)."""
+        """Problems worth fixing before the test (empty when none was found): the set-up's ``checks``, P0's
+        warning and the extensometers' (too short for their noise), as ``livedic run`` says them."""
+        return self.checks() + list(self.extensometer_warnings) + \
+            ([placement_warning(self.placement)] if placement_warning(self.placement) else [])
+
+    def checks(self) -> list:
+        """What only the set-up looks at: the pattern, exposure and focus, weak subsets, points across the
+        specimen's edge (``livedic run`` says P0's and the extensometers' warnings on their own)."""
         advice = list(self.quality.advice())
         if len(self.weak) and self.weak.mean() > 0.05:
             advice.append(f"{int(self.weak.sum())} of {len(self.weak)} points have little speckle contrast in their "
@@ -123,9 +133,6 @@ class SetupOverlay:
             advice.append(f"{int(self.straddle.sum())} points have their subset across the specimen's edge (part "
                           f"speckle, part background or hole, red in the preview): such a subset sees two motions "
                           f"and can be ok yet wrong; leave --roi out (the specimen is found) or --exclude them")
-        warning = placement_warning(self.placement)
-        if warning:
-            advice.append(warning)
         return advice
 
 
@@ -184,8 +191,8 @@ def setup_overlay(image: np.ndarray, placement: Placement, strain_stage=None, *,
     return SetupOverlay(image=image, placement=placement, extensometers=extensometers, scale=scale,
                         quality=quality, outlines=region_outlines(placement.region), exclusions=exclusions,
                         weak=quality.weak_subsets(placement.points), straddle=straddle, subset=int(subset),
-                        source=source,
-                        pixel_format=pixel_format)
+                        source=source, pixel_format=pixel_format,
+                        extensometer_warnings=tuple(strain_stage.noise_warnings()) if strain_stage is not None else ())
 
 
 # ----------------------------------------------------------------------------- the PNG
@@ -209,11 +216,11 @@ def _label_place(x, y, dx, dy, width, height):
     if abs(dy) >= abs(dx):                        # along y: the upper end, text to its right
         anchor = (x[0], y[0]) if y[0] <= y[1] else (x[1], y[1])
         offset, ha, va = (8, 4), "left", "bottom"
-    else:                                         # along x: the right end, text below it
+        if anchor[0] > 0.7 * width:
+            offset, ha = (-8, 4), "right"
+    else:                                         # along x: under the right end, the text running back along it
         anchor = (x[0], y[0]) if x[0] >= x[1] else (x[1], y[1])
-        offset, ha, va = (4, -10), "left", "top"
-    if anchor[0] > 0.7 * width:
-        offset, ha = (-offset[0], offset[1]), "right"
+        offset, ha, va = (0, -8), "right", "top"
     if anchor[1] < 0.05 * height:
         offset, va = (offset[0], -abs(offset[1]) - 6), "top"
     return anchor, offset, ha, va
@@ -285,15 +292,15 @@ def render_preview(overlay: SetupOverlay, path: str) -> None:
                                        edgecolor=_rgb(P0_COLOUR), linewidth=1.5, label=f"P0 and its {overlay.subset} "
                                                                                        f"px subset"))
     setup_axes.plot([p0x], [p0y], marker="+", markersize=10, color=_rgb(P0_COLOUR), mew=2)
-    setup_axes.annotate("P0", (p0x - half, p0y + half), xytext=(-4, -4), textcoords="offset points",
-                        color=_rgb(P0_COLOUR), fontsize=9, fontweight="bold", ha="right", va="top",
+    setup_axes.annotate("P0", (p0x - half, p0y - half), xytext=(-4, 4), textcoords="offset points",
+                        color=_rgb(P0_COLOUR), fontsize=9, fontweight="bold", ha="right", va="bottom",
                         path_effects=halo)
     for k, extensometer in enumerate(overlay.extensometers):
         colour = _rgb(EXTENSOMETER_COLOURS[k % len(EXTENSOMETER_COLOURS)])
         xs, ys = (extensometer.x1, extensometer.x2), (extensometer.y1, extensometer.y2)
         setup_axes.plot(xs, ys, color=colour, linewidth=2, marker="o", markersize=4)
         anchor, offset, ha, va = _label_place(xs, ys, xs[1] - xs[0], ys[1] - ys[0], width, height)
-        setup_axes.annotate(overlay.extensometer_label(extensometer), anchor, xytext=offset,
+        setup_axes.annotate(overlay.extensometer_label(extensometer).replace(" L0 ", "\nL0 ", 1), anchor, xytext=offset,
                             textcoords="offset points", color=colour, fontsize=9, fontweight="bold", ha=ha, va=va,
                             path_effects=halo)
     setup_axes.set_title("set-up", fontsize=10)

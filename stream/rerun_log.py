@@ -493,7 +493,7 @@ def _small_plot(path):
 
 def _strain_view_name(strain):
     """The e_yy view's name: the measure and the virtual strain gauge, e.g. "e_yy (%) engineering, VSG 77 px"."""
-    return f"e_yy (%) {strain.config.measure}, VSG {strain.vsg_px:g} px"
+    return f"e_yy (%) {strain.config.measure}, VSG {strain.vsg_px:.0f} px"
 
 
 def _axial_transverse_pair(strain):

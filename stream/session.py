@@ -38,6 +38,7 @@ import enum
 import math
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass
 
@@ -214,11 +215,17 @@ def for_recording(frame):
     return dataclasses.replace(frame, metadata=kept)
 
 
+# Seconds without the first frame before the session says it is waiting for it.
+FIRST_FRAME_NOTE_S = 3.0
+
+
 def lost_upstream(acquisition):
-    """Frames the source skipped (gaps in its frame indices), not counting queue drops."""
+    """Frames the source skipped (gaps in its frame indices) once the session had started, not counting queue
+    drops, nor the frames a camera sent while the session was being prepared (``skipped_before_start``)."""
     if acquisition.first_index is None:
         return 0
-    return max(0, (acquisition.last_index - acquisition.first_index + 1) - acquisition.frames)
+    span = acquisition.last_index - acquisition.first_index + 1
+    return max(0, span - acquisition.frames - acquisition.skipped_before_start)
 
 
 def _safe_settings(source):
@@ -407,7 +414,16 @@ class Session:
 
         # The first frame: its size checks the points before any output exists.
         self.phase = Phase.FIRST_FRAME
-        self._ahead = FirstFrameAhead(self.source, config.source)
+        # a triggered camera waits for its trigger without a limit: say so rather than sit silent
+        waiting = threading.Timer(FIRST_FRAME_NOTE_S, self.say, [
+            f"waiting for the first frame from {config.source} ({FIRST_FRAME_NOTE_S:g} s so far; a triggered camera "
+            f"waits for its trigger; Ctrl-C to stop)"])
+        waiting.daemon = True
+        waiting.start()
+        try:
+            self._ahead = FirstFrameAhead(self.source, config.source)
+        finally:
+            waiting.cancel()
         self.phase = Phase.CHECKING_POINTS
         self._place_points(self._ahead.frame)
 
@@ -754,7 +770,7 @@ class Session:
                               setup=self._setup)
         # an automatic choice is said: the user did not say where the points go
         self.event("note", note, tell=self.placement is not None and self.placement.placed_by is PlacedBy.SPECIMEN)
-        for line in self._setup.advice() if self._setup is not None else ():
+        for line in self._setup.checks() if self._setup is not None else ():
             self.event("note", f"set-up: {line}", tell=True)
         if self.strain is not None:
             self.event("note", self.strain.describe(), tell=bool(self.strain.extensometers))
@@ -805,7 +821,8 @@ class Session:
             summary.update(latency_p50_ms=None, latency_p99_ms=None, latency_max_ms=None, latency_from=None)
         summary.update(
             source=config.source, live=live, method=config.tracking.method, acquired=acquisition.frames,
-            lost_upstream=lost_upstream(acquisition), stopped_by=self.stopped_by,
+            lost_upstream=lost_upstream(acquisition), skipped_before_start=acquisition.skipped_before_start,
+            stopped_by=self.stopped_by,
             source_losses=list(acquisition.losses), reconnects=acquisition.reconnects,
             outage_s=round(acquisition.outage_s, 3),
             source_error=str(acquisition.error) if acquisition.error is not None else None,
@@ -845,7 +862,9 @@ def format_summary(summary, reference, recorder):
 
     lines = [f"livedic run: {summary['source']}  ({summary['method']})"]
     lines.append(f"  frames     {summary['frames']} tracked of {summary['acquired']} acquired; "
-                 f"{summary['dropped']} dropped by the queue, {summary['lost_upstream']} lost upstream")
+                 f"{summary['dropped']} dropped by the queue, {summary['lost_upstream']} lost upstream"
+                 + (f" ({summary['skipped_before_start']} more sent by the camera while the session was prepared, "
+                    f"after the reference)" if summary.get("skipped_before_start") else ""))
     if reference is not None:
         points = reference.points
         lines.append(f"  points     {len(points)} (P0 at {points[0, 0]:g}, {points[0, 1]:g}); "
@@ -927,7 +946,7 @@ def format_strain_summary(strain):
     if not strain:
         return []
     lines = [f"  strain     {strain['strain_measure']}, window {strain['strain_window']} points, VSG "
-             f"{strain['vsg_px']:g} px; {strain['strain_ms_p50']:.2f} ms/frame (p99 {strain['strain_ms_p99']:.2f})"]
+             f"{strain['vsg_px']:.0f} px; {strain['strain_ms_p50']:.2f} ms/frame (p99 {strain['strain_ms_p99']:.2f})"]
     for name, final in strain["extensometers"].items():
         reading = (f"{100 * final['eng_strain']:.3f} % engineering, {100 * final['true_strain']:.3f} % true"
                    if final["ok"] else "no reading in the last frame (an end lost)")

@@ -390,8 +390,10 @@ class StrainStage:
         lines = []
         subset = self.windows.subset
         automatic = self.config.gauge_length is not None and self.config.gauge_width is None
-        for e, noise in zip(self.extensometers, self.expected_noise(point_noise_px)):
-            needed = e.length_px * noise / NOISE_LIMIT
+        apart = strain_noise(self.placed, self.points, point_noise_px, independent_ends=True)
+        for e, noise, noise_apart in zip(self.extensometers, self.expected_noise(point_noise_px), apart):
+            # the length whose ends, apart, would meet the limit (a short one's shared points make it look better)
+            needed = e.length_px * max(noise, noise_apart) / NOISE_LIMIT
             short_auto = automatic and e.name == TRANSVERSE and e.length_px < MIN_AUTO_TRANSVERSE_SUBSETS * subset
             if not (noise > NOISE_LIMIT or short_auto):
                 continue
@@ -417,7 +419,7 @@ class StrainStage:
     def describe(self):
         """One line: the strain window, VSG and measure, and the extensometers."""
         text = (f"strain: {self.config.measure}, window {self.windows.window} points x step {self.windows.step:g} px "
-                f"+ subset {self.windows.subset} = VSG {self.vsg_px:g} px")
+                f"+ subset {self.windows.subset} = VSG {self.vsg_px:.0f} px")
         if self.extensometers:
             text += "; extensometers " + ", ".join(
                 f"{e.name} L0 {format_length(e.length_px, self.config.in_mm(e.length_px))}"

@@ -206,3 +206,22 @@ def test_a_missing_camera_is_a_clean_source_error(arv_fake_gv):
     listed = r"available: .*Aravis-Fake-GV01 \(GigEVision, 127.0.0.1\)"
     with pytest.raises(SourceError, match=r"camera 'Aravis-Fake-NOPE' not found .*" + listed):
         open_uri("aravis:Aravis-Fake-NOPE")
+
+
+@pytest.mark.time_limit(180)
+def test_a_triggered_camera_says_it_waits_and_stops_on_ctrl_c(arv_fake_gv, tmp_path):
+    """trigger=line:0 with no timeout_s waits for its trigger without a limit: the run says it is waiting
+    (it sat silent) and a Ctrl-C ends it at once, nothing recorded."""
+    import signal
+
+    from tests.stream.conftest import _signal_when
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    record = tmp_path / "waited.mcap"
+    process = subprocess.Popen([sys.executable, "-m", "livedic.stream.cli", "run", "--source",
+                                "aravis:Aravis-Fake-GV01?trigger=line:0&roi=0,0,64,48", "--frames", "3",
+                                "--record", str(record), "--viewer", "none", "--progress", "off"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=str(tmp_path), env=env)
+    err, _ = _signal_when(process, lambda text: b"waiting for the first frame" in text, signal.SIGINT)
+    assert "a triggered camera waits for its trigger" in err, err
+    assert process.returncode == 0 and "nothing was recorded" in err and "Traceback" not in err, err
+    assert not record.exists()

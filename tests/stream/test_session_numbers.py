@@ -129,8 +129,23 @@ def test_expected_noise_falls_as_one_over_the_length_and_warns_below_class_1():
     assert long_ < NOISE_LIMIT < short
     warnings = stage.noise_warnings()
     assert len(warnings) == 1 and warnings[0].startswith("extensometer short: L0 40 px expects ~")
-    needed = 40 * short / NOISE_LIMIT
+    # the length needed is that of ends sharing no point (a short one's shared points cancel in the difference)
+    from livedic.dic.extensometer import strain_noise
+    apart = strain_noise(stage.placed, stage.points, 0.01, independent_ends=True)[0]
+    assert apart >= short
+    needed = 40 * apart / NOISE_LIMIT
     assert f"it needs L0 >= {needed:.0f} px; move its ends apart" in warnings[0]
+
+
+def test_a_very_short_extensometer_is_not_told_it_needs_less_than_a_long_one():
+    """Its ends share most of their points, whose errors cancel: its own noise says little of the length needed
+    (a new user's trial read 'a 5 px one needs >= 79 px' beside 'a 244 px one needs >= 373 px')."""
+    points, p0 = _grid(600, 10)
+    stage = StrainConfig(extensometers=[_ext("tiny", 600, 400, 605, 400), _ext("long", 400, 400, 800, 400)]).place(
+        points, p0=p0, roi=(300, 100, 600, 600), step=10, subset=21)
+    tiny = next(line for line in stage.noise_warnings() if line.startswith("extensometer tiny"))
+    needed = float(tiny.split("it needs L0 >= ")[1].split(" px")[0])
+    assert needed > 300
 
 
 def _ext(name, x1, y1, x2, y2):
