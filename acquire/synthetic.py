@@ -1035,6 +1035,12 @@ class _PrerenderedSource(FrameSource):
             if self._closed:
                 return
             metadata = self.frame_metadata(i)
+            if i == 1:
+                # the clock starts when the second frame is asked for: a session takes the first (its
+                # reference) and prepares (points, outputs) before it asks for more, as a camera is started
+                # when its consumer is ready; pacing from the first would hand the frames due meanwhile out
+                # in a burst, which a dropping queue drops
+                start_ns = time.monotonic_ns() - int(round(period_ns))
             if self.options["pace"]:
                 due = start_ns + int(round(i * period_ns))
                 wait = due - time.monotonic_ns()
