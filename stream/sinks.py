@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from livedic.dic.status import Status
+
 
 class RecordResults:
     """Writes each frame's results (and a drop event when the queue dropped frames) to a ``Recorder``.
@@ -154,8 +156,8 @@ class P0Watch:
         if result.is_reference:
             if not m.ok[0]:        # never trackable (the set-up's P0 warning says why): nothing is lost later
                 self.warned = True
-                self.report("p0_weak", f"P0 ({m.x[0]:g}, {m.y[0]:g}) is not ok in the reference frame (status "
-                                       f"{int(m.status[0])}): it has no trace", "warning")
+                self.report("p0_weak", f"P0 ({m.x[0]:g}, {m.y[0]:g}) is not ok in the reference frame "
+                                       f"({Status(int(m.status[0])).description}): it has no trace", "warning")
             return
         ok, zncc = bool(m.ok[0]), float(m.zncc[0])
         if ok and zncc >= self.refind_zncc:
