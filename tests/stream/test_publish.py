@@ -399,10 +399,7 @@ def test_modbus_serves_each_frame_whole_and_the_last_one_after_the_session(tmp_p
     assert [r["update_count"] for r in reads] == sorted(r["update_count"] for r in reads)
     assert any(f"publishing strain on modbus://127.0.0.1:{port}" in line and "axial at 16, transverse at 22" in line
                for line in said)
-    # Closed with the session: the port is free again.
-    probe = socket.socket()
-    probe.bind(("127.0.0.1", port))
-    probe.close()
+    assert_port_free(port)                  # closed with the session: the port is free again
 
 
 def test_modbus_answers_the_ended_state_for_the_linger_then_closes(tmp_path):
@@ -453,9 +450,7 @@ def test_modbus_answers_the_ended_state_for_the_linger_then_closes(tmp_path):
         assert read["eng_strain"] == [np.float32(v) for v in recorded.eng_strain]
         assert read["true_strain"] == [np.float32(v) for v in recorded.true_strain]
     assert reads[-1]["age_ms"] >= reads[0]["age_ms"]             # the same values, older
-    probe = socket.socket()                                       # closed: the port is free again
-    probe.bind(("127.0.0.1", port))
-    probe.close()
+    assert_port_free(port)                                        # closed: the port is free again
 
 
 _WATCH_THE_FIRST_FRAME = """
@@ -538,3 +533,15 @@ def test_run_publishes_from_the_command_line(tmp_path):
     assert done.returncode == 0 and not errors, done.stderr
     assert len(messages) == 3 and [m["frame"] for m in messages] == _recorded(str(record))[0]
     assert "  publish    udp://localhost:" in done.stdout and "3 frames sent" in done.stdout
+
+
+def assert_port_free(port):
+    """No server listens on ``port`` any more: a new one can bind it (SO_REUSEADDR, as servers bind: a connection
+    the closed server ended may sit in TIME_WAIT on it, which a plain bind refuses; seen once in CI)."""
+    probe = socket.socket()
+    try:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        probe.bind(("127.0.0.1", port))
+        probe.listen(1)
+    finally:
+        probe.close()
