@@ -33,7 +33,7 @@ from typing import Sequence, Union
 import numpy as np
 
 __all__ = ["Rectangle", "Polygon", "Circle", "Shape", "Region", "Specimen", "shape_mask", "placeable", "straddling",
-           "bounding_box",
+           "bounding_box", "centred_axis",
            "grid_in_region", "step_for_area", "speckle_texture", "find_specimen", "parse_shape",
            "TEXTURE_WINDOW"]
 
@@ -231,8 +231,9 @@ class Region:
         height, width = (int(v) for v in image_shape[:2])
         if self.mask is not None and self.mask.shape != (height, width):
             mh, mw = self.mask.shape
-            raise ValueError(f"mask {self.mask_name or ''} is {mw}x{mh} px but the images are {width}x{height}: "
-                             f"draw it on a frame of this camera".replace("mask  is", "mask is"))
+            name = f"mask {self.mask_name}" if self.mask_name else "the mask"
+            raise ValueError(f"{name} is {mw}x{mh} px but the images are {width}x{height}: draw it on a frame "
+                             f"of this camera")
         if self.outline is not None:
             x0, y0, x1, y1 = self.outline.bounds
             if isinstance(self.outline, Rectangle):
@@ -320,6 +321,14 @@ def bounding_box(mask: np.ndarray) -> tuple | None:
     return int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1)
 
 
+def centred_axis(lo: int, hi: int, step: int) -> np.ndarray:
+    """Positions every ``step`` px from ``lo`` to ``hi`` (inclusive), the leftover split evenly at both ends."""
+    span = hi - lo
+    count = span // step + 1
+    start = lo + (span - (count - 1) * step) // 2
+    return start + step * np.arange(count)
+
+
 def grid_in_region(allowed: np.ndarray, step: int) -> np.ndarray:
     """Points every ``step`` px where ``allowed`` (a ``placeable`` map) is True, (N, 2) float64, row by row.
 
@@ -332,14 +341,7 @@ def grid_in_region(allowed: np.ndarray, step: int) -> np.ndarray:
     if box is None:
         return np.empty((0, 2))
     x, y, w, h = box
-
-    def axis(lo, hi):
-        span = hi - lo
-        count = span // step + 1
-        start = lo + (span - (count - 1) * step) // 2
-        return start + step * np.arange(count)
-
-    xs, ys = np.meshgrid(axis(x, x + w - 1), axis(y, y + h - 1))
+    xs, ys = np.meshgrid(centred_axis(x, x + w - 1, step), centred_axis(y, y + h - 1, step))
     keep = allowed[ys, xs]
     return np.column_stack([xs[keep], ys[keep]]).astype(np.float64)
 

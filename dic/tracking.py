@@ -52,6 +52,7 @@ from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.correlation import _zncc_batch, snap_points
 from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
 from livedic.dic.neighbours import neighbour_graph
+from livedic.dic.region import centred_axis
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
@@ -134,13 +135,7 @@ def grid_in_roi(shape, roi, step, subset):
         raise ValueError(f"ROI {x0},{y0},{w},{h} inside the {width}x{height} image cannot hold a "
                          f"{subset}x{subset} subset: enlarge the ROI or use a smaller subset")
 
-    def axis(lo, hi):
-        span = hi - lo
-        count = span // step + 1
-        start = lo + (span - (count - 1) * step) // 2
-        return start + step * np.arange(count)
-
-    xs, ys = np.meshgrid(axis(left, right), axis(top, bottom))
+    xs, ys = np.meshgrid(centred_axis(left, right, step), centred_axis(top, bottom, step))
     return np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
 
 

@@ -119,8 +119,8 @@ class SetupOverlay:
     def advice(self) -> list:
         """Problems worth fixing before the test (empty when none was found): the set-up's ``checks``, P0's
         warning and the extensometers' (too short for their noise), as ``livedic run`` says them."""
-        return self.checks() + list(self.extensometer_warnings) + \
-            ([placement_warning(self.placement)] if placement_warning(self.placement) else [])
+        p0 = self.placement.p0.warning() if self.placement.p0 is not None else None
+        return self.checks() + list(self.extensometer_warnings) + ([p0] if p0 else [])
 
     def checks(self) -> list:
         """What only the set-up looks at: the pattern, exposure and focus, weak subsets, points across the
@@ -134,11 +134,6 @@ class SetupOverlay:
                           f"speckle, part background or hole, red in the preview): such a subset sees two motions "
                           f"and can be ok yet wrong; leave --roi out (the specimen is found) or --exclude them")
         return advice
-
-
-def placement_warning(placement: Placement) -> str | None:
-    """P0's warning (weak texture), if any."""
-    return placement.p0.warning() if placement.p0 is not None else None
 
 
 def shape_outline(shape) -> np.ndarray:
