@@ -74,7 +74,7 @@ METHODS = ("improved-surface-fit", "icgn")
 TARGET_POINTS = 1000
 TARGET_METHOD = "icgn"
 TARGET_FPS = 50.0
-TARGET_P99_MS = 30.0
+TARGET_P99_MS = 25.0
 TARGET_STRAIN_MS = 2.0
 TARGET_STRAIN_OUT_P99_MS = 5.0
 GAUGE_LENGTH_PX = 400.0       # the main job's --gauge-length (setup.sh, README)
@@ -215,6 +215,22 @@ def gauge_length_for(size):
     return min(GAUGE_LENGTH_PX, float(round(0.75 * roi_height)))
 
 
+def run_one_session(make_config, said, *, sinks=()):
+    """One session from ``make_config()`` to its end, what it said into ``said``; (the ``Session`` or None, the
+    error text or None): a failed case must not hide the others."""
+    from livedic.stream.session import Session
+    session = None
+    try:
+        with Session(make_config(), sinks=list(sinks), say=lambda message: said.append(f"livedic: {message}")) \
+                as session:
+            session.execute()
+    except Exception as error:  # noqa: BLE001 - one failed case must not hide the others
+        return session, f"{type(error).__name__}: {error}"
+    if session.source_error is not None:
+        return session, f"{type(session.source_error).__name__}: {session.source_error}"
+    return session, None
+
+
 def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, threads=1, workdir,
              search="improved-wso", subset=21, echo=None, gauge_length=None):
     """One ``livedic run`` session; returns a row dict (summary numbers, render time, error text).
@@ -224,7 +240,6 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
     """
     from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
     from livedic.stream.csv_output import json_text
-    from livedic.stream.session import Session
     from livedic.stream.strain import StrainConfig
 
     tag = f"{n_points}-{search}-{subpixel}-{'rec' if record else 'norec'}-{'paced' if paced else 'unpaced'}"
@@ -235,22 +250,16 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
                fps_offered=fps if paced else None, size=size, frames_offered=frames, error=None, render_s=None,
                gauge_length=gauge_length, summary={}, strain_out=None)
     said = []
-    session = None
     receiver = StrainOutReceiver()
     times = ResultTimes()
     started = time.perf_counter()
     try:
-        config = SessionConfig(source=uri, points=PointsConfig(n_points=n_points),
-                               tracking=TrackingConfig(subset=subset, search=search, subpixel=subpixel),
-                               record=record_path if record else None, threads=threads,
-                               command="livedic bench live", strain=StrainConfig(gauge_length=gauge_length),
-                               publish=(receiver.uri,))
-        with Session(config, sinks=[times], say=lambda message: said.append(f"livedic: {message}")) as session:
-            session.execute()
-        if session.source_error is not None:
-            row["error"] = f"{type(session.source_error).__name__}: {session.source_error}"
-    except Exception as error:  # noqa: BLE001 - one failed case must not hide the others
-        row["error"] = f"{type(error).__name__}: {error}"
+        session, row["error"] = run_one_session(
+            lambda: SessionConfig(source=uri, points=PointsConfig(n_points=n_points),
+                                  tracking=TrackingConfig(subset=subset, search=search, subpixel=subpixel),
+                                  record=record_path if record else None, threads=threads,
+                                  command="livedic bench live", strain=StrainConfig(gauge_length=gauge_length),
+                                  publish=(receiver.uri,)), said, sinks=[times])
     finally:
         received = receiver.stop()
     row["wall_s"] = time.perf_counter() - started
@@ -474,6 +483,202 @@ def explain_limits(rows, fps):
     return lines
 
 
+# ----------------------------------------------------------------------------- the main job, stage by stage
+
+MAIN_JOB_ARGS = ("--gauge-length", "400", "--load", "synthetic")      # setup.sh's main job, after "livedic run"
+TARGET_ERROR_RMS_PX = 0.012
+TARGET_MAX_FPS = {None: 200.0, 2000: 100.0}     # unpaced, everything on: points (None: the main job's) -> fps
+# The stage rows of the per-frame table, in pipeline order: (stage name in the summary, label, thread).
+STAGE_ROWS = (
+    ("prepare", "preparing the new frame", "tracking"),
+    ("kernel", "IC-GN kernel, all points", "tracking"),
+    ("seeded_search", "seeded search (doubtful points)", "tracking"),
+    ("refind", "re-find search (lost points)", "tracking"),
+    ("gates", "quality gates", "tracking"),
+    ("reference_update", "reference updates", "tracking"),
+    ("tracker", "= tracker total", "tracking"),
+    ("strain", "strain field", "tracking"),
+    ("extensometers", "extensometers", "tracking"),
+    ("publish", "strain out (publish)", "tracking"),
+    ("force", "force", "tracking"),
+    ("Poisson's ratio", "Poisson's ratio", "output"),
+    ("record frame", "recording the frame", "acquisition"),
+    ("record results", "recording the results", "output"),
+    ("view", "Rerun view", "output"),
+    ("progress", "progress line", "output"),
+)
+
+
+def main_job_args(*, uri, record_path, rrd_path, publish_uri, n_points=None, gauge_length=GAUGE_LENGTH_PX):
+    """``livedic run`` words of the main job on ``uri``, its outputs in the bench's folder, strain out to a socket
+    (``gauge_length``: the main job's 400 px, shorter on a smaller image)."""
+    words = ["run", *MAIN_JOB_ARGS, "--gauge-length", f"{gauge_length:g}", "--source", uri, "--record", record_path, "--viewer", "save", rrd_path,
+             "--progress", "off", "--publish", publish_uri]
+    if n_points is not None:
+        words += ["--n-points", str(n_points)]
+    return words
+
+
+def run_main_job_case(*, size, frames, fps, paced=True, n_points=None, workdir, echo=None):
+    """The main job (``livedic run --gauge-length 400 --load synthetic``: recording, Rerun .rrd, strain, two
+    extensometers, force), plus strain out to a socket, on ``synthetic:tensile`` at ``fps`` (or unpaced:
+    frames as fast as taken, a blocking queue); returns a row dict like ``run_case``'s."""
+    from livedic.stream.cli import build_parser
+    from livedic.stream.config import SessionConfig
+    from livedic.stream.csv_output import json_text
+
+    tag = f"main-{n_points or 'default'}-{'paced' if paced else 'unpaced'}-{fps:g}"
+    uri = f"synthetic:tensile?size={size}x{size}&fps={fps:g}&frames={frames}"
+    if not paced:
+        # a sustained rate needs more frames than are worth rendering: cycle through the rendered ones
+        uri = (f"synthetic:tensile?size={size}x{size}&fps={fps:g}&frames={UNPACED_CYCLES * frames}&loop={frames}"
+               f"&pace=0")
+    record_path = os.path.join(workdir, f"{tag}.mcap")
+    receiver = StrainOutReceiver()
+    words = main_job_args(uri=uri, record_path=record_path, rrd_path=os.path.join(workdir, f"{tag}.rrd"),
+                          publish_uri=receiver.uri, n_points=n_points, gauge_length=gauge_length_for(size))
+    if not paced:
+        words += ["--drop", "block"]
+    row = dict(case=tag, points_wanted=n_points, paced=paced, fps_offered=fps if paced else None, size=size,
+               frames_offered=frames if paced else UNPACED_CYCLES * frames, error=None, render_s=None,
+               summary={}, command="livedic " + " ".join(words[:1] + list(MAIN_JOB_ARGS)))
+    said = []
+    try:
+        session, row["error"] = run_one_session(lambda: SessionConfig.from_args(build_parser().parse_args(words)),
+                                                said)
+    finally:
+        receiver.stop()
+    if session is not None:
+        row["render_s"] = session.render_seconds
+        if session.summary() is not None:
+            row["summary"] = json.loads(json_text(session.summary()))
+    if echo is not None:
+        echo("\n".join(said + ([session.summary_text()] if session is not None and session.summary_text() else [])))
+    for name in os.listdir(workdir):
+        if name.startswith(tag):
+            os.remove(os.path.join(workdir, name))
+    return row
+
+
+UNPACED_CYCLES = 4          # an unpaced case tracks this many times the rendered frames
+
+
+def _main_label(row):
+    points = row["summary"].get("points") or row["points_wanted"]
+    if row["paced"]:
+        return f"main job at {row['fps_offered']:g} fps"
+    return f"unpaced, {points:,} points" if points else "unpaced"
+
+
+MAIN_HEADER = (f"{'case':28s} {'fps in':>6s} {'fps out':>7s} {'tracked':>9s} {'drops':>5s} {'lat p50':>8s} "
+               f"{'lat p99':>8s} {'img out':>7s} {'behind':>6s} {'err RMS':>8s}")
+
+
+def format_main_row(row):
+    s = row["summary"]
+    if not s:
+        return f"{_main_label(row):28s} failed: {row['error']}"
+    paced = row["paced"]
+    lat = (lambda key: f"{_num(s.get(key), '6.1f')}ms") if paced else (lambda key: f"{'n/a*':>8s}")
+    return (f"{_main_label(row):28s} {_num(row['fps_offered'], '6.0f') if paced else 'max':>6s} "
+            f"{_num(s.get('fps'), '7.1f'):>7s} {s.get('frames', 0):>4d}/{s.get('acquired', 0):<4d} "
+            f"{s.get('dropped', 0):>5d} {lat('latency_p50_ms')} {lat('latency_p99_ms')} "
+            f"{s.get('viewer_images_left_out') or 0:>7d} {s.get('output_backlog_max') or 0:>6d} "
+            f"{_num(s.get('error_rms_px'), '8.4f'):>8s}")
+
+
+def stage_table(rows):
+    """Lines: p50/p99 ms per frame of each stage (rows of ``STAGE_ROWS``), one column per case."""
+    width = 15
+    lines = [f"{'stage (thread)':46s}" + "".join(f"{_main_label(r)[:width - 1]:>{width}s}" for r in rows),
+             f"{'':46s}" + "".join(f"{'p50/p99 ms':>{width}s}" for _ in rows)]
+    for key, label, thread in STAGE_ROWS:
+        cells = []
+        for row in rows:
+            stage = (row["summary"].get("stages") or {}).get(key)
+            cells.append(f"{_num(stage['p50_ms'], '.2f')}/{_num(stage['p99_ms'], '.2f')}" if stage else "-")
+        if any(cell != "-" for cell in cells):
+            lines.append(f"{label + ' (' + thread + ')':46s}" + "".join(f"{cell:>{width}s}" for cell in cells))
+    ratios = [tracker_kernel_ratio(row) for row in rows]
+    lines.append(f"{'tracker / IC-GN kernel, p50 (goal <= 1.5x)':46s}"
+                 + "".join(f"{_num(ratio, '.2f') + 'x' if ratio else 'n/a':>{width}s}" for ratio in ratios))
+    return lines
+
+
+def tracker_kernel_ratio(row):
+    """The tracker's p50 per frame over its IC-GN kernel's p50 (same points, same frames, same run), or None."""
+    stages = row["summary"].get("stages") or {}
+    tracker, kernel = stages.get("tracker"), stages.get("kernel")
+    if not tracker or not kernel or not kernel["p50_ms"]:
+        return None
+    return tracker["p50_ms"] / kernel["p50_ms"]
+
+
+def judge_main_job(row):
+    """(passed, one line): every frame tracked, none dropped, every frame's fields drawn, p99 <= 25 ms, RMS <= 0.012 px."""
+    title = (f"target {_main_label(row)}: every frame tracked, 0 dropped, fields in every frame, latency p99 <= "
+             f"{TARGET_P99_MS:g} ms, error RMS <= {TARGET_ERROR_RMS_PX:g} px")
+    s = row["summary"]
+    if not s:
+        return False, f"FAIL  {title}: {row['error'] or 'the case did not run'}"
+    p99, rms = s.get("latency_p99_ms"), s.get("error_rms_px")
+    checks = [
+        (s.get("frames") == s.get("acquired") == row["frames_offered"] and not s.get("dropped"),
+         f"{s.get('frames')}/{s.get('acquired')} tracked, {s.get('dropped')} dropped"),
+        (p99 is not None and p99 <= TARGET_P99_MS, f"p99 {_num(p99, '.1f')} ms"),
+        (rms is not None and rms <= TARGET_ERROR_RMS_PX, f"RMS {_num(rms, '.4f')} px"),
+        (True, f"camera image left out of the view in {s.get('viewer_images_left_out') or 0} frames (fields drawn "
+               f"in all; output thread at most {s.get('output_backlog_max')} behind)"),
+    ]
+    passed = all(ok for ok, _ in checks)
+    return passed, f"{'PASS' if passed else 'FAIL'}  {title}: " + "; ".join(
+        ("ok " if ok else "NOT ") + text for ok, text in checks)
+
+
+def judge_max_rate(row):
+    """(passed, one line): the highest sustained rate, unpaced, everything on, against its goal."""
+    goal = TARGET_MAX_FPS.get(row["points_wanted"])
+    s = row["summary"]
+    label = _main_label(row)
+    if not s:
+        return False, f"FAIL  goal {label} >= {goal:g} fps: {row['error'] or 'the case did not run'}"
+    fps = s.get("fps")
+    passed = fps is not None and fps >= goal
+    return passed, (f"{'PASS' if passed else 'FAIL'}  goal {label} (everything on) >= {goal:g} fps: "
+                    f"{_num(fps, '.1f')} fps sustained over {s.get('frames')} frames, tracker p50 "
+                    f"{_num((s.get('stages') or {}).get('tracker', {}).get('p50_ms'), '.1f')} ms")
+
+
+def run_main_job_benchmark(*, size, frames, say, echo=None):
+    """The main job at 50 and 100 fps and unpaced for its points and for 2,000: table, stage table, verdicts."""
+    cases = [dict(fps=TARGET_FPS), dict(fps=2 * TARGET_FPS), dict(fps=TARGET_FPS, paced=False),
+             dict(fps=TARGET_FPS, paced=False, n_points=2000)]
+    rows = []
+    workdir = tempfile.mkdtemp(prefix="livedic-bench-main-")
+    try:
+        say(f"the main job, everything on (livedic run {' '.join(MAIN_JOB_ARGS)}: recording, Rerun .rrd, strain, "
+            f"two extensometers, force; plus strain out to a UDP socket), synthetic:tensile {size}x{size}, "
+            f"{frames} frames paced, {UNPACED_CYCLES * frames} unpaced:")
+        say(MAIN_HEADER)
+        say("-" * len(MAIN_HEADER))
+        for case in cases:
+            row = run_main_job_case(size=size, frames=frames, workdir=workdir, echo=echo, **case)
+            rows.append(row)
+            say(format_main_row(row))
+    finally:
+        shutil.rmtree(workdir, ignore_errors=True)
+    say("columns: img out = frames whose camera image the view left out (it was behind; fields and numbers are "
+        "drawn for every frame); behind = the most results waiting for the output thread (recording, view)")
+    say("per frame, each stage (the thread it runs in; '-' where it did not run; the reference frame left out):")
+    for line in stage_table(rows):
+        say(line)
+    verdicts = [judge_main_job(row) for row in rows if row["paced"]] + [judge_max_rate(row) for row in rows
+                                                                         if not row["paced"]]
+    for _, line in verdicts:
+        say(line)
+    return rows, verdicts
+
+
 def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, points=None, methods=METHODS,
                        extra_rows=True, threads=1, log=print, echo_sessions=False):
     """Run the cases, print the table, the target verdict and the limits; returns a result dict.
@@ -511,6 +716,11 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
         f"viewer none, {threads} numba thread(s)")
     say(f"machine: {os.cpu_count()} CPU cores, {platform.machine()}, numba {numba.__version__}; "
         f"{_load()} at start{'  [quick mode]' if quick else ''}")
+    main_rows, main_verdicts = run_main_job_benchmark(
+        size=size, frames=frames, say=say,
+        echo=(lambda text: [say("    " + line) for line in text.splitlines()]) if echo_sessions else None)
+    say()
+    say("the pipeline by point count and method (recording on, no view):")
     cases = [dict(n_points=n, subpixel=m) for n in points for m in methods]
     if extra_rows and TARGET_METHOD in methods and TARGET_POINTS in points:
         cases.append(dict(n_points=TARGET_POINTS, subpixel=TARGET_METHOD, record=False))
@@ -569,6 +779,7 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
     for text in explain_limits(rows, fps):
         say(text)
     say(f"total {time.perf_counter() - started:.0f} s; {_load()} at end")
-    return dict(rows=rows, target_passed=passed, target_line=line, variant_line=variant_line,
+    return dict(rows=rows, main_rows=main_rows, main_verdicts=main_verdicts, target_passed=passed,
+                target_line=line, variant_line=variant_line,
                 strain_passed=strain_passed, strain_line=strain_line, strain_out_passed=strain_out_passed,
                 strain_out_line=strain_out_line_text, lines=printed)

@@ -637,10 +637,13 @@ class ServedTracker:
     copies of it did the tracking) and says what they said: reference updates, fractures, re-found points.
     """
 
-    def __init__(self, tracker, results, keys):
+    def __init__(self, tracker, results, keys, *, keep_rows=False):
         self.tracker = tracker
         self.results = results
         self.keys = keys
+        # frame key -> (header, lines) formatted by its worker, until the session's output thread (which runs
+        # behind the tracking thread) takes them (``ParallelSession.rows_of``)
+        self.rows = {} if keep_rows else None
         self.frames_tracked = 0
         self.trackable = tracker.trackable
         self.last_refound = np.zeros(tracker.n_points, dtype=bool)
@@ -680,6 +683,8 @@ class ServedTracker:
         self.last_update = answer.update
         self.last_fracture = answer.fracture
         self.last_answer = answer
+        if self.rows is not None:
+            self.rows[tuple(answer.key)] = None if answer.lines is None else (answer.header, answer.lines)
         return answer.measurement
 
 
@@ -748,17 +753,20 @@ class ParallelSession(Session):
         in_flight = self._in_flight or IN_FLIGHT_PER_WORKER * threads
         self.results = OrderedResults(self._client, job, copy.deepcopy(tracker), self._frames_again, seeds, in_flight,
                                       self._shared_path, rebuilds=recorded_rebuilds(self._recorded))
-        self.served = ServedTracker(tracker, self.results, self._keys)
+        self.served = ServedTracker(tracker, self.results, self._keys, keep_rows=rows)
         self.parallel.workers = threads
         return self.served
 
     def rows_of(self, frame):
-        """(header, lines) of ``frame``, the frame just tracked, as its worker formatted them; None when it did
-        not (after a fracture: the strain windows split by the crack are the session's)."""
-        answer = self.served.last_answer
-        if answer is None or tuple(answer.key) != (int(frame.index), int(frame.timestamp_ns)):
+        """(header, lines) of ``frame`` as its worker formatted them, taken once; None when it did not (no rows
+        asked for; after a fracture: the strain windows split by the crack are the session's)."""
+        key = (int(frame.index), int(frame.timestamp_ns))
+        rows = self.served.rows if self.served is not None else None
+        if rows is None:
+            return None
+        if key not in rows:
             raise RuntimeError(f"parallel replay: no result for frame {frame.index}")
-        return None if answer.lines is None else (answer.header, answer.lines)
+        return rows.pop(key)
 
     def finish_parallel(self):
         """After ``run``: every frame taken once (RuntimeError otherwise); fills ``parallel``."""

@@ -45,6 +45,10 @@ class ProgressBar:
         self._shown = False
         self.last_text = ""
 
+    def due(self):
+        """Whether ``update`` would redraw now (a caller can skip making its text when not)."""
+        return self.enabled and time.monotonic() - self._last >= self.period
+
     def update(self, done, text="", force=False):
         """Show ``done`` (of ``total``) and ``text``, unless the last redraw is too recent."""
         if not self.enabled:

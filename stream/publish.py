@@ -539,6 +539,7 @@ class PublishStage:
         strain stage).
     """
     required = False
+    stage = "publish"                  # its row in the session's stage times
 
     def __init__(self, outlet, names, report):
         self.outlet = outlet

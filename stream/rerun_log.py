@@ -135,8 +135,9 @@ from livedic.stream.strain import AXIAL, TRANSVERSE
 
 APPLICATION_ID = "livedic"
 DEFAULT_PORT = 9876
-# While frames wait in the queue the view leaves out images and fields, at most this many frames in a row.
-FIELDS_SKIP_MAX = 4
+# While results wait for the output thread the view leaves out the camera image (never the fields or the
+# numbers), at most this many frames in a row: a view behind still shows the specimen a few times a second.
+IMAGE_SKIP_MAX = 4
 DEFAULT_CONNECT_URL = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 VIEWER_MODES = ("spawn", "connect", "save", "none")
 
@@ -337,8 +338,8 @@ def grow_limits(limits, values):
     """
     lo, hi = limits
     values = values[np.isfinite(values)]
-    if values.size == 0:
-        return lo, hi
+    if values.size == 0 or (values.min() >= lo and values.max() <= hi):
+        return lo, hi               # inside already (the percentiles lie between min and max): most frames
     low, high = np.percentile(values, _LIMIT_PERCENTILES)
     if low < lo:
         lo = -nice_ceil(-low)
@@ -714,7 +715,7 @@ class _XYPlot:
 
 
 class RerunLogger:
-    """Sends a live session to Rerun (see module notes).
+    """Sends a live session to Rerun (see module notes); a session sink (``stream.sinks``).
 
     Parameters
     ----------
@@ -736,9 +737,10 @@ class RerunLogger:
         Ok points whose ZNCC is below this are counted and marked as "low ZNCC" (default: the
         tracker's default ``refind_zncc``).
     thin_when_behind : bool
-        A live session whose queue drops frames: while frames wait in the queue, leave out the
-        images and fields (at most ``FIELDS_SKIP_MAX`` frames in a row; plots get every frame), so
-        the display never costs the measurement a frame. Off: every frame is drawn (files, replays).
+        A live session: while results wait for the session's output thread behind this one
+        (``FrameResult.output_backlog``), leave out the camera image (at most ``IMAGE_SKIP_MAX``
+        frames in a row), the costliest part of a frame's view; every frame's fields, markers and
+        plots are drawn. Off: every frame's image too (files, replays).
     on_error : callable, optional
         ``on_error(message)`` once when the .rrd of mode "save" cannot be written (a full disk): one
         line, from the file's writer thread; logging stops there, the file keeps what was written
@@ -750,6 +752,10 @@ class RerunLogger:
         A viewer that cannot be started or reached, or a colour range that is not two finite numbers
         with lo < hi.
     """
+
+    name = "Rerun view"
+    stage = "view"
+    required = False
 
     def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
                  image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8, thin_when_behind=False,
@@ -804,8 +810,8 @@ class RerunLogger:
         self.log_seconds = 0.0
         self.frames_logged = 0
         self.thin_when_behind = bool(thin_when_behind)
-        self.fields_skipped = 0                # frames whose images and fields were left out (queue not empty)
-        self._fields_skipped_in_a_row = 0
+        self.images_left_out = 0               # frames whose camera image was left out (the view was behind)
+        self._images_left_out_in_a_row = 0
         self._file = None                        # _RrdFile of mode "save"
         self.on_error = on_error
         if mode == "none":
@@ -1106,17 +1112,7 @@ class RerunLogger:
         rec.set_time(TIMELINE_FRAME, sequence=int(frame.index))
         rec.set_time(TIMELINE_TIME, duration=(frame.timestamp_ns - self._t0_ns) / 1e9)
         ok = m.ok
-        # The display gives way to the measurement (live sessions that drop frames): while frames wait in
-        # the queue, the images and fields (most of the logging cost) are left out, at most FIELDS_SKIP_MAX
-        # frames in a row; the plots below get every frame.
-        show_fields = (not self.thin_when_behind or result.queue_depth == 0
-                       or self._fields_skipped_in_a_row >= FIELDS_SKIP_MAX)
-        if show_fields:
-            self._fields_skipped_in_a_row = 0
-            self._log_fields(result, m)
-        else:
-            self._fields_skipped_in_a_row += 1
-            self.fields_skipped += 1
+        self._log_fields(result, m)
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
             self._log_extensometer_series(result.extensometers, result.poisson)
         if self._load is not None:
@@ -1151,7 +1147,15 @@ class RerunLogger:
         """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
         rr, rec, frame = self.rr, self.rec, result.frame
         if self.frames_logged % self.image_every == 0:
-            rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
+            # A view behind the measurement catches up by leaving out the camera image (most of a frame's
+            # logging cost), at most IMAGE_SKIP_MAX frames in a row; the fields below are always drawn.
+            if (self.thin_when_behind and result.output_backlog > 0
+                    and self._images_left_out_in_a_row < IMAGE_SKIP_MAX):
+                self._images_left_out_in_a_row += 1
+                self.images_left_out += 1
+            else:
+                self._images_left_out_in_a_row = 0
+                rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
         ok = m.ok
         scale = float(self._scale)
         last_u, last_v = self._last_displacement(m)

@@ -60,7 +60,11 @@ from livedic.stream.publish import format_publish_summary
 from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                   ReferenceUpdates)
 from livedic.stream.strain import AXIAL, StrainConfig, format_length
-from livedic.stream.tracker_loop import TrackerLoop
+from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
+
+
+# How long a thread that wants the GIL waits before it asks the holder to give it up (Python's default: 5 ms).
+GIL_SWITCH_INTERVAL_S = 0.0005
 
 
 class Phase(enum.Enum):
@@ -311,6 +315,7 @@ class Session:
         self.acquisition = None
         self.loop = None
         self.bar = None
+        self.progress = None
         self.points = None
         self.p0 = None
         self.placement = None
@@ -336,6 +341,7 @@ class Session:
         self._source_options = {}
         self._stop_requested = False
         self._previous_threads = None
+        self._previous_switch_interval = None
         self._record_path_was_free = False
         self._summary = None
         self._summary_text = None
@@ -368,6 +374,10 @@ class Session:
         import numba
         self._previous_threads = numba.get_num_threads()
         numba.set_num_threads(config.threads)
+        # The tracking thread takes the GIL back from the output thread within this when it needs it
+        # (between its kernels), instead of Python's default 5 ms: docs/live-performance.md.
+        self._previous_switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
 
         self.phase = Phase.CHECKING
         if self._given_points is None:
@@ -439,7 +449,12 @@ class Session:
         config = self.config
         self.queue = FrameQueue(config.queue, self.drop_policy)
         recorder = self.recorder
-        on_frame = (lambda item: recorder.write_frame(for_recording(item.frame))) if recorder is not None else None
+        on_frame = None
+        if recorder is not None:
+            def on_frame(item):          # in the acquisition thread: every frame, tracked or dropped
+                started = time.perf_counter_ns()
+                recorder.write_frame(for_recording(item.frame))
+                self.loop.stats.stages.add("record frame", time.perf_counter_ns() - started)
         reconnect = None
         if config.reconnect:
             reconnect = Reconnect(reopen=lambda: sources.open_source(config.source, **self._source_options),
@@ -447,9 +462,12 @@ class Session:
         self.acquisition = AcquisitionThread(self._ahead, self.queue, max_frames=config.frames, on_frame=on_frame,
                                              reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
-        # Strain out as soon as it exists: right after the strain stage, before the load stage (which may
-        # wait for a live force stream's next sample), the recording and the view.
-        sinks = [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
+        # The measurement's own stages, in the tracking thread: strain out as soon as it exists (right after
+        # the strain stage), then the load stage (which may wait for a live force stream's next sample).
+        stages = [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
+        # The outputs, in the output thread at their own pace: Poisson's ratio (for the view), recording,
+        # view, events, progress.
+        sinks = []
         if has_pair(self.strain):
             self.poisson = ContractionWatch()       # after the load stage: the force picks the elastic range
             sinks.append(self.poisson)
@@ -467,9 +485,10 @@ class Session:
         if self.p0 is not None:
             sinks.append(P0Watch(config.tracking.refind_zncc, self.event))
         sinks.append(BitDepthWatch(self.event))
-        sinks.append(ProgressLine(self.bar, self.acquisition))
+        self.progress = ProgressLine(self.bar, self.acquisition)
+        sinks.append(self.progress)
         sinks.extend(self._extra_sinks)
-        self.loop = TrackerLoop(self.queue, self._make_tracker, sinks=sinks)
+        self.loop = TrackerLoop(self.queue, self._make_tracker, stages=stages, sinks=sinks)
         self.phase = Phase.RUNNING
         if self._stop_requested:
             self.acquisition.stop()
@@ -490,8 +509,7 @@ class Session:
             self.acquisition.join(timeout=10.0)
             for publisher in self.publishers:
                 self._close_quietly(publisher.finish, publisher.name)
-        self.bar.update(self.acquisition.frames, self.bar.last_text, force=True)
-        self.bar.close()
+        self.progress.finish()
         self._report_end()
         self.phase = Phase.FINISHED
         if self.viewer is not None and self.viewer.enabled:
@@ -553,6 +571,9 @@ class Session:
             import numba
             numba.set_num_threads(self._previous_threads)
             self._previous_threads = None
+        if self._previous_switch_interval is not None:
+            sys.setswitchinterval(self._previous_switch_interval)
+            self._previous_switch_interval = None
         self.phase = Phase.CLOSED
 
     def abandon(self):
@@ -836,7 +857,7 @@ class Session:
             p0_weak=self.p0.weak if self.p0 is not None else None,
             viewer_log_ms_per_frame=(1e3 * viewer.log_seconds / viewer.frames_logged
                                      if viewer is not None and viewer.frames_logged else None),
-            viewer_fields_skipped=viewer.fields_skipped if viewer is not None else None,
+            viewer_images_left_out=viewer.images_left_out if viewer is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=({**self.strain.summary(), **(self.poisson.summary() if self.poisson is not None else {})}
                     if self.strain is not None else None),
@@ -888,9 +909,10 @@ def format_summary(summary, reference, recorder):
         extra += f"; frame delivery delay p99 {num(summary['delivery_delay_p99_ms'], '.1f')} ms"
     if summary.get("viewer_log_ms_per_frame") is not None:
         extra += f"; Rerun logging {num(summary['viewer_log_ms_per_frame'], '.1f')} ms/frame"
-        if summary.get("viewer_fields_skipped"):
-            extra += f" (fields left out of {summary['viewer_fields_skipped']} frames while behind)"
     lines.append(f"             {extra}")
+    pipeline = format_pipeline(summary)
+    if pipeline:
+        lines.append(f"  pipeline   {pipeline}")
     if summary.get("reference_updates"):
         lost = summary.get("reference_update_lost") or 0
         lines.append(f"  reference  moved {summary['reference_updates']} times ({summary['reference_update']}; "
@@ -928,6 +950,28 @@ def format_summary(summary, reference, recorder):
 
 _POINT_LOSSES = (("points_never_trackable", "never trackable"),
                  ("points_lost_later", "lost later, not ok in the last frame"))
+
+
+def format_pipeline(summary):
+    """How the tracking thread and the output thread did: the tracker against its kernel, the outputs' lag."""
+    stages = summary.get("stages") or {}
+    parts = []
+    tracker, kernel = stages.get("tracker"), stages.get("kernel")
+    if tracker and kernel and kernel["p50_ms"] > 0:
+        parts.append(f"tracker p50 {tracker['p50_ms']:.1f} ms = {tracker['p50_ms'] / kernel['p50_ms']:.1f}x its "
+                     f"sub-pixel kernel ({kernel['p50_ms']:.1f} ms)")
+    backlog = summary.get("output_backlog_max")
+    if backlog is not None:
+        text = f"recording and view in their own thread, at most {backlog} result(s) behind"
+        if summary.get("output_waits"):
+            text += (f"; the tracker waited {summary['output_waits']} time(s) for them (more than "
+                     f"{OUTPUT_BACKLOG_MAX} behind)")
+        parts.append(text)
+    left_out = summary.get("viewer_images_left_out")
+    if left_out:
+        parts.append(f"camera image left out of the view in {left_out} of {summary['frames']} frames "
+                     f"(the view was behind; every frame's fields and numbers drawn)")
+    return "; ".join(parts)
 
 
 def format_point_losses(summary):

@@ -2,7 +2,10 @@
 
 A sink is a callable ``sink(result, stats)`` (a ``stream.tracker_loop.FrameResult``
 and the running ``SessionStats``), called for every tracked frame, in order, in
-the tracking thread. Two optional attributes say how the session treats it:
+the session's output thread, at its own pace (the tracking thread hands results
+over and goes on: ``stream.tracker_loop``). The measurement's own stages (strain,
+strain out, force) have the same form and run in the tracking thread. Optional
+attributes say how the session treats it:
 
 ``name``
     How a warning names it ("recording", "P0 check" ...).
@@ -10,6 +13,8 @@ the tracking thread. Two optional attributes say how the session treats it:
     True when the session's output is the sink's (a replay's CSV): an error there
     ends the session and is raised. Any other sink that fails is switched off and
     reported, and the measurement goes on (a broken display must not stop a test).
+``stage``
+    Its row in the session's stage times (default: ``name``).
 
 The Rerun view (``stream.rerun_log.RerunLogger``) is a sink as it is. Sinks to
 come (strain, extensometers, load channels) plug in the same way:
@@ -40,6 +45,7 @@ class RecordResults:
     result (``result.strain``, ``result.extensometers``) are recorded with it.
     """
     name = "recording"
+    stage = "record results"
     required = False
 
     def __init__(self, recorder, method, *, strain_window=None, load_source=None):
@@ -232,8 +238,21 @@ class ProgressLine:
     def __init__(self, bar, acquisition):
         self.bar = bar
         self.acquisition = acquisition
+        self._last = None
 
     def __call__(self, result, stats):
+        self._last = (result, stats)
+        if self.bar.due():                 # the text (a percentile over every frame) only when it is shown
+            self.bar.update(self.acquisition.frames, self.text(result, stats))
+
+    def finish(self):
+        """The last redraw, with the last result's numbers."""
+        text = self.text(*self._last) if self._last is not None else self.bar.last_text
+        self.bar.update(self.acquisition.frames, text, force=True)
+        self.bar.close()
+
+    def text(self, result, stats):
+        """The line's numbers after ``result``."""
         text = (f"{stats.fps:5.1f} fps  latency p50 {stats.latency_ms(50):5.1f} ms  "
                 f"drops {result.dropped_total}")
         if self.acquisition.reconnects:
@@ -248,7 +267,7 @@ class ProgressLine:
             text += f"  {result.force_N:,.0f} N" if math.isfinite(result.force_N) else "  force n/a"
             if result.stress_MPa is not None and math.isfinite(result.stress_MPa):
                 text += f" {result.stress_MPa:.0f} MPa"
-        self.bar.update(self.acquisition.frames, text)
+        return text
 
 
 class FunctionSink:

@@ -1,8 +1,16 @@
-"""The consumer side of a live session: queue -> tracker -> sinks, with running statistics.
+"""The consumer side of a live session: queue -> tracker -> stages | output thread -> sinks.
 
-One linear loop (the Rerun examples' shape): take the next frame, track it,
-time it, hand the result to each sink (recorder, Rerun logger, progress bar),
-update the statistics. The first frame becomes the reference: the tracker is
+One linear loop (the Rerun examples' shape) in the tracking thread: take the
+next frame, track it, run the measurement's own *stages* on it (strain and
+extensometers, strain out to the controller, force: what the result is made
+of and what must leave at once), update the statistics, and hand the result
+to the *output thread*, which runs the *sinks* (recording of results, Rerun
+view, events, progress; a replay's CSV) in order, at their own pace: the
+measurement never waits for the display or the disk. The output thread's
+backlog (results waiting for it) is ``FrameResult.output_backlog``: the view
+leaves the camera image out while it is behind (``stream.rerun_log``), and
+past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
+are then dropped at the frame queue, counted, never silently). The first frame becomes the reference: the tracker is
 built from it (``make_tracker(frame)``) and it is reported with zero
 displacement. The loop ends when the queue is closed and drained (source
 finished, failed or stopped), when ``stop_event`` is set, or after
@@ -19,6 +27,10 @@ Timing, all on the host's monotonic clock:
   ``delivery delay``. The reference frame is left out of the latency statistics
   (it pays for building the tracker) and its setup time is reported on its own;
 * **processing** = time inside ``Tracker.track``;
+* **stage times** = per frame, each tracker stage (``tracker.last_timings``:
+  preparing the frame, the IC-GN kernel, searches, gates, reference updates),
+  each stage (``stage.last_timings`` where it splits its own time, e.g. strain
+  and extensometers) and each sink, in ``StageTimes`` (p50/p99 in the summary);
 * **fps** = frames tracked / (last result - first arrival);
 * **ok fraction** = ok points / every placed point, over all frames: a point that could never be
   tracked (no texture in its reference subset, subset off the image) counts as not ok; the
@@ -26,12 +38,16 @@ Timing, all on the host's monotonic clock:
   reference, not ok in the last frame), each by ``dic.Status``;
 * **POI/s** = points tracked per second of that same wall time.
 
-A sink that raises is switched off and its error kept in ``sink_errors`` (a
-broken viewer must not stop a measurement); the caller decides what to do. A
-sink marked ``required`` (its ``required`` attribute is true: a replay's CSV)
-ends the loop instead, its error raised by ``run`` (see ``stream.sinks``).
+A stage or sink that raises is switched off and its error kept in
+``sink_errors`` (a broken viewer must not stop a measurement); the caller
+decides what to do. One marked ``required`` (its ``required`` attribute is
+true: a replay's CSV) ends the loop instead, its error raised by ``run`` once
+the output thread has finished what it had (see ``stream.sinks``).
 """
 
+import collections
+import os
+import sys
 import threading
 import time
 from array import array
@@ -44,6 +60,63 @@ from livedic.stream.frame_queue import QueueClosed
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000
+# The output thread's niceness (Linux, per thread): when the cores are busy the scheduler gives the tracking
+# thread (and numba's workers) the CPU first; the outputs catch up in the gaps.
+OUTPUT_NICE = 10
+# Results the output thread may have waiting before the tracking thread waits for it (bounded memory:
+# each holds its frame's image); at 50 fps, 4 s of results.
+OUTPUT_BACKLOG_MAX = 200
+
+
+class StageTimes:
+    """Per-frame durations of named stages (packed 64-bit ns), for their percentiles.
+
+    Each stage has its own series (a stage that did not run in a frame adds nothing
+    for it). One writer per stage name: the tracking thread writes the tracker's and
+    the stages', the output thread the sinks'.
+    """
+
+    def __init__(self):
+        self._times = {}
+
+    def add(self, stage, ns):
+        series = self._times.get(stage)
+        if series is None:
+            series = self._times[stage] = array("q")
+        series.append(int(ns))
+
+    def add_all(self, timings):
+        for stage, ns in timings.items():
+            self.add(stage, ns)
+
+    def summary(self):
+        """``{stage: {"frames", "p50_ms", "p99_ms", "mean_ms", "max_ms"}}`` in the order stages first ran."""
+        out = {}
+        for stage, series in list(self._times.items()):
+            values = np.array(series[:], dtype=np.int64) / 1e6     # a slice: a copy, not an export
+            if values.size:
+                out[stage] = {"frames": int(values.size), "p50_ms": float(np.percentile(values, 50)),
+                              "p99_ms": float(np.percentile(values, 99)), "mean_ms": float(values.mean()),
+                              "max_ms": float(values.max())}
+        return out
+
+
+def _lower_priority(nice):
+    """Raise the calling thread's niceness by ``nice`` where the system allows it per thread (Linux); else nothing."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
+    except OSError:
+        pass
+
+
+def _percentile_ms(series, percentile):
+    """Percentile (ms) of a packed ns series another thread may be appending to (NaN when empty)."""
+    if not series:
+        return float("nan")
+    return float(np.percentile(np.array(series[:], np.int64), percentile)) / 1e6
 
 
 @dataclass
@@ -73,6 +146,8 @@ class FrameResult:
     true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stress.UniformElongationWatch)
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
     poisson: object = None        # dic.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.poisson)
+    tracker_timings: dict = None  # stage -> ns inside Tracker.track (its ``last_timings``), when it gives them
+    output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
 
     @property
     def origin_ns(self):
@@ -114,6 +189,9 @@ class SessionStats:
     error_count: int = 0
     error_max: float = float("nan")
     truth_frames: int = 0
+    stages: StageTimes = field(default_factory=StageTimes)   # per-frame time of each stage and sink
+    output_backlog_max: int = 0                  # the most results that waited for the output thread
+    output_waits: int = 0                        # times the tracking thread waited for it (backlog full)
     trackable_at_reference: np.ndarray = None   # (N,) bool: trackable when the reference was set
     reference_status: np.ndarray = None         # (N,) the reference frame's statuses (why not trackable)
     last_status: np.ndarray = None              # (N,) the last frame's statuses
@@ -135,19 +213,13 @@ class SessionStats:
         return self.points_tracked / elapsed if elapsed > 0 else float("nan")
 
     def latency_ms(self, percentile):
-        if not self.latencies_ns:
-            return float("nan")
-        return float(np.percentile(np.array(self.latencies_ns, np.int64), percentile)) / 1e6
+        return _percentile_ms(self.latencies_ns, percentile)
 
     def delivery_delay_ms(self, percentile):
-        if not self.delivery_delays_ns:
-            return float("nan")
-        return float(np.percentile(np.array(self.delivery_delays_ns, np.int64), percentile)) / 1e6
+        return _percentile_ms(self.delivery_delays_ns, percentile)
 
     def processing_ms(self, percentile):
-        if not self.processing_ns:
-            return float("nan")
-        return float(np.percentile(np.array(self.processing_ns, np.int64), percentile)) / 1e6
+        return _percentile_ms(self.processing_ns, percentile)
 
     @property
     def error_rms_px(self):
@@ -192,7 +264,89 @@ class SessionStats:
             **self.point_losses(), "refound": self.refound,
             "error_rms_px": self.error_rms_px if self.truth_frames else None,
             "error_max_px": self.error_max if self.truth_frames else None,
+            "stages": self.stages.summary(), "output_backlog_max": self.output_backlog_max,
+            "output_waits": self.output_waits,
         }
+
+
+def _stage_name(stage):
+    """A stage's or sink's row in the stage times: its ``stage`` label, else its ``name``."""
+    return getattr(stage, "stage", None) or getattr(stage, "name", None) or type(stage).__name__
+
+
+class _End:
+    """The output thread's last item."""
+
+
+class OutputThread:
+    """Runs the sinks on each result, in order, in a thread of their own (see module notes).
+
+    ``put`` never blocks below ``OUTPUT_BACKLOG_MAX`` waiting results; ``finish`` waits for the
+    last one. A required sink's error stops the sinks (``error``) and calls ``on_required_error``.
+    """
+
+    def __init__(self, sinks, stats, *, on_required_error, errors):
+        self.sinks = sinks
+        self.stats = stats
+        self.on_required_error = on_required_error
+        self.errors = errors
+        self.error = None
+        self._pending = collections.deque()
+        self._changed = threading.Condition()
+        self._thread = threading.Thread(target=self._run, name="livedic-output", daemon=True)
+        self._thread.start()
+
+    def put(self, result):
+        """Queue ``result`` for the sinks; waits while ``OUTPUT_BACKLOG_MAX`` results are waiting."""
+        stats = self.stats
+        with self._changed:
+            if len(self._pending) >= OUTPUT_BACKLOG_MAX and self.error is None:
+                stats.output_waits += 1
+                self._changed.wait_for(lambda: len(self._pending) < OUTPUT_BACKLOG_MAX or self.error is not None)
+            self._pending.append(result)
+            stats.output_backlog_max = max(stats.output_backlog_max, len(self._pending))
+            self._changed.notify_all()
+
+    def finish(self, timeout=None):
+        """Let the sinks take every result queued, then end the thread; True when it ended."""
+        with self._changed:
+            self._pending.append(_End)
+            self._changed.notify_all()
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    @property
+    def backlog(self):
+        return len(self._pending)
+
+    def _run(self):
+        _lower_priority(OUTPUT_NICE)
+        stages = self.stats.stages
+        while True:
+            with self._changed:
+                self._changed.wait_for(lambda: self._pending)
+                result = self._pending.popleft()
+                backlog = len(self._pending) - (self._pending[-1] is _End if self._pending else 0)
+                self._changed.notify_all()
+            if result is _End:
+                return
+            if self.error is not None:
+                continue                  # a required sink failed: the rest is not wanted
+            result.output_backlog = backlog
+            score_against_truth(result, self.stats)
+            for sink in list(self.sinks):
+                started = time.perf_counter_ns()
+                try:
+                    sink(result, self.stats)
+                except Exception as error:  # noqa: BLE001 - keep measuring, report later
+                    self.sinks.remove(sink)
+                    if getattr(sink, "required", False):
+                        self.error = error
+                        self.on_required_error()
+                        break
+                    self.errors.append((sink, error))
+                    continue
+                stages.add(_stage_name(sink), time.perf_counter_ns() - started)
 
 
 class TrackerLoop:
@@ -204,8 +358,13 @@ class TrackerLoop:
         Holds ``stream.acquisition.QueuedFrame`` items.
     make_tracker : callable
         ``make_tracker(first_frame) -> dic.tracking.Tracker`` (built on the reference).
+    stages : sequence of callables
+        ``stage(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the tracking
+        thread right after ``track``: what the result is made of (strain, force) and what must leave at
+        once (strain out).
     sinks : sequence of callables
-        ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order (``stream.sinks``).
+        ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the output
+        thread (``stream.sinks``): recording, view, events, progress.
     stop_event : threading.Event, optional
         Set to end the loop after the current frame.
     max_frames : int, optional
@@ -214,9 +373,10 @@ class TrackerLoop:
         How often to look at ``stop_event`` while waiting for a frame.
     """
 
-    def __init__(self, queue, make_tracker, *, sinks=(), stop_event=None, max_frames=None, poll_s=0.05):
+    def __init__(self, queue, make_tracker, *, stages=(), sinks=(), stop_event=None, max_frames=None, poll_s=0.05):
         self.queue = queue
         self.make_tracker = make_tracker
+        self.stages = list(stages)
         self.sinks = list(sinks)
         self.stop_event = stop_event or threading.Event()
         self.max_frames = max_frames
@@ -226,13 +386,27 @@ class TrackerLoop:
         self.sink_errors = []
         self.reference_frame = None
         self.ended_by = None
+        self.output = None
 
     def run(self):
-        """Run to the end; returns the ``SessionStats``."""
+        """Run to the end (the output thread's sinks too); returns the ``SessionStats``."""
+        self.output = OutputThread(self.sinks, self.stats, on_required_error=self.stop_event.set,
+                                   errors=self.sink_errors)
+        try:
+            self._track_all()
+        finally:
+            self.output.finish()
+        if self.output.error is not None:
+            raise self.output.error
+        self.stats.dropped = self.queue.dropped
+        return self.stats
+
+    def _track_all(self):
         last_dropped = 0
+        stages = self.stats.stages
         while True:
             if self.stop_event.is_set():
-                self.ended_by = "stop"
+                self.ended_by = "stop" if self.output.error is None else "output"
                 break
             if self.max_frames is not None and self.stats.frames >= self.max_frames:
                 self.ended_by = "limit"
@@ -256,10 +430,12 @@ class TrackerLoop:
                 # reference is kept for the whole session.
                 self.reference_frame = replace(frame, image=frame.image.copy())
                 stats.n_points = self.tracker.n_points
+            tracked = time.monotonic_ns()
             measurement = self.tracker.track(frame.image)
             done = time.monotonic_ns()
             if is_reference:
                 stats.setup_ns = done - t0
+            timings = getattr(self.tracker, "last_timings", None)
             dropped = self.queue.dropped
             capture = frame.metadata.get("capture_monotonic_ns") if isinstance(frame.metadata, dict) else None
             if capture is not None and not 0 <= item.arrival_ns - int(capture) < _MAX_DELIVERY_NS:
@@ -272,19 +448,32 @@ class TrackerLoop:
                                  refound=int(self.tracker.last_refound.sum()),
                                  capture_ns=int(capture) if capture is not None else None,
                                  reference_update=getattr(self.tracker, "last_update", None),
-                                 fracture=getattr(self.tracker, "last_fracture", None))
+                                 fracture=getattr(self.tracker, "last_fracture", None),
+                                 tracker_timings=dict(timings) if timings is not None else None)
             last_dropped = dropped
             self._update(result)
-            for sink in list(self.sinks):
+            if not is_reference:
+                stages.add("tracker", done - tracked)
+                if timings is not None:
+                    stages.add_all(timings)
+            for stage in list(self.stages):
+                started = time.perf_counter_ns()
                 try:
-                    sink(result, stats)
+                    stage(result, stats)
                 except Exception as error:  # noqa: BLE001 - keep measuring, report later
-                    if getattr(sink, "required", False):
+                    if getattr(stage, "required", False):
                         raise             # the session's output itself: it cannot go on without it
-                    self.sinks.remove(sink)
-                    self.sink_errors.append((sink, error))
-        self.stats.dropped = self.queue.dropped
-        return self.stats
+                    self.stages.remove(stage)
+                    self.sink_errors.append((stage, error))
+                    continue
+                if is_reference:
+                    continue
+                parts = getattr(stage, "last_timings", None)
+                if parts:
+                    stages.add_all(parts)
+                else:
+                    stages.add(_stage_name(stage), time.perf_counter_ns() - started)
+            self.output.put(result)
 
     def _update(self, result):
         stats = self.stats
@@ -307,15 +496,25 @@ class TrackerLoop:
             if result.capture_ns is not None:
                 stats.delivery_delays_ns.append(result.delivery_delay_ns)
                 stats.latency_from = "capture"
-        truth = result.frame.metadata.get("truth") if isinstance(result.frame.metadata, dict) else None
-        if callable(truth) and m.ok.any():   # a replayed recording holds only its text form
-            tu, tv = truth(m.x[m.ok], m.y[m.ok])
-            err = np.hypot(m.u[m.ok] - tu, m.v[m.ok] - tv)
-            result.error_rms_px = float(np.sqrt(np.mean(err * err)))
-            result.error_max_px = float(err.max())
-            if not result.is_reference:
-                stats.truth_frames += 1
-                stats.error_sq_sum += float(np.sum(err * err))
-                stats.error_count += int(err.size)
-                if not stats.error_max >= result.error_max_px:
-                    stats.error_max = result.error_max_px
+
+
+def score_against_truth(result, stats):
+    """The result's error against the source's truth (the simulator's exact motion), into ``result`` and ``stats``.
+
+    The first sink of the output thread (the truth is the simulator's, not part of the measurement):
+    ``result.error_rms_px``/``error_max_px`` over the ok points, and the session's running sums.
+    """
+    m = result.measurement
+    truth = result.frame.metadata.get("truth") if isinstance(result.frame.metadata, dict) else None
+    if not (callable(truth) and m.ok.any()):   # a replayed recording holds only its text form
+        return
+    tu, tv = truth(m.x[m.ok], m.y[m.ok])
+    err = np.hypot(m.u[m.ok] - tu, m.v[m.ok] - tv)
+    result.error_rms_px = float(np.sqrt(np.mean(err * err)))
+    result.error_max_px = float(err.max())
+    if not result.is_reference:
+        stats.truth_frames += 1
+        stats.error_sq_sum += float(np.sum(err * err))
+        stats.error_count += int(err.size)
+        if not stats.error_max >= result.error_max_px:
+            stats.error_max = result.error_max_px

@@ -313,16 +313,17 @@ def test_a_failing_send_is_a_warning_and_the_session_and_recording_go_on(tmp_pat
 
 
 def test_strain_goes_out_before_the_load_stage_waits_for_force(tmp_path):
-    """The publisher is the sink right after the strain stage: a force stream's wait never delays strain out."""
+    """The publisher is the tracking thread's stage right after the strain stage: a force stream's wait never
+    delays strain out."""
     receiver = _receiver()
     seen = []
     with Session(_config(None, [f"udp://127.0.0.1:{receiver.getsockname()[1]}"], frames=3, load="synthetic"),
                  say=lambda m: None) as session:
         session.prepare()
         session.start()
-        sinks = session.loop.sinks
+        sinks = session.loop.stages
         publisher = session.publishers[0]
-        assert sinks[:3] == [session.strain, publisher, session.load_stage]
+        assert sinks == [session.strain, publisher, session.load_stage]
 
         def watched(result, stats):               # what the frame holds when the publisher runs
             seen.append((result.extensometers is not None, result.force_N))

@@ -220,10 +220,10 @@ def test_a_stage_without_extensometers_shows_only_the_field(tmp_path):
     assert not [e for e in entities if e.startswith(("/camera/extensometers", "/extensometers", "/strain_xy"))]
 
 
-def test_a_live_view_behind_leaves_out_fields_not_plots(tmp_path):
-    """With ``thin_when_behind`` (live sources that drop frames) the images and fields are left out while
-    frames wait in the queue, at most FIELDS_SKIP_MAX in a row; P0's plot and the extensometers' series get
-    every frame. Without it (files, replays) every frame is drawn, queue or not."""
+def test_a_live_view_behind_leaves_out_the_image_never_fields_or_plots(tmp_path):
+    """With ``thin_when_behind`` (live sessions) the camera image is left out while results wait for the
+    output thread, at most IMAGE_SKIP_MAX frames in a row; every frame's fields, P0's plot and the
+    extensometers' series are drawn. Without it (files, replays) every frame's image is drawn too."""
     import dataclasses
     points = _points()
     x, y = points[:, 0], points[:, 1]
@@ -234,16 +234,18 @@ def test_a_live_view_behind_leaves_out_fields_not_plots(tmp_path):
         frames = 12
         for i in range(frames):
             u, v = _field(i, x, y)
-            result = dataclasses.replace(_frame_result(i, x, y, u, v), queue_depth=2)   # always behind
+            result = dataclasses.replace(_frame_result(i, x, y, u, v), output_backlog=2)   # always behind
             stage(result, SessionStats())
             logger.log_frame(result, SessionStats())
         logger.close()
-        drawn = sorted(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions"))
+        fields = sorted(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions"))
+        images = sorted(_rows(path, f"/{rerun_log.CAMERA_IMAGE}", "Image:buffer"))
+        assert fields == list(range(frames))
         assert len(_rows(path, f"/{rerun_log.P0}", "Scalars:scalars")) == frames
         assert len(_rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == frames
         if thin:
-            gap = rerun_log.FIELDS_SKIP_MAX + 1
-            assert drawn == list(range(0, frames, gap)) or drawn == list(range(gap - 1, frames, gap))
-            assert logger.fields_skipped == frames - len(drawn)
+            gap = rerun_log.IMAGE_SKIP_MAX + 1
+            assert images == list(range(0, frames, gap)) or images == list(range(gap - 1, frames, gap))
+            assert logger.images_left_out == frames - len(images)
         else:
-            assert drawn == list(range(frames)) and logger.fields_skipped == 0
+            assert images == list(range(frames)) and logger.images_left_out == 0

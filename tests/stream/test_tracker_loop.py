@@ -1,0 +1,157 @@
+"""The tracking thread and the output thread (stream.tracker_loop): who runs where, who waits for whom.
+
+Behaviour, not timings: the sinks run off the tracking thread, in order, on every result; a view that
+blocks cannot hold the tracker back; the stage times name each stage; a required sink's error ends the
+loop and is raised; an optional one is switched off.
+"""
+
+import threading
+
+import numpy as np
+import pytest
+
+from livedic.acquire.synthetic import SyntheticTranslateSource
+from livedic.dic.tracking import Tracker
+from livedic.stream.acquisition import AcquisitionThread
+from livedic.stream.frame_queue import FrameQueue
+from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
+
+FRAMES = 12
+WAIT_S = 30.0          # generous: a wait that ends by timeout means the behaviour under test is broken
+
+
+def _loop(frames=FRAMES, **options):
+    source = SyntheticTranslateSource(f"synthetic:translate?frames={frames}&size=96x96&du=0.3&dv=0.2&pace=0")
+    queue = FrameQueue(frames + 1)
+    acquisition = AcquisitionThread(source, queue)
+    loop = TrackerLoop(queue, lambda frame: Tracker(frame.image, [(40.0, 40.0), (56.0, 56.0)]), **options)
+    acquisition.start()
+    return loop, acquisition
+
+
+def test_sinks_run_in_their_own_thread_in_order_and_stages_in_the_tracking_thread():
+    threads = {"stage": set(), "sink": set()}
+    seen = []
+
+    def stage(result, stats):
+        threads["stage"].add(threading.get_ident())
+        result.strain = "made by the stage"          # what a stage adds reaches the sinks
+
+    def sink(result, stats):
+        threads["sink"].add(threading.get_ident())
+        seen.append((result.frame.index, result.strain))
+
+    loop, acquisition = _loop(stages=[stage], sinks=[sink])
+    loop.run()
+    acquisition.join(5)
+    assert threads["stage"] == {threading.get_ident()}
+    assert len(threads["sink"]) == 1 and threads["sink"] != threads["stage"]
+    assert seen == [(i, "made by the stage") for i in range(FRAMES)]     # every result, in order, complete
+
+
+def test_a_blocked_view_cannot_hold_the_tracker_back():
+    """The view blocks on its first result until the tracker has tracked every frame (an event the
+    tracking thread sets): were the tracker to wait for the view, this would never end."""
+    assert FRAMES < OUTPUT_BACKLOG_MAX
+    all_tracked = threading.Event()
+    got = []
+
+    def counting(result, stats):
+        if result.frames_done == FRAMES:
+            all_tracked.set()
+
+    def blocked_view(result, stats):
+        if not all_tracked.wait(WAIT_S):
+            raise AssertionError("the tracker did not get through the frames while the view was blocked")
+        got.append(result.output_backlog)
+
+    loop, acquisition = _loop(stages=[counting], sinks=[blocked_view])
+    stats = loop.run()
+    acquisition.join(5)
+    assert all_tracked.is_set() and stats.frames == FRAMES and not loop.sink_errors
+    assert len(got) == FRAMES
+    assert max(got) >= FRAMES // 2 and got[-1] == 0          # the view saw how far behind it was
+    assert stats.output_backlog_max >= FRAMES - 1 and stats.output_waits == 0
+
+
+def test_the_tracker_waits_for_a_view_more_than_the_backlog_behind(monkeypatch):
+    """Past OUTPUT_BACKLOG_MAX results behind, the tracking thread waits (bounded memory), and counts it."""
+    from livedic.stream import tracker_loop
+    monkeypatch.setattr(tracker_loop, "OUTPUT_BACKLOG_MAX", 3)
+    tick = threading.Event()
+
+    def slow_view(result, stats):
+        # holds the first result until the tracking thread is seen waiting for the output thread
+        for _ in range(int(WAIT_S / 0.01)):
+            if stats.output_waits or result.frame.index > 0:
+                return
+            tick.wait(0.01)
+        raise AssertionError("the tracking thread never waited for the view")
+
+    loop, acquisition = _loop(sinks=[slow_view])
+    stats = loop.run()
+    acquisition.join(5)
+    assert stats.frames == FRAMES and stats.output_waits >= 1 and not loop.sink_errors
+    assert stats.output_backlog_max == 3
+
+
+def test_stage_times_name_each_tracker_stage_stage_and_sink():
+    from livedic.dic.tracking import TRACKER_STAGES
+
+    class Split:
+        name = "strain"
+        last_timings = None
+
+        def __call__(self, result, stats):
+            self.last_timings = {"strain": 1000, "extensometers": 2000}
+
+    class Recording:
+        name = "recording"
+        stage = "record results"
+
+        def __call__(self, result, stats):
+            pass
+
+    loop, acquisition = _loop(stages=[Split()], sinks=[Recording()])
+    stats = loop.run()
+    acquisition.join(5)
+    stages = stats.summary()["stages"]
+    for name in ("tracker", *TRACKER_STAGES, "strain", "extensometers", "record results"):
+        assert name in stages, name
+    assert stages["strain"]["frames"] == FRAMES - 1            # the reference frame pays for set-up: left out
+    assert stages["record results"]["frames"] == FRAMES
+    assert stages["extensometers"]["p50_ms"] == pytest.approx(0.002)
+    inside = sum(stages[name]["mean_ms"] for name in TRACKER_STAGES)
+    assert inside <= stages["tracker"]["mean_ms"] + 1e-9
+
+
+def test_a_required_sink_that_fails_ends_the_loop_with_its_error():
+    class Output:
+        name = "output"
+        required = True
+
+        def __call__(self, result, stats):
+            if result.frame.index == 2:
+                raise OSError("disk full")
+
+    after = []
+    loop, acquisition = _loop(frames=200, sinks=[Output(), lambda result, stats: after.append(result.frame.index)])
+    with pytest.raises(OSError, match="disk full"):
+        loop.run()
+    acquisition.stop()
+    acquisition.join(5)
+    assert after == [0, 1]                  # the sinks after it got nothing more
+    assert loop.ended_by in ("output", "source")
+
+
+def test_an_optional_sink_that_fails_is_switched_off_and_the_others_go_on():
+    def broken(result, stats):
+        raise OSError("viewer went away")
+
+    seen = []
+    loop, acquisition = _loop(sinks=[broken, lambda result, stats: seen.append(result.frame.index)])
+    stats = loop.run()
+    acquisition.join(5)
+    assert stats.frames == FRAMES and seen == list(range(FRAMES))
+    assert len(loop.sink_errors) == 1 and "viewer" in str(loop.sink_errors[0][1])
+    assert np.isfinite(stats.latency_ms(50))
