@@ -26,10 +26,10 @@ written and flushed to the kernel at once, the bytes mcap's writer would write.
 What a write costs the other threads (the tracker needs the GIL between its
 kernels): a frame's pixels are copied once, into the open chunk, by numpy without
 the GIL, and a chunk goes to the kernel in one ``write`` without it (its CRC too),
-so a 1 MP frame holds the GIL for some tens of microseconds, a 1,000-point result
-for about 0.1 ms (``docs/live-performance.md``, "Recording"). The call that writes a
-chunk still waits for the kernel to take it (a few ms for 4 MiB, more when the
-disk is behind), in its own thread.
+so a 1 MP frame holds the GIL for some tens of microseconds, and a frame's results,
+strain, extensometers and force for ~0.1 ms (``docs/live-performance.md``, "Recording").
+The call that writes a chunk still waits for the kernel to take it (a few ms for 4 MiB,
+more when the disk is behind), in the caller's thread.
 
 A tensile test cannot be repeated, so the recorder is built to lose as little as
 possible when things go wrong:
