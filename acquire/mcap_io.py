@@ -320,21 +320,20 @@ def library_name(how=""):
 
 _NEVER = 1 << 62                 # mcap's own size-triggered chunking is switched off
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")    # a Message record up to its data: opcode, length, channel, sequence,
-_MESSAGE_FIELDS = 2 + 4 + 8 + 8             # log time, publish time (mcap.records.Message.write's layout)
+                                            # log time, publish time (mcap.records.Message.write's layout)
 _CHUNK_HEAD = struct.Struct("<BQQQQI")      # a Chunk record: opcode, length, start, end, uncompressed size, CRC;
 _CHUNK_FIELDS = 8 + 8 + 8 + 4 + 4 + 8       # then its compression (a u32-prefixed string) and data length (u64)
-_BYTES = (bytes, bytearray, memoryview)
 
 
 class _ChunkRecords:
     """The records of one chunk, laid out as mcap's ``ChunkBuilder`` lays them out, in a buffer kept for the next.
 
     Why not mcap's builder: it copies each payload into a ``BytesIO``, then the whole chunk twice more on its
-    way to the file, all of it holding the GIL: ~1.7 ms a 1 MP frame and up to ~12 ms in the call that writes
-    a chunk, time in which the tracking thread cannot run (measured: ``docs/live-performance.md``,
-    "Recording"). Here a payload is copied once, by numpy, which lets the GIL go for large copies, into a
-    buffer that is reused (no fresh pages to fault in); ``ChunkedWriter`` writes it out with calls that let
-    the GIL go too.
+    way to the file, all of it holding the GIL: ~1.1 ms a 1 MP frame, ~2.3 ms at once when an image chunk
+    is written, up to ~6.6 ms for a data chunk, time in which the tracking thread cannot run (measured:
+    ``docs/live-performance.md``, "Recording"). Here a payload is copied once, by numpy, which lets the GIL
+    go for large copies, into a buffer that is reused (no fresh pages to fault in); ``ChunkedWriter`` writes
+    it out with calls that let the GIL go too.
     """
 
     def __init__(self):
@@ -365,7 +364,7 @@ class _ChunkRecords:
         """A Message record whose data is the concatenation of ``parts`` (bytes-like, 1-D)."""
         length = sum(memoryview(part).nbytes for part in parts)
         offset = self.size
-        self.append(_MESSAGE_HEAD.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + length, channel_id, sequence, log_time,
+        self.append(_MESSAGE_HEAD.pack(Opcode.MESSAGE, _MESSAGE_HEADER_BYTES + length, channel_id, sequence, log_time,
                                        publish_time))
         for part in parts:
             self.append(part)
@@ -523,11 +522,11 @@ class ChunkedWriter:
     def add(self, kind, channel_id, log_time, data, *, publish_time=0, sequence=0, count_as=None):
         """Add one message of ``kind`` ("image" or "data"); writes a chunk when one is full.
 
-        ``data`` is the payload, bytes-like, or a sequence of bytes-like parts whose concatenation is the
-        payload (e.g. a header and an image's pixels, which are then copied only once). It is copied here:
-        the caller may reuse its buffers once ``add`` returns.
+        ``data`` is the payload, bytes-like, or a tuple (or list) of bytes-like parts whose concatenation
+        is the payload (e.g. a header and an image's pixels, which are then copied only once). It is
+        copied here: the caller may reuse its buffers once ``add`` returns.
         """
-        parts = (data,) if isinstance(data, _BYTES) else tuple(data)
+        parts = tuple(data) if isinstance(data, (tuple, list)) else (data,)
         if kind == "image":
             records = self._open
         elif kind == "data":
