@@ -310,6 +310,17 @@ def encode_raw_image(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
     Field order and encoding are those of ``RawImage.SerializeToString()``; the pixels are
     copied once, into the returned bytes.
     """
+    return b"".join(raw_image_parts(image, timestamp_ns, frame_id))
+
+
+def raw_image_parts(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
+    """``encode_raw_image``'s bytes in three parts, ``(head, pixels, tail)``, the pixels not copied.
+
+    ``pixels`` is a flat memoryview of ``image`` (of a contiguous little-endian copy when the
+    image is strided or big-endian): a writer copies it once, where it keeps the message
+    (``acquire.mcap_io.ChunkedWriter.add`` takes the parts), instead of a copy into a
+    payload and another from it.
+    """
     encoding = image_encoding(image)
     if encoding == "mono16" and image.dtype != np.dtype("<u2"):
         image = image.astype("<u2")
@@ -323,22 +334,23 @@ def encode_raw_image(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
         stamp += _tag(1, _WIRE_VARINT) + _varint(seconds)
     if nanos:
         stamp += _tag(2, _WIRE_VARINT) + _varint(nanos)
-    parts = [_len_field(1, len(stamp)), stamp]
+    head = [_len_field(1, len(stamp)), stamp]
     if width:
-        parts += [_tag(2, _WIRE_I32), struct.pack("<I", width)]
+        head += [_tag(2, _WIRE_I32), struct.pack("<I", width)]
     if height:
-        parts += [_tag(3, _WIRE_I32), struct.pack("<I", height)]
+        head += [_tag(3, _WIRE_I32), struct.pack("<I", height)]
     enc = encoding.encode()
-    parts += [_len_field(4, len(enc)), enc]
+    head += [_len_field(4, len(enc)), enc]
     if step:
-        parts += [_tag(5, _WIRE_I32), struct.pack("<I", step)]
+        head += [_tag(5, _WIRE_I32), struct.pack("<I", step)]
     nbytes = image.nbytes
     if nbytes:
-        parts += [_len_field(6, nbytes), memoryview(image).cast("B")]
+        head.append(_len_field(6, nbytes))
+    tail = b""
     if frame_id:
         fid = frame_id.encode()
-        parts += [_len_field(7, len(fid)), fid]
-    return b"".join(parts)
+        tail = _len_field(7, len(fid)) + fid
+    return b"".join(head), memoryview(image).cast("B"), tail
 
 
 def decode_raw_image(data):

@@ -3,8 +3,8 @@
 Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
 (``/dic/results``, ``/dic/strain``, ``/dic/extensometers``, ``/machine/force``,
 ``/livedic/events``, ``/livedic/session``) are kept apart, so an
-indexed reader fetches the results without reading any image. Frames go into mcap's
-open chunk; results and events are serialized at once and wait in memory, to be
+indexed reader fetches the results without reading any image. Frames go into the
+open image chunk; results and events are serialized at once and wait in memory, to be
 written together as one data chunk (``acquire.mcap_io.ChunkedWriter``, the
 format's writer, shared with ``recover``). A chunk is written:
 
@@ -20,9 +20,16 @@ format's writer, shared with ``recover``). A chunk is written:
 Why: mcap's writer keeps an index entry (~570 bytes) per chunk in memory until the
 file is closed. Closing a chunk each time images and results alternate made ~2
 chunks per frame (100 MB an hour at 50 fps); now it is ~0.15 per frame at 512x512
-and ~0.4 at 1 MP (50 fps, 1,000 points). Writing a chunk uses the public
-``mcap.writer.Writer.flush()``: the chunk and its message indexes are written and
-the Python buffer is flushed to the kernel.
+and ~0.4 at 1 MP (50 fps, 1,000 points). A chunk and its message indexes are
+written and flushed to the kernel at once, the bytes mcap's writer would write.
+
+What a write costs the other threads (the tracker needs the GIL between its
+kernels): a frame's pixels are copied once, into the open chunk, by numpy without
+the GIL, and a chunk goes to the kernel in one ``write`` without it (its CRC too),
+so a 1 MP frame holds the GIL for some tens of microseconds, and a frame's results,
+strain, extensometers and force for ~0.1 ms (``docs/live-performance.md``, "Recording").
+The call that writes a chunk still waits for the kernel to take it (a few ms for 4 MiB,
+more when the disk is behind), in the caller's thread.
 
 A tensile test cannot be repeated, so the recorder is built to lose as little as
 possible when things go wrong:
@@ -287,7 +294,7 @@ class Recorder:
         index = int(frame.index)
         if index < 0:
             raise ValueError(f"frame.index must be >= 0, got {index}")
-        payload = rs.encode_raw_image(image, timestamp_ns)
+        payload = rs.raw_image_parts(image, timestamp_ns)   # the pixels are copied once, into the chunk
         canonical = rs.DEFAULT_PIXEL_FORMAT[np.dtype("u1") if encoding == "mono8" else np.dtype("u2")]
         info = None
         if frame.metadata or frame.pixel_format != canonical or index >= 1 << 32:

@@ -3,6 +3,7 @@
 
 import faulthandler
 import inspect
+import io
 import json
 import math
 import os
@@ -147,6 +148,57 @@ def test_strided_and_big_endian_images_are_stored_as_seen(tmp_path):
             rec.write_frame(Frame(i, T0 + i, image, "Mono16"))
     for got, want in zip(McapSource(path), views):
         assert np.array_equal(got.image, want) and got.image.dtype == np.uint16
+
+
+def test_live_sized_session_round_trips_and_a_cut_file_keeps_its_whole_chunks(tmp_path):
+    """1 MP frames and 1,059- and 2,000-point results, default chunks (4 MiB: a few frames each): read back
+    bit for bit by livedic's readers and by mcap's own (every CRC checked); a file cut inside any image
+    chunk still gives every frame of the chunks before it."""
+    from mcap.reader import make_reader
+    from mcap.records import Message
+    from mcap.stream_reader import breakup_chunk
+    path = tmp_path / "live.mcap"
+    images = _frames(10, np.uint8, (1024, 1024))
+    sizes = [1059, 2000] * 5
+    with Recorder(path, {"source_uri": "synthetic:tensile"}) as rec:
+        for i, (image, n) in enumerate(zip(images, sizes)):
+            assert rec.write_frame(Frame(i, T0 + i * 20_000_000, image, "Mono8", {"exposure_us": 5000.0}))
+            assert rec.write_results(i, T0 + i * 20_000_000, **_results(i, n_points=n), status=np.zeros(n, np.int32),
+                                     iterations=np.full(n, 3), method="improved-wso+icgn1")
+    assert rec.frames_durable == 10 and rec.results_durable == 10 and rec.bytes_written == os.path.getsize(path)
+    assert [np.array_equal(f.image, image) for f, image in zip(McapSource(path), images)] == [True] * 10
+    for got, n in zip(read_results(path), sizes):
+        want = _results(got.frame_index, n_points=n)
+        assert all(getattr(got, name).tobytes() == want[name].tobytes() for name in ("x", "y", "u", "v", "zncc"))
+        assert np.array_equal(got.ok, want["ok"]) and np.array_equal(got.iterations, np.full(n, 3))
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        summary = reader.get_summary()
+        topics = [channel.topic for _, channel, _ in reader.iter_messages(log_time_order=False)]
+    assert topics.count(rs.TOPIC_IMAGE) == 10 and topics.count(rs.TOPIC_RESULTS) == 10
+    assert recover(path, tmp_path / "recovered.mcap")["frames"] == 10
+
+    image_topics = {cid for cid, channel in summary.channels.items() if channel.topic == rs.TOPIC_IMAGE}
+    data = path.read_bytes()
+    before = 0                                   # frames in the image chunks before the one cut
+    image_chunks = [c for c in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+                    if set(c.message_index_offsets) & image_topics]
+    assert len(image_chunks) >= 3
+    for chunk in image_chunks:
+        cut = tmp_path / "cut.mcap"
+        cut.write_bytes(data[:chunk.chunk_start_offset + chunk.chunk_length - 1])
+        frames = list(McapSource(cut))
+        assert [f.index for f in frames] == list(range(before))
+        assert all(np.array_equal(f.image, images[f.index]) for f in frames)
+        before += sum(isinstance(record, Message) and record.channel_id in image_topics
+                      for record in breakup_chunk(_read_chunk(data, chunk)))
+
+
+def _read_chunk(data, index):
+    """The chunk record an mcap ``ChunkIndex`` points at, parsed by mcap."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Chunk
+    return Chunk.read(ReadDataStream(io.BytesIO(data[index.chunk_start_offset + 9:])))
 
 
 def test_plain_mcap_with_protobuf_decoder_reads_everything(tmp_path):
