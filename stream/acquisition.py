@@ -68,8 +68,9 @@ class AcquisitionThread(threading.Thread):
     max_frames : int, optional
         Stop after this many frames.
     on_frame : callable, optional
-        ``on_frame(queued_frame)`` called in this thread before each put (e.g. to record
-        every frame, dropped or not); an exception there stops acquisition and is kept in ``error``.
+        ``on_frame(queued_frame)`` called in this thread after each put (e.g. to record
+        every frame, dropped or not: the tracker already has it while it is written); an
+        exception there stops acquisition and is kept in ``error``.
     reconnect : Reconnect, optional
         Reopen a source that fails mid-run instead of ending (see the module notes).
 
@@ -175,11 +176,14 @@ class AcquisitionThread(threading.Thread):
                 return "stopped"
             frame = self._continue_session(frame, arrival_ns)
             item = QueuedFrame(frame, arrival_ns)
-            if self.on_frame is not None:
-                self.on_frame(item)
             try:
                 self.queue.put(item)
+                closed = False
             except QueueClosed:
+                closed = True
+            if self.on_frame is not None:
+                self.on_frame(item)     # after the put: the tracker has the frame while it is written
+            if closed:
                 return "stopped"
             self.frames += 1
             if self.first_index is None:
