@@ -109,8 +109,9 @@ def _arrow_lays_out_as_expected() -> bool:
     rng = np.random.default_rng(20)
     scattered = rng.standard_normal(4000) * 10.0 ** rng.integers(-12, 18, 4000)
     any_bits = rng.integers(0, 2 ** 64, 1000, dtype=np.uint64).view(np.float64)
-    values = np.concatenate([values, -values, scattered, any_bits, [0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, 1.7976931348623157e308,
-                                               123.0, 0.0001, 9.999999999999999e-05, 9999999999.999998]])
+    special = [0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, 1.7976931348623157e308, 123.0, 0.0001,
+               9.999999999999999e-05, 9999999999.999998]
+    values = np.concatenate([values, -values, scattered, any_bits, special])
     return _arrow_float_texts(values).to_pylist() == [repr(value) for value in values.tolist()]
 
 

@@ -98,7 +98,7 @@ def test_where_arrow_lays_numbers_out_otherwise_repr_writes_them(rng, monkeypatc
 
 
 def test_text_columns_scalars_alone_and_no_rows():
-    names = np.array(["axial", '"transverse, left"', "résumé"], dtype=object)      # text as given (quoted by the caller)
+    names = np.array(["axial", '"transverse, left"', "résumé"], dtype=object)      # as given (the caller quotes)
     columns = {"frame": 3, "name": names, "L_px": np.array([1.0, np.nan, -0.0])}
     assert csv_rows(columns, 3) == '3,axial,1.0\n3,"transverse, left",nan\n3,résumé,-0.0\n'
     assert csv_rows({"frame": 3, "time_s": 0.5}, 2) == "3,0.5\n3,0.5\n"
