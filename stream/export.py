@@ -86,8 +86,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.csv_output import (AtomicFile, OutputError, check_output_file, check_output_folder, json_text,
-                                       write_text_atomic)
+from livedic.stream.csv_output import AtomicFile, check_output_folder, json_text, write_text_atomic
 from livedic.stream.csv_text import csv_rows, scalar_text
 from livedic.stream.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
                                          FieldWriter, RecordedImages, quantities, remove_stale, video_name)
@@ -121,20 +120,6 @@ def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, ex
 
 # The atomic writer shared by every output of livedic (kept under its old name for callers).
 StagedFile = AtomicFile
-
-
-def check_output_csv(output, recording):
-    """Refuse an output path that would destroy the recording or cannot be written (``OutputError``)."""
-    if output in (None, "-"):
-        return
-    if os.path.isdir(output):
-        raise OutputError(f"-o {output} is a folder: give a file name, e.g. {os.path.join(output, 'replay.csv')}")
-    if output.lower().endswith(".mcap"):
-        raise OutputError(f"-o {output} ends in .mcap: the output is CSV (e.g. replay.csv); "
-                          f"recordings are never written over")
-    if os.path.exists(output) and os.path.exists(recording) and os.path.samefile(output, recording):
-        raise OutputError(f"-o {output} is the recording itself: choose another file")
-    check_output_file(output, "-o")
 
 
 # ----------------------------------------------------------------------------- recording helpers
