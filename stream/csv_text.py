@@ -150,8 +150,11 @@ def csv_rows(columns, n) -> str:
             texts.append(_column_text(array))
     if all(isinstance(text, pa.Scalar) for text in texts):
         texts[0] = pa.array([texts[0].as_py()] * n, pa.string())      # the join needs one array to repeat along
-    lines = pc.binary_join_element_wise(pc.binary_join_element_wise(*texts, ","), "\n", "")
-    return _concatenated(lines)
+    # the newline ends the last cell (a pass over one column, not over the lines)
+    last = texts[-1]
+    texts[-1] = pa.scalar(last.as_py() + "\n") if isinstance(last, pa.Scalar) \
+        else pc.binary_join_element_wise(last, "\n", "")
+    return _concatenated(pc.binary_join_element_wise(*texts, ","))
 
 
 def _concatenated(strings: pa.StringArray) -> str:
