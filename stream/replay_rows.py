@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from livedic.stream.csv_output import OutputError, check_output_file
 from livedic.stream.csv_text import csv_rows, scalar_text
@@ -214,6 +213,7 @@ class ParquetRows:
             self._write_waiting()
 
     def _open(self, schema):
+        import pyarrow.parquet as pq        # here: every livedic command imports this module, few write Parquet
         self.writer = pq.ParquetWriter(self.handle, schema, compression=PARQUET_COMPRESSION)
 
     def _write_waiting(self):
