@@ -8,10 +8,11 @@ Python's ``repr`` of it as a float64 (the shortest text that reads back as the s
 
 Why not ``repr`` cell by cell: at ~0.4 us a float that was ~30 ms a frame of 2,000 points, as long as
 tracking it. Arrow's cast float64 -> string (``pyarrow.compute``, C++) finds the same shortest digits
-~10x faster but lays some of them out otherwise (``1`` for ``1.0``, ``1e-7`` for ``1e-07``, ``0.00001``
-for ``1e-05``, ``1e+10`` for ``10000000000.0``); three regular-expression passes turn its text into
-Python's, and the values Arrow writes in exponent form where Python does not (1e10 <= |x| < 1e16, rare
-in a measurement) are written by ``repr``. Whether the installed Arrow still lays numbers out that way is
+several times faster but lays some of them out otherwise (``1`` for ``1.0``, ``1e-7`` for ``1e-07``,
+``0.00001`` for ``1e-05``, ``1e+10`` for ``10000000000.0``); a few rewrites (an appended ``.0``, three
+regular expressions), each on the values whose text differs only, turn its text into Python's, and the
+values Arrow writes in exponent form where Python does not (1e10 <= |x| < 1e16, rare in a measurement)
+are written by ``repr``. Whether the installed Arrow still lays numbers out that way is
 checked once, on values of every decimal exponent, against ``repr``; where it does not, every float is
 written by ``repr`` (slower, the same text).
 """
