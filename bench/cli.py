@@ -94,8 +94,11 @@ def add_bench_commands(commands):
     fracture.add_argument("-o", "--output", default="results/fracture", metavar="DIR", help="results folder")
     fracture.set_defaults(handler=_cmd_bench_fracture)
     replay = bench_commands.add_parser(
-        "replay", help="offline replay: sequential vs Dask --workers 1 and 2 (frames/s, overhead per frame)",
-        description="Replays one recording sequentially, then on local Dask clusters of 1 and 2 worker processes "
+        "replay", help="offline replay: what writing CSV / Parquet costs, sequential vs Dask --workers 1 and 2 "
+                       "(frames/s, overhead per frame)",
+        description="Replays one recording sequentially with no output, with the CSV formatted as before "
+                    "(cell by cell), with the CSV as now and with Parquet (frames/s, writing time per frame and "
+                    "its share); then on local Dask clusters of 1 and 2 worker processes "
                     "(the largest also with --shared-path): frames/s, the ratio to sequential, the tracking, CSV "
                     "and scheduling time per frame. Without --recording it records the simulated tensile test first.")
     replay.add_argument("--recording", metavar="FILE.mcap",
@@ -106,7 +109,8 @@ def add_bench_commands(commands):
                         help="image size of the recording made here (default 1024x1024)")
     replay.add_argument("--points", type=int, default=2000, metavar="N", help="points wanted (default 2000)")
     replay.add_argument("--workers", default="1,2", metavar="N,M",
-                        help="worker processes of each local cluster timed (default 1,2)")
+                        help="worker processes of each local cluster timed (default 1,2; 0: none, the "
+                             "sequential replays only)")
     replay.add_argument("--quick", action="store_true", help="30 frames of 256x256, 300 points (about 20 s)")
     replay.add_argument("-o", "--output", default="results/replay", metavar="DIR",
                         help="results folder (replay.json; default results/replay)")

@@ -86,8 +86,8 @@ from datetime import datetime, timezone
 import numpy as np
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.csv_output import (AtomicFile, OutputError, check_output_file, check_output_folder, json_text,
-                                       write_text_atomic)
+from livedic.stream.csv_output import AtomicFile, check_output_folder, json_text, write_text_atomic
+from livedic.stream.csv_text import csv_rows, scalar_text
 from livedic.stream.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
                                          FieldWriter, RecordedImages, quantities, remove_stale, video_name)
 from livedic.stream.progress import ProgressBar, progress_enabled
@@ -106,39 +106,6 @@ EXPORT_KEY = "livedic.export"
 _READER_LOGGER = "livedic.acquire.mcap_replay"
 
 
-# ----------------------------------------------------------------------------- CSV text
-
-def _text(values, n):
-    """``values`` (scalar or array of length n) as a list of n strings, full precision."""
-    array = np.asarray(values)
-    if array.ndim == 0:
-        return [_scalar_text(array.item())] * n
-    if array.dtype == bool:
-        return np.where(array, "1", "0").tolist()
-    if array.dtype.kind in "OUS":
-        return [_scalar_text(value) for value in array.tolist()]
-    if array.dtype.kind in "iu":
-        return array.astype(str).tolist()
-    # numpy's float -> str cast is the shortest repr that reads back as the same double.
-    return array.astype(np.float64).astype(str).tolist()
-
-
-def _scalar_text(value):
-    if isinstance(value, (bool, np.bool_)):
-        return "1" if value else "0"
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else str(value)
-    return str(value)
-
-
-def csv_rows(columns, n):
-    """CSV lines (no header, each ending in a newline) for ``columns``: ordered name -> scalar or (n,) array."""
-    if n == 0:
-        return ""
-    texts = [_text(values, n) for values in columns.values()]
-    return "\n".join(map(",".join, zip(*texts))) + "\n"
-
-
 def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, extras):
     """The long-format columns of one frame (``LEADING_COLUMNS`` then ``extras`` in ``EXTRA_COLUMNS`` order)."""
     columns = {"frame": int(frame_index), "timestamp_ns": int(timestamp_ns), "point_id": point_id,
@@ -153,20 +120,6 @@ def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, ex
 
 # The atomic writer shared by every output of livedic (kept under its old name for callers).
 StagedFile = AtomicFile
-
-
-def check_output_csv(output, recording):
-    """Refuse an output path that would destroy the recording or cannot be written (``OutputError``)."""
-    if output in (None, "-"):
-        return
-    if os.path.isdir(output):
-        raise OutputError(f"-o {output} is a folder: give a file name, e.g. {os.path.join(output, 'replay.csv')}")
-    if output.lower().endswith(".mcap"):
-        raise OutputError(f"-o {output} ends in .mcap: the output is CSV (e.g. replay.csv); "
-                          f"recordings are never written over")
-    if os.path.exists(output) and os.path.exists(recording) and os.path.samefile(output, recording):
-        raise OutputError(f"-o {output} is the recording itself: choose another file")
-    check_output_file(output, "-o")
 
 
 # ----------------------------------------------------------------------------- recording helpers
@@ -476,7 +429,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
             writer = csv.writer(buffer, lineterminator="\n")
             writer.writerow(EVENT_COLUMNS)
             for event in events:
-                writer.writerow([_scalar_text((event.timestamp_ns - (t0 or 0)) / 1e9), event.kind, event.level,
+                writer.writerow([scalar_text((event.timestamp_ns - (t0 or 0)) / 1e9), event.kind, event.level,
                                  " ".join(str(event.message).splitlines()), event.timestamp_ns])
             staged["events.csv"].write(buffer.getvalue())
             if frames and p0_missing:

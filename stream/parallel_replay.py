@@ -39,9 +39,10 @@ as the sequential replay) in frame order: the session's tracker (``ServedTracker
 hands it the next frame's result, checking that it is the result of that very frame
 (position and key), so a frame is never lost, duplicated or out of place. A worker
 that dies has its running and held tasks re-run elsewhere by the scheduler
-(``distributed`` reassigns them; ``retries=`` re-runs a task that raised). The CSV
-lines are formatted on the worker (``stream.replay_rows``; after a fracture in the
-client, whose strain stage splits the windows at the crack).
+(``distributed`` reassigns them; ``retries=`` re-runs a task that raised). A frame's
+output rows are made on the worker (``stream.replay_rows``: for a CSV its lines, formatted
+there; for Parquet its columns), after a fracture in the client, whose strain stage splits the
+windows at the crack.
 
 Equality with the sequential replay. With the recorded parameters, on the machine
 that recorded, the outputs are bit for bit the same, reference moves and fractures
@@ -270,11 +271,12 @@ def cluster_threads(client):
 
 @dataclass(frozen=True)
 class ReplayJob:
-    """What every worker needs once per replay (besides the key-frame trackers): CSV settings and numba threads."""
+    """What every worker needs once per replay (besides the key-frame trackers): output rows and numba threads."""
     token: str
     threads: int = 1
-    point_ids: np.ndarray = None          # with ``strain``: the CSV lines are formatted on the worker
+    point_ids: np.ndarray = None          # with ``strain``: the frame's output rows are made on the worker
     strain: object = None                 # the session's stream.strain.StrainStage (its compute)
+    csv_text: bool = False                # ... and sent as CSV lines (else as columns)
 
 
 @dataclass(frozen=True)
@@ -304,8 +306,7 @@ class FrameMeasured:
     update: object = None                 # dic.key_frames.ReferenceUpdate: the reference moved to this frame
     fracture: object = None               # dic.fracture.Fracture detected in this frame
     tracker: object = None                # the KeyFrameTracker after this frame, when this frame rebuilt it
-    header: list = None                   # the frame's CSV columns and lines (stream.replay_rows.frame_rows)
-    lines: str = None
+    rows: object = None                   # the frame's output rows (stream.replay_rows.FrameRows)
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
 
 
@@ -390,7 +391,8 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
         answer.tracker = _TRACKERS.pop(cache_key)          # its state moved on: the next segment's tracker
     if job.strain is not None and not working.fractures:  # after a fracture the client's strain stage splits
         strain, _ = job.strain.compute(measurement.u, measurement.v, measurement.ok)
-        answer.header, answer.lines = frame_rows(key[0], key[1], job.point_ids, measurement, strain)
+        rows = frame_rows(key[0], key[1], job.point_ids, measurement, strain)
+        answer.rows = rows.as_text() if job.csv_text else rows
     answer.rows_seconds = time.perf_counter() - started - seconds
     return answer
 
@@ -684,7 +686,7 @@ class ServedTracker:
         self.last_fracture = answer.fracture
         self.last_answer = answer
         if self.rows is not None:
-            self.rows[tuple(answer.key)] = None if answer.lines is None else (answer.header, answer.lines)
+            self.rows[tuple(answer.key)] = answer.rows
         return answer.measurement
 
 
@@ -728,7 +730,7 @@ class ParallelSession(Session):
     """The replay's ``Session`` with its frames measured on a Dask cluster (``ServedTracker``); same sinks."""
 
     def __init__(self, config, *, client, frames_again, recorded, in_flight=None, shared_path=None, point_ids=None,
-                 rows=False, stats=None, **kwargs):
+                 rows=None, stats=None, **kwargs):
         self._keys = deque()
         source = kwargs.pop("source")
         super().__init__(config, source=KeyedFrames(source, self._keys), **kwargs)
@@ -738,7 +740,7 @@ class ParallelSession(Session):
         self._in_flight = in_flight
         self._shared_path = shared_path
         self._point_ids = point_ids            # a list the replay fills with the point ids after ``prepare``
-        self._rows = bool(rows)
+        self._rows = rows                      # None, "csv" (lines made on the workers) or "columns"
         self.parallel = stats if stats is not None else ParallelStats()
         self.served = None
         self.results = None
@@ -746,9 +748,9 @@ class ParallelSession(Session):
     def _make_tracker(self, frame):
         tracker = super()._make_tracker(frame)       # the KeyFrameTracker a sequential replay would use
         threads = cluster_threads(self._client)
-        rows = self._rows and self.strain is not None
+        rows = self._rows is not None and self.strain is not None
         job = ReplayJob(token=uuid.uuid4().hex, threads=1, point_ids=np.asarray(self._point_ids[0]) if rows else None,
-                        strain=self.strain if rows else None)
+                        strain=self.strain if rows else None, csv_text=self._rows == "csv")
         seeds = RecordedSeeds(self._recorded, tracker.x, tracker.y)
         in_flight = self._in_flight or IN_FLIGHT_PER_WORKER * threads
         self.results = OrderedResults(self._client, job, copy.deepcopy(tracker), self._frames_again, seeds, in_flight,
@@ -758,8 +760,8 @@ class ParallelSession(Session):
         return self.served
 
     def rows_of(self, frame):
-        """(header, lines) of ``frame`` as its worker formatted them, taken once; None when it did not (no rows
-        asked for; after a fracture: the strain windows split by the crack are the session's)."""
+        """The output rows (``FrameRows``) of ``frame`` as its worker made them, taken once; None when it did not
+        (no rows asked for; after a fracture: the strain windows split by the crack are the session's)."""
         key = (int(frame.index), int(frame.timestamp_ns))
         rows = self.served.rows if self.served is not None else None
         if rows is None:

@@ -1,6 +1,6 @@
 """``livedic replay``: re-run tracking offline on a recording's frames.
 
-``livedic replay FILE.mcap [-o OUT.csv] [method options] [--all-frames]``
+``livedic replay FILE.mcap [-o OUT.csv | -o OUT.parquet] [method options] [--all-frames]``
 
 The recorded frames are tracked again by the session ``livedic run`` runs
 (``stream.session.Session``: the recorded frames -> a blocking queue, nothing
@@ -27,7 +27,10 @@ The output CSV (``-o``, default stdout) is in long format, one row per frame and
 point: ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for
 first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``, then the strain ``exx,eyy,exy``
 recomputed on the replayed displacements (``stream.strain``; NaN where a point has none); numbers at full
-precision (they read back as the same float64). At the end a line on stderr says
+precision (they read back as the same float64). ``-o OUT.parquet`` writes the same columns as a Parquet
+file instead (typed: integers int64, ``ok`` bool, the rest float64 with NaN; ``stream.replay_rows``);
+any other suffix is refused. The output is written under a temporary name and renamed into place
+when the replay is complete: an error or Ctrl-C leaves no file. At the end a line on stderr says
 how the replay compares with the recording (``ReplayReport.agreement``, an
 ``Agreement``):
 
@@ -74,14 +77,14 @@ from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsCon
                                    search_method, subpixel_method)
 from livedic.stream.points import add_region_arguments, place_points, read_points_csv
 from livedic.stream.progress import ProgressBar, add_progress_argument, progress_enabled
-from livedic.stream.replay_rows import frame_rows, with_force_columns
+from livedic.stream.replay_rows import CsvRows, check_rows_output, frame_rows, rows_output
 from livedic.stream.session import NoFrame, Session, format_strain_summary
 from livedic.stream.sinks import FunctionSink
 from livedic.stream.load_stage import format_force_summary
 from livedic.stream.strain import StrainConfig, add_strain_arguments, overrides_from_args
 from livedic.stream.stress import add_stress_arguments, stress_options_from_args
 
-from livedic.stream.export import StagedFile, check_output_csv, read_session_or_note, reader_notes, say
+from livedic.stream.export import read_session_or_note, reader_notes, say
 
 # A replay on another machine agrees within these (see the module notes). Rounding differences of the
 # compiled kernels moved u and v by 1.8e-6 px on the sample session (issue 8, another x86_64 CPU);
@@ -105,7 +108,9 @@ def add_replay_arguments(parser):
     """Add the ``livedic replay`` arguments to an ``argparse`` (sub)parser."""
     from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
     parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
-    parser.add_argument("-o", "--output", metavar="OUT.csv", help="output CSV (default: stdout)")
+    parser.add_argument("-o", "--output", metavar="OUT.csv",
+                        help="output file, its format by the suffix: .csv, or .parquet (typed columns, for pandas, "
+                             "polars, DuckDB) (default: CSV on stdout)")
     method = parser.add_argument_group("method options (default: the recorded value)")
     method.add_argument("--subset", type=int, metavar="N", help="odd subset side, pixels")
     method.add_argument("--search", type=search_method, metavar="NAME",
@@ -476,8 +481,9 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         ``on_result(frame, measurement, point_ids, strain)`` for each tracked frame, in order
         (``strain``: its ``dic.strain.StrainField``).
     on_rows : callable, optional
-        ``on_rows(header, lines)`` for each tracked frame, in order: its CSV column names and lines
-        (``stream.replay_rows.frame_rows``; formatted on the worker that measured the frame when parallel).
+        ``on_rows(rows)`` for each tracked frame, in order: its ``stream.replay_rows.FrameRows``. When
+        ``on_rows.csv_text`` is true (``CsvRows``), a parallel replay formats the CSV lines on the worker that
+        measured the frame and sends only them; else the columns.
     progress : callable, optional
         ``progress(frames_done)``.
     threads : int
@@ -612,13 +618,13 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
         served = []                   # the parallel session (its tracker holds the worker-formatted lines)
         if on_rows is not None:
             def rows(result, stats):
-                formatted = served[0].rows_of(result.frame) if served else None
-                if formatted is None:
-                    formatted = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
-                                           result.measurement, result.strain)
+                frame_table = served[0].rows_of(result.frame) if served else None
+                if frame_table is None:
+                    frame_table = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
+                                             result.measurement, result.strain)
                 if stress is not None:
-                    formatted = with_force_columns(*formatted, result.force_N, result.stress_MPa)
-                on_rows(*formatted)
+                    frame_table = frame_table.with_force(result.force_N, result.stress_MPa)
+                on_rows(frame_table)
             sinks.append(FunctionSink(rows, "output", required=True))
         if progress is not None:
             sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
@@ -632,7 +638,8 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
             again = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
             make_session = partial(ParallelSession, client=client, frames_again=again, recorded=recorded,
                                    in_flight=in_flight, shared_path=shared_path, point_ids=point_ids,
-                                   rows=on_rows is not None)
+                                   rows=None if on_rows is None
+                                   else "csv" if getattr(on_rows, "csv_text", False) else "columns")
         started = time.perf_counter()
         with make_session(config, source=frames, points=points, sinks=sinks) as session:
             if client is not None:
@@ -759,7 +766,7 @@ def describe_parallel(stats):
 
 def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
-    check_output_csv(args.output, args.recording)
+    check_rows_output(args.output, args.recording)
     given = {key: getattr(args, key) for key in METHOD_KEYS}
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
                            mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
@@ -767,30 +774,19 @@ def replay_command(args):
     stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")
     bar = ProgressBar(None, enabled=progress_enabled(args.progress))
-    state = {"header": None}
-
-    def write_rows(out):
-        def on_rows(header, lines):
-            if state["header"] is None:
-                state["header"] = header
-                out.write(",".join(header) + "\n")
-            out.write(lines)
-        return on_rows
-
     def progress(done):
         bar.update(done, "frames replayed")
 
     try:
         if to_file:
-            with StagedFile(args.output) as out:
+            with rows_output(args.output) as write_rows:
                 report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                                on_rows=write_rows(out), progress=progress, threads=args.threads, strain=strain,
+                                on_rows=write_rows, progress=progress, threads=args.threads, strain=strain,
                                 workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
                                 stress=stress)
-                out.commit()
         else:
             report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
-                            on_rows=write_rows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
+                            on_rows=CsvRows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
                             workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
                             stress=stress)
             sys.stdout.flush()

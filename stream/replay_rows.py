@@ -1,21 +1,113 @@
-"""The CSV lines of ``livedic replay``: one frame's rows, formatted wherever the frame was measured.
+"""The rows of ``livedic replay``: one frame's columns, and the writers of ``-o OUT.csv`` and ``-o OUT.parquet``.
 
-The sequential replay formats them in its own process; the parallel one
-(``stream.parallel_replay``) on the worker that measured the frame, as formatting
-floats at full precision costs ~20 us a point (200 ms a frame at 10,000 points, more
-than tracking it), which in the replaying process alone would bound the rate however
-many workers there are. One function either way, so the files are the same.
+``frame_rows`` gives a frame's ``FrameRows`` wherever the frame was measured: the sequential
+replay in its own process, the parallel one (``stream.parallel_replay``) on the worker that
+measured the frame, which for a CSV also formats its lines there (``FrameRows.as_text``), so the
+replaying process, the serial part of a parallel replay, only writes them. One function either
+way, so the files are the same.
+
+The output format follows the suffix of ``-o`` (``output_format``): ``.csv`` (also stdout, no
+``-o`` or ``-o -``) or ``.parquet`` (``.pq``). Both hold the same columns in the same order,
+one row per frame and point; the CSV as ``stream.csv_text`` writes numbers (full precision),
+the Parquet file typed (``column_type``: the integers int64, ``ok`` bool, the rest float64, NaN
+kept as NaN), zstd-compressed, in row groups of about ``ROW_GROUP_ROWS`` rows (whole frames), so
+pandas (``read_parquet``), polars (``read_parquet``/``scan_parquet``), DuckDB and Arrow read it
+as it is, and a reader can take a column or a range of frames without reading the rest.
+``rows_output`` writes either through a ``StagedFile``: complete, or not at all.
 """
 
-import numpy as np
+import os
+from contextlib import contextmanager
+from dataclasses import dataclass
 
-from livedic.stream.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, csv_rows, result_columns
+import numpy as np
+import pyarrow as pa
+
+from livedic.stream.csv_output import OutputError, check_output_file
+from livedic.stream.csv_text import csv_rows, scalar_text
+from livedic.stream.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")
+FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
+_INTEGER_COLUMNS = ("frame", "timestamp_ns", "point_id", "status", "iterations")
+_BOOLEAN_COLUMNS = ("ok",)
+# Output formats by suffix of -o (lower case); anything else is refused.
+OUTPUT_SUFFIXES = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
+# Rows a Parquet row group gathers before it is written (whole frames: 128 frames of 2,000 points): what a
+# reader skips or reads at once; the rows waiting take ~40 MB at most.
+ROW_GROUP_ROWS = 1 << 18
+PARQUET_COMPRESSION = "zstd"
 
 
-def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain):
-    """(header, lines) of one frame: the replay CSV's column names for ``measurement`` and its rows.
+def column_type(name) -> pa.DataType:
+    """The Parquet type of replay column ``name``."""
+    if name in _INTEGER_COLUMNS:
+        return pa.int64()
+    if name in _BOOLEAN_COLUMNS:
+        return pa.bool_()
+    return pa.float64()
+
+
+@dataclass
+class FrameRows:
+    """One frame's rows: the column names, and the columns (name -> scalar or (n,) array) or their CSV lines.
+
+    A frame measured on a worker for a CSV comes back with its lines only (``as_text``); else with
+    its columns, whose lines ``csv_lines`` formats on first use.
+    """
+    header: list
+    n: int
+    columns: dict = None
+    lines: str = None
+
+    def csv_lines(self) -> str:
+        """One CSV line per point, each ending in a newline."""
+        if self.lines is None:
+            self.lines = csv_rows(self.columns, self.n)
+        return self.lines
+
+    def as_text(self) -> "FrameRows":
+        """The same rows as CSV lines only (what a worker sends back for a CSV: no columns travel)."""
+        return FrameRows(list(self.header), self.n, lines=self.csv_lines())
+
+    def with_force(self, force_N, stress_MPa) -> "FrameRows":
+        """These rows with the frame's force and engineering stress (``FORCE_COLUMNS``) on every row.
+
+        ``livedic replay --load``: one value per frame, repeated on its points' rows (the long format of
+        the other per-frame columns, frame and timestamp_ns); NaN where unknown (no sample around the frame).
+        """
+        values = [_known(force_N), _known(stress_MPa)]
+        header = list(self.header) + list(FORCE_COLUMNS)
+        if self.columns is None:
+            cells = ",".join(scalar_text(value) for value in values)
+            return FrameRows(header, self.n, lines=self.lines.replace("\n", f",{cells}\n"))
+        return FrameRows(header, self.n, columns={**self.columns, **dict(zip(FORCE_COLUMNS, values))},
+                         lines=None)
+
+    def record_batch(self) -> pa.RecordBatch:
+        """The rows as an Arrow record batch typed by ``column_type`` (needs the columns)."""
+        if self.columns is None:
+            raise ValueError("these rows were formatted as CSV lines: their columns did not travel")
+        arrays = []
+        for name in self.header:
+            values = np.asarray(self.columns[name])
+            dtype = column_type(name).to_pandas_dtype()
+            arrays.append(pa.array(np.full(self.n, values, dtype=dtype) if values.ndim == 0
+                                   else values.astype(dtype, copy=False)))
+        return pa.RecordBatch.from_arrays(arrays, schema=_schema(self.header))
+
+
+def _known(value):
+    """A per-frame number, NaN where unknown (None, NaN or infinite)."""
+    return float(value) if value is not None and np.isfinite(value) else float("nan")
+
+
+def _schema(header):
+    return pa.schema([(name, column_type(name)) for name in header])
+
+
+def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain) -> FrameRows:
+    """The rows of one frame of the replay output.
 
     Parameters
     ----------
@@ -28,10 +120,8 @@ def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain):
 
     Returns
     -------
-    header : list of str
-        ``LEADING_COLUMNS``, then the extras in ``EXTRA_COLUMNS`` order, then ``STRAIN_COLUMNS``.
-    lines : str
-        One line per point, each ending in a newline (numbers at full precision).
+    FrameRows
+        Columns ``LEADING_COLUMNS``, then the extras in ``EXTRA_COLUMNS`` order, then ``STRAIN_COLUMNS``.
     """
     m = measurement
     extras = {"status": np.asarray(m.status, dtype=np.int64)}
@@ -39,25 +129,127 @@ def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain):
         value = getattr(m, name)
         if value is not None:
             extras[name] = value
-    header = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras] + list(STRAIN_COLUMNS)
     columns = result_columns(frame_index, timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc, m.ok, extras)
     columns.update(exx=strain.exx, eyy=strain.eyy, exy=strain.exy)
-    return header, csv_rows(columns, len(m.u))
+    header = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras] + list(STRAIN_COLUMNS)
+    return FrameRows(header, len(m.u), columns={name: columns[name] for name in header})
 
 
-FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
+# ----------------------------------------------------------------------------- writers
+
+def output_format(output) -> str:
+    """``"csv"`` or ``"parquet"``, from the suffix of ``-o`` (None or ``-``: CSV on stdout); else ``OutputError``."""
+    if output in (None, "-"):
+        return "csv"
+    suffix = os.path.splitext(os.fspath(output))[1].lower()
+    if suffix not in OUTPUT_SUFFIXES:
+        raise OutputError(f"-o {output}: the suffix chooses the format: give a file ending in .csv or .parquet "
+                          f"(e.g. replay.csv, replay.parquet)")
+    return OUTPUT_SUFFIXES[suffix]
 
 
-def with_force_columns(header, lines, force_N, stress_MPa):
-    """``frame_rows``' (header, lines) with the frame's force and engineering stress appended to every row.
+def check_rows_output(output, recording):
+    """Refuse an ``-o`` that would destroy the recording, has no known format or cannot be written
+    (``OutputError``, one line), before anything is read."""
+    if output in (None, "-"):
+        return
+    if os.path.isdir(output):
+        raise OutputError(f"-o {output} is a folder: give a file name, e.g. {os.path.join(output, 'replay.csv')}")
+    if output.lower().endswith(".mcap"):
+        raise OutputError(f"-o {output} ends in .mcap: the output is CSV or Parquet (e.g. replay.csv, "
+                          f"replay.parquet); recordings are never written over")
+    output_format(output)
+    if os.path.exists(output) and os.path.exists(recording) and os.path.samefile(output, recording):
+        raise OutputError(f"-o {output} is the recording itself: choose another file")
+    check_output_file(output, "-o")
 
-    ``livedic replay --load``: one value per frame, repeated on its points' rows (the long format of
-    the other per-frame columns, frame and timestamp_ns); ``nan`` where unknown (no sample around the
-    frame), as the other columns write a missing number.
-    """
-    cells = ",".join(_cell(value) for value in (force_N, stress_MPa))
-    return list(header) + list(FORCE_COLUMNS), lines.replace("\n", f",{cells}\n")
+
+class CsvRows:
+    """Writes the rows to a text stream: the header with the first frame, then every frame's lines."""
+    csv_text = True                 # the parallel replay formats the lines on its workers
+
+    def __init__(self, out):
+        self.out = out
+        self.header = None
+
+    def __call__(self, rows: FrameRows):
+        if self.header is None:
+            self.header = list(rows.header)
+            self.out.write(",".join(self.header) + "\n")
+        self.out.write(self.lines_of(rows))
+
+    def lines_of(self, rows: FrameRows) -> str:
+        """The CSV lines of ``rows``."""
+        return rows.csv_lines()
+
+    def close(self):
+        pass
+
+    def abandon(self):
+        pass
 
 
-def _cell(value):
-    return "nan" if value is None or not np.isfinite(value) else repr(float(value))
+class ParquetRows:
+    """Writes the rows to a binary stream as a Parquet file, a row group every ``ROW_GROUP_ROWS`` rows or so."""
+    csv_text = False                # the workers send the columns
+
+    def __init__(self, handle, row_group_rows=ROW_GROUP_ROWS):
+        self.handle = handle
+        self.row_group_rows = int(row_group_rows)
+        self.writer = None
+        self.waiting = []
+        self.waiting_rows = 0
+
+    def __call__(self, rows: FrameRows):
+        batch = rows.record_batch()
+        if self.writer is None:
+            self._open(batch.schema)
+        elif not batch.schema.equals(self.writer.schema):
+            raise ValueError(f"frame rows with other columns than the first frame's: {batch.schema.names} after "
+                             f"{self.writer.schema.names}")
+        self.waiting.append(batch)
+        self.waiting_rows += batch.num_rows
+        if self.waiting_rows >= self.row_group_rows:
+            self._write_waiting()
+
+    def _open(self, schema):
+        import pyarrow.parquet as pq        # here: every livedic command imports this module, few write Parquet
+        self.writer = pq.ParquetWriter(self.handle, schema, compression=PARQUET_COMPRESSION)
+
+    def _write_waiting(self):
+        if self.waiting:
+            table = pa.Table.from_batches(self.waiting)
+            self.writer.write_table(table, row_group_size=table.num_rows)
+        self.waiting, self.waiting_rows = [], 0
+
+    def close(self):
+        """Write what waits and the file's footer (a file of the leading columns and no rows if no frame came)."""
+        if self.writer is None:
+            self._open(_schema(list(LEADING_COLUMNS) + list(STRAIN_COLUMNS)))
+        self._write_waiting()
+        self.writer.close()
+
+    def abandon(self):
+        """After a failure: close without raising (the staged file is removed anyway)."""
+        if self.writer is not None:
+            try:
+                self.writer.close()
+            except Exception:
+                pass
+            self.writer.is_open = False       # its destructor would try again
+
+
+@contextmanager
+def rows_output(path):
+    """The writer of ``livedic replay -o path`` (``CsvRows`` or ``ParquetRows`` by ``output_format``), on a
+    ``StagedFile``: renamed into place when the block ends normally, removed on an error or Ctrl-C."""
+    parquet = output_format(path) == "parquet"
+    with StagedFile(path, binary=parquet) as staged:
+        writer = ParquetRows(staged.handle) if parquet else CsvRows(staged)
+        try:
+            yield writer
+        except BaseException:
+            writer.abandon()
+            raise
+        writer.close()
+        staged.commit()

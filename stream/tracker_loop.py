@@ -338,9 +338,10 @@ class OutputThread:
                 started = time.perf_counter_ns()
                 try:
                     sink(result, self.stats)
-                except Exception as error:  # noqa: BLE001 - keep measuring, report later
+                except BaseException as error:  # noqa: BLE001 - keep measuring, report later
                     self.sinks.remove(sink)
-                    if getattr(sink, "required", False):
+                    if getattr(sink, "required", False) or not isinstance(error, Exception):
+                        # the session's output itself (or an interrupt): the session ends, run() raises it
                         self.error = error
                         self.on_required_error()
                         break

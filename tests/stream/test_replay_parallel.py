@@ -79,8 +79,14 @@ def _replay(recording, out, *extra, capsys=None):
     with contextlib.redirect_stderr(err):
         code = main(["replay", recording, "-o", str(out), "--progress", "off", *extra])
     assert code == 0, err.getvalue()
-    with open(out, newline="") as f:
-        rows = list(csv.reader(f))
+    if str(out).endswith(".parquet"):
+        import pyarrow.parquet as pq
+
+        from tests.stream.test_replay_parquet import csv_like
+        rows = csv_like(pq.read_table(out))
+    else:
+        with open(out, newline="") as f:
+            rows = list(csv.reader(f))
     verdict = [line for line in err.getvalue().splitlines() if "replay matches" in line or "replay agrees" in line
                or "replay differs" in line]
     return rows, verdict, err.getvalue()
@@ -119,6 +125,12 @@ def test_parallel_replay_equals_sequential(recording, cluster, sequential, tmp_p
     assert len(sequential[0]) == 1 + 12 * 59                   # 12 frames x 59 points (the grid for 60 wanted)
     assert "replay matches the recording exactly" in sequential[1][0]
     assert "parallel: 12 frames measured on the Dask scheduler at" in parallel[2]
+
+
+def test_parallel_replay_to_parquet_holds_the_sequential_rows(recording, cluster, sequential, tmp_path):
+    """For Parquet the workers send each frame's columns, not CSV lines: the same rows and verdict."""
+    parallel = _replay(recording, tmp_path / "par.parquet", "--cluster", cluster)
+    _assert_same(parallel, sequential)
 
 
 class KillOnce:
