@@ -63,7 +63,7 @@ from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
-from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, Tracker
+from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
 
 AUTO_ZNCC = 0.9
 AUTO_STRAIN = 0.05
@@ -191,6 +191,10 @@ class KeyFrameTracker:
         across the crack are ``SEPARATED`` from that frame on). ``detect_fractures=False`` turns it off.
     key_frame : int
         The tracked frame that is the reference now (0: the first).
+    last_timings : dict of str -> int
+        Nanoseconds per stage (``TRACKER_STAGES``) of the last ``track`` call: the inner tracker's
+        stages (``Tracker.last_timings``) and ``reference_update``, the composition to the first frame,
+        the fracture check, the update policy and any move of the reference.
     """
 
     def __init__(self, reference_image, points, *, reference_update="auto", detect_fractures=True,
@@ -217,6 +221,7 @@ class KeyFrameTracker:
         self.fractures = []
         self.last_fracture = None
         self._previous = None                   # the last result (for the fracture test)
+        self.last_timings = StageTimes().ns
 
     # the Tracker interface the session uses
     @property
@@ -247,28 +252,38 @@ class KeyFrameTracker:
     def window(self):
         return self._inner.window
 
+    def kernel_job(self):
+        """``Tracker.kernel_job`` of the current key frame's tracker (displacements from the key frame)."""
+        return self._inner.kernel_job()
+
     def track(self, image):
         """Displacement of every material point from the first frame to ``image`` (a ``Measurement``)."""
         tracker = self._inner
         inner = tracker.track(image)
-        self.frames_tracked += 1
-        self._since_key += 1
-        self.last_update = None
-        self.last_fracture = None
-        composed = not (self.key_frame == 0 and self._members.size == self.n_points)
-        result = self._compose(inner) if composed else inner
-        if self.detect_fractures and self._previous is not None:
-            self._check_fracture(result)
-        if self.last_fracture is None:
-            reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
-            if reason is not None:
-                self._move_reference(image, result, reason)
-        # The next frame starts from this result as resume() maps it back onto the key frame (rounded by the
-        # round trip): a frame resumed from the recording (replay --workers) then starts bit for bit where this
-        # one does. A start 1 ulp away can flip the last bit of an IC-GN float32 row sum: ~1e-7 px in the result.
-        if composed and self._inner is tracker:
-            tracker.carry(self._key_frame_view({name: getattr(result, name) for name in ("u", "v", "ok") + _SHAPE}))
-        self._previous = (result.ok.copy(), result.u.copy(), result.v.copy())
+        times = StageTimes()
+        times.ns.update(tracker.last_timings)
+        with times.stage("reference_update"):
+            self.frames_tracked += 1
+            self._since_key += 1
+            self.last_update = None
+            self.last_fracture = None
+            composed = not (self.key_frame == 0 and self._members.size == self.n_points)
+            result = self._compose(inner) if composed else inner
+            if self.detect_fractures and self._previous is not None:
+                self._check_fracture(result)
+            if self.last_fracture is None:
+                reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
+                if reason is not None:
+                    self._move_reference(image, result, reason)
+            # The next frame starts from this result as resume() maps it back onto the key frame (rounded by
+            # the round trip): a frame resumed from the recording (replay --workers) then starts bit for bit
+            # where this one does. A start 1 ulp away can flip the last bit of an IC-GN float32 row sum: ~1e-7
+            # px in the result.
+            if composed and self._inner is tracker:
+                tracker.carry(self._key_frame_view({name: getattr(result, name)
+                                                    for name in ("u", "v", "ok") + _SHAPE}))
+            self._previous = (result.ok.copy(), result.u.copy(), result.v.copy())
+        self.last_timings = times.ns
         return result
 
     def _check_fracture(self, result):

@@ -360,7 +360,8 @@ def median_test(x, y, u, v, ok, graph, *, gradients=None, epsilon=OUTLIER_EPSILO
     return outlier, residual
 
 
-def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=None, poor_texture=None):
+def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=None, poor_texture=None,
+                known_outliers=None):
     """Status after the correlation, texture and neighbour gates (a new array).
 
     Parameters
@@ -375,6 +376,10 @@ def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=Non
         For the median test (``median_test``).
     poor_texture : ndarray of bool, shape (N,), optional
         From ``Texture.poor``.
+    known_outliers : (ok, outlier) of ndarray of bool, shape (N,), optional
+        The outliers ``median_test`` found over the points ``ok`` on these same u, v and gradients
+        (with ``gates``' thresholds): taken instead of testing again where the points still OK here
+        are those (``Tracker`` tests the same frame twice).
 
     Returns
     -------
@@ -389,7 +394,10 @@ def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=Non
         status[ok & poor_texture] = POOR_TEXTURE
     if graph is not None:
         still = status == OK
-        outlier, _ = median_test(x, y, u, v, still, graph, gradients=gradients, epsilon=gates.outlier_epsilon,
-                                 threshold=gates.outlier_threshold)
+        if known_outliers is not None and np.array_equal(known_outliers[0], still):
+            outlier = known_outliers[1]
+        else:
+            outlier, _ = median_test(x, y, u, v, still, graph, gradients=gradients, epsilon=gates.outlier_epsilon,
+                                     threshold=gates.outlier_threshold)
         status[outlier] = OUTLIER
     return status
