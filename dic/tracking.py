@@ -604,10 +604,13 @@ class Tracker:
                                       self.seed_search_options)
             self._scatter(result, idx, first)
             self.last_seed_searches = int(idx.size) if self.search != "none" and not on_demand else 0
+        weak = None
         if on_demand:
             with times.stage("gates"):
-                doubtful = np.flatnonzero(self._weak(result))
+                weak = self._weak(result)
+                doubtful = np.flatnonzero(weak)
             if doubtful.size:
+                weak = None                     # the seeded search changes the result: to be judged again
                 self.last_seed_searches = int(doubtful.size)
                 with times.stage("seeded_search"):
                     again = self._measure(target, doubtful, start_u[doubtful], start_v[doubtful], self.search,
@@ -617,7 +620,7 @@ class Tracker:
         # Re-find the points that failed, lost correlation or disagree with their neighbours; not those
         # at the image's edge, whose material is leaving the view (_at_the_edge).
         with times.stage("gates"):
-            weak = self._weak(result) | self._outliers(result)
+            weak = (self._weak(result) if weak is None else weak) | self._outliers(result)
         with times.stage("refind"):
             retry = self._refind_weak(target, result, weak, start_u, start_v, grads)
         with times.stage("gates"):
@@ -641,6 +644,10 @@ class Tracker:
     def _refind_weak(self, target, result, weak, start_u, start_v, grads):
         """Re-find the ``weak`` points (in place in ``weak`` and ``result``), but not those whose material
         left the view (``_at_the_edge``) nor those waiting out their back-off; returns the points still lost."""
+        if not weak.any():
+            self.last_refound = np.zeros(self.n_points, dtype=bool)
+            self.last_refind_attempts = 0
+            return np.flatnonzero(weak)
         gone = weak & self._at_the_edge(start_u, start_v)
         stale = np.flatnonzero(weak & ~gone & ~np.isfinite(self._prev["u"]))
         if stale.size:

@@ -869,7 +869,9 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     params[:, 3] = _as_start(v0, npts, "v0", np.nan)
     params[:, 4] = _as_start(vx0, npts, "vx0", 0.0)
     params[:, 5] = _as_start(vy0, npts, "vy0", 0.0)
-    params[np.ix_(orders == 0, [1, 2, 4, 5])] = 0.0
+    shift_only = np.flatnonzero(orders == 0)        # usually none: no fancy-index assignment then
+    if shift_only.size:
+        params[np.ix_(shift_only, [1, 2, 4, 5])] = 0.0
     st = ref_prep.status[points]
     if status is not None:
         status = np.asarray(status)
@@ -888,7 +890,8 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     params[~ok] = np.nan
     grads = {}
     if per_point or order == 1:
-        params[np.ix_(orders == 0, [1, 2, 4, 5])] = np.nan
+        if shift_only.size:
+            params[np.ix_(shift_only, [1, 2, 4, 5])] = np.nan
         grads = dict(ux=params[:, 1].copy(), uy=params[:, 2].copy(), vx=params[:, 4].copy(), vy=params[:, 5].copy())
     return SubpixelResult(u=params[:, 0].copy(), v=params[:, 3].copy(), zncc=np.where(ok, out_zncc, np.nan),
                           status=st, iterations=out_iter, **grads)
