@@ -334,6 +334,23 @@ def _local_gradients(x, y, u, v, ok, start, index, out):
                 out[i, 3] = scratch[1]
 
 
+_LARGEST = float(np.finfo(np.float64).max)
+
+
+@njit(cache=True)
+def _nan_to_num(a):
+    """``np.nan_to_num(a)`` in place on a C-contiguous array (NaN -> 0, +-inf -> +-the largest float)."""
+    flat = a.reshape(-1)
+    for i in range(flat.shape[0]):
+        value = flat[i]
+        if value != value:
+            flat[i] = 0.0
+        elif value == np.inf:
+            flat[i] = _LARGEST
+        elif value == -np.inf:
+            flat[i] = -_LARGEST
+
+
 @njit(cache=True, parallel=True, nogil=True)
 def _median_test(x, y, u, v, grads, ok, start, index, epsilon, threshold, outlier, residual):
     n = u.shape[0]
@@ -400,7 +417,7 @@ def median_test(x, y, u, v, ok, graph, *, gradients=None, epsilon=OUTLIER_EPSILO
     else:
         grads = np.column_stack([as64(g) if g is not None else np.full(n, np.nan) for g in gradients])
     _local_gradients(x, y, u, v, ok, start, index, grads)
-    grads = np.ascontiguousarray(np.nan_to_num(grads, nan=0.0))
+    _nan_to_num(grads)
     _median_test(x, y, u, v, grads, ok, start, index, float(epsilon), float(threshold), outlier, residual)
     return outlier, residual
 

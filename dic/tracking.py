@@ -594,16 +594,22 @@ class Tracker:
                 else:
                     target.grey                 # the methods without IC-GN's window read the whole frame
         grads = self._gradients()
-        result = self._empty_result()
         on_demand = self.search != "none" and self.subpixel in _ITERATIVE
         self.last_seed_searches = 0
+        result = None
         if idx.size:
             with times.stage("kernel"):
                 first = self._measure(target, idx, start_u[idx], start_v[idx], "none" if on_demand else self.search,
                                       self.seed_radius, {k: g[idx] for k, g in grads.items()},
                                       self.seed_search_options)
-            self._scatter(result, idx, first)
+            if self._prep is not None and idx.size == self.n_points and first.evaluations is None:
+                result = first                  # IC-GN measured every point: its fields are the frame's result's
+            else:
+                result = self._empty_result()
+                self._scatter(result, idx, first)
             self.last_seed_searches = int(idx.size) if self.search != "none" and not on_demand else 0
+        if result is None:
+            result = self._empty_result()
         weak = None
         if on_demand:
             with times.stage("gates"):
