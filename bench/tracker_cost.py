@@ -1,33 +1,36 @@
-"""The tracker's own cost per frame against the bare IC-GN kernel on the same points (issue 20, item 3).
+"""``livedic bench tracker``: the tracker's own cost per frame against the bare IC-GN kernel (issue 20, item 3).
 
-``python -m livedic.bench.tracker_cost [--frames N] [--threads T]`` tracks the main job's frames
-(the simulator ``synthetic:tensile`` 1024x1024, rendered ahead, delivered unpaced) with the tracker the
-main job builds (``livedic run --gauge-length 400 --load synthetic``: its points as ``stream.points``
-places them, ``TrackingConfig``'s defaults: improved-WSO seeded search on demand, IC-GN, key-frame
-updates ``auto``) and prints, per frame:
+It tracks the main job's frames (the simulator ``synthetic:tensile`` 1024x1024, rendered ahead,
+delivered unpaced) with the tracker the main job builds (``livedic run --gauge-length 400 --load
+synthetic``: its points as ``stream.points`` places them, ``TrackingConfig``'s defaults: improved-WSO
+seeded search on demand, IC-GN, key-frame updates ``auto``; 1 numba thread as ``livedic run``) and
+prints per frame:
 
-* the p50 / p99 of each stage of ``KeyFrameTracker.track`` (its ``last_timings``, ``TRACKER_STAGES``),
-  of "other" (the call's wall time less the stages) and of the whole call;
+* the p50 / p99 of each stage of ``KeyFrameTracker.track`` (``last_timings``, ``dic.TRACKER_STAGES``),
+  of "other" (the call's wall time less its stages) and of the whole call;
 * the bare kernel: ``refine_prepared`` alone on the same points from the same start
-  (``KeyFrameTracker.kernel_job``, taken before each ``track``, run after it on that frame's
-  coefficients), and the B-spline prefilter of the same window alone;
-* the ratio of the tracker's p50 to the bare kernel's p50 (the issue's goal: <= 1.5).
+  (``KeyFrameTracker.kernel_job``, taken before each ``track``, run after it on that frame), and the
+  prefilter of the same window alone;
+* the tracker's p50 over the bare kernel's p50 (the issue's goal: <= 1.5).
 
-``--save FILE.npz`` writes every frame's result, ``--compare FILE.npz`` checks this run's results
-against such a file bit for bit (exit code 1 if any differs): a change to the tracker's speed must
-not change its numbers.
+``--save FILE.npz`` keeps every frame's result and ``--compare FILE.npz`` checks a run against such a
+file bit for bit (exit code 1 if anything differs): a change to the tracker's speed must not change
+its numbers. ``--stacks FILE`` reads a py-spy profile (``py-spy record --format raw``) of any livedic
+run and prints where the samples inside ``KeyFrameTracker.track`` end (docs/live-performance.md).
 """
 
-import argparse
-import sys
+import collections
+import re
 import time
 
 import numpy as np
 
 FIELDS = ("u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations")
+MAIN_JOB_SIZE = 1024
+GOAL_RATIO = 1.5
 
 
-def main_job(size=1024, frames=300, n_points=None):
+def main_job(size=MAIN_JOB_SIZE, frames=300, n_points=None):
     """(frame images, points) of the main job: the rendered simulated test and its points as the session places them."""
     from livedic.acquire.sources import open_source
     from livedic.stream.config import PointsConfig, TrackingConfig
@@ -76,7 +79,7 @@ def measure_cost(tracker, images):
 
 def report(rows, say=print):
     """Print the per-stage table and the tracker / kernel ratio; returns the ratio of the p50s."""
-    from livedic.dic.tracking import TRACKER_STAGES
+    from livedic.dic import TRACKER_STAGES
 
     def ms(values):
         values = np.asarray([v for v in values if v is not None], dtype=np.float64) / 1e6
@@ -87,67 +90,76 @@ def report(rows, say=print):
     columns["total (track)"] = [row["total"] for row in rows]
     columns["bare prefilter"] = [row["bare_prepare"] for row in rows]
     columns["bare kernel"] = [row["bare_kernel"] for row in rows]
-    say(f"{len(rows)} frames; ms per frame:       p50      p99")
+    say(f"{len(rows)} frames; ms per frame:        p50      p99")
     for name, values in columns.items():
         p50, p99 = ms(values)
         say(f"  {name:<28} {p50:8.3f} {p99:8.3f}")
-    total, kernel = ms(columns["total (track)"])[0], ms(columns["bare kernel"])[0]
-    ratio = total / kernel
-    say(f"tracker / bare kernel (p50): {ratio:.2f} (goal <= 1.5)")
+    ratio = ms(columns["total (track)"])[0] / ms(columns["bare kernel"])[0]
+    say(f"tracker / bare kernel (p50): {ratio:.2f} (goal <= {GOAL_RATIO:g})")
     return ratio
 
 
 def save_results(path, results):
+    """Every frame's result fields into ``path`` (.npz), as ``compare_results`` reads them."""
     arrays = {f"{i}/{name}": values for i, frame in enumerate(results) for name, values in frame.items()
               if values is not None}
     np.savez_compressed(path, **arrays)
 
 
 def compare_results(path, results):
-    """Frames whose results differ (bit for bit) from those saved in ``path``: a list of (frame, field)."""
+    """The (frame, field) pairs whose values differ, bit for bit, from those ``save_results`` wrote to ``path``."""
     saved = np.load(path)
-    differ = []
-    for i, frame in enumerate(results):
-        for name, values in frame.items():
-            key = f"{i}/{name}"
-            if values is None and key not in saved.files:
-                continue
-            if values is None or key not in saved.files or saved[key].dtype != np.asarray(values).dtype or \
-                    saved[key].tobytes() != np.asarray(values).tobytes():
-                differ.append((i, name))
+    keys = {f"{i}/{name}" for i, frame in enumerate(results) for name, values in frame.items() if values is not None}
+    differ = [key for key in sorted(set(saved.files) ^ keys)]
+    for key in sorted(keys & set(saved.files)):
+        i, name = key.split("/")
+        values = np.asarray(results[int(i)][name])
+        if saved[key].dtype != values.dtype or saved[key].tobytes() != values.tobytes():
+            differ.append(key)
     return differ
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m livedic.bench.tracker_cost", description=__doc__.split("\n")[0])
-    parser.add_argument("--frames", type=int, default=300, metavar="N", help="frames of the simulated test (300)")
-    parser.add_argument("--size", type=int, default=1024, metavar="PX", help="image side (1024)")
-    parser.add_argument("--points", type=int, metavar="N", help="points wanted (default: the main job's)")
-    parser.add_argument("--threads", type=int, default=1, metavar="T", help="numba threads (1, as livedic run)")
-    parser.add_argument("--save", metavar="FILE.npz", help="write every frame's result")
-    parser.add_argument("--compare", metavar="FILE.npz", help="check the results against a --save file bit for bit")
-    args = parser.parse_args(argv)
+def stack_summary(path, say=print, most=12):
+    """Where the samples of a py-spy raw profile (``py-spy record --format raw``) inside ``KeyFrameTracker.track``
+    end: per function (the innermost Python frame; numba kernels count in the function that called them)."""
+    leaves, total = collections.Counter(), 0
+    with open(path) as handle:
+        for line in handle:
+            stack, _, count = line.rstrip().rpartition(" ")
+            frames = stack.split(";")
+            if not count.isdigit() or any(f.startswith("warm_up ") for f in frames) or \
+                    not any(f.startswith("KeyFrameTracker.track ") for f in frames):
+                continue
+            total += int(count)
+            leaves[re.sub(r":\d+\)$", ")", frames[-1])] += int(count)
+    if not total:
+        say(f"{path}: no samples inside KeyFrameTracker.track")
+        return
+    say(f"{total} samples inside KeyFrameTracker.track; where they end:")
+    for name, count in leaves.most_common(most):
+        say(f"  {100.0 * count / total:5.1f} %  {name}")
+
+
+def run_tracker_benchmark(*, frames=300, size=MAIN_JOB_SIZE, n_points=None, threads=1, save=None, compare=None,
+                          say=print):
+    """``livedic bench tracker``; returns the exit code (1: ``compare`` found a difference)."""
     import numba
-    numba.set_num_threads(args.threads)
+    numba.set_num_threads(threads)
     started = time.perf_counter()
-    images, points = main_job(args.size, args.frames, args.points)
+    images, points = main_job(size, frames, n_points)
     warm = main_job_tracker(images[0], points)
     for image in images[1:4]:          # loads (or compiles) the numba kernels before the timed run
         warm.track(image)
     tracker = main_job_tracker(images[0], points)
-    print(f"{len(images)} frames of {args.size}x{args.size} rendered, {tracker.n_points} points, "
-          f"{args.threads} numba thread(s) ({time.perf_counter() - started:.1f} s)")
+    say(f"{len(images)} frames of {size}x{size} rendered, {tracker.n_points} points, {threads} numba thread(s) "
+        f"({time.perf_counter() - started:.1f} s)")
     rows, results = measure_cost(tracker, images)
-    report(rows)
-    if args.save:
-        save_results(args.save, results)
-    if args.compare:
-        differ = compare_results(args.compare, results)
-        print(f"results against {args.compare}: " + ("identical bit for bit" if not differ else
-                                                       f"{len(differ)} differ, first: frame {differ[0]}"))
+    report(rows, say)
+    if save:
+        save_results(save, results)
+    if compare:
+        differ = compare_results(compare, results)
+        say(f"results against {compare}: " + ("identical bit for bit" if not differ else
+                                               f"{len(differ)} differ, first: {differ[0]}"))
         return 1 if differ else 0
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
