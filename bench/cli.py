@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain|fracture``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain|fracture|tracker``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -17,7 +17,7 @@ from livedic.stream.config import subpixel_method
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
-                                             "fracture, tensile, replay")
+                                             "fracture, tensile, replay, tracker")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
     paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
@@ -115,6 +115,22 @@ def add_bench_commands(commands):
     replay.add_argument("-o", "--output", default="results/replay", metavar="DIR",
                         help="results folder (replay.json; default results/replay)")
     replay.set_defaults(handler=_cmd_bench_replay)
+    tracker = bench_commands.add_parser(
+        "tracker", help="the tracker's own cost per frame by stage, against the bare IC-GN kernel on the same points",
+        description="Tracks the main job's frames (synthetic:tensile 1024x1024, its points, TrackingConfig's "
+                    "defaults) and prints the p50/p99 ms of each stage of KeyFrameTracker.track, the bare IC-GN "
+                    "kernel on the same points from the same start, and the tracker / kernel ratio (goal <= 1.5).")
+    tracker.add_argument("--frames", type=int, default=300, metavar="N", help="frames of the simulated test (300)")
+    tracker.add_argument("--size", type=int, default=1024, metavar="PX",
+                         help="square image side (default 1024, the main job's)")
+    tracker.add_argument("--points", type=int, metavar="N", help="points wanted (default: the main job's)")
+    tracker.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1, as livedic run)")
+    tracker.add_argument("--save", metavar="FILE.npz", help="also write every frame's result")
+    tracker.add_argument("--compare", metavar="FILE.npz",
+                         help="check the results against a --save file bit for bit (exit code 1 if any differs)")
+    tracker.add_argument("--stacks", metavar="PROFILE.txt",
+                         help="only summarise a py-spy raw profile: where the samples inside the tracker end")
+    tracker.set_defaults(handler=_cmd_bench_tracker)
     tensile = bench_commands.add_parser(
         "tensile", help="E, Rp0.2, Rm, Ag, A recovered from the simulated tensile test with a known law",
         description="Runs the simulated tensile test (E 200 GPa, Rp0.2 816 MPa, Rm 1200 MPa, fracture) through "
@@ -160,6 +176,28 @@ def _cmd_bench_live(args):
     run_live_benchmark(quick=args.quick, frames=args.frames, fps=args.fps, threads=args.threads,
                        echo_sessions=args.verbose, log=lambda line: print(line, flush=True))
     return 0
+
+
+def _cmd_bench_tracker(args):
+    from livedic.bench.tracker_cost import run_tracker_benchmark, stack_summary
+    if args.stacks is not None:
+        if not os.path.isfile(args.stacks):
+            raise UsageError(f"--stacks {args.stacks} is not a file: give a py-spy profile recorded with --format raw")
+        stack_summary(args.stacks)
+        return 0
+    if args.frames < 5 or args.size < 64 or (args.points is not None and args.points < 1):
+        raise UsageError("--frames >= 5, --size >= 64 and --points >= 1 please")
+    if args.compare is not None:
+        import numpy as np
+        try:
+            np.load(args.compare).close()
+        except (OSError, ValueError):
+            raise UsageError(f"--compare {args.compare} is not a results file: give one written by --save") from None
+    import numba
+    if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
+        raise UsageError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {args.threads}")
+    return run_tracker_benchmark(frames=args.frames, size=args.size, n_points=args.points, threads=args.threads,
+                                 save=args.save, compare=args.compare, say=lambda line: print(line, flush=True))
 
 
 def _cmd_bench_validate(args):

@@ -11,7 +11,7 @@ The front door:
   ``SEARCH_METHODS``, ``SUBPIXEL_METHODS`` the method names it takes; ``Gates``
   its quality gates; ``Status`` the per-point codes.
 * ``Tracker`` -- points tracked through the frames of a test; ``grid_in_roi`` and
-  ``step_for_count`` place the points.
+  ``step_for_count`` place the points; ``TRACKER_STAGES`` the stages its ``last_timings`` times.
 * ``zncc`` -- the correlation of given displacements.
 * ``strain_window``, ``strain_field`` -- strain at every point by pointwise least squares
   (``StrainField``, ``StrainStatus``); ``Extensometer``, ``place_extensometers``,
@@ -25,8 +25,8 @@ from livedic.dic.quality import Gates
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.strain import StrainField, StrainStatus, strain_field, strain_window
-from livedic.dic.tracking import Tracker, grid_in_roi, step_for_count
+from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count
 
-__all__ = ["measure", "Measurement", "SEARCH_METHODS", "SUBPIXEL_METHODS", "Gates", "Status", "Tracker", "grid_in_roi",
-           "step_for_count", "zncc", "strain_window", "strain_field", "StrainField", "StrainStatus", "Extensometer",
+__all__ = ["measure", "Measurement", "SEARCH_METHODS", "SUBPIXEL_METHODS", "Gates", "Status", "Tracker", "TRACKER_STAGES",
+           "grid_in_roi", "step_for_count", "zncc", "strain_window", "strain_field", "StrainField", "StrainStatus", "Extensometer",
            "place_extensometers", "read_extensometers"]

@@ -95,77 +95,77 @@ def _causal_init(line, n, z):
     return acc / (1.0 - z2n)
 
 
+@njit(cache=True)
+def _filter_lines(src, dst, buf):
+    """Prefilter the lines stored as the columns of ``src`` (n, nb) into ``dst`` (n, nb; may be ``src``).
+
+    The ``nb`` lines advance together, so the recursions' chains of dependent multiply-adds overlap
+    (one line alone waits on each step's latency). ``buf`` (n, nb) float64 holds the causal pass;
+    ``src`` is read before ``dst`` is written. A line of one sample is copied as it is.
+    """
+    z = POLE
+    n, nb = src.shape
+    if n == 1:
+        for k in range(nb):
+            dst[0, k] = src[0, k]
+        return
+    acc = np.zeros(nb)
+    if n > _HORIZON:
+        zk = 1.0
+        for r in range(_HORIZON):
+            for k in range(nb):
+                acc[k] += zk * src[r, k]
+            zk *= z
+    else:
+        line = np.empty(n)
+        for k in range(nb):
+            for r in range(n):
+                line[r] = src[r, k]
+            acc[k] = _causal_init(line, n, z)
+    # causal pass: c+[k] = s[k] + z c+[k-1]
+    for k in range(nb):
+        buf[0, k] = acc[k]
+    for r in range(1, n):
+        for k in range(nb):
+            buf[r, k] = src[r, k] + z * buf[r - 1, k]
+    # anti-causal pass: c-[k] = z (c-[k+1] - c+[k]), c-[k+1] carried in acc
+    scale = z / (z * z - 1.0)
+    for k in range(nb):
+        acc[k] = scale * (buf[n - 1, k] + z * buf[n - 2, k])
+        dst[n - 1, k] = GAIN * acc[k]
+    for r in range(n - 2, -1, -1):
+        for k in range(nb):
+            acc[k] = z * (acc[k] - buf[r, k])
+            dst[r, k] = GAIN * acc[k]
+
+
+# Lines filtered together (``_filter_lines``): enough independent chains to hide the latency, and a
+# buffer that stays in cache.
+_ROW_BLOCK = 32
+_COLUMN_BLOCK = 64
+
+
 @njit(cache=True, parallel=True, nogil=True)
 def _filter_rows(src, out):
-    """Prefilter each row of ``src`` (H, W) into the interior of padded ``out``."""
-    z = POLE
+    """Prefilter each row of ``src`` (H, W) into the interior of padded ``out``, ``_ROW_BLOCK`` rows per task."""
     height, width = src.shape
-    for r in prange(height):
-        line = np.empty(width)
-        for k in range(width):
-            line[k] = src[r, k]
-        if width == 1:
-            out[r + PAD, PAD] = line[0]
-            continue
-        # causal pass: c+[k] = s[k] + z c+[k-1]
-        prev = _causal_init(line, width, z)
-        line[0] = prev
-        for k in range(1, width):
-            prev = line[k] + z * prev
-            line[k] = prev
-        # anti-causal pass: c-[k] = z (c-[k+1] - c+[k])
-        prev = (z / (z * z - 1.0)) * (line[width - 1] + z * line[width - 2])
-        line[width - 1] = prev
-        for k in range(width - 2, -1, -1):
-            prev = z * (prev - line[k])
-            line[k] = prev
-        for k in range(width):
-            out[r + PAD, k + PAD] = GAIN * line[k]
+    n_blocks = (height + _ROW_BLOCK - 1) // _ROW_BLOCK
+    for b in prange(n_blocks):
+        r0 = b * _ROW_BLOCK
+        r1 = min(r0 + _ROW_BLOCK, height)
+        buf = np.empty((width, r1 - r0))
+        _filter_lines(src[r0:r1].T, out[r0 + PAD:r1 + PAD, PAD:PAD + width].T, buf)
 
 
 @njit(cache=True, parallel=True, nogil=True)
 def _filter_columns(out, height, width):
-    """Prefilter the columns of the interior of padded ``out`` in place, 64 columns per task."""
-    z = POLE
-    block = 64
-    n_blocks = (width + block - 1) // block
+    """Prefilter the columns of the interior of padded ``out`` in place, ``_COLUMN_BLOCK`` columns per task."""
+    n_blocks = (width + _COLUMN_BLOCK - 1) // _COLUMN_BLOCK
     for b in prange(n_blocks):
-        c0 = b * block
-        c1 = min(c0 + block, width)
-        nb = c1 - c0
-        acc = np.zeros(nb)
-        buf = np.empty((height, nb))
-        for r in range(height):
-            for k in range(nb):
-                buf[r, k] = out[r + PAD, c0 + k + PAD]
-        if height == 1:
-            continue
-        if height > _HORIZON:
-            zk = 1.0
-            for r in range(_HORIZON):
-                for k in range(nb):
-                    acc[k] += zk * buf[r, k]
-                zk *= z
-        else:
-            col = np.empty(height)
-            for k in range(nb):
-                for r in range(height):
-                    col[r] = buf[r, k]
-                acc[k] = _causal_init(col, height, z)
-        for k in range(nb):
-            buf[0, k] = acc[k]
-        for r in range(1, height):
-            for k in range(nb):
-                buf[r, k] += z * buf[r - 1, k]
-        scale = z / (z * z - 1.0)
-        for k in range(nb):
-            buf[height - 1, k] = scale * (buf[height - 1, k] + z * buf[height - 2, k])
-        for r in range(height - 2, -1, -1):
-            for k in range(nb):
-                buf[r, k] = z * (buf[r + 1, k] - buf[r, k])
-        for r in range(height):
-            for k in range(nb):
-                out[r + PAD, c0 + k + PAD] = GAIN * buf[r, k]
+        c0 = b * _COLUMN_BLOCK
+        c1 = min(c0 + _COLUMN_BLOCK, width)
+        lines = out[PAD:PAD + height, c0 + PAD:c1 + PAD]
+        _filter_lines(lines, lines, np.empty((height, c1 - c0)))
 
 
 @njit(cache=True)
@@ -183,7 +183,11 @@ def _mirror_pad(out, height, width):
             out[PAD + height - 1 + k, c] = out[src_bottom, c]
 
 
-def prefilter(image, dtype=np.float32):
+# Image dtypes the prefilter reads without a converted copy, in any memory layout.
+_READ_AS_IS = tuple(np.dtype(t) for t in (np.uint8, np.uint16, np.float32, np.float64))
+
+
+def prefilter(image, dtype=np.float32, *, out=None):
     """B-spline coefficients of ``image``.
 
     Parameters
@@ -193,6 +197,10 @@ def prefilter(image, dtype=np.float32):
     dtype : {np.float32, np.float64}
         Storage of the coefficients. float32 halves memory traffic; its
         rounding (about 1e-7 relative) is far below image noise.
+    out : BSplineCoefficients, optional
+        Coefficients of an earlier image of the same shape and ``dtype``: overwritten and returned
+        (frame after frame in the same memory; a new buffer of a megabyte or more is often fresh
+        pages from the system, each faulted in on first touch).
 
     Returns
     -------
@@ -213,15 +221,21 @@ def prefilter(image, dtype=np.float32):
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"coefficients are stored as float32 or float64, got {dtype}")
     height, width = image.shape
-    src = np.ascontiguousarray(image, dtype=np.float32 if image.dtype == np.float32 else np.float64)
-    buffer = np.empty((height + 2 * PAD + 2 * SLACK, width + 2 * PAD), dtype=dtype)
-    buffer[:SLACK] = 0.0
-    buffer[-SLACK:] = 0.0
-    out = buffer[SLACK:-SLACK]
-    _filter_rows(src, out)
-    _filter_columns(out, height, width)
-    _mirror_pad(out, height, width)
-    return BSplineCoefficients(out, (height, width), buffer.reshape(-1), SLACK * buffer.shape[1])
+    # read as they are (the kernels take them to float64 as they read): no converted copy of the image
+    src = image if image.dtype in _READ_AS_IS else np.ascontiguousarray(image, dtype=np.float64)
+    if out is not None and tuple(out.shape) == (height, width) and out.coefficients.dtype == dtype:
+        coefficients = out.coefficients              # its SLACK rows are zero already
+    else:
+        buffer = np.empty((height + 2 * PAD + 2 * SLACK, width + 2 * PAD), dtype=dtype)
+        buffer[:SLACK] = 0.0
+        buffer[-SLACK:] = 0.0
+        out = BSplineCoefficients(buffer[SLACK:-SLACK], (height, width), buffer.reshape(-1),
+                                  SLACK * buffer.shape[1])
+        coefficients = out.coefficients
+    _filter_rows(src, coefficients)
+    _filter_columns(coefficients, height, width)
+    _mirror_pad(coefficients, height, width)
+    return out
 
 
 # ---------------------------------------------------------------------------

@@ -63,7 +63,7 @@ from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
-from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, Tracker
+from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
 
 AUTO_ZNCC = 0.9
 AUTO_STRAIN = 0.05
@@ -116,18 +116,33 @@ class UpdatePolicy:
             return f"every {self.every} frames" if frames_since_key >= self.every else None
         if ok.sum() < AUTO_OK * tracked:
             return None                             # not a frame to measure the next ones against
-        low = float(np.percentile(measurement.zncc[ok], 5))
-        if low < AUTO_ZNCC:
-            return f"ZNCC 5th percentile {low:.3f} < {AUTO_ZNCC}"
+        zncc = measurement.zncc[ok]
+        if _percentile_may_pass(zncc, 5, AUTO_ZNCC, below=True):
+            low = float(np.percentile(zncc, 5))
+            if low < AUTO_ZNCC:
+                return f"ZNCC 5th percentile {low:.3f} < {AUTO_ZNCC}"
         if measurement.ux is not None:
-            gradients = np.abs(np.column_stack([measurement.ux[ok], measurement.uy[ok], measurement.vx[ok],
-                                                measurement.vy[ok]]))
-            gradients = gradients[np.all(np.isfinite(gradients), axis=1)]
-            if len(gradients):
-                strain = float(np.percentile(gradients.max(axis=1), 99))
-                if strain > AUTO_STRAIN:
-                    return f"strain since the key frame {strain:.3f} > {AUTO_STRAIN}"
+            ux, uy, vx, vy = (np.abs(getattr(measurement, name)[ok]) for name in ("ux", "uy", "vx", "vy"))
+            finite = np.isfinite(ux) & np.isfinite(uy) & np.isfinite(vx) & np.isfinite(vy)
+            if finite.any():
+                largest = np.maximum(np.maximum(ux, uy), np.maximum(vx, vy))[finite]    # each point's largest
+                if _percentile_may_pass(largest, 99, AUTO_STRAIN, below=False):
+                    strain = float(np.percentile(largest, 99))
+                    if strain > AUTO_STRAIN:
+                        return f"strain since the key frame {strain:.3f} > {AUTO_STRAIN}"
         return None
+
+
+def _percentile_may_pass(values, q, limit, *, below):
+    """False when np.percentile(values, q) (finite values, linear interpolation) is surely not below ``limit``
+    (``below``) or surely not above it: it lies between the two order statistics around rank q/100 (n - 1),
+    and counting the values beyond ``limit`` places those without sorting (most frames pass far from it)."""
+    rank = q / 100.0 * (values.size - 1)
+    lower = int(np.floor(rank))
+    upper = min(lower + 1, values.size - 1)
+    if below:       # below limit needs the lower order statistic below it: more than `lower` values are
+        return int(np.count_nonzero(values < limit)) > lower
+    return int(np.count_nonzero(values > limit)) > values.size - 1 - upper
 
 
 @dataclass(frozen=True)
@@ -191,6 +206,10 @@ class KeyFrameTracker:
         across the crack are ``SEPARATED`` from that frame on). ``detect_fractures=False`` turns it off.
     key_frame : int
         The tracked frame that is the reference now (0: the first).
+    last_timings : dict of str -> int
+        Nanoseconds per stage (``TRACKER_STAGES``) of the last ``track`` call: the inner tracker's
+        stages (``Tracker.last_timings``) and ``reference_update``, the composition to the first frame,
+        the fracture check, the update policy and any move of the reference.
     """
 
     def __init__(self, reference_image, points, *, reference_update="auto", detect_fractures=True,
@@ -207,6 +226,7 @@ class KeyFrameTracker:
         self._u0 = np.zeros(n)                  # u_0->r, v_0->r at the key frame
         self._v0 = np.zeros(n)
         self._f0 = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()   # F_0->r
+        self._f0_inv = None                     # its inverse at the inner points (_f0_inverse)
         self._offset = np.zeros((n, 2))         # x_r - p_r of the inner points
         self._status = np.full(n, -1, dtype=np.int8)   # outer status for points not in the inner tracker
         self.key_frame = 0
@@ -217,6 +237,7 @@ class KeyFrameTracker:
         self.fractures = []
         self.last_fracture = None
         self._previous = None                   # the last result (for the fracture test)
+        self.last_timings = StageTimes().ns
 
     # the Tracker interface the session uses
     @property
@@ -247,28 +268,38 @@ class KeyFrameTracker:
     def window(self):
         return self._inner.window
 
+    def kernel_job(self):
+        """``Tracker.kernel_job`` of the current key frame's tracker (displacements from the key frame)."""
+        return self._inner.kernel_job()
+
     def track(self, image):
         """Displacement of every material point from the first frame to ``image`` (a ``Measurement``)."""
         tracker = self._inner
         inner = tracker.track(image)
-        self.frames_tracked += 1
-        self._since_key += 1
-        self.last_update = None
-        self.last_fracture = None
-        composed = not (self.key_frame == 0 and self._members.size == self.n_points)
-        result = self._compose(inner) if composed else inner
-        if self.detect_fractures and self._previous is not None:
-            self._check_fracture(result)
-        if self.last_fracture is None:
-            reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
-            if reason is not None:
-                self._move_reference(image, result, reason)
-        # The next frame starts from this result as resume() maps it back onto the key frame (rounded by the
-        # round trip): a frame resumed from the recording (replay --workers) then starts bit for bit where this
-        # one does. A start 1 ulp away can flip the last bit of an IC-GN float32 row sum: ~1e-7 px in the result.
-        if composed and self._inner is tracker:
-            tracker.carry(self._key_frame_view({name: getattr(result, name) for name in ("u", "v", "ok") + _SHAPE}))
-        self._previous = (result.ok.copy(), result.u.copy(), result.v.copy())
+        times = StageTimes()
+        times.ns.update(tracker.last_timings)
+        with times.stage("reference_update"):
+            self.frames_tracked += 1
+            self._since_key += 1
+            self.last_update = None
+            self.last_fracture = None
+            composed = not (self.key_frame == 0 and self._members.size == self.n_points)
+            result = self._compose(inner) if composed else inner
+            if self.detect_fractures and self._previous is not None:
+                self._check_fracture(result)
+            if self.last_fracture is None:
+                reason = self.policy.reason(self._since_key, inner, self._inner.trackable)
+                if reason is not None:
+                    self._move_reference(image, result, reason)
+            # The next frame starts from this result as resume() maps it back onto the key frame (rounded by
+            # the round trip): a frame resumed from the recording (replay --workers) then starts bit for bit
+            # where this one does. A start 1 ulp away can flip the last bit of an IC-GN float32 row sum: ~1e-7
+            # px in the result.
+            if composed and self._inner is tracker:
+                tracker.carry(self._key_frame_view({name: getattr(result, name)
+                                                    for name in ("u", "v", "ok") + _SHAPE}))
+            self._previous = (result.ok.copy(), result.u.copy(), result.v.copy())
+        self.last_timings = times.ns
         return result
 
     def _check_fracture(self, result):
@@ -319,14 +350,13 @@ class KeyFrameTracker:
         members = self._members
         du, dv = inner.u, inner.v
         if inner.ux is not None:
-            g = np.stack([np.stack([inner.ux, inner.uy], axis=-1), np.stack([inner.vx, inner.vy], axis=-1)], axis=1)
-            known = np.all(np.isfinite(g.reshape(len(g), 4)), axis=1)
-            correction = np.einsum("nij,nj->ni", np.where(known[:, None, None], g, 0.0), self._offset)
-            du = du + correction[:, 0]
-            dv = dv + correction[:, 1]
-            f = np.einsum("nij,njk->nik", np.eye(2) + g, self._f0[members])
-            out.ux[members], out.uy[members] = f[:, 0, 0] - 1.0, f[:, 0, 1]
-            out.vx[members], out.vy[members] = f[:, 1, 0], f[:, 1, 1] - 1.0
+            g = (inner.ux, inner.uy, inner.vx, inner.vy)
+            cu, cv = _times_vector(_where_known(g), self._offset)
+            du = du + cu
+            dv = dv + cv
+            f = _times(_plus_identity(g), self._f0_of_members())
+            out.ux[members], out.uy[members] = f[0] - 1.0, f[1]
+            out.vx[members], out.vy[members] = f[2], f[3] - 1.0
         out.u[members] = self._u0[members] + du
         out.v[members] = self._v0[members] + dv
         out.zncc[members] = inner.zncc
@@ -513,22 +543,63 @@ class KeyFrameTracker:
         u = out["u"].astype(np.float64) - self._u0[members]
         v = out["v"].astype(np.float64) - self._v0[members]
         if out.get("ux") is not None:
-            f = np.stack([np.stack([1.0 + out["ux"], out["uy"]], axis=-1),
-                          np.stack([out["vx"], 1.0 + out["vy"]], axis=-1)], axis=1)
-            g = np.einsum("nij,njk->nik", f, np.linalg.inv(self._f0[members])) - np.eye(2)
-            known = np.all(np.isfinite(g.reshape(len(g), 4)), axis=1)
-            correction = np.einsum("nij,nj->ni", np.where(known[:, None, None], g, 0.0), self._offset)
-            u, v = u - correction[:, 0], v - correction[:, 1]
-            out["ux"], out["uy"], out["vx"], out["vy"] = g[:, 0, 0], g[:, 0, 1], g[:, 1, 0], g[:, 1, 1]
+            f = (1.0 + out["ux"], out["uy"], out["vx"], 1.0 + out["vy"])
+            g = _times(f, self._f0_inverse())
+            g = (g[0] - 1.0, g[1] - 0.0, g[2] - 0.0, g[3] - 1.0)        # - I, as np.eye(2) subtracted it
+            cu, cv = _times_vector(_where_known(g), self._offset)
+            u, v = u - cu, v - cv
+            out["ux"], out["uy"], out["vx"], out["vy"] = g
         out["u"], out["v"] = u, v
         return out
+
+    def _f0_of_members(self):
+        """F_0->r of the inner points as (F11, F12, F21, F22)."""
+        f0 = self._f0[self._members]
+        return f0[:, 0, 0], f0[:, 0, 1], f0[:, 1, 0], f0[:, 1, 1]
+
+    def _f0_inverse(self):
+        """(F_0->r)^-1 of the inner points as (11, 12, 21, 22), computed once per inner tracker (F_0->r and the
+        points change only when it is rebuilt)."""
+        if self._f0_inv is None:
+            inverse = np.linalg.inv(self._f0[self._members])
+            self._f0_inv = (inverse[:, 0, 0], inverse[:, 0, 1], inverse[:, 1, 0], inverse[:, 1, 1])
+        return self._f0_inv
 
     def _rebuild(self, key_image, members, positions, offset):
         """A new inner Tracker on ``key_image`` for the outer points ``members`` at pixel ``positions``."""
         self._inner = Tracker(key_image, positions, **self._options)
         self._members = np.asarray(members)
         self._offset = np.asarray(offset, dtype=np.float64).reshape(-1, 2)
+        self._f0_inv = None
 
+
+
+# 2 x 2 matrices per point as 4 arrays (11, 12, 21, 22). The products add their terms as np.einsum did
+# (from 0: 0 + a b + c d, which makes a -0 result +0), so that results stay those of the einsum version.
+
+def _times(a, b):
+    """The matrix products a b."""
+    a11, a12, a21, a22 = a
+    b11, b12, b21, b22 = b
+    return ((0.0 + a11 * b11) + a12 * b21, (0.0 + a11 * b12) + a12 * b22,
+            (0.0 + a21 * b11) + a22 * b21, (0.0 + a21 * b12) + a22 * b22)
+
+
+def _times_vector(a, x):
+    """The products a x with the vectors x (N, 2), as (first, second) components."""
+    a11, a12, a21, a22 = a
+    return (0.0 + a11 * x[:, 0]) + a12 * x[:, 1], (0.0 + a21 * x[:, 0]) + a22 * x[:, 1]
+
+
+def _plus_identity(g):
+    """I + g (np.eye(2) + g: 0 + g off the diagonal)."""
+    return 1.0 + g[0], 0.0 + g[1], 0.0 + g[2], 1.0 + g[3]
+
+
+def _where_known(g):
+    """g where all four terms are finite, else 0."""
+    known = np.isfinite(g[0]) & np.isfinite(g[1]) & np.isfinite(g[2]) & np.isfinite(g[3])
+    return tuple(np.where(known, term, 0.0) for term in g)
 
 
 def _same_crack(new, old, distance):

@@ -234,7 +234,44 @@ def _plane_gradient(x, y, f, ok, i, start, index, weights, out):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _order(values, a, b):
+    """values[a], values[b] in ascending order (a comparator of a sorting network)."""
+    x = values[a]
+    y = values[b]
+    swap = y < x
+    values[a] = y if swap else x            # selects, not a branch: data-dependent branches mispredict
+    values[b] = x if swap else y
+
+
+@njit(cache=True, inline="always")
+def _median_of_eight(values):
+    """``_median`` of values[:8] by a 19-comparator sorting network (Knuth, TAOCP 5.3.4): no data-dependent
+    loop, where the insertion sort's branches are mispredicted (8 neighbours: every point inside a grid).
+    The middle pair may differ from the insertion sort's only by which of equal values (0 and -0) sits where."""
+    _order(values, 0, 2)
+    _order(values, 1, 3)
+    _order(values, 4, 6)
+    _order(values, 5, 7)
+    _order(values, 0, 4)
+    _order(values, 1, 5)
+    _order(values, 2, 6)
+    _order(values, 3, 7)
+    _order(values, 0, 1)
+    _order(values, 2, 3)
+    _order(values, 4, 5)
+    _order(values, 6, 7)
+    _order(values, 2, 4)
+    _order(values, 3, 5)
+    _order(values, 1, 4)
+    _order(values, 3, 6)
+    _order(values, 1, 2)
+    _order(values, 3, 4)
+    _order(values, 5, 6)
+    return 0.5 * (values[3] + values[4])
+
+
+@njit(cache=True, inline="always")
 def _normalised_residual(x, y, field, gx, gy, ok, i, start, index, epsilon, values):
     """Westerweel-Scarano residual of point i on one component; NaN if fewer than MIN_NEIGHBOURS ok.
 
@@ -252,10 +289,18 @@ def _normalised_residual(x, y, field, gx, gy, ok, i, start, index, epsilon, valu
             count += 1
     if count < MIN_NEIGHBOURS:
         return np.nan
-    med = _median(values, count)
+    # Eight (every point inside a grid): the sorting network, unless a value is NaN (its place in a sort is the
+    # algorithm's). The median's sign of zero cannot matter: only |value - median| is used.
+    eight = count == 8
+    if eight:
+        total = 0.0
+        for m in range(8):
+            total += values[m]
+        eight = total == total
+    med = _median_of_eight(values) if eight else _median(values, count)
     for m in range(count):
         values[m] = abs(values[m] - med)
-    spread = _median(values, count)
+    spread = _median_of_eight(values) if eight else _median(values, count)
     return abs(field[i] - med) / (spread + epsilon)
 
 
@@ -287,6 +332,23 @@ def _local_gradients(x, y, u, v, ok, start, index, out):
             if _plane_gradient(x, y, v, ok, i, start, index, weights, scratch):
                 out[i, 2] = scratch[0]
                 out[i, 3] = scratch[1]
+
+
+_LARGEST = float(np.finfo(np.float64).max)
+
+
+@njit(cache=True)
+def _nan_to_num(a):
+    """``np.nan_to_num(a)`` in place on a C-contiguous array (NaN -> 0, +-inf -> +-the largest float)."""
+    flat = a.reshape(-1)
+    for i in range(flat.shape[0]):
+        value = flat[i]
+        if value != value:
+            flat[i] = 0.0
+        elif value == np.inf:
+            flat[i] = _LARGEST
+        elif value == -np.inf:
+            flat[i] = -_LARGEST
 
 
 @njit(cache=True, parallel=True, nogil=True)
@@ -355,12 +417,13 @@ def median_test(x, y, u, v, ok, graph, *, gradients=None, epsilon=OUTLIER_EPSILO
     else:
         grads = np.column_stack([as64(g) if g is not None else np.full(n, np.nan) for g in gradients])
     _local_gradients(x, y, u, v, ok, start, index, grads)
-    grads = np.ascontiguousarray(np.nan_to_num(grads, nan=0.0))
+    _nan_to_num(grads)
     _median_test(x, y, u, v, grads, ok, start, index, float(epsilon), float(threshold), outlier, residual)
     return outlier, residual
 
 
-def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=None, poor_texture=None):
+def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=None, poor_texture=None,
+                known_outliers=None):
     """Status after the correlation, texture and neighbour gates (a new array).
 
     Parameters
@@ -375,6 +438,10 @@ def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=Non
         For the median test (``median_test``).
     poor_texture : ndarray of bool, shape (N,), optional
         From ``Texture.poor``.
+    known_outliers : (ok, outlier) of ndarray of bool, shape (N,), optional
+        The outliers ``median_test`` found over the points ``ok`` on these same u, v and gradients
+        (with ``gates``' thresholds): taken instead of testing again where the points still OK here
+        are those (``Tracker`` tests the same frame twice).
 
     Returns
     -------
@@ -389,7 +456,10 @@ def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=Non
         status[ok & poor_texture] = POOR_TEXTURE
     if graph is not None:
         still = status == OK
-        outlier, _ = median_test(x, y, u, v, still, graph, gradients=gradients, epsilon=gates.outlier_epsilon,
-                                 threshold=gates.outlier_threshold)
+        if known_outliers is not None and np.array_equal(known_outliers[0], still):
+            outlier = known_outliers[1]
+        else:
+            outlier, _ = median_test(x, y, u, v, still, graph, gradients=gradients, epsilon=gates.outlier_epsilon,
+                                     threshold=gates.outlier_threshold)
         status[outlier] = OUTLIER
     return status

@@ -41,8 +41,14 @@ but starts each point from its result in the previous frame:
 
 Points whose reference subset is unusable (outside the image, no texture) are
 reported with their status every frame and never searched.
+
+Where a frame's time goes: ``Tracker.last_timings`` holds the nanoseconds of the last
+``track`` call per stage (``TRACKER_STAGES``; ``StageTimes``), measured with a few
+``time.perf_counter_ns`` calls; what they leave out of the call's wall time is the
+bookkeeping between them (start values, scattering results, remembering the frame).
 """
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,7 +66,7 @@ from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_point
 from livedic.dic.status import Status
 from livedic.dic.subpixel import icgn2
 from livedic.dic.subpixel.icgn import prepare_reference, prepare_target, refine_prepared
-from livedic.dic.validation import as_image, as_points, check_radius, check_subset
+from livedic.dic.validation import as_image, as_points, check_radius, check_subset, checked_image
 
 # IC-GN iteration cap used for tracking (dic.subpixel.icgn's own default is 10): measured here, a
 # few subsets of the tensile sequence need 16-40 iterations from the exact displacement with zero
@@ -86,6 +92,42 @@ _GRADIENTS = ("icgn", "icgn2", "newton-raphson")
 # extra border that keeps the B-spline prefilter's edge effects (pole 2 - sqrt(3): 0.27^12 < 1e-6) away.
 _WINDOW_ALLOWANCE = 48
 _FILTER_GUARD = 12
+
+# The stages of ``track`` that ``last_timings`` times (``StageTimes``), in the order a frame passes them:
+# prepare = the new frame made ready to sample (grey float32, the B-spline prefilter of the IC-GN window);
+# kernel = the sub-pixel method on every trackable point from its start (for methods that always search,
+# the seeded search too); seeded_search = the on-demand seeded search of the doubtful points and their
+# re-refinement; refind = the re-finding of weak points (from neighbours, from seeds, the wide search);
+# gates = the tests that decide which points are doubtful, outliers or ok (ZNCC, gradient jumps, the
+# median test, the quality gates); reference_update = ``dic.key_frames``' composition to the first frame,
+# fracture check, update policy and any move of the reference (0 for a plain ``Tracker``).
+TRACKER_STAGES = ("prepare", "kernel", "seeded_search", "refind", "gates", "reference_update")
+
+
+class StageTimes:
+    """Nanoseconds spent per stage (``TRACKER_STAGES``) of one call, each stage's spans added up.
+
+    ``with times.stage("kernel"): ...`` adds the block's duration to ``times.ns["kernel"]``; spans
+    must not nest (a nested one would be counted twice).
+    """
+    __slots__ = ("ns", "_stage", "_started")
+
+    def __init__(self):
+        self.ns = dict.fromkeys(TRACKER_STAGES, 0)
+        self._stage = None
+        self._started = 0
+
+    def stage(self, name):
+        self._stage = name
+        return self
+
+    def __enter__(self):
+        self._started = time.perf_counter_ns()
+        return self
+
+    def __exit__(self, *exc):
+        self.ns[self._stage] += time.perf_counter_ns() - self._started
+        return False
 
 
 def grid_in_roi(shape, roi, step, subset):
@@ -236,6 +278,9 @@ class Tracker:
     last_second_order : dict of str -> ndarray of float64, shape (N,), or None
         ``"icgn2"``: the second-order terms of the last frame (``dic.subpixel.icgn2.SECOND_ORDER``:
         uxx, uxy, uyy, vxx, vxy, vyy), NaN where not ok or refined below order 2; None otherwise.
+    last_timings : dict of str -> int
+        Nanoseconds per stage of the last ``track`` call, every key of ``TRACKER_STAGES`` (0 before
+        the first call and for a stage that did not run); their sum is at most the call's wall time.
 
     Raises
     ------
@@ -328,10 +373,19 @@ class Tracker:
         self._order = np.where(texture.translation_only(gates), 0, 2 if subpixel == "icgn2" else 1)
         self.trackable = self._ref_status == Status.OK
         self.frames_tracked = 0
-        self.last_refound = np.zeros(n, dtype=bool)
+        self.last_refound = np.zeros(self.n_points, dtype=bool)
         self.last_refind_attempts = 0
         self.last_seed_searches = 0
         self.last_second_order = None
+        self.last_timings = StageTimes().ns
+        self._tested = None
+        self._spare = None          # the IC-GN window's coefficients buffer, reused frame after frame
+
+    def __getstate__(self):
+        # a copy or a pickle (replay --workers) leaves the coefficients buffer behind: it is scratch
+        state = self.__dict__.copy()
+        state["_spare"] = None
+        return state
 
     # ------------------------------------------------------------------ IC-GN window
     def _prepare_window(self, allowance):
@@ -404,6 +458,15 @@ class Tracker:
                 u[never], v[never] = nu, nv
         return u, v
 
+    def _frame_start(self):
+        """The trackable points and every point's start (``_start``), the IC-GN window grown to hold them."""
+        idx = np.flatnonzero(self.trackable)
+        start_u, start_v = self._start()
+        if idx.size:
+            reach = max(self.seed_radius, self.refind_radius) + 2
+            self._ensure_window(float(np.max(np.maximum(np.abs(start_u[idx]), np.abs(start_v[idx])))) + reach)
+        return idx, start_u, start_v
+
     def _neighbour_guess(self, idx):
         """Displacement of the nearest point that has a good result (zeros if none)."""
         good = np.flatnonzero(self._ever_good & np.isfinite(self._prev["u"]))
@@ -437,7 +500,7 @@ class Tracker:
             return self._measure_icgn(target, idx, start_u, start_v, search, radius, grads, options)
         points = np.column_stack([self.x[idx], self.y[idx]])
         guess = np.column_stack([start_u, start_v])
-        return measure(self.reference, target, points, subset=self.subset, search=search,
+        return measure(self.reference, target.grey, points, subset=self.subset, search=search,
                        subpixel=self.subpixel, radius=radius, guess=guess, seed=self.seed,
                        search_options=options, subpixel_options=self.subpixel_options or None, gates=None)
 
@@ -447,7 +510,7 @@ class Tracker:
         evaluations = None
         u0, v0 = start_u, start_v
         if search != "none":
-            found = search_points(self.reference, target, self._xs[idx], self._ys[idx], start_u, start_v,
+            found = search_points(self.reference, target.grey, self._xs[idx], self._ys[idx], start_u, start_v,
                                   self.half, radius, search, seed=self.seed, margin=INTERPOLATION_MARGIN,
                                   options=options)
             ok = found.status == Status.OK
@@ -459,21 +522,33 @@ class Tracker:
             evaluations = found.evaluations
             if ok.any():
                 self._ensure_window(float(np.max(np.maximum(np.abs(found.u[ok]), np.abs(found.v[ok])))) + 2)
-        coeffs = self._target_coefficients()
+        result = self._kernel_job(idx, u0, v0, grads, status).run(self._target_coefficients())
+        return self._measurement(idx, result, evaluations)
+
+    def _kernel_job(self, idx, u0, v0, grads, status=None):
+        """The prepared IC-GN run for the points ``idx`` from (u0, v0) and the shape terms ``grads``."""
         starts = tuple(f"{name}0" for name in self._shape_terms)
-        refine_options = {k: v for k, v in self.subpixel_options.items() if k not in starts}
-        order = refine_options.pop("order", self._order)
+        options = {k: v for k, v in self.subpixel_options.items() if k not in starts}
+        order = options.pop("order", self._order)
         if np.ndim(order) > 0:
             order = np.asarray(order)[idx]
-        if self.subpixel == "icgn2":
-            second = {f"{name}0": grads[name] for name in icgn2.SECOND_ORDER}
-            result = icgn2.refine_prepared(self._prep, coeffs, u0, v0, grads["ux"], grads["uy"], grads["vx"],
-                                           grads["vy"], status=status, points=idx, order=order, **second,
-                                           **refine_options)
-        else:
-            result = refine_prepared(self._prep, coeffs, u0, v0, grads["ux"], grads["uy"], grads["vx"], grads["vy"],
-                                     status=status, points=idx, order=order, **refine_options)
-        return self._measurement(idx, result, evaluations)
+        return KernelJob(self._prep, self._window, idx, u0, v0, grads, order, options, status)
+
+    def kernel_job(self):
+        """The kernel stage of the next ``track`` on its own: a ``KernelJob``, or None (no IC-GN, no point).
+
+        For timing the bare kernel against the tracker on the same points from the same start
+        (``livedic.bench.tracker_cost``): ``job.run(job.coefficients(frame))`` is what the next
+        ``track(frame)`` runs in its ``kernel`` stage. Calling it changes nothing the next ``track``
+        would not (it may grow the IC-GN window as that ``track`` will).
+        """
+        if self._prep is None:
+            return None
+        idx, start_u, start_v = self._frame_start()
+        if idx.size == 0:
+            return None
+        grads = self._gradients()
+        return self._kernel_job(idx, start_u[idx], start_v[idx], {k: g[idx] for k, g in grads.items()})
 
     def _measurement(self, idx, result, evaluations=None):
         """The points ``idx``'s rows of a tracker result from a sub-pixel result (icgn2: with its 2nd-order terms)."""
@@ -503,38 +578,82 @@ class Tracker:
         ValueError
             An image of another size or not 2-D grey.
         """
-        target = as_image(image, "frame")
-        if target.shape != self.reference.shape:
-            raise ValueError(f"frame is {target.shape[1]}x{target.shape[0]} but the reference is "
+        times = StageTimes()
+        with times.stage("prepare"):
+            target = _Frame(checked_image(image, "frame"))
+        if target.raw.shape != self.reference.shape:
+            raise ValueError(f"frame is {target.raw.shape[1]}x{target.raw.shape[0]} but the reference is "
                              f"{self.reference.shape[1]}x{self.reference.shape[0]}: frames must keep the size")
         self._target = target
         self._coeffs = None
-        n = self.n_points
-        idx = np.flatnonzero(self.trackable)
-        start_u, start_v = self._start()
+        idx, start_u, start_v = self._frame_start()
         if idx.size:
-            reach = max(self.seed_radius, self.refind_radius) + 2
-            self._ensure_window(float(np.max(np.maximum(np.abs(start_u[idx]), np.abs(start_v[idx])))) + reach)
+            with times.stage("prepare"):
+                if self._prep is not None:
+                    self._target_coefficients()
+                else:
+                    target.grey                 # the methods without IC-GN's window read the whole frame
         grads = self._gradients()
-        result = self._empty_result()
         on_demand = self.search != "none" and self.subpixel in _ITERATIVE
         self.last_seed_searches = 0
+        result = None
         if idx.size:
-            first = self._measure(target, idx, start_u[idx], start_v[idx], "none" if on_demand else self.search,
-                                  self.seed_radius, {k: g[idx] for k, g in grads.items()}, self.seed_search_options)
-            self._scatter(result, idx, first)
-            self.last_seed_searches = int(idx.size) if self.search != "none" and not on_demand else 0
-        if on_demand:
-            doubtful = np.flatnonzero(self._weak(result))
-            if doubtful.size:
-                self.last_seed_searches = int(doubtful.size)
-                again = self._measure(target, doubtful, start_u[doubtful], start_v[doubtful], self.search,
-                                      self.seed_radius, {k: g[doubtful] for k, g in grads.items()},
+            with times.stage("kernel"):
+                first = self._measure(target, idx, start_u[idx], start_v[idx], "none" if on_demand else self.search,
+                                      self.seed_radius, {k: g[idx] for k, g in grads.items()},
                                       self.seed_search_options)
-                self._keep_better(result, doubtful, again)
+            if self._prep is not None and idx.size == self.n_points and first.evaluations is None:
+                result = first                  # IC-GN measured every point: its fields are the frame's result's
+            else:
+                result = self._empty_result()
+                self._scatter(result, idx, first)
+            self.last_seed_searches = int(idx.size) if self.search != "none" and not on_demand else 0
+        if result is None:
+            result = self._empty_result()
+        weak = None
+        if on_demand:
+            with times.stage("gates"):
+                weak = self._weak(result)
+                doubtful = np.flatnonzero(weak)
+            if doubtful.size:
+                weak = None                     # the seeded search changes the result: to be judged again
+                self.last_seed_searches = int(doubtful.size)
+                with times.stage("seeded_search"):
+                    again = self._measure(target, doubtful, start_u[doubtful], start_v[doubtful], self.search,
+                                          self.seed_radius, {k: g[doubtful] for k, g in grads.items()},
+                                          self.seed_search_options)
+                    self._keep_better(result, doubtful, again)
         # Re-find the points that failed, lost correlation or disagree with their neighbours; not those
         # at the image's edge, whose material is leaving the view (_at_the_edge).
-        weak = self._weak(result) | self._outliers(result)
+        with times.stage("gates"):
+            weak = (self._weak(result) if weak is None else weak) | self._outliers(result)
+        with times.stage("refind"):
+            retry = self._refind_weak(target, result, weak, start_u, start_v, grads)
+        with times.stage("gates"):
+            self._gate(result)
+        # Back off on points the wide search could not recover; reset on the others.
+        recovered = self.last_refound | (result.ok & ~weak)
+        self._refind_wait[recovered] = 0
+        if retry.size:
+            self._refind_wait[retry] = np.clip(2 * self._refind_wait[retry], 1, REFIND_MAX_WAIT)
+            self._refind_skip[retry] = self._refind_wait[retry]
+        self._remember(result)
+        self.frames_tracked += 1
+        self._target = None
+        self._coeffs = None
+        self.last_timings = times.ns
+        if isinstance(result, _Curved):
+            self.last_second_order = {name: getattr(result, name) for name in icgn2.SECOND_ORDER}
+            result = _take(result, slice(None), Measurement)
+        return result
+
+    def _refind_weak(self, target, result, weak, start_u, start_v, grads):
+        """Re-find the ``weak`` points (in place in ``weak`` and ``result``), but not those whose material
+        left the view (``_at_the_edge``) nor those waiting out their back-off; returns the points still lost."""
+        if not weak.any():
+            self.last_refound = np.zeros(self.n_points, dtype=bool)
+            self.last_refind_attempts = 0
+            return np.flatnonzero(weak)
         gone = weak & self._at_the_edge(start_u, start_v)
         stale = np.flatnonzero(weak & ~gone & ~np.isfinite(self._prev["u"]))
         if stale.size:
@@ -550,7 +669,7 @@ class Tracker:
         self._refind_skip[waiting] -= 1
         weak &= ~waiting
         retry = np.flatnonzero(weak)
-        self.last_refound = np.zeros(n, dtype=bool)
+        self.last_refound = np.zeros(self.n_points, dtype=bool)
         self.last_refind_attempts = int(retry.size)
         if retry.size and self._prep is not None:
             retry = self._from_neighbours(result, retry, weak)
@@ -563,21 +682,7 @@ class Tracker:
             with np.errstate(invalid="ignore"):
                 still = ~result.ok[retry] | (result.zncc[retry] < self.refind_zncc)
             retry = retry[still]
-        self._gate(result)
-        # Back off on points the wide search could not recover; reset on the others.
-        recovered = self.last_refound | (result.ok & ~weak)
-        self._refind_wait[recovered] = 0
-        if retry.size:
-            self._refind_wait[retry] = np.clip(2 * self._refind_wait[retry], 1, REFIND_MAX_WAIT)
-            self._refind_skip[retry] = self._refind_wait[retry]
-        self._remember(result)
-        self.frames_tracked += 1
-        self._target = None
-        self._coeffs = None
-        if isinstance(result, _Curved):
-            self.last_second_order = {name: getattr(result, name) for name in icgn2.SECOND_ORDER}
-            result = _take(result, slice(None), Measurement)
-        return result
+        return retry
 
     def resume(self, previous, *, last_good=None):
         """Start the next ``track`` from a known earlier result, as if the frames before had been tracked here.
@@ -685,11 +790,16 @@ class Tracker:
             return (x < edge) | (y < edge) | (x > width - 1 - edge) | (y > height - 1 - edge)
 
     def _outliers(self, result):
-        """Ok points that fail the normalised median test against their ok neighbours."""
+        """Ok points that fail the normalised median test against their ok neighbours.
+
+        Kept with a copy of what it tested (``_tested``): ``_gate`` runs the same test at the end of the
+        frame and, when re-finding changed nothing, takes this answer instead of computing it again.
+        """
         flagged, _ = quality.median_test(self.x, self.y, result.u, result.v, result.ok, self._graph,
                                          gradients=_gradients_of(result), epsilon=self.gates.outlier_epsilon,
                                          threshold=self.gates.outlier_threshold)
-        return flagged
+        self._tested = (_median_test_inputs(result, copy=True), flagged)
+        return flagged.copy()
 
     def _refind_from_seeds(self, target, result, retry, weak, grads):
         """Many points to re-find at once (a whole region jumped: a grip slip, the half of a broken coupon):
@@ -746,8 +856,14 @@ class Tracker:
 
     def _gate(self, result):
         """The quality gates on the frame's result (in place): LOW_CORRELATION, OUTLIER; NaN where not ok."""
+        known = None
+        if self._tested is not None:
+            inputs, flagged = self._tested
+            if all(_same_bits(a, b) for a, b in zip(inputs[1:], _median_test_inputs(result)[1:])):
+                known = (inputs[0], flagged)       # the same u, v and gradients: the same test over the same ok
+        self._tested = None
         status = quality.gate_status(result.status, result.zncc, self.x, self.y, result.u, result.v, self._graph,
-                                     self.gates, gradients=_gradients_of(result))
+                                     self.gates, gradients=_gradients_of(result), known_outliers=known)
         result.status[:] = status
         result.ok[:] = status == Status.OK
         bad = ~result.ok
@@ -759,8 +875,9 @@ class Tracker:
     def _target_coefficients(self):
         """B-spline coefficients of the current frame on the IC-GN window (computed once per window)."""
         if self._coeffs is None or self._coeffs[0] != self._window:
-            y0, y1, x0, x1 = self._window
-            self._coeffs = (self._window, prepare_target(np.ascontiguousarray(self._target[y0:y1, x0:x1])))
+            # the previous frame's buffer is reused (no fresh pages to fault in every frame)
+            self._spare = window_coefficients(self._target.raw, self._window, out=self._spare)
+            self._coeffs = (self._window, self._spare)
         return self._coeffs[1]
 
     def _weak(self, result):
@@ -848,6 +965,64 @@ class Tracker:
         self._ever_good |= ok
 
 
+def window_coefficients(image, window, out=None):
+    """IC-GN's B-spline coefficients (``prepare_target``) of ``image``'s rows y0:y1, columns x0:x1 (``window``);
+    ``out``: an earlier frame's, overwritten where the window's size is theirs."""
+    y0, y1, x0, x1 = window
+    return prepare_target(image[y0:y1, x0:x1], out=out)
+
+
+class _Frame:
+    """The frame ``track`` measures: as given (``raw``; IC-GN prefilters its window of it) and, made
+    when a search first needs it, as the float32 image the searches read (``grey``)."""
+    __slots__ = ("raw", "_grey")
+
+    def __init__(self, raw):
+        self.raw = raw
+        self._grey = None
+
+    @property
+    def grey(self):
+        if self._grey is None:
+            self._grey = as_image(self.raw, "frame")
+        return self._grey
+
+
+@dataclass(frozen=True)
+class KernelJob:
+    """One run of the prepared IC-GN kernel (``"icgn"``, ``"icgn2"``) as ``Tracker`` makes it.
+
+    ``run(coefficients)`` refines the prepared points ``points`` from (``u0``, ``v0``) and the start
+    shape terms ``shape`` (``ux, uy, vx, vy`` and, for icgn2, its second-order terms) with ``order``
+    and ``options`` (``refine_prepared``'s), on ``coefficients(frame)``: the frame's ``window``
+    (y0, y1, x0, x1), to which the prepared data's positions are relative.
+    """
+    prep: object
+    window: tuple
+    points: np.ndarray
+    u0: np.ndarray
+    v0: np.ndarray
+    shape: dict
+    order: object
+    options: dict
+    status: np.ndarray = None
+
+    def coefficients(self, image, out=None):
+        """``image``'s coefficients on the window (``window_coefficients``; ``out`` an earlier frame's)."""
+        return window_coefficients(image, self.window, out)
+
+    def run(self, coefficients):
+        """The sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""
+        g = self.shape
+        if isinstance(self.prep, icgn2.Icgn2Reference):
+            second = {f"{name}0": g[name] for name in icgn2.SECOND_ORDER}
+            return icgn2.refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
+                                         status=self.status, points=self.points, order=self.order, **second,
+                                         **self.options)
+        return refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
+                               status=self.status, points=self.points, order=self.order, **self.options)
+
+
 def last_good_after(last_good, result):
     """Each point's last ok result (``Tracker.resume``'s ``last_good``) once ``result`` has been tracked.
 
@@ -872,6 +1047,17 @@ def _gradients_of(measurement):
     if measurement.ux is None:
         return None
     return measurement.ux, measurement.uy, measurement.vx, measurement.vy
+
+
+def _median_test_inputs(result, copy=False):
+    """(ok, u, v and, where the result has them, ux, uy, vx, vy): what ``quality.median_test`` reads of it."""
+    arrays = (result.ok, result.u, result.v) + (_gradients_of(result) or ())
+    return tuple(np.array(a, copy=True) for a in arrays) if copy else arrays
+
+
+def _same_bits(a, b):
+    """Whether two arrays hold the same values bit for bit (NaN and the sign of zero included)."""
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
 
 
 def _take(measurement, mask, kind=None):

@@ -6,6 +6,11 @@ import numpy as np
 
 def as_image(image, name):
     """Return ``image`` as a C-contiguous float32 2-D array, or raise ValueError."""
+    return np.ascontiguousarray(checked_image(image, name), dtype=np.float32)
+
+
+def checked_image(image, name):
+    """Return ``image`` as an array, unconverted, if ``as_image`` takes it, or raise ValueError."""
     array = np.asarray(image)
     if array.ndim != 2:
         raise ValueError(f"{name} image must be 2-D grey (H, W), got shape {array.shape}: convert colour images to grey first")
@@ -15,7 +20,7 @@ def as_image(image, name):
         raise ValueError(f"{name} image is {array.shape[1]}x{array.shape[0]} pixels: too small to correlate")
     if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
         raise ValueError(f"{name} image contains NaN or infinite pixels: replace them before measuring")
-    return np.ascontiguousarray(array, dtype=np.float32)
+    return array
 
 
 def check_same_shape(reference, deformed):

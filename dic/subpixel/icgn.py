@@ -96,12 +96,14 @@ from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
                         OUTSIDE_TARGET as _OUTSIDE_TARGET, Status)
-from livedic.dic.validation import as_image, check_same_shape
+from livedic.dic.validation import as_image, check_same_shape, checked_image
 
 # |ux|, |uy|, |vx|, |vy| beyond this is no longer a small-strain subset: declared diverged.
 _MAX_GRADIENT = 1.0
 _NO_RUN = -(1 << 62)  # tap origin of pad lanes in split rows
 _CHUNK = 32  # points per parallel task (scratch arrays are per task, not per point)
+# Frame dtypes whose grey levels float32 holds exactly (``prepare_target`` reads them unconverted).
+_EXACT_IN_FLOAT32 = tuple(np.dtype(t) for t in (np.uint8, np.uint16, np.float32))
 
 
 @dataclass
@@ -388,9 +390,17 @@ def prepare_reference(reference, xs, ys, half, *, hessian="projected"):
                          sum_j, sum_jf, sum_f, status, hessian)
 
 
-def prepare_target(deformed):
-    """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32."""
-    return prefilter(as_image(deformed, "deformed"), dtype=np.float32)
+def prepare_target(deformed, *, out=None):
+    """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32.
+
+    The grey levels are those of ``dic.validation.as_image`` (float32); 8- and 16-bit frames, whose
+    values float32 holds exactly, are read as they are (no float32 copy of the frame is made).
+    ``out``: the coefficients of an earlier frame of the same size, overwritten (``prefilter``).
+    """
+    image = checked_image(deformed, "deformed")
+    if image.dtype not in _EXACT_IN_FLOAT32:
+        image = as_image(image, "deformed")
+    return prefilter(image, dtype=np.float32, out=out)
 
 
 # ---------------------------------------------------------------------------
@@ -859,7 +869,9 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     params[:, 3] = _as_start(v0, npts, "v0", np.nan)
     params[:, 4] = _as_start(vx0, npts, "vx0", 0.0)
     params[:, 5] = _as_start(vy0, npts, "vy0", 0.0)
-    params[np.ix_(orders == 0, [1, 2, 4, 5])] = 0.0
+    shift_only = np.flatnonzero(orders == 0)        # usually none: no fancy-index assignment then
+    if shift_only.size:
+        params[np.ix_(shift_only, [1, 2, 4, 5])] = 0.0
     st = ref_prep.status[points]
     if status is not None:
         status = np.asarray(status)
@@ -878,7 +890,8 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     params[~ok] = np.nan
     grads = {}
     if per_point or order == 1:
-        params[np.ix_(orders == 0, [1, 2, 4, 5])] = np.nan
+        if shift_only.size:
+            params[np.ix_(shift_only, [1, 2, 4, 5])] = np.nan
         grads = dict(ux=params[:, 1].copy(), uy=params[:, 2].copy(), vx=params[:, 4].copy(), vy=params[:, 5].copy())
     return SubpixelResult(u=params[:, 0].copy(), v=params[:, 3].copy(), zncc=np.where(ok, out_zncc, np.nan),
                           status=st, iterations=out_iter, **grads)

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from livedic.dic.bspline import PAD, BSplineCoefficients, interpolate, prefilter, sample_shift
+from livedic.dic.bspline import _HORIZON, GAIN, PAD, POLE, BSplineCoefficients, interpolate, prefilter, sample_shift
+from livedic.dic.subpixel.icgn import prepare_target
 from tests.conftest import blurred_noise
 
 
@@ -62,6 +63,63 @@ def test_matches_scipy_spline_with_mirror_boundaries():
     y = rng.uniform(0, 29, 300)
     expected = ndimage.map_coordinates(image, [y, x], order=3, mode="mirror")
     np.testing.assert_allclose(interpolate(coeffs, x, y), expected, atol=1e-9)
+
+
+def _filtered_line(line):
+    """The prefilter of one line, one operation after another in Python floats (IEEE doubles): the reference
+    for the kernels, which filter many lines at once but must do the same arithmetic on each."""
+    z, n = POLE, len(line)
+    if n == 1:
+        return list(line)
+    if n > _HORIZON:
+        acc, zk = 0.0, 1.0
+        for k in range(_HORIZON):
+            acc += zk * line[k]
+            zk *= z
+    else:
+        z2n = z ** (2 * n - 2)
+        acc = line[0] + z ** (n - 1) * line[n - 1]
+        zk = z
+        for k in range(1, n - 1):
+            acc += (zk + z2n / zk) * line[k]
+            zk *= z
+        acc = acc / (1.0 - z2n)
+    c = [acc]
+    for k in range(1, n):
+        c.append(line[k] + z * c[-1])
+    c[-1] = (z / (z * z - 1.0)) * (c[-1] + z * c[-2])
+    for k in range(n - 2, -1, -1):
+        c[k] = z * (c[k + 1] - c[k])
+    return [GAIN * value for value in c]
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (9, 1), (2, 40), (40, 2), (29, 31), (33, 70), (70, 130)])
+def test_prefilter_is_the_recursive_filter_bit_for_bit(shape):
+    """Rows, then columns, each stored as float32 (the coefficients' storage) in between, whatever the image's
+    size against the kernels' blocks of lines and the horizon of the causal sum."""
+    image = (blurred_noise(shape, seed=7) * 200).astype(np.uint8)
+    rows = np.array([np.float32(_filtered_line([float(v) for v in row])) for row in image], dtype=np.float32)
+    expected = np.array([_filtered_line([float(v) for v in column]) for column in rows.T], dtype=np.float32).T
+    got = prefilter(image).coefficients[PAD:PAD + shape[0], PAD:PAD + shape[1]]
+    assert got.tobytes() == expected.tobytes()
+
+
+def test_prefilter_reads_views_and_8_16_bit_frames_as_they_are_and_reuses_a_buffer():
+    """The same coefficients, bit for bit, from a strided 8- or 16-bit window as from its float32 copy
+    (what ``prepare_target`` made before); ``out`` gives them in an earlier frame's buffer."""
+    frame = (blurred_noise((90, 120), seed=8) * 60000).astype(np.uint16)
+    for image in (frame, (frame // 257).astype(np.uint8)):
+        window = image[11:80, 7:101]
+        expected = prefilter(np.ascontiguousarray(window, dtype=np.float32)).flat
+        assert prefilter(window).flat.tobytes() == expected.tobytes()
+        assert prepare_target(window).flat.tobytes() == expected.tobytes()
+        earlier = prepare_target(image[1:70, 20:114])
+        again = prepare_target(window, out=earlier)
+        assert again is earlier and again.flat.tobytes() == expected.tobytes()
+        assert prepare_target(image[:10, :10], out=earlier) is not earlier      # another size: a new buffer
+    wide = frame.astype(np.int64) * 1000 + 1          # grey levels float32 rounds: rounded as as_image does
+    expected = prefilter(wide.astype(np.float32)).flat
+    assert prepare_target(wide).flat.tobytes() == expected.tobytes()
 
 
 def test_outside_domain_and_nan_give_nan():

@@ -136,6 +136,62 @@ def test_gate_status_precedence_and_thresholds():
     assert gate_status(status, zncc, xy[:, 0], xy[:, 1], u, v, None, Gates(min_zncc=0.99))[0] == Status.LOW_CORRELATION
 
 
+def test_median_test_residual_is_westerweel_scarano_exactly():
+    """Every residual is the formula's, to the last bit, with numpy's median over the ok neighbours'
+    predictions (8 inside the grid, fewer at its edges and beside failed points)."""
+    xy = _grid(10, 9)
+    n = len(xy)
+    rng = np.random.default_rng(4)
+    u = 0.002 * xy[:, 0] + rng.normal(0.0, 0.02, n)
+    v = -0.001 * xy[:, 1] + rng.normal(0.0, 0.02, n)
+    u[40] += 1.0
+    ok = rng.random(n) > 0.1
+    grads = tuple(rng.normal(0.0, 1e-3, n) + g for g in (0.002, 0.0, 0.0, -0.001))
+    graph = neighbour_graph(xy)
+    _, residual = median_test(xy[:, 0], xy[:, 1], u, v, ok, graph, gradients=grads)
+    start, index = graph
+    expected = np.full(n, np.nan)
+    for i in np.flatnonzero(ok):
+        near = [j for j in index[start[i]:start[i + 1]] if ok[j]]
+        if len(near) < 3:
+            continue
+        worst = []
+        for field, gx, gy in ((u, grads[0], grads[1]), (v, grads[2], grads[3])):
+            predicted = np.array([field[j] + gx[j] * (xy[i, 0] - xy[j, 0]) + gy[j] * (xy[i, 1] - xy[j, 1])
+                                  for j in near])
+            median = np.median(predicted)
+            worst.append(abs(field[i] - median) / (np.median(np.abs(predicted - median)) + 0.1))
+        expected[i] = max(worst)
+    assert np.isfinite(expected).sum() > 50
+    np.testing.assert_array_equal(residual, expected)
+    assert residual[40] > 2.0
+
+
+def test_gate_status_takes_known_outliers_only_for_the_same_points():
+    """``known_outliers`` (a median test already run on the same field) stands in for the test when the points
+    still OK are those it tested; when the correlation gate removed one, the test runs again over the rest."""
+    xy = _grid(10, 5)
+    n = len(xy)
+    u, v = np.zeros(n), np.zeros(n)
+    u[12] = 3.0
+    zncc = np.full(n, 0.95)
+    status = np.zeros(n, dtype=np.int8)
+    graph = neighbour_graph(xy)
+    ok = status == Status.OK
+    outlier, _ = median_test(xy[:, 0], xy[:, 1], u, v, ok, graph)
+    assert np.flatnonzero(outlier).tolist() == [12]
+    fresh = gate_status(status, zncc, xy[:, 0], xy[:, 1], u, v, graph)
+    known = gate_status(status, zncc, xy[:, 0], xy[:, 1], u, v, graph, known_outliers=(ok, outlier))
+    np.testing.assert_array_equal(known, fresh)
+    claimed = np.zeros(n, dtype=bool)
+    claimed[5] = True                      # an answer for these points is taken as given
+    taken = gate_status(status, zncc, xy[:, 0], xy[:, 1], u, v, graph, known_outliers=(ok, claimed))
+    assert np.flatnonzero(taken == Status.OUTLIER).tolist() == [5]
+    zncc[12] = 0.3                         # the spike now fails the correlation gate: the others are tested anew
+    again = gate_status(status, zncc, xy[:, 0], xy[:, 1], u, v, graph, known_outliers=(ok, claimed))
+    assert again[12] == Status.LOW_CORRELATION and not np.any(again == Status.OUTLIER)
+
+
 @pytest.mark.parametrize("bad", [{"min_zncc": 1.5}, {"outlier_epsilon": 0}, {"vif_max": 0.5},
                                  {"texture_fraction": 1.0}])
 def test_bad_gates_are_refused(bad):

@@ -1,11 +1,14 @@
 """Tracker: seeded frame-to-frame tracking against a reference, re-finding, grids."""
 
+import time
+
 import numpy as np
 import pytest
 
 from livedic.acquire.synthetic import SyntheticTranslateSource
 from livedic.dic.status import Status
-from livedic.dic.tracking import Tracker, grid_in_roi, step_for_count
+from livedic.dic.key_frames import KeyFrameTracker
+from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count
 
 
 def _translate_frames(query):
@@ -102,6 +105,50 @@ def test_seeded_search_runs_only_for_doubtful_points_with_icgn():
         assert surface.last_seed_searches == len(points)  # surface fits need the integer peak every frame
         if k == 4:
             break
+
+
+def _timed_track(tracker, image):
+    started = time.perf_counter_ns()
+    result = tracker.track(image)
+    return result, time.perf_counter_ns() - started
+
+
+@pytest.mark.parametrize("kind", [Tracker, KeyFrameTracker])
+def test_stage_timings_are_every_stage_within_the_call(kind):
+    """``last_timings``: every stage of TRACKER_STAGES, ns >= 0, together at most the call's wall time; the
+    stages that ran are timed (the frame prepared, the kernel; the searches on the frame that jumps)."""
+    source, frames = _translate_frames("frames=7&size=224x224&du=0.2&dv=0.1&jump=4:14:-6&noise=1")
+    points = grid_in_roi(source.shape, (56, 56, 112, 112), 16, 21)
+    tracker = kind(frames[0].image, points, seed_radius=2, refind_radius=20)
+    assert tuple(tracker.last_timings) == TRACKER_STAGES and not any(tracker.last_timings.values())
+    for k, frame in enumerate(frames[:6]):
+        m, wall = _timed_track(tracker, frame.image)
+        timings = tracker.last_timings
+        assert tuple(timings) == TRACKER_STAGES
+        assert all(isinstance(ns, int) and ns >= 0 for ns in timings.values())
+        assert sum(timings.values()) <= wall
+        assert timings["prepare"] > 0 and timings["kernel"] > 0 and timings["gates"] > 0
+        assert (timings["reference_update"] > 0) == (kind is KeyFrameTracker)
+        if k == 4:                                   # the 15 px jump: searched, re-found
+            assert tracker.last_refind_attempts > 0 and timings["seeded_search"] > 0 and timings["refind"] > 0
+        assert m.ok.all()
+
+
+def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
+    """``kernel_job``: what the next ``track`` runs in its kernel stage; alone, it gives the tracker's own
+    numbers where nothing after the kernel changed them (bit for bit)."""
+    source, frames = _translate_frames("frames=6&size=192x192&du=0.3&dv=-0.2&noise=1")
+    points = grid_in_roi(source.shape, (40, 40, 112, 112), 14, 21)
+    tracker = KeyFrameTracker(frames[0].image, points, reference_update="every:2")
+    for frame in frames:
+        job = tracker.kernel_job()
+        bare = job.run(job.coefficients(frame.image))
+        m = tracker.track(frame.image)
+        assert m.ok.all() and job.points.size == len(points)
+        if tracker.last_update is None and tracker.key_frame == 0:
+            np.testing.assert_array_equal(bare.u, m.u)
+            np.testing.assert_array_equal(bare.vy, m.vy)
+    assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").kernel_job() is None
 
 
 def test_points_without_texture_are_reported_never_searched():
