@@ -60,7 +60,7 @@ from livedic.stream.publish import format_publish_summary
 from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                   ReferenceUpdates)
 from livedic.stream.strain import AXIAL, StrainConfig, format_length
-from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
+from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
 
 
 # How long a thread that wants the GIL waits before it asks the holder to give it up (Python's default: 5 ms).
@@ -488,7 +488,11 @@ class Session:
         self.progress = ProgressLine(self.bar, self.acquisition)
         sinks.append(self.progress)
         sinks.extend(self._extra_sinks)
-        self.loop = TrackerLoop(self.queue, self._make_tracker, stages=stages, sinks=sinks)
+        # The tracker built on the reference (the first frame, read by prepare) and the reference tracked before
+        # the acquisition thread starts: the next frames do not queue up behind that set-up (~70 ms at 1 MP).
+        self.loop = TrackerLoop(self.queue, self._make_tracker, reference=reference_ready(self._make_tracker,
+                                                                                          self._ahead.frame),
+                                stages=stages, sinks=sinks)
         self.phase = Phase.RUNNING
         if self._stop_requested:
             self.acquisition.stop()

@@ -269,6 +269,22 @@ class SessionStats:
         }
 
 
+@dataclass
+class ReferenceReady:
+    """The reference frame's tracker and result, made before the session's clock started (``TrackerLoop``)."""
+    tracker: object
+    measurement: object
+    setup_ns: int                 # building the tracker and tracking the reference
+
+
+def reference_ready(make_tracker, frame):
+    """Build the tracker on ``frame`` and track it: a ``ReferenceReady``."""
+    started = time.monotonic_ns()
+    tracker = make_tracker(frame)
+    measurement = tracker.track(frame.image)
+    return ReferenceReady(tracker, measurement, time.monotonic_ns() - started)
+
+
 def _stage_name(stage):
     """A stage's or sink's row in the stage times: its ``stage`` label, else its ``name``."""
     return getattr(stage, "stage", None) or getattr(stage, "name", None) or type(stage).__name__
@@ -359,6 +375,10 @@ class TrackerLoop:
         Holds ``stream.acquisition.QueuedFrame`` items.
     make_tracker : callable
         ``make_tracker(first_frame) -> dic.tracking.Tracker`` (built on the reference).
+    reference : ReferenceReady, optional
+        The tracker already built on the first frame the queue will give, and that frame tracked
+        (before acquisition started: the frames after it do not queue up behind its set-up);
+        ``make_tracker`` is not called.
     stages : sequence of callables
         ``stage(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the tracking
         thread right after ``track``: what the result is made of (strain, force) and what must leave at
@@ -374,9 +394,11 @@ class TrackerLoop:
         How often to look at ``stop_event`` while waiting for a frame.
     """
 
-    def __init__(self, queue, make_tracker, *, stages=(), sinks=(), stop_event=None, max_frames=None, poll_s=0.05):
+    def __init__(self, queue, make_tracker, *, reference=None, stages=(), sinks=(), stop_event=None,
+                 max_frames=None, poll_s=0.05):
         self.queue = queue
         self.make_tracker = make_tracker
+        self._ready = reference
         self.stages = list(stages)
         self.sinks = list(sinks)
         self.stop_event = stop_event or threading.Event()
@@ -425,14 +447,19 @@ class TrackerLoop:
                 stats.first_arrival_ns = item.arrival_ns
             is_reference = self.tracker is None
             t0 = time.monotonic_ns()
+            ready, self._ready = self._ready, None
             if is_reference:
-                self.tracker = self.make_tracker(frame)
+                self.tracker = ready.tracker if ready is not None else self.make_tracker(frame)
                 # A copy: a camera frame's image is a buffer lent by the camera's pool, and the
                 # reference is kept for the whole session.
                 self.reference_frame = replace(frame, image=frame.image.copy())
                 stats.n_points = self.tracker.n_points
             tracked = time.monotonic_ns()
-            measurement = self.tracker.track(frame.image)
+            if ready is not None:
+                measurement = ready.measurement
+                t0 -= ready.setup_ns
+            else:
+                measurement = self.tracker.track(frame.image)
             done = time.monotonic_ns()
             if is_reference:
                 stats.setup_ns = done - t0
