@@ -135,6 +135,11 @@ from livedic.stream.strain import AXIAL, TRANSVERSE
 
 APPLICATION_ID = "livedic"
 DEFAULT_PORT = 9876
+# A live view draws the camera image at most this often (Hz of the frames' clock): enough to watch, and a
+# 100 fps camera's images would cost the process the GIL time the tracker needs; fields go every frame.
+IMAGE_MAX_HZ = 25.0
+# The plots' values go out as columns this often (a few frames at once: Rerun's cost is per call).
+SERIES_SEND_S = 0.1
 # While results wait for the output thread the view leaves out the camera image (never the fields or the
 # numbers), at most this many frames in a row: a view behind still shows the specimen a few times a second.
 IMAGE_SKIP_MAX = 4
@@ -714,6 +719,52 @@ class _XYPlot:
         self._axes_logged = dict(self.limits)
 
 
+class _SeriesColumns:
+    """Every frame's scalars, sent to Rerun as columns (``send_columns``) a few times a second.
+
+    One ``rr.Scalars`` a series a frame cost the view most of its per-frame time (Rerun's Python layer
+    builds each archetype): here a frame's values are appended to lists, and each series goes out as one
+    column of many frames, on the same timelines, the same rows a ``log`` per frame gives. A gap
+    (``clear``) sends what waits first. Not thread-safe: the logging thread's alone.
+    """
+
+    def __init__(self, rr, rec):
+        self.rr, self.rec = rr, rec
+        self._rows = {}                # path -> ([frame], [time s], [values])
+        self._last_sent = time.monotonic()
+
+    def add(self, path, frame, seconds, values):
+        rows = self._rows.get(path)
+        if rows is None:
+            rows = self._rows[path] = ([], [], [])
+        rows[0].append(frame)
+        rows[1].append(seconds)
+        rows[2].append(values)
+
+    def clear(self, path):
+        """A gap in the series at the current time: what waits goes first."""
+        self.send(path)
+        self.rec.log(path, self.rr.Clear(recursive=False))
+
+    def send_when_due(self):
+        if time.monotonic() - self._last_sent >= SERIES_SEND_S:
+            self.send()
+
+    def send(self, path=None):
+        rr = self.rr
+        for key in [path] if path is not None else list(self._rows):
+            rows = self._rows.pop(key, None)
+            if not rows:
+                continue
+            frames, seconds, values = rows
+            rr.send_columns(key, indexes=[rr.TimeColumn(TIMELINE_FRAME, sequence=frames),
+                                          rr.TimeColumn(TIMELINE_TIME, duration=seconds)],
+                            columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
+                            recording=self.rec)
+        if path is None:
+            self._last_sent = time.monotonic()
+
+
 class RerunLogger:
     """Sends a live session to Rerun (see module notes); a session sink (``stream.sinks``).
 
@@ -729,6 +780,10 @@ class RerunLogger:
         The camera image is downsampled by an integer factor until its larger side is at most this.
     image_every : int
         Log the camera image every this many frames (fields and scalars are logged every frame).
+    image_max_hz : float or None
+        A live session: the camera image at most this many times a second of the frames' own clock
+        (``IMAGE_MAX_HZ``; a 100 fps camera is drawn at 25); fields, markers and plots every frame.
+        None: every frame's image (files, replays).
     flush_interval_s : float
         Seconds between flushes of the stream (done by a background thread).
     color_range : (float, float) or None
@@ -758,7 +813,8 @@ class RerunLogger:
     required = False
 
     def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
-                 image_every=1, flush_interval_s=1.0, color_range=None, low_zncc=0.8, thin_when_behind=False,
+                 image_every=1, image_max_hz=None, flush_interval_s=1.0, color_range=None, low_zncc=0.8,
+                 thin_when_behind=False,
                  on_error=None):
         if color_range is not None:
             lo, hi = (float(value) for value in color_range)
@@ -772,6 +828,10 @@ class RerunLogger:
         self.target = target
         self.image_max_side = int(image_max_side)
         self.image_every = max(int(image_every), 1)
+        self.image_max_hz = image_max_hz
+        self._image_period_ns = int(1e9 / image_max_hz) if image_max_hz else 0
+        self._last_image_ns = None               # the frame time of the last camera image logged
+        self.images_above_rate = 0               # camera images left out by image_max_hz
         self.flush_interval_s = flush_interval_s
         self.rec = None
         self.viewer_process = None
@@ -823,6 +883,8 @@ class RerunLogger:
         self._lut = colormap_lut()
         self._packed_lut = pack_colours(self._lut)
         self._blueprint = None
+        self._series = _SeriesColumns(rr, self.rec)
+        self._now = (0, 0.0)                     # the frame being logged: (index, seconds since the first)
 
     @property
     def enabled(self):
@@ -1109,8 +1171,9 @@ class RerunLogger:
         m = result.measurement
         if self._t0_ns is None:
             self._t0_ns = frame.timestamp_ns
-        rec.set_time(TIMELINE_FRAME, sequence=int(frame.index))
-        rec.set_time(TIMELINE_TIME, duration=(frame.timestamp_ns - self._t0_ns) / 1e9)
+        self._now = (int(frame.index), (frame.timestamp_ns - self._t0_ns) / 1e9)
+        rec.set_time(TIMELINE_FRAME, sequence=self._now[0])
+        rec.set_time(TIMELINE_TIME, duration=self._now[1])
         ok = m.ok
         self._log_fields(result, m)
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
@@ -1119,20 +1182,20 @@ class RerunLogger:
             self._log_force(result)
         p0 = self._p0
         if p0 is not None and 0 <= p0 < m.u.size and ok[p0]:
-            rec.log(P0, rr.Scalars([float(m.u[p0]), float(m.v[p0])]))
+            self._scalars(P0, [float(m.u[p0]), float(m.v[p0])])
         nan = float("nan")
         zncc_ok = m.zncc[ok]
-        rec.log(QUALITY, rr.Scalars([float(np.mean(zncc_ok)) if zncc_ok.size else nan,
-                                     float(np.min(zncc_ok)) if zncc_ok.size else nan,
-                                     float(ok.mean()) if ok.size else 0.0]))
+        self._scalars(QUALITY, [float(np.mean(zncc_ok)) if zncc_ok.size else nan,
+                                float(np.min(zncc_ok)) if zncc_ok.size else nan, float(ok.mean()) if ok.size else 0.0])
         fps, poi = self._rates(result, m)
         if np.isfinite(fps):
-            rec.log(THROUGHPUT, rr.Scalars([fps, poi / 1000.0]))
+            self._scalars(THROUGHPUT, [fps, poi / 1000.0])
         if not result.is_reference:
-            rec.log(LATENCY, rr.Scalars([result.latency_ns / 1e6, result.processing_ns / 1e6]))
-        rec.log(DROPS, rr.Scalars([float(result.dropped_total), float(result.queue_depth)]))
+            self._scalars(LATENCY, [result.latency_ns / 1e6, result.processing_ns / 1e6])
+        self._scalars(DROPS, [float(result.dropped_total), float(result.queue_depth)])
         if np.isfinite(result.error_rms_px):
-            rec.log(ERROR, rr.Scalars([result.error_rms_px, result.error_max_px]))
+            self._scalars(ERROR, [result.error_rms_px, result.error_max_px])
+        self._series.send_when_due()
         if result.dropped_since_last:
             self.event(f"{result.dropped_since_last} frame(s) dropped before frame {frame.index} "
                        f"(total {result.dropped_total})", level="warning")
@@ -1143,10 +1206,18 @@ class RerunLogger:
 
     __call__ = log_frame
 
+    def _scalars(self, path, values):
+        """This frame's values of the series ``path`` (sent with the next columns: ``_SeriesColumns``)."""
+        self._series.add(path, *self._now, values)
+
     def _log_fields(self, result, m):
         """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
         rr, rec, frame = self.rr, self.rec, result.frame
-        if self.frames_logged % self.image_every == 0:
+        too_soon = (self._last_image_ns is not None
+                    and frame.timestamp_ns - self._last_image_ns < self._image_period_ns)
+        if too_soon:
+            self.images_above_rate += 1
+        elif self.frames_logged % self.image_every == 0:
             # A view behind the measurement catches up by leaving out the camera image (most of a frame's
             # logging cost), at most IMAGE_SKIP_MAX frames in a row; the fields below are always drawn.
             if (self.thin_when_behind and result.output_backlog > 0
@@ -1155,6 +1226,7 @@ class RerunLogger:
                 self.images_left_out += 1
             else:
                 self._images_left_out_in_a_row = 0
+                self._last_image_ns = frame.timestamp_ns
                 rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
         ok = m.ok
         scale = float(self._scale)
@@ -1317,10 +1389,10 @@ class RerunLogger:
         for name, e, good in zip(readings.names, readings.eng_strain, ok):
             path = f"{EXTENSOMETER_STRAIN}/{name}"
             if good:
-                rec.log(path, rr.Scalars(100.0 * float(e)))
+                self._scalars(path, 100.0 * float(e))
                 self._series_shown[name] = True
             elif self._series_shown.get(name):
-                rec.log(path, rr.Clear(recursive=False))    # a gap in the line, never the last value
+                self._series.clear(path)                    # a gap in the line, never the last value
                 self._series_shown[name] = False
         if self._xy_pair is not None:
             self._log_strain_xy(readings, poisson)
@@ -1355,10 +1427,10 @@ class RerunLogger:
         rr, rec = self.rr, self.rec
         force = result.force_N
         if force is not None and np.isfinite(force):
-            rec.log(FORCE, rr.Scalars(force / 1000.0))
+            self._scalars(FORCE, force / 1000.0)
             self._force_shown = True
         elif self._force_shown:
-            rec.log(FORCE, rr.Clear(recursive=False))        # a gap in the line, never the last value
+            self._series.clear(FORCE)                        # a gap in the line, never the last value
             self._force_shown = False
         plot = self._stress_xy
         if plot is None or self._broken:
@@ -1438,14 +1510,16 @@ class RerunLogger:
         self.rec.log(SUMMARY, rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
 
     def flush(self):
+        """Send the plots' waiting values and flush the stream (the logging thread's, once it logs no more)."""
         rec = self.rec
         if rec is not None:
+            self._series.send()
             rec.flush(timeout_sec=2.0)
 
     def _flush_loop(self):
         while not self._closing.wait(self.flush_interval_s):
             try:
-                self.flush()
+                self.rec.flush(timeout_sec=2.0)     # not the series: the logging thread sends those
             except Exception:  # noqa: BLE001 - a failed flush must not kill the thread; close() reports
                 pass
 
@@ -1457,6 +1531,7 @@ class RerunLogger:
         if self._flusher is not None:
             self._flusher.join(timeout=5.0)
         try:
+            self._series.send()
             self.rec.flush(timeout_sec=5.0)
         finally:
             self.rec.disconnect()

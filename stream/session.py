@@ -744,7 +744,7 @@ class Session:
         }
 
     def _open_outputs(self, scheme):
-        from livedic.stream.rerun_log import RerunLogger
+        from livedic.stream.rerun_log import IMAGE_MAX_HZ, RerunLogger
         config = self.config
         self._settings = _safe_settings(self.source)
         if config.record:
@@ -756,6 +756,7 @@ class Session:
         self.viewer = RerunLogger(config.viewer.mode, config.viewer.target, recording_name=config.name,
                                   image_max_side=config.image_max_side, color_range=config.color_range,
                                   low_zncc=config.tracking.refind_zncc, thin_when_behind=self.drop_policy != BLOCK,
+                                  image_max_hz=IMAGE_MAX_HZ if self.drop_policy != BLOCK else None,
                                   on_error=lambda message: self.event("viewer_file_stopped", message, "warning"))
 
     def _open_recorder(self, path, metadata, *, start_time_ns=None):
@@ -862,6 +863,8 @@ class Session:
             viewer_log_ms_per_frame=(1e3 * viewer.log_seconds / viewer.frames_logged
                                      if viewer is not None and viewer.frames_logged else None),
             viewer_images_left_out=viewer.images_left_out if viewer is not None else None,
+            viewer_image_max_hz=viewer.image_max_hz if viewer is not None else None,
+            viewer_images_above_rate=viewer.images_above_rate if viewer is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=({**self.strain.summary(), **(self.poisson.summary() if self.poisson is not None else {})}
                     if self.strain is not None else None),
@@ -972,9 +975,12 @@ def format_pipeline(summary):
                      f"{OUTPUT_BACKLOG_MAX} behind)")
         parts.append(text)
     left_out = summary.get("viewer_images_left_out")
-    if left_out:
-        parts.append(f"camera image left out of the view in {left_out} of {summary['frames']} frames "
-                     f"(the view was behind; every frame's fields and numbers drawn)")
+    above = summary.get("viewer_images_above_rate")
+    if left_out or above:
+        why = ([f"{above} above the view's {summary['viewer_image_max_hz']:g} images/s"] if above else []) + \
+              ([f"{left_out} while the view was behind"] if left_out else [])
+        parts.append(f"camera image left out of the view in {(left_out or 0) + (above or 0)} of {summary['frames']} "
+                     f"frames ({', '.join(why)}; every frame's fields and numbers drawn)")
     return "; ".join(parts)
 
 

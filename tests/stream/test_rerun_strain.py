@@ -249,3 +249,26 @@ def test_a_live_view_behind_leaves_out_the_image_never_fields_or_plots(tmp_path)
             assert logger.images_left_out == frames - len(images)
         else:
             assert images == list(range(frames)) and logger.images_left_out == 0
+
+
+def test_a_live_view_draws_the_camera_image_at_most_its_rate_and_every_frame_s_fields(tmp_path):
+    """Frames every 20 ms, ``image_max_hz=20``: the camera image every 50 ms of the frames' clock (frames 0, 3,
+    6, ...: 40 ms is too soon, 60 ms is not), the fields and the plots every frame, the rest counted."""
+    points = _points()
+    x, y = points[:, 0], points[:, 1]
+    path = tmp_path / "rate.rrd"
+    stage = _stage(points)
+    logger = RerunLogger("save", str(path), image_max_side=max(SHAPE), image_max_hz=20.0)
+    logger.start(image_shape=SHAPE, roi=ROI, p0_index=0, points=points, strain=stage)
+    frames = 10
+    for i in range(frames):
+        u, v = _field(i, x, y)
+        result = _frame_result(i, x, y, u, v)
+        stage(result, SessionStats())
+        logger.log_frame(result, SessionStats())
+    logger.close()
+    images = sorted(_rows(path, f"/{rerun_log.CAMERA_IMAGE}", "Image:buffer"))
+    assert images == [0, 3, 6, 9] and logger.images_above_rate == frames - 4 and logger.images_left_out == 0
+    assert sorted(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions")) == list(range(frames))
+    assert sorted(_rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == list(range(frames))
+    assert sorted(_rows(path, f"/{rerun_log.P0}", "Scalars:scalars")) == list(range(frames))
