@@ -573,6 +573,7 @@ def run_main_job_case(*, size, frames, fps, paced=True, n_points=None, workdir, 
 
 
 UNPACED_CYCLES = 4          # an unpaced case tracks this many times the rendered frames
+MAIN_JOB_FRAMES = 300       # the main job's own length (livedic run's default)
 
 
 def _main_label(row):
@@ -730,6 +731,7 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
     import numba
 
     size = size or (512 if quick else 1024)
+    main_frames = frames or (40 if quick else MAIN_JOB_FRAMES)
     frames = frames or (40 if quick else 150)
     points = tuple(points or ((TARGET_POINTS,) if quick else POINT_COUNTS))
     printed = []
@@ -744,7 +746,7 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
     say(f"machine: {os.cpu_count()} CPU cores, {platform.machine()}, numba {numba.__version__}; "
         f"{_load()} at start{'  [quick mode]' if quick else ''}")
     main_rows, main_verdicts = run_main_job_benchmark(
-        size=size, frames=frames, say=say,
+        size=size, frames=main_frames, say=say,
         echo=(lambda text: [say("    " + line) for line in text.splitlines()]) if echo_sessions else None)
     say()
     say("the pipeline by point count and method (recording on, no view):")
