@@ -611,6 +611,7 @@ class _XYPlot:
         self.limits = {"x": tuple(x_start), "y": tuple(y_start)}
         self._axes_logged = None
         self._last = {self.curve: None, self.second: None}    # each curve's previous point, None after a gap
+        self.columns = None            # a _SeriesColumns the segments go to (the logger's), else logged one by one
         self.transform = ((1.0, 1.0), (0.0, 0.0))
 
     def view(self, name):
@@ -677,7 +678,10 @@ class _XYPlot:
 
     def _segment(self, rr, rec, entity, point):
         if point is not None and self._last[entity] is not None:
-            rec.log(entity, rr.LineStrips2D.from_fields(strips=[[self._last[entity], point]]))
+            if self.columns is not None:
+                self.columns.add(entity, [self._last[entity], point], kind="strip")
+            else:
+                rec.log(entity, rr.LineStrips2D.from_fields(strips=[[self._last[entity], point]]))
         self._last[entity] = point
 
     def _grow(self, x, y):
@@ -720,26 +724,29 @@ class _XYPlot:
 
 
 class _SeriesColumns:
-    """Every frame's scalars, sent to Rerun as columns (``send_columns``) a few times a second.
+    """Every frame's scalars and plot segments, sent to Rerun as columns (``send_columns``) a few times a second.
 
-    One ``rr.Scalars`` a series a frame cost the view most of its per-frame time (Rerun's Python layer
-    builds each archetype): here a frame's values are appended to lists, and each series goes out as one
-    column of many frames, on the same timelines, the same rows a ``log`` per frame gives. A gap
-    (``clear``) sends what waits first. Not thread-safe: the logging thread's alone.
+    One ``rr.Scalars`` a series a frame (and one ``rr.LineStrips2D`` a curve a frame) cost the view most of its
+    per-frame time (Rerun's Python layer builds each archetype): here a frame's values are appended to lists
+    at the frame being logged (``now``), and each series goes out as one column of many frames, on the same
+    timelines, the same rows a ``log`` per frame gives. A gap (``clear``) sends what waits first. Not
+    thread-safe: the logging thread's alone.
     """
 
     def __init__(self, rr, rec):
         self.rr, self.rec = rr, rec
-        self._rows = {}                # path -> ([frame], [time s], [values])
+        self.now = (0, 0.0)            # the frame being logged: (index, seconds since the first)
+        self._rows = {}                # path -> (kind, [frame], [time s], [values])
         self._last_sent = time.monotonic()
 
-    def add(self, path, frame, seconds, values):
+    def add(self, path, values, kind="scalars"):
+        """``values`` of the series ``path`` at ``now``: scalars, or one 2-D strip (``kind="strip"``)."""
         rows = self._rows.get(path)
         if rows is None:
-            rows = self._rows[path] = ([], [], [])
-        rows[0].append(frame)
-        rows[1].append(seconds)
-        rows[2].append(values)
+            rows = self._rows[path] = (kind, [], [], [])
+        rows[1].append(self.now[0])
+        rows[2].append(self.now[1])
+        rows[3].append(values)
 
     def clear(self, path):
         """A gap in the series at the current time: what waits goes first."""
@@ -756,11 +763,13 @@ class _SeriesColumns:
             rows = self._rows.pop(key, None)
             if not rows:
                 continue
-            frames, seconds, values = rows
+            kind, frames, seconds, values = rows
+            values = np.asarray(values, dtype=np.float64)
+            columns = rr.Scalars.columns(scalars=values) if kind == "scalars" else rr.LineStrips2D.columns(
+                strips=values)
             rr.send_columns(key, indexes=[rr.TimeColumn(TIMELINE_FRAME, sequence=frames),
                                           rr.TimeColumn(TIMELINE_TIME, duration=seconds)],
-                            columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
-                            recording=self.rec)
+                            columns=columns, recording=self.rec)
         if path is None:
             self._last_sent = time.monotonic()
 
@@ -884,7 +893,6 @@ class RerunLogger:
         self._packed_lut = pack_colours(self._lut)
         self._blueprint = None
         self._series = _SeriesColumns(rr, self.rec)
-        self._now = (0, 0.0)                     # the frame being logged: (index, seconds since the first)
 
     @property
     def enabled(self):
@@ -1074,6 +1082,9 @@ class RerunLogger:
                                       y_start=(0.0, MIN_XY_LIMIT_STRESS_MPA), colours=_STRESS_COLOURS,
                                       second="true", x_title_under_zero=False, mantissas=_NICE_MANTISSAS,
                                       names=("engineering", "true (to max. force)"))
+        for plot in (self._strain_xy, self._stress_xy):
+            if plot is not None:
+                plot.columns = self._series       # their segments go out as columns with the series
 
     def _spawn_viewer(self):
         if _port_open("127.0.0.1", DEFAULT_PORT):
@@ -1171,9 +1182,9 @@ class RerunLogger:
         m = result.measurement
         if self._t0_ns is None:
             self._t0_ns = frame.timestamp_ns
-        self._now = (int(frame.index), (frame.timestamp_ns - self._t0_ns) / 1e9)
-        rec.set_time(TIMELINE_FRAME, sequence=self._now[0])
-        rec.set_time(TIMELINE_TIME, duration=self._now[1])
+        now = self._series.now = (int(frame.index), (frame.timestamp_ns - self._t0_ns) / 1e9)
+        rec.set_time(TIMELINE_FRAME, sequence=now[0])
+        rec.set_time(TIMELINE_TIME, duration=now[1])
         ok = m.ok
         self._log_fields(result, m)
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
@@ -1208,7 +1219,7 @@ class RerunLogger:
 
     def _scalars(self, path, values):
         """This frame's values of the series ``path`` (sent with the next columns: ``_SeriesColumns``)."""
-        self._series.add(path, *self._now, values)
+        self._series.add(path, values)
 
     def _log_fields(self, result, m):
         """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
