@@ -244,11 +244,13 @@ def _order(values, a, b):
     values[b] = x if swap else y
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _median_of_eight(values):
     """``_median`` of values[:8] by a 19-comparator sorting network (Knuth, TAOCP 5.3.4): no data-dependent
     loop, where the insertion sort's branches are mispredicted (8 neighbours: every point inside a grid).
-    The middle pair may differ from the insertion sort's only by which of equal values (0 and -0) sits where."""
+    The middle pair may differ from the insertion sort's only by which of equal values (0 and -0) sits where.
+    Called, not inlined at numba's level: inlined into the median test's two residuals, its compilation took
+    ~27 s (LLVM still inlines the compiled function where it pays)."""
     _order(values, 0, 2)
     _order(values, 1, 3)
     _order(values, 4, 6)
