@@ -740,16 +740,16 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
         printed.append(text)
         log(text)
 
-    say(f"livedic bench live: synthetic:tensile {size}x{size} Mono8, {frames} frames per case at {fps:g} fps "
-        f"(paced, rendered ahead), subset 21, improved-wso search r2, queue 4 drop-oldest, recording on, "
-        f"viewer none, {threads} numba thread(s)")
+    say(f"livedic bench live: synthetic:tensile {size}x{size} Mono8 rendered ahead, subset 21, improved-wso search "
+        f"r2, queue 4 drop-oldest, 1 numba thread for the main job and {threads} for the pipeline's table")
     say(f"machine: {os.cpu_count()} CPU cores, {platform.machine()}, numba {numba.__version__}; "
         f"{_load()} at start{'  [quick mode]' if quick else ''}")
     main_rows, main_verdicts = run_main_job_benchmark(
         size=size, frames=main_frames, say=say,
         echo=(lambda text: [say("    " + line) for line in text.splitlines()]) if echo_sessions else None)
     say()
-    say("the pipeline by point count and method (recording on, no view):")
+    say(f"the pipeline by point count and method: {frames} frames per case at {fps:g} fps (paced), recording on, "
+        f"no view, {threads} numba thread(s):")
     cases = [dict(n_points=n, subpixel=m) for n in points for m in methods]
     if extra_rows and TARGET_METHOD in methods and TARGET_POINTS in points:
         cases.append(dict(n_points=TARGET_POINTS, subpixel=TARGET_METHOD, record=False))

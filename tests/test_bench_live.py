@@ -66,7 +66,12 @@ def test_quick_live_benchmark_prints_its_table_and_the_target_line(capsys):
     assert main(["bench", "live", "--quick", "--frames", "12"]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
-    assert lines[0].startswith("livedic bench live: synthetic:tensile 512x512 Mono8, 12 frames per case")
+    assert lines[0].startswith("livedic bench live: synthetic:tensile 512x512 Mono8")
+    assert any(line.startswith("the pipeline by point count and method: 12 frames per case") for line in lines)
+    assert any(line.startswith("the main job, everything on") for line in lines)
+    assert any(line.startswith(("PASS  target main job at 50 fps", "FAIL  target main job at 50 fps"))
+               for line in lines)
+    assert any("tracker / IC-GN kernel, p50" in line for line in lines)
     assert "CPU cores" in lines[1] and "load average" in lines[1]
     assert HEADER in lines
     start = lines.index(HEADER) + 2
