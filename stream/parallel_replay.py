@@ -655,7 +655,6 @@ class ServedTracker:
         self.last_fracture = None
         self.compute_seconds = 0.0
         self.rows_seconds = 0.0
-        self.last_answer = None
 
     @property
     def n_points(self):
@@ -684,7 +683,6 @@ class ServedTracker:
         self.trackable = answer.trackable
         self.last_update = answer.update
         self.last_fracture = answer.fracture
-        self.last_answer = answer
         if self.rows is not None:
             self.rows[tuple(answer.key)] = answer.rows
         return answer.measurement

@@ -10,9 +10,11 @@ measurement never waits for the display or the disk. The output thread's
 backlog (results waiting for it) is ``FrameResult.output_backlog``: the view
 leaves the camera image out while it is behind (``stream.rerun_log``), and
 past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
-are then dropped at the frame queue, counted, never silently). The first frame becomes the reference: the tracker is
-built from it (``make_tracker(frame)``) and it is reported with zero
-displacement. The loop ends when the queue is closed and drained (source
+are then dropped at the frame queue, counted, never silently).
+
+The first frame becomes the reference: the tracker is built from it
+(``make_tracker(frame)``, or before the loop: ``reference``) and it is reported
+with zero displacement. The loop ends when the queue is closed and drained (source
 finished, failed or stopped), when ``stop_event`` is set, or after
 ``max_frames`` results.
 
@@ -146,7 +148,6 @@ class FrameResult:
     true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stress.UniformElongationWatch)
     extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
     poisson: object = None        # dic.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.poisson)
-    tracker_timings: dict = None  # stage -> ns inside Tracker.track (its ``last_timings``), when it gives them
     output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
 
     @property
@@ -331,10 +332,6 @@ class OutputThread:
         self._thread.join(timeout)
         return not self._thread.is_alive()
 
-    @property
-    def backlog(self):
-        return len(self._pending)
-
     def _run(self):
         _lower_priority(OUTPUT_NICE)
         stages = self.stats.stages
@@ -447,8 +444,9 @@ class TrackerLoop:
                 stats.first_arrival_ns = item.arrival_ns
             is_reference = self.tracker is None
             t0 = time.monotonic_ns()
-            ready, self._ready = self._ready, None
+            ready = None
             if is_reference:
+                ready, self._ready = self._ready, None
                 self.tracker = ready.tracker if ready is not None else self.make_tracker(frame)
                 # A copy: a camera frame's image is a buffer lent by the camera's pool, and the
                 # reference is kept for the whole session.
@@ -476,8 +474,7 @@ class TrackerLoop:
                                  refound=int(self.tracker.last_refound.sum()),
                                  capture_ns=int(capture) if capture is not None else None,
                                  reference_update=getattr(self.tracker, "last_update", None),
-                                 fracture=getattr(self.tracker, "last_fracture", None),
-                                 tracker_timings=dict(timings) if timings is not None else None)
+                                 fracture=getattr(self.tracker, "last_fracture", None))
             last_dropped = dropped
             self._update(result)
             if not is_reference:
