@@ -935,6 +935,25 @@ class AravisCamera(FrameSource):
         stream = buffer = None
         raise error
 
+    def discard_buffered(self):
+        """Give back to the camera every frame it has sent and no one has taken yet; returns how many.
+
+        A session takes the first frame, prepares (points, set-up, outputs), then starts: the frames the
+        camera sent meanwhile are stale, and read at once they would come in a burst the frame queue drops
+        from (and, holding the buffers, starve the camera: frames lost upstream). Their frame ids leave a
+        gap after the reference, which the session counts as sent while it was prepared.
+        """
+        discarded = 0
+        with self._lock:
+            stream = self._stream
+            while stream is not None:
+                buffer = stream.try_pop_buffer()
+                if buffer is None:
+                    break
+                stream.push_buffer(buffer)
+                discarded += 1
+        return discarded
+
     def _grow_pool(self):
         """Add a buffer when the consumer holds almost all of them (up to the cap)."""
         if len(self._pool) >= self._max_buffers:

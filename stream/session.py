@@ -496,6 +496,9 @@ class Session:
         self.phase = Phase.RUNNING
         if self._stop_requested:
             self.acquisition.stop()
+        discard = getattr(self.source, "discard_buffered", None)
+        if discard is not None:
+            discard()           # a camera's frames sent while the session was prepared: stale (AravisSource)
         self.acquisition.start()
 
     def run(self):

@@ -118,6 +118,21 @@ def test_frames_are_views_of_the_pool_and_buffers_go_back(measure_integer):
         assert np.array_equal(frame.image, MOTION8(frame.index))
 
 
+def test_frames_sent_while_the_consumer_was_away_are_discarded_not_burst():
+    """A session takes the first frame, prepares, then starts: what the camera sent meanwhile is given back
+    (``discard_buffered``), and the next frame is a new one, its index past the discarded ones."""
+    with InProcessFakeCamera(MOTION8) as fake, open_uri(fake.uri, roi=ROI, frame_rate=200, n_buffers=6) as camera:
+        iterator = iter(camera)
+        first = next(iterator).index
+        time.sleep(0.2)                      # ~40 frames sent: the free buffers fill
+        discarded = camera.discard_buffered()
+        after = next(iterator)
+        assert discarded >= 1
+        assert after.index >= first + discarded + 1
+        assert np.array_equal(after.image, MOTION8(after.index))
+        assert camera.discard_buffered() <= 1         # nothing stale left (one may just have come)
+
+
 def test_consumer_holding_every_frame_gets_copies_not_a_stall():
     with InProcessFakeCamera(MOTION8) as fake, open_uri(fake.uri, roi=ROI, frame_rate=500, n_buffers=2) as camera:
         frames = grab(camera, 12)   # holds all: pool grows to 4 * 2, then frames are copied
