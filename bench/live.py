@@ -516,7 +516,8 @@ STAGE_ROWS = (
     ("Poisson's ratio", "Poisson's ratio", "output"),
     ("record frame", "recording the frame", "acquisition"),
     ("record results", "recording the results", "output"),
-    ("view", "Rerun view", "output"),
+    ("view", "Rerun view: handing the frame over", "output"),
+    ("view drawing", "Rerun view: drawing", "view process"),
     ("progress", "progress line", "output"),
 )
 

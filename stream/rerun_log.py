@@ -113,7 +113,9 @@ a running viewer or server (default ``rerun+http://127.0.0.1:9876/proxy``).
 ``save FILE.rrd`` writes a file. ``none`` logs nothing. Nothing here listens on
 a non-loopback interface. A background thread flushes the stream about once a
 second, so a killed run's .rrd keeps what came before and the tracking loop
-never waits for the disk or the network.
+never waits for the disk or the network. A session runs this logger in a process of its own
+(``stream.view_process``), which chooses and downsamples the camera image (``CameraImagePacing``,
+``display_image``) and hands each frame over.
 """
 
 import os
@@ -314,6 +316,65 @@ def display_gray(image, pixel_format=""):
         shift = FRAME_BIT_DEPTH.get(pixel_format, 16) - 8
         image = (image >> shift).astype(np.uint8)
     return image
+
+
+def display_scale(image_shape, max_side):
+    """The integer factor the view downsamples a camera image of ``image_shape`` by: its larger side <= max_side."""
+    height, width = image_shape[:2]
+    scale = 1
+    while max(height, width) / scale > max_side:
+        scale += 1
+    return scale
+
+
+def display_image(image, pixel_format, scale):
+    """The camera image as the view draws it: 8-bit grey (``display_gray``), 1/``scale`` of its size."""
+    image = display_gray(image, pixel_format)
+    if scale > 1:
+        import cv2
+        h, w = image.shape
+        image = cv2.resize(image, (w // scale, h // scale), interpolation=cv2.INTER_AREA)
+    return image
+
+
+class CameraImagePacing:
+    """Which frames' camera images the view draws: the costliest part of a frame's view, so a live one is
+    paced (every frame's fields, markers and plots are drawn all the same).
+
+    ``image_every``: every this many frames; ``image_max_hz``: at most this many a second of the frames' own
+    clock (None: no limit); ``thin_when_behind``: while the view is behind, leave the image out, at most
+    ``IMAGE_SKIP_MAX`` frames in a row. ``images_above_rate`` and ``images_left_out`` count what was left out
+    by the rate and while behind (the session's summary says both).
+    """
+
+    def __init__(self, *, image_every=1, image_max_hz=None, thin_when_behind=False):
+        self.image_every = max(int(image_every), 1)
+        self.image_max_hz = image_max_hz
+        self.thin_when_behind = bool(thin_when_behind)
+        self._period_ns = int(1e9 / image_max_hz) if image_max_hz else 0
+        self._last_image_ns = None               # the frame time of the last camera image drawn
+        self._frames = 0
+        self._left_out_in_a_row = 0
+        self.images_above_rate = 0
+        self.images_left_out = 0
+
+    def due(self, timestamp_ns, behind):
+        """True when this frame's image is drawn (call once per frame, in order)."""
+        frame_number, self._frames = self._frames, self._frames + 1
+        if self._last_image_ns is not None and timestamp_ns - self._last_image_ns < self._period_ns:
+            self.images_above_rate += 1
+            return False
+        if frame_number % self.image_every:
+            return False
+        # A view behind the measurement catches up by leaving out the camera image, at most IMAGE_SKIP_MAX
+        # frames in a row
+        if self.thin_when_behind and behind and self._left_out_in_a_row < IMAGE_SKIP_MAX:
+            self._left_out_in_a_row += 1
+            self.images_left_out += 1
+            return False
+        self._left_out_in_a_row = 0
+        self._last_image_ns = timestamp_ns
+        return True
 
 
 def pack_colours(rgb):
@@ -836,11 +897,9 @@ class RerunLogger:
         self.mode = mode
         self.target = target
         self.image_max_side = int(image_max_side)
-        self.image_every = max(int(image_every), 1)
         self.image_max_hz = image_max_hz
-        self._image_period_ns = int(1e9 / image_max_hz) if image_max_hz else 0
-        self._last_image_ns = None               # the frame time of the last camera image logged
-        self.images_above_rate = 0               # camera images left out by image_max_hz
+        self.images = CameraImagePacing(image_every=image_every, image_max_hz=image_max_hz,
+                                        thin_when_behind=thin_when_behind)
         self.flush_interval_s = flush_interval_s
         self.rec = None
         self.viewer_process = None
@@ -878,9 +937,6 @@ class RerunLogger:
         self._max_force_N = -np.inf
         self.log_seconds = 0.0
         self.frames_logged = 0
-        self.thin_when_behind = bool(thin_when_behind)
-        self.images_left_out = 0               # frames whose camera image was left out (the view was behind)
-        self._images_left_out_in_a_row = 0
         self._file = None                        # _RrdFile of mode "save"
         self.on_error = on_error
         if mode == "none":
@@ -927,10 +983,7 @@ class RerunLogger:
         self._strain = strain
         self._load = load
         height, width = image_shape
-        scale = 1
-        while max(height, width) / scale > self.image_max_side:
-            scale += 1
-        self._scale = scale
+        self._scale = scale = display_scale(image_shape, self.image_max_side)
         self._p0 = p0_index
         blueprint = self._make_blueprint(has_truth, strain, load, setup=setup is not None)
         if self.mode == "save":
@@ -1172,8 +1225,23 @@ class RerunLogger:
         return plots
 
     # ----------------------------------------------------------------- per frame
-    def log_frame(self, result, stats):
-        """Log one ``stream.tracker_loop.FrameResult`` (a TrackerLoop sink)."""
+    @property
+    def images_above_rate(self):
+        """Camera images left out by ``image_max_hz``."""
+        return self.images.images_above_rate
+
+    @property
+    def images_left_out(self):
+        """Frames whose camera image was left out while the view was behind."""
+        return self.images.images_left_out
+
+    def log_frame(self, result, stats, *, camera_image=None):
+        """Log one ``stream.tracker_loop.FrameResult`` (a TrackerLoop sink).
+
+        ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
+        (``stream.view_process``: paced and prepared in the session's process); None: chosen here, by
+        ``images`` (a ``CameraImagePacing``), from ``result.frame.image``. ``stats`` is not read.
+        """
         if not self.enabled:
             return
         started = time.perf_counter()
@@ -1186,7 +1254,7 @@ class RerunLogger:
         rec.set_time(TIMELINE_FRAME, sequence=now[0])
         rec.set_time(TIMELINE_TIME, duration=now[1])
         ok = m.ok
-        self._log_fields(result, m)
+        self._log_fields(result, m, camera_image)
         if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
             self._log_extensometer_series(result.extensometers, result.poisson)
         if self._load is not None:
@@ -1221,24 +1289,14 @@ class RerunLogger:
         """This frame's values of the series ``path`` (sent with the next columns: ``_SeriesColumns``)."""
         self._series.add(path, values)
 
-    def _log_fields(self, result, m):
+    def _log_fields(self, result, m, camera_image=None):
         """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
         rr, rec, frame = self.rr, self.rec, result.frame
-        too_soon = (self._last_image_ns is not None
-                    and frame.timestamp_ns - self._last_image_ns < self._image_period_ns)
-        if too_soon:
-            self.images_above_rate += 1
-        elif self.frames_logged % self.image_every == 0:
-            # A view behind the measurement catches up by leaving out the camera image (most of a frame's
-            # logging cost), at most IMAGE_SKIP_MAX frames in a row; the fields below are always drawn.
-            if (self.thin_when_behind and result.output_backlog > 0
-                    and self._images_left_out_in_a_row < IMAGE_SKIP_MAX):
-                self._images_left_out_in_a_row += 1
-                self.images_left_out += 1
-            else:
-                self._images_left_out_in_a_row = 0
-                self._last_image_ns = frame.timestamp_ns
-                rec.log(CAMERA_IMAGE, rr.Image(self._display_image(frame.image, frame.pixel_format)))
+        if camera_image is None and frame.image is not None and self.images.due(frame.timestamp_ns,
+                                                                                  result.output_backlog > 0):
+            camera_image = self._display_image(frame.image, frame.pixel_format)
+        if camera_image is not None:
+            rec.log(CAMERA_IMAGE, rr.Image(camera_image))
         ok = m.ok
         scale = float(self._scale)
         last_u, last_v = self._last_displacement(m)
@@ -1275,12 +1333,7 @@ class RerunLogger:
         self.rec.log(EVENTS, rr.TextLog(message, level=levels.get(level, rr.TextLogLevel.INFO)))
 
     def _display_image(self, image, pixel_format):
-        image = display_gray(image, pixel_format)
-        if self._scale > 1:
-            import cv2
-            h, w = image.shape
-            image = cv2.resize(image, (w // self._scale, h // self._scale), interpolation=cv2.INTER_AREA)
-        return image
+        return display_image(image, pixel_format, self._scale)
 
     def _point_radius(self, m):
         """Disc radius (image px) so the coloured discs cover the field: the typical spacing / sqrt(2).

@@ -61,6 +61,7 @@ from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, Progres
                                   ReferenceUpdates)
 from livedic.stream.strain import AXIAL, StrainConfig, format_length
 from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
+from livedic.stream.view_process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 
 
 # How long a thread that wants the GIL waits before it asks the holder to give it up (Python's default: 5 ms).
@@ -311,6 +312,7 @@ class Session:
         self.source = None
         self.recorder = None
         self.viewer = None
+        self._view_child = None                 # the view's process, started before the outputs open
         self.queue = None
         self.acquisition = None
         self.loop = None
@@ -403,9 +405,11 @@ class Session:
         if config.warm_up:
             warm_up(config.tracking)
         # Imported now (~0.5 s together), not between the first frame and the next: frames that come
-        # meanwhile queue up and a paced source delivers them late, in a burst.
+        # meanwhile queue up and a paced source delivers them late, in a burst. The view's process imports
+        # its own (~2 s) while the source renders or the camera opens.
         if config.viewer.mode != VIEWER_NONE:
-            import rerun  # noqa: F401
+            from livedic.stream.view_process import ViewChild
+            self._view_child = ViewChild()
         if config.record:
             try:
                 import livedic.stream.recorder  # noqa: F401
@@ -569,6 +573,9 @@ class Session:
         if self.viewer is not None:
             viewer, self.viewer = self.viewer, None
             self._close_quietly(viewer.close, "Rerun stream")
+        if self._view_child is not None:        # started, never used: the session ended before its outputs
+            child, self._view_child = self._view_child, None
+            self._close_quietly(child.close, "Rerun view process")
         # Last: a Modbus server answers "ended" for a short linger first, and a second Ctrl-C during it must
         # not leave the recording unfinished.
         publishers, self.publishers = self.publishers, []
@@ -748,6 +755,7 @@ class Session:
 
     def _open_outputs(self, scheme):
         from livedic.stream.rerun_log import IMAGE_MAX_HZ, RerunLogger
+        from livedic.stream.view_process import ViewProcess
         config = self.config
         self._settings = _safe_settings(self.source)
         if config.record:
@@ -756,11 +764,17 @@ class Session:
                                                 start_time_ns=0 if scheme == "synthetic" else None)
         if config.viewer.note:
             self.say(config.viewer.note)
-        self.viewer = RerunLogger(config.viewer.mode, config.viewer.target, recording_name=config.name,
-                                  image_max_side=config.image_max_side, color_range=config.color_range,
-                                  low_zncc=config.tracking.refind_zncc, thin_when_behind=self.drop_policy != BLOCK,
-                                  image_max_hz=IMAGE_MAX_HZ if self.drop_policy != BLOCK else None,
-                                  on_error=lambda message: self.event("viewer_file_stopped", message, "warning"))
+        # the view logs in a process of its own: its Python never holds the GIL the tracking thread needs
+        options = dict(recording_name=config.name, image_max_side=config.image_max_side,
+                       color_range=config.color_range, low_zncc=config.tracking.refind_zncc,
+                       thin_when_behind=self.drop_policy != BLOCK,
+                       image_max_hz=IMAGE_MAX_HZ if self.drop_policy != BLOCK else None,
+                       on_error=lambda message: self.event("viewer_file_stopped", message, "warning"))
+        if self._view_child is None:
+            self.viewer = RerunLogger(config.viewer.mode, config.viewer.target, **options)
+        else:
+            child, self._view_child = self._view_child, None
+            self.viewer = ViewProcess(config.viewer.mode, config.viewer.target, child=child, **options)
 
     def _open_recorder(self, path, metadata, *, start_time_ns=None):
         try:
@@ -844,6 +858,7 @@ class Session:
         viewer = self.viewer
         reference = self.reference
         summary = self.loop.stats.summary()
+        summary["stages"].update(getattr(viewer, "stages", None) or {})     # the view's own process
         live = is_live(self.source)
         if not live:
             # frames taken as fast as the tracker takes them: no clock to be late against, no latency
@@ -868,6 +883,8 @@ class Session:
             viewer_images_left_out=viewer.images_left_out if viewer is not None else None,
             viewer_image_max_hz=viewer.image_max_hz if viewer is not None else None,
             viewer_images_above_rate=viewer.images_above_rate if viewer is not None else None,
+            viewer_process=getattr(viewer, "frames_left_out", None) is not None,
+            viewer_frames_left_out=getattr(viewer, "frames_left_out", None),
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=({**self.strain.summary(), **(self.poisson.summary() if self.poisson is not None else {})}
                     if self.strain is not None else None),
@@ -972,7 +989,8 @@ def format_pipeline(summary):
                      f"sub-pixel kernel ({kernel['p50_ms']:.1f} ms)")
     backlog = summary.get("output_backlog_max")
     if backlog is not None:
-        text = f"recording and view in their own thread, at most {backlog} result(s) behind"
+        text = (f"outputs in their own thread{', the view in its own process' if summary.get('viewer_process') else ''}"
+                f", at most {backlog} result(s) behind")
         if summary.get("output_waits"):
             text += (f"; the tracker waited {summary['output_waits']} time(s) for them (more than "
                      f"{OUTPUT_BACKLOG_MAX} behind)")
@@ -982,8 +1000,12 @@ def format_pipeline(summary):
     if left_out or above:
         why = ([f"{above} above the view's {summary['viewer_image_max_hz']:g} images/s"] if above else []) + \
               ([f"{left_out} while the view was behind"] if left_out else [])
+        drawn = "every frame's fields and numbers drawn" if not summary.get("viewer_frames_left_out") else ""
         parts.append(f"camera image left out of the view in {(left_out or 0) + (above or 0)} of {summary['frames']} "
-                     f"frames ({', '.join(why)}; every frame's fields and numbers drawn)")
+                     f"frames ({'; '.join(filter(None, [', '.join(why), drawn]))})")
+    if summary.get("viewer_frames_left_out"):
+        parts.append(f"{summary['viewer_frames_left_out']} whole frame(s) left out of the view: its process was "
+                     f"{VIEW_BACKLOG_MAX} frames behind")
     return "; ".join(parts)
 
 

@@ -7,9 +7,10 @@ of and what must leave at once), update the statistics, and hand the result
 to the *output thread*, which runs the *sinks* (recording of results, Rerun
 view, events, progress; a replay's CSV) in order, at their own pace: the
 measurement never waits for the display or the disk. The output thread's
-backlog (results waiting for it) is ``FrameResult.output_backlog``: the view
-leaves the camera image out while it is behind (``stream.rerun_log``), and
-past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
+backlog (results waiting for it) is ``FrameResult.output_backlog`` (a view in
+the session's process leaves the camera image out while it is behind:
+``stream.rerun_log``; a live session's view runs in a process of its own,
+``stream.view_process``, and paces itself on its own backlog), and past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
 are then dropped at the frame queue, counted, never silently).
 
 The first frame becomes the reference: the tracker is built from it
