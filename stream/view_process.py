@@ -41,7 +41,7 @@ from multiprocessing.connection import Connection
 
 from livedic.acquire.base import Frame
 from livedic.stream.rerun_log import CameraImagePacing, RerunLogger, display_image, display_scale
-from livedic.stream.tracker_loop import StageTimes
+from livedic.stream.tracker_loop import OUTPUT_NICE, StageTimes
 
 BEHIND = 1                 # frames handed over and not yet drawn, the one being drawn included, that are not "behind"
 BACKLOG_MAX = 2000         # frames waiting for the child beyond which whole frames are left out (~20 s at 100 fps)
@@ -78,8 +78,8 @@ def serve(inbox, outbox):
     while True:
         try:
             kind, payload = inbox.recv()
-        except EOFError:
-            break                                    # the session's process died: close the .rrd with what it has
+        except (EOFError, OSError):
+            break       # the session's process died (maybe mid-message): close the .rrd with what it has
         if kind == "close":
             break
         if failed and kind != "flush":
@@ -365,6 +365,10 @@ def _warm_up():
 def main(argv=None):
     """``python -m livedic.stream.view_process IN_FD OUT_FD``: the child (``ViewProcess`` starts it)."""
     fd_in, fd_out = (int(word) for word in (argv if argv is not None else sys.argv[1:]))
+    try:
+        os.nice(OUTPUT_NICE)          # as the output thread: on a busy machine the tracking thread has the CPU first
+    except OSError:
+        pass
     _warm_up()
     serve(Connection(fd_in, writable=False), Connection(fd_out, readable=False))
 
