@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livedic.acquire import sources
-from livedic.dic import field_fit
+from livedic.dic import bspline, field_fit
 from livedic.dic.status import Status
 from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
@@ -166,6 +166,12 @@ def warm_up(tracking):
     m = tracker.track(shifted)
     stage.compute(m.u, m.v, m.ok)
     field_fit.displacement_at(np.array([[64.0, 64.0]]), np.asarray(points, dtype=np.float64), m.u, m.v, m.ok, 12.0)
+    # The prefilter reads a camera's 8- or 16-bit frame as it is, contiguous or a view of a larger buffer:
+    # one kernel signature each, compiled here, not on the first frames
+    for dtype in (np.uint8, np.uint16):
+        frame = np.zeros((16, 16), dtype=dtype)
+        for image in (frame, frame[:, :12]):
+            bspline.prefilter(image)
 
 
 def check_viewer_reachable(url, timeout_s=1.0):
