@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.fake_genicam import GigEFakeCamera, SpeckleMotion
-from livedic.acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results
+from livedic.acquire.recording.reader import McapSource, inspect_recording, read_events, read_results
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 

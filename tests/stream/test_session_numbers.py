@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_events
+from livedic.acquire.recording.reader import read_events
 from livedic.stream.config import PointsConfig, SessionConfig, ViewerConfig
 from livedic.stream.session import Session, drop_policy, is_live
 from livedic.stream.strain import NOISE_LIMIT, StrainConfig
