@@ -1,0 +1,1 @@
+"""Force sources: the testing machine's force signal (CSV, simulator, TCP, Modbus), read onto frame times."""
