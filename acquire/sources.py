@@ -64,7 +64,7 @@ def open_source(uri, **options):
     scheme = parse_scheme(uri)
     uri = uri.strip()
     if scheme == "synthetic":
-        from livedic.acquire.synthetic import open_synthetic
+        from livedic.acquire.simulator.sources import open_synthetic
         return open_synthetic(uri, **options)
     if scheme == "aravis":
         from livedic.acquire.aravis import open_uri

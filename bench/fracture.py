@@ -51,7 +51,7 @@ def _cases():
 
 def simulated_study(*, quick, say):
     """Part a: rows per frame and case, and a summary per case."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points

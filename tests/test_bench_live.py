@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
 from livedic.bench.live import HEADER
 from livedic.bench.soak import run_soak_benchmark
 from livedic.bench.cli import build_parser, main

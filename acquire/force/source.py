@@ -22,7 +22,7 @@ Each source gives force at times on one clock, in seconds:
   ``time_s`` belongs to frame time ``time_s + offset_s``. The session passes each frame's
   timestamp relative to the first frame: ``(frame.timestamp_ns - first.timestamp_ns) / 1e9``.
   ``synthetic`` has one sample per frame of the simulated camera, frame i at ``i / fps``: its
-  ``force_N(i)`` (``acquire.synthetic``, module notes, Force), exact at frame times; between two
+  ``force_N(i)`` (``acquire.simulator.sources``, module notes, Force), exact at frame times; between two
   frames the force is interpolated linearly (so across the fracture it falls from the last loaded
   frame's force to 0). ``max_gap_s`` is 5 frame periods (0.5 s at least), as a csv's.
 * ``"monotonic"`` (``tcp://``, ``modbus://``): ``time.monotonic_ns() / 1e9``, the clock that stamps frame
@@ -1149,7 +1149,7 @@ def _open_synthetic(uri, options):
     if source is not None:
         raise LoadError(f"load {uri!r}: give either source= with load synthetic, or the test's URI, not both")
     from livedic.acquire.base import SourceError
-    from livedic.acquire.synthetic import SyntheticTensileSource, parse_synthetic_uri
+    from livedic.acquire.simulator.sources import SyntheticTensileSource, parse_synthetic_uri
     try:
         model, _ = parse_synthetic_uri(uri)
         if model != "tensile":

@@ -17,7 +17,7 @@ import pytest
 
 from livedic.acquire.force.source import (LoadError, LoadEventKind, TIME_BASE_MONOTONIC, TIME_BASE_SESSION,
                                           interpolate_force, open_load)
-from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
 
 
 # --- helpers -----------------------------------------------------------------------------------

@@ -57,7 +57,7 @@ def _one_error_line(err):
 
 
 def test_extensometers_csv_follows_the_simulators_exact_strain(tensile, tmp_path, capsys):
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
 
     out = tmp_path / "export"
     capsys.readouterr()
@@ -88,7 +88,7 @@ def test_extensometers_csv_follows_the_simulators_exact_strain(tensile, tmp_path
 
 
 def test_fields_strain_columns_are_dic_strain_on_the_recorded_displacements(tensile, tmp_path, capsys):
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.dic.strain import strain_field, strain_window
 
     out = tmp_path / "export"

@@ -12,7 +12,7 @@ import pytest
 
 from livedic.acquire.base import Frame, FrameSource, SourceError, SourceLost
 from livedic.acquire.sources import open_source, parse_scheme
-from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
 from livedic.stream.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser

@@ -51,7 +51,7 @@ def _law_rp02_MPa():
 @pytest.fixture(scope="module")
 def test_run(tmp_path_factory):
     """(recording, force CSV, frames, time_s, exact axial strain, force per frame, frame of maximum force)."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
 
     folder = tmp_path_factory.mktemp("stress")
     path = folder / "tensile.mcap"
