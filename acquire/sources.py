@@ -67,13 +67,13 @@ def open_source(uri, **options):
         from livedic.acquire.simulator.sources import open_synthetic
         return open_synthetic(uri, **options)
     if scheme == "aravis":
-        from livedic.acquire.aravis import open_uri
+        from livedic.acquire.camera.aravis import open_uri
         return open_uri(uri, **options)
     if scheme in ("v4l2", "video"):
-        from livedic.acquire.opencv_capture import open_uri
+        from livedic.acquire.camera.opencv import open_uri
         return open_uri(uri, **options)
     if scheme == "images":
-        from livedic.acquire.image_sequence import open_uri
+        from livedic.acquire.files.image_sequence import open_uri
         return open_uri(uri, **options)
     return _open_mcap(uri, options)
 
