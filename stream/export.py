@@ -691,7 +691,7 @@ def _open_stress_load(stress, names, recording=None):
     ValueError (one line) if there is no axial extensometer."""
     if stress is None:
         return None
-    from livedic.acquire.force.source import open_load
+    from livedic.acquire.force import open_load
     from livedic.stream.stress import AXIAL
     if AXIAL not in names:
         raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "

@@ -136,7 +136,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
         ``directory`` is a file or holds the files without ``overwrite``, the recording or the load
         file cannot be used, or there is no ``axial`` extensometer: one line, nothing written.
     """
-    from livedic.acquire.force.source import open_load
+    from livedic.acquire.force import open_load
     from livedic.acquire.recording.reader import Recording
     from livedic.dic.poisson import contraction_ratios
     from livedic.dic.tensile_properties import tensile_properties
