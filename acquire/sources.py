@@ -64,22 +64,22 @@ def open_source(uri, **options):
     scheme = parse_scheme(uri)
     uri = uri.strip()
     if scheme == "synthetic":
-        from livedic.acquire.synthetic import open_synthetic
+        from livedic.acquire.simulator.sources import open_synthetic
         return open_synthetic(uri, **options)
     if scheme == "aravis":
-        from livedic.acquire.aravis import open_uri
+        from livedic.acquire.camera.aravis import open_uri
         return open_uri(uri, **options)
     if scheme in ("v4l2", "video"):
-        from livedic.acquire.opencv_capture import open_uri
+        from livedic.acquire.camera.opencv import open_uri
         return open_uri(uri, **options)
     if scheme == "images":
-        from livedic.acquire.image_sequence import open_uri
+        from livedic.acquire.files.image_sequence import open_uri
         return open_uri(uri, **options)
     return _open_mcap(uri, options)
 
 
 def _open_mcap(uri, options):
-    from livedic.acquire.mcap_replay import McapSource
+    from livedic.acquire.recording.reader import McapSource
     path = uri[len("mcap:"):] if uri.lower().startswith("mcap:") else uri
     path, _, query = path.partition("?")
     if path.startswith("//"):

@@ -51,7 +51,7 @@ def _cases():
 
 def simulated_study(*, quick, say):
     """Part a: rows per frame and case, and a summary per case."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points
@@ -137,7 +137,7 @@ def simulated_study(*, quick, say):
 
 def dogbone_study(data, *, say):
     """Part b: re-found points on the muDIC dog-bone, never against auto."""
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points

@@ -222,7 +222,7 @@ def strain_out_numbers(publish, done_ns, received):
 
 def gauge_length_for(size):
     """The axial extensometer's length on the ``size`` x ``size`` simulated test: 400 px, or 0.75 x the ROI height."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     roi_height = SyntheticTensileSource(f"synthetic:tensile?size={size}x{size}&frames=2").suggested_roi[3]
     return min(GAUGE_LENGTH_PX, float(round(0.75 * roi_height)))
 

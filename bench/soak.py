@@ -30,7 +30,7 @@ session statistics keep three packed 64-bit integers per tracked frame (the
 report gives their size, ~0.5 MB for 20,000 frames).
 
 Accounting: frames produced by the source (counted where it yields them),
-frames recorded (read back from the MCAP file with ``acquire.mcap_replay``),
+frames recorded (read back from the MCAP file with ``acquire.recording.reader``),
 frames tracked and frames dropped by the queue. Every produced frame is
 accounted for when recorded == produced and tracked + dropped == produced.
 """
@@ -155,8 +155,8 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     """
     import numpy as np
 
-    from livedic.acquire.mcap_replay import inspect_recording
-    from livedic.acquire.recording_schema import TOPIC_RESULTS
+    from livedic.acquire.recording.reader import inspect_recording
+    from livedic.acquire.recording.schema import TOPIC_RESULTS
     from livedic.acquire.sources import open_source
     from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
     from livedic.stream.session import Session

@@ -272,7 +272,7 @@ def _field_rows(model, frame_index, truth, points, step, measurement, subset):
 
 def tensile_study(*, quick, say):
     """Part b: the simulated tensile test tracked as ``livedic run`` tracks it."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.dic.strain import strain_field, strain_window
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
@@ -419,7 +419,7 @@ def _mudic_extensometer(nodes, ends, height):
 
 def dogbone_study(data, *, say):
     """Part c: the muDIC dog-bone sequence; rows per frame."""
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points

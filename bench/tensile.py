@@ -74,7 +74,7 @@ def _run_session(argv):
 
 def run_tensile_benchmark(*, quick=False, output="results/tensile", say=print):
     """Run the benchmark (module notes); returns the rows written to ``tensile.csv``."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.dic.tensile_properties import tensile_properties
     from livedic.stream.cli import main as livedic
 

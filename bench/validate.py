@@ -107,7 +107,7 @@ def low_contrast_floor(log, quick=False):
 
 
 def _sample3(table, data, methods):
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
     folder = os.path.join(data, "dicc1_sample3_translation", "images")
@@ -125,7 +125,7 @@ def _sample3(table, data, methods):
 
 
 def _sample12(table, data, methods):
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
     folder = os.path.join(data, "dicc1_sample12_oht_cfrp")
@@ -144,7 +144,7 @@ def _sample12(table, data, methods):
 
 
 def _stars(table, data, methods):
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
     folder = os.path.join(data, "dicc2_star")

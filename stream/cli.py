@@ -102,7 +102,7 @@ def entry_point(extensions=()):
     """
     _say_log_lines()
     code = main(extensions=extensions)
-    aravis = sys.modules.get("livedic.acquire.aravis")
+    aravis = sys.modules.get("livedic.acquire.camera.aravis")
     pending = [thread for thread in getattr(aravis, "_TEARDOWN_THREADS", ()) if thread.is_alive()]
     for thread in pending:
         thread.join(timeout=0.5)
@@ -273,7 +273,7 @@ def _add_method_options(parser, searches, subpixels, *, subpixel_default="improv
 def _cmd_measure(args):
     import numpy as np
 
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.stream.csv_output import check_output_file, write_csv
     from livedic.stream.sinks import bit_depth_change
 
@@ -461,7 +461,7 @@ def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=
 
 
 def _cmd_cameras(args):
-    from livedic.acquire.aravis import list_cameras
+    from livedic.acquire.camera.aravis import list_cameras
 
     cameras = list_cameras(include_fake=args.fake)
     if not cameras:
@@ -476,7 +476,7 @@ def _cmd_cameras(args):
 
 
 def _cmd_recover(args):
-    from livedic.acquire.mcap_replay import recover
+    from livedic.acquire.recording.reader import recover
 
     if os.path.lexists(args.output) and not args.overwrite:
         raise UsageError(f"{args.output} already exists: choose a new name, or add --overwrite to replace it")

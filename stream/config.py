@@ -129,7 +129,7 @@ def parse_roi(text):
 
 def read_mask(path: str) -> np.ndarray:
     """``--mask FILE.png``: True where the image is white (above half its grey range); UsageError if unusable."""
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     try:
         image, _ = read_grey_image(path)
     except ValueError as error:

@@ -103,7 +103,7 @@ BINARY_FILES = ("extensometers.png", "stress_strain.png")
 STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
 EXPORT_KEY = "livedic.export"
 
-_READER_LOGGER = "livedic.acquire.mcap_replay"
+_READER_LOGGER = "livedic.acquire.recording.reader"
 
 
 def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, extras):
@@ -126,7 +126,7 @@ StagedFile = AtomicFile
 
 @contextmanager
 def reader_notes():
-    """Collect the notes ``acquire.mcap_replay`` logs (truncated file ...) instead of printing them raw.
+    """Collect the notes ``acquire.recording.reader`` logs (truncated file ...) instead of printing them raw.
 
     Yields a list that fills with one line per distinct note ("note: " prefix removed).
     The lines are for people; what a program acts on is the reader's ``RecordingInfo``.
@@ -168,7 +168,7 @@ def p0_point_id(metadata):
 
 def session_or_note(recording):
     """(session metadata dict, note or "") of a ``Recording``: one without metadata gives {} and a note."""
-    from livedic.acquire.mcap_replay import NoSessionMetadata
+    from livedic.acquire.recording.reader import NoSessionMetadata
     try:
         return recording.session(), ""
     except NoSessionMetadata as missing:
@@ -177,7 +177,7 @@ def session_or_note(recording):
 
 def read_session_or_note(path):
     """``session_or_note`` of the recording at ``path`` (``RecordingError`` if it is not one)."""
-    from livedic.acquire.mcap_replay import Recording
+    from livedic.acquire.recording.reader import Recording
     return session_or_note(Recording(path))
 
 
@@ -333,7 +333,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         bad or an extensometer lies off the points, or the recording is missing, not MCAP,
         not livedic, or corrupt (``RecordingError``).
     """
-    from livedic.acquire.mcap_replay import Recording
+    from livedic.acquire.recording.reader import Recording
     from livedic.stream.strain import StrainConfig
 
     path, directory = os.fspath(path), os.fspath(directory)
@@ -496,7 +496,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
 def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
                   title_note):
     """The second pass over the recording: ``stream.field_export.FieldWriter`` on every frame with results."""
-    from livedic.acquire.mcap_replay import Recording
+    from livedic.acquire.recording.reader import Recording
     if overwrite:
         remove_stale(directory, fields)
     writer = FieldWriter(directory, fields, shown, ranges.limits, (first.x, first.y), stage.windows.step, frames,
@@ -629,7 +629,7 @@ def _frames_delivered(recording, session):
     the first frame came: a source's own ``frames_delivered`` in it (a camera's) was that moment's count,
     so ``session`` (the metadata, copied) gets the final count there, the snapshot kept beside it.
     """
-    from livedic.acquire.recording_schema import TOPIC_IMAGE
+    from livedic.acquire.recording.schema import TOPIC_IMAGE
     count = recording.count(TOPIC_IMAGE)
     how = f"the frames in the recording ({TOPIC_IMAGE}), where the session records every frame its source delivers"
     if recording.info.truncated:
@@ -679,7 +679,7 @@ def _force_on_frames(load, frames, times):
 
 def _force_label(stress):
     """What the plot title calls the force: the file's name, or the recorded channel."""
-    from livedic.acquire.recording_schema import TOPIC_FORCE
+    from livedic.acquire.recording.schema import TOPIC_FORCE
     if stress.recorded:
         return f"recorded {TOPIC_FORCE}"
     return os.path.basename(stress.load[len('csv:'):])
@@ -691,7 +691,7 @@ def _open_stress_load(stress, names, recording=None):
     ValueError (one line) if there is no axial extensometer."""
     if stress is None:
         return None
-    from livedic.acquire.load import open_load
+    from livedic.acquire.force import open_load
     from livedic.stream.stress import AXIAL
     if AXIAL not in names:
         raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
@@ -710,8 +710,8 @@ def stress_from_args(args):
     (A0 from the options or the session's ``area_mm2``), else None. Bad options raise before the
     recording is read; ValueError (one line) as ``stream.stress.stress_options_from_args``.
     """
-    from livedic.acquire.mcap_replay import Recording
-    from livedic.acquire.recording_schema import TOPIC_FORCE
+    from livedic.acquire.recording.reader import Recording
+    from livedic.acquire.recording.schema import TOPIC_FORCE
     from livedic.stream.stress import stress_options_from_args
     load = getattr(args, "load", None)
     section = any(getattr(args, name, None) is not None for name in ("area", "width", "thickness"))
@@ -760,7 +760,7 @@ def axial_series(path, strain=None):
     ValueError
         Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
     """
-    from livedic.acquire.mcap_replay import Recording
+    from livedic.acquire.recording.reader import Recording
     from livedic.stream.strain import TRANSVERSE, StrainConfig
     from livedic.stream.stress import AXIAL
     with reader_notes() as notes:

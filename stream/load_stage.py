@@ -1,6 +1,6 @@
 """The machine's force in a live session: the load source opened, the force and stress of every frame.
 
-``--load URI`` opens a force source (``acquire.load``: ``csv:FILE``, ``tcp://HOST:PORT``,
+``--load URI`` opens a force source (``acquire.force``: ``csv:FILE``, ``tcp://HOST:PORT``,
 ``synthetic`` for the simulated test's own law); ``--area MM2`` (or ``--width MM --thickness
 MM``) gives the original cross-section A0 (the simulated test's own when ``--load synthetic``).
 ``LoadStage`` is a session sink placed after the strain stage: per frame it takes the force at
@@ -18,7 +18,7 @@ import dataclasses
 import math
 import time
 
-from livedic.acquire.load import open_load
+from livedic.acquire.force import open_load
 from livedic.stream.strain import AXIAL
 from livedic.stream.stress import UniformElongationWatch
 
@@ -29,7 +29,7 @@ MISALIGNED_FRAMES = 25    # frames without force while samples arrive before the
 def open_session_load(uri, *, offset_s, camera):
     """The load source for ``uri`` (``--load``): ``synthetic`` uses the session's simulated camera.
 
-    Raises ValueError (``acquire.load.LoadError``: one line) for a bad URI or file.
+    Raises ValueError (``acquire.force.LoadError``: one line) for a bad URI or file.
     """
     text = str(uri).strip()
     if text.lower() == "synthetic":
@@ -42,7 +42,7 @@ class LoadStage:
 
     Parameters
     ----------
-    load : acquire.load.LoadSource
+    load : acquire.force.LoadSource
     area_mm2 : float or None
         A0; None: force only (stress NaN).
     report : callable

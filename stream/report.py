@@ -136,8 +136,8 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
         ``directory`` is a file or holds the files without ``overwrite``, the recording or the load
         file cannot be used, or there is no ``axial`` extensometer: one line, nothing written.
     """
-    from livedic.acquire.load import open_load
-    from livedic.acquire.mcap_replay import Recording
+    from livedic.acquire.force import open_load
+    from livedic.acquire.recording.reader import Recording
     from livedic.dic.poisson import contraction_ratios
     from livedic.dic.tensile_properties import tensile_properties
     from livedic.stream.export import RecordedForce, axial_series, reader_notes

@@ -129,7 +129,7 @@ from collections import deque
 
 import numpy as np
 
-from livedic.acquire.pixel_formats import FRAME_BIT_DEPTH
+from livedic.acquire.camera.pixel_formats import FRAME_BIT_DEPTH
 from livedic.dic.extensometer import end_displacements
 from livedic.dic.tensile_properties import FRACTURE_DROP
 from livedic.stream.load_stage import axial_strain

@@ -282,7 +282,7 @@ class Session:
     phase : Phase
     source : FrameSource or None
         The opened source (the session closes it).
-    recorder : stream.recorder.Recorder or None
+    recorder : acquire.recording.writer.Recorder or None
     viewer : stream.rerun_log.RerunLogger or None
     queue : FrameQueue, acquisition : AcquisitionThread, loop : TrackerLoop
         The pipeline, from ``start``.
@@ -418,7 +418,7 @@ class Session:
             self._view_child = ViewChild()
         if config.record:
             try:
-                import livedic.stream.recorder  # noqa: F401
+                import livedic.acquire.recording.writer  # noqa: F401
             except ImportError:
                 pass                    # _open_recorder says so
         if config.publish:
@@ -784,7 +784,7 @@ class Session:
 
     def _open_recorder(self, path, metadata, *, start_time_ns=None):
         try:
-            from livedic.stream.recorder import Recorder
+            from livedic.acquire.recording.writer import Recorder
         except ImportError as error:
             self.say(f"warning: not recording ({error}); use --no-record to silence this")
             return None

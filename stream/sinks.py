@@ -34,7 +34,7 @@ class RecordResults:
 
     Parameters
     ----------
-    recorder : stream.recorder.Recorder
+    recorder : acquire.recording.writer.Recorder
     method : str
         ``"search+subpixel"``, recorded with every result set.
     strain_window : int, optional

@@ -14,7 +14,7 @@ while the force stays within ``NECKING_DROP`` (0.5 %) of its running maximum and
 at the first frame below it (a provisional rule: it may show a few frames past the maximum that
 the table, which knows the maximum, leaves out; it never shows one from the neck's deep descent).
 
-Force comes from an ``acquire.load.LoadSource`` interpolated onto the frames' times (NaN
+Force comes from an ``acquire.force.LoadSource`` interpolated onto the frames' times (NaN
 where the source has no sample around a frame: never extrapolated), the frame time being
 seconds since the first frame with results, the load file's time base.
 """

@@ -23,6 +23,11 @@ from pathlib import Path
 
 import pytest
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: pytest itself depends on tomli there
+    import tomli as tomllib
+
 REPO = Path(__file__).resolve().parents[1]
 PACKAGES = ("livedic.dic", "livedic.acquire", "livedic.stream", "livedic.bench")
 
@@ -56,6 +61,22 @@ def test_the_contract_sees_every_package():
     modules = _modules()
     for package in PACKAGES:
         assert package in modules and any(m.startswith(package + ".") for m in modules), package
+
+
+def test_every_package_is_listed_for_the_wheel():
+    """pyproject.toml lists every folder holding an ``__init__.py``, and nothing else.
+
+    The editable install finds sub-packages through its folder mapping, so the tests pass
+    even when a package is missing from ``packages``; a wheel built from the list would lack it.
+    """
+    setuptools = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    found = set()
+    for package, folder in setuptools["package-dir"].items():
+        root = REPO / folder
+        found.update(".".join((package,) + init.parent.relative_to(root).parts) for init in root.rglob("__init__.py"))
+    listed = set(setuptools["packages"])
+    assert not found - listed, f"add to pyproject.toml [tool.setuptools] packages: {sorted(found - listed)}"
+    assert not listed - found, f"listed in pyproject.toml but no such package: {sorted(listed - found)}"
 
 
 # ---------------------------------------------------------------------------

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
 from livedic.bench.live import HEADER
 from livedic.bench.soak import run_soak_benchmark
 from livedic.bench.cli import build_parser, main
@@ -170,6 +170,6 @@ def test_soak_command_keeps_the_recording_on_request(tmp_path, capsys):
     assert "every produced frame accounted for: recorded 40 == produced 40" in out
     kept = list(tmp_path.glob("soak-*.mcap"))
     assert len(kept) == 1 and f"recording kept: {kept[0]}" in out
-    from livedic.acquire.mcap_replay import inspect_recording
+    from livedic.acquire.recording.reader import inspect_recording
     assert inspect_recording(str(kept[0])).frames == 40
     assert code in (0, 1)          # 1 only if the (timing-dependent) RSS check failed on a 40-frame run

@@ -68,7 +68,7 @@ def grid_points():
 @pytest.fixture(scope="session")
 def extended_xml(aravis, tmp_path_factory):
     """A file with ``extended_genicam_xml()``: Aravis's fake camera plus 10/12-bit formats, user sets, Line1."""
-    from livedic.acquire.fake_genicam import extended_genicam_xml
+    from livedic.acquire.camera.fake_genicam import extended_genicam_xml
     path = tmp_path_factory.mktemp("genicam") / "livedic-fake-camera.xml"
     path.write_text(extended_genicam_xml())
     return str(path)
@@ -84,7 +84,7 @@ def arv_fake_gv(aravis):
     """
     import shutil
 
-    from livedic.acquire.fake_genicam import ARV_FAKE_GV_CAMERA, ArvFakeGvCamera
+    from livedic.acquire.camera.fake_genicam import ARV_FAKE_GV_CAMERA, ArvFakeGvCamera
     if shutil.which(ARV_FAKE_GV_CAMERA) is None:
         pytest.skip(f"{ARV_FAKE_GV_CAMERA} is not installed (Debian package aravis-tools: "
                     "run scripts/install_system.sh)")

@@ -16,11 +16,11 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire import aravis as aravis_module
-from livedic.acquire.aravis import AravisCamera, list_cameras, open_uri, parse_uri
+from livedic.acquire.camera import aravis as aravis_module
+from livedic.acquire.camera.aravis import AravisCamera, list_cameras, open_uri, parse_uri
 from livedic.acquire.base import SourceError
-from livedic.acquire.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion, served_as
-from livedic.acquire.pixel_formats import FORMATS
+from livedic.acquire.camera.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion, served_as
+from livedic.acquire.camera.pixel_formats import FORMATS
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 
@@ -222,7 +222,7 @@ def test_gige_fake_on_loopback_serves_exact_frames_with_known_motion(gige, pixel
 
 @pytest.mark.parametrize("pixel_format", ["Mono12p", "Mono10p", "Mono12Packed", "Mono10Packed", "Mono12"])
 def test_gige_fake_sends_packed_and_12_bit_formats_that_arrive_exactly(gige, pixel_format):
-    """Packed through GVSP: the simulator packs each frame (acquire.pixel_formats.pack), livedic unpacks it."""
+    """Packed through GVSP: the simulator packs each frame (acquire.camera.pixel_formats.pack), livedic unpacks it."""
     bit_depth = FORMATS[pixel_format].bit_depth
     gige.reset_count()
     with open_uri(gige.uri, roi=ROI, pixel_format=pixel_format, frame_rate=100) as camera:
@@ -276,8 +276,8 @@ def test_teardown_leaves_no_crash_at_interpreter_exit(gige):
     """Subprocesses that exit with frames still held, cameras left open, or closed properly: exit code 0."""
     script = textwrap.dedent(f"""
         import sys, numpy as np
-        from livedic.acquire.aravis import open_uri
-        from livedic.acquire.fake_genicam import InProcessFakeCamera, SpeckleMotion
+        from livedic.acquire.camera.aravis import open_uri
+        from livedic.acquire.camera.fake_genicam import InProcessFakeCamera, SpeckleMotion
         mode = sys.argv[1]
         fake = InProcessFakeCamera(SpeckleMotion((128, 160))).start()
         inproc = open_uri("aravis:Fake_1", roi=(0, 0, 160, 128), frame_rate=500)

@@ -11,11 +11,11 @@ trigger comes, so triggers are checked here as settings read back and on the sim
 import numpy as np
 import pytest
 
-from livedic.acquire.aravis import open_uri
+from livedic.acquire.camera.aravis import open_uri
 from livedic.acquire.base import SourceError
-from livedic.acquire.fake_genicam import InProcessFakeCamera, SpeckleMotion, served_as
-from livedic.acquire.genicam import Trigger, parse_trigger
-from livedic.acquire.pixel_formats import FORMATS
+from livedic.acquire.camera.fake_genicam import InProcessFakeCamera, SpeckleMotion, served_as
+from livedic.acquire.camera.genicam import Trigger, parse_trigger
+from livedic.acquire.camera.pixel_formats import FORMATS
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 

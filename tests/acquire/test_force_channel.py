@@ -1,6 +1,6 @@
 """The machine's force channel of a recording: /machine/force (livedic.ForceSample).
 
-Written by ``stream.recorder.Recorder.write_force``, read back by ``acquire.mcap_replay``
+Written by ``acquire.recording.writer.Recorder.write_force``, read back by ``acquire.recording.reader``
 (``Recording.force_samples``, ``read_force_samples``), and decodable without livedic from the
 schema stored in the file."""
 
@@ -10,10 +10,10 @@ import os
 import numpy as np
 import pytest
 
-from livedic.acquire import recording_schema as rs
+from livedic.acquire.recording import schema as rs
 from livedic.acquire.base import Frame
-from livedic.acquire.mcap_replay import Recording, read_force_samples, read_results, recover
-from livedic.stream.recorder import Recorder
+from livedic.acquire.recording.reader import Recording, read_force_samples, read_results, recover
+from livedic.acquire.recording.writer import Recorder
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")

@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from livedic.acquire.aravis import list_cameras, open_uri
+from livedic.acquire.camera.aravis import list_cameras, open_uri
 from livedic.acquire.base import NoFirstFrame, SourceError
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
@@ -189,7 +189,7 @@ def test_refused_camera_options_are_one_line_exit_2(arv_fake_gv, tmp_path, optio
 
 @pytest.mark.time_limit(180)
 def test_the_recording_keeps_what_the_camera_reported(arv_fake_gv, tmp_path):
-    from livedic.acquire.mcap_replay import read_session
+    from livedic.acquire.recording.reader import read_session
     record = tmp_path / "camera.mcap"
     done = livedic("run", "--source", f"aravis:Aravis-Fake-GV01?{RAMP}&roi=0,0,256,192&feature.GainRaw=0"
                    "&feature.TestBoolean=true", "--frames", "4", "--n-points", "30", "--roi", "full", "--record", str(record),

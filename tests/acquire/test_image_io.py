@@ -10,8 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.image_io import read_grey_image, read_image_header
-from livedic.acquire.image_sequence import ImageSequence, natural_key, open_uri
+from livedic.acquire.files.image_file import read_grey_image, read_image_header
+from livedic.acquire.files.image_sequence import ImageSequence, natural_key, open_uri
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 
@@ -129,7 +129,7 @@ def test_unreadable_file(tmp_path):
 
 def test_read_errors_from_the_os_are_one_line(tmp_path, monkeypatch):
     """The permission path as root too (root reads everything): simulated through the module's open()."""
-    import livedic.acquire.image_io as image_io
+    import livedic.acquire.files.image_file as image_io
 
     def refuse(*_args, **_kwargs):
         raise PermissionError(13, "Permission denied")

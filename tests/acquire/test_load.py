@@ -1,4 +1,4 @@
-"""The force signal (acquire.load): csv files and TCP streams, interpolated onto frame times.
+"""The force signal (acquire.force): csv files and TCP streams, interpolated onto frame times.
 
 Physics checked: linear force is interpolated exactly (1e-9 N), nothing is extrapolated past the
 last sample, a stalled stream gives NaN, and a stream delivered 37 ms late but stamped by its sender
@@ -15,9 +15,9 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.load import (LoadError, LoadEventKind, TIME_BASE_MONOTONIC, TIME_BASE_SESSION, interpolate_force,
-                                  open_load)
-from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.acquire.force import (LoadError, LoadEventKind, TIME_BASE_MONOTONIC, TIME_BASE_SESSION, interpolate_force,
+                                   open_load)
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
 
 
 # --- helpers -----------------------------------------------------------------------------------

@@ -20,8 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.load import (LoadError, LoadEventKind, ModbusLoad, TIME_BASE_MONOTONIC, decode_registers,
-                                  open_load)
+from livedic.acquire.force import LoadError, LoadEventKind, ModbusLoad, TIME_BASE_MONOTONIC, decode_registers, open_load
 from tests.acquire.modbus_server import INPUT_MARK, ModbusTestServer
 
 pytestmark = pytest.mark.usefixtures("time_limit")

@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from livedic.acquire import recording_schema as rs
+from livedic.acquire.recording import schema as rs
 from livedic.acquire.base import Frame, SourceError
-from livedic.acquire.mcap_io import ChunkedWriter
-from livedic.acquire.mcap_replay import (CorruptRecording, McapSource, NoSessionMetadata, NotLivedic, NotMcap,
-                                         Recording, RecordingError, RecordingSourceError, inspect_recording,
-                                         iter_results, read_events, read_extensometer_samples, read_results,
-                                         read_session, read_strain_fields, recover)
+from livedic.acquire.recording.container import ChunkedWriter
+from livedic.acquire.recording.reader import (CorruptRecording, McapSource, NoSessionMetadata, NotLivedic, NotMcap,
+                                              Recording, RecordingError, RecordingSourceError, inspect_recording,
+                                              iter_results, read_events, read_extensometer_samples, read_results,
+                                              read_session, read_strain_fields, recover)
 from livedic.dic.result import Measurement
-from livedic.stream.recorder import Recorder
+from livedic.acquire.recording.writer import Recorder
 
 T0 = 1_700_000_000_000_000_000
 
@@ -96,7 +96,7 @@ def test_replay_as_fast_as_possible_gives_every_frame_in_order(recording):
 
 
 def test_realtime_replay_follows_the_recorded_pace(tmp_path, monkeypatch):
-    import livedic.acquire.mcap_replay as mcap_replay
+    import livedic.acquire.recording.reader as mcap_replay
     waits = []
     real_sleep = time.sleep
 
@@ -379,7 +379,7 @@ def test_huge_lengths_at_every_record_start_fail_cleanly(tmp_path):
     record (chunk headers and the records inside uncompressed chunks among them) set to its maximum."""
     from mcap.opcode import Opcode
 
-    from livedic.acquire.mcap_io import RecordScan
+    from livedic.acquire.recording.container import RecordScan
     path = tmp_path / "small.mcap"
     _record(path, n=2, shape=(4, 4), chunk_bytes=64)
     data = path.read_bytes()

@@ -1,4 +1,5 @@
-"""ChunkedWriter (acquire.mcap_io) writes its chunks itself: the bytes must be those mcap's own Writer writes.
+"""ChunkedWriter (acquire.recording.container) writes its chunks itself: the bytes must be those mcap's own
+Writer writes.
 
 The reference is a plain ``mcap.writer.Writer`` given the same calls and flushed where ChunkedWriter's
 chunks end (one open chunk: image messages as they come, the data messages together when the data is
@@ -14,8 +15,8 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType, Writer
 
-from livedic.acquire import recording_schema as rs
-from livedic.acquire.mcap_io import ChunkedWriter
+from livedic.acquire.recording import schema as rs
+from livedic.acquire.recording.container import ChunkedWriter
 
 LIBRARY = "livedic/test"
 _CODECS = {None: CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.opencv_capture import V4L2Camera, VideoFile, open_uri
+from livedic.acquire.camera.opencv import V4L2Camera, VideoFile, open_uri
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 

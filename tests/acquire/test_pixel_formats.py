@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from livedic.acquire.pixel_formats import FORMATS, FRAME_BIT_DEPTH, by_code, by_name, pack, unpack
+from livedic.acquire.camera.pixel_formats import FORMATS, FRAME_BIT_DEPTH, by_code, by_name, pack, unpack
 
 HAND_PACKED = [
     # Mono12p: p0 = 0xABC -> byte0 = 0xBC, byte1 = p0[11:8] 0xA | p1[3:0] 0x3 << 4, byte2 = p1[11:4] 0x12

@@ -1,7 +1,7 @@
 """The strain and extensometer channels of a recording: /dic/strain and /dic/extensometers.
 
-Written by ``stream.recorder.Recorder.write_strain`` / ``write_extensometers``, read back by
-``acquire.mcap_replay``, and decodable without livedic from the schema stored in the file."""
+Written by ``acquire.recording.writer.Recorder.write_strain`` / ``write_extensometers``, read back by
+``acquire.recording.reader``, and decodable without livedic from the schema stored in the file."""
 
 import os
 
@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from livedic.acquire import recording_schema as rs
+from livedic.acquire.recording import schema as rs
 from livedic.acquire.base import Frame
-from livedic.acquire.mcap_replay import (CorruptRecording, Recording, read_extensometer_samples, read_results,
-                                         read_strain_fields, recover)
+from livedic.acquire.recording.reader import (CorruptRecording, Recording, read_extensometer_samples, read_results,
+                                              read_strain_fields, recover)
 from livedic.dic.extensometer import ExtensometerStatus
 from livedic.dic.strain import StrainStatus
-from livedic.stream.recorder import Recorder
+from livedic.acquire.recording.writer import Recorder
 from livedic.stream.strain import StrainConfig
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -173,7 +173,7 @@ def test_truncated_and_recovered_recordings_keep_the_channels(recorded, tmp_path
 
 
 def test_a_corrupt_strain_message_is_one_clean_error(tmp_path):
-    from livedic.acquire.mcap_io import ChunkedWriter
+    from livedic.acquire.recording.container import ChunkedWriter
 
     path = tmp_path / "bad.mcap"
     with open(path, "wb") as handle:

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.synthetic import (SyntheticTensileSource, SyntheticTranslateSource, TensileModel, _render_rows,
-                               open_synthetic, parse_synthetic_uri)
+from livedic.acquire.simulator.sources import (SyntheticTensileSource, SyntheticTranslateSource, TensileModel,
+                                               _render_rows, open_synthetic, parse_synthetic_uri)
 from livedic.dic import measure
 
 
@@ -82,7 +82,7 @@ def test_frames_formats_timestamps_and_dark_background():
 def test_pacing_delivers_at_the_frame_rate_and_unpaced_is_fast(monkeypatch):
     """Paced: never faster than the frame rate (a lower bound holds on any machine). Unpaced: it never
     waits (counted, not timed: a loaded machine can be slow without the source waiting)."""
-    import livedic.acquire.synthetic as synthetic
+    import livedic.acquire.simulator.sources as synthetic
     waits = []
     real_sleep = time.sleep
 

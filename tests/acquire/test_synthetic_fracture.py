@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.synthetic import SyntheticTensileSource, _render_rows, open_synthetic
+from livedic.acquire.simulator.sources import SyntheticTensileSource, _render_rows, open_synthetic
 from livedic.dic import measure
 
 LARGE = "synthetic:tensile?strain=0.30&neck=1.0"

@@ -364,7 +364,7 @@ def test_tracker_follows_a_neck_with_less_bias_than_icgn():
     (max 0.195), icgn2 0.019 px (max 0.048). Elsewhere icgn2's RMS was 0.020 px (icgn 0.033 px,
     which still holds the bias at the ends of the plastic zone; bounded here at 0.03 px).
     """
-    from livedic.acquire.synthetic import open_synthetic
+    from livedic.acquire.simulator.sources import open_synthetic
 
     source = open_synthetic("synthetic:tensile?frames=16&size=512x512&pace=0&noise=1.0&seed=0&strain=0.05&neck=0.15")
     source.prepare()

@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.synthetic import SyntheticTranslateSource
+from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.status import Status
 from livedic.dic.key_frames import KeyFrameTracker
 from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count

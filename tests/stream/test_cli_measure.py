@@ -118,7 +118,7 @@ def test_a_grey_palette_image_is_read_as_grey_without_a_note(image_pair, tmp_pat
     path = tmp_path / f"palette.{fmt.lower()}"
     palette.save(path, format=fmt)
     assert Image.open(path).mode == "P"
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     image, note = read_grey_image(path)
     assert note is None and image.dtype == np.uint8 and np.array_equal(image, grey)
     code = main(["measure", str(path), image_pair["def", 8], "--grid", "40", "--subpixel", "icgn", "--radius", "3"])
@@ -188,7 +188,7 @@ def test_a_long_measurement_shows_progress_and_gives_the_same_numbers(image_pair
     import threading
 
     from livedic import dic
-    from livedic.acquire.image_io import read_grey_image
+    from livedic.acquire.files.image_file import read_grey_image
     from livedic.stream.cli import MeasureProgress, measure_with_progress
 
     reference, _ = read_grey_image(image_pair["ref", 8])

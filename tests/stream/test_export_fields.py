@@ -46,7 +46,7 @@ def affine(tmp_path_factory):
     from livedic.dic.speckle import SpecklePattern, affine, render
     from livedic.dic.tracking import Tracker
     from livedic.stream.points import build_points
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     path = tmp_path_factory.mktemp("affine") / "affine.mcap"
     pattern = SpecklePattern(SIZE, n_speckles=1400, radius=3.0, seed=3)

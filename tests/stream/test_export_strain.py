@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_results, read_session
+from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -57,7 +57,7 @@ def _one_error_line(err):
 
 
 def test_extensometers_csv_follows_the_simulators_exact_strain(tensile, tmp_path, capsys):
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
 
     out = tmp_path / "export"
     capsys.readouterr()
@@ -88,7 +88,7 @@ def test_extensometers_csv_follows_the_simulators_exact_strain(tensile, tmp_path
 
 
 def test_fields_strain_columns_are_dic_strain_on_the_recorded_displacements(tensile, tmp_path, capsys):
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.dic.strain import strain_field, strain_window
 
     out = tmp_path / "export"
@@ -192,7 +192,7 @@ def test_a_recording_without_extensometers_gives_the_header_and_says_so(tmp_path
 def test_a_lost_end_is_a_gap_with_nan_and_ok_0(tmp_path, capsys):
     """A recording whose top rows are lost in frames 3 and 4: the axial extensometer has no reading there."""
     from livedic.acquire.base import Frame
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     xs, ys = np.meshgrid(np.arange(60.0, 341.0, 10.0), np.arange(40.0, 361.0, 10.0))
     points = np.vstack([[[200.0, 200.0]], np.column_stack([xs.ravel(), ys.ravel()])])
@@ -231,7 +231,7 @@ def test_a_lost_end_is_a_gap_with_nan_and_ok_0(tmp_path, capsys):
 def test_recorded_channels_equal_what_export_computes(tensile, tmp_path):
     """The live session records /dic/strain and /dic/extensometers; export recomputes the same numbers
     from the recorded displacements (one computation everywhere: the same stage on the same data)."""
-    from livedic.acquire.mcap_replay import read_extensometer_samples, read_strain_fields
+    from livedic.acquire.recording.reader import read_extensometer_samples, read_strain_fields
     out = tmp_path / "out"
     assert main(["export", tensile, "-o", str(out)]) == 0
     samples = read_extensometer_samples(tensile)
@@ -256,7 +256,7 @@ def test_a_recording_with_extensometers_but_no_results_exports_its_headers(tmp_p
     """A recording cut before its first results (a crash at the start): the files with headers only, one note,
     exit 0 (it was an IndexError on the extensometers' plot: no results, so no L0 to label them with)."""
     from livedic.acquire.base import Frame
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     metadata = {"roi": [60, 40, 280, 320], "step": 10, "subset": 21, "point_ids": "P0 is point 0",
                 "strain_window": 5, "strain_measure": "engineering", "gauge_length": 240.0,

@@ -10,7 +10,7 @@ import csv
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_results
+from livedic.acquire.recording.reader import read_results
 from livedic.dic.status import Status
 from livedic.stream.cli import main
 

@@ -1,6 +1,6 @@
 """The load stage's warning for a force stream on the wrong clock: samples arrive, none lies at the frames' times.
 
-A fake stream answers like ``acquire.load``'s live sources: NaN at a frame's time with no sample around it,
+A fake stream answers like ``acquire.force``'s live sources: NaN at a frame's time with no sample around it,
 its newest sample time growing as samples arrive. Frames every 20 ms; the misaligned sender's clock is
 1,000 s ahead. A stalled stream (no new samples) is a stall, said by the source itself, not this warning.
 """

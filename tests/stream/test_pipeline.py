@@ -12,7 +12,7 @@ import pytest
 
 from livedic.acquire.base import Frame, FrameSource, SourceError, SourceLost
 from livedic.acquire.sources import open_source, parse_scheme
-from livedic.acquire.synthetic import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
 from livedic.stream.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser
@@ -474,7 +474,7 @@ def test_run_session_end_to_end(tmp_path, capsys):
                for row in c.to_record_batch().column("Scalars:scalars").to_pylist()]
     assert len(p0_rows) == summary["frames"] and all(len(row) == 2 for row in p0_rows)   # u and v per frame
     # The recording holds every acquired frame and one result per tracked frame, P0 first.
-    from livedic.acquire.mcap_replay import inspect_recording, read_events, read_results
+    from livedic.acquire.recording.reader import inspect_recording, read_events, read_results
     info = inspect_recording(str(mcap))
     assert info.indexed and not info.truncated and info.frames == 40
     results = read_results(str(mcap))
@@ -530,7 +530,7 @@ def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_pat
                    "--roi", "0,0,4,4", "--subset", "3", "--step", "1"])
     with pytest.raises(SourceLost, match="camera lost"):
         run_module.run_session(args)
-    from livedic.acquire.mcap_replay import inspect_recording, read_events
+    from livedic.acquire.recording.reader import inspect_recording, read_events
     assert inspect_recording(str(mcap)).frames == 12
     assert any(e.kind == "camera_lost" for e in read_events(str(mcap)))
 
@@ -556,7 +556,7 @@ def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monk
                    "--roi", "0,0,4,4", "--subset", "3", "--step", "1", "--reconnect", "--frames", "30",
                    "--drop", "block", "--summary-json", str(summary)])
     assert run_module.run_session(args) == 0
-    from livedic.acquire.mcap_replay import McapSource, read_events, read_results
+    from livedic.acquire.recording.reader import McapSource, read_events, read_results
     with McapSource(str(mcap)) as replay:
         recorded = [(frame.index, frame.timestamp_ns) for frame in replay]
     assert [index for index, _ in recorded] == list(range(30))
@@ -599,7 +599,7 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
     assert process.returncode == 0, text
     name = signal.Signals(stop_signal).name
     assert f"stopped on {name}" in text and f"stopped    on {name}" in out
-    from livedic.acquire.mcap_replay import inspect_recording, read_results
+    from livedic.acquire.recording.reader import inspect_recording, read_results
     info = inspect_recording(str(mcap))
     assert info.indexed and not info.truncated and 10 <= info.frames < 400
     assert 1 <= len(read_results(str(mcap))) <= info.frames

@@ -174,7 +174,7 @@ def test_run_records_where_the_points_went(stretched_sequence, tmp_path):
     code = main(["run", "--source", f"images:{stretched_sequence}", "--frames", "3", "--viewer", "none",
                  "--record", str(record), "--exclude", "circle:150,200,20", "--n-points", "200"])
     assert code == 0
-    from livedic.acquire.mcap_replay import read_session
+    from livedic.acquire.recording.reader import read_session
     session = read_session(str(record))
     region = session["region"]
     assert region["placed_by"] == "specimen" and region["exclude"] == ["circle:150,200,20"]

@@ -56,7 +56,7 @@ def test_preview_places_the_points_as_run_does(images, tmp_path):
     record = tmp_path / "r.mcap"
     assert cli(["run", "--source", f"images:{images}", "--n-points", "300", "--exclude", "circle:150,200,20",
                 "--viewer", "none", "--record", str(record)]) == 0
-    from livedic.acquire.mcap_replay import read_results
+    from livedic.acquire.recording.reader import read_results
     first = next(iter(read_results(str(record))))
     assert np.array_equal(np.column_stack([first.x, first.y]), placement.points)
 

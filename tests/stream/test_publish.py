@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import Recording, read_events
+from livedic.acquire.recording.reader import Recording, read_events
 from livedic.dic.extensometer import ExtensometerStatus
 from livedic.stream.config import SessionConfig, ViewerConfig
 from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED,

@@ -20,9 +20,10 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from livedic.acquire.base import Frame
-from livedic.acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results, read_session, recover
-from livedic.acquire import recording_schema as rs
-from livedic.stream.recorder import Recorder
+from livedic.acquire.recording.reader import (McapSource, inspect_recording, read_events, read_results, read_session,
+                                              recover)
+from livedic.acquire.recording import schema as rs
+from livedic.acquire.recording.writer import Recorder
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 T0 = 1_700_000_000_000_000_000
@@ -472,7 +473,7 @@ _KILL_CHILD = """
     import sys, time
     import numpy as np
     from livedic.acquire.base import Frame
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     path, marker, pause = sys.argv[1], sys.argv[2], float(sys.argv[3])
     rec = Recorder(path, {"source_uri": "test://sigkill"})
@@ -565,7 +566,7 @@ _FULL_CHILD = """
     import json, resource, signal, sys
     import numpy as np
     from livedic.acquire.base import Frame
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     path, limit, dt, flush = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4])
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)           # get EFBIG instead of being killed

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_results, read_session
+from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -63,7 +63,7 @@ def dropped(tmp_path_factory):
     from livedic.dic.speckle import SpecklePattern, render
     from livedic.dic.tracking import Tracker
     from livedic.acquire.base import Frame
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
     from livedic.stream.points import build_points
 
     path = tmp_path_factory.mktemp("dropped") / "dropped.mcap"
@@ -139,7 +139,7 @@ def test_replay_with_the_recorded_parameters_equals_the_recording_bit_for_bit(re
     assert len(rows) == len(results) * n
     _assert_equals_recorded(rows, results)
     # The strain recomputed on the replayed displacements is the recorded strain, bit for bit.
-    from livedic.acquire.mcap_replay import read_strain_fields
+    from livedic.acquire.recording.reader import read_strain_fields
     recorded_eyy = np.concatenate([field.eyy for field in read_strain_fields(recording)])
     np.testing.assert_array_equal(np.array([float(row["eyy"]) for row in rows]), recorded_eyy)
     assert not [name for name in os.listdir(tmp_path) if name.startswith(".livedic-")]
@@ -258,7 +258,7 @@ def test_session_json_gives_the_frames_delivered_in_the_end_not_at_the_start(tmp
     """A camera's ``frames_delivered`` in the session metadata is its count when recording began (1); the
     export gives the final count, from the frames recorded, and says so; a cut recording: at least those."""
     from livedic.acquire.base import Frame
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     path = tmp_path / "camera.mcap"
     metadata = {"command": "livedic run", "source_uri": "aravis:Fake", "source_settings": {"frames_delivered": 1}}
@@ -274,7 +274,7 @@ def test_session_json_gives_the_frames_delivered_in_the_end_not_at_the_start(tmp
 
 
 def test_session_json_of_a_cut_recording_counts_the_frames_it_kept(killed, tmp_path, capsys):
-    from livedic.acquire.mcap_replay import McapSource
+    from livedic.acquire.recording.reader import McapSource
     full, half = killed
     assert main(["export", half, "-o", str(tmp_path / "out")]) == 0
     export = json.loads((tmp_path / "out" / "session.json").read_text())["livedic.export"]
@@ -286,8 +286,8 @@ def test_session_json_of_a_cut_recording_counts_the_frames_it_kept(killed, tmp_p
 def test_export_of_a_recording_without_session_metadata_says_so(tmp_path, capsys):
     """No ``livedic.session`` metadata is a note (the reader's ``NoSessionMetadata``), not an error."""
     import numpy as np
-    from livedic.acquire import recording_schema as rs
-    from livedic.acquire.mcap_io import ChunkedWriter
+    from livedic.acquire.recording import schema as rs
+    from livedic.acquire.recording.container import ChunkedWriter
 
     path = tmp_path / "bare.mcap"
     with open(path, "wb") as handle:
@@ -390,7 +390,7 @@ def _recording_with_offsets(path, change):
     from livedic.acquire.base import Frame
     from livedic.dic.speckle import SpecklePattern, render
     from livedic.dic.tracking import Tracker
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
     from livedic.stream.points import build_points
 
     pattern = SpecklePattern((128, 160), n_speckles=400, seed=5)

@@ -310,7 +310,7 @@ def test_shared_path_workers_read_the_frames_themselves(recording, cluster, sequ
 
 
 def test_frame_reader_reads_any_frame_as_the_source_gives_it(recording, tmp_path):
-    from livedic.acquire.mcap_replay import FrameReader, McapSource, RecordingError
+    from livedic.acquire.recording.reader import FrameReader, McapSource, RecordingError
     frames = list(McapSource(recording))
     reader = FrameReader(recording)
     for frame in reversed(frames):

@@ -151,7 +151,7 @@ def test_true_values_stop_for_good_once_the_force_falls_below_its_maximum():
 def test_the_load_stage_gives_true_values_from_the_axial_extensometer(tmp_path):
     ramp = tmp_path / "force.csv"
     ramp.write_text("time_s,force_N\n0,0\n1,50000\n")                  # 50 kN/s: 1000 N per 20 ms frame
-    from livedic.acquire.load import open_load
+    from livedic.acquire.force import open_load
     points = _points()
     x, y = points[:, 0], points[:, 1]
     stage = _stage(points)

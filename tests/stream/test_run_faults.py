@@ -19,8 +19,8 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.fake_genicam import GigEFakeCamera, SpeckleMotion
-from livedic.acquire.mcap_replay import McapSource, inspect_recording, read_events, read_results
+from livedic.acquire.camera.fake_genicam import GigEFakeCamera, SpeckleMotion
+from livedic.acquire.recording.reader import McapSource, inspect_recording, read_events, read_results
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 

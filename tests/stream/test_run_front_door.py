@@ -239,7 +239,7 @@ def test_p0_stays_near_the_centre_on_plain_speckle_and_blank_images_say_so():
 
 
 def test_a_run_on_a_holed_specimen_traces_p0_on_the_speckle_and_says_why(tmp_path, capsys):
-    from livedic.acquire.mcap_replay import read_events, read_results
+    from livedic.acquire.recording.reader import read_events, read_results
     frames = tmp_path / "frames"
     frames.mkdir()
     for i in range(4):

@@ -23,7 +23,7 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_events, read_force_samples, read_results
+from livedic.acquire.recording.reader import read_events, read_force_samples, read_results
 from livedic.stream.cli import main
 from tests.acquire.modbus_server import ModbusTestServer
 

@@ -1,7 +1,7 @@
 """Numbers a user can quote (issue 19, item 6): Poisson's ratio over the elastic range, % ok over every placed
 point, a short extensometer warned about, processing time (not latency) for files, a full disk one warning.
 
-The simulator's law is known: Poisson's ratio 0.3 elastic, 0.5 plastic (``acquire.synthetic``).
+The simulator's law is known: Poisson's ratio 0.3 elastic, 0.5 plastic (``acquire.simulator.sources``).
 """
 
 import json
@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_events
+from livedic.acquire.recording.reader import read_events
 from livedic.stream.config import PointsConfig, SessionConfig, ViewerConfig
 from livedic.stream.session import Session, drop_policy, is_live
 from livedic.stream.strain import NOISE_LIMIT, StrainConfig

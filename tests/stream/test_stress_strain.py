@@ -17,7 +17,7 @@ import os
 import numpy as np
 import pytest
 
-from livedic.acquire.mcap_replay import read_results, read_session
+from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
 TENSILE = "synthetic:tensile?frames=60&size=384x512&pace=0"
@@ -51,7 +51,7 @@ def _law_rp02_MPa():
 @pytest.fixture(scope="module")
 def test_run(tmp_path_factory):
     """(recording, force CSV, frames, time_s, exact axial strain, force per frame, frame of maximum force)."""
-    from livedic.acquire.synthetic import SyntheticTensileSource
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
 
     folder = tmp_path_factory.mktemp("stress")
     path = folder / "tensile.mcap"
@@ -307,7 +307,7 @@ LOST_ROW = 10      # the load had no value for this frame: NaN recorded, NaN exp
 def _with_force(test_run, name, *, area_in_metadata):
     """The test run's session and results written again with the Recorder, plus the law's force per frame on
     /machine/force (as the live session records it), NaN at ``LOST_ROW``."""
-    from livedic.stream.recorder import Recorder
+    from livedic.acquire.recording.writer import Recorder
 
     source = test_run["recording"]
     metadata = {key: value for key, value in read_session(source).items() if not key.startswith("livedic.")}

@@ -10,7 +10,7 @@ import threading
 import numpy as np
 import pytest
 
-from livedic.acquire.synthetic import SyntheticTranslateSource
+from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.tracking import Tracker
 from livedic.stream.acquisition import AcquisitionThread
 from livedic.stream.frame_queue import FrameQueue

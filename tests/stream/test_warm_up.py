@@ -11,7 +11,7 @@ import sys
 import numpy as np
 from numba.core.registry import CPUDispatcher
 
-from livedic.acquire.synthetic import SyntheticTensileSource
+from livedic.acquire.simulator.sources import SyntheticTensileSource
 from livedic.dic.tracking import grid_in_roi, step_for_count
 from livedic.stream.cli import build_parser
 from livedic.stream.config import SessionConfig

@@ -27,7 +27,7 @@ the file name: the reader adds that).
 
 Writing. ``ChunkedWriter`` writes what an ``mcap.writer.Writer`` would, with chunks
 livedic closes (and writes) itself, keeping images and data in chunks of their own (see its notes);
-``stream.recorder`` writes live sessions with it and ``acquire.mcap_replay.recover``
+``acquire.recording.writer`` writes live sessions with it and ``acquire.recording.reader.recover``
 rewrites damaged ones.
 """
 
@@ -475,7 +475,7 @@ class ChunkedWriter:
     ``chunks_written`` counts the chunks written; ``durable_counts`` counts, by the
     ``count_as`` label given to ``add``, the messages in written chunks (handed to the
     kernel: they survive the death of the process). Not thread safe: the ``Recorder``
-    calls it under its lock. Also used by ``acquire.mcap_replay.recover`` (which gives
+    calls it under its lock. Also used by ``acquire.recording.reader.recover`` (which gives
     no ``flush_interval_s``: size and ``finish`` only).
     """
 

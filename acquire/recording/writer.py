@@ -5,7 +5,7 @@ Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
 ``/livedic/events``, ``/livedic/session``) are kept apart, so an
 indexed reader fetches the results without reading any image. Frames go into the
 open image chunk; results and events are serialized at once and wait in memory, to be
-written together as one data chunk (``acquire.mcap_io.ChunkedWriter``, the
+written together as one data chunk (``acquire.recording.container.ChunkedWriter``, the
 format's writer, shared with ``recover``). A chunk is written:
 
 * when it holds ``chunk_bytes`` (default 4 MiB: 4 frames of 1 MP mono8, 16 of
@@ -37,7 +37,7 @@ possible when things go wrong:
 * **Process killed (SIGKILL, crash, power cut of the program).** Data handed to the
   kernel survives the death of the process, so every message (frame, results,
   event) whose write returned more than ``flush_interval_s`` + ~0.1 s (~0.35 s with
-  the defaults) before the kill is recoverable by ``acquire.mcap_replay``; the test
+  the defaults) before the kill is recoverable by ``acquire.recording.reader``; the test
   kills a recording process and requires every message counted in ``frames_durable``
   / ``results_durable`` to survive, no more than ``flush_interval_s`` of the writer's
   frames ever waiting, and the background flush to write what waits when the writer
@@ -50,9 +50,9 @@ possible when things go wrong:
   saying why, ``on_error(message)`` is called once, later writes are dropped and
   counted (``frames_dropped`` ...; ``*_written`` + ``*_dropped`` is the number of
   calls), and nothing is ever raised into the caller's loop again. Everything in
-  chunks written before the error stays readable by ``acquire.mcap_replay`` (the
+  chunks written before the error stays readable by ``acquire.recording.reader`` (the
   file has no summary; readers fall back to the recovery scan and
-  ``acquire.mcap_replay.recover`` rewrites it indexed); ``frames_durable`` and
+  ``acquire.recording.reader.recover`` rewrites it indexed); ``frames_durable`` and
   ``results_durable`` count it. What was still in memory is lost: the open image
   chunk and the pending data, both younger than ``flush_interval_s``. So the
   results on disk lag the durable frames by at most ``flush_interval_s`` worth of
@@ -87,15 +87,15 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from livedic.acquire import recording_schema as rs
-from livedic.acquire.mcap_io import ChunkedWriter, library_name, software_version
+from livedic.acquire.recording import schema as rs
+from livedic.acquire.recording.container import ChunkedWriter, library_name, software_version
 
 __all__ = ["Recorder"]
 
 log = logging.getLogger(__name__)
 
 _U64 = 1 << 64
-DEFAULT_CHUNK_BYTES = 4 << 20    # chosen by measurement: see acquire.mcap_io.ChunkedWriter
+DEFAULT_CHUNK_BYTES = 4 << 20    # chosen by measurement: see acquire.recording.container.ChunkedWriter
 _RESULT_EXTRAS = rs.OPTIONAL_ARRAYS + rs.RESULT_SCALARS
 
 

@@ -11,7 +11,7 @@ Before the first frame every file's header is read (``read_image_header``: the
 size, and the bit depth of grey files): a file of another size or bit depth than
 the first, or one that is no image, is refused when the source opens, so the
 session never starts on a sequence it cannot finish. Files are then decoded one
-at a time by :func:`acquire.image_io.read_grey_image`: a truncated or corrupt
+at a time by :func:`acquire.files.image_file.read_grey_image`: a truncated or corrupt
 file, a float or 32-bit one, or a colour file whose bit depth differs (headers
 do not tell it) raises ``SourceError`` naming it when its turn comes. Colour
 files are converted to grey with a note logged once.
@@ -26,7 +26,7 @@ import time
 from urllib.parse import parse_qsl
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
-from livedic.acquire.image_io import read_grey_image, read_image_header
+from livedic.acquire.files.image_file import read_grey_image, read_image_header
 from livedic.acquire.options import as_bool, as_float
 
 __all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]

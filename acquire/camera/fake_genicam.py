@@ -24,7 +24,7 @@ camera are destroyed). The callback copies the image into the buffer Aravis
 hands it: the camera's ROI offset crops a larger image like a real sensor; a
 smaller image is zero-padded; :func:`served_as` converts it to the pixel format's
 bit depth (uint8 x 257 for Mono16, uint16 >> 8 for Mono8) and packed formats are
-packed (``acquire.pixel_formats.pack``).
+packed (``acquire.camera.pixel_formats.pack``).
 
 Aravis's fakes offer Mono8 and Mono16 only and no user sets;
 :func:`extended_genicam_xml` adds the 10/12-bit formats (packed and unpacked),
@@ -32,7 +32,7 @@ more trigger entries and a user set selector for tests (``genicam=`` of each fak
 
 Run a GigE fake camera by hand (Ctrl-C stops it)::
 
-    python -m acquire.fake_genicam --size 1024x1024 --step 1,-1
+    python -m acquire.camera.fake_genicam --size 1024x1024 --step 1,-1
     livedic cameras        # lists Aravis-Fake-LIVEDIC0 at 127.0.0.1
 """
 
@@ -55,14 +55,14 @@ import time
 
 import numpy as np
 
-from livedic.acquire import aravis as _aravis
-from livedic.acquire import pixel_formats
 from livedic.acquire.base import SourceError
+from livedic.acquire.camera import aravis as _aravis
+from livedic.acquire.camera import pixel_formats
 
 __all__ = ["SpeckleMotion", "InProcessFakeCamera", "GigEFakeCamera", "ArvFakeGvCamera", "FillPattern", "GVCP_PORT",
            "ARV_FAKE_GV_CAMERA", "extended_genicam_xml", "served_as"]
 
-log = logging.getLogger("livedic.acquire.fake_genicam")
+log = logging.getLogger("livedic.acquire.camera.fake_genicam")
 
 GVCP_PORT = 3956
 
@@ -357,7 +357,7 @@ class InProcessFakeCamera:
 
     Examples
     --------
-    >>> from acquire.aravis import open_uri
+    >>> from acquire.camera.aravis import open_uri
     >>> with InProcessFakeCamera(SpeckleMotion((512, 512))) as fake:       # doctest: +SKIP
     ...     with open_uri(fake.uri, frame_rate=100) as camera:
     ...         frame = next(iter(camera))
@@ -406,7 +406,7 @@ class InProcessFakeCamera:
 # --------------------------------------------------------------------------- #
 
 def _serve_gige_child():
-    """Child process body (``python -m acquire.fake_genicam --child``).
+    """Child process body (``python -m acquire.camera.fake_genicam --child``).
 
     stdin: 8-byte length + pickle of ``(image_fn, address, serial, genicam)``, then command
     lines (``stats``, ``reset``, ``stop``); EOF (the parent died) also stops. stdout: one
@@ -579,7 +579,7 @@ class GigEFakeCamera(_Simulator):
     ----------
     image_fn : picklable callable ``k -> ndarray``
         Defaults to ``SpeckleMotion()``. Pickled to a child Python
-        (``python -m acquire.fake_genicam --child``), so it must be picklable and
+        (``python -m acquire.camera.fake_genicam --child``), so it must be picklable and
         importable there (a module-level function or an object such as SpeckleMotion).
     serial : str
         Serial number; the Aravis device id is ``"Aravis-Fake-" + serial``.
@@ -625,7 +625,7 @@ class GigEFakeCamera(_Simulator):
             env = dict(os.environ)
             env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
             self._process = subprocess.Popen(
-                [sys.executable, "-m", "livedic.acquire.fake_genicam", "--child"], stdin=subprocess.PIPE,
+                [sys.executable, "-m", "livedic.acquire.camera.fake_genicam", "--child"], stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE, cwd=root, env=env, start_new_session=True, preexec_fn=_die_with_parent)
             self._process.stdin.write(len(payload).to_bytes(8, "little") + payload)
             self._process.stdin.flush()
@@ -806,7 +806,7 @@ def _pair(text):
 def main(argv=None):
     if (sys.argv[1:] if argv is None else argv) == ["--child"]:
         return _serve_gige_child()
-    parser = argparse.ArgumentParser(prog="python -m acquire.fake_genicam",
+    parser = argparse.ArgumentParser(prog="python -m acquire.camera.fake_genicam",
                                      description="Run a GigE Vision fake camera on 127.0.0.1 serving a "
                                                  "moving speckle pattern (Ctrl-C stops it).")
     parser.add_argument("--size", type=_pair, default=(512, 512), metavar="WxH")

@@ -24,9 +24,9 @@ On the loopback address (a simulator) the GigE packet size defaults to 9000
 bytes: 1400-byte packets halve the frame rate of a full 2048x2048 frame there.
 Every setting is checked against the camera's bounds, applied, then READ BACK;
 ``settings`` reports what the camera actually uses next to what was asked.
-``feature.NAME=VALUE`` sets any GenICam feature by its type (``acquire.genicam``).
+``feature.NAME=VALUE`` sets any GenICam feature by its type (``acquire.camera.genicam``).
 
-Pixel formats (``acquire.pixel_formats``): Mono8, and Mono10/Mono12/Mono16
+Pixel formats (``acquire.camera.pixel_formats``): Mono8, and Mono10/Mono12/Mono16
 unpacked or packed (Mono10p, Mono12p, Mono10Packed, Mono12Packed), delivered as
 uint16 with the camera's grey levels; ``settings["bit_depth"]`` and each
 frame's ``metadata["bit_depth"]`` give the significant bits.
@@ -75,20 +75,20 @@ from urllib.parse import parse_qsl
 
 import numpy as np
 
-from livedic.acquire import genicam
-from livedic.acquire import pixel_formats
 from livedic.acquire.base import Frame, FrameSource, NoFirstFrame, SourceError
+from livedic.acquire.camera import genicam
+from livedic.acquire.camera import pixel_formats
 from livedic.acquire.options import as_bool, as_float, as_int
 
 __all__ = ["AravisCamera", "list_cameras", "open_uri", "parse_uri", "load_aravis",
            "SUPPORTED_PIXEL_FORMATS", "SCHEME", "FEATURE_PREFIX"]
 
-log = logging.getLogger("livedic.acquire.aravis")
+log = logging.getLogger("livedic.acquire.camera.aravis")
 
 SCHEME = "aravis"
 FEATURE_PREFIX = "feature."      # feature.NAME=VALUE: any GenICam feature by name
 
-# The formats livedic reads, by GenICam name (acquire.pixel_formats).
+# The formats livedic reads, by GenICam name (acquire.camera.pixel_formats).
 SUPPORTED_PIXEL_FORMATS = tuple(pixel_formats.FORMATS)
 
 _POP_SLICE_US = 100_000          # wait for buffers in 100 ms slices so close() is honoured quickly
@@ -104,7 +104,7 @@ _LOOPBACK_PACKET_SIZE = 9000
 _NO_USER_SET = "none"            # user_set=none: load no user set
 
 # In-process Fake devices: device id -> attach(arv_camera) -> keep-alive object.
-# ``acquire.fake_genicam.InProcessFakeCamera`` registers here so that opening
+# ``acquire.camera.fake_genicam.InProcessFakeCamera`` registers here so that opening
 # ``aravis:Fake_1`` serves its images; the keep-alive (the ctypes fill callback)
 # is released only after the stream and camera are gone.
 FAKE_FILL_HOOKS: dict = {}

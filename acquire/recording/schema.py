@@ -1,9 +1,9 @@
 """What a livedic recording (MCAP) contains: topics, schemas and their wire codecs.
 
 The format lives in ``livedic.acquire``: this module (topics, schemas, codecs,
-session metadata as strings), ``acquire.mcap_io`` (MCAP records read with bounds,
-chunks written in livedic's layout) and ``acquire.mcap_replay`` (the readers,
-``recover``). ``stream.recorder`` writes live sessions with them. The format is
+session metadata as strings), ``acquire.recording.container`` (MCAP records read with bounds,
+chunks written in livedic's layout) and ``acquire.recording.reader`` (the readers,
+``recover``). ``acquire.recording.writer`` writes live sessions with them. The format is
 documented for people in ``docs/recording-format.md``.
 
 The ``livedic.*`` protobuf message types are built at run time from a
@@ -318,7 +318,7 @@ def raw_image_parts(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
 
     ``pixels`` is a flat memoryview of ``image`` (of a contiguous little-endian copy when the
     image is strided or big-endian): a writer copies it once, where it keeps the message
-    (``acquire.mcap_io.ChunkedWriter.add`` takes the parts), instead of a copy into a
+    (``acquire.recording.container.ChunkedWriter.add`` takes the parts), instead of a copy into a
     payload and another from it.
     """
     encoding = image_encoding(image)

@@ -1,9 +1,10 @@
 """Read livedic recordings (MCAP): replay frames, read results, strain, extensometers, force, events and
 metadata, recover crashes.
 
-The format lives in ``livedic.acquire``: ``recording_schema`` (topics, schemas,
-codecs), ``mcap_io`` (MCAP records on the ``mcap`` library, read within bounds,
-written in livedic's chunk layout) and this module (the readers, ``recover``).
+The format lives in ``livedic.acquire.recording``: ``schema`` (topics, schemas,
+codecs), ``container`` (MCAP records on the ``mcap`` library, read within bounds,
+written in livedic's chunk layout), ``writer`` (live sessions) and this module (the
+readers, ``recover``).
 
 Every reader takes the fastest safe path:
 
@@ -18,7 +19,7 @@ Every reader takes the fastest safe path:
   A truncated file is not an error: ``RecordingInfo.truncated`` says so (the
   ``info`` of a ``Recording`` or an ``McapSource`` after a pass, or
   ``inspect_recording``), and the reader logs one note for people (logger
-  ``livedic.acquire.mcap_replay``) saying how many messages it recovered.
+  ``livedic.acquire.recording.reader``) saying how many messages it recovered.
 
 What the reader guarantees on any file, however damaged or hostile: no record over
 1 GiB is read and no chunk is decompressed beyond the size it claims (itself at
@@ -35,7 +36,7 @@ error as its ``__cause__``.
 
 Examples
 --------
->>> from livedic.acquire.mcap_replay import McapSource, Recording, read_results   # doctest: +SKIP
+>>> from livedic.acquire.recording.reader import McapSource, Recording, read_results   # doctest: +SKIP
 >>> with McapSource("session.mcap", realtime=False) as source:  # doctest: +SKIP
 ...     for frame in source:
 ...         print(frame.index, frame.image.shape)
@@ -61,11 +62,11 @@ import numpy as np
 from mcap.opcode import Opcode
 from mcap.records import Channel, Message, Metadata, Schema
 
-from livedic.acquire import recording_schema as rs
+from livedic.acquire.recording import schema as rs
 from livedic.acquire.atomic_file import AtomicFile
 from livedic.acquire.base import Frame, FrameSource, SourceError
-from livedic.acquire.mcap_io import (MAGIC, ChunkedWriter, Damaged, RecordScan, library_name, open_chunk,
-                                     parse_record, read_record, read_record_at, read_summary)
+from livedic.acquire.recording.container import (MAGIC, ChunkedWriter, Damaged, RecordScan, library_name, open_chunk,
+                                                 parse_record, read_record, read_record_at, read_summary)
 from livedic.dic.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
 
@@ -155,7 +156,7 @@ class RecordedResults:
 
 
 def _recorded_results(values, publish_time_ns):
-    """``RecordedResults`` from ``recording_schema.decode_results`` values."""
+    """``RecordedResults`` from ``schema.decode_results`` values."""
     return RecordedResults(
         frame_index=values["frame_index"], timestamp_ns=values["timestamp_ns"], point_id=values["point_id"],
         measurement=Measurement(**{name: values[name] for name in _MEASURED}), method=values["method"],

@@ -166,7 +166,7 @@ by 20 % (the engineering stress falls). With ``hardening=h``, ``e_el = 0.004
 ``h yield / strain`` against plastic strain), Rm = ``(1 + h)`` yield when the
 neck starts and Rp0.2 = yield ``(1 + 0.002 h / strain)`` (None for
 ``strain`` < 0.002). From the fracture frame on the force is 0.
-``livedic.acquire.load.open_load("synthetic", source=SOURCE)`` gives it as a
+``livedic.acquire.force.open_load("synthetic", source=SOURCE)`` gives it as a
 force signal.
 
 Exact truth is the displacement of material points. A subset-based method with

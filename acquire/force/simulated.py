@@ -1,0 +1,74 @@
+"""``synthetic``: the simulated tensile test's force, one sample per frame of the simulated camera."""
+
+import numpy as np
+
+from livedic.acquire.force.csv_file import _KnownSamples, csv_max_gap_s
+from livedic.acquire.force.source import LoadError, _option
+
+__all__ = ["SyntheticLoad"]
+
+
+class SyntheticLoad(_KnownSamples):
+    """The simulated tensile test's force: one sample per frame, frame i at ``i / fps`` s (session time).
+
+    Parameters
+    ----------
+    source : SyntheticTensileSource
+        The simulated camera (or any object with ``frames``, ``fps`` and ``forces_N()``).
+    uri : str, optional
+        How the session names it (default ``synthetic``).
+    offset_s : float, optional
+        Added to every sample's time, as a csv's (``--load-offset``); 0 for the simulator's own frames.
+    max_gap_s : float, optional
+        Default: ``csv_max_gap_s`` of the frame times (5 frame periods, 0.5 s at least).
+
+    Attributes
+    ----------
+    specimen : dict
+        The source's ``specimen`` (A0, E, yield, Rp0.2, Rm): what the stress-strain curve needs.
+    """
+
+    def __init__(self, source, *, uri="synthetic", offset_s=0.0, max_gap_s=None):
+        self.uri = uri
+        self.source_uri = getattr(source, "uri", None)
+        self.offset_s = float(offset_s)
+        self.specimen = dict(getattr(source, "specimen", {}) or {})
+        self._time = np.arange(int(source.frames), dtype=np.float64) / float(source.fps) + self.offset_s
+        self._force = np.asarray(source.forces_N(), dtype=np.float64)
+        self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(self._time)
+
+    @property
+    def settings(self):
+        return {**super().settings, "source": self.source_uri, "offset_s": self.offset_s, "specimen": self.specimen}
+
+
+def _open_synthetic(uri, options):
+    """``synthetic`` with ``source=`` (the session's simulated camera) or ``synthetic:tensile?...``."""
+    source = options.pop("source", None)
+    offset_s = _option("offset_s", options.pop("offset_s", 0.0))
+    max_gap_s = options.pop("max_gap_s", None)
+    if max_gap_s is not None:
+        max_gap_s = _option("max_gap_s", max_gap_s, low=0.0, low_open=True)
+    if options:
+        raise LoadError(f"load {uri!r}: unknown option(s) {', '.join(sorted(options))}; synthetic takes source, "
+                        f"offset_s, max_gap_s")
+    if uri.lower() == "synthetic":
+        if source is None:
+            raise LoadError(f"load {uri!r}: the simulator's force needs the simulated camera: pass source= "
+                            f"(a synthetic:tensile source), or name the test: synthetic:tensile?...")
+        if not callable(getattr(source, "forces_N", None)):
+            raise LoadError(f"load {uri!r}: the camera {getattr(source, 'uri', type(source).__name__)!r} is not a "
+                            f"simulated tensile test; --load synthetic needs --source synthetic:tensile?...")
+        return SyntheticLoad(source, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)
+    if source is not None:
+        raise LoadError(f"load {uri!r}: give either source= with load synthetic, or the test's URI, not both")
+    from livedic.acquire.base import SourceError
+    from livedic.acquire.simulator.sources import SyntheticTensileSource, parse_synthetic_uri
+    try:
+        model, _ = parse_synthetic_uri(uri)
+        if model != "tensile":
+            raise SourceError(f"synthetic:{model} has no force; use synthetic:tensile?...")
+        source = SyntheticTensileSource(uri)
+    except SourceError as error:
+        raise LoadError(f"load {uri!r}: {error}") from None
+    return SyntheticLoad(source, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)

@@ -1,0 +1,1 @@
+"""The simulator: synthetic tensile and translation tests with exact truth (model, rendering, sources)."""
