@@ -3,7 +3,8 @@
 - The guide builds with ``mkdocs build --strict``: no broken link or anchor, no page left out of the nav,
   no link to a file the repository does not have (docs/hooks.py).
 - The strictness is real: a broken link and a page outside the nav make the same build fail.
-- Every page is in the nav, and the README (the front door) links to every page; its links resolve.
+- Every page is in the nav, and the README (the front door) links to every page; its links and their
+  anchors resolve.
 """
 
 import importlib.util
@@ -32,6 +33,12 @@ def build(config: Path, site: Path) -> subprocess.CompletedProcess:
 
 def guide_pages() -> set[str]:
     return {p.relative_to(GUIDE).as_posix() for p in GUIDE.rglob("*.md")}
+
+
+def heading_anchors(page: Path) -> set[str]:
+    """The anchors GitHub (and MkDocs' toc, for these headings) gives a page's headings."""
+    headings = re.findall(r"^#+\s+(.+?)\s*$", page.read_text(), flags=re.M)
+    return {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in headings}
 
 
 def nav_pages(nav) -> set[str]:
@@ -82,6 +89,9 @@ def test_readme_links_resolve_and_reach_every_guide_page():
     targets = [t for t in MARKDOWN_LINK.findall(readme) if "://" not in t and not t.startswith(("#", "mailto:"))]
     missing = [t for t in targets if not (REPO / t.split("#")[0]).exists()]
     assert not missing, f"README.md links to files that do not exist: {missing}"
+    broken_anchors = [t for t in targets if "#" in t and t.split("#")[0].endswith(".md")
+                      and t.split("#")[1] not in heading_anchors(REPO / t.split("#")[0])]
+    assert not broken_anchors, f"README.md links to headings that do not exist: {broken_anchors}"
     linked = {t.split("#")[0] for t in targets}
     unlinked = sorted(p for p in guide_pages() if f"docs/guide/{p}" not in linked)
     assert not unlinked, f"README.md does not link to these guide pages: {unlinked}"
