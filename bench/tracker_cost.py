@@ -16,7 +16,7 @@ prints per frame:
 ``--save FILE.npz`` keeps every frame's result and ``--compare FILE.npz`` checks a run against such a
 file bit for bit (exit code 1 if anything differs): a change to the tracker's speed must not change
 its numbers. ``--stacks FILE`` reads a py-spy profile (``py-spy record --format raw``) of any livedic
-run and prints where the samples inside ``KeyFrameTracker.track`` end (docs/live-performance.md).
+run and prints where the samples inside ``KeyFrameTracker.track`` end (docs/guide/performance.md).
 """
 
 import collections

@@ -383,7 +383,7 @@ class Session:
         self._previous_threads = numba.get_num_threads()
         numba.set_num_threads(config.threads)
         # The tracking thread takes the GIL back from the output thread within this when it needs it
-        # (between its kernels), instead of Python's default 5 ms: docs/live-performance.md.
+        # (between its kernels), instead of Python's default 5 ms: docs/guide/performance.md.
         self._previous_switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
 

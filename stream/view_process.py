@@ -2,7 +2,7 @@
 
 ``RerunLogger`` spends ~3 ms of Python a frame building Rerun's arrays (more with strain and the plots); in
 the session's process that time holds the GIL the tracking thread needs, and at 100 fps it was the largest
-part of the tracker's latency tail (docs/live-performance.md). ``ViewProcess`` has the same interface as
+part of the tracker's latency tail (docs/guide/performance.md). ``ViewProcess`` has the same interface as
 ``RerunLogger`` (a sink, plus ``start``, ``event``, ``log_summary``, ``flush``, ``close`` and the counters the
 summary reads) and runs a ``RerunLogger`` in a child process:
 

@@ -331,7 +331,7 @@ class _ChunkRecords:
     Why not mcap's builder: it copies each payload into a ``BytesIO``, then the whole chunk twice more on its
     way to the file, all of it holding the GIL: ~1.1 ms a 1 MP frame, ~2.3 ms at once when an image chunk
     is written, up to ~6.6 ms for a data chunk, time in which the tracking thread cannot run (measured:
-    ``docs/live-performance.md``, "Recording"). Here a payload is copied once, by numpy, which lets the GIL
+    ``docs/guide/performance.md``, "Recording"). Here a payload is copied once, by numpy, which lets the GIL
     go for large copies, into a buffer that is reused (no fresh pages to fault in); ``ChunkedWriter`` writes
     it out with calls that let the GIL go too.
     """

@@ -4,7 +4,7 @@ The format lives in ``livedic.acquire``: this module (topics, schemas, codecs,
 session metadata as strings), ``acquire.recording.container`` (MCAP records read with bounds,
 chunks written in livedic's layout) and ``acquire.recording.reader`` (the readers,
 ``recover``). ``acquire.recording.writer`` writes live sessions with them. The format is
-documented for people in ``docs/recording-format.md``.
+documented for people in ``docs/guide/recording-format.md``.
 
 The ``livedic.*`` protobuf message types are built at run time from a
 ``descriptor_pb2.FileDescriptorProto`` (no protoc, no generated code) in a private

@@ -27,7 +27,7 @@ What a write costs the other threads (the tracker needs the GIL between its
 kernels): a frame's pixels are copied once, into the open chunk, by numpy without
 the GIL, and a chunk goes to the kernel in one ``write`` without it (its CRC too),
 so a 1 MP frame holds the GIL for some tens of microseconds, and a frame's results,
-strain, extensometers and force for ~0.1 ms (``docs/live-performance.md``, "Recording").
+strain, extensometers and force for ~0.1 ms (``docs/guide/performance.md``, "Recording").
 The call that writes a chunk still waits for the kernel to take it (a few ms for 4 MiB,
 more when the disk is behind), in the caller's thread.
 

@@ -203,7 +203,7 @@ def _read_chunk(data, index):
 
 
 def test_plain_mcap_with_protobuf_decoder_reads_everything(tmp_path):
-    """What docs/recording-format.md promises: no livedic needed to read a recording."""
+    """What docs/guide/recording-format.md promises: no livedic needed to read a recording."""
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
