@@ -85,7 +85,7 @@ class PaperConfig:
 
     @classmethod
     def quick(cls):
-        """Every figure and check with about a tenth of the points and coarser sweeps (CI, README)."""
+        """Every figure and check with about a tenth of the points and coarser sweeps (CI, docs/guide/performance.md)."""
         return cls(name="quick", int_patterns=1, int_step=17, int_displacements=tuple(range(1, 11)),
                    sub_displacements=_steps(0.1, 1.0, 0.1), sub_patterns=1, sub_step=16, timing_repeats=1,
                    measure_every=3, fit_spacings=_steps(0.2, 2.0, 0.6), field_step=8, radius_size=384,

@@ -292,7 +292,7 @@ def straddling(points: np.ndarray, mask: np.ndarray, subset: int) -> np.ndarray:
     """Boolean (N,): points whose subset lies partly on ``mask`` and partly off it (across the specimen's edge).
 
     Such a subset sees two motions (the specimen's and the background's, a hole's far side) and is measured
-    as a compromise that can pass every gate (README: when is a point ok?).
+    as a compromise that can pass every gate (docs/guide/quality.md: when is a point ok?).
     """
     import cv2
     share = cv2.boxFilter(np.asarray(mask, dtype=np.float32), -1, (int(subset), int(subset)),

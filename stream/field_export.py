@@ -51,7 +51,7 @@ from livedic.acquire.atomic_file import AtomicFile
 from livedic.stream.rerun_log import MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_STRAIN, display_gray, grow_limits
 
 QUANTITIES = ("u", "v", "exx", "eyy", "exy")
-DEFAULT_EVERY = 10          # maps of 1 frame in 10: a map costs ~0.1 s and ~0.7 MB at 1 MP (README, export)
+DEFAULT_EVERY = 10          # maps of 1 frame in 10: a map costs ~0.1 s and ~0.7 MB at 1 MP (docs/guide/export.md)
 DEFAULT_VIDEO = "eyy"
 DEFAULT_VIDEO_FPS = 10.0
 DEFAULT_OPACITY = 1.0       # the field opaque: its colours read true against the colour bar

@@ -135,7 +135,7 @@ def encode_registers(values, *, update_count, state=STATE_RUNNING):
 def decode_registers(registers):
     """The values a client reads back from ``registers`` (a whole map, address 0 first), as a dict.
 
-    The inverse of ``encode_registers`` as the README's map states it: what a controller
+    The inverse of ``encode_registers`` as the register map of docs/guide/strain-out.md states it: what a controller
     does with the registers (the tests check the map through it and through pymodbus's own
     decoding).
     """

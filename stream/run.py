@@ -99,7 +99,7 @@ def add_run_arguments(parser):
                              "exists (needs --gauge-length or --extensometer; repeatable): udp://HOST:PORT, one JSON "
                              "datagram per frame {frame, time_s, strain: {name: value or null}, ok}; "
                              "modbus://HOST:PORT, a Modbus TCP server with the values in holding registers (map in "
-                             "the README). Without a host: 127.0.0.1; modbus://0.0.0.0:PORT listens on every "
+                             "docs/guide/strain-out.md). Without a host: 127.0.0.1; modbus://0.0.0.0:PORT listens on every "
                              "interface")
     parser.add_argument("--reconnect", action="store_true",
                         help="cameras (aravis:, v4l2:): when the camera is lost, keep the session and the recording "

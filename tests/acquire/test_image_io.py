@@ -280,7 +280,7 @@ def test_image_header_agrees_with_the_decoded_image(tmp_path):
 
 
 def test_sequence_options_in_the_uri_and_question_mark_still_a_wildcard(tmp_path):
-    """``images:GLOB?frame_rate=5`` as the README gives it (the command line has no other way to pass it);
+    """``images:GLOB?frame_rate=5`` as docs/guide/sources.md gives it (the command line has no other way to pass it);
     a ``?`` not followed by name=value pairs is the glob's own wildcard."""
     for i in (1, 2, 3):
         write(tmp_path / f"q{i}.png", GREY8)
