@@ -65,6 +65,15 @@ def _counters(logger, times):
                 stages=times.summary())
 
 
+def _tell(outbox, message):
+    """An answer to the session; lost once the session's process has ended, and the child goes on drawing what
+    it was given (a failed answer must not stop the drawing: the .rrd keeps every frame handed over)."""
+    try:
+        outbox.send(message)
+    except OSError:
+        pass
+
+
 def serve(inbox, outbox):
     """The child: a ``RerunLogger`` fed from the connection ``inbox`` until "close" or the end of the pipe (the
     session's process ended); answers and counts on ``outbox``."""
@@ -72,7 +81,7 @@ def serve(inbox, outbox):
         _, options = inbox.recv()
     except EOFError:
         return                                       # never used (``ViewChild.close``)
-    logger = RerunLogger(**options, on_error=lambda message: outbox.send(("file_error", message)))
+    logger = RerunLogger(**options, on_error=lambda message: _tell(outbox, ("file_error", message)))
     failed = False
     times = StageTimes()
     while True:
@@ -90,28 +99,25 @@ def serve(inbox, outbox):
                 started = time.perf_counter_ns()
                 logger.log_frame(result, None, camera_image=camera_image)
                 times.add(DRAW_STAGE, time.perf_counter_ns() - started)
-                outbox.send(("drawn", 1))
+                _tell(outbox, ("drawn", 1))
             elif kind == "start":
                 logger.start(**payload)
-                outbox.send(("started", None))
+                _tell(outbox, ("started", None))
             elif kind == "event":
                 logger.event(*payload)
             elif kind == "summary":
                 logger.log_summary(payload)
             elif kind == "flush":
                 logger.flush()
-                outbox.send(("counters", _counters(logger, times)))
+                _tell(outbox, ("counters", _counters(logger, times)))
         except Exception as error:  # noqa: BLE001 - told to the session, which switches the view off
             failed = True
-            outbox.send(("start_failed" if kind == "start" else "failed", f"{type(error).__name__}: {error}"))
+            _tell(outbox, ("start_failed" if kind == "start" else "failed", f"{type(error).__name__}: {error}"))
     try:
         logger.close()
     except Exception as error:  # noqa: BLE001 - the session says it ("closing the Rerun stream failed")
-        outbox.send(("close_failed", f"{type(error).__name__}: {error}"))
-    try:
-        outbox.send(("closed", _counters(logger, times)))
-    except OSError:
-        pass                                         # no one is listening any more
+        _tell(outbox, ("close_failed", f"{type(error).__name__}: {error}"))
+    _tell(outbox, ("closed", _counters(logger, times)))
 
 
 class ViewChild:

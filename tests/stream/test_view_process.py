@@ -104,9 +104,8 @@ view.start(image_shape=(96, 128), p0_index=0, points=None)
 for i in range(20):
     view(_result(i), SessionStats())
 print(view._process.pid, flush=True)
-view._writer.join(timeout=0.0)
-while not view._outgoing.empty():           # handed over to the pipe (not yet drawn): then die
-    pass
+view._outgoing.put(None)                    # the writer thread stops after the frames before it ...
+view._writer.join()                         # ... are in the pipe (not yet drawn), the pipe left open: then die
 os._exit(1)
 """
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=100, cwd=str(tmp_path))
