@@ -61,7 +61,7 @@ from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, Progres
                                   ReferenceUpdates)
 from livedic.stream.strain import AXIAL, StrainConfig, format_length
 from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
-from livedic.stream.view_process import BACKLOG_MAX as VIEW_BACKLOG_MAX
+from livedic.stream.view.process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 
 
 # How long a thread that wants the GIL waits before it asks the holder to give it up (Python's default: 5 ms).
@@ -183,7 +183,7 @@ def check_viewer_reachable(url, timeout_s=1.0):
     import socket
     from urllib.parse import urlsplit
 
-    from livedic.stream.rerun_log import DEFAULT_PORT
+    from livedic.stream.view.logger import DEFAULT_PORT
     try:
         parts = urlsplit(url)
         host = parts.hostname or "127.0.0.1"
@@ -283,7 +283,7 @@ class Session:
     source : FrameSource or None
         The opened source (the session closes it).
     recorder : acquire.recording.writer.Recorder or None
-    viewer : stream.rerun_log.RerunLogger or None
+    viewer : stream.view.logger.RerunLogger or None
     queue : FrameQueue, acquisition : AcquisitionThread, loop : TrackerLoop
         The pipeline, from ``start``.
     points : ndarray (N, 2)
@@ -414,7 +414,7 @@ class Session:
         # meanwhile queue up and a paced source delivers them late, in a burst. The view's process imports
         # its own (~2 s) while the source renders or the camera opens.
         if config.viewer.mode != VIEWER_NONE:
-            from livedic.stream.view_process import ViewChild
+            from livedic.stream.view.process import ViewChild
             self._view_child = ViewChild()
         if config.record:
             try:
@@ -760,8 +760,8 @@ class Session:
         }
 
     def _open_outputs(self, scheme):
-        from livedic.stream.rerun_log import IMAGE_MAX_HZ, RerunLogger
-        from livedic.stream.view_process import ViewProcess
+        from livedic.stream.view.logger import IMAGE_MAX_HZ, RerunLogger
+        from livedic.stream.view.process import ViewProcess
         config = self.config
         self._settings = _safe_settings(self.source)
         if config.record:

@@ -16,8 +16,8 @@ attributes say how the session treats it:
 ``stage``
     Its row in the session's stage times (default: ``name``).
 
-The Rerun view (``stream.rerun_log.RerunLogger``, in a session run in a process of
-its own: ``stream.view_process.ViewProcess``) is a sink as it is. Sinks to
+The Rerun view (``stream.view.logger.RerunLogger``, in a session run in a process of
+its own: ``stream.view.process.ViewProcess``) is a sink as it is. Sinks to
 come (strain, extensometers, load channels) plug in the same way:
 ``Session(config, sinks=[...])``.
 """

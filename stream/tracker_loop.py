@@ -9,8 +9,8 @@ view, events, progress; a replay's CSV) in order, at their own pace: the
 measurement never waits for the display or the disk. The output thread's
 backlog (results waiting for it) is ``FrameResult.output_backlog`` (a view in
 the session's process leaves the camera image out while it is behind:
-``stream.rerun_log``; a live session's view runs in a process of its own,
-``stream.view_process``, and paces itself on its own backlog), and past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
+``stream.view.logger``; a live session's view runs in a process of its own,
+``stream.view.process``, and paces itself on its own backlog), and past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
 are then dropped at the frame queue, counted, never silently).
 
 The first frame becomes the reference: the tracker is built from it

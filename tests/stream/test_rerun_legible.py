@@ -8,8 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from livedic.stream import rerun_log
-from livedic.stream.rerun_log import RerunLogger
+from livedic.stream.view import logger as rerun_log
+from livedic.stream.view.logger import RerunLogger
 from tests.stream.test_rerun_stress import AREA
 from tests.stream.test_rerun_stress import _session as _stress_session
 from tests.stream.test_rerun_strain import ROI, _points, _stage

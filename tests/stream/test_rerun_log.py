@@ -9,8 +9,8 @@ import pytest
 
 from livedic.acquire.base import Frame
 from livedic.dic.result import Measurement
-from livedic.stream import rerun_log
-from livedic.stream.rerun_log import RerunLogger, parse_viewer
+from livedic.stream.view import logger as rerun_log
+from livedic.stream.view.logger import RerunLogger, parse_viewer
 from livedic.stream.tracker_loop import FrameResult, SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -148,7 +148,7 @@ def test_periodic_flush_keeps_scalars_after_a_kill(tmp_path):
 import os, signal, sys, time
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
 from test_rerun_log import _result
-from livedic.stream.rerun_log import RerunLogger
+from livedic.stream.view.logger import RerunLogger
 from livedic.stream.tracker_loop import SessionStats
 logger = RerunLogger("save", {str(path)!r}, flush_interval_s=0.2)
 logger.start(image_shape=(96, 128), p0_index=0, points=None)

@@ -7,9 +7,9 @@ the extensometers are exact: e_yy = 0.001 i and e_xx = -0.0004 i in frame i (Poi
 import numpy as np
 import pytest
 
-from livedic.stream import rerun_log
+from livedic.stream.view import logger as rerun_log
 from livedic.stream.poisson import ContractionWatch
-from livedic.stream.rerun_log import RerunLogger, nice_ceil
+from livedic.stream.view.logger import RerunLogger, nice_ceil
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import SessionStats
 from tests.stream.test_rerun_view import SHAPE, _frame_result, _lut_indices, _rows

@@ -11,9 +11,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from livedic.stream import rerun_log
+from livedic.stream.view import logger as rerun_log
 from livedic.stream.load_stage import LoadStage, axial_strain
-from livedic.stream.rerun_log import RerunLogger
+from livedic.stream.view.logger import RerunLogger
 from livedic.stream.stress import NECKING_DROP, UniformElongationWatch
 from livedic.stream.tracker_loop import SessionStats
 from tests.stream.test_rerun_strain import EYY, FRAMES, ROI, _field, _points, _stage, _views

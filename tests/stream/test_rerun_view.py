@@ -10,8 +10,8 @@ import pytest
 
 from livedic.acquire.base import Frame
 from livedic.dic.result import Measurement
-from livedic.stream import rerun_log
-from livedic.stream.rerun_log import RerunLogger, colour_bar_image, colormap_lut, grow_limits, nice_ceil, typical_spacing
+from livedic.stream.view import logger as rerun_log
+from livedic.stream.view.logger import RerunLogger, colour_bar_image, colormap_lut, grow_limits, nice_ceil, typical_spacing
 from livedic.stream.tracker_loop import FrameResult, SessionStats
 
 SHAPE = (240, 320)

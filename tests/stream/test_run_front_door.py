@@ -133,7 +133,7 @@ def test_connect_to_a_listening_viewer_goes_ahead(monkeypatch):
 
 
 def test_the_summary_is_printed_even_when_the_viewer_fails_to_close(tmp_path, capsys, monkeypatch):
-    from livedic.stream.view_process import ViewProcess
+    from livedic.stream.view.process import ViewProcess
 
     close = ViewProcess.close
 

@@ -9,10 +9,10 @@ import sys
 import numpy as np
 import pytest
 
-from livedic.stream import rerun_log
-from livedic.stream.rerun_log import IMAGE_SKIP_MAX, RerunLogger
+from livedic.stream.view import logger as rerun_log
+from livedic.stream.view.logger import IMAGE_SKIP_MAX, RerunLogger
 from livedic.stream.tracker_loop import SessionStats
-from livedic.stream.view_process import BEHIND, ViewProcess, ViewProcessError
+from livedic.stream.view.process import BEHIND, ViewProcess, ViewProcessError
 from tests.stream.test_rerun_log import _result, _scalars, _store_summary
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -97,7 +97,7 @@ def test_the_rrd_is_complete_when_the_session_process_dies(tmp_path):
 import os, sys
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {HERE!r})
 from tests.stream.test_rerun_log import _result
-from livedic.stream.view_process import ViewProcess
+from livedic.stream.view.process import ViewProcess
 from livedic.stream.tracker_loop import SessionStats
 view = ViewProcess("save", {str(path)!r}, image_max_side=64)
 view.start(image_shape=(96, 128), p0_index=0, points=None)

@@ -114,7 +114,7 @@ a running viewer or server (default ``rerun+http://127.0.0.1:9876/proxy``).
 a non-loopback interface. A background thread flushes the stream about once a
 second, so a killed run's .rrd keeps what came before and the tracking loop
 never waits for the disk or the network. A session runs this logger in a process of its own
-(``stream.view_process``), which chooses and downsamples the camera image (``CameraImagePacing``,
+(``stream.view.process``), which chooses and downsamples the camera image (``CameraImagePacing``,
 ``display_image``) and hands each frame over.
 """
 
@@ -1239,7 +1239,7 @@ class RerunLogger:
         """Log one ``stream.tracker_loop.FrameResult`` (a TrackerLoop sink).
 
         ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
-        (``stream.view_process``: paced and prepared in the session's process); None: chosen here, by
+        (``stream.view.process``: paced and prepared in the session's process); None: chosen here, by
         ``images`` (a ``CameraImagePacing``), from ``result.frame.image``. ``stats`` is not read.
         """
         if not self.enabled:

@@ -8,18 +8,18 @@ summary reads) and runs a ``RerunLogger`` in a child process:
 
 - the session's output thread hands each frame over (``__call__``): the result without its camera frame (the
   arrays of the measurement, strain, extensometers, force and timings), plus the camera image when this
-  frame's is drawn, chosen (``rerun_log.CameraImagePacing``) and downsampled (``rerun_log.display_image``)
+  frame's is drawn, chosen (``logger.CameraImagePacing``) and downsampled (``logger.display_image``)
   here. A thread of this process pickles and writes them to the child's pipe (a
   ``multiprocessing.connection.Connection``); the output thread only appends to a queue.
 - every frame's fields reach the view: none is left out while the child keeps up; while it is behind (more
   than ``BEHIND`` frames handed over and not yet drawn) the camera image is left out (at most
-  ``rerun_log.IMAGE_SKIP_MAX`` frames in a row). A child that stops taking frames for good (more than
+  ``logger.IMAGE_SKIP_MAX`` frames in a row). A child that stops taking frames for good (more than
   ``BACKLOG_MAX`` waiting) would hold the frames in memory: then whole frames are left out, counted in
   ``frames_left_out`` (the summary says it), never silently.
 - ``start``, ``flush`` and ``close`` wait for the child's answer: ``start`` raises the ``ValueError`` the
   logger raised there (a viewer that cannot be started), ``flush`` brings back the child's counters for the
   summary (``frames_logged``, ``log_seconds``, ``file_error``), ``close`` returns once the .rrd is complete.
-- the child is ``python -m livedic.stream.view_process`` in a session of its own (Ctrl-C goes to the session,
+- the child is ``python -m livedic.stream.view.process`` in a session of its own (Ctrl-C goes to the session,
   which closes it; nothing of the caller's ``__main__`` runs again, as it would under ``multiprocessing``);
   when the session's process dies without closing it, its pipe ends and the child closes the .rrd itself:
   the file keeps every frame it was given. What the child prints goes to a temporary file, whose last line
@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 
 from livedic.acquire.base import Frame
-from livedic.stream.rerun_log import CameraImagePacing, RerunLogger, display_image, display_scale
+from livedic.stream.view.logger import CameraImagePacing, RerunLogger, display_image, display_scale
 from livedic.stream.tracker_loop import OUTPUT_NICE, StageTimes
 
 BEHIND = 1                 # frames handed over and not yet drawn, the one being drawn included, that are not "behind"
@@ -121,7 +121,7 @@ def serve(inbox, outbox):
 
 
 class ViewChild:
-    """The child process, started: ``python -m livedic.stream.view_process`` importing rerun, numpy and OpenCV
+    """The child process, started: ``python -m livedic.stream.view.process`` importing rerun, numpy and OpenCV
     (~2 s) until its first message; ``ViewProcess`` takes it over. ``close`` ends one that was never used."""
 
     def __init__(self):
@@ -130,7 +130,7 @@ class ViewChild:
         self.output = tempfile.TemporaryFile()
         try:
             self.process = subprocess.Popen(
-                [sys.executable, "-m", "livedic.stream.view_process", str(child_in), str(child_out)],
+                [sys.executable, "-m", "livedic.stream.view.process", str(child_in), str(child_out)],
                 pass_fds=(child_in, child_out), stdin=subprocess.DEVNULL, stdout=self.output,
                 stderr=subprocess.STDOUT, start_new_session=True)
         finally:
@@ -152,7 +152,7 @@ class ViewChild:
 
 
 class ViewProcess:
-    """``stream.rerun_log.RerunLogger`` in a child process (module notes); the same parameters as it.
+    """``stream.view.logger.RerunLogger`` in a child process (module notes); the same parameters as it.
 
     ``image_every``, ``image_max_hz`` and ``thin_when_behind`` pace the camera image here, in the session's
     process; the others go to the child's logger. ``on_error(message)`` is called (from the thread that hands
@@ -369,7 +369,7 @@ def _warm_up():
 
 
 def main(argv=None):
-    """``python -m livedic.stream.view_process IN_FD OUT_FD``: the child (``ViewProcess`` starts it)."""
+    """``python -m livedic.stream.view.process IN_FD OUT_FD``: the child (``ViewProcess`` starts it)."""
     fd_in, fd_out = (int(word) for word in (argv if argv is not None else sys.argv[1:]))
     try:
         os.nice(OUTPUT_NICE)          # as the output thread: on a busy machine the tracking thread has the CPU first
