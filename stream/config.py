@@ -377,8 +377,8 @@ class ViewerConfig:
 
     @classmethod
     def parse(cls, words, default_save_path):
-        """From ``--viewer`` words (``stream.view.logger.parse_viewer``); ValueError for a bad mode or URL."""
-        from livedic.stream.view.logger import parse_viewer
+        """From ``--viewer`` words (``stream.view.viewer.parse_viewer``); ValueError for a bad mode or URL."""
+        from livedic.stream.view.viewer import parse_viewer
         return cls(*parse_viewer(words, default_save_path))
 
     def describe(self):

@@ -30,7 +30,7 @@ where its corners fold over (a wrong point): there the camera image shows, never
 
 Colours: matplotlib's ``turbo`` (the live view's map), one fixed range per quantity for the whole
 sequence, so a colour means the same value in every frame: ``--map-range Q=LO,HI`` (the unit of
-the colour bar), or automatic, by the live view's rule over all the frames (``stream.view.logger.
+the colour bar), or automatic, by the live view's rule over all the frames (``stream.view.colour_scale.
 grow_limits``: the 0.5th/99.5th percentiles of each frame's values, the ends moving out to round
 numbers, from +-0.05 px or +-0.1 % strain). Values beyond the range take the end colours.
 Displacements in px, or mm with ``--scale``; strain in % (``--strain-unit microstrain``).
@@ -48,7 +48,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from livedic.acquire.atomic_file import AtomicFile
-from livedic.stream.view.logger import MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_STRAIN, display_gray, grow_limits
+from livedic.stream.view.camera_image import display_gray
+from livedic.stream.view.colour_scale import MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_STRAIN, grow_limits
 
 QUANTITIES = ("u", "v", "exx", "eyy", "exy")
 DEFAULT_EVERY = 10          # maps of 1 frame in 10: a map costs ~0.1 s and ~0.7 MB at 1 MP (docs/guide/export.md)

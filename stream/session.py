@@ -183,7 +183,7 @@ def check_viewer_reachable(url, timeout_s=1.0):
     import socket
     from urllib.parse import urlsplit
 
-    from livedic.stream.view.logger import DEFAULT_PORT
+    from livedic.stream.view.viewer import DEFAULT_PORT
     try:
         parts = urlsplit(url)
         host = parts.hostname or "127.0.0.1"
@@ -760,7 +760,8 @@ class Session:
         }
 
     def _open_outputs(self, scheme):
-        from livedic.stream.view.logger import IMAGE_MAX_HZ, RerunLogger
+        from livedic.stream.view.camera_image import IMAGE_MAX_HZ
+        from livedic.stream.view.logger import RerunLogger
         from livedic.stream.view.process import ViewProcess
         config = self.config
         self._settings = _safe_settings(self.source)

@@ -1,5 +1,7 @@
-"""The live view in Rerun: ``logger.RerunLogger`` draws a session's frames, ``process.ViewProcess`` runs it in a
-process of its own (what the view shows: ``logger``'s module docstring).
+"""The live view in Rerun: what a session draws, how, and where it goes (docs/guide/live-view.md describes the view).
 
-Importing this package imports nothing heavy (no rerun): import the module you need.
+``logger.RerunLogger`` is the sink that draws (the only caller of rerun's logging); ``process.ViewProcess``
+runs it in a process of its own. Its parts: ``entities`` (entity paths and styles), ``colour_scale`` and
+``colour_bar``, ``xy_plot``, ``blueprint`` (the layout), ``viewer`` (the ``--viewer`` modes) and
+``camera_image``. Importing this package imports nothing heavy (no rerun): import the module you need.
 """

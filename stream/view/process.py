@@ -8,12 +8,12 @@ summary reads) and runs a ``RerunLogger`` in a child process:
 
 - the session's output thread hands each frame over (``__call__``): the result without its camera frame (the
   arrays of the measurement, strain, extensometers, force and timings), plus the camera image when this
-  frame's is drawn, chosen (``logger.CameraImagePacing``) and downsampled (``logger.display_image``)
+  frame's is drawn, chosen (``camera_image.CameraImagePacing``) and downsampled (``camera_image.display_image``)
   here. A thread of this process pickles and writes them to the child's pipe (a
   ``multiprocessing.connection.Connection``); the output thread only appends to a queue.
 - every frame's fields reach the view: none is left out while the child keeps up; while it is behind (more
   than ``BEHIND`` frames handed over and not yet drawn) the camera image is left out (at most
-  ``logger.IMAGE_SKIP_MAX`` frames in a row). A child that stops taking frames for good (more than
+  ``camera_image.IMAGE_SKIP_MAX`` frames in a row). A child that stops taking frames for good (more than
   ``BACKLOG_MAX`` waiting) would hold the frames in memory: then whole frames are left out, counted in
   ``frames_left_out`` (the summary says it), never silently.
 - ``start``, ``flush`` and ``close`` wait for the child's answer: ``start`` raises the ``ValueError`` the
@@ -40,7 +40,8 @@ from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 
 from livedic.acquire.base import Frame
-from livedic.stream.view.logger import CameraImagePacing, RerunLogger, display_image, display_scale
+from livedic.stream.view.camera_image import CameraImagePacing, display_image, display_scale
+from livedic.stream.view.logger import RerunLogger
 from livedic.stream.tracker_loop import OUTPUT_NICE, StageTimes
 
 BEHIND = 1                 # frames handed over and not yet drawn, the one being drawn included, that are not "behind"

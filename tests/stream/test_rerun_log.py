@@ -9,8 +9,9 @@ import pytest
 
 from livedic.acquire.base import Frame
 from livedic.dic.result import Measurement
-from livedic.stream.view import logger as rerun_log
-from livedic.stream.view.logger import RerunLogger, parse_viewer
+from livedic.stream.view import colour_scale, entities, viewer
+from livedic.stream.view.logger import RerunLogger
+from livedic.stream.view.viewer import parse_viewer
 from livedic.stream.tracker_loop import FrameResult, SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -84,7 +85,7 @@ def test_bad_viewer_words_raise(words, message):
 
 
 def test_spawned_viewer_binds_loopback_only():
-    command = rerun_log._viewer_command(9876)
+    command = viewer._viewer_command(9876)
     assert command[command.index("--bind") + 1] == "127.0.0.1"
 
 
@@ -110,11 +111,11 @@ def test_saved_recording_holds_every_entity_and_p0_series(tmp_path):
     logger.log_summary("done")
     logger.close()
     text = _store_summary(path)
-    for entity in (rerun_log.CAMERA_IMAGE, rerun_log.CAMERA_ROI, rerun_log.CAMERA_P0, rerun_log.FIELD_U,
-                   rerun_log.FIELD_V, f"{rerun_log.LEGEND_U}/bar", f"{rerun_log.LEGEND_V}/bar", rerun_log.LIMITS_U,
-                   rerun_log.LIMITS_V, rerun_log.LOST, rerun_log.TRACKING, rerun_log.P0,
-                   rerun_log.QUALITY, rerun_log.THROUGHPUT, rerun_log.LATENCY, rerun_log.DROPS, rerun_log.ERROR,
-                   rerun_log.EVENTS, rerun_log.SUMMARY):
+    for entity in (entities.CAMERA_IMAGE, entities.CAMERA_ROI, entities.CAMERA_P0, entities.FIELD_U,
+                   entities.FIELD_V, f"{entities.LEGEND_U}/bar", f"{entities.LEGEND_V}/bar", entities.LIMITS_U,
+                   entities.LIMITS_V, entities.LOST, entities.TRACKING, entities.P0,
+                   entities.QUALITY, entities.THROUGHPUT, entities.LATENCY, entities.DROPS, entities.ERROR,
+                   entities.EVENTS, entities.SUMMARY):
         assert f"/{entity} " in text, entity
     assert "timelines=['frame', 'log_time', 'time']" in text
     p0 = np.array(_scalars(path, "/p0"))
@@ -127,7 +128,7 @@ def test_saved_recording_holds_every_entity_and_p0_series(tmp_path):
 
 def test_colour_scale_and_display_image():
     logger = RerunLogger("save", "unused.rrd")
-    lut = rerun_log.colormap_lut()
+    lut = colour_scale.colormap_lut()
     colours = logger._colours(np.array([-5.0, -1.0, 1.0, 3.0, 9.0]), -1.0, 3.0)
     assert colours.shape == (5, 3) and colours.dtype == np.uint8
     np.testing.assert_array_equal(colours[[0, 1]], lut[[0, 0]])          # at and below the low limit

@@ -7,9 +7,10 @@ the extensometers are exact: e_yy = 0.001 i and e_xx = -0.0004 i in frame i (Poi
 import numpy as np
 import pytest
 
-from livedic.stream.view import logger as rerun_log
+from livedic.stream.view import blueprint, camera_image, colour_scale, entities
 from livedic.stream.poisson import ContractionWatch
-from livedic.stream.view.logger import RerunLogger, nice_ceil
+from livedic.stream.view.colour_scale import nice_ceil
+from livedic.stream.view.logger import RerunLogger
 from livedic.stream.strain import StrainConfig
 from livedic.stream.tracker_loop import SessionStats
 from tests.stream.test_rerun_view import SHAPE, _frame_result, _lut_indices, _rows
@@ -19,8 +20,8 @@ ROI = (32, 24, 256, 192)
 P0 = (160.0, 120.0)
 EYY, EXX = 0.001, -0.0004          # strain per frame
 FRAMES = 8
-GREY = int(rerun_log.pack_colours([rerun_log._NO_STRAIN_COLOUR])[0])
-RED = int(rerun_log.pack_colours([rerun_log._EXTENSOMETER_LOST_COLOUR])[0])
+GREY = int(colour_scale.pack_colours([entities.NO_STRAIN_COLOUR])[0])
+RED = int(colour_scale.pack_colours([entities.EXTENSOMETER_LOST_COLOUR])[0])
 
 
 def _points():
@@ -91,8 +92,8 @@ def _views(blueprint):
 def test_strain_view_logs_eyy_extensometers_and_the_transverse_vs_axial_plot(tmp_path):
     path = tmp_path / "strain.rrd"
     _session(path)
-    axial = _rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")
-    transverse = _rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/transverse", "Scalars:scalars")
+    axial = _rows(path, f"/{entities.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")
+    transverse = _rows(path, f"/{entities.EXTENSOMETER_STRAIN}/transverse", "Scalars:scalars")
     assert sorted(axial) == list(range(FRAMES)) == sorted(transverse)
     # engineering strain in %, exact on a linear field (the ends' quadratic fits reproduce it)
     np.testing.assert_allclose([axial[i][0] for i in range(FRAMES)], [100 * EYY * i for i in range(FRAMES)],
@@ -100,35 +101,35 @@ def test_strain_view_logs_eyy_extensometers_and_the_transverse_vs_axial_plot(tmp
     np.testing.assert_allclose([transverse[i][0] for i in range(FRAMES)], [100 * EXX * i for i in range(FRAMES)],
                                atol=1e-9)
     # e_yy's scale starts at +-0.1 % and grows to round numbers covering the field: 0.007 -> 0.008
-    limits = _rows(path, f"/{rerun_log.LIMITS_EYY}", "Scalars:scalars")
-    assert limits[0] == [-rerun_log.MIN_COLOUR_LIMIT_STRAIN, rerun_log.MIN_COLOUR_LIMIT_STRAIN]
+    limits = _rows(path, f"/{entities.LIMITS_EYY}", "Scalars:scalars")
+    assert limits[0] == [-colour_scale.MIN_COLOUR_LIMIT_STRAIN, colour_scale.MIN_COLOUR_LIMIT_STRAIN]
     assert limits[max(limits)] == [-0.001, nice_ceil(EYY * (FRAMES - 1))] == [-0.001, 0.008]
     assert all(hi == nice_ceil(hi) for _, hi in limits.values())
-    bars = _rows(path, f"/{rerun_log.LEGEND_EYY}/bar", "Image:buffer")
+    bars = _rows(path, f"/{entities.LEGEND_EYY}/bar", "Image:buffer")
     assert sorted(bars) == sorted(limits)                      # a new bar whenever the limits change
     # every point coloured by its e_yy on that scale: 0.007 on [-0.001, 0.008] is index 227 of 256
-    colours = _rows(path, f"/{rerun_log.FIELD_EYY}", "Points2D:colors")
+    colours = _rows(path, f"/{entities.FIELD_EYY}", "Points2D:colors")
     last = np.array(colours[FRAMES - 1], dtype=np.int64)
     assert last.size == len(_points())
     assert set(_lut_indices(last)) == {round(255 * (0.007 + 0.001) / 0.009)}
     # the extensometers on the image at their ends' current positions, labelled with their strain
-    strips = _rows(path, f"/{rerun_log.EXTENSOMETER_LINES}", "LineStrips2D:strips")[FRAMES - 1]
-    labels = _rows(path, f"/{rerun_log.EXTENSOMETER_LINES}", "LineStrips2D:labels")[FRAMES - 1]
+    strips = _rows(path, f"/{entities.EXTENSOMETER_LINES}", "LineStrips2D:strips")[FRAMES - 1]
+    labels = _rows(path, f"/{entities.EXTENSOMETER_LINES}", "LineStrips2D:labels")[FRAMES - 1]
     assert labels == ["axial 0.700 %", "transverse -0.280 %"]
     e = EYY * (FRAMES - 1)
     axial_line = np.array(strips[-2])                           # the coloured lines come last
     np.testing.assert_allclose(axial_line, [[160, 56 + e * (56 - 120)], [160, 184 + e * (184 - 120)]], atol=1e-4)
     # transverse vs axial: one segment a frame from the second frame on, the numbers with Poisson's ratio
-    curve = _rows(path, f"/{rerun_log.STRAIN_XY_CURVE}", "LineStrips2D:strips")
+    curve = _rows(path, f"/{entities.STRAIN_XY_CURVE}", "LineStrips2D:strips")
     assert sorted(curve) == list(range(1, FRAMES))
     np.testing.assert_allclose(curve[FRAMES - 1][0], [[100 * EYY * (FRAMES - 2), -100 * EXX * (FRAMES - 2)],
                                                       [100 * EYY * (FRAMES - 1), -100 * EXX * (FRAMES - 1)]], atol=1e-9)
     # Poisson's ratio: the elastic fit over every frame so far (the field is linear), from the 5th frame on,
     # drawn as a line over its axial range
-    now = _rows(path, f"/{rerun_log.STRAIN_XY_NOW}", "Points2D:labels")
+    now = _rows(path, f"/{entities.STRAIN_XY_NOW}", "Points2D:labels")
     assert f"Poisson 0.400 +- 0.000 (elastic fit, frames 0-{FRAMES - 1})" in now[FRAMES - 1][0]
     assert "Poisson: n/a (too few frames" in now[3][0] and "0.400" not in now[3][0]
-    fit = _rows(path, f"/{rerun_log.STRAIN_XY_FIT}", "LineStrips2D:strips")
+    fit = _rows(path, f"/{entities.STRAIN_XY_FIT}", "LineStrips2D:strips")
     assert sorted(fit) == list(range(4, FRAMES))                 # redrawn as the range grows
     np.testing.assert_allclose(fit[FRAMES - 1][0], [[0.0, 0.0], [100 * EYY * (FRAMES - 1), -100 * EXX * (FRAMES - 1)]],
                                atol=1e-9)
@@ -138,13 +139,13 @@ def test_strain_view_is_in_the_blueprint_next_to_u_and_v_and_the_plots():
     logger = RerunLogger("save", "unused.rrd")
     points = _points()
     stage = _stage(points)
-    logger._xy_pair = rerun_log._axial_transverse_pair(stage)
+    logger._xy_pair = blueprint.axial_transverse_pair(stage)
     views = _views(logger._make_blueprint(True, stage))
     names = [name for _, name, _ in views]
     assert names[:2] == ["camera", "tracking"] and f"e_yy (%) engineering, VSG {stage.vsg_px:g} px" in names
     assert names.index("e_yy colour scale (%)") < names.index("u (px)")          # top row: camera and e_yy
     assert names.index("extensometer strain (%)") < names.index("transverse vs axial strain (%)") \
-        < names.index(rerun_log._SMALL_PLOT_NAMES[rerun_log.P0])
+        < names.index(blueprint._SMALL_PLOT_NAMES[entities.P0])
     # a strain field without extensometers: e_yy, no extensometer plots
     views = _views(logger._make_blueprint(True, _stage(points, gauge_length=None, gauge_width=None)))
     names = [name for _, name, _ in views]
@@ -158,29 +159,29 @@ def test_a_lost_extensometer_is_red_and_its_strain_is_not_logged(tmp_path):
     lose = (3, 4)
     _, _, readings = _session(path, lose=lose)
     assert not readings[3].ok[0] and np.isnan(readings[3].eng_strain[0])     # the stage says lost
-    axial = _rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")
-    transverse = _rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/transverse", "Scalars:scalars")
+    axial = _rows(path, f"/{entities.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")
+    transverse = _rows(path, f"/{entities.EXTENSOMETER_STRAIN}/transverse", "Scalars:scalars")
     assert all(axial.get(i) is None for i in lose)              # no value, neither NaN nor the last one
     assert all(axial[i] is not None for i in range(FRAMES) if i not in lose)
     assert all(transverse[i] is not None for i in range(FRAMES))
-    cleared = _rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Clear:is_recursive")
+    cleared = _rows(path, f"/{entities.EXTENSOMETER_STRAIN}/axial", "Clear:is_recursive")
     assert [i for i, flag in cleared.items() if flag is not None] == [3]       # one gap in the line, at once
     # on the image: red, labelled lost, where its ends were last seen
-    labels = _rows(path, f"/{rerun_log.EXTENSOMETER_LINES}", "LineStrips2D:labels")
-    colours = _rows(path, f"/{rerun_log.EXTENSOMETER_LINES}", "LineStrips2D:colors")
-    strips = _rows(path, f"/{rerun_log.EXTENSOMETER_LINES}", "LineStrips2D:strips")
+    labels = _rows(path, f"/{entities.EXTENSOMETER_LINES}", "LineStrips2D:labels")
+    colours = _rows(path, f"/{entities.EXTENSOMETER_LINES}", "LineStrips2D:colors")
+    strips = _rows(path, f"/{entities.EXTENSOMETER_LINES}", "LineStrips2D:strips")
     assert labels[3][0] == "axial: lost" and labels[5][0].startswith("axial 0.500")
     assert colours[3][-2] == RED and colours[2][-2] != RED and colours[5][-2] != RED
     # the lost (top) end stays where it was last seen, the other follows its material point
     np.testing.assert_allclose(strips[4][-2][0], strips[2][-2][0], atol=1e-4)
     np.testing.assert_allclose(strips[4][-2][1], [160, 184 + 4 * EYY * (184 - 120)], atol=1e-4)
     # the isolated point keeps its disc in the e_yy view, grey: it has a displacement but no strain
-    eyy_colours = _rows(path, f"/{rerun_log.FIELD_EYY}", "Points2D:colors")
+    eyy_colours = _rows(path, f"/{entities.FIELD_EYY}", "Points2D:colors")
     assert GREY in eyy_colours[3] and GREY not in eyy_colours[2]
     # transverse vs axial: no segment into or out of the gap, the numbers cleared while it lasts
-    curve = _rows(path, f"/{rerun_log.STRAIN_XY_CURVE}", "LineStrips2D:strips")
+    curve = _rows(path, f"/{entities.STRAIN_XY_CURVE}", "LineStrips2D:strips")
     assert sorted(curve) == [1, 2, 6, 7]
-    now_cleared = _rows(path, f"/{rerun_log.STRAIN_XY_NOW}", "Clear:is_recursive")
+    now_cleared = _rows(path, f"/{entities.STRAIN_XY_NOW}", "Clear:is_recursive")
     assert [i for i, flag in now_cleared.items() if flag is not None] == [3]
 
 
@@ -200,12 +201,12 @@ def test_without_strain_the_view_is_unchanged(tmp_path, feed_strain):
     """No stage given to start(): nothing of strain is logged, even when the results carry it."""
     path = tmp_path / "plain.rrd"
     _session(path, strain=False, feed_strain=feed_strain)
-    entities = _entities(path)
-    assert not [e for e in entities if e.startswith(STRAIN_ENTITIES)]
-    assert {f"/{rerun_log.FIELD_U}", f"/{rerun_log.FIELD_V}", f"/{rerun_log.LEGEND_U}/bar"} <= entities
+    logged = _entities(path)
+    assert not [e for e in logged if e.startswith(STRAIN_ENTITIES)]
+    assert {f"/{entities.FIELD_U}", f"/{entities.FIELD_V}", f"/{entities.LEGEND_U}/bar"} <= logged
     views = _views(RerunLogger("save", "unused.rrd")._make_blueprint(True))
-    small = [rerun_log._SMALL_PLOT_NAMES[path] for path in (rerun_log.P0, rerun_log.QUALITY, rerun_log.THROUGHPUT,
-                                                           rerun_log.LATENCY, rerun_log.DROPS, rerun_log.ERROR)]
+    small = [blueprint._SMALL_PLOT_NAMES[path] for path in (entities.P0, entities.QUALITY, entities.THROUGHPUT,
+                                                           entities.LATENCY, entities.DROPS, entities.ERROR)]
     assert [name for _, name, _ in views] == [
         "camera", "u (px)", "v (px)", "tracking", "session", "u colour scale (px)", "v colour scale (px)",
         *small, "events"]
@@ -215,9 +216,9 @@ def test_a_stage_without_extensometers_shows_only_the_field(tmp_path):
     path = tmp_path / "field.rrd"
     _, _, readings = _session(path, stage_config={"gauge_length": None, "gauge_width": None})
     assert len(readings[0].names) == 0
-    entities = _entities(path)
-    assert f"/{rerun_log.FIELD_EYY}" in entities
-    assert not [e for e in entities if e.startswith(("/camera/extensometers", "/extensometers", "/strain_xy"))]
+    logged = _entities(path)
+    assert f"/{entities.FIELD_EYY}" in logged
+    assert not [e for e in logged if e.startswith(("/camera/extensometers", "/extensometers", "/strain_xy"))]
 
 
 def test_a_live_view_behind_leaves_out_the_image_never_fields_or_plots(tmp_path):
@@ -238,13 +239,13 @@ def test_a_live_view_behind_leaves_out_the_image_never_fields_or_plots(tmp_path)
             stage(result, SessionStats())
             logger.log_frame(result, SessionStats())
         logger.close()
-        fields = sorted(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions"))
-        images = sorted(_rows(path, f"/{rerun_log.CAMERA_IMAGE}", "Image:buffer"))
+        fields = sorted(_rows(path, f"/{entities.FIELD_U}", "Points2D:positions"))
+        images = sorted(_rows(path, f"/{entities.CAMERA_IMAGE}", "Image:buffer"))
         assert fields == list(range(frames))
-        assert len(_rows(path, f"/{rerun_log.P0}", "Scalars:scalars")) == frames
-        assert len(_rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == frames
+        assert len(_rows(path, f"/{entities.P0}", "Scalars:scalars")) == frames
+        assert len(_rows(path, f"/{entities.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == frames
         if thin:
-            gap = rerun_log.IMAGE_SKIP_MAX + 1
+            gap = camera_image.IMAGE_SKIP_MAX + 1
             assert images == list(range(0, frames, gap)) or images == list(range(gap - 1, frames, gap))
             assert logger.images_left_out == frames - len(images)
         else:
@@ -267,8 +268,8 @@ def test_a_live_view_draws_the_camera_image_at_most_its_rate_and_every_frame_s_f
         stage(result, SessionStats())
         logger.log_frame(result, SessionStats())
     logger.close()
-    images = sorted(_rows(path, f"/{rerun_log.CAMERA_IMAGE}", "Image:buffer"))
+    images = sorted(_rows(path, f"/{entities.CAMERA_IMAGE}", "Image:buffer"))
     assert images == [0, 3, 6, 9] and logger.images_above_rate == frames - 4 and logger.images_left_out == 0
-    assert sorted(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions")) == list(range(frames))
-    assert sorted(_rows(path, f"/{rerun_log.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == list(range(frames))
-    assert sorted(_rows(path, f"/{rerun_log.P0}", "Scalars:scalars")) == list(range(frames))
+    assert sorted(_rows(path, f"/{entities.FIELD_U}", "Points2D:positions")) == list(range(frames))
+    assert sorted(_rows(path, f"/{entities.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == list(range(frames))
+    assert sorted(_rows(path, f"/{entities.P0}", "Scalars:scalars")) == list(range(frames))

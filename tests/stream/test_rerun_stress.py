@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from livedic.stream.view import logger as rerun_log
+from livedic.stream.view import blueprint, entities, xy_plot
 from livedic.stream.load_stage import LoadStage, axial_strain
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.stress import NECKING_DROP, UniformElongationWatch
@@ -55,31 +55,31 @@ def _session(path, *, force=_force, fracture_at=None, area=AREA):
 def test_force_and_the_stress_strain_curves_are_logged_exactly(tmp_path):
     path = tmp_path / "stress.rrd"
     _session(path)
-    force = _rows(path, f"/{rerun_log.FORCE}", "Scalars:scalars")
+    force = _rows(path, f"/{entities.FORCE}", "Scalars:scalars")
     assert sorted(force) == list(range(FRAMES))
     np.testing.assert_allclose([force[i][0] for i in range(FRAMES)], [_force(i) / 1000 for i in range(FRAMES)])
     # engineering: one segment a frame, in (strain %, -stress MPa) (image coordinates run down)
-    curve = _rows(path, f"/{rerun_log.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
+    curve = _rows(path, f"/{entities.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
     assert sorted(curve) == list(range(1, FRAMES))
     i = FRAMES - 1
     np.testing.assert_allclose(curve[i][0], [[100 * EYY * (i - 1), -100.0 * (i - 1)], [100 * EYY * i, -100.0 * i]],
                                atol=1e-9)
     # true: ln(1 + e) and F / A0 (1 + e), the force rising all along (uniform elongation throughout)
-    true = _rows(path, f"/{rerun_log.STRESS_STRAIN_TRUE}", "LineStrips2D:strips")
+    true = _rows(path, f"/{entities.STRESS_STRAIN_TRUE}", "LineStrips2D:strips")
     assert sorted(true) == list(range(1, FRAMES))
     e = EYY * i
     np.testing.assert_allclose(true[i][0][1], [100 * math.log1p(e), -100.0 * i * (1 + e)], atol=1e-9)
-    now = _rows(path, f"/{rerun_log.STRESS_STRAIN_NOW}", "Points2D:labels")
+    now = _rows(path, f"/{entities.STRESS_STRAIN_NOW}", "Points2D:labels")
     assert now[i][0] == f"{100 * e:.3f} %   {100.0 * i:.1f} MPa   F {i:.3f} kN   true {100.0 * i * (1 + e):.1f} MPa"
 
 
 def test_the_stress_axis_grows_to_cover_the_curve(tmp_path):
     path = tmp_path / "grow.rrd"
     _session(path, force=lambda i: 3_000.0 * i)       # on 10 mm^2: 2,100 MPa at frame 7
-    axes = _rows(path, f"/{rerun_log.STRESS_STRAIN}/data", "Transform3D:scale")
-    ticks = _rows(path, f"/{rerun_log.STRESS_STRAIN}/ticks", "Points2D:labels")
+    axes = _rows(path, f"/{entities.STRESS_STRAIN}/data", "Transform3D:scale")
+    ticks = _rows(path, f"/{entities.STRESS_STRAIN}/ticks", "Points2D:labels")
     last = max(axes)
-    width, height = rerun_log._XY_BOX
+    width, height = xy_plot._XY_BOX
     # 2,100 MPa -> 2,500 (a nice number: 1, 1.5, 2, 2.5, 3, 4, 5, 6, 8 x 10^k); 0.7 % -> 0.8
     assert axes[last][0] == pytest.approx([width / (0.8 + 0.05), height / 2500.0, 1.0])
     assert "stress (MPa)" in ticks[last] and "axial strain (%)" in ticks[last] and "2500" in ticks[last]
@@ -88,13 +88,13 @@ def test_the_stress_axis_grows_to_cover_the_curve(tmp_path):
 def test_a_frame_without_force_is_a_gap_never_the_last_value(tmp_path):
     path = tmp_path / "gap.rrd"
     _session(path, force=lambda i: math.nan if i == 3 else _force(i))
-    force = _rows(path, f"/{rerun_log.FORCE}", "Scalars:scalars")
+    force = _rows(path, f"/{entities.FORCE}", "Scalars:scalars")
     assert 3 not in force and all(i in force for i in range(FRAMES) if i != 3)
-    cleared = _rows(path, f"/{rerun_log.FORCE}", "Clear:is_recursive")
+    cleared = _rows(path, f"/{entities.FORCE}", "Clear:is_recursive")
     assert [i for i, flag in cleared.items() if flag is not None] == [3]
-    curve = _rows(path, f"/{rerun_log.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
+    curve = _rows(path, f"/{entities.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
     assert sorted(curve) == [1, 2, 5, 6, 7]                    # nothing into or out of frame 3
-    now_cleared = _rows(path, f"/{rerun_log.STRESS_STRAIN_NOW}", "Clear:is_recursive")
+    now_cleared = _rows(path, f"/{entities.STRESS_STRAIN_NOW}", "Clear:is_recursive")
     assert [i for i, flag in now_cleared.items() if flag is not None] == [3]
 
 
@@ -103,16 +103,16 @@ def test_the_curve_ends_when_the_broken_specimen_lets_go(tmp_path):
     simulator's broken halves pulled further apart are not a stress-strain curve."""
     path = tmp_path / "broken.rrd"
     _session(path, force=lambda i: 0.0 if i >= 5 else _force(i), fracture_at=5)
-    curve = _rows(path, f"/{rerun_log.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
+    curve = _rows(path, f"/{entities.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
     assert sorted(curve) == [1, 2, 3, 4, 5]                    # the fall is drawn, then nothing
-    now = _rows(path, f"/{rerun_log.STRESS_STRAIN_NOW}", "Points2D:labels")
+    now = _rows(path, f"/{entities.STRESS_STRAIN_NOW}", "Points2D:labels")
     assert now[5][0].endswith("broken") and max(now) == 5
-    force = _rows(path, f"/{rerun_log.FORCE}", "Scalars:scalars")
+    force = _rows(path, f"/{entities.FORCE}", "Scalars:scalars")
     assert sorted(force) == list(range(FRAMES))                # the force itself is still shown
     # a fall in force without a detected fracture (an unloading, a slipping grip) does not end the curve
     path = tmp_path / "unload.rrd"
     _session(path, force=lambda i: 0.0 if i == 5 else _force(i))
-    assert sorted(_rows(path, f"/{rerun_log.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")) == list(range(1, FRAMES))
+    assert sorted(_rows(path, f"/{entities.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")) == list(range(1, FRAMES))
 
 
 def test_the_plots_are_in_the_blueprint_only_with_what_they_need(tmp_path):
@@ -121,7 +121,7 @@ def test_the_plots_are_in_the_blueprint_only_with_what_they_need(tmp_path):
     names = [name for _, name, _ in _views(RerunLogger("save", "unused.rrd")._make_blueprint(
         True, stage, SimpleNamespace(area_mm2=AREA)))]
     assert names.index("stress-strain (MPa, %)") < names.index("extensometer strain (%)") \
-        < names.index("force (kN)") < names.index(rerun_log._SMALL_PLOT_NAMES[rerun_log.P0])
+        < names.index("force (kN)") < names.index(blueprint._SMALL_PLOT_NAMES[entities.P0])
     # a force without a cross-section: the force, no curve; no axial extensometer: the same
     for load, strain in ((SimpleNamespace(area_mm2=None), stage),
                          (SimpleNamespace(area_mm2=AREA), _stage(points, gauge_length=None, gauge_width=None))):
@@ -129,8 +129,8 @@ def test_the_plots_are_in_the_blueprint_only_with_what_they_need(tmp_path):
         assert "force (kN)" in names and "stress-strain (MPa, %)" not in names
     path = tmp_path / "no_area.rrd"
     _session(path, area=None)
-    assert _rows(path, f"/{rerun_log.FORCE}", "Scalars:scalars")
-    assert not _rows(path, f"/{rerun_log.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
+    assert _rows(path, f"/{entities.FORCE}", "Scalars:scalars")
+    assert not _rows(path, f"/{entities.STRESS_STRAIN_CURVE}", "LineStrips2D:strips")
 
 
 # --------------------------------------------------------------------------- live true values

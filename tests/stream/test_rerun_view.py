@@ -10,8 +10,10 @@ import pytest
 
 from livedic.acquire.base import Frame
 from livedic.dic.result import Measurement
-from livedic.stream.view import logger as rerun_log
-from livedic.stream.view.logger import RerunLogger, colour_bar_image, colormap_lut, grow_limits, nice_ceil, typical_spacing
+from livedic.stream.view import colour_bar, entities
+from livedic.stream.view.colour_bar import colour_bar_image
+from livedic.stream.view.colour_scale import colormap_lut, grow_limits, nice_ceil, typical_spacing
+from livedic.stream.view.logger import RerunLogger
 from livedic.stream.tracker_loop import FrameResult, SessionStats
 
 SHAPE = (240, 320)
@@ -83,7 +85,7 @@ def test_field_discs_cover_a_grid_whose_p0_sits_1_px_from_a_grid_point(tmp_path)
     x, y = _grid_with_p0(step=16)
     path = tmp_path / "grid.rrd"
     _session(path, [_frame_result(i, x, y, 0.1 * i * x / 100, -0.1 * i * y / 100) for i in range(3)], x, y)
-    for entity in (f"/{rerun_log.FIELD_U}", f"/{rerun_log.FIELD_V}"):
+    for entity in (f"/{entities.FIELD_U}", f"/{entities.FIELD_V}"):
         radii = _rows(path, entity, "Points2D:radii")
         assert set(radii) == {0, 1, 2}
         # discs of radius step/sqrt(2) leave no gap on a square grid; the old rule gave 0.5 px
@@ -98,7 +100,7 @@ def test_field_discs_cover_an_irregular_point_set(tmp_path):
     mean_spacing = np.sqrt(240 * 160 / 400)                   # ~9.8 px
     path = tmp_path / "irregular.rrd"
     _session(path, [_frame_result(i, x, y, 0.05 * i + 0 * x, 0 * y) for i in range(2)], x, y)
-    radius = _rows(path, f"/{rerun_log.FIELD_U}", "Points2D:radii")[1][0]
+    radius = _rows(path, f"/{entities.FIELD_U}", "Points2D:radii")[1][0]
     assert 0.4 * mean_spacing <= radius <= mean_spacing
 
 
@@ -123,15 +125,15 @@ def test_automatic_colour_limits_start_small_only_grow_and_are_logged(tmp_path):
         results.append(_frame_result(i, x, y, u, 0.5 * u))
     path = tmp_path / "limits.rrd"
     logger = _session(path, results, x, y)
-    limits = _rows(path, f"/{rerun_log.LIMITS_U}", "Scalars:scalars")
+    limits = _rows(path, f"/{entities.LIMITS_U}", "Scalars:scalars")
     assert limits[0] == [-0.05, 0.05]
     frames = sorted(limits)
     for before, after in zip(frames, frames[1:]):
         assert limits[after][0] <= limits[before][0] and limits[after][1] >= limits[before][1]
     # u spans -2.6 .. +2.25 px at frame 3: each end moves out to the next nice number
     assert frames[-1] == 3 and limits[3] == [-3.0, 2.5]
-    assert logger.colour_limits[rerun_log.LEGEND_U] == (-3.0, 2.5)
-    colours = _rows(path, f"/{rerun_log.FIELD_U}", "Points2D:colors")
+    assert logger.colour_limits[entities.LEGEND_U] == (-3.0, 2.5)
+    colours = _rows(path, f"/{entities.FIELD_U}", "Points2D:colors")
     noise = _lut_indices(colours[0])                           # +-1e-7 px of noise: one colour, not a rainbow
     assert noise.max() - noise.min() <= 1                      # (0 may sit on the edge of two neighbours)
     spread = _lut_indices(colours[2])                          # a frame that set the scale uses most of it
@@ -139,7 +141,7 @@ def test_automatic_colour_limits_start_small_only_grow_and_are_logged(tmp_path):
     # after unloading the scale stays at [-3, 2.5]: +-0.5 px uses the middle of the map, not all of it
     indices = _lut_indices(colours[4])
     assert 110 <= indices.min() and indices.max() <= 165 and indices.max() - indices.min() > 30
-    bars = _rows(path, f"/{rerun_log.LEGEND_U}/bar", "Image:buffer")
+    bars = _rows(path, f"/{entities.LEGEND_U}/bar", "Image:buffer")
     assert set(bars) == set(frames)                                 # the labelled bar follows each change
 
 
@@ -148,9 +150,9 @@ def test_fixed_colour_range_is_static_and_frames_of_different_amplitude_look_dif
     results = [_frame_result(i, x, y, a * (x - 160) / 120, 0 * y) for i, a in enumerate([0.0, 0.5, 1.5])]
     path = tmp_path / "fixed.rrd"
     _session(path, results, x, y, color_range=(-2, 2))
-    assert _rows(path, f"/{rerun_log.LIMITS_U}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
-    assert _rows(path, f"/{rerun_log.LIMITS_V}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
-    colours = _rows(path, f"/{rerun_log.FIELD_U}", "Points2D:colors")
+    assert _rows(path, f"/{entities.LIMITS_U}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
+    assert _rows(path, f"/{entities.LIMITS_V}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
+    colours = _rows(path, f"/{entities.FIELD_U}", "Points2D:colors")
     assert colours[1] != colours[2]
 
 
@@ -164,7 +166,7 @@ def test_colour_bar_labels_are_dark_on_a_white_strip():
     """Drawn into the image, the labels read the same in the viewer's light and dark themes."""
     lut = colormap_lut()
     bar = colour_bar_image(lut, -2.5, 4.0)
-    strip = bar[rerun_log._BAR_GRADIENT_HEIGHT:]
+    strip = bar[colour_bar._BAR_GRADIENT_HEIGHT:]
     dark = (strip.max(axis=2) < 80)
     white = (strip.min(axis=2) == 255)
     assert dark.sum() > 200 and white.mean() > 0.7            # black text on white
@@ -186,15 +188,15 @@ def test_lost_and_low_zncc_points_are_marked_and_counted(tmp_path):
                _frame_result(3, x, y, u + 2, 0 * u)]
     path = tmp_path / "lost.rrd"
     _session(path, results, x, y)
-    centers = _rows(path, f"/{rerun_log.LOST}", "Boxes2D:centers")
+    centers = _rows(path, f"/{entities.LOST}", "Boxes2D:centers")
     assert list(centers) == [2]
     # the lost points are marked where they were last seen (frame 1: u = 2)
     np.testing.assert_allclose(sorted(c[0] for c in centers[2]), sorted(x[lost_at_2] + 2.0))
     np.testing.assert_allclose(sorted(c[1] for c in centers[2]), sorted(y[lost_at_2]))
-    assert len(_rows(path, f"/{rerun_log.LOW_ZNCC}", "Boxes2D:centers")[2]) == 2
+    assert len(_rows(path, f"/{entities.LOW_ZNCC}", "Boxes2D:centers")[2]) == 2
     # the markers are cleared when the points are back
-    assert 3 in _rows(path, f"/{rerun_log.LOST}", "Clear:is_recursive")
-    texts = _rows(path, f"/{rerun_log.TRACKING}", "TextDocument:text")
+    assert 3 in _rows(path, f"/{entities.LOST}", "Clear:is_recursive")
+    texts = _rows(path, f"/{entities.TRACKING}", "TextDocument:text")
     assert texts[0] == [f"lost: 0 of {n} points, low ZNCC (< 0.8): 0"]
     assert texts[2] == [f"lost: 3 of {n} points, low ZNCC (< 0.8): 2"]
     assert texts[3] == texts[0]
@@ -211,10 +213,10 @@ def test_run_passes_color_range_and_refind_zncc_to_the_view(tmp_path, monkeypatc
     assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "5", "--progress", "off",
                  "--no-record", "--viewer", "save", str(path), "--color-range", "-2,2",
                  "--refind-zncc", "0.95"]) == 0
-    assert _rows(path, f"/{rerun_log.LIMITS_U}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
-    assert _rows(path, f"/{rerun_log.LIMITS_V}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
-    assert len(_rows(path, f"/{rerun_log.FIELD_U}", "Points2D:positions")) == 5
-    texts = _rows(path, f"/{rerun_log.TRACKING}", "TextDocument:text")
+    assert _rows(path, f"/{entities.LIMITS_U}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
+    assert _rows(path, f"/{entities.LIMITS_V}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
+    assert len(_rows(path, f"/{entities.FIELD_U}", "Points2D:positions")) == 5
+    texts = _rows(path, f"/{entities.TRACKING}", "TextDocument:text")
     assert texts and all("low ZNCC (< 0.95)" in text[0] for text in texts.values())
 
 
@@ -224,6 +226,6 @@ def test_run_without_color_range_uses_the_automatic_scale(tmp_path, monkeypatch)
     path = tmp_path / "auto.rrd"
     assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "3", "--progress", "off",
                  "--no-record", "--viewer", "save", str(path)]) == 0
-    limits = _rows(path, f"/{rerun_log.LIMITS_U}", "Scalars:scalars")
+    limits = _rows(path, f"/{entities.LIMITS_U}", "Scalars:scalars")
     assert "static" not in limits and limits[0] == [-0.05, 0.05]
-    assert _rows(path, f"/{rerun_log.TRACKING}", "TextDocument:text")[0][0].endswith("low ZNCC (< 0.8): 0")
+    assert _rows(path, f"/{entities.TRACKING}", "TextDocument:text")[0][0].endswith("low ZNCC (< 0.8): 0")

@@ -9,8 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from livedic.stream.view import logger as rerun_log
-from livedic.stream.view.logger import IMAGE_SKIP_MAX, RerunLogger
+from livedic.stream.view import entities
+from livedic.stream.view.camera_image import IMAGE_SKIP_MAX
+from livedic.stream.view.logger import RerunLogger
 from livedic.stream.tracker_loop import SessionStats
 from livedic.stream.view.process import BEHIND, ViewProcess, ViewProcessError
 from tests.stream.test_rerun_log import _result, _scalars, _store_summary
@@ -46,7 +47,7 @@ def test_the_view_process_writes_what_the_logger_writes_in_the_session(tmp_path)
     assert _entities(there) == _entities(here)
     for entity in ("/p0", "/quality", "/perf/latency", "/perf/drops", "/error"):
         np.testing.assert_allclose(_scalars(there, entity), _scalars(here, entity), rtol=0, atol=0, err_msg=entity)
-    assert f"/{rerun_log.CAMERA_IMAGE} " in _store_summary(there)
+    assert f"/{entities.CAMERA_IMAGE} " in _store_summary(there)
 
 
 @pytest.mark.time_limit(120)
