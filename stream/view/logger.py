@@ -207,13 +207,29 @@ class RerunLogger:
         """
         if not self.enabled:
             return
-        rr = self.rr
         self._strain = strain
         self._load = load
         height, width = image_shape
-        self._scale = scale = display_scale(image_shape, self.image_max_side)
+        self._scale = display_scale(image_shape, self.image_max_side)
         self._p0 = p0_index
-        blueprint = self._make_blueprint(has_truth, strain, load, setup=setup is not None)
+        self._open_stream(self._make_blueprint(has_truth, strain, load, setup=setup is not None))
+        self._log_series_styles(has_truth)
+        self._image_side = max(height, width)
+        if setup is not None:
+            self.log_setup(setup)
+        elif roi is not None:
+            self._log_roi(roi)
+        self._draw_first_bars(strain)
+        if strain is not None:
+            self._start_strain(strain)
+        self._start_force(load)
+        if self.color_range is not None:      # fixed: static; automatic: logged with the first frame
+            for legend in (LEGEND_U, LEGEND_V):
+                self._log_limits(legend, static=True)
+        self._log_session_text(title, points, strain, source_settings)
+
+    def _open_stream(self, blueprint):
+        """Start the stream to the mode's destination with ``blueprint``, and the thread that flushes it."""
         if self.mode == "save":
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
@@ -224,41 +240,45 @@ class RerunLogger:
         elif self.mode == "spawn":
             self.viewer_process = spawn_viewer()
             self.rec.connect_grpc(f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy", default_blueprint=blueprint)
-        rec = self.rec
         self._flusher = threading.Thread(target=self._flush_loop, name="livedic-rerun-flush", daemon=True)
         self._flusher.start()
+
+    def _log_series_styles(self, has_truth):
+        """The small plots' series names and colours (static; the error plot only with a truth)."""
         for path, (names, colours) in SERIES_STYLE.items():
             if path == ERROR and not has_truth:
                 continue
-            rec.log(path, rr.SeriesLines(names=names, colors=colours), static=True)
-        self._image_side = max(height, width)
-        if setup is not None:
-            self.log_setup(setup)
-        elif roi is not None:
-            self._log_roi(roi)
-        # drawn now: OpenCV's first text call takes ~30 ms, which would land on the first frame
+            self.rec.log(path, self.rr.SeriesLines(names=names, colors=colours), static=True)
+
+    def _draw_first_bars(self, strain):
+        """The colour bars at their start limits, drawn now: OpenCV's first text call takes ~30 ms, which would
+        land on the first frame."""
         for legend in (LEGEND_U, LEGEND_EYY) if strain is not None else (LEGEND_U,):
             _, unit, factor = LEGENDS[legend]
             limits = self.colour_limits[legend]
             self._first_bars[legend] = (limits, colour_bar_image(self._lut, *limits, unit=unit, factor=factor))
-        if strain is not None:
-            self._start_strain(strain)
+
+    def _start_force(self, load):
+        """The force series' style (with a load) and the stress-strain plot's (when this session shows it)."""
+        rr, rec = self.rr, self.rec
         if load is not None:
             rec.log(FORCE, rr.SeriesLines(names=["force (kN)"], colors=[STRESS_COLOURS[0]], widths=[2.0]),
                     static=True)
         if self._stress_xy is not None:
             self._stress_xy.start(rr, rec)
-        if self.color_range is not None:      # fixed: static; automatic: logged with the first frame
-            for legend in (LEGEND_U, LEGEND_V):
-                self._log_limits(legend, static=True)
+
+    def _log_session_text(self, title, points, strain, source_settings):
+        """The session document: title, points and display scale, the strain settings, the source's settings.
+        ``log_summary`` replaces it at the end."""
+        rr = self.rr
         lines = [f"# {title or 'livedic session'}", "",
-                 f"{len(points) if points is not None else 0} points; camera image shown at 1/{scale} scale."]
+                 f"{len(points) if points is not None else 0} points; camera image shown at 1/{self._scale} scale."]
         if strain is not None:
             lines += ["", strain.describe() + "."]
         if source_settings:
             lines += ["", "| setting | value |", "|---|---|"]
             lines += [f"| {k} | {v} |" for k, v in source_settings.items()]
-        rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
+        self.rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
 
     def log_setup(self, setup):
         """The set-up (a ``stream.preview.SetupOverlay``): the region's outline on the camera view, and the
@@ -266,35 +286,10 @@ class RerunLogger:
         rr, rec = self.rr, self.rec
         preview = setup                 # the overlay carries the palette the preview draws in
         scale = float(self._scale)
-
-        def strips(polylines):
-            return [np.asarray(line, dtype=np.float64) / scale for line in polylines]
-
-        region = strips(setup.outlines)
-        excluded = strips(setup.exclusions)
-        outline = rr.LineStrips2D(region + excluded, radii=-1.5, colors=[preview.REGION_COLOUR] * len(region)
-                                  + [preview.EXCLUDED_COLOUR] * len(excluded))
-        # Rerun puts a strip's label at its middle, where P0 and the extensometers cross: the labels are
-        # points of their own, at the ends ``livedic preview`` labels
-        for path in (CAMERA_ROI, f"{SETUP}/region"):
-            rec.log(path, outline, static=True)
-        region_label = self._roi_label(setup.placement.bounds, setup.region_label)
-        rec.log(CAMERA_ROI_LABEL, region_label, static=True)
-        rec.log(f"{SETUP}/region/label", region_label, static=True)
+        excluded = self._log_setup_region(setup)
         labels = [((float(line[:, 0].max()), float(line[:, 1].min())), "excluded") for line in excluded]
-        image = setup.image
-        rec.log(f"{SETUP}/image", rr.Image(self._display_image(image, setup.pixel_format)), static=True)
-        # at the display's scale: this runs as the first frame is tracked, every ms of it a ms of latency
-        quality, step = setup.quality, self._scale
-        inside = setup.placement.region[::step, ::step]
-        mig = quality.mig[::step, ::step]
-        top = float(np.percentile(mig[inside], 99)) if inside.any() else 1.0
-        index = np.clip(mig * (255.0 / max(top, 1e-6)), 0, 255).astype(np.uint8)
-        rgba = np.empty(mig.shape + (4,), dtype=np.uint8)
-        rgba[..., :3] = self._lut[index]
-        rgba[..., 3] = np.where(inside, 150, 0)
-        rgba[quality.clipped[::step, ::step] & inside] = (*preview.CLIPPED_COLOUR, 255)
-        rec.log(f"{SETUP}/mig", rr.Image(rgba), static=True)
+        rec.log(f"{SETUP}/image", rr.Image(self._display_image(setup.image, setup.pixel_format)), static=True)
+        rec.log(f"{SETUP}/mig", rr.Image(self._contrast_image(setup)), static=True)
         points = setup.placement.points / scale
         colours = np.where(setup.weak[:, None], preview.WEAK_POINT_COLOUR, preview.POINT_COLOUR).astype(np.uint8)
         rec.log(f"{SETUP}/points", rr.Points2D(points, colors=colours, radii=-1.5), static=True)
@@ -303,23 +298,68 @@ class RerunLogger:
         rec.log(f"{SETUP}/p0", rr.Boxes2D(mins=[p0 - half], sizes=[[2 * half, 2 * half]], colors=[preview.P0_COLOUR],
                                           radii=-1.5), static=True)
         labels.append(((float(p0[0] - half), float(p0[1] + half)), f"P0 ({setup.subset} px subset)"))
-        if setup.extensometers:
-            colours = [preview.EXTENSOMETER_COLOURS[k % len(preview.EXTENSOMETER_COLOURS)]
-                       for k in range(len(setup.extensometers))]
-            rec.log(f"{SETUP}/extensometers",
-                    rr.LineStrips2D([[(e.x1 / scale, e.y1 / scale), (e.x2 / scale, e.y2 / scale)]
-                                     for e in setup.extensometers], colors=colours, radii=-2.0), static=True)
-            for e, colour in zip(setup.extensometers, colours):
-                # the far end along x, the upper end along y: clear of the crossing at P0
-                along_y = abs(e.y2 - e.y1) >= abs(e.x2 - e.x1)
-                end = min(((e.x1, e.y1), (e.x2, e.y2)), key=lambda p: p[1] if along_y else -p[0])
-                labels.append(((end[0] / scale, end[1] / scale), setup.extensometer_label(e)))
+        labels += self._log_setup_extensometers(setup)
         rec.log(f"{SETUP}/labels", self._label_points(labels), static=True)
         advice = setup.advice()
         notes = ["# set-up", "", *(f"- {line}" for line in setup.lines()), "",
                  "**check:**" if advice else "nothing to check: pattern, exposure and focus look fit for DIC",
                  *(f"- {line}" for line in advice)]
         rec.log(SETUP_NOTES, rr.TextDocument("\n".join(notes), media_type=rr.MediaType.MARKDOWN), static=True)
+
+    def _log_setup_region(self, setup):
+        """The region's outline and exclusions on the camera view and the set-up view, with the region's name;
+        returns the exclusions' strips (display px), which the caller labels."""
+        rr, rec = self.rr, self.rec
+        scale = float(self._scale)
+
+        def strips(polylines):
+            return [np.asarray(line, dtype=np.float64) / scale for line in polylines]
+
+        region = strips(setup.outlines)
+        excluded = strips(setup.exclusions)
+        outline = rr.LineStrips2D(region + excluded, radii=-1.5, colors=[setup.REGION_COLOUR] * len(region)
+                                  + [setup.EXCLUDED_COLOUR] * len(excluded))
+        # Rerun puts a strip's label at its middle, where P0 and the extensometers cross: the labels are
+        # points of their own, at the ends ``livedic preview`` labels
+        for path in (CAMERA_ROI, f"{SETUP}/region"):
+            rec.log(path, outline, static=True)
+        region_label = self._roi_label(setup.placement.bounds, setup.region_label)
+        rec.log(CAMERA_ROI_LABEL, region_label, static=True)
+        rec.log(f"{SETUP}/region/label", region_label, static=True)
+        return excluded
+
+    def _contrast_image(self, setup):
+        """RGBA of the speckle contrast per subset (MIG), colour-mapped inside the region, clipped pixels in the
+        preview's colour; at the display's scale: this runs as the first frame is tracked, every ms of it a ms
+        of latency."""
+        quality, step = setup.quality, self._scale
+        inside = setup.placement.region[::step, ::step]
+        mig = quality.mig[::step, ::step]
+        top = float(np.percentile(mig[inside], 99)) if inside.any() else 1.0
+        index = np.clip(mig * (255.0 / max(top, 1e-6)), 0, 255).astype(np.uint8)
+        rgba = np.empty(mig.shape + (4,), dtype=np.uint8)
+        rgba[..., :3] = self._lut[index]
+        rgba[..., 3] = np.where(inside, 150, 0)
+        rgba[quality.clipped[::step, ::step] & inside] = (*setup.CLIPPED_COLOUR, 255)
+        return rgba
+
+    def _log_setup_extensometers(self, setup):
+        """The set-up's extensometers, in the preview's colours; returns their labels [((x, y), text)]."""
+        if not setup.extensometers:
+            return []
+        rr, scale = self.rr, float(self._scale)
+        palette = setup.EXTENSOMETER_COLOURS
+        colours = [palette[k % len(palette)] for k in range(len(setup.extensometers))]
+        self.rec.log(f"{SETUP}/extensometers",
+                     rr.LineStrips2D([[(e.x1 / scale, e.y1 / scale), (e.x2 / scale, e.y2 / scale)]
+                                      for e in setup.extensometers], colors=colours, radii=-2.0), static=True)
+        labels = []
+        for e in setup.extensometers:
+            # the far end along x, the upper end along y: clear of the crossing at P0
+            along_y = abs(e.y2 - e.y1) >= abs(e.x2 - e.x1)
+            end = min(((e.x1, e.y1), (e.x2, e.y2)), key=lambda p: p[1] if along_y else -p[0])
+            labels.append(((end[0] / scale, end[1] / scale), setup.extensometer_label(e)))
+        return labels
 
     def _label_points(self, labels):
         """Points2D that carry ``labels`` [((x, y) display px, text)]: dark text on Rerun's light label box."""
