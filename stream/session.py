@@ -887,9 +887,9 @@ class Session:
             p0_weak=self.p0.weak if self.p0 is not None else None,
             viewer_log_ms_per_frame=(1e3 * viewer.log_seconds / viewer.frames_logged
                                      if viewer is not None and viewer.frames_logged else None),
-            viewer_images_left_out=viewer.images_left_out if viewer is not None else None,
+            viewer_images_left_out=viewer.images.images_left_out if viewer is not None else None,
             viewer_image_max_hz=viewer.image_max_hz if viewer is not None else None,
-            viewer_images_above_rate=viewer.images_above_rate if viewer is not None else None,
+            viewer_images_above_rate=viewer.images.images_above_rate if viewer is not None else None,
             viewer_process=getattr(viewer, "frames_left_out", None) is not None,
             viewer_frames_left_out=getattr(viewer, "frames_left_out", None),
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,

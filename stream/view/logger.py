@@ -414,16 +414,6 @@ class RerunLogger:
                               stress_xy=self._stress_xy)
 
     # ----------------------------------------------------------------- per frame
-    @property
-    def images_above_rate(self):
-        """Camera images left out by ``image_max_hz``."""
-        return self.images.images_above_rate
-
-    @property
-    def images_left_out(self):
-        """Frames whose camera image was left out while the view was behind."""
-        return self.images.images_left_out
-
     def log_frame(self, result, stats, *, camera_image=None):
         """Log one ``stream.tracker_loop.FrameResult`` (a TrackerLoop sink).
 

@@ -218,14 +218,6 @@ class ViewProcess:
         return self._counters["stages"]
 
     @property
-    def images_above_rate(self):
-        return self.images.images_above_rate
-
-    @property
-    def images_left_out(self):
-        return self.images.images_left_out
-
-    @property
     def backlog(self):
         """Frames handed over that the child has not drawn yet (as far as its answers have come back)."""
         return self.frames_handed - self.frames_drawn

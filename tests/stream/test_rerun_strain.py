@@ -247,9 +247,9 @@ def test_a_live_view_behind_leaves_out_the_image_never_fields_or_plots(tmp_path)
         if thin:
             gap = camera_image.IMAGE_SKIP_MAX + 1
             assert images == list(range(0, frames, gap)) or images == list(range(gap - 1, frames, gap))
-            assert logger.images_left_out == frames - len(images)
+            assert logger.images.images_left_out == frames - len(images)
         else:
-            assert images == list(range(frames)) and logger.images_left_out == 0
+            assert images == list(range(frames)) and logger.images.images_left_out == 0
 
 
 def test_a_live_view_draws_the_camera_image_at_most_its_rate_and_every_frame_s_fields(tmp_path):
@@ -269,7 +269,7 @@ def test_a_live_view_draws_the_camera_image_at_most_its_rate_and_every_frame_s_f
         logger.log_frame(result, SessionStats())
     logger.close()
     images = sorted(_rows(path, f"/{entities.CAMERA_IMAGE}", "Image:buffer"))
-    assert images == [0, 3, 6, 9] and logger.images_above_rate == frames - 4 and logger.images_left_out == 0
+    assert images == [0, 3, 6, 9] and logger.images.images_above_rate == frames - 4 and logger.images.images_left_out == 0
     assert sorted(_rows(path, f"/{entities.FIELD_U}", "Points2D:positions")) == list(range(frames))
     assert sorted(_rows(path, f"/{entities.EXTENSOMETER_STRAIN}/axial", "Scalars:scalars")) == list(range(frames))
     assert sorted(_rows(path, f"/{entities.P0}", "Scalars:scalars")) == list(range(frames))

@@ -61,8 +61,8 @@ def test_a_stopped_view_never_holds_the_session_back_and_draws_every_frame_once_
             view(_result(i), SessionStats())   # returns at once: nothing here waits for the child
         assert view.backlog == 40                  # no frame drawn while it was stopped
         # the camera image is what a view behind leaves out, at most IMAGE_SKIP_MAX frames in a row
-        shown = 40 - view.images_left_out
-        assert view.images_left_out > 0 and shown >= (40 - BEHIND - 1) // (IMAGE_SKIP_MAX + 1)
+        shown = 40 - view.images.images_left_out
+        assert view.images.images_left_out > 0 and shown >= (40 - BEHIND - 1) // (IMAGE_SKIP_MAX + 1)
     finally:
         os.kill(view._process.pid, signal.SIGCONT)
     view.flush()
