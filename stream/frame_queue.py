@@ -61,7 +61,11 @@ class FrameQueue:
         self.maxsize = maxsize
         self.policy = policy
         self._items = collections.deque()
-        self._cond = threading.Condition()
+        lock = threading.Lock()
+        self._cond = threading.Condition(lock)
+        self._waiters_changed = threading.Condition(lock)   # for callers watching who waits, not for frames
+        self.waiting_puts = 0           # ``put`` calls waiting for room ("block" policy)
+        self.waiting_gets = 0           # ``get`` calls waiting for a frame
         self._closed = False
         self.put_count = 0
         self.dropped = 0
@@ -78,7 +82,7 @@ class FrameQueue:
         with self._cond:
             if self.policy == BLOCK:
                 while len(self._items) >= self.maxsize and not self._closed:
-                    self._cond.wait()
+                    self._wait_for_room()
             if self._closed:
                 raise QueueClosed("frame queue is closed")
             self.put_count += 1
@@ -105,7 +109,7 @@ class FrameQueue:
         """The oldest queued item; None after ``timeout`` seconds; ``QueueClosed`` once closed and empty."""
         with self._cond:
             if not self._items and not self._closed:
-                self._cond.wait(timeout)
+                self._wait_for_frame(timeout)
             if self._items:
                 item = self._items.popleft()
                 if item is self._first:
@@ -121,6 +125,32 @@ class FrameQueue:
         with self._cond:
             self._closed = True
             self._cond.notify_all()
+
+    def _wait_for_room(self):
+        self.waiting_puts += 1
+        self._waiters_changed.notify_all()
+        try:
+            self._cond.wait()
+        finally:
+            self.waiting_puts -= 1
+
+    def _wait_for_frame(self, timeout):
+        self.waiting_gets += 1
+        self._waiters_changed.notify_all()
+        try:
+            self._cond.wait(timeout)
+        finally:
+            self.waiting_gets -= 1
+
+    def wait_for_waiting(self, *, puts: int = 0, gets: int = 0, timeout: float | None = None) -> bool:
+        """Wait until at least ``puts`` puts and ``gets`` gets are waiting in the queue; False on timeout.
+
+        For a caller that must know a producer is held back or a consumer is idle (a watchdog, a test)
+        without guessing with a sleep.
+        """
+        with self._cond:
+            return self._waiters_changed.wait_for(
+                lambda: self.waiting_puts >= puts and self.waiting_gets >= gets, timeout)
 
     @property
     def closed(self):

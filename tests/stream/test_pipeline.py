@@ -1,5 +1,6 @@
 """Live pipeline: frame queue, acquisition thread, tracker loop, URI dispatch, ``livedic run`` end to end."""
 
+import itertools
 import json
 import signal
 import subprocess
@@ -27,18 +28,17 @@ def _item(i):
 
 
 class ListSource(FrameSource):
-    """Frames 0..n-1 (optionally failing after ``fail_after``), records whether it was closed."""
+    """Frames 0..n-1 (endless if ``n`` is None; optionally failing at ``fail_after``), records whether it was
+    closed."""
 
-    def __init__(self, n, *, fail_after=None, error=None, period_s=0.0):
-        self.n, self.fail_after, self.error, self.period_s = n, fail_after, error, period_s
+    def __init__(self, n, *, fail_after=None, error=None):
+        self.n, self.fail_after, self.error = n, fail_after, error
         self.closed = False
 
     def __iter__(self):
-        for i in range(self.n):
+        for i in range(self.n) if self.n is not None else itertools.count():
             if self.fail_after is not None and i == self.fail_after:
                 raise self.error
-            if self.period_s:
-                time.sleep(self.period_s)
             yield Frame(i, i * 1_000_000, np.full((4, 4), i % 256, np.uint8), "Mono8")
 
     def close(self):
@@ -85,17 +85,19 @@ def test_block_policy_waits_for_room_and_close_releases_it():
     done = []
     producer = threading.Thread(target=lambda: done.append(queue.put(_item(2))))
     producer.start()
-    time.sleep(0.05)
-    assert not done                                  # waiting for room
+    assert queue.wait_for_waiting(puts=1, timeout=30)
+    assert not done and queue.waiting_puts == 1      # held back: the queue is full
     assert queue.get().frame.index == 0
-    producer.join(1.0)
-    assert done == [None] and queue.dropped == 0 and len(queue) == 2
-    blocked = threading.Thread(target=lambda: pytest.raises(QueueClosed, queue.put, _item(3)))
+    producer.join(30)
+    assert done == [None] and queue.dropped == 0 and len(queue) == 2 and queue.max_depth == 2
+    assert queue.waiting_puts == 0
+    raised = []
+    blocked = threading.Thread(target=lambda: raised.append(pytest.raises(QueueClosed, queue.put, _item(3))))
     blocked.start()
-    time.sleep(0.05)
+    assert queue.wait_for_waiting(puts=1, timeout=30)
     queue.close()
-    blocked.join(1.0)
-    assert not blocked.is_alive()
+    blocked.join(30)
+    assert not blocked.is_alive() and len(raised) == 1
 
 
 def test_get_times_out_then_drains_and_raises_after_close():
@@ -124,10 +126,10 @@ def test_close_wakes_a_waiting_consumer():
 
     thread = threading.Thread(target=consume)
     thread.start()
-    time.sleep(0.05)
+    assert queue.wait_for_waiting(gets=1, timeout=30)
     queue.close()
-    thread.join(1.0)
-    assert outcome == ["closed"]
+    thread.join(30)
+    assert outcome == ["closed"] and queue.waiting_gets == 0
 
 
 def test_bad_queue_settings_raise():
@@ -160,33 +162,38 @@ def test_a_stalled_consumer_never_blocks_the_producer(policy):
 
 @pytest.mark.parametrize("policy", [DROP_OLDEST, DROP_NEWEST])
 def test_slow_consumer_never_blocks_the_producer(policy):
-    """Producer at ~1 kHz, consumer at ~100 Hz: every frame is either consumed, dropped or left over."""
+    """A consumer ten times slower than the producer (it takes one frame per ten put, in lock-step, so the
+    outcome does not depend on the machine's speed): every frame is either consumed, dropped or left over."""
     queue = FrameQueue(4, policy)
     produced, consumed = 300, []
-
-    def produce():
-        for i in range(produced):
-            queue.put(_item(i))
-            time.sleep(0.001)
-        queue.close()
+    take, taken = threading.Semaphore(0), threading.Semaphore(0)
 
     def consume():
         while True:
+            take.acquire()
             try:
-                item = queue.get(timeout=1.0)
+                item = queue.get(timeout=30)
             except QueueClosed:
                 return
-            if item is not None:
-                consumed.append(item.frame.index)
-                time.sleep(0.01)
+            consumed.append(item.frame.index)
+            taken.release()
 
-    threads = [threading.Thread(target=produce), threading.Thread(target=consume)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(10)
-    assert len(consumed) + queue.dropped == produced
-    assert queue.dropped > 0 and len(consumed) >= 4      # the slow consumer could not take everything
+    consumer = threading.Thread(target=consume)
+    consumer.start()
+    for i in range(produced):
+        assert queue.waiting_puts == 0
+        queue.put(_item(i))
+        if i % 10 == 9:
+            take.release()
+            assert taken.acquire(timeout=30)
+    left = len(queue)
+    queue.close()
+    for _ in range(left + 1):            # drain what is left, then the consumer meets the closed queue
+        take.release()
+    consumer.join(30)
+    assert not consumer.is_alive()
+    assert len(consumed) == produced // 10 + left and len(consumed) + queue.dropped == produced
+    assert queue.dropped > 0
     assert consumed == sorted(consumed)
     if policy == DROP_OLDEST:
         assert consumed[-1] == produced - 1      # the newest frame is always processed
@@ -217,18 +224,22 @@ def test_acquisition_wraps_an_unexpected_exception():
 
 
 def test_acquisition_stops_on_request_and_at_the_limit():
-    source = ListSource(10_000, period_s=0.002)
+    source = ListSource(None)                 # endless: only the stop ends it
     queue = FrameQueue(4)
-    seen = []
-    thread = AcquisitionThread(source, queue, on_frame=lambda item: seen.append(item.arrival_ns))
+    seen, six_frames = [], threading.Event()
+
+    def on_frame(item):
+        seen.append(item.arrival_ns)
+        if len(seen) == 6:
+            six_frames.set()
+
+    thread = AcquisitionThread(source, queue, on_frame=on_frame)
     thread.start()
-    deadline = time.monotonic() + 30          # waits for frames, however slow the machine
-    while thread.frames <= 5 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    assert six_frames.wait(30)
     thread.stop()
-    thread.join(10)
+    thread.join(30)
     assert not thread.is_alive() and thread.finished_reason == "stopped" and source.closed and queue.closed
-    assert 5 < thread.frames < 10_000 and len(seen) >= thread.frames
+    assert thread.frames >= 6 and len(seen) >= thread.frames
     assert seen == sorted(seen)
     limited = AcquisitionThread(ListSource(100), FrameQueue(200), max_frames=7)
     limited.start()
@@ -242,12 +253,15 @@ def test_acquisition_stops_on_request_and_at_the_limit():
 class Reopener:
     """Hands out sources in turn: an exception instance is raised, a source is returned."""
 
-    def __init__(self, *outcomes):
+    def __init__(self, *outcomes, signal_at=None):
         self.outcomes = list(outcomes)
         self.calls = 0
+        self.signal_at, self.reached = signal_at, threading.Event()    # set once ``signal_at`` calls were made
 
     def __call__(self):
         self.calls += 1
+        if self.calls == self.signal_at:
+            self.reached.set()
         outcome = self.outcomes.pop(0)
         if isinstance(outcome, BaseException):
             raise outcome
@@ -327,13 +341,11 @@ def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
 def test_reconnect_waits_until_stopped_and_a_stop_ends_cleanly():
     from livedic.stream.acquisition import Reconnect
     queue = FrameQueue(100)
-    reopen = Reopener(*[SourceError("camera not found")] * 10_000)
+    reopen = Reopener(*[SourceError("camera not found")] * 10_000, signal_at=5)
     thread = AcquisitionThread(ListSource(5, fail_after=3, error=SourceError("lost")), queue,
                                reconnect=Reconnect(reopen=reopen, retry_s=0.01))
     thread.start()
-    deadline = time.monotonic() + 5
-    while reopen.calls < 5 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    assert reopen.reached.wait(30)
     assert thread.is_alive() and thread.waiting and not queue.closed
     thread.stop()
     thread.join(2)
@@ -522,7 +534,7 @@ def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_pat
     from livedic.acquire import sources
 
     def failing(uri, **options):
-        return ListSource(30, fail_after=12, error=SourceError("camera lost after 12 frames"), period_s=0.002)
+        return ListSource(30, fail_after=12, error=SourceError("camera lost after 12 frames"))
 
     monkeypatch.setattr(sources, "open_source", failing)
     mcap = tmp_path / "lost.mcap"
@@ -546,7 +558,7 @@ def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monk
             opened.append("refused")
             raise SourceError("camera 'Fake_1' not found")
         source = ListSource(40 if opened else 12, fail_after=None if opened else 8,
-                            error=SourceError("camera lost: no frame for 1.0 s"), period_s=0.002)
+                            error=SourceError("camera lost: no frame for 1.0 s"))
         opened.append(source)
         return source
 
