@@ -18,19 +18,10 @@ import pytest
 from livedic.acquire.force import (LoadError, LoadEventKind, TIME_BASE_MONOTONIC, TIME_BASE_SESSION, interpolate_force,
                                    open_load)
 from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
+from tests.waiting import wait_until
 
 
 # --- helpers -----------------------------------------------------------------------------------
-
-def wait_until(predicate, timeout_s=5.0):
-    """Poll ``predicate`` until true; fail the test with a clear message after ``timeout_s``."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.01)
-    raise AssertionError(f"condition not met within {timeout_s} s")
-
 
 class ScriptedServer:
     """A local TCP server; connection k runs ``scripts[k](sock, stop)``, later ones hold the line open."""

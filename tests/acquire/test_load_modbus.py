@@ -22,18 +22,9 @@ import pytest
 
 from livedic.acquire.force import LoadError, LoadEventKind, ModbusLoad, TIME_BASE_MONOTONIC, decode_registers, open_load
 from tests.acquire.modbus_server import INPUT_MARK, ModbusTestServer
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit")
-
-
-def wait_until(predicate, timeout_s=5.0):
-    """Poll ``predicate`` until true; fail with a clear message after ``timeout_s`` (a hang guard only)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"condition not met within {timeout_s} s")
 
 
 @pytest.fixture

@@ -13,7 +13,6 @@ import subprocess
 import sys
 import textwrap
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -24,6 +23,7 @@ from livedic.acquire.recording.reader import (McapSource, inspect_recording, rea
                                               recover)
 from livedic.acquire.recording import schema as rs
 from livedic.acquire.recording.writer import Recorder
+from tests.waiting import wait_until
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 T0 = 1_700_000_000_000_000_000
@@ -358,12 +358,11 @@ def test_idle_recorder_flushes_in_the_background(tmp_path):
     try:
         rec.write_frame(Frame(0, T0, np.ones((4, 4), np.uint8), "Mono8"))     # small: stays in an open chunk
         rec.write_results(0, T0, **_results(0))
-        deadline = time.monotonic() + 5
-        while rec.results_written and time.monotonic() < deadline:
+        def flushed():
             shutil.copyfile(path, copy)
-            if len(read_results(copy)) == 1:
-                break
-            time.sleep(0.05)
+            return len(read_results(copy)) == 1
+
+        wait_until(flushed, 30, "the open chunk reaching the file")
         assert [f.index for f in McapSource(copy)] == [0] and len(read_results(copy)) == 1
         assert inspect_recording(copy).truncated
     finally:
@@ -435,11 +434,13 @@ def test_writes_from_several_threads(tmp_path):
     images = _frames(4, np.uint8, (64, 64))
     errors = []
     with Recorder(path, {}, chunk_bytes=16 << 10, flush_interval_s=0.01) as rec:
+        flush_now = threading.Semaphore(0)
+
         def frames():
             for i in range(n):
                 rec.write_frame(Frame(i, T0 + i * 1000, images[i % 4], "Mono8"))
-                if i % 50 == 0:
-                    time.sleep(0.005)
+                if i % 15 == 14:
+                    flush_now.release()             # the third caller flushes in the middle of the writes
 
         def results():
             for i in range(n):
@@ -448,9 +449,9 @@ def test_writes_from_several_threads(tmp_path):
                     rec.write_event("note", str(i))
 
         def flusher():
-            for _ in range(20):
+            for _ in range(n // 15):
+                flush_now.acquire()
                 errors.append(rec.flush() is not True)
-                time.sleep(0.002)
 
         threads = [threading.Thread(target=f) for f in (frames, results, flusher)]
         for thread in threads:
@@ -512,14 +513,11 @@ def test_sigkill_loses_nothing_the_recorder_counted_durable(tmp_path):
     flush_interval_s = inspect.signature(Recorder).parameters["flush_interval_s"].default     # the child's
     child = _run_child(_KILL_CHILD, path, marker, pause)
     try:
-        deadline = time.monotonic() + 60                     # a guard against a hang, not a timing
-        while True:
-            lines = marker.read_text().splitlines() if marker.exists() else []
-            if len(lines) > 200:                             # past the idle spell, with frames waiting again
-                break
+        def past_the_idle_spell():                          # with frames waiting again
             assert child.poll() is None, child.communicate()
-            assert time.monotonic() < deadline, f"the child wrote only {len(lines)} lines in 60 s: {lines[-3:]}"
-            time.sleep(0.05)
+            return marker.exists() and len(marker.read_text().splitlines()) > 200
+
+        wait_until(past_the_idle_spell, 60, "the child writing 200 frames")
         child.send_signal(signal.SIGKILL)
     finally:
         child.kill()

@@ -15,6 +15,7 @@ from livedic.stream.view.logger import RerunLogger
 from livedic.stream.tracker_loop import SessionStats
 from livedic.stream.view.process import BEHIND, ViewProcess, ViewProcessError
 from tests.stream.test_rerun_log import _result, _scalars, _store_summary
+from tests.waiting import wait_until
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
@@ -120,11 +121,8 @@ os._exit(1)
 
 def _wait_gone(pid, timeout_s=60.0):
     """Until the process ``pid`` has ended (it is not our child: poll its /proc entry)."""
-    import time
-    deadline = time.monotonic() + timeout_s
-    while os.path.exists(f"/proc/{pid}") and _state(pid) != "Z":
-        assert time.monotonic() < deadline, "the view's process did not end after the session's died"
-        time.sleep(0.05)
+    wait_until(lambda: not os.path.exists(f"/proc/{pid}") or _state(pid) == "Z", timeout_s,
+               "the view's process ending after the session's died")
 
 
 def _state(pid):
