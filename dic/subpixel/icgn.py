@@ -87,12 +87,14 @@ import numpy as np
 from numba import njit, prange
 from numpy import float32 as _F32
 
-from livedic.dic.bspline import FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
+from livedic.dic.bspline import FASTMATH, PAD, prefilter, sample_shift, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
 from livedic.dic.linalg import cholesky_lower
 from livedic.dic.result import SubpixelResult
+from livedic.dic.subpixel.prepared import (check_iterations, checked_points, point_orders, start_status,
+                                           start_values)
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
                         OUTSIDE_TARGET as _OUTSIDE_TARGET, Status)
@@ -763,38 +765,6 @@ def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, 
 # public API
 
 
-def _as_start(values, n, name, default):
-    if values is None:
-        return np.full(n, default, dtype=np.float64)
-    arr = np.asarray(values, dtype=np.float64)
-    if arr.ndim == 0:
-        return np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},) (one value per point), got {arr.shape}")
-    return arr
-
-
-def checked_points(ref_prep, target_coeffs, points):
-    """The indices of the prepared points to refine (int64), after checking the target's coefficients.
-
-    ``ref_prep`` is an ``IcgnReference`` (the first-order data of any IC-GN order); ValueError (one
-    line) for coefficients not from ``prepare_target``, of another size, or bad indices.
-    """
-    if not isinstance(target_coeffs, BSplineCoefficients):
-        raise ValueError("target_coeffs must come from prepare_target (a BSplineCoefficients)")
-    if tuple(target_coeffs.shape) != tuple(ref_prep.shape):
-        raise ValueError(f"target is {target_coeffs.shape[1]}x{target_coeffs.shape[0]} but the reference is "
-                         f"{ref_prep.shape[1]}x{ref_prep.shape[0]}: both images must have the same size")
-    if target_coeffs.coefficients.dtype != np.float32:
-        raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
-    n_prepared = ref_prep.xs.shape[0]
-    points = np.arange(n_prepared) if points is None else np.asarray(points)
-    if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \
-            (points.size and (points.min() < 0 or points.max() >= n_prepared)):
-        raise ValueError(f"points must be a 1-D array of indices of the {n_prepared} prepared points")
-    return np.ascontiguousarray(points, dtype=np.int64)
-
-
 def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
                     points=None, order=1, max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
     """IC-GN from prepared reference data and target coefficients.
@@ -851,33 +821,15 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     """
     points = checked_points(ref_prep, target_coeffs, points)
     npts = points.shape[0]
-    per_point = np.ndim(order) > 0
-    orders = np.asarray(order).astype(np.int64) if per_point else np.full(npts, order, dtype=np.int64)
-    if orders.shape != (npts,) or not np.all((orders == 0) | (orders == 1)) or \
-            (not per_point and order not in (0, 1)):
-        raise ValueError(f"order must be 0 (shift) or 1 (affine), or one of them per point, got {order!r}")
-    if int(max_iterations) < 1:
-        raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
-    if int(translation_iterations) < 0:
-        raise ValueError(f"translation_iterations must be >= 0, got {translation_iterations}")
-    if not (tolerance > 0 and translation_tolerance > 0):
-        raise ValueError(f"tolerances must be > 0, got {tolerance} and {translation_tolerance}")
+    orders, per_point = point_orders(order, npts, max_order=1)
+    check_iterations(max_iterations, tolerance, translation_iterations, translation_tolerance)
     params = np.empty((npts, 6))
-    params[:, 0] = _as_start(u0, npts, "u0", np.nan)
-    params[:, 1] = _as_start(ux0, npts, "ux0", 0.0)
-    params[:, 2] = _as_start(uy0, npts, "uy0", 0.0)
-    params[:, 3] = _as_start(v0, npts, "v0", np.nan)
-    params[:, 4] = _as_start(vx0, npts, "vx0", 0.0)
-    params[:, 5] = _as_start(vy0, npts, "vy0", 0.0)
+    for c, (name, start) in enumerate(zip(("u", "ux", "uy", "v", "vx", "vy"), (u0, ux0, uy0, v0, vx0, vy0))):
+        params[:, c] = start_values(start, npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
     shift_only = np.flatnonzero(orders == 0)        # usually none: no fancy-index assignment then
     if shift_only.size:
         params[np.ix_(shift_only, [1, 2, 4, 5])] = 0.0
-    st = ref_prep.status[points]
-    if status is not None:
-        status = np.asarray(status)
-        if status.shape != (npts,):
-            raise ValueError(f"status must have shape ({npts},), got {status.shape}")
-        st = np.where(status != Status.OK, status, st).astype(np.int8)
+    st = start_status(ref_prep.status[points], status, npts)
     out_zncc = np.empty(npts)
     out_iter = np.empty(npts, dtype=np.int64)
     height, width = ref_prep.shape

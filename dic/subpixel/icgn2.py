@@ -107,9 +107,10 @@ from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, NOT_CONVERGED as _NOT_CONVERGED, OK as _OK,
                                 OUTSIDE_TARGET as _OUTSIDE_TARGET, FLAT_TARGET as _FLAT_TARGET, Status)
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
-from livedic.dic.subpixel.icgn import (IcgnReference, _as_start, _invert_spd, bspline_tap, checked_points,
+from livedic.dic.subpixel.icgn import (IcgnReference, _invert_spd, bspline_tap,
                                        prepare_reference as _prepare_first, prepare_target, refine_point,
                                        refine_point_scratch)
+from livedic.dic.subpixel.prepared import check_iterations, checked_points, point_orders, start_status, start_values
 from livedic.dic.validation import as_image, check_same_shape
 
 # Parameter order (OpenCorr's Deformation2D2).
@@ -790,37 +791,17 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     first = ref_prep.first
     points = checked_points(first, target_coeffs, points)
     npts = points.shape[0]
-    per_point = np.ndim(order) > 0
-    if per_point:
-        orders = np.asarray(order).astype(np.int64)
-        valid = orders.shape == (npts,) and bool(np.all((orders >= 0) & (orders <= 2)))
-    else:
-        valid = order in (0, 1, 2) and not isinstance(order, bool)
-        orders = np.full(npts, order if valid else 0, dtype=np.int64)
-    if not valid:
-        raise ValueError(f"order must be 0 (shift), 1 (affine) or 2 (quadratic), or one of them per point, "
-                         f"got {order!r}")
+    orders, _ = point_orders(order, npts, max_order=2)
     orders = np.minimum(orders, ref_prep.max_order[points])
-    if int(max_iterations) < 1:
-        raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
-    if int(translation_iterations) < 0:
-        raise ValueError(f"translation_iterations must be >= 0, got {translation_iterations}")
-    if not (tolerance > 0 and translation_tolerance > 0):
-        raise ValueError(f"tolerances must be > 0, got {tolerance} and {translation_tolerance}")
+    check_iterations(max_iterations, tolerance, translation_iterations, translation_tolerance)
     starts = dict(u=u0, ux=ux0, uy=uy0, uxx=uxx0, uxy=uxy0, uyy=uyy0, v=v0, vx=vx0, vy=vy0, vxx=vxx0, vxy=vxy0,
                   vyy=vyy0)
     params = np.empty((npts, 12))
     for c, name in enumerate(PARAMETERS):
-        params[:, c] = _as_start(starts[name], npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
+        params[:, c] = start_values(starts[name], npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
     params[np.ix_(orders == 0, [1, 2, 7, 8])] = 0.0
     params[np.ix_(orders < 2, _SECOND_INDEX)] = 0.0
-    st = first.status[points]
-    if status is not None:
-        status = np.asarray(status)
-        if status.shape != (npts,):
-            raise ValueError(f"status must have shape ({npts},), got {status.shape}")
-        st = np.where(status != Status.OK, status, st).astype(np.int8)
-    st = np.ascontiguousarray(st, dtype=np.int8)
+    st = start_status(first.status[points], status, npts)
     out_zncc = np.empty(npts)
     out_iter = np.empty(npts, dtype=np.int64)
     height, width = first.shape
