@@ -11,25 +11,13 @@ from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
 from livedic.dic.result import Measurement, SubpixelResult
 from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
-from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
+from livedic.dic.subpixel import icgn
+from livedic.dic.subpixel.method import SUBPIXEL_METHODS, SubpixelMethod, subpixel_method
 from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
 # The integer searches, and "none": start the sub-pixel method from the guess.
 SEARCH_METHODS = _INTEGER_SEARCHES + ("none",)
 
-# Sub-pixel method -> (module, extra pixels its interpolation/fit needs beyond the subset).
-_SUBPIXEL = {
-    "none": (None, 0),
-    "surface-fit": (surface_fit, 1),
-    "gradient": (gradient_method, 2),
-    "newton-raphson": (newton_raphson, INTERPOLATION_MARGIN),
-    "improved-surface-fit": (improved_surface_fit, 3),
-    "icgn": (icgn, INTERPOLATION_MARGIN),
-    "icgn2": (icgn2, INTERPOLATION_MARGIN),
-}
-SUBPIXEL_METHODS = tuple(_SUBPIXEL)
-# Sub-pixel methods that run a stochastic optimiser and so take the seed.
-_SEEDED_SUBPIXEL = ("surface-fit", "improved-surface-fit")
 
 
 def measure(reference, deformed, points, *, subset=21, search="improved-wso",
@@ -98,8 +86,7 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     """
     if search not in SEARCH_METHODS:
         raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
-    if subpixel not in _SUBPIXEL:
-        raise ValueError(f"unknown sub-pixel method {subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
+    method = subpixel_method(subpixel)
     if gates is not None and not isinstance(gates, Gates):
         raise ValueError(f"gates must be a dic.quality.Gates or None, got {gates!r}")
     reference = as_image(reference, "reference")
@@ -109,25 +96,23 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
     radius = check_radius(radius)
     xy = as_points(points)
     xs, ys = snap_points(xy)
-    icgn_options = dict(subpixel_options or {}) if subpixel in _ICGN else {}
+    icgn_options = dict(subpixel_options or {}) if method.prepared else {}
     # IC-GN's reference data also give the texture gates (dic.quality.texture)
     prep = icgn.prepare_reference(reference, xs, ys, half, hessian=icgn_options.pop("hessian", "projected"))
     texture = quality.texture(prep)
     thresholds = gates or Gates()
-    if subpixel == "icgn2":
-        # the 12-parameter data extend the first-order ones; too little texture for 12 -> first order
-        prep = icgn2.prepare_from(prep, vif_max=icgn_options.pop("vif_max", icgn2.VIF2_MAX))
-    translation_only = texture.translation_only(thresholds) if subpixel in _FIRST_ORDER else None
+    prep = method.reference_data(prep, icgn_options)
+    translation_only = texture.translation_only(thresholds) if method.first_order else None
     guided = guess is None and guided and search != "none" and xs.shape[0] > 0
     # neighbours serve the propagation and the median test only (a tracker that gates itself needs neither)
     graph = neighbour_graph(np.column_stack([xs, ys]).astype(np.float64)) if guided or gates is not None else None
     if guided:
         poor = texture.poor(thresholds)
-        raw = _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
+        raw = _guided(reference, deformed, prep, search, method, radius, seed, search_options, subpixel_options,
                       icgn_options, thresholds, texture, poor, translation_only, graph)
     else:
         start = as_guess(guess, xs.shape[0])
-        raw = _solve(reference, deformed, prep, start, search, subpixel, radius, seed, search_options,
+        raw = _solve(reference, deformed, prep, start, search, method, radius, seed, search_options,
                      subpixel_options, icgn_options, translation_only)
     status = raw.status
     if gates is not None:
@@ -135,11 +120,6 @@ def measure(reference, deformed, points, *, subset=21, search="improved-wso",
         status = quality.gate_status(status, raw.zncc, xs, ys, raw.u, raw.v, graph, gates, gradients=gradients,
                                      poor_texture=texture.poor(gates))
     return _finish(xs, ys, raw, status, translation_only)
-
-
-_FIRST_ORDER = ("icgn", "icgn2", "newton-raphson")
-# IC-GN methods: the prepared reference, and their options come with it (hessian, ...).
-_ICGN = ("icgn", "icgn2")
 
 
 def _finish(xs, ys, raw, status, translation_only):
@@ -158,18 +138,19 @@ def _finish(xs, ys, raw, status, translation_only):
                        evaluations=raw.evaluations, **grads)
 
 
-def _solve(reference, deformed, prep, start, search, subpixel, radius, seed, search_options, subpixel_options,
-           icgn_options, translation_only):
+def _solve(reference, deformed, prep, start, search, method: SubpixelMethod, radius, seed, search_options,
+           subpixel_options, icgn_options, translation_only):
     """Search around ``start`` (unless ``search == "none"``), then the sub-pixel method; no gates."""
-    xs, ys, half = prep.xs, prep.ys, prep.half
-    _, margin = _SUBPIXEL[subpixel]
+    first = method.first_order_data(prep)
+    xs, ys, half = first.xs, first.ys, first.half
+    margin = method.margin
     if search == "none":
         u0 = start[:, 0].copy()
         v0 = start[:, 1].copy()
         status = _start_status(reference.shape, xs, ys, u0, v0, half, margin)
         zncc = np.full(xs.shape[0], np.nan)
         evaluations = None
-        if subpixel in ("surface-fit", "improved-surface-fit", "gradient", "none"):
+        if not method.first_order:
             # These methods work around an integer peak.
             u0, v0 = np.floor(u0 + 0.5), np.floor(v0 + 0.5)
     else:
@@ -180,16 +161,16 @@ def _solve(reference, deformed, prep, start, search, subpixel, radius, seed, sea
         status = found.status.copy()
         zncc = found.zncc
         evaluations = found.evaluations
-    return _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, search == "none", subpixel, seed,
+    return _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, search == "none", method, seed,
                    subpixel_options, icgn_options, translation_only)
 
 
-def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_guess, subpixel, seed,
+def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_guess, method: SubpixelMethod, seed,
             subpixel_options, icgn_options, translation_only, gradients=None):
     """The sub-pixel stage from integer (or float) starts; first-order methods fit a translation where told."""
-    xs, ys, half = prep.xs, prep.ys, prep.half
-    method, _ = _SUBPIXEL[subpixel]
-    if method is None:
+    first = method.first_order_data(prep)
+    xs, ys, half = first.xs, first.ys, first.half
+    if method.module is None:
         ok_mask = status == Status.OK
         if from_guess:
             zncc = np.full(xs.shape[0], np.nan)
@@ -200,24 +181,24 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
             ok_mask = status == Status.OK
         return SubpixelResult(u=np.where(ok_mask, u0, np.nan), v=np.where(ok_mask, v0, np.nan),
                               zncc=np.where(ok_mask, zncc, np.nan), status=status, evaluations=evaluations)
-    options = dict(icgn_options) if subpixel in _ICGN else dict(subpixel_options or {})
-    if subpixel in _SEEDED_SUBPIXEL:
+    options = dict(icgn_options) if method.prepared else dict(subpixel_options or {})
+    if method.seeded:
         options.setdefault("seed", seed)
     if gradients is not None:
         for name, values in gradients.items():
             options.setdefault(f"{name}0", values)
     # first-order methods: a rigid shift where the texture cannot pin an affine warp
     split = translation_only is not None and translation_only.any() and options.get("order", 1) != 0
-    if subpixel in _ICGN:
+    if method.prepared:
         if split:
             # per-point shape function
-            options["order"] = np.where(translation_only, 0, options.get("order", 2 if subpixel == "icgn2" else 1))
+            options["order"] = np.where(translation_only, 0, options.get("order", method.shape_order))
         refined = method.refine_prepared(prep, icgn.prepare_target(deformed), u0, v0, status=status, **options)
     elif split:
-        refined = _refine_by_order(method, reference, deformed, xs, ys, u0, v0, status, half, options,
+        refined = _refine_by_order(method.module, reference, deformed, xs, ys, u0, v0, status, half, options,
                                    translation_only)
     else:
-        refined = method.refine(reference, deformed, xs, ys, u0, v0, status, half, **options)
+        refined = method.module.refine(reference, deformed, xs, ys, u0, v0, status, half, **options)
     refined.evaluations = evaluations
     return refined
 
@@ -250,15 +231,15 @@ def _refine_by_order(method, reference, deformed, xs, ys, u0, v0, status, half, 
 _START_GRADIENTS = ("ux0", "uy0", "vx0", "vy0")
 
 
-def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_options, subpixel_options,
+def _guided(reference, deformed, prep, search, method: SubpixelMethod, radius, seed, search_options, subpixel_options,
             icgn_options, gates, texture, poor, translation_only, graph):
     """Reliability-guided measurement (``dic.reliability_guided``), then the chosen sub-pixel method."""
-    xs, ys, half = prep.xs, prep.ys, prep.half
+    first = method.first_order_data(prep)
+    xs, ys, half = first.xs, first.ys, first.half
     coeffs = icgn.prepare_target(deformed)
     options = dict(icgn_options)
     # the propagation is first-order IC-GN (icgn2 refines every point from its result below)
     order = np.where(texture.translation_only(gates), 0, np.minimum(options.pop("order", 1), 1))
-    first = prep.first if subpixel == "icgn2" else prep
 
     def full_search(idx):
         zero = np.zeros(idx.size)
@@ -275,7 +256,7 @@ def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_op
     params, status, zncc, iterations, evaluations = guided_icgn(
         first, coeffs, full_search, graph, order=order, accept=gates.min_zncc, energy=texture.energy,
         active=~poor, options={k: v for k, v in options.items() if k in ICGN_OPTIONS}, repair=outliers)
-    if subpixel == "icgn":
+    if method.final_after_guidance:
         return SubpixelResult(u=params[:, 0], v=params[:, 3], zncc=zncc, status=status, ux=params[:, 1],
                               uy=params[:, 2], vx=params[:, 4], vy=params[:, 5], iterations=iterations,
                               evaluations=evaluations)
@@ -284,11 +265,11 @@ def _guided(reference, deformed, prep, search, subpixel, radius, seed, search_op
     u0 = np.where(ok, np.floor(params[:, 0] + 0.5), 0.0)
     v0 = np.where(ok, np.floor(params[:, 3] + 0.5), 0.0)
     gradients = None
-    if subpixel in ("newton-raphson", "icgn2"):
+    if method.first_order:
         u0, v0 = np.where(ok, params[:, 0], 0.0), np.where(ok, params[:, 3], 0.0)
         gradients = {name: np.where(ok, params[:, c], 0.0) for name, c in (("ux", 1), ("uy", 2), ("vx", 4), ("vy", 5))}
     return _refine(reference, deformed, prep, u0, v0, status.copy(), np.where(ok, zncc, np.nan), evaluations,
-                   subpixel == "none", subpixel, seed, subpixel_options, icgn_options, translation_only,
+                   method.module is None, method, seed, subpixel_options, icgn_options, translation_only,
                    gradients=gradients)
 
 
@@ -306,3 +287,6 @@ def _start_status(shape, xs, ys, u0, v0, half, margin):
     status[~finite] = Status.BAD_GUESS
     status[~inside_ref] = Status.OUTSIDE_REFERENCE
     return status
+
+
+__all__ = ["measure", "SEARCH_METHODS", "SUBPIXEL_METHODS"]

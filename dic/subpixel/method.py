@@ -1,0 +1,104 @@
+"""Every sub-pixel method behind one interface: what ``dic.measure`` and the trackers ask of a method.
+
+A ``SubpixelMethod`` holds a method's traits (the margin its interpolation needs, the shape function it
+refines, whether it runs on prepared reference data, takes a seed, carries terms from frame to frame) and
+the calls that differ (refine, refine_prepared, extending the first-order reference data). Callers look a
+method up in ``METHODS`` by the name a user gives and then ask it, never compare its name. The methods
+themselves are one module each in this package; docs/guide/measure.md compares them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any
+
+from livedic.dic.bspline import INTERPOLATION_MARGIN
+from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
+
+
+@dataclass(frozen=True)
+class SubpixelMethod:
+    """A sub-pixel method as measure and tracking use it.
+
+    Attributes
+    ----------
+    name : str
+        The name users give (``--subpixel``).
+    module : module or None
+        Its module, whose ``refine`` follows the ``dic.measure`` contract; None: no refinement (the integer
+        search's result is kept).
+    margin : int
+        Pixels its interpolation or fit needs beyond the subset.
+    shape_order : int
+        The shape function it refines to by default: 0 a shift around an integer peak (the peak fits),
+        1 affine (it estimates displacement gradients), 2 quadratic.
+    prepared : bool
+        IC-GN: its reference data are prepared once (``icgn.prepare_reference``) and each target refined
+        from them (``refine_prepared``); the texture gates read the same data.
+    seeded : bool
+        It runs a stochastic optimiser and takes the seed.
+    final_after_guidance : bool
+        The reliability-guided propagation (first-order IC-GN) already is this method's result.
+    shape_terms : tuple of str
+        Start terms it carries from frame to frame beyond u, v and the gradients.
+    """
+    name: str
+    module: ModuleType | None
+    margin: int
+    shape_order: int = 0
+    prepared: bool = False
+    seeded: bool = False
+    final_after_guidance: bool = False
+    shape_terms: tuple[str, ...] = ()
+
+    @property
+    def first_order(self) -> bool:
+        """It estimates displacement gradients (and fits a shift where the texture cannot pin an affine warp);
+        the others work around an integer peak, so a float start is rounded for them."""
+        return self.shape_order >= 1
+
+    def reference_data(self, first: icgn.IcgnReference, options: dict[str, Any]) -> Any:
+        """The prepared reference data this method refines from, given the first-order ones (options it
+        takes for them are popped from ``options``)."""
+        return first
+
+    def first_order_data(self, prepared: Any) -> icgn.IcgnReference:
+        """The first-order IC-GN part of ``prepared`` (what the guided propagation and re-finds run on)."""
+        return prepared
+
+    def refine_prepared(self, prepared: Any, target: Any, u0, v0, **options) -> Any:
+        """``module.refine_prepared`` (prepared methods only)."""
+        return self.module.refine_prepared(prepared, target, u0, v0, **options)
+
+
+@dataclass(frozen=True)
+class _SecondOrderIcgn(SubpixelMethod):
+    """icgn2: its 12-parameter reference data extend the first-order ones (``icgn2.prepare_from``)."""
+
+    def reference_data(self, first, options):
+        return icgn2.prepare_from(first, vif_max=options.pop("vif_max", icgn2.VIF2_MAX))
+
+    def first_order_data(self, prepared):
+        return prepared.first
+
+
+METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (
+    SubpixelMethod("none", None, 0),
+    SubpixelMethod("surface-fit", surface_fit, 1, seeded=True),
+    SubpixelMethod("gradient", gradient_method, 2),
+    SubpixelMethod("newton-raphson", newton_raphson, INTERPOLATION_MARGIN, shape_order=1),
+    SubpixelMethod("improved-surface-fit", improved_surface_fit, 3, seeded=True),
+    SubpixelMethod("icgn", icgn, INTERPOLATION_MARGIN, shape_order=1, prepared=True, final_after_guidance=True),
+    _SecondOrderIcgn("icgn2", icgn2, INTERPOLATION_MARGIN, shape_order=2, prepared=True,
+                     shape_terms=icgn2.SECOND_ORDER),
+)}
+SUBPIXEL_METHODS: tuple[str, ...] = tuple(METHODS)
+
+
+def subpixel_method(name: str) -> SubpixelMethod:
+    """The method called ``name``; ValueError (one line) naming the choices for an unknown one."""
+    try:
+        return METHODS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown sub-pixel method {name!r}: choose one of {', '.join(SUBPIXEL_METHODS)}") from None
