@@ -218,7 +218,7 @@ class ModbusLoad(StreamingLoad):
 
 
 def _open_modbus(uri, options):
-    """``modbus://HOST:PORT?register=N&...`` (see ``ModbusLoad`` and ``acquire.force.open``'s notes)."""
+    """``modbus://HOST:PORT?register=N&...`` (see ``ModbusLoad`` and docs/guide/tensile-test.md)."""
     host, port, merged = _address_and_options(uri, options, f"{MODBUS_FORM} (port 1-65535)")
     if "register" not in merged:
         raise LoadError(f"load {uri!r}: register= is required (the force register's 0-based address); "

@@ -63,7 +63,8 @@ def _open_synthetic(uri, options):
     if source is not None:
         raise LoadError(f"load {uri!r}: give either source= with load synthetic, or the test's URI, not both")
     from livedic.acquire.base import SourceError
-    from livedic.acquire.simulator.sources import SyntheticTensileSource, parse_synthetic_uri
+    from livedic.acquire.simulator.options import parse_synthetic_uri
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
     try:
         model, _ = parse_synthetic_uri(uri)
         if model != "tensile":

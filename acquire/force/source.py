@@ -1,7 +1,7 @@
 """What every force source shares: the ``LoadSource`` base class, its error, events and warnings, the
 two time bases, force interpolated between samples, and the parsing of a URI's options.
 
-How a URI opens a source, the time bases and each source's behaviour: ``acquire.force.open``'s notes.
+How a URI opens a source, the time bases and each source's behaviour: docs/guide/tensile-test.md.
 """
 
 import enum

@@ -11,7 +11,7 @@ __all__ = ["TcpLoad"]
 
 
 class TcpLoad(StreamingLoad):
-    """Force lines read from a TCP server by a background thread (see ``acquire.force.open``'s notes).
+    """Force lines read from a TCP server by a background thread (see docs/guide/tensile-test.md).
 
     ``connected`` says whether a connection is open now, ``running`` whether the thread is alive.
     """

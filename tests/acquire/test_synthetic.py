@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.simulator.sources import (SyntheticTensileSource, SyntheticTranslateSource, TensileModel,
-                                               _render_rows, open_synthetic, parse_synthetic_uri)
+from livedic.acquire.simulator.model import TensileModel
+from livedic.acquire.simulator.options import parse_synthetic_uri
+from livedic.acquire.simulator.render import _render_rows
+from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
 from livedic.dic import measure
 
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.simulator.sources import SyntheticTensileSource, TensileModel
+from livedic.acquire.simulator.model import TensileModel
+from livedic.acquire.simulator.sources import SyntheticTensileSource
 
 EXACT = 1e-12
 SHAPE = (1024, 1024)                     # default coupon: A0 = 409.6 px / 10 px/mm x 2 mm = 81.92 mm^2

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import SourceError
-from livedic.acquire.simulator.sources import SyntheticTensileSource, _render_rows, open_synthetic
+from livedic.acquire.simulator.render import _render_rows
+from livedic.acquire.simulator.sources import SyntheticTensileSource, open_synthetic
 from livedic.dic import measure
 
 LARGE = "synthetic:tensile?strain=0.30&neck=1.0"

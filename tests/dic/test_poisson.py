@@ -1,6 +1,6 @@
 """Poisson's ratio over the elastic range and the plastic contraction ratio (``dic.poisson``).
 
-The material is the simulator's law (``acquire.simulator.sources``): elastic to e_el = 0.4 % with
+The material is the simulator's law (``acquire.simulator.model``): elastic to e_el = 0.4 % with
 Poisson's ratio 0.3, then plastic flow at constant volume (contraction ratio 0.5 of the plastic
 increments); the force is E e_el + K e_p. Frames: 45 elastic (0-44, then 45 at exactly the yield
 strain), 255 plastic.

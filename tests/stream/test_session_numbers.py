@@ -1,7 +1,7 @@
 """Numbers a user can quote (issue 19, item 6): Poisson's ratio over the elastic range, % ok over every placed
 point, a short extensometer warned about, processing time (not latency) for files, a full disk one warning.
 
-The simulator's law is known: Poisson's ratio 0.3 elastic, 0.5 plastic (``acquire.simulator.sources``).
+The simulator's law is known: Poisson's ratio 0.3 elastic, 0.5 plastic (``acquire.simulator.model``).
 """
 
 import json

@@ -153,7 +153,7 @@ def test_the_strain_field_follows_the_simulators_exact_strain(gauge_session):
     """e_yy at the last frame against the simulator's exact dV/dY (``TensileModel.strain_yy``),
     over the points more than one VSG from the plastic zone's ends, where the strain steps: RMSE within
     6e-3 (the window smooths the neck's peak: measured 2.8e-3 at VSG 45 px on this small image)."""
-    from livedic.acquire.simulator.sources import TensileModel
+    from livedic.acquire.simulator.model import TensileModel
     session, _, _ = gauge_session
     stage = session.strain
     x, y = stage.points[:, 0], stage.points[:, 1]

@@ -1,0 +1,202 @@
+"""The simulator's URIs: ``synthetic:tensile?...`` and ``synthetic:translate?...`` parsed into typed options.
+
+Every option, its default and its check is declared here once (``TENSILE_DEFAULTS``, ``TRANSLATE_DEFAULTS``);
+a bad value is one ``SourceError`` line naming the option. The options' meaning: docs/guide/sources.md.
+"""
+
+import math
+import urllib.parse
+from functools import partial
+
+from livedic.acquire.base import SourceError
+from livedic.acquire.options import parse_bool, parse_number
+
+MODELS = ("tensile", "translate")
+FULL_SCALE = {8: 255, 12: 4095}
+
+# The force law's defaults (docs/guide/sources.md, Force): a steel-like modulus, a 2 mm sheet, 10 px per mm.
+DEFAULT_MODULUS_GPA = 200.0
+DEFAULT_THICKNESS_MM = 2.0
+DEFAULT_SCALE_PX_PER_MM = 10.0
+_COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0}
+TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15, lateral="auto",
+                        view="auto", fade=0.0, fracture=0, modulus=DEFAULT_MODULUS_GPA,
+                        thickness=DEFAULT_THICKNESS_MM, scale=DEFAULT_SCALE_PX_PER_MM, hardening=0.0)
+# Laws of the lateral contraction and camera views of the tensile test (docs/guide/sources.md).
+LATERAL_LAWS = ("linear", "incompressible")
+VIEWS = ("grip", "centre")
+# Up to these (the default test's), ``lateral=auto`` and ``view=auto`` keep the small-strain model.
+SMALL_STRAIN_LIMITS = {"strain": 0.05, "neck": 0.15}
+TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3, dv=-0.2, jump=None)
+
+
+# --------------------------------------------------------------------------- #
+# URI parsing
+# --------------------------------------------------------------------------- #
+
+def _usage():
+    return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
+            "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
+            "&modulus=200&thickness=2&scale=10&hardening=0, "
+            "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
+            "(same common options)")
+
+
+def parse_synthetic_uri(uri):
+    """Split ``synthetic:MODEL?k=v&...`` into (model, {option: text}); raises SourceError."""
+    if not isinstance(uri, str) or not uri.startswith("synthetic:"):
+        raise SourceError(f"not a synthetic source URI: {uri!r}; use {_usage()}")
+    rest = uri[len("synthetic:"):]
+    model, _, query = rest.partition("?")
+    model = model.strip("/") or "tensile"
+    if model not in MODELS:
+        raise SourceError(f"unknown synthetic model {model!r} in {uri!r}: choose one of {', '.join(MODELS)} "
+                          f"(e.g. {_usage()})")
+    options = {}
+    if query:
+        for part in query.split("&"):
+            if not part:
+                continue
+            key, sep, value = part.partition("=")
+            if not sep:
+                raise SourceError(f"option {part!r} in {uri!r} has no value: write NAME=VALUE, e.g. frames=300")
+            options[urllib.parse.unquote(key).strip()] = urllib.parse.unquote(value).strip()
+    return model, options
+
+
+def convert_options(model, raw):
+    """Typed options for ``model`` from text or Python values; SourceError names the bad one."""
+    defaults = TENSILE_DEFAULTS if model == "tensile" else TRANSLATE_DEFAULTS
+    unknown = sorted(set(raw) - set(defaults))
+    if unknown:
+        raise SourceError(f"unknown option(s) {', '.join(unknown)} for synthetic:{model}: valid options are "
+                          f"{', '.join(sorted(defaults))}")
+    out = dict(defaults)
+    for key, value in raw.items():
+        if value is None:
+            continue
+        try:
+            out[key] = _CONVERTERS[key](value)
+        except (TypeError, ValueError) as error:
+            raise SourceError(f"synthetic:{model} option {key}={value!r}: {error}") from None
+    if out["loop"] == 1:
+        raise SourceError(f"synthetic:{model} option loop=1: must be 0 (off) or the number of frames to "
+                          "render and cycle through (>= 2)")
+    return out
+
+
+def resolve_tensile_options(options):
+    """The tensile options with ``lateral``/``view`` chosen and ``fracture`` as a frame (0: none).
+
+    ``auto`` keeps the small-strain model (linear lateral law, bottom grip fixed in view) up to the
+    default test's strains, so those frames stay as they were, and takes the large-strain one beyond.
+    """
+    out = dict(options)
+    small = all(out[key] <= limit for key, limit in SMALL_STRAIN_LIMITS.items())
+    if out["lateral"] == "auto":
+        out["lateral"] = "linear" if small else "incompressible"
+    if out["view"] == "auto":
+        out["view"] = "grip" if small else "centre"
+    contraction = 0.5 * (out["strain"] + out["neck"])
+    if out["lateral"] == "linear" and contraction >= 0.9:
+        raise SourceError(f"synthetic:tensile option lateral=linear: the linear law narrows the neck to "
+                          f"1 - 0.5 (strain + neck) = {1 - contraction:.2f} of its width (must stay above 0.1); "
+                          "use lateral=incompressible")
+    frames, fracture = out["frames"], out["fracture"]
+    if fracture and rendered_count(out) < frames:
+        raise SourceError(f"synthetic:tensile option fracture={fracture}: a broken specimen cannot be cycled "
+                          f"with loop={out['loop']}; use loop=0")
+    if fracture == 1:
+        fracture = frames - max(1, round(0.1 * frames))
+        if fracture < 2:
+            raise SourceError(f"synthetic:tensile option fracture=1: needs frames >= 3 (frames={frames})")
+    elif fracture and fracture > frames - 1:
+        raise SourceError(f"synthetic:tensile option fracture={fracture}: the frame it breaks at must be in "
+                          f"2..{frames - 1} (frames={frames}), or 1 for the last 10 % of the frames")
+    out["fracture"] = fracture
+    return out
+
+
+def rendered_count(options):
+    """Frames actually rendered: ``loop`` when it is on and below ``frames``, else ``frames``."""
+    loop = options["loop"]
+    return min(loop, options["frames"]) if loop else options["frames"]
+
+
+def _to_size(value):
+    if isinstance(value, str):
+        parts = value.lower().split("x")
+        if len(parts) != 2:
+            raise ValueError("write WIDTHxHEIGHT, e.g. 1024x1024")
+        width, height = int(parts[0]), int(parts[1])
+    else:
+        width, height = (int(v) for v in value)
+    if width < 64 or height < 64:
+        raise ValueError("width and height must be >= 64 px")
+    return (width, height)
+
+
+def _to_bit(value):
+    bit = int(value)
+    if bit not in FULL_SCALE:
+        raise ValueError("bit depth must be 8 or 12")
+    return bit
+
+
+def _to_jump(value):
+    if value is None or value == "":
+        return None
+    if isinstance(value, str):
+        parts = value.split(":")
+        if len(parts) != 3:
+            raise ValueError("write FRAME:U:V, e.g. 40:6:0")
+        frame, u, v = int(parts[0]), float(parts[1]), float(parts[2])
+    else:
+        frame, u, v = value
+        frame, u, v = int(frame), float(u), float(v)
+    if frame < 1 or not (math.isfinite(u) and math.isfinite(v)):
+        raise ValueError("the jump frame must be >= 1 and U, V finite")
+    return (frame, u, v)
+
+
+def _to_choice(choices):
+    def convert(value):
+        text = str(value).strip().lower()
+        if text not in choices:
+            raise ValueError(f"choose one of {', '.join(choices)}")
+        return text
+    return convert
+
+
+def _to_fade(value):
+    fade = parse_number(value, low=0)
+    if fade > 1.0:
+        raise ValueError("must be in 0..1 (the share of the speckles' density lost, on average, at the most "
+                         "strained point)")
+    return fade
+
+
+def _to_fracture(value):
+    """0 (off), 1 (on, at the default frame) or the frame F >= 2 at which the specimen breaks."""
+    try:
+        return int(parse_bool(value))
+    except ValueError:
+        pass
+    try:
+        return parse_number(value, integer=True, low=0)
+    except ValueError:
+        raise ValueError("write 0 (none), 1 (in the last 10 % of the frames) or the frame it breaks at, "
+                         ">= 2") from None
+
+
+_INT = partial(parse_number, integer=True)
+_CONVERTERS = {
+    "frames": partial(_INT, low=2), "fps": partial(parse_number, low=0, low_open=True), "size": _to_size,
+    "bit": _to_bit, "noise": partial(parse_number, low=0), "seed": partial(_INT, low=0),
+    "radius": partial(parse_number, low=0.5), "pace": parse_bool, "loop": partial(_INT, low=0),
+    "strain": partial(parse_number, low=0), "neck": partial(parse_number, low=0), "du": parse_number,
+    "dv": parse_number, "jump": _to_jump, "lateral": _to_choice(("auto",) + LATERAL_LAWS),
+    "view": _to_choice(("auto",) + VIEWS), "fade": _to_fade, "fracture": _to_fracture,
+    "modulus": partial(parse_number, low=0, low_open=True), "thickness": partial(parse_number, low=0, low_open=True),
+    "scale": partial(parse_number, low=0, low_open=True), "hardening": partial(parse_number, low=0),
+}
