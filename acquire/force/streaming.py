@@ -108,6 +108,7 @@ class StreamingLoad(LoadSource):
         self._counts = dict.fromkeys(counts, 0)
         self._stop = threading.Event()
         self.connected = False
+        self.connect_attempts = 0            # every try, the failed ones too (an outage is one event, not one per try)
         self._thread = None
 
     def _start_thread(self):
@@ -203,6 +204,7 @@ class StreamingLoad(LoadSource):
         """
         failing = False
         while not self._stop.is_set():
+            self.connect_attempts += 1
             connection, message = self._connect()
             if connection is None:
                 if not failing:

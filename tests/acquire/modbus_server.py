@@ -30,6 +30,7 @@ class ModbusTestServer:
     def __init__(self):
         self.silent = False
         self.polls = 0
+        self.held = 0                # polls being held unanswered (silent)
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="modbus-test-server", daemon=True)
         self._thread.start()
@@ -44,7 +45,11 @@ class ModbusTestServer:
     async def _action(self, function_code, start_address, address, count, current_registers, set_values):
         self.polls += set_values is None
         if self.silent and set_values is None:
-            await asyncio.sleep(HOLD_ANSWER_S)
+            self.held += 1
+            try:
+                await asyncio.sleep(HOLD_ANSWER_S)
+            finally:
+                self.held -= 1
         return None
 
     async def _listen(self):

@@ -21,6 +21,7 @@ from livedic.acquire.camera.aravis import AravisCamera, list_cameras, open_uri, 
 from livedic.acquire.base import SourceError
 from livedic.acquire.camera.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion, served_as
 from livedic.acquire.camera.pixel_formats import FORMATS
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 
@@ -125,7 +126,7 @@ def test_frames_sent_while_the_consumer_was_away_are_discarded_not_burst():
     with InProcessFakeCamera(MOTION8) as fake, open_uri(fake.uri, roi=ROI, frame_rate=200, n_buffers=6) as camera:
         iterator = iter(camera)
         first = next(iterator).index
-        time.sleep(0.2)                      # ~40 frames sent: the free buffers fill
+        wait_until(lambda: fake.patterns[-1].frames_served > first + 6)     # the 6 free buffers filled
         discarded = camera.discard_buffered()
         after = next(iterator)
         assert discarded >= 1
