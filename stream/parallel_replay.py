@@ -304,7 +304,7 @@ class FrameMeasured:
     trackable: np.ndarray
     seconds: float
     update: object = None                 # dic.key_frames.ReferenceUpdate: the reference moved to this frame
-    fracture: object = None               # dic.fracture.Fracture detected in this frame
+    fracture: object = None               # dic.tensile.fracture.Fracture detected in this frame
     tracker: object = None                # the KeyFrameTracker after this frame, when this frame rebuilt it
     rows: object = None                   # the frame's output rows (stream.replay_rows.FrameRows)
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)

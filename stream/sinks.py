@@ -112,7 +112,7 @@ class ReferenceUpdates:
 
 
 class FractureWatch:
-    """Reports a detected fracture (``dic.fracture``) as a ``fracture`` event (said, shown, recorded).
+    """Reports a detected fracture (``dic.tensile.fracture``) as a ``fracture`` event (said, shown, recorded).
 
     Parameters
     ----------
@@ -124,7 +124,7 @@ class FractureWatch:
 
     def __init__(self, report):
         self.report = report
-        self.fractures = []            # (frame index, dic.fracture.Fracture)
+        self.fractures = []            # (frame index, dic.tensile.fracture.Fracture)
 
     def __call__(self, result, stats):
         if result.fracture is None:
