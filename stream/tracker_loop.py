@@ -140,7 +140,7 @@ class FrameResult:
     error_rms_px: float = float("nan")   # against the truth (synthetic sources), ok points
     error_max_px: float = float("nan")
     capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
-    reference_update: object = None   # dic.key_frames.ReferenceUpdate when this frame became the reference
+    reference_update: object = None   # dic.tracking.key_frames.ReferenceUpdate when this frame became the reference
     fracture: object = None       # dic.tensile.fracture.Fracture when one was detected in this frame
     strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
     force_N: float = None         # the machine's force at this frame (stream.load_stage), NaN when unknown

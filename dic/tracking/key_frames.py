@@ -63,7 +63,7 @@ from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
-from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
+from livedic.dic.tracking.tracker import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
 
 AUTO_ZNCC = 0.9
 AUTO_STRAIN = 0.05
