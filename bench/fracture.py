@@ -4,7 +4,7 @@
 30 % uniform plastic strain, 100 % more in the neck, the paint fading as it strains, fracture at
 90 % of the frames), 1024 x 1024, 300 frames (``--quick``: 512 x 512, 120), ~1,000 points placed as
 ``livedic run`` places them, tracked by ``stream.config.TrackingConfig(reference_update=...)``
-(``dic.key_frames``) with ``never`` and ``auto`` (and ``icgn2`` when it exists), strain and an
+(``dic.tracking.key_frames``) with ``never`` and ``auto`` (and ``icgn2`` when it exists), strain and an
 axial extensometer (L0 400 px; 200 px quick) as ``livedic run --gauge-length`` computes them.
 Against the simulator's exact truth, printed with the issue's targets:
 

@@ -9,7 +9,7 @@ frames (``--quick``: 512 x 512, 150 frames), is run as a user runs it:
 
 (in-process, through the same ``Session`` and report command; L = 400 px, 200 px quick). For each
 property it prints the law's exact value (E, Rp0.2, Rm: the simulator's ``specimen``), the value read
-by the same ISO 6892-1 methods (``dic.tensile_properties``) from the *exact* axial strain (the
+by the same ISO 6892-1 methods (``dic.tensile.properties``) from the *exact* axial strain (the
 simulator's truth at the extensometer's ends, with the same force: what the methods alone give, the
 baseline of this run), livedic's reported value, and livedic's as a ratio of the law's (of the
 baseline for Ag and A, which the law does not state), with the issue's targets: E within 2 %, Rp0.2
@@ -75,7 +75,7 @@ def _run_session(argv):
 def run_tensile_benchmark(*, quick=False, output="results/tensile", say=print):
     """Run the benchmark (module notes); returns the rows written to ``tensile.csv``."""
     from livedic.acquire.simulator.sources import SyntheticTensileSource
-    from livedic.dic.tensile_properties import tensile_properties
+    from livedic.dic.tensile.properties import tensile_properties
     from livedic.stream.cli import main as livedic
 
     size, frames, gauge = (512, 150, 200) if quick else (1024, 300, 400)

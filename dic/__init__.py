@@ -19,12 +19,12 @@ The front door:
 """
 
 from livedic.dic.correlation import zncc
-from livedic.dic.extensometer import Extensometer, place_extensometers, read_extensometers
 from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
 from livedic.dic.quality import Gates
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.strain import StrainField, StrainStatus, strain_field, strain_window
+from livedic.dic.strain.extensometer import Extensometer, place_extensometers, read_extensometers
 from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count
 
 __all__ = ["measure", "Measurement", "SEARCH_METHODS", "SUBPIXEL_METHODS", "Gates", "Status", "Tracker", "TRACKER_STAGES",

@@ -205,7 +205,7 @@ class TrackingConfig:
     seed : int
         Seed of the stochastic searches.
     reference_update : str
-        When the reference moves to a recent frame (``dic.key_frames``): ``auto``, ``never`` or ``every:N``.
+        When the reference moves to a recent frame (``dic.tracking.key_frames``): ``auto``, ``never`` or ``every:N``.
     """
     subset: int = 21
     search: str = "improved-wso"
@@ -230,7 +230,7 @@ class TrackingConfig:
         for name in ("refind_zncc", "min_zncc"):
             if not -1.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{_option(name)} must be between -1 and 1, got {getattr(self, name)}")
-        from livedic.dic.key_frames import UpdatePolicy
+        from livedic.dic.tracking.key_frames import UpdatePolicy
         object.__setattr__(self, "reference_update", str(UpdatePolicy.parse(self.reference_update)))
 
     @classmethod
@@ -247,11 +247,11 @@ class TrackingConfig:
         return asdict(self)
 
     def tracker(self, image, points, **overrides):
-        """A ``dic.key_frames.KeyFrameTracker`` on reference ``image`` for ``points`` with these settings.
+        """A ``dic.tracking.key_frames.KeyFrameTracker`` on reference ``image`` for ``points`` with these settings.
 
         ``overrides`` replace settings for this tracker only (the warm-up's smaller subset and radius).
         """
-        from livedic.dic.key_frames import KeyFrameTracker
+        from livedic.dic.tracking.key_frames import KeyFrameTracker
         from livedic.dic.quality import Gates
         settings = dict(self.as_dict(), **overrides)
         min_zncc = settings.pop("min_zncc")

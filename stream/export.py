@@ -249,7 +249,7 @@ def _csv_cell(text):
 
 def _lost_readings(placed):
     """Readings of ``placed`` extensometers for a frame whose points differ from the reference's: none ok."""
-    from livedic.dic.extensometer import ExtensometerReadings, ExtensometerStatus
+    from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerStatus
     n = len(placed.names)
     nan = np.full(n, np.nan)
     l0 = np.array([e.length_px for e in placed.extensometers], dtype=np.float64)

@@ -8,7 +8,7 @@ the key-frame state, which changes only at a reference move or a fracture. A
 recording holds the result of every frame the live run tracked, so each frame can be
 measured on its own, on any worker, by the same ``KeyFrameTracker.track``: a copy of
 the tracker as the last move (or fracture) left it, resumed from the recorded result
-of the frame tracked just before (``dic.key_frames.KeyFrameTracker.resume``, which maps it
+of the frame tracked just before (``dic.tracking.key_frames.KeyFrameTracker.resume``, which maps it
 onto the key frame; ``Tracker.resume`` below it). With the recorded parameters IC-GN
 then starts where the sequential replay starts it and ends where it ends. Frames
 without recorded results (``--all-frames``: frames the live run dropped) and points
@@ -303,8 +303,8 @@ class FrameMeasured:
     refind_attempts: int
     trackable: np.ndarray
     seconds: float
-    update: object = None                 # dic.key_frames.ReferenceUpdate: the reference moved to this frame
-    fracture: object = None               # dic.fracture.Fracture detected in this frame
+    update: object = None                 # dic.tracking.key_frames.ReferenceUpdate: the reference moved to this frame
+    fracture: object = None               # dic.tensile.fracture.Fracture detected in this frame
     tracker: object = None                # the KeyFrameTracker after this frame, when this frame rebuilt it
     rows: object = None                   # the frame's output rows (stream.replay_rows.FrameRows)
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
@@ -358,7 +358,7 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
     ----------
     job : ReplayJob
     segment_token : str
-    tracker : dic.key_frames.KeyFrameTracker
+    tracker : dic.tracking.key_frames.KeyFrameTracker
         As it was right after the frame at ``segment_start`` (``Segment``).
     segment_start, key_start : int
         Positions of that frame and of the current key frame (-1: none).
@@ -369,7 +369,7 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
     image : ndarray (H, W) or FrameAt
         As recorded (uint8 or uint16), or where the worker reads it (``--shared-path``).
     previous, last_good
-        ``dic.key_frames.KeyFrameTracker.resume``'s seed: the recorded result before the frame, the last ok ones
+        ``dic.tracking.key_frames.KeyFrameTracker.resume``'s seed: the recorded result before the frame, the last ok ones
         since ``segment_start``.
     """
     import numba

@@ -3,7 +3,7 @@
 ``ContractionWatch`` is a session sink placed after the strain and load stages when the
 session has the ``axial``/``transverse`` pair (``--gauge-length``). It keeps each frame's two
 engineering strains (NaN without a reading) and force (NaN without one), and fits
-``dic.poisson.contraction_ratios`` on them: Poisson's ratio over the elastic range, labelled
+``dic.tensile.poisson.contraction_ratios`` on them: Poisson's ratio over the elastic range, labelled
 "Poisson's ratio (elastic, frames a-b, axial strain x-y %)", and the plastic contraction ratio
 apart (never called Poisson's ratio). The fit so far goes on each ``FrameResult``
 (``result.poisson``) for the live view; it is refitted every frame at first and then every
@@ -15,7 +15,7 @@ from array import array
 
 import numpy as np
 
-from livedic.dic.poisson import contraction_ratios
+from livedic.dic.tensile.poisson import contraction_ratios
 from livedic.stream.strain import AXIAL, TRANSVERSE
 
 REFIT_SHARE = 50      # the live fit is redone after n / REFIT_SHARE new frames
@@ -37,7 +37,7 @@ class ContractionWatch:
         self.axial = array("d")
         self.transverse = array("d")
         self.force = array("d")
-        self.current = None              # the last live fit (dic.poisson.ContractionRatio)
+        self.current = None              # the last live fit (dic.tensile.poisson.ContractionRatio)
         self._fitted_at = 0
 
     def __call__(self, result, stats):
@@ -58,7 +58,7 @@ class ContractionWatch:
         return self.current
 
     def fit(self):
-        """(Poisson's ratio, plastic contraction ratio) over every frame so far (``dic.poisson``)."""
+        """(Poisson's ratio, plastic contraction ratio) over every frame so far (``dic.tensile.poisson``)."""
         force = np.asarray(self.force)
         return contraction_ratios(np.asarray(self.axial), np.asarray(self.transverse),
                                   force=force if np.isfinite(force).any() else None,

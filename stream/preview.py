@@ -5,7 +5,7 @@ source's first frame and places the points, P0 and the extensometers exactly as
 ``livedic run`` would with the same options (``stream.points.place_points``,
 ``StrainConfig.place``), then draws them, labelled, over the frame, beside a map
 of what DIC needs from the image: the speckle contrast per subset (mean intensity
-gradient), clipped pixels, and the figures of ``dic.pattern_quality`` (speckle
+gradient), clipped pixels, and the figures of ``dic.region.pattern_quality`` (speckle
 size, focus, predicted noise), with advice where something is off.
 
 ``setup_overlay`` gathers what is drawn (``SetupOverlay``); ``render_preview``
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.pattern_quality import PatternQuality, pattern_quality
+from livedic.dic.region.pattern_quality import PatternQuality, pattern_quality
 from livedic.dic.region import Circle, Polygon, Rectangle, find_specimen, straddling
 from livedic.stream.points import Placement, PlacedBy
 
@@ -48,11 +48,11 @@ class SetupOverlay:
     image : ndarray (H, W)
         The reference frame.
     placement : stream.points.Placement
-    extensometers : tuple of dic.extensometer.Extensometer
+    extensometers : tuple of dic.strain.extensometer.Extensometer
         As placed (reference px).
     scale : float or None
         px per mm (``--scale``), for the labels.
-    quality : dic.pattern_quality.PatternQuality
+    quality : dic.region.pattern_quality.PatternQuality
     outlines : list of ndarray (K, 2)
         Closed polylines (x, y) around the region where subsets may lie (holes included).
     exclusions : list of ndarray (K, 2)

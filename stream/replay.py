@@ -71,7 +71,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.extensometer import ExtensometerOffPoints
+from livedic.dic.strain.extensometer import ExtensometerOffPoints
 from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsConfig, SessionConfig, TrackingConfig,
                                    parse_exclusion, parse_p0, parse_roi, read_mask,
                                    search_method, subpixel_method)

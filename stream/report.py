@@ -9,7 +9,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
 ``report.json``
     ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``: each
     ``{"value": number or null, "method": text, "reason": text or null}`` (``reason`` says why a
-    value is null); ``poisson_ratio`` (fitted over the elastic range, ``dic.poisson``) and
+    value is null); ``poisson_ratio`` (fitted over the elastic range, ``dic.tensile.poisson``) and
     ``plastic_contraction_ratio`` (the same slope over the plastic range, never called Poisson's
     ratio; in this file only), each ``{"value", "stderr", "label", "n_frames", "frames",
     "axial_strain_range", "axial_noise", "basis", "method", "reason"}`` (null with a reason without
@@ -23,7 +23,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
 (``stream.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
-(``stream.stress``); the properties are ``dic.tensile_properties.tensile_properties`` of that
+(``stream.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
 engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
 0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
 only all together; existing ones are kept unless ``--overwrite``.
@@ -48,9 +48,9 @@ PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa"
 
 def report_json(properties, specimen, source, contraction=None):
     """The ``report.json`` object: the five properties (NaN as null), Poisson's ratio and the plastic contraction
-    ratio (``contraction``: the pair of ``dic.poisson.ContractionRatio``; NaN with NO_PAIR when None),
+    ratio (``contraction``: the pair of ``dic.tensile.poisson.ContractionRatio``; NaN with NO_PAIR when None),
     ``specimen`` and ``source``."""
-    from livedic.dic.poisson import without_pair
+    from livedic.dic.tensile.poisson import without_pair
     out = {}
     for key, item in properties.as_dict().items():
         value = item["value"]
@@ -138,8 +138,8 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     """
     from livedic.acquire.force import open_load
     from livedic.acquire.recording.reader import Recording
-    from livedic.dic.poisson import contraction_ratios
-    from livedic.dic.tensile_properties import tensile_properties
+    from livedic.dic.tensile.poisson import contraction_ratios
+    from livedic.dic.tensile.properties import tensile_properties
     from livedic.stream.export import RecordedForce, axial_series, reader_notes
     from livedic.stream.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 

@@ -45,8 +45,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from livedic.acquire import sources
-from livedic.dic import bspline, field_fit
+from livedic.dic import bspline
 from livedic.dic.status import Status
+from livedic.dic.strain import field_fit
 from livedic.acquire.base import SourceError
 from livedic.stream.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.config import VIEWER_NONE

@@ -82,7 +82,7 @@ class RecordResults:
 
 
 class ReferenceUpdates:
-    """Reports each move of the reference (``dic.key_frames``) as a ``reference_update`` event, and counts them.
+    """Reports each move of the reference (``dic.tracking.key_frames``) as a ``reference_update`` event, and counts them.
 
     Parameters
     ----------
@@ -94,7 +94,7 @@ class ReferenceUpdates:
 
     def __init__(self, report):
         self.report = report
-        self.updates = []              # (frame index, dic.key_frames.ReferenceUpdate)
+        self.updates = []              # (frame index, dic.tracking.key_frames.ReferenceUpdate)
 
     def __call__(self, result, stats):
         update = result.reference_update
@@ -112,7 +112,7 @@ class ReferenceUpdates:
 
 
 class FractureWatch:
-    """Reports a detected fracture (``dic.fracture``) as a ``fracture`` event (said, shown, recorded).
+    """Reports a detected fracture (``dic.tensile.fracture``) as a ``fracture`` event (said, shown, recorded).
 
     Parameters
     ----------
@@ -124,7 +124,7 @@ class FractureWatch:
 
     def __init__(self, report):
         self.report = report
-        self.fractures = []            # (frame index, dic.fracture.Fracture)
+        self.fractures = []            # (frame index, dic.tensile.fracture.Fracture)
 
     def __call__(self, result, stats):
         if result.fracture is None:

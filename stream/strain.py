@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.extensometer import (Extensometer, ExtensometerOffPoints, place_extensometers, read_extensometers,
+from livedic.dic.strain.extensometer import (Extensometer, ExtensometerOffPoints, place_extensometers, read_extensometers,
                                       strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 
@@ -41,7 +41,7 @@ TRANSVERSE_FRACTION = 0.8
 AXIAL, TRANSVERSE = "axial", "transverse"
 # An extensometer's expected noise at placement, for the warning below: the point displacement noise of IC-GN on
 # good 8-bit speckle is 0.01-0.02 px (0.006 px measured on the simulator); the low end, so that the warning is
-# never a false alarm. dic.extensometer.strain_noise turns it into strain: sigma_e = 0.01 px |w2 - w1| / L0
+# never a false alarm. dic.strain.extensometer.strain_noise turns it into strain: sigma_e = 0.01 px |w2 - w1| / L0
 # (w: the ends' fit weights), about 0.007 px / L0 on a 10-14 px grid (17 microstrain at L0 = 400 px); on the
 # simulator's rigid translation the readings' scatter matched it within 0.8-1.4 x for L0 = 12-384 px.
 EXPECTED_POINT_NOISE_PX = 0.01
@@ -130,7 +130,7 @@ class StrainConfig:
         Axial extensometer length (px, or mm with ``scale``); None: no axial/transverse pair.
     gauge_width : float or None
         Transverse extensometer length; None: 0.8 x the ROI width.
-    extensometers : tuple of dic.extensometer.Extensometer
+    extensometers : tuple of dic.strain.extensometer.Extensometer
         More, in reference px.
     scale : float or None
         Pixels per millimetre.
@@ -309,7 +309,7 @@ class StrainStage:
     config: StrainConfig
     points: np.ndarray
     windows: object                  # dic.strain.StrainWindow
-    placed: object                   # dic.extensometer.ExtensometerSet
+    placed: object                   # dic.strain.extensometer.ExtensometerSet
     name: str = "strain"
     required: bool = False
     last_strain: object = None       # the last frame's StrainField
@@ -344,7 +344,7 @@ class StrainStage:
         return strain, readings
 
     def add_fracture(self, fracture):
-        """Split the points (and the extensometer ends) by the crack of a ``dic.fracture.Fracture``."""
+        """Split the points (and the extensometer ends) by the crack of a ``dic.tensile.fracture.Fracture``."""
         def sides(where):
             offset = (where - np.asarray(fracture.centre)) @ np.array([-fracture.direction[1], fracture.direction[0]])
             return (offset > 0).astype(np.int64)

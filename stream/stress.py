@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livedic.dic.tensile_properties import NECKING_DROP
+from livedic.dic.tensile.properties import NECKING_DROP
 
 __all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
            "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
@@ -198,12 +198,12 @@ def plot_stress_strain(handle, table, *, title, properties=None):
     """Write the stress-strain plot (PNG) to ``handle``.
 
     The engineering curve over the frames with a force and a strain up to the fall at fracture
-    (``dic.tensile_properties.fracture_frame``), the true curve up to uniform elongation (its last
+    (``dic.tensile.properties.fracture_frame``), the true curve up to uniform elongation (its last
     point marked Ag); with ``properties`` (``TensileProperties``) Rp0.2 and Rm are marked.
     """
     from matplotlib.figure import Figure
 
-    from livedic.dic.tensile_properties import fracture_frame
+    from livedic.dic.tensile.properties import fracture_frame
 
     figure = Figure(figsize=(8, 5), dpi=100, layout="constrained")
     axes = figure.add_subplot()

@@ -140,15 +140,15 @@ class FrameResult:
     error_rms_px: float = float("nan")   # against the truth (synthetic sources), ok points
     error_max_px: float = float("nan")
     capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
-    reference_update: object = None   # dic.key_frames.ReferenceUpdate when this frame became the reference
-    fracture: object = None       # dic.fracture.Fracture when one was detected in this frame
+    reference_update: object = None   # dic.tracking.key_frames.ReferenceUpdate when this frame became the reference
+    fracture: object = None       # dic.tensile.fracture.Fracture when one was detected in this frame
     strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
     force_N: float = None         # the machine's force at this frame (stream.load_stage), NaN when unknown
     stress_MPa: float = None      # ... and the engineering stress
     true_strain: float = None     # ln(1 + e) of the axial extensometer while the elongation may be uniform, else NaN
     true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stress.UniformElongationWatch)
-    extensometers: object = None  # dic.extensometer.ExtensometerReadings, idem
-    poisson: object = None        # dic.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.poisson)
+    extensometers: object = None  # dic.strain.extensometer.ExtensometerReadings, idem
+    poisson: object = None        # dic.tensile.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.poisson)
     output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
 
     @property

@@ -67,7 +67,7 @@ from livedic.acquire.atomic_file import AtomicFile
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.recording.container import (MAGIC, ChunkedWriter, Damaged, RecordScan, library_name, open_chunk,
                                                  parse_record, read_record, read_record_at, read_summary)
-from livedic.dic.extensometer import ExtensometerReadings
+from livedic.dic.strain.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
 
 __all__ = ["CorruptRecording", "FrameReader", "McapSource", "NoSessionMetadata", "NotLivedic", "NotMcap",
@@ -197,7 +197,7 @@ class RecordedExtensometerSample:
     """One extensometer's reading in one frame, as recorded on ``/dic/extensometers``.
 
     ``l_px``, ``eng_strain`` and ``true_strain`` are NaN where ``ok`` is False;
-    ``status`` is a ``dic.extensometer.ExtensometerStatus`` code.
+    ``status`` is a ``dic.strain.extensometer.ExtensometerStatus`` code.
     """
     frame_index: int
     timestamp_ns: int
@@ -243,7 +243,7 @@ def _recorded_strain(message):
 
 
 def _readings(samples):
-    """``dic.extensometer.ExtensometerReadings`` of one frame's samples, in recorded order."""
+    """``dic.strain.extensometer.ExtensometerReadings`` of one frame's samples, in recorded order."""
     return ExtensometerReadings(names=tuple(s.name for s in samples),
                                 l0_px=np.array([s.l0_px for s in samples], dtype=np.float64),
                                 length_px=np.array([s.l_px for s in samples], dtype=np.float64),
@@ -593,10 +593,10 @@ class Recording:
                 ok=sample.ok, status=sample.status)
 
     def extensometer_readings(self):
-        """Yield ``(frame_index, timestamp_ns, dic.extensometer.ExtensometerReadings)`` per recorded frame.
+        """Yield ``(frame_index, timestamp_ns, dic.strain.extensometer.ExtensometerReadings)`` per recorded frame.
 
         The samples of one frame (consecutive messages with the same frame index) gathered
-        in recorded order, as ``dic.extensometer.read_extensometers`` returns them.
+        in recorded order, as ``dic.strain.extensometer.read_extensometers`` returns them.
         """
         frame = []
         for sample in self.extensometer_samples():

@@ -127,7 +127,7 @@ EXTENSOMETER_SAMPLE_FIELDS = (
     ("eng_strain", 6, _F.TYPE_DOUBLE, False, "engineering strain (L - L0) / L0; NaN where not ok"),
     ("true_strain", 7, _F.TYPE_DOUBLE, False, "true strain ln(L / L0); NaN where not ok"),
     ("ok", 8, _F.TYPE_BOOL, False, "true where both ends were measured"),
-    ("status", 9, _F.TYPE_INT32, False, "dic.extensometer.ExtensometerStatus code (0: measured)"),
+    ("status", 9, _F.TYPE_INT32, False, "dic.strain.extensometer.ExtensometerStatus code (0: measured)"),
 )
 
 # ForceSample: the testing machine's force on one tracked frame (Foxglove plots

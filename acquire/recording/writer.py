@@ -445,7 +445,7 @@ class Recorder:
         frame_index : int
         timestamp_ns : int
             The frame's timestamp; also the messages' log time.
-        readings : dic.extensometer.ExtensometerReadings
+        readings : dic.strain.extensometer.ExtensometerReadings
             ``names`` and, per extensometer, ``l0_px``, ``length_px``, ``eng_strain``,
             ``true_strain`` and ``status`` (``ExtensometerStatus`` codes; ok where 0). A
             ``livedic.ExtensometerSample`` is written for each, in that order; none when

@@ -1,1 +1,1 @@
-"""Sub-pixel refinement methods, one module per method."""
+"""Sub-pixel refinement methods, one module per method, and the kernels they share (hessian, linalg, keys_cubic)."""

@@ -90,8 +90,8 @@ from numpy import float32 as _F32
 from livedic.dic.bspline import FASTMATH, PAD, prefilter, sample_shift, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
-from livedic.dic.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
-from livedic.dic.linalg import cholesky_lower
+from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
+from livedic.dic.subpixel.linalg import cholesky_lower
 from livedic.dic.result import SubpixelResult
 from livedic.dic.subpixel.prepared import (check_iterations, checked_points, point_orders, start_status,
                                            start_values)
@@ -192,7 +192,7 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
     """Fill the per-point arrays of one point (row stride ``lanes``); return (status, norm, sum_f).
 
     work : (hess (6, 6), h0 (2, 2), low (6, 6), linv (6, 6), row (17,), mom (30,)) scratch.
-    The Hessian is accumulated as moments (``dic.hessian``): per row, sums of
+    The Hessian is accumulated as moments (``dic.subpixel.hessian``): per row, sums of
     fx^2, fx fy, fy^2 times (1, dx, dx^2), folded with dy at the row end.
     """
     hess, h0, low, linv, row, mom = work

@@ -2,7 +2,7 @@
 
 Support for the improved surface fit (``dic.subpixel.improved_surface_fit``):
 the target subset at a lattice node is interpolated from the deformed *image*
-with Keys bicubic convolution (a = -0.5, ``dic.interpolation.keys_weights``);
+with Keys bicubic convolution (a = -0.5, ``dic.subpixel.keys_cubic.keys_weights``);
 the ZNCC map itself is never interpolated.
 
 Speed: a node offset ``h i`` splits into an integer part ``ix[i]`` and a phase
@@ -24,7 +24,7 @@ from numba import njit, uint64
 
 from livedic.dic.bspline import FASTMATH
 from livedic.dic.correlation import FLAT_VARIANCE
-from livedic.dic.interpolation import keys_weights
+from livedic.dic.subpixel.keys_cubic import keys_weights
 
 
 def lattice_tables(spacing, half_nodes):

@@ -49,8 +49,8 @@ from numba import njit, prange
 
 from livedic.dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
-from livedic.dic.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
-from livedic.dic.linalg import cholesky_lower
+from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
+from livedic.dic.subpixel.linalg import cholesky_lower
 from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,

@@ -14,8 +14,8 @@ from collections import deque
 
 import numpy as np
 
-from livedic.dic.extensometer import end_displacements
-from livedic.dic.tensile_properties import FRACTURE_DROP
+from livedic.dic.strain.extensometer import end_displacements
+from livedic.dic.tensile.properties import FRACTURE_DROP
 from livedic.stream.load_stage import axial_strain
 from livedic.stream.strain import AXIAL
 from livedic.stream.view.blueprint import axial_transverse_pair, make_blueprint
@@ -643,7 +643,7 @@ class RerunLogger:
 
     def _log_strain_xy(self, readings, poisson):
         """This frame's point of the transverse-vs-axial plot with the two strains, and Poisson's ratio's elastic
-        fit so far (``dic.poisson.ContractionRatio``, or None) as a line over its range and in the numbers."""
+        fit so far (``dic.tensile.poisson.ContractionRatio``, or None) as a line over its range and in the numbers."""
         self._log_elastic_fit(poisson)
         a, t = self._xy_pair
         if not (readings.ok[a] and readings.ok[t]):

@@ -351,11 +351,11 @@ class ViewProcess:
 
 
 def _warm_up():
-    """Load the numba kernel the view calls (the extensometers' end fit, ``dic.field_fit``) while the session
+    """Load the numba kernel the view calls (the extensometers' end fit, ``dic.strain.field_fit``) while the session
     still prepares: a fresh process spends ~1 s on its first numba call, which would land on the view's start."""
     import numpy as np
 
-    from livedic.dic import field_fit
+    from livedic.dic.strain import field_fit
     grid = 10.0 * np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0)), axis=-1).reshape(-1, 2)
     still = np.zeros(len(grid))
     field_fit.displacement_at(grid[12:13], grid, still, still, np.ones(len(grid), dtype=bool), 10.0)

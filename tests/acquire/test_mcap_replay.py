@@ -33,7 +33,7 @@ def _hang_guard():
 
 def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20, compression=None,
             with_strain=False):
-    from livedic.dic.extensometer import ExtensometerReadings
+    from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.dic.strain import strain_field, strain_window
     rng = np.random.default_rng(7)
     windows = strain_window(np.array([[x, y] for y in range(3) for x in range(3)], float), window=3, step=1.0)

@@ -13,7 +13,7 @@ from livedic.acquire.recording import schema as rs
 from livedic.acquire.base import Frame
 from livedic.acquire.recording.reader import (CorruptRecording, Recording, read_extensometer_samples, read_results,
                                               read_strain_fields, recover)
-from livedic.dic.extensometer import ExtensometerStatus
+from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.dic.strain import StrainStatus
 from livedic.acquire.recording.writer import Recorder
 from livedic.stream.strain import StrainConfig

@@ -1,4 +1,4 @@
-"""Virtual extensometers (``dic.extensometer``): analytic fields, lost ends, placement errors, Poisson's ratio,
+"""Virtual extensometers (``dic.strain.extensometer``): analytic fields, lost ends, placement errors, Poisson's ratio,
 and one short simulated tensile test tracked as ``livedic run`` tracks it.
 """
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from livedic.dic.extensometer import (END_MIN_POINTS, POISSON_MIN_AXIAL, Extensometer, ExtensometerStatus,
+from livedic.dic.strain.extensometer import (END_MIN_POINTS, POISSON_MIN_AXIAL, Extensometer, ExtensometerStatus,
                                       end_displacements, place_extensometers, poisson_ratio, read_extensometers)
 
 STEP = 10.0

@@ -1,9 +1,9 @@
-"""Fracture detection (``dic.fracture``): a band lost at once AND a jump across it; neither alone."""
+"""Fracture detection (``dic.tensile.fracture``): a band lost at once AND a jump across it; neither alone."""
 
 import numpy as np
 import pytest
 
-from livedic.dic.fracture import detect_fracture
+from livedic.dic.tensile.fracture import detect_fracture
 
 STEP = 10.0
 XS, YS = np.meshgrid(np.arange(100.0, 400.0, STEP), np.arange(100.0, 600.0, STEP))

@@ -1,4 +1,4 @@
-"""Incremental correlation with key frames (``dic.key_frames``): updates keep results Lagrangian.
+"""Incremental correlation with key frames (``dic.tracking.key_frames``): updates keep results Lagrangian.
 
 Frames are rendered exactly by ``dic.speckle.render`` under growing homogeneous stretches, so the
 displacement of every material point is known; the tolerances are stated per test (8-bit images,
@@ -8,7 +8,7 @@ no added noise: IC-GN's error is the rounding noise, ~0.005 px here).
 import numpy as np
 import pytest
 
-from livedic.dic.key_frames import KeyFrameTracker, UpdatePolicy, _percentile_may_pass
+from livedic.dic.tracking.key_frames import KeyFrameTracker, UpdatePolicy, _percentile_may_pass
 from livedic.dic.speckle import SpecklePattern, affine, render
 from livedic.dic.status import Status
 from livedic.dic.tracking import Tracker

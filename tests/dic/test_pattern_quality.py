@@ -1,11 +1,11 @@
-"""Pattern quality (``dic.pattern_quality``): MIG, clipping, speckle size and focus on images with known answers."""
+"""Pattern quality (``dic.region.pattern_quality``): MIG, clipping, speckle size and focus on images with known answers."""
 
 import math
 
 import numpy as np
 import pytest
 
-from livedic.dic.pattern_quality import FOCUS_SPREAD, pattern_quality
+from livedic.dic.region.pattern_quality import FOCUS_SPREAD, pattern_quality
 from tests.conftest import blurred_noise
 
 

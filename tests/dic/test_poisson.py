@@ -1,4 +1,4 @@
-"""Poisson's ratio over the elastic range and the plastic contraction ratio (``dic.poisson``).
+"""Poisson's ratio over the elastic range and the plastic contraction ratio (``dic.tensile.poisson``).
 
 The material is the simulator's law (``acquire.simulator.model``): elastic to e_el = 0.4 % with
 Poisson's ratio 0.3, then plastic flow at constant volume (contraction ratio 0.5 of the plastic
@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from livedic.dic.poisson import Basis, Reason, contraction_ratios, linear_part, series_noise
+from livedic.dic.tensile.poisson import Basis, Reason, contraction_ratios, linear_part, series_noise
 
 N_ELASTIC, N_PLASTIC = 45, 255
 NU_ELASTIC, NU_PLASTIC = 0.3, 0.5
@@ -175,7 +175,7 @@ def test_an_elastic_part_too_short_to_know_its_line_is_not_taken_for_the_plastic
 
 
 def test_a_line_through_a_bend_is_split_where_two_lines_fit_better():
-    from livedic.dic.poisson import bend
+    from livedic.dic.tensile.poisson import bend
     axial, transverse, _ = law(n_elastic=10, n_plastic=20)
     a, t = noisy(axial, 5e-5, 12), noisy(transverse, 5e-5, 13)
     assert bend(a, t) in (9, 10, 11)

@@ -1,4 +1,4 @@
-"""Tensile properties (``dic.tensile_properties``) on analytic curves where each is known exactly.
+"""Tensile properties (``dic.tensile.properties``) on analytic curves where each is known exactly.
 
 The material: linear elastic (E = 200 GPa) to yield at 300 MPa, then linear hardening in the
 plastic strain, stress = 300 + K ep with K = 1,000 MPa, to maximum force at ep = 15 %, then a
@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from livedic.dic.tensile_properties import (
+from livedic.dic.tensile.properties import (
     Reason, elongation_after_fracture, modulus, proof_strength, tensile_properties, tensile_strength)
 
 E_MPA = 200_000.0
@@ -199,7 +199,7 @@ def test_as_dict_has_the_report_keys_with_value_and_method():
 
 
 def test_fracture_frame_is_the_first_fall_below_a_tenth_of_rm_after_rm():
-    from livedic.dic.tensile_properties import fracture_frame
+    from livedic.dic.tensile.properties import fracture_frame
     strain = np.linspace(0.0, 0.2, 11)
     stress = np.array([0, 400, 800, 900, 1000, 950, 900, 500, 90, 0, 0], dtype=float)
     assert fracture_frame(strain, stress) == 8                 # 90 < 100 = 10 % of Rm, after Rm
@@ -214,7 +214,7 @@ def test_fracture_frame_is_the_first_fall_below_a_tenth_of_rm_after_rm():
 
 def test_rm_is_not_claimed_when_the_force_is_missing_next_to_the_maximum():
     """A force stream that stopped (or stalled) while the force still rose: the largest stress seen is not Rm."""
-    from livedic.dic.tensile_properties import Reason, tensile_strength, uniform_elongation
+    from livedic.dic.tensile.properties import Reason, tensile_strength, uniform_elongation
     strain = np.linspace(0.0, 0.1, 11)
     stress = np.array([0, 400, 800, 850, 900, 950, np.nan, np.nan, np.nan, np.nan, np.nan])
     rm = tensile_strength(strain, stress)

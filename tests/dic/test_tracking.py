@@ -7,7 +7,7 @@ import pytest
 
 from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.status import Status
-from livedic.dic.key_frames import KeyFrameTracker
+from livedic.dic.tracking.key_frames import KeyFrameTracker
 from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count
 
 

@@ -58,7 +58,7 @@ def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(f
     starts each frame from its result mapped onto the key frame, as ``resume`` does)."""
     import copy
 
-    from livedic.dic.key_frames import KeyFrameTracker
+    from livedic.dic.tracking.key_frames import KeyFrameTracker
     sequence = KeyFrameTracker(frames[0], POINTS, reference_update="every:3")
     expected = [sequence.track(frame) for frame in frames]
     assert [update.frame for update in sequence.updates] == [2, 5]
@@ -81,7 +81,7 @@ def test_key_frame_tracker_resumed_per_frame_moves_and_measures_as_in_sequence(f
 
 
 def test_key_frame_state_changes_exactly_when_the_inner_tracker_is_rebuilt(frames):
-    from livedic.dic.key_frames import KeyFrameTracker
+    from livedic.dic.tracking.key_frames import KeyFrameTracker
     tracker = KeyFrameTracker(frames[0], POINTS, reference_update="every:3")
     changed = []
     for k, frame in enumerate(frames):

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.recording.reader import Recording, read_events
-from livedic.dic.extensometer import ExtensometerStatus
+from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.stream.config import SessionConfig, ViewerConfig
 from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED,
                                     FrameValues, decode_registers, encode_registers, parse_publish_uri,

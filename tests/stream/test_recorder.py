@@ -237,7 +237,7 @@ def test_plain_mcap_with_protobuf_decoder_reads_everything(tmp_path):
 
 @pytest.mark.skipif(shutil.which("rerun", path=os.path.dirname(sys.executable)) is None, reason="no rerun CLI")
 def test_rerun_mcap_convert_accepts_a_recording(tmp_path):
-    from livedic.dic.extensometer import ExtensometerReadings
+    from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.dic.strain import strain_field, strain_window
 
     path, out = tmp_path / "r.mcap", tmp_path / "r.rrd"

@@ -130,7 +130,7 @@ def test_expected_noise_falls_as_one_over_the_length_and_warns_below_class_1():
     warnings = stage.noise_warnings()
     assert len(warnings) == 1 and warnings[0].startswith("extensometer short: L0 40 px expects ~")
     # the length needed is that of ends sharing no point (a short one's shared points cancel in the difference)
-    from livedic.dic.extensometer import strain_noise
+    from livedic.dic.strain.extensometer import strain_noise
     apart = strain_noise(stage.placed, stage.points, 0.01, independent_ends=True)[0]
     assert apart >= short
     needed = 40 * apart / NOISE_LIMIT
@@ -149,7 +149,7 @@ def test_a_very_short_extensometer_is_not_told_it_needs_less_than_a_long_one():
 
 
 def _ext(name, x1, y1, x2, y2):
-    from livedic.dic.extensometer import Extensometer
+    from livedic.dic.strain.extensometer import Extensometer
     return Extensometer(name, x1, y1, x2, y2)
 
 
@@ -279,7 +279,7 @@ def test_a_full_disk_for_the_rerun_file_is_one_warning_the_session_goes_on(tmp_p
 
 
 def test_a_report_without_a_transverse_extensometer_says_so():
-    from livedic.dic.tensile_properties import tensile_properties
+    from livedic.dic.tensile.properties import tensile_properties
     from livedic.stream.report import report_json, report_markdown
     strain = np.linspace(0.0, 0.01, 20)
     report = report_json(tensile_properties(strain, 200e3 * strain), {"area_mm2": 20.0, "gauge_length_px": 200.0},

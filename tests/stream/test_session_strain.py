@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from livedic.dic.extensometer import ExtensometerStatus
+from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.stream.config import SessionConfig, ViewerConfig
 from livedic.stream.session import Session
 from livedic.stream.strain import StrainConfig, parse_extensometer, parse_gauge_length

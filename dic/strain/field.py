@@ -375,7 +375,7 @@ def strain_field(neighbourhoods, u, v, ok, *, measure=DEFAULT_MEASURE, labels=No
     measure : str
         One of ``MEASURES``.
     labels : array (N,) of int, optional
-        Regions that must not be mixed (the two sides of a crack, ``dic.fracture``): a point's window
+        Regions that must not be mixed (the two sides of a crack, ``dic.tensile.fracture``): a point's window
         uses the points of its own region only.
 
     Returns

@@ -1,8 +1,8 @@
-"""Image interpolation kernels.
+"""Keys bicubic convolution weights, the interpolation kernel of the surface-fit methods.
 
 ``keys_weights``: bicubic convolution (Keys 1981, DOI 10.1109/TASSP.1981.1163711)
 with a = -0.5, the MATLAB ``interp2(..., 'cubic')`` kernel the paper's improved
-surface fit is built on. B-spline interpolation for IC-GN / N-R lives alongside.
+surface fit is built on. B-spline interpolation for IC-GN / N-R is ``dic.bspline``.
 """
 
 from numba import njit

@@ -15,7 +15,7 @@ G the first-order displacement gradient IC-GN measured at p_r, and the gradients
 compose as deformation gradients, F_0->k = (I + G) F_0->r. A point not ok in the
 frame that becomes the reference (or not trusted there, see below) is measured there
 directly from frame 0, IC-GN started where the trusted points around it say it is
-(``dic.field_fit``): placed if that confirms it, else reported ``NOT_IN_KEY_FRAME``
+(``dic.strain.field_fit``): placed if that confirms it, else reported ``NOT_IN_KEY_FRAME``
 until a later update confirms it.
 
 What an update costs: the new reference is prepared like a new tracker (subsets,
@@ -57,13 +57,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livedic.dic import field_fit
-from livedic.dic.fracture import detect_fracture
+from livedic.dic.strain import field_fit
+from livedic.dic.tensile.fracture import detect_fracture
 from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
-from livedic.dic.tracking import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
+from livedic.dic.tracking.tracker import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
 
 AUTO_ZNCC = 0.9
 AUTO_STRAIN = 0.05
@@ -200,9 +200,9 @@ class KeyFrameTracker:
     updates : list of ReferenceUpdate
     last_update : ReferenceUpdate or None
         Set when the frame just tracked became the reference.
-    fractures : list of dic.fracture.Fracture
-    last_fracture : dic.fracture.Fracture or None
-        Set when a fracture was detected in the frame just tracked (``dic.fracture``; its points
+    fractures : list of dic.tensile.fracture.Fracture
+    last_fracture : dic.tensile.fracture.Fracture or None
+        Set when a fracture was detected in the frame just tracked (``dic.tensile.fracture``; its points
         across the crack are ``SEPARATED`` from that frame on). ``detect_fractures=False`` turns it off.
     key_frame : int
         The tracked frame that is the reference now (0: the first).
@@ -303,7 +303,7 @@ class KeyFrameTracker:
         return result
 
     def _check_fracture(self, result):
-        """``dic.fracture``: a band lost at once with a jump across it stops the points across the crack."""
+        """``dic.tensile.fracture``: a band lost at once with a jump across it stops the points across the crack."""
         ok_before, u_before, v_before = self._previous
         fracture = detect_fracture(self.x, self.y, ok_before, result.ok, u_before, v_before, result.u, result.v,
                                    step=self._step, subset=self._inner.subset, trackable=self.trackable)

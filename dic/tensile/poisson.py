@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livedic.dic.tensile_properties import MIN_POINTS, NECKING_DROP, PROOF_OFFSET, fit_line, tensile_properties
+from livedic.dic.tensile.properties import MIN_POINTS, NECKING_DROP, PROOF_OFFSET, fit_line, tensile_properties
 
 MIN_FRAMES = MIN_POINTS          # fewest frames in a fitted range (as for E)
 MIN_SPAN_NOISE = 10.0            # the range's axial strain span, in axial noise standard deviations

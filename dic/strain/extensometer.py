@@ -3,7 +3,7 @@
 A video extensometer measures the distance between two marks on the specimen. Here
 each end is a point of the reference image; in every frame it moves with the
 material: its displacement is a least-squares quadratic surface of the tracked
-points' displacements around it (``dic.field_fit``: the ok points within 2.5
+points' displacements around it (``dic.strain.field_fit``: the ok points within 2.5
 grid steps, about 20), evaluated at the end; that module's notes say why a
 quadratic and not a plane (measured). Tracking each end with its own subset
 would add a subset's full noise (~0.01 px) and its own shape-function bias at
@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livedic.dic import field_fit
+from livedic.dic.strain import field_fit
 from livedic.dic.neighbours import typical_spacing
 
-# An end's surface is fitted over the points within this many grid steps (``dic.field_fit``).
+# An end's surface is fitted over the points within this many grid steps (``dic.strain.field_fit``).
 END_REACH = field_fit.REACH
 END_MIN_POINTS = field_fit.MIN_POINTS
 END_MIN_SPREAD = field_fit.MIN_SPREAD

@@ -145,7 +145,7 @@ def _odd(value: float) -> int:
 def _speckle_size(image: np.ndarray, region: np.ndarray) -> float:
     """Speckle FWHM (px): the autocorrelation peak's FWHM over the largest square patch around the region's
     centre (up to ``AUTOCORRELATION_PATCH``), over sqrt(2)."""
-    from livedic.dic.region import placeable
+    from livedic.dic.region.placement import placeable
     per_row, per_column = region.sum(axis=1), region.sum(axis=0)
     total = float(per_row.sum())
     if total == 0:
