@@ -26,7 +26,7 @@ Each source gives force at times on one clock, in seconds:
   frames the force is interpolated linearly (so across the fracture it falls from the last loaded
   frame's force to 0). ``max_gap_s`` is 5 frame periods (0.5 s at least), as a csv's.
 * ``"monotonic"`` (``tcp://``, ``modbus://``): ``time.monotonic_ns() / 1e9``, the clock that stamps frame
-  arrival (``stream.tracker_loop``'s ``arrival_ns``). Each line is stamped when it arrives, unless
+  arrival (``stream.pipeline.tracker_loop``'s ``arrival_ns``). Each line is stamped when it arrives, unless
   ``?clock=sender`` says its ``time_s`` is already on that clock (a sender on the same host that
   stamps with ``time.monotonic()``: the exact time of the reading, not of its delivery); each
   Modbus value halfway between its request and the answer. The session passes each frame's
