@@ -2,7 +2,7 @@
 
 Every file livedic writes for the user goes through ``AtomicFile``: the CSV and
 JSON outputs of ``measure``, ``replay``, ``export`` and ``run --summary-json``
-(text, through ``stream.csv_output``) and the MCAP file ``recover`` rewrites
+(text, through ``stream.output.files``) and the MCAP file ``recover`` rewrites
 (binary). The file gets the permissions a plain ``open(path, "w")`` would give it
 (``0666 & ~umask``), so an error or an interruption never leaves a partial file
 and all commands create files alike. It lives here, in ``acquire``, because

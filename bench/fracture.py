@@ -55,7 +55,7 @@ def simulated_study(*, quick, say):
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.stages.strain import StrainConfig
 
     size, frames, gauge = ((512, 120, 200.0) if quick else (1024, 300, 400.0))
     uri = f"{FRACTURE_URI}&size={size}x{size}&frames={frames}"

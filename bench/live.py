@@ -251,8 +251,8 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
     (px): the axial/transverse extensometer pair (``--gauge-length``); None: ``gauge_length_for(size)``.
     """
     from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
-    from livedic.stream.csv_output import json_text
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.output.files import json_text
+    from livedic.stream.stages.strain import StrainConfig
 
     tag = f"{n_points}-{search}-{subpixel}-{'rec' if record else 'norec'}-{'paced' if paced else 'unpaced'}"
     record_path = os.path.join(workdir, f"{tag}.mcap")
@@ -538,7 +538,7 @@ def run_main_job_case(*, size, frames, fps, paced=True, n_points=None, workdir, 
     frames as fast as taken, a blocking queue); returns a row dict like ``run_case``'s."""
     from livedic.stream.cli import build_parser
     from livedic.stream.config import SessionConfig
-    from livedic.stream.csv_output import json_text
+    from livedic.stream.output.files import json_text
 
     tag = f"main-{n_points or 'default'}-{'paced' if paced else 'unpaced'}-{fps:g}"
     uri = f"synthetic:tensile?size={size}x{size}&fps={fps:g}&frames={frames}"

@@ -7,7 +7,7 @@ stretches, and the parallel replays measure again what they measured ahead of ea
 What writing costs. The recording is replayed sequentially (``stream.replay.replay``, in this
 process) four times, after one untimed replay (numba's kernels loaded, the file read once): with
 no output (tracking, strain and the comparison with the recording only), then writing the CSV as
-livedic formatted it before ``stream.csv_text`` (numpy's float -> str cell by cell:
+livedic formatted it before ``stream.output.csv_text`` (numpy's float -> str cell by cell:
 ``per_cell_csv_rows``, the baseline), the CSV as ``livedic replay -o OUT.csv`` writes it now, and
 the Parquet file of ``-o OUT.parquet``, each through the command's own staged file in a temporary
 folder. Per output: frames/s and its ratio to the rate with no output, and the time inside the
@@ -45,7 +45,7 @@ import time
 
 import numpy as np
 
-from livedic.stream.csv_text import scalar_text
+from livedic.stream.output.csv_text import scalar_text
 from livedic.stream.replay_rows import CsvRows, rows_output
 
 NOOP_TASKS = 100
@@ -70,9 +70,9 @@ def _noop(image=None):
 
 
 def per_cell_csv_rows(columns, n):
-    """The CSV lines as livedic formatted them before ``stream.csv_text``: numpy's float -> str cell by cell.
+    """The CSV lines as livedic formatted them before ``stream.output.csv_text``: numpy's float -> str cell by cell.
 
-    The same text as ``stream.csv_text.csv_rows`` (a test holds them equal), ~4x its time: kept here
+    The same text as ``stream.output.csv_text.csv_rows`` (a test holds them equal), ~4x its time: kept here
     only as the baseline the benchmark measures the writers against.
     """
     if n == 0:

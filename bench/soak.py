@@ -160,7 +160,7 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     from livedic.acquire.sources import open_source
     from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
     from livedic.stream.session import Session
-    from livedic.stream.sinks import FunctionSink
+    from livedic.stream.pipeline.sinks import FunctionSink
 
     if frames < 2:
         raise ValueError(f"--frames must be >= 2, got {frames}")

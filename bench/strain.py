@@ -30,7 +30,7 @@ microstrain at each VSG = (window - 1) x step + subset.
 points placed as ``livedic run`` places them: ``stream.p0.choose_p0`` and
 ``stream.points.build_points`` on the source's suggested ROI), tracked frame to
 frame by ``stream.config.TrackingConfig().tracker``; strain and extensometers
-by ``stream.strain.StrainConfig(gauge_length=400).place(...)``, what
+by ``stream.stages.strain.StrainConfig(gauge_length=400).place(...)``, what
 ``livedic run --gauge-length 400`` computes. e_yy RMSE against the exact dV/dY
 (central differences, h = 1e-3 px, of the frame's ``metadata["truth"]``),
 inside the neck (|Y - y_neck| < neck width) and outside it; points within one
@@ -277,7 +277,7 @@ def tensile_study(*, quick, say):
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points
-    from livedic.stream.strain import AXIAL, TRANSVERSE, StrainConfig
+    from livedic.stream.stages.strain import AXIAL, TRANSVERSE, StrainConfig
 
     size, frames = 1024, (60 if quick else 300)
     uri = f"synthetic:tensile?size={size}x{size}&frames={frames}&pace=0"
@@ -423,7 +423,7 @@ def dogbone_study(data, *, say):
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points
-    from livedic.stream.strain import AXIAL, TRANSVERSE, StrainConfig
+    from livedic.stream.stages.strain import AXIAL, TRANSVERSE, StrainConfig
 
     folder = os.path.join(data, DOGBONE)
     files = sorted(glob.glob(os.path.join(folder, "images", "ut_*.tif")))

@@ -20,11 +20,11 @@ from livedic.stream.config import UsageError, search_method, subpixel_method
 from livedic.stream.field_export import add_field_arguments
 from livedic.stream.points import add_region_arguments, read_points_table
 from livedic.stream.preview import add_preview_arguments, preview_command
-from livedic.stream.progress import add_progress_argument
+from livedic.stream.pipeline.progress import add_progress_argument
 from livedic.stream.replay import add_replay_arguments, replay_command
 from livedic.stream.run import add_run_arguments, run_session
-from livedic.stream.strain import add_strain_arguments
-from livedic.stream.stress import add_stress_arguments
+from livedic.stream.stages.strain import add_strain_arguments
+from livedic.stream.stages.stress import add_stress_arguments
 
 EXIT_BAD_INPUT = 2
 EXIT_SOURCE_LOST = 3
@@ -274,8 +274,8 @@ def _cmd_measure(args):
     import numpy as np
 
     from livedic.acquire.files.image_file import read_grey_image
-    from livedic.stream.csv_output import check_output_file, write_csv
-    from livedic.stream.sinks import bit_depth_change
+    from livedic.stream.output.files import check_output_file, write_csv
+    from livedic.stream.pipeline.sinks import bit_depth_change
 
     to_file = args.output not in (None, "-")
     strain = _measure_strain_config(args)            # bad values: one line, before anything is read
@@ -362,7 +362,7 @@ def _measure_strain_config(args):
     """The strain settings of ``livedic measure`` (None: no strain columns); ValueError for bad values."""
     if args.strain_window is None and args.strain_measure is None:
         return None
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.stages.strain import StrainConfig
     given = {"window": args.strain_window, "measure": args.strain_measure}
     return StrainConfig(**{key: value for key, value in given.items() if value is not None})
 

@@ -30,7 +30,7 @@ import numpy as np
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.dic.quality import MIN_ZNCC
 from livedic.dic.region import Circle, Polygon, Rectangle, Region, parse_shape
-from livedic.stream.strain import StrainConfig
+from livedic.stream.stages.strain import StrainConfig
 
 DEFAULT_SOURCE = "synthetic:tensile"
 DEFAULT_POINTS = 1000
@@ -395,7 +395,7 @@ def session_name():
 
 def _load_from_args(args):
     """``load``, ``load_offset``, ``area_mm2`` from ``--load --load-offset --area --width --thickness``."""
-    from livedic.stream.stress import cross_section_mm2
+    from livedic.stream.stages.stress import cross_section_mm2
     section = {name: getattr(args, name, None) for name in ("area", "width", "thickness")}
     load = getattr(args, "load", None)
     area = cross_section_mm2(**section) if any(v is not None for v in section.values()) else None
@@ -462,7 +462,7 @@ class SessionConfig:
         the first frames must not wait for the compiler).
     command : str
         What made the session, in the recording's metadata.
-    strain : stream.strain.StrainConfig
+    strain : stream.stages.strain.StrainConfig
         The strain window and measure, and the virtual extensometers.
     load : str or None
         The machine's force (``--load``: ``csv:FILE``, ``tcp://HOST:PORT``, ``synthetic``), or None.

@@ -28,7 +28,7 @@
     interpolated onto each frame's ``time_s`` (NaN where the file has none), or the force recorded
     for that frame (NaN where none was), the ``axial`` extensometer's engineering strain, stress
     ``F / A0``, and the true values up to uniform elongation (NaN after the frame of maximum
-    force: ``stream.stress``); the plot of both curves. The recording (or the options) must have
+    force: ``stream.stages.stress``); the plot of both curves. The recording (or the options) must have
     an ``axial`` extensometer. The recorded force takes its cross-section from ``--area`` or
     ``--width --thickness``, else from the session metadata's ``area_mm2``; a ``--load`` given
     replaces the recorded force (a note says so).
@@ -39,7 +39,7 @@
     (``frames_delivered``, counted in the recording; ``frames_delivered_from`` says so).
 
 Strain and extensometers are *recomputed* from the recorded displacements with the
-settings the recording was made with (``stream.strain.StrainConfig.from_metadata``: the
+settings the recording was made with (``stream.stages.strain.StrainConfig.from_metadata``: the
 strain window and measure, the extensometers as placed), on the recorded reference
 points (P0 first), one frame after another: the same ``StrainStage`` as the live
 session, so the strain of a recording is computed one way everywhere. The options
@@ -86,11 +86,11 @@ from datetime import datetime, timezone
 import numpy as np
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.csv_output import AtomicFile, check_output_folder, json_text, write_text_atomic
-from livedic.stream.csv_text import csv_rows, scalar_text
+from livedic.stream.output.files import AtomicFile, check_output_folder, json_text, write_text_atomic
+from livedic.stream.output.csv_text import csv_rows, scalar_text
 from livedic.stream.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
                                          FieldWriter, RecordedImages, quantities, remove_stale, video_name)
-from livedic.stream.progress import ProgressBar, progress_enabled
+from livedic.stream.pipeline.progress import ProgressBar, progress_enabled
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
 EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
@@ -218,14 +218,14 @@ def reference_geometry(metadata, first, p0_id):
 
 
 def strain_stage(metadata, first, p0_id, overrides=None):
-    """The ``stream.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
+    """The ``stream.stages.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
 
     Raises
     ------
     ValueError
         A bad setting, or an extensometer end away from the tracked points (one line).
     """
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.stages.strain import StrainConfig
     config = StrainConfig.from_metadata(metadata, **(overrides or {}))
     points, p0, roi, step, subset = reference_geometry(metadata, first, p0_id)
     return config.place(points, p0=p0, roi=roi, step=step, subset=subset)
@@ -305,14 +305,14 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
     path, directory : str or os.PathLike
     overwrite : bool
     strain : dict, optional
-        Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
-    stress : stream.stress.StressOptions, optional
+        Strain settings replacing the recorded ones (``stream.stages.strain.overrides_from_args``).
+    stress : stream.stages.stress.StressOptions, optional
         Force file and cross-section: also write ``STRESS_FILES``.
     fields : stream.field_export.FieldOptions
         The maps, video and VTK to write (default none).
     stop : callable, optional
         Called once per frame; raises ``ExportStopped`` to end the export there (``StopSignals.check``).
-    progress : stream.progress.ProgressBar, optional
+    progress : stream.pipeline.progress.ProgressBar, optional
 
     Returns
     -------
@@ -334,7 +334,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         not livedic, or corrupt (``RecordingError``).
     """
     from livedic.acquire.recording.reader import Recording
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.stages.strain import StrainConfig
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
@@ -692,7 +692,7 @@ def _open_stress_load(stress, names, recording=None):
     if stress is None:
         return None
     from livedic.acquire.force import open_load
-    from livedic.stream.stress import AXIAL
+    from livedic.stream.stages.stress import AXIAL
     if AXIAL not in names:
         raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
                          f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
@@ -708,11 +708,11 @@ def stress_from_args(args):
     With ``--load``, that load (a note when the recording also holds force samples, which it
     replaces); without, the force recorded on ``/machine/force`` when the recording holds some
     (A0 from the options or the session's ``area_mm2``), else None. Bad options raise before the
-    recording is read; ValueError (one line) as ``stream.stress.stress_options_from_args``.
+    recording is read; ValueError (one line) as ``stream.stages.stress.stress_options_from_args``.
     """
     from livedic.acquire.recording.reader import Recording
     from livedic.acquire.recording.schema import TOPIC_FORCE
-    from livedic.stream.stress import stress_options_from_args
+    from livedic.stream.stages.stress import stress_options_from_args
     load = getattr(args, "load", None)
     section = any(getattr(args, name, None) is not None for name in ("area", "width", "thickness"))
     if load is not None and section:
@@ -732,7 +732,7 @@ def stress_from_args(args):
 
 def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
     """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
-    from livedic.stream.stress import (AXIAL, force_coverage_notes, plot_stress_strain, stress_strain_rows,
+    from livedic.stream.stages.stress import (AXIAL, force_coverage_notes, plot_stress_strain, stress_strain_rows,
                                        stress_strain_table)
     times = np.asarray(times, dtype=np.float64)
     force = _force_on_frames(load, frames, times)
@@ -761,8 +761,8 @@ def axial_series(path, strain=None):
         Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
     """
     from livedic.acquire.recording.reader import Recording
-    from livedic.stream.strain import TRANSVERSE, StrainConfig
-    from livedic.stream.stress import AXIAL
+    from livedic.stream.stages.strain import TRANSVERSE, StrainConfig
+    from livedic.stream.stages.stress import AXIAL
     with reader_notes() as notes:
         recording = Recording(os.fspath(path))
         metadata, session_note = session_or_note(recording)
@@ -830,7 +830,7 @@ def export_command(args):
     Stopped by SIGINT or SIGTERM: one line saying what the folder holds, exit 128 + the signal's
     number (130 for Ctrl-C, 143 for SIGTERM), as a shell reports a command a signal ended.
     """
-    from livedic.stream.strain import overrides_from_args
+    from livedic.stream.stages.strain import overrides_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
     fields = FieldOptions.from_args(args)
     stress, stress_notes = stress_from_args(args)

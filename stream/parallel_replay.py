@@ -275,7 +275,7 @@ class ReplayJob:
     token: str
     threads: int = 1
     point_ids: np.ndarray = None          # with ``strain``: the frame's output rows are made on the worker
-    strain: object = None                 # the session's stream.strain.StrainStage (its compute)
+    strain: object = None                 # the session's stream.stages.strain.StrainStage (its compute)
     csv_text: bool = False                # ... and sent as CSV lines (else as columns)
 
 

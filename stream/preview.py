@@ -357,7 +357,7 @@ def add_preview_arguments(parser) -> None:
     """``livedic preview``'s options: the source, the output, and ``livedic run``'s placement options."""
     from livedic.stream.config import DEFAULT_SOURCE, add_subset_argument
     from livedic.stream.points import add_point_arguments
-    from livedic.stream.strain import add_strain_arguments
+    from livedic.stream.stages.strain import add_strain_arguments
     parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
                         help="frame source, as for livedic run (default synthetic:tensile): its first frame is drawn")
     parser.add_argument("-o", "--output", required=True, metavar="PREVIEW.png", help="the picture to write")
@@ -393,9 +393,9 @@ def first_frame(uri: str):
 def preview_command(args) -> int:
     """``livedic preview``: place as ``run`` would, draw, write ``-o``, say what was placed. Returns 0."""
     from livedic.stream.config import PointsConfig, parse_p0
-    from livedic.stream.csv_output import check_output_file
+    from livedic.stream.output.files import check_output_file
     from livedic.stream.points import check_point_count, place_points, read_points_csv
-    from livedic.stream.strain import StrainConfig
+    from livedic.stream.stages.strain import StrainConfig
     if not args.output.lower().endswith(".png"):
         raise ValueError(f"-o {args.output}: the preview is a PNG picture: name it PREVIEW.png")
     check_output_file(args.output, "-o", create_folders=True)

@@ -26,7 +26,7 @@ the seeds differ). Changed parameters keep the recorded frame set unless
 The output CSV (``-o``, default stdout) is in long format, one row per frame and
 point: ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for
 first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``, then the strain ``exx,eyy,exy``
-recomputed on the replayed displacements (``stream.strain``; NaN where a point has none); numbers at full
+recomputed on the replayed displacements (``stream.stages.strain``; NaN where a point has none); numbers at full
 precision (they read back as the same float64). ``-o OUT.parquet`` writes the same columns as a Parquet
 file instead (typed: integers int64, ``ok`` bool, the rest float64 with NaN; ``stream.replay_rows``);
 any other suffix is refused. The output is written under a temporary name and renamed into place
@@ -76,13 +76,13 @@ from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsCon
                                    parse_exclusion, parse_p0, parse_roi, read_mask,
                                    search_method, subpixel_method)
 from livedic.stream.points import add_region_arguments, place_points, read_points_csv
-from livedic.stream.progress import ProgressBar, add_progress_argument, progress_enabled
+from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay_rows import CsvRows, check_rows_output, frame_rows, rows_output
 from livedic.stream.session import NoFrame, Session, format_strain_summary
-from livedic.stream.sinks import FunctionSink
-from livedic.stream.load_stage import format_force_summary
-from livedic.stream.strain import StrainConfig, add_strain_arguments, overrides_from_args
-from livedic.stream.stress import add_stress_arguments, stress_options_from_args
+from livedic.stream.pipeline.sinks import FunctionSink
+from livedic.stream.stages.force import format_force_summary
+from livedic.stream.stages.strain import StrainConfig, add_strain_arguments, overrides_from_args
+from livedic.stream.stages.stress import add_stress_arguments, stress_options_from_args
 
 from livedic.stream.export import read_session_or_note, reader_notes, say
 
@@ -355,9 +355,9 @@ class ReplayReport:
     recorded_version: str = ""
     notes: list = field(default_factory=list)
     truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
-    strain: dict = None              # stream.strain.StrainStage.summary() of the replay (final extensometers)
+    strain: dict = None              # stream.stages.strain.StrainStage.summary() of the replay (final extensometers)
     parallel: object = None          # stream.parallel_replay.ParallelStats when measured on Dask (--workers, --cluster)
-    force: dict = None               # stream.load_stage.LoadStage.summary() with --load
+    force: dict = None               # stream.stages.force.LoadStage.summary() with --load
 
     @property
     def exact(self):
@@ -489,7 +489,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     threads : int
         numba threads while tracking.
     strain : dict, optional
-        Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``); the
+        Strain settings replacing the recorded ones (``stream.stages.strain.overrides_from_args``); the
         strain fields and extensometers are recomputed on the replayed displacements.
     workers : int, optional
         Measure the frames in parallel on a local Dask cluster of this many worker processes
@@ -501,7 +501,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     shared_path : str, optional
         Parallel: the workers read the frames from the recording at this path themselves ("": ``path``,
         made absolute) instead of receiving each image (``acquire.recording.reader.FrameReader``).
-    stress : stream.stress.StressOptions, optional
+    stress : stream.stages.stress.StressOptions, optional
         The machine's force (``--load csv:FILE``, its offset, A0): each frame's force and engineering
         stress, from the session's load stage as in ``livedic run``, become the rows' last columns
         (``FORCE_COLUMNS``) and ``report.force`` its summary.

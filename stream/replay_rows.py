@@ -8,7 +8,7 @@ way, so the files are the same.
 
 The output format follows the suffix of ``-o`` (``output_format``): ``.csv`` (also stdout, no
 ``-o`` or ``-o -``) or ``.parquet`` (``.pq``). Both hold the same columns in the same order,
-one row per frame and point; the CSV as ``stream.csv_text`` writes numbers (full precision),
+one row per frame and point; the CSV as ``stream.output.csv_text`` writes numbers (full precision),
 the Parquet file typed (``column_type``: the integers int64, ``ok`` bool, the rest float64, NaN
 kept as NaN), zstd-compressed, in row groups of about ``ROW_GROUP_ROWS`` rows (whole frames), so
 pandas (``read_parquet``), polars (``read_parquet``/``scan_parquet``), DuckDB and Arrow read it
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-from livedic.stream.csv_output import OutputError, check_output_file
-from livedic.stream.csv_text import csv_rows, scalar_text
+from livedic.stream.output.files import OutputError, check_output_file
+from livedic.stream.output.csv_text import csv_rows, scalar_text
 from livedic.stream.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")

@@ -23,7 +23,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
 (``stream.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
-(``stream.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
+(``stream.stages.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
 engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
 0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
 only all together; existing ones are kept unless ``--overwrite``.
@@ -34,7 +34,7 @@ import os
 from datetime import datetime, timezone
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.csv_output import check_output_folder, json_text
+from livedic.stream.output.files import check_output_folder, json_text
 
 __all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_command", "report_json", "report_markdown"]
 
@@ -124,10 +124,10 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     Parameters
     ----------
     path, directory : str or os.PathLike
-    stress : stream.stress.StressOptions
+    stress : stream.stages.stress.StressOptions
         Force file, its offset, and A0; ``load`` ``RECORDED_FORCE`` for the recording's own force.
     strain : dict, optional
-        Strain settings replacing the recorded ones (``stream.strain.overrides_from_args``).
+        Strain settings replacing the recorded ones (``stream.stages.strain.overrides_from_args``).
     overwrite : bool
 
     Raises
@@ -141,7 +141,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     from livedic.dic.tensile.poisson import contraction_ratios
     from livedic.dic.tensile.properties import tensile_properties
     from livedic.stream.export import RecordedForce, axial_series, reader_notes
-    from livedic.stream.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
+    from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
@@ -189,7 +189,7 @@ def report_command(args):
     Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.stress_from_args``).
     """
     from livedic.stream.export import say, stress_from_args
-    from livedic.stream.strain import overrides_from_args
+    from livedic.stream.stages.strain import overrides_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
     stress, stress_notes = stress_from_args(args)
     if stress is None:

@@ -16,7 +16,7 @@ Ctrl-C (SIGINT) or SIGTERM stops acquisition, tracks what is already queued,
 and closes the recording properly. A camera lost mid-run ends the session
 (recording closed, summary, ``SourceLost``) or, with ``--reconnect``, is
 reopened until it is back while the session, its reference and its recording
-stay open (``stream.acquisition.Reconnect``).
+stay open (``stream.pipeline.acquisition.Reconnect``).
 """
 
 import signal
@@ -26,11 +26,11 @@ from livedic.acquire.base import SourceError, SourceLost
 from livedic.stream.config import (DEFAULT_SOURCE, DROP_CHOICES, add_subset_argument,
                                    PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
                                    subpixel_method)
-from livedic.stream.csv_output import json_text, write_text_atomic
+from livedic.stream.output.files import json_text, write_text_atomic
 from livedic.stream.points import add_point_arguments
 from livedic.stream.session import Session
-from livedic.stream.strain import add_strain_arguments
-from livedic.stream.stress import add_stress_arguments
+from livedic.stream.stages.strain import add_strain_arguments
+from livedic.stream.stages.stress import add_stress_arguments
 
 _TRACKING = TrackingConfig()
 

@@ -27,7 +27,7 @@ the session stands is ``phase`` (a ``Phase``); how it went is data: ``stats``,
 ``acquisition`` (frames, losses, ``error``), ``recorder``, ``sink_errors``,
 ``stopped_by``, ``render_seconds``.
 
-Sinks (``stream.sinks``): the recording of results, the Rerun view, the P0
+Sinks (``stream.pipeline.sinks``): the recording of results, the Rerun view, the P0
 check and the progress line are built in; ``Session(config, sinks=[...])``
 adds more (a replay's comparison and CSV, the soak's memory monitor; strain,
 extensometers or load channels later).
@@ -49,19 +49,19 @@ from livedic.dic import bspline
 from livedic.dic.status import Status
 from livedic.dic.strain import field_fit
 from livedic.acquire.base import SourceError
-from livedic.stream.acquisition import AcquisitionThread, Reconnect
+from livedic.stream.pipeline.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.config import VIEWER_NONE
-from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
-from livedic.stream.poisson import ContractionWatch, format_poisson, has_pair
+from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
+from livedic.stream.stages.contraction import ContractionWatch, format_poisson, has_pair
 from livedic.stream.points import PlacedBy, check_point_count, default_roi, place_points, read_points_csv
 from livedic.stream.preview import setup_overlay
-from livedic.stream.progress import ProgressBar
-from livedic.stream.load_stage import format_force_summary
+from livedic.stream.pipeline.progress import ProgressBar
+from livedic.stream.stages.force import format_force_summary
 from livedic.stream.publish import format_publish_summary
-from livedic.stream.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
+from livedic.stream.pipeline.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                   ReferenceUpdates)
-from livedic.stream.strain import AXIAL, StrainConfig, format_length
-from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
+from livedic.stream.stages.strain import AXIAL, StrainConfig, format_length
+from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
 from livedic.stream.view.process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 
 
@@ -274,7 +274,7 @@ class Session:
         Track exactly these points (P0 first), or ``points(reference_image)``'s, instead of
         ``config.points``' grid and P0 (a replay of the recorded points).
     sinks : sequence of callables, optional
-        More sinks, called after the built-in ones (``stream.sinks``).
+        More sinks, called after the built-in ones (``stream.pipeline.sinks``).
     say : callable, optional
         ``say(message)`` receives the session's messages; default: a ``livedic: `` line on stderr.
 
@@ -291,9 +291,9 @@ class Session:
         The points (P0 first), from ``prepare``.
     p0 : stream.p0.P0Choice or None
         Where P0 is and why (None when ``points`` were given).
-    strain : stream.strain.StrainStage or None
+    strain : stream.stages.strain.StrainStage or None
         The strain and extensometer stage on the points, from ``prepare``.
-    poisson : stream.poisson.ContractionWatch or None
+    poisson : stream.stages.contraction.ContractionWatch or None
         Poisson's ratio over the elastic range, with the ``axial``/``transverse`` pair, from ``start``.
     publishers : list of stream.publish.PublishStage
         The ``--publish`` outlets, opened in ``prepare`` (before any output), closed by ``close``.
@@ -637,7 +637,7 @@ class Session:
 
     def _check_outputs(self):
         """``OutputError`` (one line) for an output that cannot be written, before anything starts."""
-        from livedic.stream.csv_output import check_output_file
+        from livedic.stream.output.files import check_output_file
         config = self.config
         if config.record:
             check_output_file(config.record, "--record" if config.record_named else
@@ -697,7 +697,7 @@ class Session:
         config = self.config
         if config.load is None:
             return
-        from livedic.stream.load_stage import LoadStage, open_session_load
+        from livedic.stream.stages.force import LoadStage, open_session_load
         self.load = open_session_load(config.load, offset_s=config.load_offset, camera=self.source)
         area = config.area_mm2
         if area is None:

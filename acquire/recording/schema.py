@@ -556,7 +556,7 @@ def json_default(value):
 
     The format's conversion for ``json.dumps(..., default=json_default)``: session and
     frame metadata go through it (``to_json``). NaN stays NaN here (Python's JSON reads it
-    back); strict JSON files are ``stream.csv_output.json_text``'s.
+    back); strict JSON files are ``stream.output.files.json_text``'s.
     """
     if isinstance(value, np.ndarray):
         return value.tolist()

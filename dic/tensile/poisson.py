@@ -36,7 +36,7 @@ dilution): at the minimum span it is below 1 %.
 The plastic contraction ratio (never called Poisson's ratio: plastic flow keeps the volume, 0.5
 for metals) is the same slope over the plastic range: with a force, from the proof point (0.2 %
 plastic strain) to the end of uniform elongation (the force within 0.5 % of its maximum, as
-``stream.stress`` takes it); without, the linear part of transverse against axial strain that
+``stream.stages.stress`` takes it); without, the linear part of transverse against axial strain that
 follows the elastic range (a neck bends it).
 """
 

@@ -4,7 +4,7 @@
 tensile test is watched by, and the small plots; docs/guide/live-view.md shows the result. Imports rerun when called.
 """
 
-from livedic.stream.strain import AXIAL, TRANSVERSE
+from livedic.stream.stages.strain import AXIAL, TRANSVERSE
 from livedic.stream.view.entities import (
     CAMERA, DROPS, ERROR, EVENTS, EXTENSOMETER_LINES, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FORCE, LATENCY,
     LEGEND_EYY, LEGEND_U, LEGEND_V, LOST, LOW_ZNCC, P0, QUALITY, SETUP, SETUP_NOTES, SUMMARY, THROUGHPUT, TRACKING)
@@ -56,7 +56,7 @@ def axial_transverse_pair(strain):
 
 def make_blueprint(has_truth, strain=None, load=None, *, setup=False, strain_xy=None, stress_xy=None):
     """The session's layout (docs/guide/live-view.md): ``has_truth`` adds the error plot, ``strain`` (the session's
-    ``stream.strain.StrainStage``) the e_yy view and the extensometer plots, ``load`` the force plot,
+    ``stream.stages.strain.StrainStage``) the e_yy view and the extensometer plots, ``load`` the force plot,
     ``setup`` the set-up tabs; ``strain_xy`` and ``stress_xy`` are the ``xy_plot.XYPlot``s shown (or None)."""
     import rerun.blueprint as rrb
     field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"

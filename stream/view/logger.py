@@ -2,7 +2,7 @@
 
 What it draws (the entity tree, the colour rules, the point sizes, the layout and the viewer modes) is
 described in docs/guide/live-view.md. ``start`` opens the viewer or file (``viewer``) with the layout
-(``blueprint``) and logs what does not change; each call logs one ``stream.tracker_loop.FrameResult``;
+(``blueprint``) and logs what does not change; each call logs one ``stream.pipeline.tracker_loop.FrameResult``;
 ``close`` flushes and ends the stream. One logging thread; a background thread only flushes. A live session
 runs the logger in a process of its own (``process``).
 """
@@ -16,8 +16,8 @@ import numpy as np
 
 from livedic.dic.strain.extensometer import end_displacements
 from livedic.dic.tensile.properties import FRACTURE_DROP
-from livedic.stream.load_stage import axial_strain
-from livedic.stream.strain import AXIAL
+from livedic.stream.stages.force import axial_strain
+from livedic.stream.stages.strain import AXIAL
 from livedic.stream.view.blueprint import axial_transverse_pair, make_blueprint
 from livedic.stream.view.camera_image import CameraImagePacing, display_image, display_scale
 from livedic.stream.view.colour_bar import LEGENDS, colour_bar_image
@@ -64,7 +64,7 @@ def _poisson_text(poisson):
 
 
 class RerunLogger:
-    """Sends a live session to Rerun (docs/guide/live-view.md); a session sink (``stream.sinks``).
+    """Sends a live session to Rerun (docs/guide/live-view.md); a session sink (``stream.pipeline.sinks``).
 
     Parameters
     ----------
@@ -151,13 +151,13 @@ class RerunLogger:
         self._first_bars = {}                    # legend -> (limits, image) drawn by start()
         self._no_strain_colour = pack_colours([NO_STRAIN_COLOUR])[0]
         self._extensometer_colours = self._lost_colour = None
-        self._strain = None                      # the session's stream.strain.StrainStage, from start()
+        self._strain = None                      # the session's stream.stages.strain.StrainStage, from start()
         self._end_u = self._end_v = None         # last known displacement of each extensometer end
         self._series_shown = {}                  # extensometer name -> its strain series has a value now
         self._xy_pair = None                     # (axial index, transverse index) for the transverse-vs-axial plot
         self._strain_xy = None                   # that plot (XYPlot), from start()
         self._fit_drawn = None                   # (value, frames) of the elastic fit drawn on it
-        self._load = None                        # the session's stream.load_stage.LoadStage, from start()
+        self._load = None                        # the session's stream.stages.force.LoadStage, from start()
         self._stress_xy = None                   # the stress-strain plot (XYPlot): with a load, A0 and "axial"
         self._force_shown = False
         self._fractured = False                  # a fracture was detected (result.fracture)
@@ -200,9 +200,9 @@ class RerunLogger:
         ``setup`` is the session's ``stream.preview.SetupOverlay`` (None: the ROI's box only): the region's
         outline on the camera view and the set-up view (``log_setup``).
 
-        ``strain`` is the session's ``stream.strain.StrainStage`` (None: no strain): with it the view
+        ``strain`` is the session's ``stream.stages.strain.StrainStage`` (None: no strain): with it the view
         adds e_yy, the extensometers and their plots (docs/guide/live-view.md). ``load`` is the session's
-        ``stream.load_stage.LoadStage`` (None: no force): with it the force against time and, with
+        ``stream.stages.force.LoadStage`` (None: no force): with it the force against time and, with
         a cross-section and an ``axial`` extensometer, the stress-strain curve.
         """
         if not self.enabled:
@@ -415,7 +415,7 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- per frame
     def log_frame(self, result, stats, *, camera_image=None):
-        """Log one ``stream.tracker_loop.FrameResult`` (a TrackerLoop sink).
+        """Log one ``stream.pipeline.tracker_loop.FrameResult`` (a TrackerLoop sink).
 
         ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
         (``stream.view.process``: paced and prepared in the session's process); None: chosen here, by

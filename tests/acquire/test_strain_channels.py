@@ -16,7 +16,7 @@ from livedic.acquire.recording.reader import (CorruptRecording, Recording, read_
 from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.dic.strain import StrainStatus
 from livedic.acquire.recording.writer import Recorder
-from livedic.stream.strain import StrainConfig
+from livedic.stream.stages.strain import StrainConfig
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")

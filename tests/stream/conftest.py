@@ -28,7 +28,7 @@ def _make(tmp_path, variant, monkeypatch):
     if variant == "denied":
         import tempfile
 
-        import livedic.stream.csv_output as csv_output
+        import livedic.stream.output.files as csv_output
         folder = tmp_path / "denied"
         folder.mkdir()
         real = tempfile.mkstemp

@@ -1,5 +1,5 @@
 """A reference and a frame of different bit depths (16-bit against 8-bit): measured as well as at one depth, and
-warned about once (``stream.sinks.bit_depth_change``), in ``livedic measure`` and in a session."""
+warned about once (``stream.pipeline.sinks.bit_depth_change``), in ``livedic measure`` and in a session."""
 
 import cv2
 import numpy as np

@@ -170,7 +170,7 @@ def test_output_to_a_folder_names_the_folder_not_a_temporary_file(image_pair, tm
 
 def test_output_file_gets_the_usual_permissions(image_pair, tmp_path):
     """Like replay and export: 0666 & ~umask (mkstemp alone would give 0600)."""
-    from livedic.stream.csv_output import current_umask
+    from livedic.stream.output.files import current_umask
     out = tmp_path / "out.csv"
     previous = os.umask(0o022)
     try:

@@ -1,4 +1,4 @@
-"""``stream.csv_text``: the column-at-a-time CSV text is, byte for byte, the text livedic wrote cell by cell.
+"""``stream.output.csv_text``: the column-at-a-time CSV text is, byte for byte, the text livedic wrote cell by cell.
 
 The contract (``replay -o OUT.csv``, ``export``'s CSV files): a float is Python's ``repr`` of it as a float64,
 an integer its digits, a boolean 1/0, a scalar repeated on every row. The references here are that contract
@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from livedic.bench.replay import per_cell_csv_rows
-from livedic.stream import csv_text
-from livedic.stream.csv_text import csv_rows, float_texts
+from livedic.stream.output import csv_text as csv_text
+from livedic.stream.output.csv_text import csv_rows, float_texts
 
 SPECIAL = [0.0, -0.0, np.nan, -np.nan, np.inf, -np.inf, 5e-324, -5e-324, 2.2250738585072014e-308,
            1.7976931348623157e308, 1e-4, 9.999999999999999e-05, 1e-5, 1e-6, 1e-7, 1e-9, 1e-10, 1e-11, 1e10,

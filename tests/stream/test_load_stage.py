@@ -8,7 +8,7 @@ its newest sample time growing as samples arrive. Frames every 20 ms; the misali
 import math
 from types import SimpleNamespace
 
-from livedic.stream.load_stage import MISALIGNED_FRAMES, LoadStage
+from livedic.stream.stages.force import MISALIGNED_FRAMES, LoadStage
 
 
 class FakeStream:

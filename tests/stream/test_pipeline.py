@@ -14,12 +14,12 @@ import pytest
 from livedic.acquire.base import Frame, FrameSource, SourceError, SourceLost
 from livedic.acquire.sources import open_source, parse_scheme
 from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
-from livedic.stream.acquisition import AcquisitionThread, QueuedFrame
-from livedic.stream.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
+from livedic.stream.pipeline.acquisition import AcquisitionThread, QueuedFrame
+from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser
 from livedic.stream.points import build_points
 from livedic.stream.run import add_run_arguments, run_session
-from livedic.stream.tracker_loop import TrackerLoop
+from livedic.stream.pipeline.tracker_loop import TrackerLoop
 
 
 
@@ -269,7 +269,7 @@ class Reopener:
 
 
 def _run_acquisition(source, reconnect, *, max_frames=None, timeout=10):
-    from livedic.stream.acquisition import Reconnect
+    from livedic.stream.pipeline.acquisition import Reconnect
     queue = FrameQueue(1000, BLOCK)
     events = []
     policy = Reconnect(reopen=reconnect, retry_s=0.01, on_event=lambda *e: events.append(e)) \
@@ -329,7 +329,7 @@ def test_reconnect_refuses_a_camera_that_comes_back_with_other_images():
 
 
 def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
-    from livedic.stream.acquisition import Reconnect
+    from livedic.stream.pipeline.acquisition import Reconnect
     policy = Reconnect(reopen=Reopener(*[SourceError("camera not found")] * 1000), retry_s=0.01, timeout_s=0.2)
     thread, frames, events = _run_acquisition(ListSource(5, fail_after=3, error=SourceError("cable pulled")), policy)
     assert thread.finished_reason == "error" and len(frames) == 3
@@ -339,7 +339,7 @@ def test_reconnect_gives_up_after_its_timeout_and_keeps_the_loss_as_the_error():
 
 
 def test_reconnect_waits_until_stopped_and_a_stop_ends_cleanly():
-    from livedic.stream.acquisition import Reconnect
+    from livedic.stream.pipeline.acquisition import Reconnect
     queue = FrameQueue(100)
     reopen = Reopener(*[SourceError("camera not found")] * 10_000, signal_at=5)
     thread = AcquisitionThread(ListSource(5, fail_after=3, error=SourceError("lost")), queue,
@@ -388,7 +388,7 @@ def test_tracker_loop_tracks_times_and_scores_against_the_truth():
 
 def test_session_stats_keep_per_frame_numbers_packed_with_the_same_percentiles():
     from array import array
-    from livedic.stream.tracker_loop import SessionStats
+    from livedic.stream.pipeline.tracker_loop import SessionStats
     stats = SessionStats()
     assert np.isnan(stats.latency_ms(50)) and np.isnan(stats.processing_ms(99))
     assert np.isnan(stats.delivery_delay_ms(99)) and stats.summary()["delivery_delay_p99_ms"] is None

@@ -16,7 +16,7 @@ from livedic.dic.region import Circle, Polygon, Rectangle
 from livedic.stream.config import PointsConfig, SessionConfig, ViewerConfig, parse_roi
 from livedic.stream.points import PlacedBy, place_points
 from livedic.stream.session import Session
-from livedic.stream.strain import StrainConfig
+from livedic.stream.stages.strain import StrainConfig
 from tests.conftest import specimen_scene
 
 SUBSET = 21

@@ -27,7 +27,7 @@ from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HE
                                     FrameValues, decode_registers, encode_registers, parse_publish_uri,
                                     parse_publish_uris, register_count)
 from livedic.stream.session import Session
-from livedic.stream.strain import StrainConfig
+from livedic.stream.stages.strain import StrainConfig
 
 SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
 SMALL = "synthetic:tensile?size=192x256&frames=3&fps=1000"
@@ -458,7 +458,7 @@ _WATCH_THE_FIRST_FRAME = """
 import sys
 import livedic.stream.session as session_module
 from livedic.stream.config import SessionConfig, ViewerConfig
-from livedic.stream.strain import StrainConfig
+from livedic.stream.stages.strain import StrainConfig
 
 
 class Watched(session_module.FirstFrameAhead):

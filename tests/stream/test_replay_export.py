@@ -477,7 +477,7 @@ def test_replay_to_a_folder_names_the_folder_not_a_temporary_file(recording, tmp
 
 
 def test_replay_and_export_files_get_the_usual_permissions_and_strict_json(recording, tmp_path, capsys):
-    from livedic.stream.csv_output import current_umask
+    from livedic.stream.output.files import current_umask
     expected = 0o666 & ~current_umask()
     assert main(["replay", recording, "-o", str(tmp_path / "replay.csv"), "--progress", "off"]) == 0
     assert main(["export", recording, "-o", str(tmp_path / "export")]) == 0

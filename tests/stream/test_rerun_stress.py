@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from livedic.stream.view import blueprint, entities, xy_plot
-from livedic.stream.load_stage import LoadStage, axial_strain
+from livedic.stream.stages.force import LoadStage, axial_strain
 from livedic.stream.view.logger import RerunLogger
-from livedic.stream.stress import NECKING_DROP, UniformElongationWatch
-from livedic.stream.tracker_loop import SessionStats
+from livedic.stream.stages.stress import NECKING_DROP, UniformElongationWatch
+from livedic.stream.pipeline.tracker_loop import SessionStats
 from tests.stream.test_rerun_strain import EYY, FRAMES, ROI, _field, _points, _stage, _views
 from tests.stream.test_rerun_view import SHAPE, _frame_result, _rows
 

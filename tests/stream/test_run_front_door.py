@@ -163,7 +163,7 @@ def test_the_summary_json_is_strict_json_with_null_for_missing_numbers(tmp_path)
     text = summary.read_text()
     data = json.loads(text, parse_constant=lambda name: pytest.fail(f"summary JSON holds {name}"))
     assert data["frames"] == 1 and data["latency_p50_ms"] is None
-    from livedic.stream.csv_output import current_umask
+    from livedic.stream.output.files import current_umask
     assert summary.stat().st_mode & 0o777 == 0o666 & ~current_umask()
 
 

@@ -45,7 +45,7 @@ class LoadStageSpy:
     """Observes the session's load stage: each frame's (index, arrival s, force N) after it ran."""
 
     def __init__(self, monkeypatch):
-        from livedic.stream import load_stage
+        from livedic.stream.stages import force as load_stage
         self.frames = []
         self.first_frame = threading.Event()
         original = load_stage.LoadStage.__call__

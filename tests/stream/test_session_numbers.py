@@ -16,8 +16,8 @@ import pytest
 from livedic.acquire.recording.reader import read_events
 from livedic.stream.config import PointsConfig, SessionConfig, ViewerConfig
 from livedic.stream.session import Session, drop_policy, is_live
-from livedic.stream.strain import NOISE_LIMIT, StrainConfig
-from livedic.stream.tracker_loop import SessionStats
+from livedic.stream.stages.strain import NOISE_LIMIT, StrainConfig
+from livedic.stream.pipeline.tracker_loop import SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # 150 frames: the elastic part is the first 23 (to 0.4 % axial strain), the E fit's range about 7 of them
@@ -203,7 +203,7 @@ def test_the_source_says_whether_it_is_live(tmp_path):
     import cv2
 
     from livedic.acquire.sources import open_source
-    from livedic.stream.frame_queue import BLOCK, DROP_OLDEST
+    from livedic.stream.pipeline.frame_queue import BLOCK, DROP_OLDEST
     folder = tmp_path / "images"
     folder.mkdir()
     for i in range(2):

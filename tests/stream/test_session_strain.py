@@ -14,7 +14,7 @@ import pytest
 from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.stream.config import SessionConfig, ViewerConfig
 from livedic.stream.session import Session
-from livedic.stream.strain import StrainConfig, parse_extensometer, parse_gauge_length
+from livedic.stream.stages.strain import StrainConfig, parse_extensometer, parse_gauge_length
 from tests.stream.conftest import refused_run
 
 SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"

@@ -288,7 +288,7 @@ def test_existing_report_files_are_kept_without_overwrite(test_run, tmp_path, ca
 
 
 def test_table_true_values_stop_at_the_first_maximum_and_need_a_force():
-    from livedic.stream.stress import stress_strain_table
+    from livedic.stream.stages.stress import stress_strain_table
     strain = np.array([0.0, 0.01, 0.02, 0.03, 0.04])
     table = stress_strain_table([0, 1, 2, 3, 4], [0, 1, 2, 3, 4], [0.0, 50.0, 80.0, 80.0, 60.0], strain, 4.0)
     assert table.uniform_frame == 2                               # a tie: the first frame with the maximum
@@ -382,7 +382,7 @@ def test_a_given_load_replaces_the_recorded_force_with_a_note(test_run, force_re
 
 def test_report_reads_the_recorded_force(test_run, force_recordings, tmp_path):
     from livedic.stream.report import report_recording
-    from livedic.stream.stress import RECORDED_FORCE, StressOptions
+    from livedic.stream.stages.stress import RECORDED_FORCE, StressOptions
 
     out = tmp_path / "report"
     report = report_recording(force_recordings["with_area"], out,
@@ -429,7 +429,7 @@ def test_report_command_without_load_reads_the_recorded_force_or_says_what_is_mi
 
 
 def test_force_coverage_notes_say_what_is_missing():
-    from livedic.stream.stress import force_coverage_notes
+    from livedic.stream.stages.stress import force_coverage_notes
     frames = np.arange(10)
     times = frames * 0.02
     strain = np.full(10, 0.01)

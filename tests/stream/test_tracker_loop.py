@@ -1,4 +1,4 @@
-"""The tracking thread and the output thread (stream.tracker_loop): who runs where, who waits for whom.
+"""The tracking thread and the output thread (stream.pipeline.tracker_loop): who runs where, who waits for whom.
 
 Behaviour, not timings: the sinks run off the tracking thread, in order, on every result; a view that
 blocks cannot hold the tracker back; the stage times name each stage; a required sink's error ends the
@@ -12,9 +12,9 @@ import pytest
 
 from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.tracking import Tracker
-from livedic.stream.acquisition import AcquisitionThread
-from livedic.stream.frame_queue import FrameQueue
-from livedic.stream.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
+from livedic.stream.pipeline.acquisition import AcquisitionThread
+from livedic.stream.pipeline.frame_queue import FrameQueue
+from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
 
 FRAMES = 12
 WAIT_S = 30.0          # generous: a wait that ends by timeout means the behaviour under test is broken
@@ -76,7 +76,7 @@ def test_a_blocked_view_cannot_hold_the_tracker_back():
 
 def test_the_tracker_waits_for_a_view_more_than_the_backlog_behind(monkeypatch):
     """Past OUTPUT_BACKLOG_MAX results behind, the tracking thread waits (bounded memory), and counts it."""
-    from livedic.stream import tracker_loop
+    from livedic.stream.pipeline import tracker_loop as tracker_loop
     monkeypatch.setattr(tracker_loop, "OUTPUT_BACKLOG_MAX", 3)
     tick = threading.Event()
 

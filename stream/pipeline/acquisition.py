@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 
 from livedic.acquire.base import Frame, SourceError
-from livedic.stream.frame_queue import QueueClosed
+from livedic.stream.pipeline.frame_queue import QueueClosed
 
 
 @dataclass(frozen=True)

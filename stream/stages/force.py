@@ -10,7 +10,7 @@ monotonic clock for a stream), interpolated, never extrapolated, NaN where the s
 to the ``FrameResult`` (``result.force_N``, ``result.stress_MPa``) for the sinks after it
 (recording, Rerun's stress-strain curve, progress line), with the true strain and true stress of
 the ``axial`` extensometer while the elongation may be uniform (``result.true_strain``,
-``result.true_stress_MPa``; ``stream.stress.UniformElongationWatch``), reports the source's
+``result.true_stress_MPa``; ``stream.stages.stress.UniformElongationWatch``), reports the source's
 events (connected, stalled, lost) and keeps the numbers for the summary.
 """
 
@@ -19,8 +19,8 @@ import math
 import time
 
 from livedic.acquire.force import open_load
-from livedic.stream.strain import AXIAL
-from livedic.stream.stress import UniformElongationWatch
+from livedic.stream.stages.strain import AXIAL
+from livedic.stream.stages.stress import UniformElongationWatch
 
 
 MISALIGNED_FRAMES = 25    # frames without force while samples arrive before the misalignment warning (0.5 s at 50 fps)

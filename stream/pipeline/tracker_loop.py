@@ -45,7 +45,7 @@ A stage or sink that raises is switched off and its error kept in
 ``sink_errors`` (a broken viewer must not stop a measurement); the caller
 decides what to do. One marked ``required`` (its ``required`` attribute is
 true: a replay's CSV) ends the loop instead, its error raised by ``run`` once
-the output thread has finished what it had (see ``stream.sinks``).
+the output thread has finished what it had (see ``stream.pipeline.sinks``).
 """
 
 import collections
@@ -59,7 +59,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from livedic.dic.status import Status
-from livedic.stream.frame_queue import QueueClosed
+from livedic.stream.pipeline.frame_queue import QueueClosed
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000
@@ -142,13 +142,13 @@ class FrameResult:
     capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
     reference_update: object = None   # dic.tracking.key_frames.ReferenceUpdate when this frame became the reference
     fracture: object = None       # dic.tensile.fracture.Fracture when one was detected in this frame
-    strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.strain) when it runs
-    force_N: float = None         # the machine's force at this frame (stream.load_stage), NaN when unknown
+    strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.stages.strain) when it runs
+    force_N: float = None         # the machine's force at this frame (stream.stages.force), NaN when unknown
     stress_MPa: float = None      # ... and the engineering stress
     true_strain: float = None     # ln(1 + e) of the axial extensometer while the elongation may be uniform, else NaN
-    true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stress.UniformElongationWatch)
+    true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stages.stress.UniformElongationWatch)
     extensometers: object = None  # dic.strain.extensometer.ExtensometerReadings, idem
-    poisson: object = None        # dic.tensile.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.poisson)
+    poisson: object = None        # dic.tensile.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.stages.contraction)
     output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
 
     @property
@@ -370,7 +370,7 @@ class TrackerLoop:
     Parameters
     ----------
     queue : FrameQueue
-        Holds ``stream.acquisition.QueuedFrame`` items.
+        Holds ``stream.pipeline.acquisition.QueuedFrame`` items.
     make_tracker : callable
         ``make_tracker(first_frame) -> dic.tracking.Tracker`` (built on the reference).
     reference : ReferenceReady, optional
@@ -383,7 +383,7 @@ class TrackerLoop:
         once (strain out).
     sinks : sequence of callables
         ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the output
-        thread (``stream.sinks``): recording, view, events, progress.
+        thread (``stream.pipeline.sinks``): recording, view, events, progress.
     stop_event : threading.Event, optional
         Set to end the loop after the current frame.
     max_frames : int, optional

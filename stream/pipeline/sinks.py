@@ -1,9 +1,9 @@
 """What a session does with each tracked frame: the sinks of ``stream.session.Session``.
 
-A sink is a callable ``sink(result, stats)`` (a ``stream.tracker_loop.FrameResult``
+A sink is a callable ``sink(result, stats)`` (a ``stream.pipeline.tracker_loop.FrameResult``
 and the running ``SessionStats``), called for every tracked frame, in order, in
 the session's output thread, at its own pace (the tracking thread hands results
-over and goes on: ``stream.tracker_loop``). The measurement's own stages (strain,
+over and goes on: ``stream.pipeline.tracker_loop``). The measurement's own stages (strain,
 strain out, force) have the same form and run in the tracking thread. Optional
 attributes say how the session treats it:
 
@@ -229,8 +229,8 @@ class ProgressLine:
 
     Parameters
     ----------
-    bar : stream.progress.ProgressBar
-    acquisition : stream.acquisition.AcquisitionThread
+    bar : stream.pipeline.progress.ProgressBar
+    acquisition : stream.pipeline.acquisition.AcquisitionThread
         Its frame count and reconnections are shown.
     """
     name = "progress"

@@ -1,0 +1,1 @@
+"""The stages computed on each tracked frame: strain (extensometers), force, contraction (Poisson), stress."""
