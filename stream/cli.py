@@ -476,7 +476,7 @@ def _cmd_cameras(args):
 
 
 def _cmd_recover(args):
-    from livedic.acquire.recording.reader import recover
+    from livedic.acquire.recording.recover import recover
 
     if os.path.lexists(args.output) and not args.overwrite:
         raise UsageError(f"{args.output} already exists: choose a new name, or add --overwrite to replace it")

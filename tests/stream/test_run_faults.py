@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from livedic.acquire.camera.fake_genicam import GigEFakeCamera, SpeckleMotion
-from livedic.acquire.recording.reader import McapSource, inspect_recording, read_events, read_results
+from livedic.acquire.recording.reader import inspect_recording, read_events, read_results
+from livedic.acquire.recording.source import McapSource
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 
