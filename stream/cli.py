@@ -461,7 +461,7 @@ def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=
 
 
 def _cmd_cameras(args):
-    from livedic.acquire.camera.aravis import list_cameras
+    from livedic.acquire.camera.aravis_discovery import list_cameras
 
     cameras = list_cameras(include_fake=args.fake)
     if not cameras:

@@ -19,7 +19,8 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.camera.fake_genicam import GigEFakeCamera, SpeckleMotion
+from livedic.acquire.camera.fake_gige import GigEFakeCamera
+from livedic.acquire.camera.fake_motion import SpeckleMotion
 from livedic.acquire.recording.reader import inspect_recording, read_events, read_results
 from livedic.acquire.recording.source import McapSource
 
