@@ -58,7 +58,7 @@ class RecordedResults:
 
 
 def recorded_results(values, publish_time_ns):
-    """``RecordedResults`` from ``schema.decode_results`` values."""
+    """``RecordedResults`` from ``wire.decode_results`` values."""
     return RecordedResults(
         frame_index=values["frame_index"], timestamp_ns=values["timestamp_ns"], point_id=values["point_id"],
         measurement=Measurement(**{name: values[name] for name in _MEASURED}), method=values["method"],
