@@ -79,7 +79,7 @@ def open_source(uri, **options):
 
 
 def _open_mcap(uri, options):
-    from livedic.acquire.recording.reader import McapSource
+    from livedic.acquire.recording.source import McapSource
     path = uri[len("mcap:"):] if uri.lower().startswith("mcap:") else uri
     path, _, query = path.partition("?")
     if path.startswith("//"):

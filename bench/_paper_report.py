@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from livedic.acquire.recording.schema import json_default
+from livedic.acquire.recording.metadata import json_default
 
 from livedic.bench._paper_figures import table1_rows
 from livedic.bench._paper_runs import LABELS, REFERENCE_SEARCH, SEARCHES, SUBPIXEL_MODULES, SUBPIXELS

@@ -246,7 +246,7 @@ def run_replay_benchmark(*, recording=None, frames=60, size="1024x1024", points=
         frames, size, points, workers = QUICK["frames"], QUICK["size"], QUICK["points"], QUICK["workers"]
     with tempfile.TemporaryDirectory(prefix="livedic-bench-replay-") as folder:
         path = recording or make_recording(folder, frames=frames, size=size, points=points, log=log)
-        from livedic.acquire.recording.reader import McapSource
+        from livedic.acquire.recording.source import McapSource
         with McapSource(path) as source:
             image = np.ascontiguousarray(next(iter(source)).image)
         warm_tracker()

@@ -461,7 +461,7 @@ def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=
 
 
 def _cmd_cameras(args):
-    from livedic.acquire.camera.aravis import list_cameras
+    from livedic.acquire.camera.aravis_discovery import list_cameras
 
     cameras = list_cameras(include_fake=args.fake)
     if not cameras:
@@ -476,7 +476,7 @@ def _cmd_cameras(args):
 
 
 def _cmd_recover(args):
-    from livedic.acquire.recording.reader import recover
+    from livedic.acquire.recording.recover import recover
 
     if os.path.lexists(args.output) and not args.overwrite:
         raise UsageError(f"{args.output} already exists: choose a new name, or add --overwrite to replace it")

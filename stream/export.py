@@ -168,7 +168,7 @@ def p0_point_id(metadata):
 
 def session_or_note(recording):
     """(session metadata dict, note or "") of a ``Recording``: one without metadata gives {} and a note."""
-    from livedic.acquire.recording.reader import NoSessionMetadata
+    from livedic.acquire.recording.errors import NoSessionMetadata
     try:
         return recording.session(), ""
     except NoSessionMetadata as missing:

@@ -481,13 +481,13 @@ def pvd_text(entries):
 class RecordedImages:
     """The camera images of a recording, in order, looked up by the time of each frame with results.
 
-    One pass over ``/camera/image`` (``acquire.recording.reader.McapSource``, truncated files too): frames
+    One pass over ``/camera/image`` (``acquire.recording.source.McapSource``, truncated files too): frames
     without results (dropped by a tracker that fell behind) are passed over, and a result whose
     frame's image is not in the file gets None.
     """
 
     def __init__(self, path):
-        from livedic.acquire.recording.reader import McapSource
+        from livedic.acquire.recording.source import McapSource
         self._frames = iter(McapSource(path))
         self._next = None
 

@@ -64,7 +64,7 @@ recorded (1.05 MB a frame at 1 MP 8-bit) and its seed (~110 B a point when some 
 was lost, ~57 B otherwise); a batch of no-op tasks carrying a 1 MB image cost 5-9 ms a
 task, 3 ms with 64 kB; a segment's tracker (~7.5 kB a point: the prepared reference
 subsets) once per move. ``--shared-path`` sends only the frame's key, the workers
-reading the image from the file (``acquire.recording.reader.FrameReader``: one chunk through
+reading the image from the file (``acquire.recording.source.FrameReader``: one chunk through
 the index).
 """
 
@@ -236,14 +236,14 @@ def check_worker_count(workers):
 
 
 def _worker_version():
-    from livedic.acquire.recording.container import software_version
+    from livedic.acquire.recording.chunked_writer import software_version
     return software_version()
 
 
 def check_workers(client, timeout_s=None):
     """The cluster's workers can run the replay: livedic importable on each (one line otherwise); returns
     notes (a worker with another livedic version than this process: its numbers may differ by rounding)."""
-    from livedic.acquire.recording.container import software_version
+    from livedic.acquire.recording.chunked_writer import software_version
     timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
     try:
         client.wait_for_workers(1, timeout=timeout_s)
@@ -311,7 +311,7 @@ class FrameMeasured:
 
 
 _TRACKERS = {}          # per worker thread: (segment token, thread) -> its KeyFrameTracker (a working copy)
-_READERS = {}           # per worker process: recording path -> acquire.recording.reader.FrameReader
+_READERS = {}           # per worker process: recording path -> acquire.recording.source.FrameReader
 
 
 @dataclass(frozen=True)
@@ -326,7 +326,7 @@ def _image_of(frame):
     """The image a task was given, or read from the shared recording (one reader per path and worker)."""
     if not isinstance(frame, FrameAt):
         return frame
-    from livedic.acquire.recording.reader import FrameReader
+    from livedic.acquire.recording.source import FrameReader
     reader = _READERS.get(frame.path)
     if reader is None:
         _READERS.clear()

@@ -415,7 +415,7 @@ class ReplayReport:
         if self.all_frames and self.extra_frames:
             return text + (f" ({self.extra_frames} frames the live run dropped were tracked too, so later frames "
                            f"start from other seeds)")
-        from livedic.acquire.recording.container import software_version
+        from livedic.acquire.recording.chunked_writer import software_version
         version = software_version()
         if self.recorded_version and self.recorded_version != version:
             return text + (f" with the recorded parameters: recorded with livedic {self.recorded_version}, "
@@ -500,7 +500,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         Parallel: frames submitted ahead of the one being written (default 4 per worker thread).
     shared_path : str, optional
         Parallel: the workers read the frames from the recording at this path themselves ("": ``path``,
-        made absolute) instead of receiving each image (``acquire.recording.reader.FrameReader``).
+        made absolute) instead of receiving each image (``acquire.recording.source.FrameReader``).
     stress : stream.stages.stress.StressOptions, optional
         The machine's force (``--load csv:FILE``, its offset, A0): each frame's force and engineering
         stress, from the session's load stage as in ``livedic run``, become the rows' last columns
@@ -527,7 +527,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
             check_cluster_address(cluster)          # its form, before the recording is read (one line otherwise)
         _check_parallel_input(path, given, all_frames, threads)
         if shared_path == "":
-            from livedic.acquire.recording.reader import FrameReader
+            from livedic.acquire.recording.source import FrameReader
             shared_path = os.path.abspath(path)
             FrameReader(shared_path)                # indexed? (one line otherwise)
         with dask_client(workers, cluster) as client:
@@ -557,7 +557,8 @@ def _check_parallel_input(path, given, all_frames, threads):
 def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows=None, *,
             stress=None, client=None, in_flight=None, shared_path=None, where=None, worker_notes=()):
     """``replay``: sequential (``client`` None) or on the Dask ``client``."""
-    from livedic.acquire.recording.reader import McapSource, Recording
+    from livedic.acquire.recording.reader import Recording
+    from livedic.acquire.recording.source import McapSource
 
     with reader_notes() as notes:
         metadata, session_note = read_session_or_note(path)

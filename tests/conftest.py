@@ -83,7 +83,7 @@ def time_limit(request):
 @pytest.fixture(scope="session")
 def aravis():
     """``(Aravis, GLib)``; fails with the install command when Aravis is not importable."""
-    from livedic.acquire.camera.aravis import load_aravis
+    from livedic.acquire.camera.aravis_discovery import load_aravis
     from livedic.acquire.base import SourceError
     try:
         return load_aravis()

@@ -58,38 +58,34 @@ process can abort at exit otherwise); an ``atexit`` hook closes sources the
 caller forgot. After a loss the GigE teardown waits on register-write
 timeouts (about 7 s in Aravis 0.8.26), so it runs in a background
 (non-daemon) thread and ``close()`` returns at once.
+
+Finding cameras and their URIs: ``aravis_discovery``; the declared settings: ``aravis_settings``.
 """
 
 import atexit
 import contextlib
 import ctypes
-import ipaddress
 import logging
 import math
 import threading
 import time
 import weakref
-from dataclasses import dataclass
-from typing import Callable
-from urllib.parse import parse_qsl
 
 import numpy as np
 
 from livedic.acquire.base import Frame, FrameSource, NoFirstFrame, SourceError
 from livedic.acquire.camera import genicam
 from livedic.acquire.camera import pixel_formats
+from livedic.acquire.camera.aravis_discovery import (SCHEME, address_text, find_listed, gerror_message, interface_name,
+                                                     is_ip_address, list_cameras, load_aravis, parse_uri)
+from livedic.acquire.camera.aravis_settings import NO_USER_SET, SETTINGS, SUPPORTED_PIXEL_FORMATS, as_user_set, shown
 from livedic.acquire.options import as_bool, as_float, as_int
 
-__all__ = ["AravisCamera", "list_cameras", "open_uri", "parse_uri", "load_aravis",
-           "SUPPORTED_PIXEL_FORMATS", "SCHEME", "FEATURE_PREFIX"]
+__all__ = ["AravisCamera", "open_uri", "FEATURE_PREFIX"]
 
 log = logging.getLogger("livedic.acquire.camera.aravis")
 
-SCHEME = "aravis"
 FEATURE_PREFIX = "feature."      # feature.NAME=VALUE: any GenICam feature by name
-
-# The formats livedic reads, by GenICam name (acquire.camera.pixel_formats).
-SUPPORTED_PIXEL_FORMATS = tuple(pixel_formats.FORMATS)
 
 _POP_SLICE_US = 100_000          # wait for buffers in 100 ms slices so close() is honoured quickly
 _MIN_FREE_BUFFERS = 2           # grow the pool when the consumer leaves fewer buffers than this
@@ -98,10 +94,6 @@ _FIRST_FRAME_EXTRA_S = 2.0       # start-up allowance added to timeout_s for the
 # while a scheduling hiccup of a few hundred ms on a loaded machine is not taken for a loss.
 _LOST_FLOOR_S = 0.5
 _GV_ID_WRAP = 65535              # GigE Vision 16-bit block ids go 65535 -> 1 (0 is skipped)
-# GigE packet size on the loopback address (a simulator) unless asked: a full 2048x2048 Mono8 frame from
-# arv-fake-gv-camera-0.8 came at 12 fps with its 1400-byte default and 24-25 fps (its 25 fps) with 9000.
-_LOOPBACK_PACKET_SIZE = 9000
-_NO_USER_SET = "none"            # user_set=none: load no user set
 
 # In-process Fake devices: device id -> attach(arv_camera) -> keep-alive object.
 # ``acquire.camera.fake_genicam.InProcessFakeCamera`` registers here so that opening
@@ -111,124 +103,6 @@ FAKE_FILL_HOOKS: dict = {}
 
 _OPEN_SOURCES = weakref.WeakSet()
 _TEARDOWN_THREADS = []
-_ARAVIS = None
-
-
-# --------------------------------------------------------------------------- #
-# Loading Aravis
-# --------------------------------------------------------------------------- #
-
-def load_aravis():
-    """Import ``gi.repository.Aravis`` 0.8 (and GLib) once; ``SourceError`` with the fix if missing."""
-    global _ARAVIS
-    if _ARAVIS is None:
-        try:
-            import gi
-            gi.require_version("Aravis", "0.8")
-            from gi.repository import Aravis, GLib
-        except (ImportError, ValueError) as error:
-            raise SourceError(
-                f"Aravis 0.8 is not importable from this Python ({error}): run "
-                "'scripts/install_system.sh .venv' (Debian packages gir1.2-aravis-0.8, python3-gi "
-                "and a link to Debian's gi in the venv)") from error
-        _ARAVIS = (Aravis, GLib)
-    return _ARAVIS
-
-
-def _gerror_message(error):
-    return getattr(error, "message", None) or str(error)
-
-
-# --------------------------------------------------------------------------- #
-# Listing cameras and parsing URIs
-# --------------------------------------------------------------------------- #
-
-def list_cameras(*, include_fake=False):
-    """Cameras Aravis can see now (GigE discovery takes about 1 s).
-
-    Parameters
-    ----------
-    include_fake : bool
-        Also list Aravis's in-process ``Fake_1`` camera (enables the Fake interface).
-
-    Returns
-    -------
-    list of dict
-        One per camera: ``id`` (what ``aravis:ID`` takes), ``vendor``, ``model``,
-        ``serial``, ``protocol`` (``GigEVision``, ``USB3Vision``, ``Fake``),
-        ``interface`` (``gige``, ``usb3``, ``fake``), ``address`` (IP for GigE),
-        ``physical_id`` (MAC for GigE), ``uri`` (``aravis:ID``: opens this camera).
-    """
-    Aravis, _ = load_aravis()
-    if include_fake:
-        Aravis.enable_interface("Fake")
-    Aravis.update_device_list()
-    cameras = []
-    for i in range(Aravis.get_n_devices()):
-        protocol = Aravis.get_device_protocol(i) or ""
-        device_id = Aravis.get_device_id(i)
-        cameras.append({
-            "id": device_id,
-            "vendor": Aravis.get_device_vendor(i),
-            "model": Aravis.get_device_model(i),
-            "serial": Aravis.get_device_serial_nbr(i),
-            "protocol": protocol,
-            "interface": _interface_name(protocol),
-            "address": Aravis.get_device_address(i),
-            "physical_id": Aravis.get_device_physical_id(i),
-            "uri": f"{SCHEME}:{device_id}",
-        })
-    return cameras
-
-
-def _interface_name(protocol):
-    return {"GigEVision": "gige", "USB3Vision": "usb3", "Fake": "fake"}.get(protocol, (protocol or "?").lower())
-
-
-def _is_ip_address(text):
-    try:
-        ipaddress.ip_address(text)
-    except ValueError:
-        return False
-    return True
-
-
-def _address_text(get):
-    """``get()``'s IP address as text (a GInetSocketAddress without its port), None if unreadable."""
-    try:
-        address = get()
-        if hasattr(address, "get_address"):
-            address = address.get_address()
-        return address.to_string()
-    except Exception:  # noqa: BLE001 - informative only
-        return None
-
-
-def _find_listed(cameras, device_id):
-    """The listed camera ``device_id`` names (its id, serial or MAC); the first one (not a fake) for None."""
-    if device_id is None:
-        real = [c for c in cameras if c["protocol"] != "Fake"]
-        return (real or cameras or [None])[0]
-    wanted = device_id.strip().lower()
-    for camera in cameras:
-        if wanted in {str(camera.get(key) or "").lower() for key in ("id", "serial", "physical_id")}:
-            return camera
-    return None
-
-
-def parse_uri(uri):
-    """Split ``aravis:[DEVICE_ID][?key=value&...]`` into ``(device_id or None, {key: str})``."""
-    if not isinstance(uri, str) or not uri[:len(SCHEME) + 1].lower() == SCHEME + ":":
-        raise SourceError(f"not an Aravis URI: {uri!r} (expected 'aravis:' or 'aravis:DEVICE_ID')")
-    rest = uri[len(SCHEME) + 1:]
-    device, _, query = rest.partition("?")
-    if device.startswith("//"):
-        device = device[2:]
-    options = {}
-    if query:
-        for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=False):
-            options[key] = value
-    return (device or None), options
 
 
 def open_uri(uri, **options):
@@ -236,249 +110,6 @@ def open_uri(uri, **options):
     device_id, query = parse_uri(uri)
     merged = {**query, **options}
     return AravisCamera(device_id, uri=uri, **merged)
-
-
-# --------------------------------------------------------------------------- #
-# Option parsing (strings from URIs, values from Python)
-# --------------------------------------------------------------------------- #
-
-def _as_roi(name, value):
-    if isinstance(value, str):
-        parts = [p for p in value.replace("x", ",").replace(" ", ",").split(",") if p]
-    else:
-        try:
-            parts = list(value)
-        except TypeError:
-            parts = [value]
-    if len(parts) != 4:
-        raise SourceError(f"option {name}={value!r} must be 4 integers x,y,w,h")
-    x, y, w, h = (as_int(name, p) for p in parts)
-    if x < 0 or y < 0 or w <= 0 or h <= 0:
-        raise SourceError(f"option {name}={value!r}: need x >= 0, y >= 0, w > 0, h > 0")
-    return (x, y, w, h)
-
-
-def _as_binning(name, value):
-    parts = [p for p in str(value).replace("x", ",").split(",") if p.strip()] if isinstance(value, str) \
-        else list(value) if isinstance(value, (tuple, list)) else [value]
-    if len(parts) not in (1, 2):
-        raise SourceError(f"option {name}={value!r}: write H or H,V (pixels binned across, down)")
-    numbers = [as_int(name, p, low=1) for p in parts]
-    return (numbers[0], numbers[-1])
-
-
-def _as_pixel_format(name, value):
-    fmt = pixel_formats.by_name(value)
-    if fmt is None:
-        raise SourceError(f"pixel format {str(value).strip()!r} is not supported: livedic reads "
-                          f"{', '.join(SUPPORTED_PIXEL_FORMATS)} (10 to 16 bits as uint16)")
-    return fmt.name
-
-
-def _as_user_set(name, value):
-    text = str(value).strip()
-    if not text:
-        raise SourceError(f"option {name}=: name a user set (e.g. Default, UserSet1) or none")
-    return _NO_USER_SET if text.lower() == _NO_USER_SET else text
-
-
-# --------------------------------------------------------------------------- #
-# Declared settings
-# --------------------------------------------------------------------------- #
-
-@dataclass(frozen=True)
-class Setting:
-    """A camera setting: parsed, checked against bounds, applied, then read back.
-
-    ``default(source)`` is what an open sets when the option is not given (the known
-    state), None to leave the camera's value (after its user set).
-    """
-    name: str
-    parse: Callable
-    apply: Callable      # apply(source, value) -> None, raises SourceError with bounds
-    read: Callable       # read(source) -> value actually in use
-    doc: str
-    default: Callable = lambda source: None
-
-
-def _check_range(name, value, low, high, unit):
-    if not (low <= value <= high):
-        raise SourceError(f"{name}={value:g} is outside this camera's range [{low:g}, {high:g}] {unit}".rstrip())
-
-
-def _offered_pixel_formats(source):
-    return list(source._camera.dup_available_pixel_formats_as_strings() or [])
-
-
-def _default_pixel_format(source):
-    """Mono8, else the first format livedic reads that the camera offers (a 12-bit-only camera)."""
-    offered = _offered_pixel_formats(source)
-    return next((name for name in SUPPORTED_PIXEL_FORMATS if name in offered), "Mono8")
-
-
-def _apply_pixel_format(source, value):
-    cam = source._camera
-    offered = _offered_pixel_formats(source)
-    if value not in offered:
-        usable = [f for f in SUPPORTED_PIXEL_FORMATS if f in offered]
-        raise SourceError(
-            f"pixel format {value} is not offered by camera {source._label}: supported here "
-            f"{', '.join(usable) or 'none of ' + ', '.join(SUPPORTED_PIXEL_FORMATS)} "
-            f"(camera offers {', '.join(offered) or 'nothing'})")
-    source._call(f"set pixel_format={value}", cam.set_pixel_format_from_string, value)
-
-
-def _read_pixel_format(source):
-    return source._camera.get_pixel_format_as_string()
-
-
-def _default_binning(source):
-    return (1, 1) if source._camera.is_binning_available() else None
-
-
-def _apply_binning(source, value):
-    cam = source._camera
-    if not cam.is_binning_available():
-        raise SourceError(f"binning={value[0]},{value[1]}: camera {source._label} has no binning control")
-    for feature, factor in (("BinningHorizontal", value[0]), ("BinningVertical", value[1])):
-        bounds = source._call(f"read the bounds of {feature}", cam.get_integer_bounds, feature)
-        _check_range(f"binning ({feature})", factor, bounds.min, bounds.max, "")
-    source._call(f"set binning={value[0]},{value[1]}", cam.set_binning, *value)
-
-
-def _read_binning(source):
-    cam = source._camera
-    if not cam.is_binning_available():
-        return None
-    binning = cam.get_binning()
-    return (binning.dx, binning.dy)
-
-
-_FULL_SENSOR = "full"            # the roi default: the whole sensor (at the binning in use)
-
-
-def _default_roi(source):
-    return _FULL_SENSOR
-
-
-def _apply_roi(source, value):
-    cam = source._camera
-    if value == _FULL_SENSOR:
-        # Offsets to 0 first: the widest Width a camera allows shrinks with OffsetX.
-        region = cam.get_region()
-        source._call("set roi offsets to 0", cam.set_region, 0, 0, region.width, region.height)
-        value = (0, 0, cam.get_width_bounds().max, cam.get_height_bounds().max)
-        source._call(f"set roi to the full sensor {value}", cam.set_region, *value)
-        return
-    x, y, w, h = value
-    sensor = cam.get_sensor_size()
-    binning = _read_binning(source) or (1, 1)
-    wide, high = sensor.width // binning[0], sensor.height // binning[1]
-    wb, hb = cam.get_width_bounds(), cam.get_height_bounds()
-    problems = []
-    if not (wb.min <= w <= wb.max):
-        problems.append(f"width {w} not in [{wb.min}, {wb.max}]")
-    if not (hb.min <= h <= hb.max):
-        problems.append(f"height {h} not in [{hb.min}, {hb.max}]")
-    if x + w > wide or y + h > high:
-        problems.append(f"x + w = {x + w}, y + h = {y + h} exceed the sensor {wide}x{high}"
-                        + (f" (binned {binning[0]}x{binning[1]})" if binning != (1, 1) else ""))
-    if problems:
-        raise SourceError(f"roi={value} does not fit camera {source._label}: {'; '.join(problems)}")
-    # Offsets first to 0 so a larger width fits, then size, then offsets (what set_region does).
-    source._call(f"set roi={value}", cam.set_region, x, y, w, h)
-
-
-def _read_roi(source):
-    region = source._camera.get_region()
-    return (region.x, region.y, region.width, region.height)
-
-
-def _apply_exposure(source, value):
-    cam = source._camera
-    if not cam.is_exposure_time_available():
-        raise SourceError(f"camera {source._label} has no exposure time control")
-    if cam.is_exposure_auto_available():
-        Aravis, _ = load_aravis()
-        source._call("exposure auto off", cam.set_exposure_time_auto, Aravis.Auto.OFF)
-    bounds = cam.get_exposure_time_bounds()
-    _check_range("exposure_us", value, bounds.min, bounds.max, "us")
-    source._call(f"set exposure_us={value:g}", cam.set_exposure_time, float(value))
-
-
-def _read_exposure(source):
-    cam = source._camera
-    return cam.get_exposure_time() if cam.is_exposure_time_available() else None
-
-
-def _apply_gain(source, value):
-    cam = source._camera
-    if not cam.is_gain_available():
-        raise SourceError(f"camera {source._label} has no gain control")
-    if cam.is_gain_auto_available():
-        Aravis, _ = load_aravis()
-        source._call("gain auto off", cam.set_gain_auto, Aravis.Auto.OFF)
-    bounds = cam.get_gain_bounds()
-    _check_range("gain_db", value, bounds.min, bounds.max, "dB")
-    source._call(f"set gain_db={value:g}", cam.set_gain, float(value))
-
-
-def _read_gain(source):
-    cam = source._camera
-    return cam.get_gain() if cam.is_gain_available() else None
-
-
-def _apply_frame_rate(source, value):
-    if source._software_trigger:
-        return   # the rate livedic fires the trigger at; the camera's own limit is off (genicam.apply_trigger)
-    cam = source._camera
-    if not cam.is_frame_rate_available():
-        raise SourceError(f"camera {source._label} has no frame rate control")
-    bounds = cam.get_frame_rate_bounds()
-    _check_range("frame_rate", value, bounds.min, bounds.max, "fps")
-    source._call(f"set frame_rate={value:g}", cam.set_frame_rate, float(value))
-
-
-def _read_frame_rate(source):
-    cam = source._camera
-    return cam.get_frame_rate() if cam.is_frame_rate_available() else None
-
-
-def _default_packet_size(source):
-    address = source._info.get("address")
-    loopback = address is not None and _is_ip_address(address) and ipaddress.ip_address(address).is_loopback
-    return _LOOPBACK_PACKET_SIZE if loopback and source._camera.is_gv_device() else None
-
-
-def _apply_packet_size(source, value):
-    cam = source._camera
-    if not cam.is_gv_device():
-        raise SourceError("packet_size applies to GigE Vision cameras only")
-    source._call(f"set packet_size={value}", cam.gv_set_packet_size, int(value))
-
-
-def _read_packet_size(source):
-    cam = source._camera
-    return cam.gv_get_packet_size() if cam.is_gv_device() else None
-
-
-def _apply_trigger(source, value):
-    genicam.apply_trigger(source._camera, source._call, value)
-
-
-def _read_trigger(source):
-    return genicam.read_trigger(source._camera, source._call)
-
-
-def _shown(value):
-    """A setting as a note shows it: 0,0,64,48 for a region, mode=On source=Line0 for a trigger."""
-    if isinstance(value, (tuple, list)):
-        return ",".join(str(v) for v in value)
-    if isinstance(value, dict):
-        return " ".join(f"{key}={item}" for key, item in value.items() if item is not None)
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
 
 
 class AravisCamera(FrameSource):
@@ -528,24 +159,7 @@ class AravisCamera(FrameSource):
         The camera opened but never delivered a frame (a ``SourceError``).
     """
 
-    SETTINGS = (
-        Setting("pixel_format", _as_pixel_format, _apply_pixel_format, _read_pixel_format,
-                "Mono8, Mono10, Mono12, Mono16 or packed Mono10p, Mono12p, Mono10Packed, Mono12Packed (default Mono8)",
-                _default_pixel_format),
-        Setting("binning", _as_binning, _apply_binning, _read_binning, "H[,V] pixels binned (default 1)",
-                _default_binning),
-        Setting("roi", _as_roi, _apply_roi, _read_roi, "sensor region x,y,w,h in pixels (default: full sensor)",
-                _default_roi),
-        Setting("packet_size", as_int, _apply_packet_size, _read_packet_size, "GigE packet size, bytes",
-                _default_packet_size),
-        Setting("exposure_us", as_float, _apply_exposure, _read_exposure, "exposure time, microseconds"),
-        Setting("gain_db", as_float, _apply_gain, _read_gain, "analog gain, dB"),
-        Setting("trigger", genicam.parse_trigger, _apply_trigger, _read_trigger,
-                "free, software (fired at frame_rate) or line:N[:rising|falling] (default free)",
-                lambda source: genicam.FREE_RUNNING),
-        Setting("frame_rate", as_float, _apply_frame_rate, _read_frame_rate,
-                "frames per second (with trigger=software: the trigger rate)"),
-    )
+    SETTINGS = SETTINGS
     # Other options: how the source opens and streams rather than one camera setting.
     OPTIONS = {s.name: s.doc for s in SETTINGS} | {
         "user_set": "user set loaded at open (default Default where the camera has one; none: no user set)",
@@ -570,7 +184,7 @@ class AravisCamera(FrameSource):
                 requested[setting.name] = setting.parse(setting.name, value)
         self._requested = requested
         self._features_asked = {name: str(value) for name, value in features.items()}
-        self._user_set_asked = _as_user_set("user_set", user_set)
+        self._user_set_asked = as_user_set("user_set", user_set)
         self._software_trigger = requested.get("trigger", genicam.FREE_RUNNING).mode == "software"
         self._n_buffers = as_int("n_buffers", n_buffers)
         if self._n_buffers < 2:
@@ -624,7 +238,7 @@ class AravisCamera(FrameSource):
             self._teardown(background=False)
             _, GLib = load_aravis()
             if isinstance(error, GLib.Error):
-                message = f"camera {self._label}: {_gerror_message(error)}"
+                message = f"camera {self._label}: {gerror_message(error)}"
                 error = None
                 raise SourceError(message) from None
             raise
@@ -637,7 +251,7 @@ class AravisCamera(FrameSource):
         try:
             return function(*args)
         except GLib.Error as error:
-            message = f"camera {self._label}: {what} failed: {_gerror_message(error)}"
+            message = f"camera {self._label}: {what} failed: {gerror_message(error)}"
         # No gi object may stay referenced from the traceback's frames: whoever keeps the
         # exception would keep the camera alive and finalize it later, in some other thread.
         function = args = None
@@ -649,7 +263,7 @@ class AravisCamera(FrameSource):
         try:
             return Aravis.Camera.new(device_id)
         except GLib.Error as error:
-            reason = _gerror_message(error)
+            reason = gerror_message(error)
         if cameras is None:
             try:
                 cameras = list_cameras(include_fake=asked is not None and asked.lower().startswith("fake"))
@@ -668,10 +282,10 @@ class AravisCamera(FrameSource):
         if device_id is not None and device_id.lower().startswith("fake"):
             Aravis.enable_interface("Fake")
             return self._camera_new(device_id, asked=device_id), None
-        if device_id is not None and _is_ip_address(device_id):
+        if device_id is not None and is_ip_address(device_id):
             return self._camera_new(device_id, asked=device_id), None
         cameras = list_cameras()
-        listed = _find_listed(cameras, device_id)
+        listed = find_listed(cameras, device_id)
         if listed is None:
             # Not listed by id, serial or MAC (a user-defined name, a host name): Aravis may still know it.
             return self._camera_new(device_id, asked=device_id, cameras=cameras), None
@@ -684,13 +298,13 @@ class AravisCamera(FrameSource):
         protocol = "GigEVision" if cam.is_gv_device() else "USB3Vision" if cam.is_uv_device() else "Fake"
         address = interface_address = None
         if cam.is_gv_device():
-            address = _address_text(self._device.get_device_address)
-            interface_address = _address_text(self._device.get_interface_address)   # where it streams to
+            address = address_text(self._device.get_device_address)
+            interface_address = address_text(self._device.get_interface_address)   # where it streams to
         vendor, model, serial = cam.get_vendor_name(), cam.get_model_name(), cam.get_device_serial_number()
         # the id it was opened with (or found by, for the first camera), else Aravis's "vendor-model-serial"
         name = device_id or (listed or {}).get("id") or f"{vendor}-{model}-{serial}"
         info = {"device_id": name, "vendor": vendor, "model": model, "serial": serial, "protocol": protocol,
-                "interface": _interface_name(protocol), "address": address, "interface_address": interface_address}
+                "interface": interface_name(protocol), "address": address, "interface_address": interface_address}
         for key, feature in (("firmware", "DeviceFirmwareVersion"), ("device_version", "DeviceVersion")):
             info[key] = self._call(f"read {feature}", cam.get_string, feature) \
                 if cam.is_feature_available(feature) else None
@@ -724,7 +338,7 @@ class AravisCamera(FrameSource):
         # the next AcquisitionStart would not make it take the new one.
         self._call("stop a running acquisition", cam.stop_acquisition)
         self._found = {setting.name: setting.read(self) for setting in self.SETTINGS}
-        if self._user_set_asked != _NO_USER_SET:
+        if self._user_set_asked != NO_USER_SET:
             if genicam.load_user_set(cam, self._call, self._user_set_asked):
                 self._user_set = self._user_set_asked
             elif self._user_set_asked != genicam.DEFAULT_USER_SET:
@@ -741,7 +355,7 @@ class AravisCamera(FrameSource):
         for setting in self.SETTINGS:
             was, now = self._found[setting.name], setting.read(self)
             if setting.name not in self._requested and now != was:
-                changed.append(f"{setting.name} {_shown(was)} -> {_shown(now)}")
+                changed.append(f"{setting.name} {shown(was)} -> {shown(now)}")
         if changed:
             self._note("the camera was not in livedic's default state; set at open: " + "; ".join(changed))
 
@@ -1124,7 +738,7 @@ class AravisCamera(FrameSource):
                 try:
                     camera.stop_acquisition()
                 except Exception as error:  # noqa: BLE001 - teardown goes on
-                    log.warning("%s: stop acquisition failed: %s", label, _gerror_message(error))
+                    log.warning("%s: stop acquisition failed: %s", label, gerror_message(error))
             if device is not None and handler is not None:
                 try:
                     device.disconnect(handler)

@@ -5,7 +5,7 @@ Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
 ``/livedic/events``, ``/livedic/session``) are kept apart, so an
 indexed reader fetches the results without reading any image. Frames go into the
 open image chunk; results and events are serialized at once and wait in memory, to be
-written together as one data chunk (``acquire.recording.container.ChunkedWriter``, the
+written together as one data chunk (``acquire.recording.chunked_writer.ChunkedWriter``, the
 format's writer, shared with ``recover``). A chunk is written:
 
 * when it holds ``chunk_bytes`` (default 4 MiB: 4 frames of 1 MP mono8, 16 of
@@ -52,7 +52,7 @@ possible when things go wrong:
   calls), and nothing is ever raised into the caller's loop again. Everything in
   chunks written before the error stays readable by ``acquire.recording.reader`` (the
   file has no summary; readers fall back to the recovery scan and
-  ``acquire.recording.reader.recover`` rewrites it indexed); ``frames_durable`` and
+  ``acquire.recording.recover`` rewrites it indexed); ``frames_durable`` and
   ``results_durable`` count it. What was still in memory is lost: the open image
   chunk and the pending data, both younger than ``flush_interval_s``. So the
   results on disk lag the durable frames by at most ``flush_interval_s`` worth of
@@ -88,14 +88,16 @@ from datetime import datetime, timezone
 import numpy as np
 
 from livedic.acquire.recording import schema as rs
-from livedic.acquire.recording.container import ChunkedWriter, library_name, software_version
+from livedic.acquire.recording import wire
+from livedic.acquire.recording.chunked_writer import ChunkedWriter, library_name, software_version
+from livedic.acquire.recording.metadata import metadata_to_strings, to_json
 
 __all__ = ["Recorder"]
 
 log = logging.getLogger(__name__)
 
 _U64 = 1 << 64
-DEFAULT_CHUNK_BYTES = 4 << 20    # chosen by measurement: see acquire.recording.container.ChunkedWriter
+DEFAULT_CHUNK_BYTES = 4 << 20    # chosen by measurement: see acquire.recording.chunked_writer.ChunkedWriter
 _RESULT_EXTRAS = rs.OPTIONAL_ARRAYS + rs.RESULT_SCALARS
 
 
@@ -202,7 +204,7 @@ class Recorder:
         metadata.setdefault("start_time", datetime.now(timezone.utc).isoformat())
         metadata.setdefault("start_time_ns", wall_ns if self._start_ns is None else self._start_ns)
         metadata[rs.FORMAT_KEY] = rs.FORMAT_VERSION
-        strings = rs.metadata_to_strings(metadata)
+        strings = metadata_to_strings(metadata)
 
         try:
             self._file = open(self.path, "wb" if overwrite else "xb")
@@ -289,17 +291,17 @@ class Recorder:
         if self._refused("frames"):
             return False
         image = frame.image
-        encoding = rs.image_encoding(image)
+        encoding = wire.image_encoding(image)
         timestamp_ns = _log_time(frame.timestamp_ns, "frame.timestamp_ns")
         index = int(frame.index)
         if index < 0:
             raise ValueError(f"frame.index must be >= 0, got {index}")
-        payload = rs.raw_image_parts(image, timestamp_ns)   # the pixels are copied once, into the chunk
+        payload = wire.raw_image_parts(image, timestamp_ns)   # the pixels are copied once, into the chunk
         canonical = rs.DEFAULT_PIXEL_FORMAT[np.dtype("u1") if encoding == "mono8" else np.dtype("u2")]
         info = None
         if frame.metadata or frame.pixel_format != canonical or index >= 1 << 32:
             info = rs.FrameInfo(frame_index=index, timestamp_ns=timestamp_ns, pixel_format=str(frame.pixel_format),
-                                metadata_json=rs.to_json(dict(frame.metadata)) if frame.metadata else "")
+                                metadata_json=to_json(dict(frame.metadata)) if frame.metadata else "")
             info = info.SerializeToString()
 
         def add():
@@ -381,7 +383,7 @@ class Recorder:
             if not -limit <= value < limit:
                 raise ValueError(f"write_results: {name}={value} is out of range")
             values[name] = value
-        payload = rs.encode_results(values)
+        payload = wire.encode_results(values)
         return self._write("results", "write_results", timestamp_ns, lambda: self._cw.add(
             "data", self._ch_results, timestamp_ns, payload, publish_time=time.time_ns(),
             sequence=frame_index & 0xFFFFFFFF, count_as="results"))
@@ -432,7 +434,7 @@ class Recorder:
                 raise ValueError(f"write_strain: {name} has {array.size} entries but exx has {length}")
             values[name] = _convert(array, name, "write_strain", rs.STRAIN_DTYPES)
         values["point_id"] = np.arange(length, dtype=np.uint32)
-        payload = rs.encode_strain(values)
+        payload = wire.encode_strain(values)
         return self._write("strain", "write_strain", timestamp_ns, lambda: self._cw.add(
             "data", self._ch_strain, timestamp_ns, payload, publish_time=time.time_ns(),
             sequence=frame_index & 0xFFFFFFFF, count_as="strain"))
@@ -765,7 +767,7 @@ def _as_1d(value, name, during="write_results"):
     return array
 
 
-def _convert(array, name, during="write_results", dtypes=rs.RESULT_DTYPES):
+def _convert(array, name, during="write_results", dtypes=wire.RESULT_DTYPES):
     dtype = dtypes.get(name, np.dtype(np.float64))
     name = "point_ids" if name == "point_id" else name          # the argument's name, for messages
     if dtype == np.uint32 and array.dtype != np.uint32:

@@ -27,7 +27,7 @@ import numpy as np
 
 from livedic.acquire.atomic_file import TEMP_PREFIX as _TEMP_PREFIX
 from livedic.acquire.atomic_file import AtomicFile, OutputError, current_umask
-from livedic.acquire.recording.schema import json_default
+from livedic.acquire.recording.metadata import json_default
 
 __all__ = ["AtomicFile", "OutputError", "check_output_file", "check_output_folder", "current_umask", "json_text",
            "write_csv", "write_text_atomic"]

@@ -84,7 +84,7 @@ def arv_fake_gv(aravis):
     """
     import shutil
 
-    from livedic.acquire.camera.fake_genicam import ARV_FAKE_GV_CAMERA, ArvFakeGvCamera
+    from livedic.acquire.camera.fake_gige import ARV_FAKE_GV_CAMERA, ArvFakeGvCamera
     if shutil.which(ARV_FAKE_GV_CAMERA) is None:
         pytest.skip(f"{ARV_FAKE_GV_CAMERA} is not installed (Debian package aravis-tools: "
                     "run scripts/install_system.sh)")

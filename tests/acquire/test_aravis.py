@@ -17,9 +17,12 @@ import numpy as np
 import pytest
 
 from livedic.acquire.camera import aravis as aravis_module
-from livedic.acquire.camera.aravis import AravisCamera, list_cameras, open_uri, parse_uri
+from livedic.acquire.camera.aravis import AravisCamera, open_uri
+from livedic.acquire.camera.aravis_discovery import list_cameras, parse_uri
 from livedic.acquire.base import SourceError
-from livedic.acquire.camera.fake_genicam import GigEFakeCamera, InProcessFakeCamera, SpeckleMotion, served_as
+from livedic.acquire.camera.fake_genicam import InProcessFakeCamera
+from livedic.acquire.camera.fake_gige import GigEFakeCamera
+from livedic.acquire.camera.fake_motion import SpeckleMotion, served_as
 from livedic.acquire.camera.pixel_formats import FORMATS
 from tests.waiting import wait_until
 
@@ -279,7 +282,8 @@ def test_teardown_leaves_no_crash_at_interpreter_exit(gige):
     script = textwrap.dedent(f"""
         import sys, numpy as np
         from livedic.acquire.camera.aravis import open_uri
-        from livedic.acquire.camera.fake_genicam import InProcessFakeCamera, SpeckleMotion
+        from livedic.acquire.camera.fake_genicam import InProcessFakeCamera
+        from livedic.acquire.camera.fake_motion import SpeckleMotion
         mode = sys.argv[1]
         fake = InProcessFakeCamera(SpeckleMotion((128, 160))).start()
         inproc = open_uri("aravis:Fake_1", roi=(0, 0, 160, 128), frame_rate=500)

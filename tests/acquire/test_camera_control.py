@@ -13,7 +13,8 @@ import pytest
 
 from livedic.acquire.camera.aravis import open_uri
 from livedic.acquire.base import SourceError
-from livedic.acquire.camera.fake_genicam import InProcessFakeCamera, SpeckleMotion, served_as
+from livedic.acquire.camera.fake_genicam import InProcessFakeCamera
+from livedic.acquire.camera.fake_motion import SpeckleMotion, served_as
 from livedic.acquire.camera.genicam import Trigger, parse_trigger
 from livedic.acquire.camera.pixel_formats import FORMATS
 

@@ -12,7 +12,8 @@ import pytest
 
 from livedic.acquire.recording import schema as rs
 from livedic.acquire.base import Frame
-from livedic.acquire.recording.reader import Recording, read_force_samples, read_results, recover
+from livedic.acquire.recording.reader import Recording, read_force_samples, read_results
+from livedic.acquire.recording.recover import recover
 from livedic.acquire.recording.writer import Recorder
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

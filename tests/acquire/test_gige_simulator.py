@@ -15,7 +15,8 @@ import sys
 import numpy as np
 import pytest
 
-from livedic.acquire.camera.aravis import list_cameras, open_uri
+from livedic.acquire.camera.aravis import open_uri
+from livedic.acquire.camera.aravis_discovery import list_cameras
 from livedic.acquire.base import NoFirstFrame, SourceError
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")

@@ -11,12 +11,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from livedic.acquire.recording import schema as rs
+from livedic.acquire.recording import wire
 from livedic.acquire.base import Frame, SourceError
-from livedic.acquire.recording.container import ChunkedWriter
-from livedic.acquire.recording.reader import (CorruptRecording, McapSource, NoSessionMetadata, NotLivedic, NotMcap,
-                                              Recording, RecordingError, RecordingSourceError, inspect_recording,
-                                              iter_results, read_events, read_extensometer_samples, read_results,
-                                              read_session, read_strain_fields, recover)
+from livedic.acquire.recording.chunked_writer import ChunkedWriter
+from livedic.acquire.recording.errors import (CorruptRecording, NoSessionMetadata, NotLivedic, NotMcap, RecordingError,
+                                              RecordingSourceError)
+from livedic.acquire.recording.reader import (Recording, inspect_recording, iter_results, read_events,
+                                              read_extensometer_samples, read_results, read_session, read_strain_fields)
+from livedic.acquire.recording.recover import recover
+from livedic.acquire.recording.source import McapSource
 from livedic.dic.result import Measurement
 from livedic.acquire.recording.writer import Recorder
 
@@ -96,7 +99,7 @@ def test_replay_as_fast_as_possible_gives_every_frame_in_order(recording):
 
 
 def test_realtime_replay_follows_the_recorded_pace(tmp_path, monkeypatch):
-    import livedic.acquire.recording.reader as mcap_replay
+    import livedic.acquire.recording.source as mcap_source
     waits = []
     real_sleep = time.sleep
 
@@ -104,7 +107,7 @@ def test_realtime_replay_follows_the_recorded_pace(tmp_path, monkeypatch):
         waits.append(seconds)
         real_sleep(seconds)
 
-    monkeypatch.setattr(mcap_replay.time, "sleep", sleep)
+    monkeypatch.setattr(mcap_source.time, "sleep", sleep)
     path = tmp_path / "paced.mcap"
     _record(path, n=6, dt_ns=60_000_000)                   # 5 gaps of 60 ms
     arrivals = []
@@ -304,7 +307,7 @@ def _without_session(path):
     with open(path, "wb") as f:
         writer = ChunkedWriter(f, chunk_bytes=1 << 20, compression=None, library="livedic/test")
         channel = writer.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA, rs.schema_data(rs.RAW_IMAGE_SCHEMA))
-        writer.add("image", channel, T0, rs.encode_raw_image(np.zeros((4, 6), np.uint8), T0))
+        writer.add("image", channel, T0, wire.encode_raw_image(np.zeros((4, 6), np.uint8), T0))
         writer.finish()
 
 

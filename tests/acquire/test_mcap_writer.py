@@ -1,4 +1,4 @@
-"""ChunkedWriter (acquire.recording.container) writes its chunks itself: the bytes must be those mcap's own
+"""ChunkedWriter (acquire.recording.chunked_writer) writes its chunks itself: the bytes must be those mcap's own
 Writer writes.
 
 The reference is a plain ``mcap.writer.Writer`` given the same calls and flushed where ChunkedWriter's
@@ -16,7 +16,8 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType, Writer
 
 from livedic.acquire.recording import schema as rs
-from livedic.acquire.recording.container import ChunkedWriter
+from livedic.acquire.recording import wire
+from livedic.acquire.recording.chunked_writer import ChunkedWriter
 
 LIBRARY = "livedic/test"
 _CODECS = {None: CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
@@ -145,8 +146,8 @@ def test_the_first_chunk_carries_the_schemas_and_channels_registered_before_it()
     reference.add("data", 3, 5, b"session", 9, 0)
     reference.write_data()
     image = np.arange(64, dtype=np.uint8).reshape(8, 8)
-    chunked.add("image", 1, 6, rs.raw_image_parts(image, 6))
-    reference.add("image", 1, 6, rs.encode_raw_image(image, 6), 0, 0)
+    chunked.add("image", 1, 6, wire.raw_image_parts(image, 6))
+    reference.add("image", 1, 6, wire.encode_raw_image(image, 6), 0, 0)
     chunked.finish()
     reference.finish()
     assert ours.getvalue() == theirs.getvalue()
@@ -160,7 +161,7 @@ def test_a_payload_is_copied_when_added():
     image = np.zeros((4, 6), np.uint8)
     for i in range(3):
         image[:] = i
-        chunked.add("image", channel, i, rs.raw_image_parts(image, i))
+        chunked.add("image", channel, i, wire.raw_image_parts(image, i))
     chunked.finish()
     messages = make_reader(io.BytesIO(stream.getvalue()), validate_crcs=True).iter_messages()
-    assert [int(rs.decode_raw_image(message.data)[0][0, 0]) for _, _, message in messages] == [0, 1, 2]
+    assert [int(wire.decode_raw_image(message.data)[0][0, 0]) for _, _, message in messages] == [0, 1, 2]

@@ -10,9 +10,11 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from livedic.acquire.recording import schema as rs
+from livedic.acquire.recording import wire
 from livedic.acquire.base import Frame
-from livedic.acquire.recording.reader import (CorruptRecording, Recording, read_extensometer_samples, read_results,
-                                              read_strain_fields, recover)
+from livedic.acquire.recording.errors import CorruptRecording
+from livedic.acquire.recording.reader import Recording, read_extensometer_samples, read_results, read_strain_fields
+from livedic.acquire.recording.recover import recover
 from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.dic.strain import StrainStatus
 from livedic.acquire.recording.writer import Recorder
@@ -143,7 +145,7 @@ def test_strain_hand_encoder_matches_protobuf(n, frame, ts, window, vsg, measure
               "vsg_px": vsg}
     for name in ("exx", "eyy", "exy", "e1", "e2"):
         values[name] = np.where(rng.random(n) < 0.2, np.nan, rng.normal(size=n))
-    ours = rs.encode_strain(values)
+    ours = wire.encode_strain(values)
     theirs = rs.StrainField(**{k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in values.items()})
     assert ours == theirs.SerializeToString()
     back = rs.StrainField.FromString(ours)
@@ -173,15 +175,15 @@ def test_truncated_and_recovered_recordings_keep_the_channels(recorded, tmp_path
 
 
 def test_a_corrupt_strain_message_is_one_clean_error(tmp_path):
-    from livedic.acquire.recording.container import ChunkedWriter
+    from livedic.acquire.recording.chunked_writer import ChunkedWriter
 
     path = tmp_path / "bad.mcap"
     with open(path, "wb") as handle:
         writer = ChunkedWriter(handle, chunk_bytes=1 << 20, compression=None, library="livedic/test")
         image = writer.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA, rs.schema_data(rs.RAW_IMAGE_SCHEMA))
         strain = writer.register(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA, rs.schema_data(rs.STRAIN_FIELD_SCHEMA))
-        writer.add("image", image, 5, rs.encode_raw_image(np.zeros((4, 6), np.uint8), 5))
-        uneven = rs.encode_strain({"point_id": np.arange(3, dtype=np.uint32), "exx": np.zeros(2)})
+        writer.add("image", image, 5, wire.encode_raw_image(np.zeros((4, 6), np.uint8), 5))
+        uneven = wire.encode_strain({"point_id": np.arange(3, dtype=np.uint32), "exx": np.zeros(2)})
         writer.add("data", strain, 5, uneven)
         writer.finish()
     with pytest.raises(CorruptRecording, match="strain message at log time 5 .*differ in length"):

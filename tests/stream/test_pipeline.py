@@ -568,7 +568,8 @@ def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monk
                    "--roi", "0,0,4,4", "--subset", "3", "--step", "1", "--reconnect", "--frames", "30",
                    "--drop", "block", "--summary-json", str(summary)])
     assert run_module.run_session(args) == 0
-    from livedic.acquire.recording.reader import McapSource, read_events, read_results
+    from livedic.acquire.recording.reader import read_events, read_results
+    from livedic.acquire.recording.source import McapSource
     with McapSource(str(mcap)) as replay:
         recorded = [(frame.index, frame.timestamp_ns) for frame in replay]
     assert [index for index, _ in recorded] == list(range(30))

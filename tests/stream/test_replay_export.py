@@ -274,7 +274,7 @@ def test_session_json_gives_the_frames_delivered_in_the_end_not_at_the_start(tmp
 
 
 def test_session_json_of_a_cut_recording_counts_the_frames_it_kept(killed, tmp_path, capsys):
-    from livedic.acquire.recording.reader import McapSource
+    from livedic.acquire.recording.source import McapSource
     full, half = killed
     assert main(["export", half, "-o", str(tmp_path / "out")]) == 0
     export = json.loads((tmp_path / "out" / "session.json").read_text())["livedic.export"]
@@ -287,13 +287,14 @@ def test_export_of_a_recording_without_session_metadata_says_so(tmp_path, capsys
     """No ``livedic.session`` metadata is a note (the reader's ``NoSessionMetadata``), not an error."""
     import numpy as np
     from livedic.acquire.recording import schema as rs
-    from livedic.acquire.recording.container import ChunkedWriter
+    from livedic.acquire.recording import wire
+    from livedic.acquire.recording.chunked_writer import ChunkedWriter
 
     path = tmp_path / "bare.mcap"
     with open(path, "wb") as handle:
         writer = ChunkedWriter(handle, chunk_bytes=1 << 20, compression=None, library="livedic/test")
         image = writer.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA, rs.schema_data(rs.RAW_IMAGE_SCHEMA))
-        writer.add("image", image, 5, rs.encode_raw_image(np.zeros((4, 6), np.uint8), 5))
+        writer.add("image", image, 5, wire.encode_raw_image(np.zeros((4, 6), np.uint8), 5))
         writer.finish()
     capsys.readouterr()
     assert main(["export", str(path), "-o", str(tmp_path / "out")]) == 0

@@ -310,7 +310,8 @@ def test_shared_path_workers_read_the_frames_themselves(recording, cluster, sequ
 
 
 def test_frame_reader_reads_any_frame_as_the_source_gives_it(recording, tmp_path):
-    from livedic.acquire.recording.reader import FrameReader, McapSource, RecordingError
+    from livedic.acquire.recording.errors import RecordingError
+    from livedic.acquire.recording.source import FrameReader, McapSource
     frames = list(McapSource(recording))
     reader = FrameReader(recording)
     for frame in reversed(frames):

@@ -19,8 +19,10 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.camera.fake_genicam import GigEFakeCamera, SpeckleMotion
-from livedic.acquire.recording.reader import McapSource, inspect_recording, read_events, read_results
+from livedic.acquire.camera.fake_gige import GigEFakeCamera
+from livedic.acquire.camera.fake_motion import SpeckleMotion
+from livedic.acquire.recording.reader import inspect_recording, read_events, read_results
+from livedic.acquire.recording.source import McapSource
 from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit")
@@ -71,11 +73,13 @@ class ChildOutput:
         return next((at for at, line in list(self.stderr_lines) if text in line), None)
 
     def wait_for(self, text, timeout_s):
-        def said():
-            assert self.process.poll() is None or self.arrival(text) is not None, \
-                f"livedic ended before saying {text!r}:\n{self.stderr()}"
-            return self.arrival(text) is not None
-        wait_until(said, timeout_s, f"livedic saying {text!r}")
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.arrival(text) is not None:
+                return
+            assert self.process.poll() is None, f"livedic ended before saying {text!r}:\n{self.stderr()}"
+            time.sleep(0.05)
+        raise AssertionError(f"livedic did not say {text!r} within {timeout_s:g} s:\n{self.stderr()}")
 
     def finish(self, timeout_s):
         """Wait for the exit (the time limit only guards against a hang); (exit time, stdout, stderr)."""
@@ -87,8 +91,12 @@ class ChildOutput:
 
 
 def wait_for_served(fake, frames, timeout_s=60.0):
-    wait_until(lambda: (fake.served() or {}).get("frames_served", 0) >= frames, timeout_s,
-               f"the camera serving {frames} frames")
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if (fake.served() or {}).get("frames_served", 0) >= frames:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"the camera did not serve {frames} frames within {timeout_s:g} s")
 
 
 def served_phase(image):
