@@ -230,7 +230,7 @@ class TrackingConfig:
         for name in ("refind_zncc", "min_zncc"):
             if not -1.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{_option(name)} must be between -1 and 1, got {getattr(self, name)}")
-        from livedic.dic.tracking.key_frames import UpdatePolicy
+        from livedic.dic.tracking.update_policy import UpdatePolicy
         object.__setattr__(self, "reference_update", str(UpdatePolicy.parse(self.reference_update)))
 
     @classmethod
