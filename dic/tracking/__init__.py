@@ -53,8 +53,9 @@ Modules: tracker (``Tracker``), grid (where its points go), kernel_job (one IC-G
 
 from livedic.dic.tracking.grid import grid_in_roi, step_for_count
 from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
-from livedic.dic.tracking.tracker import (ICGN_MAX_ITERATIONS, REFIND_MAX_WAIT, REFIND_SEEDS, SEED_SWARM,
-                                          TRACKER_STAGES, StageTimes, Tracker, last_good_after)
+from livedic.dic.tracking.tracker import (ICGN_MAX_ITERATIONS, REFIND_MAX_WAIT, REFIND_SEEDS, REFIND_ZNCC,
+                                          SEED_SWARM, TRACKER_STAGES, StageTimes, Tracker, last_good_after)
 
-__all__ = ["ICGN_MAX_ITERATIONS", "REFIND_MAX_WAIT", "REFIND_SEEDS", "SEED_SWARM", "TRACKER_STAGES", "StageTimes",
+__all__ = ["ICGN_MAX_ITERATIONS", "REFIND_MAX_WAIT", "REFIND_SEEDS", "REFIND_ZNCC", "SEED_SWARM", "TRACKER_STAGES",
+           "StageTimes",
            "grid_in_roi", "step_for_count", "Tracker", "window_coefficients", "KernelJob", "last_good_after"]

@@ -7,13 +7,13 @@ import numpy as np
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
-from livedic.dic.correlation import _zncc_batch, snap_points
+from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
-from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
+from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
 from livedic.dic.subpixel import icgn2
 from livedic.dic.subpixel.icgn import prepare_reference
@@ -26,6 +26,8 @@ from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
 ICGN_MAX_ITERATIONS = 50
 # Longest wait (frames) before a point the wide search could not recover is searched again.
 REFIND_MAX_WAIT = 32
+# Points whose ZNCC falls below this are re-found (``Tracker``'s ``refind_zncc``, the view's low-ZNCC colour).
+REFIND_ZNCC = 0.8
 # With at least twice this many points to re-find in one frame, the wide search runs for this many
 # (spread over them) and IC-GN carries their result to the rest: measured after the fracture of the
 # simulated test with frames dropped (the upper half jumping 4-10 px), ~500 wide searches took the
@@ -179,16 +181,16 @@ class Tracker:
     (0.4, -0.3)
     """
 
-    def __init__(self, reference_image, points, *, subset=21, search="improved-wso", subpixel="icgn",
-                 seed_radius=2, refind_radius=16, refind_zncc=0.8, refind_drop=0.05, refind_gradient=0.1,
-                 refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
+    def __init__(self, reference_image, points, *, subset=DEFAULT_SUBSET, search=DEFAULT_SEARCH, subpixel="icgn",
+                 seed_radius=2, refind_radius=DEFAULT_RADIUS, refind_zncc=REFIND_ZNCC, refind_drop=0.05,
+                 refind_gradient=0.1, refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
                  seed_search_options=None, subpixel_options=None, gates=Gates()):
         if search not in SEARCH_METHODS:
             raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
         if subpixel not in SUBPIXEL_METHODS:
             raise ValueError(f"unknown sub-pixel method {subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
         if refind_search is None:
-            refind_search = search if search != "none" else "improved-wso"
+            refind_search = search if search != "none" else DEFAULT_SEARCH
         if refind_search not in _INTEGER_SEARCHES:
             raise ValueError(f"re-find search must be one of {', '.join(_INTEGER_SEARCHES)}, "
                              f"got {refind_search!r}")
