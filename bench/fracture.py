@@ -35,6 +35,7 @@ import time
 import numpy as np
 
 from livedic.bench.strain import DOGBONE, DOGBONE_MESH
+from livedic.dic import DEFAULT_SUBSET
 
 FRACTURE_URI = "synthetic:tensile?strain=0.30&neck=1.0&fade=0.2&fracture=1&pace=0"
 FRAME_PERIOD_MS = 20.0
@@ -66,15 +67,15 @@ def simulated_study(*, quick, say):
     render_s = time.perf_counter() - started
     first = images[0]
     roi = source.suggested_roi
-    p0 = choose_p0(first.image, roi, 21)
-    points, roi, step = build_points(first.image.shape, roi=roi, step=None, n_points=1000, subset=21, p0=p0.xy)
+    p0 = choose_p0(first.image, roi, DEFAULT_SUBSET)
+    points, roi, step = build_points(first.image.shape, roi=roi, step=None, n_points=1000, subset=DEFAULT_SUBSET, p0=p0.xy)
     fracture_frame = source.fracture_frame
     say(f"a. simulated test to fracture: {uri} ({render_s:.1f} s to render), {len(points):,} points every {step} px, "
         f"fracture simulated at frame {fracture_frame}; axial extensometer L0 {gauge:g} px")
     rows, summaries = [], []
     for policy, subpixel in _cases():
         tracking = TrackingConfig(reference_update=policy, subpixel=subpixel)
-        stage = StrainConfig(gauge_length=gauge).place(points, p0=points[0], roi=roi, step=step, subset=21)
+        stage = StrainConfig(gauge_length=gauge).place(points, p0=points[0], roi=roi, step=step, subset=DEFAULT_SUBSET)
         tracker = tracking.tracker(first.image, points)
         case = f"{policy} {subpixel}"
         refound = 0
@@ -150,8 +151,8 @@ def dogbone_study(data, *, say):
     height = images[0].shape[0]
     x1, x2, y1, y2 = DOGBONE_MESH
     roi = (x1, height - 1 - y2, x2 - x1 + 1, y2 - y1 + 1)
-    p0 = choose_p0(images[0], roi, 21)
-    points, roi, step = build_points(images[0].shape, roi=roi, step=None, n_points=1000, subset=21, p0=p0.xy)
+    p0 = choose_p0(images[0], roi, DEFAULT_SUBSET)
+    points, roi, step = build_points(images[0].shape, roi=roi, step=None, n_points=1000, subset=DEFAULT_SUBSET, p0=p0.xy)
     results = {}
     for policy in ("never", "auto"):
         tracker = TrackingConfig(reference_update=policy).tracker(images[0], points)

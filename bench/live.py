@@ -81,6 +81,9 @@ import tempfile
 import threading
 import time
 
+from livedic.dic import DEFAULT_SUBSET
+from livedic.dic.search import DEFAULT_SEARCH
+
 POINT_COUNTS = (400, 1000, 2500)
 METHODS = ("improved-surface-fit", "icgn")
 TARGET_POINTS = 1000
@@ -244,7 +247,7 @@ def run_one_session(make_config, said, *, sinks=()):
 
 
 def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, threads=1, workdir,
-             search="improved-wso", subset=21, echo=None, gauge_length=None):
+             search=DEFAULT_SEARCH, subset=DEFAULT_SUBSET, echo=None, gauge_length=None):
     """One ``livedic run`` session; returns a row dict (summary numbers, render time, error text).
 
     ``echo(text)`` receives what the session said and its summary, when given. ``gauge_length``
@@ -292,7 +295,7 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
 def _label(row):
     label = row["subpixel"]
     notes = []
-    if row.get("search", "improved-wso") != "improved-wso":
+    if row.get("search", DEFAULT_SEARCH) != DEFAULT_SEARCH:
         notes.append(f"search {row['search']}")
     if not row["record"]:
         notes.append("no-record")
@@ -327,7 +330,7 @@ def format_row(row):
 
 def judge_target(row, *, quick=False):
     """(passed: bool, one line) for the issue-3 target on ``row`` (1,000 points, IC-GN, recorded, paced)."""
-    variant = "" if row is None or row.get("search", "improved-wso") == "improved-wso" else f" --search {row['search']}"
+    variant = "" if row is None or row.get("search", DEFAULT_SEARCH) == DEFAULT_SEARCH else f" --search {row['search']}"
     if row is None or not row["summary"]:
         why = row["error"] if row else "the case did not run"
         return False, (f"FAIL  target 1,000 points IC-GN{variant} >= {TARGET_FPS:g} fps, p99 <= {TARGET_P99_MS:g} ms, "
@@ -447,10 +450,10 @@ def explain_limits(rows, fps):
     lines = []
     budget = 1e3 / fps if fps else float("nan")
     by_key = {(r["points_wanted"], r["subpixel"], r["record"], r["paced"]): r for r in rows
-              if r["search"] == "improved-wso"}
+              if r["search"] == DEFAULT_SEARCH}
     for method in METHODS:
         paced_rows = [r for r in rows if r["subpixel"] == method and r["record"] and r["paced"]
-                      and r["search"] == "improved-wso"]
+                      and r["search"] == DEFAULT_SEARCH]
         fit = _fit_cost(paced_rows)
         if fit is not None:
             a, b = fit
@@ -482,7 +485,7 @@ def explain_limits(rows, fps):
     if target and unseeded and target["summary"] and unseeded["summary"]:
         t, n = target["summary"], unseeded["summary"]
         if t.get("processing_p50_ms") is not None and n.get("processing_p50_ms") is not None:
-            lines.append(f"  seeding search: improved-wso r2 (run only for points IC-GN from the previous result leaves "
+            lines.append(f"  seeding search: {DEFAULT_SEARCH} r2 (run only for points IC-GN from the previous result leaves "
                          f"doubtful) + IC-GN takes {t['processing_p50_ms']:.1f} ms per frame (p50), IC-GN from the "
                          f"previous result alone (--search none) {n['processing_p50_ms']:.1f} ms: the integer search "
                          f"costs {t['processing_p50_ms'] - n['processing_p50_ms']:.1f} ms; error "
@@ -741,7 +744,7 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
         printed.append(text)
         log(text)
 
-    say(f"livedic bench live: synthetic:tensile {size}x{size} Mono8 rendered ahead, subset 21, improved-wso search "
+    say(f"livedic bench live: synthetic:tensile {size}x{size} Mono8 rendered ahead, subset {DEFAULT_SUBSET}, {DEFAULT_SEARCH} search "
         f"r2, queue 4 drop-oldest, 1 numba thread for the main job and {threads} for the pipeline's table")
     say(f"machine: {os.cpu_count()} CPU cores, {platform.machine()}, numba {numba.__version__}; "
         f"{_load()} at start{'  [quick mode]' if quick else ''}")
@@ -784,7 +787,7 @@ def run_live_benchmark(*, quick=False, frames=None, fps=TARGET_FPS, size=None, p
         if row["error"]:
             say(f"error in {row['points_wanted']} points {_label(row)}: {row['error']}")
     target_row = next((r for r in rows if r["points_wanted"] == TARGET_POINTS and r["subpixel"] == TARGET_METHOD
-                       and r["record"] and r["paced"] and r["search"] == "improved-wso"), None)
+                       and r["record"] and r["paced"] and r["search"] == DEFAULT_SEARCH), None)
     passed, line = judge_target(target_row, quick=quick)
     say(line)
     unseeded = next((r for r in rows if r["points_wanted"] == TARGET_POINTS and r["subpixel"] == TARGET_METHOD

@@ -43,6 +43,8 @@ import tempfile
 import threading
 import time
 
+from livedic.dic.search import DEFAULT_SEARCH
+
 DEFAULT_FRAMES = 20_000
 DEFAULT_SIZE = 512
 DEFAULT_LOOP = 200
@@ -122,7 +124,7 @@ class CountingSource:
 
 
 def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_points=1000, subpixel="icgn",
-                       search="improved-wso", loop=DEFAULT_LOOP, queue=4, threads=1, keep=False, directory=None,
+                       search=DEFAULT_SEARCH, loop=DEFAULT_LOOP, queue=4, threads=1, keep=False, directory=None,
                        progress_every=1000, warmup_frames=200, max_wall_s=None, log=print):
     """Run the soak, print progress and the verdicts; returns a result dict.
 

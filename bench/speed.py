@@ -32,13 +32,15 @@ import time
 
 import numpy as np
 
+from livedic.dic import DEFAULT_SUBSET
+
 SEEDED_OFFSET_PX = 2.0
 UNSEEDED_SHIFT = (17.3, -9.6)
 UNSEEDED_POINTS = 8281
 UNSEEDED_RADIUS = 24
 
 
-def make_job(size=1024, n_points=10_000, subset=21, seed=0, shift=(5.3, -7.6)):
+def make_job(size=1024, n_points=10_000, subset=DEFAULT_SUBSET, seed=0, shift=(5.3, -7.6)):
     """Reference, deformed, points, true (u, v) per point and the field parameters."""
     from livedic.dic.speckle import SpecklePattern, affine, render
 
@@ -147,7 +149,7 @@ def _cases(quick):
     return seeded, unseeded
 
 
-def run_speed_benchmark(*, n_points=10_000, size=1024, repeat=3, quick=False, subset=21, seed=0):
+def run_speed_benchmark(*, n_points=10_000, size=1024, repeat=3, quick=False, subset=DEFAULT_SUBSET, seed=0):
     """Print POI/s, RMSE, wrong-but-ok points and peak memory per method, with ratios to OpenCV; return 0."""
     import numba
 

@@ -277,7 +277,8 @@ def tensile_study(*, quick, say):
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points
-    from livedic.stream.stages.strain import AXIAL, TRANSVERSE, StrainConfig
+    from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
+    from livedic.stream.stages.strain import StrainConfig
 
     size, frames = 1024, (60 if quick else 300)
     uri = f"synthetic:tensile?size={size}x{size}&frames={frames}&pace=0"
@@ -423,7 +424,8 @@ def dogbone_study(data, *, say):
     from livedic.stream.config import TrackingConfig
     from livedic.stream.p0 import choose_p0
     from livedic.stream.points import build_points
-    from livedic.stream.stages.strain import AXIAL, TRANSVERSE, StrainConfig
+    from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
+    from livedic.stream.stages.strain import StrainConfig
 
     folder = os.path.join(data, DOGBONE)
     files = sorted(glob.glob(os.path.join(folder, "images", "ut_*.tif")))

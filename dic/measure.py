@@ -4,12 +4,12 @@ import numpy as np
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
-from livedic.dic.correlation import _zncc_batch, snap_points
+from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
 from livedic.dic.result import Measurement, SubpixelResult
-from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
+from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
 from livedic.dic.subpixel import icgn
 from livedic.dic.subpixel.method import SUBPIXEL_METHODS, SubpixelMethod, subpixel_method
@@ -20,8 +20,8 @@ SEARCH_METHODS = _INTEGER_SEARCHES + ("none",)
 
 
 
-def measure(reference, deformed, points, *, subset=21, search="improved-wso",
-            subpixel="improved-surface-fit", radius=16, guess=None, seed=0,
+def measure(reference, deformed, points, *, subset=DEFAULT_SUBSET, search=DEFAULT_SEARCH,
+            subpixel="improved-surface-fit", radius=DEFAULT_RADIUS, guess=None, seed=0,
             search_options=None, subpixel_options=None, guided=True, gates=Gates()):
     """Displacement of each point from ``reference`` to ``deformed``.
 

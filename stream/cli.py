@@ -261,12 +261,16 @@ def build_parser(extensions=()):
 
 
 def _add_method_options(parser, searches, subpixels, *, subpixel_default="improved-surface-fit"):
-    parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
-    parser.add_argument("--search", type=search_method, default="improved-wso", metavar="NAME",
-                        help=f"integer search: {', '.join(searches)} (default improved-wso)")
+    from livedic.dic import DEFAULT_SUBSET
+    from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
+    parser.add_argument("--subset", type=int, default=DEFAULT_SUBSET, metavar="N",
+                        help=f"odd subset side, pixels (default {DEFAULT_SUBSET})")
+    parser.add_argument("--search", type=search_method, default=DEFAULT_SEARCH, metavar="NAME",
+                        help=f"integer search: {', '.join(searches)} (default {DEFAULT_SEARCH})")
     parser.add_argument("--subpixel", type=subpixel_method, default=subpixel_default, metavar="NAME",
                         help=f"sub-pixel method: {', '.join(subpixels)} (default {subpixel_default})")
-    parser.add_argument("--radius", type=int, default=16, metavar="R", help="search radius, pixels (default 16)")
+    parser.add_argument("--radius", type=int, default=DEFAULT_RADIUS, metavar="R",
+                        help=f"search radius, pixels (default {DEFAULT_RADIUS})")
     parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
 
 

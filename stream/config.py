@@ -27,9 +27,11 @@ from datetime import datetime
 
 import numpy as np
 
-from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
+from livedic.dic import DEFAULT_SUBSET, SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.dic.quality import MIN_ZNCC
 from livedic.dic.region import Circle, Polygon, Rectangle, Region, parse_shape
+from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
+from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.stream.stages.strain import StrainConfig
 
 DEFAULT_SOURCE = "synthetic:tensile"
@@ -207,12 +209,12 @@ class TrackingConfig:
     reference_update : str
         When the reference moves to a recent frame (``dic.tracking.key_frames``): ``auto``, ``never`` or ``every:N``.
     """
-    subset: int = 21
-    search: str = "improved-wso"
+    subset: int = DEFAULT_SUBSET
+    search: str = DEFAULT_SEARCH
     subpixel: str = "icgn"
     seed_radius: int = 2
-    refind_radius: int = 16
-    refind_zncc: float = 0.8
+    refind_radius: int = DEFAULT_RADIUS
+    refind_zncc: float = REFIND_ZNCC
     min_zncc: float = MIN_ZNCC
     seed: int = 0
     reference_update: str = "auto"
@@ -230,7 +232,7 @@ class TrackingConfig:
         for name in ("refind_zncc", "min_zncc"):
             if not -1.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{_option(name)} must be between -1 and 1, got {getattr(self, name)}")
-        from livedic.dic.tracking.key_frames import UpdatePolicy
+        from livedic.dic.tracking.update_policy import UpdatePolicy
         object.__setattr__(self, "reference_update", str(UpdatePolicy.parse(self.reference_update)))
 
     @classmethod

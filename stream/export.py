@@ -692,7 +692,7 @@ def _open_stress_load(stress, names, recording=None):
     if stress is None:
         return None
     from livedic.acquire.force import open_load
-    from livedic.stream.stages.stress import AXIAL
+    from livedic.dic.strain.extensometer import AXIAL
     if AXIAL not in names:
         raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
                          f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
@@ -732,7 +732,8 @@ def stress_from_args(args):
 
 def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
     """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
-    from livedic.stream.stages.stress import (AXIAL, force_coverage_notes, plot_stress_strain, stress_strain_rows,
+    from livedic.dic.strain.extensometer import AXIAL
+    from livedic.stream.stages.stress import (force_coverage_notes, plot_stress_strain, stress_strain_rows,
                                        stress_strain_table)
     times = np.asarray(times, dtype=np.float64)
     force = _force_on_frames(load, frames, times)
@@ -761,8 +762,8 @@ def axial_series(path, strain=None):
         Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
     """
     from livedic.acquire.recording.reader import Recording
-    from livedic.stream.stages.strain import TRANSVERSE, StrainConfig
-    from livedic.stream.stages.stress import AXIAL
+    from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
+    from livedic.stream.stages.strain import StrainConfig
     with reader_notes() as notes:
         recording = Recording(os.fspath(path))
         metadata, session_note = session_or_note(recording)

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livedic.acquire import sources
-from livedic.dic import bspline
+from livedic.dic import DEFAULT_SUBSET, bspline
 from livedic.dic.status import Status
 from livedic.dic.strain import field_fit
 from livedic.acquire.base import SourceError
@@ -60,7 +60,8 @@ from livedic.stream.stages.force import format_force_summary
 from livedic.stream.publish import format_publish_summary
 from livedic.stream.pipeline.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                   ReferenceUpdates)
-from livedic.stream.stages.strain import AXIAL, StrainConfig, format_length
+from livedic.dic.strain.extensometer import AXIAL
+from livedic.stream.stages.strain import StrainConfig, format_length
 from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
 from livedic.stream.view.process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 
@@ -163,7 +164,7 @@ def warm_up(tracking):
     tracker.track(partly)
     tracker.track(np.roll(image, (9, -7), axis=(0, 1)))                 # every point far off: wide re-find
     stage = StrainConfig(gauge_length=24.0).place(np.asarray(points, dtype=np.float64), p0=(64.0, 64.0),
-                                                  roi=(40, 40, 49, 49), step=12.0, subset=21)
+                                                  roi=(40, 40, 49, 49), step=12.0, subset=DEFAULT_SUBSET)
     m = tracker.track(shifted)
     stage.compute(m.u, m.v, m.ok)
     field_fit.displacement_at(np.array([[64.0, 64.0]]), np.asarray(points, dtype=np.float64), m.u, m.v, m.ok, 12.0)

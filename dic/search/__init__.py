@@ -28,6 +28,7 @@ the cheapest: at radius 2 it costs 25 evaluations.
 
 import numpy as np
 
+from livedic.dic.correlation import DEFAULT_SUBSET
 from livedic.dic.result import IntegerSearchResult
 from livedic.dic.search import coarse_fine, exhaustive, fft_cc, improved_wso, pso, wso
 from livedic.dic.method_options import resolve_options, seed_to_uint
@@ -46,6 +47,9 @@ _MODULES = {
 }
 # The integer searches; ``dic.measure.SEARCH_METHODS`` adds "none" (no search: start from the guess).
 SEARCH_METHODS = tuple(_MODULES)
+# The integer search, and its box's half-side (px), that measure, track and the commands use unless told otherwise.
+DEFAULT_SEARCH = "improved-wso"
+DEFAULT_RADIUS = 16
 
 
 def method_options(method):
@@ -124,8 +128,8 @@ def search_points(reference, deformed, xs, ys, guess_u, guess_v, half, radius, m
                                calls=calls)
 
 
-def integer_search(reference, deformed, points, *, method="improved-wso", subset=21, radius=16, guess=None, seed=0,
-                   **options):
+def integer_search(reference, deformed, points, *, method=DEFAULT_SEARCH, subset=DEFAULT_SUBSET, radius=DEFAULT_RADIUS,
+                   guess=None, seed=0, **options):
     """Integer-pixel displacement of each point: the ZNCC maximum in a box around the guess.
 
     Parameters

@@ -55,8 +55,10 @@ error < 5e-14) that LLVM vectorises. Summation order is fixed, so results do
 not depend on the number of threads.
 """
 
-from livedic.dic.speckle.render import (DEFAULT_CUTOFF, DEFAULT_FILL, GAUSS_LEGENDRE_ORDER, INVERSE_TOLERANCE,
-                                        DisplacementField, SpecklePattern, affine, render, sinusoid, translation)
+from livedic.dic.speckle.fields import DisplacementField, affine, sinusoid, translation
+from livedic.dic.speckle.intensity import GAUSS_LEGENDRE_ORDER, INVERSE_TOLERANCE
+from livedic.dic.speckle.pattern import DEFAULT_CUTOFF, DEFAULT_FILL, SpecklePattern
+from livedic.dic.speckle.render import render
 
 __all__ = ["DEFAULT_CUTOFF", "DEFAULT_FILL", "GAUSS_LEGENDRE_ORDER", "INVERSE_TOLERANCE", "DisplacementField",
            "translation", "affine", "sinusoid", "SpecklePattern", "render"]

@@ -24,6 +24,8 @@ import numpy as np
 from livedic.dic.strain import field_fit
 from livedic.dic.neighbours import typical_spacing
 
+# The names of the two extensometers a tensile test places (``--gauge-length``): along the load, and across it.
+AXIAL, TRANSVERSE = "axial", "transverse"
 # An end's surface is fitted over the points within this many grid steps (``dic.strain.field_fit``).
 END_REACH = field_fit.REACH
 END_MIN_POINTS = field_fit.MIN_POINTS

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from livedic.dic.correlation import DEFAULT_SUBSET
 from livedic.dic.neighbours import typical_spacing
 
 MEASURES = ("engineering", "green", "true")
@@ -145,7 +146,7 @@ def _square_neighbourhoods(x, y, reach):
     return counts, index
 
 
-def strain_window(points, *, window=DEFAULT_WINDOW, step=None, subset=21):
+def strain_window(points, *, window=DEFAULT_WINDOW, step=None, subset=DEFAULT_SUBSET):
     """The neighbourhoods of the plane fits for ``points`` (N, 2) in the reference image.
 
     Parameters

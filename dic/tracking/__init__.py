@@ -46,11 +46,16 @@ Where a frame's time goes: ``Tracker.last_timings`` holds the nanoseconds of the
 ``track`` call per stage (``TRACKER_STAGES``; ``StageTimes``), measured with a few
 ``time.perf_counter_ns`` calls; what they leave out of the call's wall time is the
 bookkeeping between them (start values, scattering results, remembering the frame).
+
+Modules: tracker (``Tracker``), grid (where its points go), kernel_job (one IC-GN kernel run), key_frames
+(``KeyFrameTracker``: the reference follows the test) and update_policy (when it moves).
 """
 
-from livedic.dic.tracking.tracker import (ICGN_MAX_ITERATIONS, REFIND_MAX_WAIT, REFIND_SEEDS, SEED_SWARM,
-                                          TRACKER_STAGES, KernelJob, StageTimes, Tracker, grid_in_roi,
-                                          last_good_after, step_for_count, window_coefficients)
+from livedic.dic.tracking.grid import grid_in_roi, step_for_count
+from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
+from livedic.dic.tracking.tracker import (ICGN_MAX_ITERATIONS, REFIND_MAX_WAIT, REFIND_SEEDS, REFIND_ZNCC,
+                                          SEED_SWARM, TRACKER_STAGES, StageTimes, Tracker, last_good_after)
 
-__all__ = ["ICGN_MAX_ITERATIONS", "REFIND_MAX_WAIT", "REFIND_SEEDS", "SEED_SWARM", "TRACKER_STAGES", "StageTimes",
+__all__ = ["ICGN_MAX_ITERATIONS", "REFIND_MAX_WAIT", "REFIND_SEEDS", "REFIND_ZNCC", "SEED_SWARM", "TRACKER_STAGES",
+           "StageTimes",
            "grid_in_roi", "step_for_count", "Tracker", "window_coefficients", "KernelJob", "last_good_after"]

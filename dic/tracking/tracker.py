@@ -7,18 +7,18 @@ import numpy as np
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
-from livedic.dic.correlation import _zncc_batch, snap_points
+from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
 from livedic.dic.neighbours import neighbour_graph
-from livedic.dic.region import centred_axis
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
-from livedic.dic.search import SEARCH_METHODS as _INTEGER_SEARCHES, search_points
+from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES, search_points
 from livedic.dic.status import Status
 from livedic.dic.subpixel import icgn2
-from livedic.dic.subpixel.icgn import prepare_reference, prepare_target, refine_prepared
+from livedic.dic.subpixel.icgn import prepare_reference
 from livedic.dic.validation import as_image, as_points, check_radius, check_subset, checked_image
+from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
 
 # IC-GN iteration cap used for tracking (dic.subpixel.icgn's own default is 10): measured here, a
 # few subsets of the tensile sequence need 16-40 iterations from the exact displacement with zero
@@ -26,6 +26,8 @@ from livedic.dic.validation import as_image, as_points, check_radius, check_subs
 ICGN_MAX_ITERATIONS = 50
 # Longest wait (frames) before a point the wide search could not recover is searched again.
 REFIND_MAX_WAIT = 32
+# Points whose ZNCC falls below this are re-found (``Tracker``'s ``refind_zncc``, the view's low-ZNCC colour).
+REFIND_ZNCC = 0.8
 # With at least twice this many points to re-find in one frame, the wide search runs for this many
 # (spread over them) and IC-GN carries their result to the rest: measured after the fracture of the
 # simulated test with frames dropped (the upper half jumping 4-10 px), ~500 wide searches took the
@@ -80,76 +82,6 @@ class StageTimes:
     def __exit__(self, *exc):
         self.ns[self._stage] += time.perf_counter_ns() - self._started
         return False
-
-
-def grid_in_roi(shape, roi, step, subset):
-    """Points every ``step`` px over a region of interest, where a whole subset fits.
-
-    Parameters
-    ----------
-    shape : tuple of int, (H, W)
-        Image size.
-    roi : tuple of int, (x, y, w, h), or None
-        Region of interest (column, row of its top-left pixel, width, height);
-        None for the whole image. Points are placed so their subsets stay inside
-        both the ROI and the image, and the grid is centred in the ROI.
-    step : int
-        Grid spacing, pixels (>= 1).
-    subset : int
-        Odd subset side, pixels.
-
-    Returns
-    -------
-    ndarray of float64, shape (N, 2)
-        (x, y) positions, row by row.
-
-    Raises
-    ------
-    ValueError
-        Bad step, subset or ROI, or an ROI too small (or too far outside the
-        image) to hold one subset.
-    """
-    height, width = int(shape[0]), int(shape[1])
-    if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 1:
-        raise ValueError(f"grid step must be a positive integer number of pixels, got {step!r}")
-    half = check_subset(subset, (height, width))
-    if roi is None:
-        roi = (0, 0, width, height)
-    try:
-        x0, y0, w, h = (int(v) for v in roi)
-    except (TypeError, ValueError):
-        raise ValueError(f"ROI must be four integers x, y, w, h, got {roi!r}") from None
-    if w <= 0 or h <= 0:
-        raise ValueError(f"ROI width and height must be positive, got {w}x{h}")
-    left = max(x0, 0) + half
-    top = max(y0, 0) + half
-    right = min(x0 + w, width) - 1 - half
-    bottom = min(y0 + h, height) - 1 - half
-    if right < left or bottom < top:
-        raise ValueError(f"ROI {x0},{y0},{w},{h} inside the {width}x{height} image cannot hold a "
-                         f"{subset}x{subset} subset: enlarge the ROI or use a smaller subset")
-
-    xs, ys = np.meshgrid(centred_axis(left, right, step), centred_axis(top, bottom, step))
-    return np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
-
-
-def step_for_count(roi, n_points, subset):
-    """Grid step giving about ``n_points`` points over ``roi`` = (x, y, w, h) (>= 1)."""
-    _, _, w, h = roi
-    half = int(subset) // 2
-    w_eff = max(int(w) - 2 * half, 1)
-    h_eff = max(int(h) - 2 * half, 1)
-    if n_points <= 1:
-        return max(w_eff, h_eff)
-    step = int(np.sqrt(w_eff * h_eff / float(n_points)))
-    best = max(step, 1)
-    best_err = None
-    for candidate in range(max(step - 2, 1), step + 3):
-        count = (w_eff // candidate + 1) * (h_eff // candidate + 1)
-        err = abs(count - n_points)
-        if best_err is None or err < best_err:
-            best, best_err = candidate, err
-    return best
 
 
 class Tracker:
@@ -249,16 +181,16 @@ class Tracker:
     (0.4, -0.3)
     """
 
-    def __init__(self, reference_image, points, *, subset=21, search="improved-wso", subpixel="icgn",
-                 seed_radius=2, refind_radius=16, refind_zncc=0.8, refind_drop=0.05, refind_gradient=0.1,
-                 refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
+    def __init__(self, reference_image, points, *, subset=DEFAULT_SUBSET, search=DEFAULT_SEARCH, subpixel="icgn",
+                 seed_radius=2, refind_radius=DEFAULT_RADIUS, refind_zncc=REFIND_ZNCC, refind_drop=0.05,
+                 refind_gradient=0.1, refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
                  seed_search_options=None, subpixel_options=None, gates=Gates()):
         if search not in SEARCH_METHODS:
             raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
         if subpixel not in SUBPIXEL_METHODS:
             raise ValueError(f"unknown sub-pixel method {subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
         if refind_search is None:
-            refind_search = search if search != "none" else "improved-wso"
+            refind_search = search if search != "none" else DEFAULT_SEARCH
         if refind_search not in _INTEGER_SEARCHES:
             raise ValueError(f"re-find search must be one of {', '.join(_INTEGER_SEARCHES)}, "
                              f"got {refind_search!r}")
@@ -917,13 +849,6 @@ class Tracker:
         self._ever_good |= ok
 
 
-def window_coefficients(image, window, out=None):
-    """IC-GN's B-spline coefficients (``prepare_target``) of ``image``'s rows y0:y1, columns x0:x1 (``window``);
-    ``out``: an earlier frame's, overwritten where the window's size is theirs."""
-    y0, y1, x0, x1 = window
-    return prepare_target(image[y0:y1, x0:x1], out=out)
-
-
 class _Frame:
     """The frame ``track`` measures: as given (``raw``; IC-GN prefilters its window of it) and, made
     when a search first needs it, as the float32 image the searches read (``grey``)."""
@@ -938,41 +863,6 @@ class _Frame:
         if self._grey is None:
             self._grey = as_image(self.raw, "frame")
         return self._grey
-
-
-@dataclass(frozen=True)
-class KernelJob:
-    """One run of the prepared IC-GN kernel (``"icgn"``, ``"icgn2"``) as ``Tracker`` makes it.
-
-    ``run(coefficients)`` refines the prepared points ``points`` from (``u0``, ``v0``) and the start
-    shape terms ``shape`` (``ux, uy, vx, vy`` and, for icgn2, its second-order terms) with ``order``
-    and ``options`` (``refine_prepared``'s), on ``coefficients(frame)``: the frame's ``window``
-    (y0, y1, x0, x1), to which the prepared data's positions are relative.
-    """
-    prep: object
-    window: tuple
-    points: np.ndarray
-    u0: np.ndarray
-    v0: np.ndarray
-    shape: dict
-    order: object
-    options: dict
-    status: np.ndarray = None
-
-    def coefficients(self, image, out=None):
-        """``image``'s coefficients on the window (``window_coefficients``; ``out`` an earlier frame's)."""
-        return window_coefficients(image, self.window, out)
-
-    def run(self, coefficients):
-        """The sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""
-        g = self.shape
-        if isinstance(self.prep, icgn2.Icgn2Reference):
-            second = {f"{name}0": g[name] for name in icgn2.SECOND_ORDER}
-            return icgn2.refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
-                                         status=self.status, points=self.points, order=self.order, **second,
-                                         **self.options)
-        return refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
-                               status=self.status, points=self.points, order=self.order, **self.options)
 
 
 def last_good_after(last_good, result):

@@ -16,7 +16,7 @@ from array import array
 import numpy as np
 
 from livedic.dic.tensile.poisson import contraction_ratios
-from livedic.stream.stages.strain import AXIAL, TRANSVERSE
+from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
 
 REFIT_SHARE = 50      # the live fit is redone after n / REFIT_SHARE new frames
 

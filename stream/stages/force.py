@@ -19,7 +19,7 @@ import math
 import time
 
 from livedic.acquire.force import open_load
-from livedic.stream.stages.strain import AXIAL
+from livedic.dic.strain.extensometer import AXIAL
 from livedic.stream.stages.stress import UniformElongationWatch
 
 

@@ -33,12 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from livedic.dic.strain.extensometer import (Extensometer, ExtensometerOffPoints, place_extensometers, read_extensometers,
-                                      strain_noise)
+from livedic.dic.strain.extensometer import (AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints,
+                                              place_extensometers, read_extensometers, strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 
 TRANSVERSE_FRACTION = 0.8
-AXIAL, TRANSVERSE = "axial", "transverse"
 # An extensometer's expected noise at placement, for the warning below: the point displacement noise of IC-GN on
 # good 8-bit speckle is 0.01-0.02 px (0.006 px measured on the simulator); the low end, so that the warning is
 # never a false alarm. dic.strain.extensometer.strain_noise turns it into strain: sigma_e = 0.01 px |w2 - w1| / L0

@@ -26,14 +26,13 @@ import numpy as np
 
 from livedic.dic.tensile.properties import NECKING_DROP
 
-__all__ = ["STRESS_STRAIN_COLUMNS", "AXIAL", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
+__all__ = ["STRESS_STRAIN_COLUMNS", "StressStrainTable", "cross_section_mm2", "stress_strain_table",
            "stress_strain_rows", "plot_stress_strain", "add_stress_arguments", "stress_options_from_args",
            "StressOptions", "RECORDED_FORCE", "AREA_METADATA_KEY", "UniformElongationWatch", "NECKING_DROP",
            "force_coverage_notes"]
 
 STRESS_STRAIN_COLUMNS = ("frame", "time_s", "force_N", "eng_strain", "eng_stress_MPa", "true_strain",
                          "true_stress_MPa")
-AXIAL = "axial"
 RECORDED_FORCE = "recorded:/machine/force"   # StressOptions.load when the force is the recording's own channel
 AREA_METADATA_KEY = "area_mm2"               # session metadata key of A0, when the session had a cross-section
 

@@ -4,7 +4,7 @@
 tensile test is watched by, and the small plots; docs/guide/live-view.md shows the result. Imports rerun when called.
 """
 
-from livedic.stream.stages.strain import AXIAL, TRANSVERSE
+from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
 from livedic.stream.view.entities import (
     CAMERA, DROPS, ERROR, EVENTS, EXTENSOMETER_LINES, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FORCE, LATENCY,
     LEGEND_EYY, LEGEND_U, LEGEND_V, LOST, LOW_ZNCC, P0, QUALITY, SETUP, SETUP_NOTES, SUMMARY, THROUGHPUT, TRACKING)

@@ -14,10 +14,10 @@ from collections import deque
 
 import numpy as np
 
-from livedic.dic.strain.extensometer import end_displacements
+from livedic.dic.strain.extensometer import AXIAL, end_displacements
 from livedic.dic.tensile.properties import FRACTURE_DROP
+from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.stream.stages.force import axial_strain
-from livedic.stream.stages.strain import AXIAL
 from livedic.stream.view.blueprint import axial_transverse_pair, make_blueprint
 from livedic.stream.view.camera_image import CameraImagePacing, display_image, display_scale
 from livedic.stream.view.colour_bar import LEGENDS, colour_bar_image
@@ -111,7 +111,7 @@ class RerunLogger:
     required = False
 
     def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
-                 image_every=1, image_max_hz=None, flush_interval_s=1.0, color_range=None, low_zncc=0.8,
+                 image_every=1, image_max_hz=None, flush_interval_s=1.0, color_range=None, low_zncc=REFIND_ZNCC,
                  thin_when_behind=False,
                  on_error=None):
         if color_range is not None:

@@ -151,7 +151,8 @@ def test_axial_extensometer_on_a_short_simulated_tensile_test_meets_iso_9513_cla
     from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.stream.config import TrackingConfig
     from livedic.stream.points import build_points
-    from livedic.stream.stages.strain import AXIAL, StrainConfig
+    from livedic.dic.strain.extensometer import AXIAL
+    from livedic.stream.stages.strain import StrainConfig
 
     source = SyntheticTensileSource("synthetic:tensile?size=512x512&frames=8&pace=0")
     with source:

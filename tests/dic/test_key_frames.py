@@ -8,7 +8,8 @@ no added noise: IC-GN's error is the rounding noise, ~0.005 px here).
 import numpy as np
 import pytest
 
-from livedic.dic.tracking.key_frames import KeyFrameTracker, UpdatePolicy, _percentile_may_pass
+from livedic.dic.tracking.key_frames import KeyFrameTracker
+from livedic.dic.tracking.update_policy import UpdatePolicy, _percentile_may_pass
 from livedic.dic.speckle import SpecklePattern, affine, render
 from livedic.dic.status import Status
 from livedic.dic.tracking import Tracker

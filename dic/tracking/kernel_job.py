@@ -1,0 +1,51 @@
+"""``KernelJob``: one run of the prepared IC-GN kernel (icgn, icgn2) on a frame's window, as ``Tracker``
+makes it, so that a caller may run it elsewhere (another thread, another process)."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from livedic.dic.subpixel import icgn2
+from livedic.dic.subpixel.icgn import prepare_target, refine_prepared
+
+
+def window_coefficients(image, window, out=None):
+    """IC-GN's B-spline coefficients (``prepare_target``) of ``image``'s rows y0:y1, columns x0:x1 (``window``);
+    ``out``: an earlier frame's, overwritten where the window's size is theirs."""
+    y0, y1, x0, x1 = window
+    return prepare_target(image[y0:y1, x0:x1], out=out)
+
+
+@dataclass(frozen=True)
+class KernelJob:
+    """One run of the prepared IC-GN kernel (``"icgn"``, ``"icgn2"``) as ``Tracker`` makes it.
+
+    ``run(coefficients)`` refines the prepared points ``points`` from (``u0``, ``v0``) and the start
+    shape terms ``shape`` (``ux, uy, vx, vy`` and, for icgn2, its second-order terms) with ``order``
+    and ``options`` (``refine_prepared``'s), on ``coefficients(frame)``: the frame's ``window``
+    (y0, y1, x0, x1), to which the prepared data's positions are relative.
+    """
+    prep: object
+    window: tuple
+    points: np.ndarray
+    u0: np.ndarray
+    v0: np.ndarray
+    shape: dict
+    order: object
+    options: dict
+    status: np.ndarray = None
+
+    def coefficients(self, image, out=None):
+        """``image``'s coefficients on the window (``window_coefficients``; ``out`` an earlier frame's)."""
+        return window_coefficients(image, self.window, out)
+
+    def run(self, coefficients):
+        """The sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""
+        g = self.shape
+        if isinstance(self.prep, icgn2.Icgn2Reference):
+            second = {f"{name}0": g[name] for name in icgn2.SECOND_ORDER}
+            return icgn2.refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
+                                         status=self.status, points=self.points, order=self.order, **second,
+                                         **self.options)
+        return refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
+                               status=self.status, points=self.points, order=self.order, **self.options)
