@@ -1,4 +1,4 @@
-"""What a session does with each tracked frame: the sinks of ``stream.session.Session``.
+"""What a session does with each tracked frame: the sinks of ``stream.session.session.Session``.
 
 A sink is a callable ``sink(result, stats)`` (a ``stream.pipeline.tracker_loop.FrameResult``
 and the running ``SessionStats``), called for every tracked frame, in order, in

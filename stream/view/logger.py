@@ -197,7 +197,7 @@ class RerunLogger:
               source_settings=None, strain=None, load=None, setup=None):
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
 
-        ``setup`` is the session's ``stream.preview.SetupOverlay`` (None: the ROI's box only): the region's
+        ``setup`` is the session's ``stream.session.preview.SetupOverlay`` (None: the ROI's box only): the region's
         outline on the camera view and the set-up view (``log_setup``).
 
         ``strain`` is the session's ``stream.stages.strain.StrainStage`` (None: no strain): with it the view
@@ -281,7 +281,7 @@ class RerunLogger:
         self.rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
 
     def log_setup(self, setup):
-        """The set-up (a ``stream.preview.SetupOverlay``): the region's outline on the camera view, and the
+        """The set-up (a ``stream.session.preview.SetupOverlay``): the region's outline on the camera view, and the
         set-up view as ``livedic preview`` draws it (docs/guide/live-view.md). Static: logged once, at the start."""
         rr, rec = self.rr, self.rec
         preview = setup                 # the overlay carries the palette the preview draws in

@@ -16,7 +16,7 @@ from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticT
 from livedic.stream.pipeline.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser
-from livedic.stream.points import build_points
+from livedic.stream.session.points import build_points
 from livedic.stream.run import add_run_arguments, run_session
 from livedic.stream.pipeline.tracker_loop import TrackerLoop
 
@@ -504,7 +504,7 @@ def test_run_session_options_are_checked(tmp_path):
 
 def test_method_names_are_checked_by_the_parser_and_the_config(capsys):
     """An unknown method name is refused by argparse (one line, exit 2) and by the config itself (API users)."""
-    from livedic.stream.config import TrackingConfig
+    from livedic.stream.session.config import TrackingConfig
     for option, words in (("--search", "unknown search method 'magic'"), ("--subpixel", "unknown sub-pixel method")):
         with pytest.raises(SystemExit) as stop:
             _parse([option, "magic"])

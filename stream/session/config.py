@@ -2,7 +2,7 @@
 
 ``livedic run`` builds it from its command line (``SessionConfig.from_args``),
 ``livedic replay`` from a recording's metadata and the options given, and the
-benchmarks directly; ``stream.session.Session`` runs it. Every check is made
+benchmarks directly; ``stream.session.session.Session`` runs it. Every check is made
 here, when a config is built, and a bad value is a ``ValueError`` with one line
 that names the option as the command line spells it (the CLI prints it and
 exits 2). Nothing downstream re-checks a value or reads an argparse Namespace.
@@ -268,7 +268,7 @@ def add_subset_argument(parser):
 
 @dataclass(frozen=True)
 class PointsConfig:
-    """Which points a session tracks (P0, the traced point, is always point 0); ``stream.points.place_points``.
+    """Which points a session tracks (P0, the traced point, is always point 0); ``stream.session.points.place_points``.
 
     Attributes
     ----------
@@ -292,7 +292,7 @@ class PointsConfig:
     n_points : int
         Points wanted when ``step`` is None.
     p0 : (x, y) or None
-        P0; None: the best-textured point near the region's centre (``stream.p0``).
+        P0; None: the best-textured point near the region's centre (``stream.session.p0``).
     max_points : int
         A live session refuses to start with more points (their cost is in the message).
     """

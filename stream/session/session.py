@@ -10,7 +10,7 @@ Wiring (one producer thread, one consumer loop)::
 all run this one object, so the benchmarks measure what a user gets. Its
 lifecycle::
 
-    session = Session(config)     # a SessionConfig (stream.config): nothing is opened yet
+    session = Session(config)     # a SessionConfig (stream.session.config): nothing is opened yet
     session.prepare()             # outputs checked, source opened, kernels compiled, the simulated test
                                   # rendered, the first frame read, the points and P0 placed on it and
                                   # checked, then the recording and the view opened
@@ -49,11 +49,11 @@ from livedic.dic import bspline, field_fit
 from livedic.dic.status import Status
 from livedic.acquire.base import SourceError
 from livedic.stream.pipeline.acquisition import AcquisitionThread, Reconnect
-from livedic.stream.config import VIEWER_NONE
+from livedic.stream.session.config import VIEWER_NONE
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue
 from livedic.stream.stages.contraction import ContractionWatch, format_poisson, has_pair
-from livedic.stream.points import PlacedBy, check_point_count, default_roi, place_points, read_points_csv
-from livedic.stream.preview import setup_overlay
+from livedic.stream.session.points import PlacedBy, check_point_count, default_roi, place_points, read_points_csv
+from livedic.stream.session.preview import setup_overlay
 from livedic.stream.pipeline.progress import ProgressBar
 from livedic.stream.stages.force import format_force_summary
 from livedic.stream.publish import format_publish_summary
@@ -264,7 +264,7 @@ class Session:
 
     Parameters
     ----------
-    config : stream.config.SessionConfig
+    config : stream.session.config.SessionConfig
         Validated settings.
     source : FrameSource, optional
         An opened source to use instead of opening ``config.source`` (a replay's
@@ -288,7 +288,7 @@ class Session:
         The pipeline, from ``start``.
     points : ndarray (N, 2)
         The points (P0 first), from ``prepare``.
-    p0 : stream.p0.P0Choice or None
+    p0 : stream.session.p0.P0Choice or None
         Where P0 is and why (None when ``points`` were given).
     strain : stream.stages.strain.StrainStage or None
         The strain and extensometer stage on the points, from ``prepare``.
@@ -327,7 +327,7 @@ class Session:
         self.points = None
         self.p0 = None
         self.placement = None
-        self._setup = None                      # the set-up drawn in the view (stream.preview.SetupOverlay)
+        self._setup = None                      # the set-up drawn in the view (stream.session.preview.SetupOverlay)
         self.strain = None
         self.poisson = None
         self.load = None
