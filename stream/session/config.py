@@ -550,7 +550,7 @@ class SessionConfig:
 
     @classmethod
     def from_args(cls, args, *, stem=None):
-        """From ``livedic run``'s parsed options (``stream.run.add_run_arguments``).
+        """From ``livedic run``'s parsed options (``stream.cli.run.add_run_arguments``).
 
         Resolves what the options leave open: the recording's default name
         (``recordings/session-YYYYmmdd-HHMMSS.mcap``, never an existing file), the

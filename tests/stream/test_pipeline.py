@@ -17,7 +17,7 @@ from livedic.stream.pipeline.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser
 from livedic.stream.session.points import build_points
-from livedic.stream.run import add_run_arguments, run_session
+from livedic.stream.cli.run import add_run_arguments, run_session
 from livedic.stream.pipeline.tracker_loop import TrackerLoop
 
 
@@ -518,7 +518,7 @@ def test_method_names_are_checked_by_the_parser_and_the_config(capsys):
 
 
 def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_path, monkeypatch):
-    import livedic.stream.run as run_module
+    import livedic.stream.cli.run as run_module
     from livedic.acquire import sources
 
     def failing(uri, **options):
@@ -536,7 +536,7 @@ def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_pat
 
 
 def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monkeypatch):
-    import livedic.stream.run as run_module
+    import livedic.stream.cli.run as run_module
     from livedic.acquire import sources
 
     opened = []
@@ -582,7 +582,7 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
     machine takes longer to get there), in the middle of a 400-frame session."""
     import re
     mcap = tmp_path / "interrupted.mcap"
-    code = ("import argparse, sys; from livedic.stream.run import add_run_arguments, run_session; "
+    code = ("import argparse, sys; from livedic.stream.cli.run import add_run_arguments, run_session; "
             "p = argparse.ArgumentParser(); add_run_arguments(p); "
             "sys.exit(run_session(p.parse_args(sys.argv[1:])))")
     process = subprocess.Popen(

@@ -22,7 +22,7 @@ from livedic.stream.session.points import add_region_arguments, read_points_tabl
 from livedic.stream.session.preview import add_preview_arguments, preview_command
 from livedic.stream.pipeline.progress import add_progress_argument
 from livedic.stream.replay.replay import add_replay_arguments, replay_command
-from livedic.stream.run import add_run_arguments, run_session
+from livedic.stream.cli.run import add_run_arguments, run_session
 from livedic.stream.stages.strain import add_strain_arguments
 from livedic.stream.stages.stress import add_stress_arguments
 
@@ -497,6 +497,3 @@ def _cmd_report(args):
     from livedic.stream.export.report import report_command
     return report_command(args)
 
-
-if __name__ == "__main__":
-    sys.exit(entry_point())
