@@ -60,7 +60,8 @@ from livedic.stream.publish import format_publish_summary
 from livedic.stream.pipeline.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                   ReferenceUpdates)
 from livedic.stream.stages.strain import AXIAL, StrainConfig, format_length
-from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop, reference_ready
+from livedic.stream.pipeline.frame_result import reference_ready
+from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
 from livedic.stream.view.process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 
 

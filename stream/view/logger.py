@@ -2,7 +2,7 @@
 
 What it draws (the entity tree, the colour rules, the point sizes, the layout and the viewer modes) is
 described in docs/guide/live-view.md. ``start`` opens the viewer or file (``viewer``) with the layout
-(``blueprint``) and logs what does not change; each call logs one ``stream.pipeline.tracker_loop.FrameResult``;
+(``blueprint``) and logs what does not change; each call logs one ``stream.pipeline.frame_result.FrameResult``;
 ``close`` flushes and ends the stream. One logging thread; a background thread only flushes. A live session
 runs the logger in a process of its own (``process``).
 """
@@ -415,7 +415,7 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- per frame
     def log_frame(self, result, stats, *, camera_image=None):
-        """Log one ``stream.pipeline.tracker_loop.FrameResult`` (a TrackerLoop sink).
+        """Log one ``stream.pipeline.frame_result.FrameResult`` (a TrackerLoop sink).
 
         ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
         (``stream.view.process``: paced and prepared in the session's process); None: chosen here, by

@@ -376,7 +376,7 @@ def test_tracker_loop_tracks_times_and_scores_against_the_truth():
 
 def test_session_stats_keep_per_frame_numbers_packed_with_the_same_percentiles():
     from array import array
-    from livedic.stream.pipeline.tracker_loop import SessionStats
+    from livedic.stream.pipeline.frame_result import SessionStats
     stats = SessionStats()
     assert np.isnan(stats.latency_ms(50)) and np.isnan(stats.processing_ms(99))
     assert np.isnan(stats.delivery_delay_ms(99)) and stats.summary()["delivery_delay_p99_ms"] is None

@@ -17,7 +17,7 @@ from livedic.acquire.recording.reader import read_events
 from livedic.stream.session.config import PointsConfig, SessionConfig, ViewerConfig
 from livedic.stream.session.session import Session, drop_policy, is_live
 from livedic.stream.stages.strain import NOISE_LIMIT, StrainConfig
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # 150 frames: the elastic part is the first 23 (to 0.4 % axial strain), the E fit's range about 7 of them
