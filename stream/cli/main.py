@@ -16,7 +16,7 @@ import signal
 import sys
 import threading
 
-from livedic.stream.session.config import UsageError, search_method, subpixel_method
+from livedic.stream.session.parsing import UsageError, search_method, subpixel_method
 from livedic.stream.export.field_export import add_field_arguments
 from livedic.stream.session.points import add_region_arguments, read_points_table
 from livedic.stream.session.preview import add_preview_arguments, preview_command
@@ -329,7 +329,8 @@ def _measure_points(args, reference):
     """``(points (N, 2), extra columns, note or None)``: the grid (``--grid``, over ``--roi``, ``--mask``, less
     ``--exclude``; the whole image by default) or the points file (less those a mask or exclusion leaves out)."""
     from livedic.dic.region import grid_in_region
-    from livedic.stream.session.config import ROI_FULL, PointsConfig
+    from livedic.stream.session.config import PointsConfig
+    from livedic.stream.session.parsing import ROI_FULL
     from livedic.stream.session.points import placeable_points, where_points_go
     if args.points is not None and args.roi is not None:
         raise UsageError("--roi places a grid: use it with --grid (with --points, --mask and --exclude leave "

@@ -24,8 +24,8 @@ import threading
 
 from livedic.acquire.base import SourceError, SourceLost
 from livedic.stream.session.config import (DEFAULT_SOURCE, DROP_CHOICES, add_subset_argument,
-                                   PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
-                                   subpixel_method)
+                                   PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig)
+from livedic.stream.session.parsing import search_method, subpixel_method
 from livedic.stream.output.files import json_text, write_text_atomic
 from livedic.stream.session.points import add_point_arguments
 from livedic.stream.session.session import Session

@@ -72,13 +72,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from livedic.dic.extensometer import ExtensometerOffPoints
-from livedic.stream.session.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsConfig, SessionConfig, TrackingConfig,
-                                   parse_exclusion, parse_p0, parse_roi, read_mask,
-                                   search_method, subpixel_method)
+from livedic.stream.session.config import DEFAULT_POINTS, PointsConfig, SessionConfig, TrackingConfig
+from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, parse_exclusion, parse_p0, parse_roi, read_mask,
+                                            search_method, subpixel_method)
 from livedic.stream.session.points import add_region_arguments, place_points, read_points_csv
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay.rows import CsvRows, check_rows_output, frame_rows, rows_output
-from livedic.stream.session.session import NoFrame, Session, format_strain_summary
+from livedic.stream.session.session import NoFrame, Session
+from livedic.stream.session.summary import format_strain_summary
 from livedic.stream.pipeline.sinks import FunctionSink
 from livedic.stream.stages.force import format_force_summary
 from livedic.stream.stages.strain import StrainConfig, add_strain_arguments, overrides_from_args

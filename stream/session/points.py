@@ -22,7 +22,8 @@ from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.validation import check_subset
 from livedic.dic.region import (Rectangle, Region, Specimen, bounding_box, find_specimen, grid_in_region,
                                 placeable)
-from livedic.stream.session.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS, ROI_AUTO, ROI_FULL, UsageError
+from livedic.stream.session.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS
+from livedic.stream.session.parsing import ROI_AUTO, ROI_FULL, UsageError
 from livedic.stream.session.p0 import P0Choice, choose_p0
 
 # Around a found specimen's edge a subset keeps this many px more inside it: the edge is found to about

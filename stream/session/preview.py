@@ -392,7 +392,8 @@ def first_frame(uri: str):
 
 def preview_command(args) -> int:
     """``livedic preview``: place as ``run`` would, draw, write ``-o``, say what was placed. Returns 0."""
-    from livedic.stream.session.config import PointsConfig, parse_p0
+    from livedic.stream.session.config import PointsConfig
+    from livedic.stream.session.parsing import parse_p0
     from livedic.stream.output.files import check_output_file
     from livedic.stream.session.points import check_point_count, place_points, read_points_csv
     from livedic.stream.stages.strain import StrainConfig
