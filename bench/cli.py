@@ -11,7 +11,7 @@ import sys
 
 from livedic.stream import cli as stream_cli
 from livedic.stream.cli import UsageError
-from livedic.stream.config import subpixel_method
+from livedic.stream.session.parsing import subpixel_method
 
 
 def add_bench_commands(commands):

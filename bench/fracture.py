@@ -3,7 +3,7 @@
 **a. The simulated test to fracture** (``synthetic:tensile?strain=0.30&neck=1.0&fade=0.2&fracture=1``:
 30 % uniform plastic strain, 100 % more in the neck, the paint fading as it strains, fracture at
 90 % of the frames), 1024 x 1024, 300 frames (``--quick``: 512 x 512, 120), ~1,000 points placed as
-``livedic run`` places them, tracked by ``stream.config.TrackingConfig(reference_update=...)``
+``livedic run`` places them, tracked by ``stream.session.config.TrackingConfig(reference_update=...)``
 (``dic.tracking.key_frames``) with ``never`` and ``auto`` (and ``icgn2`` when it exists), strain and an
 axial extensometer (L0 400 px; 200 px quick) as ``livedic run --gauge-length`` computes them.
 Against the simulator's exact truth, printed with the issue's targets:
@@ -53,9 +53,9 @@ def _cases():
 def simulated_study(*, quick, say):
     """Part a: rows per frame and case, and a summary per case."""
     from livedic.acquire.simulator.sources import SyntheticTensileSource
-    from livedic.stream.config import TrackingConfig
-    from livedic.stream.p0 import choose_p0
-    from livedic.stream.points import build_points
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.p0 import choose_p0
+    from livedic.stream.session.points import build_points
     from livedic.stream.stages.strain import StrainConfig
 
     size, frames, gauge = ((512, 120, 200.0) if quick else (1024, 300, 400.0))
@@ -139,9 +139,9 @@ def simulated_study(*, quick, say):
 def dogbone_study(data, *, say):
     """Part b: re-found points on the muDIC dog-bone, never against auto."""
     from livedic.acquire.files.image_file import read_grey_image
-    from livedic.stream.config import TrackingConfig
-    from livedic.stream.p0 import choose_p0
-    from livedic.stream.points import build_points
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.p0 import choose_p0
+    from livedic.stream.session.points import build_points
 
     folder = os.path.join(data, DOGBONE)
     files = sorted(glob.glob(os.path.join(folder, "images", "ut_*.tif")))

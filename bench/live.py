@@ -16,7 +16,7 @@ Then the pipeline by point count and method (issue 3): ``synthetic:tensile?size=
 N = 150 by default), subset 21, integer search ``improved-wso`` seeded by the
 previous frame (radius 2), for 400, 1,000 and 2,500 points, with the
 improved surface fit and with IC-GN as the sub-pixel method. Every case is one
-session of ``livedic run`` (``stream.session.Session``, its config built with
+session of ``livedic run`` (``stream.session.session.Session``, its config built with
 run's defaults, as ``livedic run --viewer none --progress off --record ...``
 gives it), so the benchmark measures exactly what a user gets: acquisition
 thread, bounded queue (4 frames, drop the oldest), tracker, recorder (ON, into
@@ -233,7 +233,7 @@ def gauge_length_for(size):
 def run_one_session(make_config, said, *, sinks=()):
     """One session from ``make_config()`` to its end, what it said into ``said``; (the ``Session`` or None, the
     error text or None): a failed case must not hide the others."""
-    from livedic.stream.session import Session
+    from livedic.stream.session.session import Session
     session = None
     try:
         with Session(make_config(), sinks=list(sinks), say=lambda message: said.append(f"livedic: {message}")) \
@@ -253,7 +253,7 @@ def run_case(*, size, frames, fps, n_points, subpixel, record=True, paced=True, 
     ``echo(text)`` receives what the session said and its summary, when given. ``gauge_length``
     (px): the axial/transverse extensometer pair (``--gauge-length``); None: ``gauge_length_for(size)``.
     """
-    from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
+    from livedic.stream.session.config import PointsConfig, SessionConfig, TrackingConfig
     from livedic.stream.output.files import json_text
     from livedic.stream.stages.strain import StrainConfig
 
@@ -540,7 +540,7 @@ def run_main_job_case(*, size, frames, fps, paced=True, n_points=None, workdir, 
     extensometers, force), plus strain out to a socket, on ``synthetic:tensile`` at ``fps`` (or unpaced:
     frames as fast as taken, a blocking queue); returns a row dict like ``run_case``'s."""
     from livedic.stream.cli import build_parser
-    from livedic.stream.config import SessionConfig
+    from livedic.stream.session.config import SessionConfig
     from livedic.stream.output.files import json_text
 
     tag = f"main-{n_points or 'default'}-{'paced' if paced else 'unpaced'}-{fps:g}"

@@ -4,7 +4,7 @@ Setup: one recording (given, or made here by ``livedic run`` on the simulated te
 with its defaults, ``--reference-update auto`` among them: the reference moves as the coupon
 stretches, and the parallel replays measure again what they measured ahead of each move).
 
-What writing costs. The recording is replayed sequentially (``stream.replay.replay``, in this
+What writing costs. The recording is replayed sequentially (``stream.replay.replay.replay``, in this
 process) four times, after one untimed replay (numba's kernels loaded, the file read once): with
 no output (tracking, strain and the comparison with the recording only), then writing the CSV as
 livedic formatted it before ``stream.output.csv_text`` (numpy's float -> str cell by cell:
@@ -16,7 +16,7 @@ the replay's time; on a shared machine the time inside the writer is the steadie
 rates move with the load. The two CSV files must be the same bytes (said when not).
 
 Then the same recording on a LocalCluster of 1 and of 2 worker processes (1 thread each:
-``stream.parallel_replay.dask_client``), the largest also with ``--shared-path`` (the workers
+``stream.replay.parallel_replay.dask_client``), the largest also with ``--shared-path`` (the workers
 read the frames from the file instead of receiving them from the replaying process); the
 sequential row is the CSV replay above. Each
 cluster is started and warmed up before it is timed (every worker tracks a small frame pair:
@@ -46,7 +46,7 @@ import time
 import numpy as np
 
 from livedic.stream.output.csv_text import scalar_text
-from livedic.stream.replay_rows import CsvRows, rows_output
+from livedic.stream.replay.rows import CsvRows, rows_output
 
 NOOP_TASKS = 100
 QUICK = dict(frames=30, size="256x256", points=300, workers=(1, 2))
@@ -180,7 +180,7 @@ WRITERS = (("no output", None), ("CSV, per-cell (before)", "before.csv"), ("CSV"
 def writer_rows(path, folder, *, log=print):
     """The sequential replay of ``path`` with each output of ``WRITERS`` (written in ``folder``): the rows,
     and the CSV ``replay``'s report and wall time (the sequential mode of the parallel comparison)."""
-    from livedic.stream.replay import replay
+    from livedic.stream.replay.replay import replay
 
     replay(path)             # untimed: the session stages' numba kernels loaded, the file in the page cache
     rows, csv_run = [], None
@@ -239,8 +239,8 @@ def run_replay_benchmark(*, recording=None, frames=60, size="1024x1024", points=
     writers : list of dict
         One per output of ``WRITERS`` (sequential).
     """
-    from livedic.stream.parallel_replay import dask_client
-    from livedic.stream.replay import replay
+    from livedic.stream.replay.parallel_replay import dask_client
+    from livedic.stream.replay.replay import replay
 
     if quick:
         frames, size, points, workers = QUICK["frames"], QUICK["size"], QUICK["points"], QUICK["workers"]

@@ -1,7 +1,7 @@
 """``livedic bench soak``: a long session through the full pipeline; memory and frame accounting.
 
 Setup (issue 4): 20,000 frames of the simulated tensile test through the
-session ``livedic run`` runs (``stream.session.Session``, its config built with
+session ``livedic run`` runs (``stream.session.session.Session``, its config built with
 run's defaults): the acquisition thread, the bounded queue (4 frames, drop the
 oldest, as for a camera), the tracker (1,000 points, subset 21, improved-wso +
 IC-GN by default, P0 placed as run places it) and the recorder (every frame and
@@ -160,8 +160,8 @@ def run_soak_benchmark(*, frames=DEFAULT_FRAMES, size=DEFAULT_SIZE, fps=50.0, n_
     from livedic.acquire.recording.reader import inspect_recording
     from livedic.acquire.recording.schema import TOPIC_RESULTS
     from livedic.acquire.sources import open_source
-    from livedic.stream.config import PointsConfig, SessionConfig, TrackingConfig
-    from livedic.stream.session import Session
+    from livedic.stream.session.config import PointsConfig, SessionConfig, TrackingConfig
+    from livedic.stream.session.session import Session
     from livedic.stream.pipeline.sinks import FunctionSink
 
     if frames < 2:

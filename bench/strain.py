@@ -27,9 +27,9 @@ fits windows of 3..19 points. Printed: the RMS error of exx, eyy and exy in
 microstrain at each VSG = (window - 1) x step + subset.
 
 **b. The simulated tensile test** (``synthetic:tensile``, 1024 x 1024, ~1,000
-points placed as ``livedic run`` places them: ``stream.p0.choose_p0`` and
-``stream.points.build_points`` on the source's suggested ROI), tracked frame to
-frame by ``stream.config.TrackingConfig().tracker``; strain and extensometers
+points placed as ``livedic run`` places them: ``stream.session.p0.choose_p0`` and
+``stream.session.points.build_points`` on the source's suggested ROI), tracked frame to
+frame by ``stream.session.config.TrackingConfig().tracker``; strain and extensometers
 by ``stream.stages.strain.StrainConfig(gauge_length=400).place(...)``, what
 ``livedic run --gauge-length 400`` computes. e_yy RMSE against the exact dV/dY
 (central differences, h = 1e-3 px, of the frame's ``metadata["truth"]``),
@@ -274,9 +274,9 @@ def tensile_study(*, quick, say):
     """Part b: the simulated tensile test tracked as ``livedic run`` tracks it."""
     from livedic.acquire.simulator.sources import SyntheticTensileSource
     from livedic.dic.strain import strain_field, strain_window
-    from livedic.stream.config import TrackingConfig
-    from livedic.stream.p0 import choose_p0
-    from livedic.stream.points import build_points
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.p0 import choose_p0
+    from livedic.stream.session.points import build_points
     from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
     from livedic.stream.stages.strain import StrainConfig
 
@@ -421,9 +421,9 @@ def _mudic_extensometer(nodes, ends, height):
 def dogbone_study(data, *, say):
     """Part c: the muDIC dog-bone sequence; rows per frame."""
     from livedic.acquire.files.image_file import read_grey_image
-    from livedic.stream.config import TrackingConfig
-    from livedic.stream.p0 import choose_p0
-    from livedic.stream.points import build_points
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.p0 import choose_p0
+    from livedic.stream.session.points import build_points
     from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
     from livedic.stream.stages.strain import StrainConfig
 

@@ -55,8 +55,8 @@ class _ExactAxial:
 def _run_session(argv):
     """``livedic run argv`` in-process with the exact-strain sink; returns (sink, session, seconds)."""
     from livedic.stream.cli import build_parser
-    from livedic.stream.config import SessionConfig
-    from livedic.stream.session import Session
+    from livedic.stream.session.config import SessionConfig
+    from livedic.stream.session.session import Session
 
     args = build_parser().parse_args(["run", *argv])
     config = SessionConfig.from_args(args)

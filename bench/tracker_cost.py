@@ -2,7 +2,7 @@
 
 It tracks the main job's frames (the simulator ``synthetic:tensile`` 1024x1024, rendered ahead,
 delivered unpaced) with the tracker the main job builds (``livedic run --gauge-length 400 --load
-synthetic``: its points as ``stream.points`` places them, ``TrackingConfig``'s defaults: improved-WSO
+synthetic``: its points as ``stream.session.points`` places them, ``TrackingConfig``'s defaults: improved-WSO
 seeded search on demand, IC-GN, key-frame updates ``auto``; 1 numba thread as ``livedic run``) and
 prints per frame:
 
@@ -33,8 +33,8 @@ GOAL_RATIO = 1.5
 def main_job(size=MAIN_JOB_SIZE, frames=300, n_points=None):
     """(frame images, points) of the main job: the rendered simulated test and its points as the session places them."""
     from livedic.acquire.sources import open_source
-    from livedic.stream.config import PointsConfig, TrackingConfig
-    from livedic.stream.points import default_roi, place_points
+    from livedic.stream.session.config import PointsConfig, TrackingConfig
+    from livedic.stream.session.points import default_roi, place_points
 
     source = open_source(f"synthetic:tensile?size={size}x{size}&frames={frames}&pace=0")
     source.prepare()
@@ -47,7 +47,7 @@ def main_job(size=MAIN_JOB_SIZE, frames=300, n_points=None):
 
 def main_job_tracker(reference, points):
     """The ``KeyFrameTracker`` the main job's session builds on ``reference`` (``TrackingConfig``'s defaults)."""
-    from livedic.stream.config import TrackingConfig
+    from livedic.stream.session.config import TrackingConfig
     return TrackingConfig().tracker(reference, points)
 
 

@@ -27,9 +27,9 @@ def test_small_run_reports_every_stage_and_compares_its_results(tmp_path, capsys
 def test_stacks_summarises_where_the_tracker_spends_its_samples(tmp_path, capsys):
     profile = tmp_path / "prof.txt"
     profile.write_text(
-        "<module> (livedic:10);KeyFrameTracker.track (dic/tracking/key_frames.py:253);refine_prepared (dic/subpixel/icgn.py:9) 6\n"
-        "<module> (livedic:10);KeyFrameTracker.track (dic/tracking/key_frames.py:253);prefilter (dic/bspline.py:3) 2\n"
-        "<module> (livedic:10);warm_up (stream/session.py:1);KeyFrameTracker.track (dic/tracking/key_frames.py:1);x (y:1) 9\n"
+        "<module> (livedic:10);KeyFrameTracker.track (dic/key_frames.py:253);refine_prepared (dic/subpixel/icgn.py:9) 6\n"
+        "<module> (livedic:10);KeyFrameTracker.track (dic/key_frames.py:253);prefilter (dic/bspline.py:3) 2\n"
+        "<module> (livedic:10);warm_up (stream/session/session.py:1);KeyFrameTracker.track (dic/key_frames.py:1);x (y:1) 9\n"
         "<module> (livedic:10);Recorder.write (acquire/recording/writer.py:5) 7\n")
     assert main(["bench", "tracker", "--stacks", str(profile)]) == 0
     out = capsys.readouterr().out

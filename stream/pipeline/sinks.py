@@ -1,6 +1,6 @@
-"""What a session does with each tracked frame: the sinks of ``stream.session.Session``.
+"""What a session does with each tracked frame: the sinks of ``stream.session.session.Session``.
 
-A sink is a callable ``sink(result, stats)`` (a ``stream.pipeline.tracker_loop.FrameResult``
+A sink is a callable ``sink(result, stats)`` (a ``stream.pipeline.frame_result.FrameResult``
 and the running ``SessionStats``), called for every tracked frame, in order, in
 the session's output thread, at its own pace (the tracking thread hands results
 over and goes on: ``stream.pipeline.tracker_loop``). The measurement's own stages (strain,

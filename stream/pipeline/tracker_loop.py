@@ -53,13 +53,12 @@ import os
 import sys
 import threading
 import time
-from array import array
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
-from livedic.dic.status import Status
 from livedic.stream.pipeline.frame_queue import QueueClosed
+from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000
@@ -71,39 +70,6 @@ OUTPUT_NICE = 10
 OUTPUT_BACKLOG_MAX = 200
 
 
-class StageTimes:
-    """Per-frame durations of named stages (packed 64-bit ns), for their percentiles.
-
-    Each stage has its own series (a stage that did not run in a frame adds nothing
-    for it). One writer per stage name: the tracking thread writes the tracker's and
-    the stages', the output thread the sinks'.
-    """
-
-    def __init__(self):
-        self._times = {}
-
-    def add(self, stage, ns):
-        series = self._times.get(stage)
-        if series is None:
-            series = self._times[stage] = array("q")
-        series.append(int(ns))
-
-    def add_all(self, timings):
-        for stage, ns in timings.items():
-            self.add(stage, ns)
-
-    def summary(self):
-        """``{stage: {"frames", "p50_ms", "p99_ms", "mean_ms", "max_ms"}}`` in the order stages first ran."""
-        out = {}
-        for stage, series in list(self._times.items()):
-            values = np.array(series[:], dtype=np.int64) / 1e6     # a slice: a copy, not an export
-            if values.size:
-                out[stage] = {"frames": int(values.size), "p50_ms": float(np.percentile(values, 50)),
-                              "p99_ms": float(np.percentile(values, 99)), "mean_ms": float(values.mean()),
-                              "max_ms": float(values.max())}
-        return out
-
-
 def _lower_priority(nice):
     """Raise the calling thread's niceness by ``nice`` where the system allows it per thread (Linux); else nothing."""
     if not sys.platform.startswith("linux"):
@@ -113,178 +79,6 @@ def _lower_priority(nice):
         os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
     except OSError:
         pass
-
-
-def _percentile_ms(series, percentile):
-    """Percentile (ms) of a packed ns series another thread may be appending to (NaN when empty)."""
-    if not series:
-        return float("nan")
-    return float(np.percentile(np.array(series[:], np.int64), percentile)) / 1e6
-
-
-@dataclass
-class FrameResult:
-    """What the loop hands to sinks for one frame."""
-    frame: object                 # acquire.base.Frame
-    arrival_ns: int               # time.monotonic_ns() when acquisition got it
-    done_ns: int                  # results ready
-    processing_ns: int            # inside Tracker.track
-    measurement: object           # dic.result.Measurement
-    is_reference: bool
-    frames_done: int              # results so far, this one included
-    dropped_total: int            # frames the queue has dropped so far
-    dropped_since_last: int       # ... since the previous result
-    queue_depth: int              # frames waiting after this one was taken
-    refind_attempts: int = 0
-    refound: int = 0
-    error_rms_px: float = float("nan")   # against the truth (synthetic sources), ok points
-    error_max_px: float = float("nan")
-    capture_ns: int = None        # capture time on the monotonic clock, when the source gives it
-    reference_update: object = None   # dic.tracking.key_frames.ReferenceUpdate when this frame became the reference
-    fracture: object = None       # dic.tensile.fracture.Fracture when one was detected in this frame
-    strain: object = None         # dic.strain.StrainField, set by the strain stage (stream.stages.strain) when it runs
-    force_N: float = None         # the machine's force at this frame (stream.stages.force), NaN when unknown
-    stress_MPa: float = None      # ... and the engineering stress
-    true_strain: float = None     # ln(1 + e) of the axial extensometer while the elongation may be uniform, else NaN
-    true_stress_MPa: float = None  # ... and the true stress F / A0 (1 + e) (stream.stages.stress.UniformElongationWatch)
-    extensometers: object = None  # dic.strain.extensometer.ExtensometerReadings, idem
-    poisson: object = None        # dic.tensile.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.stages.contraction)
-    output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
-
-    @property
-    def origin_ns(self):
-        """Where latency starts: capture when known (and earlier than arrival), else arrival."""
-        if self.capture_ns is None:
-            return self.arrival_ns
-        return min(self.capture_ns, self.arrival_ns)
-
-    @property
-    def latency_ns(self):
-        return self.done_ns - self.origin_ns
-
-    @property
-    def delivery_delay_ns(self):
-        """Arrival in the acquisition thread - capture (None when the source gives no capture time)."""
-        return None if self.capture_ns is None else self.arrival_ns - self.capture_ns
-
-
-@dataclass
-class SessionStats:
-    """Running statistics of a session (see module notes for definitions)."""
-    n_points: int = 0
-    frames: int = 0
-    dropped: int = 0
-    first_arrival_ns: int = None
-    last_done_ns: int = None
-    setup_ns: int = 0
-    points_placed: int = 0        # every point, every frame
-    points_tracked: int = 0       # the trackable ones
-    points_ok: int = 0
-    refound: int = 0
-    # Per tracked frame, as packed 64-bit integers (8 bytes each, not a Python int object and
-    # a list slot): a long session keeps these for its percentiles.
-    latencies_ns: array = field(default_factory=lambda: array("q"))
-    processing_ns: array = field(default_factory=lambda: array("q"))
-    delivery_delays_ns: array = field(default_factory=lambda: array("q"))
-    latency_from: str = "arrival"
-    error_sq_sum: float = 0.0
-    error_count: int = 0
-    error_max: float = float("nan")
-    truth_frames: int = 0
-    stages: StageTimes = field(default_factory=StageTimes)   # per-frame time of each stage and sink
-    output_backlog_max: int = 0                  # the most results that waited for the output thread
-    output_waits: int = 0                        # times the tracking thread waited for it (backlog full)
-    trackable_at_reference: np.ndarray = None   # (N,) bool: trackable when the reference was set
-    reference_status: np.ndarray = None         # (N,) the reference frame's statuses (why not trackable)
-    last_status: np.ndarray = None              # (N,) the last frame's statuses
-
-    @property
-    def elapsed_s(self):
-        if self.first_arrival_ns is None or self.last_done_ns is None:
-            return 0.0
-        return (self.last_done_ns - self.first_arrival_ns) / 1e9
-
-    @property
-    def fps(self):
-        elapsed = self.elapsed_s
-        return (self.frames - 1) / elapsed if elapsed > 0 and self.frames > 1 else float("nan")
-
-    @property
-    def poi_per_s(self):
-        elapsed = self.elapsed_s
-        return self.points_tracked / elapsed if elapsed > 0 else float("nan")
-
-    def latency_ms(self, percentile):
-        return _percentile_ms(self.latencies_ns, percentile)
-
-    def delivery_delay_ms(self, percentile):
-        return _percentile_ms(self.delivery_delays_ns, percentile)
-
-    def processing_ms(self, percentile):
-        return _percentile_ms(self.processing_ns, percentile)
-
-    @property
-    def error_rms_px(self):
-        return float(np.sqrt(self.error_sq_sum / self.error_count)) if self.error_count else float("nan")
-
-    @property
-    def ok_fraction(self):
-        """Ok points over every placed point (the never-trackable count as not ok)."""
-        return self.points_ok / self.points_placed if self.points_placed else float("nan")
-
-    @property
-    def ok_fraction_of_trackable(self):
-        """Ok points over the points the tracker could track."""
-        return self.points_ok / self.points_tracked if self.points_tracked else float("nan")
-
-    def point_losses(self):
-        """``{"points_never_trackable": {"count", "by_status"}, "points_lost_later": {...}}`` (status names).
-
-        Never trackable: not trackable in the reference frame. Lost later: trackable there, not ok
-        in the last frame."""
-        def counted(statuses):
-            codes, counts = np.unique(np.asarray(statuses, dtype=np.int64), return_counts=True)
-            return {"count": int(counts.sum()),
-                    "by_status": {Status(int(code)).name: int(n) for code, n in zip(codes, counts)}}
-        if self.trackable_at_reference is None:
-            return {"points_never_trackable": counted([]), "points_lost_later": counted([])}
-        never = ~self.trackable_at_reference
-        lost = self.trackable_at_reference & (self.last_status != int(Status.OK))
-        return {"points_never_trackable": counted(self.reference_status[never]),
-                "points_lost_later": counted(self.last_status[lost])}
-
-    def summary(self):
-        """Plain dict of the headline numbers (JSON-friendly)."""
-        return {
-            "frames": self.frames, "points": self.n_points, "elapsed_s": self.elapsed_s, "fps": self.fps,
-            "poi_per_s": self.poi_per_s, "latency_p50_ms": self.latency_ms(50), "latency_p99_ms": self.latency_ms(99),
-            "latency_max_ms": self.latency_ms(100), "processing_p50_ms": self.processing_ms(50),
-            "processing_p99_ms": self.processing_ms(99), "latency_from": self.latency_from,
-            "delivery_delay_p99_ms": self.delivery_delay_ms(99) if self.delivery_delays_ns else None,
-            "setup_ms": self.setup_ns / 1e6, "dropped": self.dropped,
-            "ok_fraction": self.ok_fraction, "ok_fraction_of_trackable": self.ok_fraction_of_trackable,
-            **self.point_losses(), "refound": self.refound,
-            "error_rms_px": self.error_rms_px if self.truth_frames else None,
-            "error_max_px": self.error_max if self.truth_frames else None,
-            "stages": self.stages.summary(), "output_backlog_max": self.output_backlog_max,
-            "output_waits": self.output_waits,
-        }
-
-
-@dataclass
-class ReferenceReady:
-    """The reference frame's tracker and result, made before the session's clock started (``TrackerLoop``)."""
-    tracker: object
-    measurement: object
-    setup_ns: int                 # building the tracker and tracking the reference
-
-
-def reference_ready(make_tracker, frame):
-    """Build the tracker on ``frame`` and track it: a ``ReferenceReady``."""
-    started = time.monotonic_ns()
-    tracker = make_tracker(frame)
-    measurement = tracker.track(frame.image)
-    return ReferenceReady(tracker, measurement, time.monotonic_ns() - started)
 
 
 def _stage_name(stage):

@@ -273,7 +273,7 @@ class FrameValues:
 
 
 def frame_values(result, names, time_s):
-    """The ``FrameValues`` of a ``stream.pipeline.tracker_loop.FrameResult`` for the extensometers ``names``.
+    """The ``FrameValues`` of a ``stream.pipeline.frame_result.FrameResult`` for the extensometers ``names``.
 
     A reading is valid when its extensometer is ok and its strain finite; an extensometer the
     frame has no reading of (the strain stage failed) is not valid.

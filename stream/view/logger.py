@@ -2,7 +2,7 @@
 
 What it draws (the entity tree, the colour rules, the point sizes, the layout and the viewer modes) is
 described in docs/guide/live-view.md. ``start`` opens the viewer or file (``viewer``) with the layout
-(``blueprint``) and logs what does not change; each call logs one ``stream.pipeline.tracker_loop.FrameResult``;
+(``blueprint``) and logs what does not change; each call logs one ``stream.pipeline.frame_result.FrameResult``;
 ``close`` flushes and ends the stream. One logging thread; a background thread only flushes. A live session
 runs the logger in a process of its own (``process``).
 """
@@ -197,7 +197,7 @@ class RerunLogger:
               source_settings=None, strain=None, load=None, setup=None):
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
 
-        ``setup`` is the session's ``stream.preview.SetupOverlay`` (None: the ROI's box only): the region's
+        ``setup`` is the session's ``stream.session.preview.SetupOverlay`` (None: the ROI's box only): the region's
         outline on the camera view and the set-up view (``log_setup``).
 
         ``strain`` is the session's ``stream.stages.strain.StrainStage`` (None: no strain): with it the view
@@ -281,7 +281,7 @@ class RerunLogger:
         self.rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
 
     def log_setup(self, setup):
-        """The set-up (a ``stream.preview.SetupOverlay``): the region's outline on the camera view, and the
+        """The set-up (a ``stream.session.preview.SetupOverlay``): the region's outline on the camera view, and the
         set-up view as ``livedic preview`` draws it (docs/guide/live-view.md). Static: logged once, at the start."""
         rr, rec = self.rr, self.rec
         preview = setup                 # the overlay carries the palette the preview draws in
@@ -415,7 +415,7 @@ class RerunLogger:
 
     # ----------------------------------------------------------------- per frame
     def log_frame(self, result, stats, *, camera_image=None):
-        """Log one ``stream.pipeline.tracker_loop.FrameResult`` (a TrackerLoop sink).
+        """Log one ``stream.pipeline.frame_result.FrameResult`` (a TrackerLoop sink).
 
         ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
         (``stream.view.process``: paced and prepared in the session's process); None: chosen here, by

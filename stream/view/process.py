@@ -42,7 +42,8 @@ from multiprocessing.connection import Connection
 from livedic.acquire.base import Frame
 from livedic.stream.view.camera_image import CameraImagePacing, display_image, display_scale
 from livedic.stream.view.logger import RerunLogger
-from livedic.stream.pipeline.tracker_loop import OUTPUT_NICE, StageTimes
+from livedic.stream.pipeline.frame_result import StageTimes
+from livedic.stream.pipeline.tracker_loop import OUTPUT_NICE
 
 BEHIND = 1                 # frames handed over and not yet drawn, the one being drawn included, that are not "behind"
 BACKLOG_MAX = 2000         # frames waiting for the child beyond which whole frames are left out (~20 s at 100 fps)

@@ -80,7 +80,7 @@ def test_a_12_bit_camera_is_tracked_as_its_8_bit_twin():
     a hole and a flat background included (the texture gate and P0's choice are relative)."""
     from livedic import dic
     from livedic.dic.speckle import SpecklePattern, affine, render
-    from livedic.stream.p0 import choose_p0
+    from livedic.stream.session.p0 import choose_p0
 
     pattern = SpecklePattern((160, 200), radius=3.0, seed=11)
     reference = render(pattern, bit_depth=8)

@@ -149,8 +149,8 @@ def test_axial_extensometer_on_a_short_simulated_tensile_test_meets_iso_9513_cla
     test (up to 9 % axial strain; ~2.5 s): measured here, the largest error is 0.21 of the
     tolerance; the gauge is 261 px (0.8 x the ROI height), shorter than the 400 px of the target."""
     from livedic.acquire.simulator.sources import SyntheticTensileSource
-    from livedic.stream.config import TrackingConfig
-    from livedic.stream.points import build_points
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.points import build_points
     from livedic.dic.strain.extensometer import AXIAL
     from livedic.stream.stages.strain import StrainConfig
 

@@ -7,8 +7,8 @@ import pytest
 
 from livedic.acquire.base import Frame, FrameSource
 from livedic.stream.cli import main
-from livedic.stream.config import SessionConfig, ViewerConfig
-from livedic.stream.session import Session
+from livedic.stream.session.config import SessionConfig, ViewerConfig
+from livedic.stream.session.session import Session
 
 SHIFT = (1.3, -0.7)           # px, x then y: the deformed image's content moved by this
 

@@ -45,7 +45,7 @@ def affine(tmp_path_factory):
     from livedic.acquire.base import Frame
     from livedic.dic.speckle import SpecklePattern, affine, render
     from livedic.dic.tracking import Tracker
-    from livedic.stream.points import build_points
+    from livedic.stream.session.points import build_points
     from livedic.acquire.recording.writer import Recorder
 
     path = tmp_path_factory.mktemp("affine") / "affine.mcap"
@@ -305,7 +305,7 @@ def test_overwrite_replaces_an_earlier_exports_pictures(affine, tmp_path, capsys
 
 def _stop_after(calls):
     """A ``stop`` for ``export_recording`` that raises ``ExportStopped`` (as SIGTERM) on its ``calls``-th call."""
-    from livedic.stream.export import ExportStopped
+    from livedic.stream.export.export import ExportStopped
     count = [0]
 
     def stop():
@@ -321,8 +321,8 @@ def _partial_files(folder):
 
 
 def test_stopped_while_writing_the_csv_files_leaves_nothing(affine, tmp_path):
-    from livedic.stream.export import ExportStopped, export_recording
-    from livedic.stream.field_export import FieldOptions
+    from livedic.stream.export.export import ExportStopped, export_recording
+    from livedic.stream.export.field_export import FieldOptions
     path, _ = affine
     out = tmp_path / "out"
     with pytest.raises(ExportStopped) as stopped:
@@ -334,8 +334,8 @@ def test_stopped_while_writing_the_csv_files_leaves_nothing(affine, tmp_path):
 def test_stopped_while_drawing_keeps_the_csv_files_and_whole_pictures(affine, tmp_path):
     """Stopped at the third frame of the maps: the CSV files are complete, two frames' maps and .vtu files are
     there, whole; no video and no .pvd (they would claim frames that are not there), no partial file."""
-    from livedic.stream.export import ExportStopped, export_recording
-    from livedic.stream.field_export import FieldOptions
+    from livedic.stream.export.export import ExportStopped, export_recording
+    from livedic.stream.export.field_export import FieldOptions
     path, _ = affine
     out = tmp_path / "out"
     with pytest.raises(ExportStopped) as stopped:

@@ -17,8 +17,8 @@ from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticT
 from livedic.stream.pipeline.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser
-from livedic.stream.points import build_points
-from livedic.stream.run import add_run_arguments, run_session
+from livedic.stream.session.points import build_points
+from livedic.stream.cli.run import add_run_arguments, run_session
 from livedic.stream.pipeline.tracker_loop import TrackerLoop
 
 
@@ -388,7 +388,7 @@ def test_tracker_loop_tracks_times_and_scores_against_the_truth():
 
 def test_session_stats_keep_per_frame_numbers_packed_with_the_same_percentiles():
     from array import array
-    from livedic.stream.pipeline.tracker_loop import SessionStats
+    from livedic.stream.pipeline.frame_result import SessionStats
     stats = SessionStats()
     assert np.isnan(stats.latency_ms(50)) and np.isnan(stats.processing_ms(99))
     assert np.isnan(stats.delivery_delay_ms(99)) and stats.summary()["delivery_delay_p99_ms"] is None
@@ -516,7 +516,7 @@ def test_run_session_options_are_checked(tmp_path):
 
 def test_method_names_are_checked_by_the_parser_and_the_config(capsys):
     """An unknown method name is refused by argparse (one line, exit 2) and by the config itself (API users)."""
-    from livedic.stream.config import TrackingConfig
+    from livedic.stream.session.config import TrackingConfig
     for option, words in (("--search", "unknown search method 'magic'"), ("--subpixel", "unknown sub-pixel method")):
         with pytest.raises(SystemExit) as stop:
             _parse([option, "magic"])
@@ -530,7 +530,7 @@ def test_method_names_are_checked_by_the_parser_and_the_config(capsys):
 
 
 def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_path, monkeypatch):
-    import livedic.stream.run as run_module
+    import livedic.stream.cli.run as run_module
     from livedic.acquire import sources
 
     def failing(uri, **options):
@@ -548,7 +548,7 @@ def test_run_session_raises_a_source_failure_after_closing_the_recording(tmp_pat
 
 
 def test_run_session_with_reconnect_goes_on_in_the_same_recording(tmp_path, monkeypatch):
-    import livedic.stream.run as run_module
+    import livedic.stream.cli.run as run_module
     from livedic.acquire import sources
 
     opened = []
@@ -595,7 +595,7 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
     machine takes longer to get there), in the middle of a 400-frame session."""
     import re
     mcap = tmp_path / "interrupted.mcap"
-    code = ("import argparse, sys; from livedic.stream.run import add_run_arguments, run_session; "
+    code = ("import argparse, sys; from livedic.stream.cli.run import add_run_arguments, run_session; "
             "p = argparse.ArgumentParser(); add_run_arguments(p); "
             "sys.exit(run_session(p.parse_args(sys.argv[1:])))")
     process = subprocess.Popen(

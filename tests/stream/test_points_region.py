@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from livedic.dic.region import Circle, Polygon, Rectangle
-from livedic.stream.config import PointsConfig, SessionConfig, ViewerConfig, parse_roi
-from livedic.stream.points import PlacedBy, place_points
-from livedic.stream.session import Session
+from livedic.stream.session.config import PointsConfig, SessionConfig, ViewerConfig
+from livedic.stream.session.parsing import parse_roi
+from livedic.stream.session.points import PlacedBy, place_points
+from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import StrainConfig
 from tests.conftest import specimen_scene
 

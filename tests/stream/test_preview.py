@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from livedic.bench.cli import main
-from livedic.stream.config import PointsConfig
-from livedic.stream.points import place_points
-from livedic.stream.preview import region_outlines, setup_overlay, shape_outline
+from livedic.stream.session.config import PointsConfig
+from livedic.stream.session.points import place_points
+from livedic.stream.session.preview import region_outlines, setup_overlay, shape_outline
 from livedic.dic.region import Circle
 from tests.conftest import specimen_scene
 

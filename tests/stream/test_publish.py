@@ -22,11 +22,11 @@ import pytest
 
 from livedic.acquire.recording.reader import Recording, read_events
 from livedic.dic.strain.extensometer import ExtensometerStatus
-from livedic.stream.config import SessionConfig, ViewerConfig
+from livedic.stream.session.config import SessionConfig, ViewerConfig
 from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED,
                                     FrameValues, decode_registers, encode_registers, parse_publish_uri,
                                     parse_publish_uris, register_count)
-from livedic.stream.session import Session
+from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import StrainConfig
 
 SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
@@ -456,8 +456,8 @@ def test_modbus_answers_the_ended_state_for_the_linger_then_closes(tmp_path):
 
 _WATCH_THE_FIRST_FRAME = """
 import sys
-import livedic.stream.session as session_module
-from livedic.stream.config import SessionConfig, ViewerConfig
+import livedic.stream.session.session as session_module
+from livedic.stream.session.config import SessionConfig, ViewerConfig
 from livedic.stream.stages.strain import StrainConfig
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from livedic.stream.cli import main
-from livedic.stream.replay_rows import FORCE_COLUMNS
+from livedic.stream.replay.rows import FORCE_COLUMNS
 
 SAMPLE = os.path.join(os.path.dirname(__file__), "..", "..", "recordings", "sample-tensile.mcap")
 RAMP_N_PER_S = 5000.0

@@ -59,7 +59,7 @@ def cluster():
 
     from distributed import LocalCluster
 
-    from livedic.stream.parallel_replay import LOCAL_SCHEDULER_OPTIONS
+    from livedic.stream.replay.parallel_replay import LOCAL_SCHEDULER_OPTIONS
     with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None,
                       scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.ERROR) as local:
         yield local.scheduler_address
@@ -95,7 +95,7 @@ def _replay(recording, out, *extra, capsys=None):
 def _assert_same(parallel, sequential, *, verdict=True):
     """Same header, same (frame, point) rows in the same order, ok/status equal, numbers within the replay's rounding
     tolerances (u, v and the strains 1e-4, ZNCC ``ROUNDING_TOLERANCE_ZNCC``; and the same verdict line: ``verdict``)."""
-    from livedic.stream.replay import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC
+    from livedic.stream.replay.replay import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC
     rows, _, _ = parallel
     seq_rows, seq_verdict, _ = sequential
     assert rows[0] == seq_rows[0]
@@ -185,7 +185,7 @@ def test_the_only_worker_killed_loses_nothing(recording, sequential, tmp_path):
 
     from distributed import LocalCluster
 
-    from livedic.stream.parallel_replay import LOCAL_SCHEDULER_OPTIONS
+    from livedic.stream.replay.parallel_replay import LOCAL_SCHEDULER_OPTIONS
     with LocalCluster(n_workers=1, processes=True, threads_per_worker=1, dashboard_address=None,
                       scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS, silence_logs=logging.CRITICAL) as local:
         _assert_same(_replay_killing_once(recording, local.scheduler_address, tmp_path), sequential)
@@ -196,7 +196,7 @@ def test_workers_option_starts_its_own_local_cluster(recording, sequential, tmp_
 
 
 def test_bad_cluster_address_one_line_exit_2_nothing_written(recording, tmp_path, capsys, monkeypatch):
-    import livedic.stream.parallel_replay as parallel_replay
+    import livedic.stream.replay.parallel_replay as parallel_replay
     monkeypatch.setattr(parallel_replay, "FIRST_CONNECT_TIMEOUT_S", 1)
     out = tmp_path / "out.csv"
     code = main(["replay", recording, "-o", str(out), "--progress", "off", "--cluster", "tcp://127.0.0.1:9"])
@@ -236,7 +236,7 @@ def test_no_scheduler_at_a_well_formed_address_is_one_line_naming_the_wait(recor
     """A port bound but not listening refuses every connection: one line saying how long it waited."""
     import socket
 
-    from livedic.stream.parallel_replay import FIRST_CONNECT_TIMEOUT_S
+    from livedic.stream.replay.parallel_replay import FIRST_CONNECT_TIMEOUT_S
     out = tmp_path / "out.csv"
     with socket.socket() as closed:
         closed.bind(("127.0.0.1", 0))
@@ -251,7 +251,7 @@ def test_no_scheduler_at_a_well_formed_address_is_one_line_naming_the_wait(recor
 @pytest.mark.parametrize("address", ["tcp://10.0.0.5:8786", "10.0.0.5:8786", "sched.example:8786", "[::1]:8786",
                                      "tls://10.0.0.5:8786", "ws://h:1", "wss://h:65535", "inproc://10.0.0.5/42/1"])
 def test_the_addresses_distributed_reads_pass_the_form_check(address):
-    from livedic.stream.parallel_replay import check_cluster_address
+    from livedic.stream.replay.parallel_replay import check_cluster_address
     assert check_cluster_address(address) == address
 
 
@@ -353,8 +353,8 @@ def test_a_scheduler_without_workers_one_line_exit_2(recording, tmp_path, capsys
 
     from distributed import LocalCluster
 
-    import livedic.stream.parallel_replay as parallel_replay
-    from livedic.stream.parallel_replay import LOCAL_SCHEDULER_OPTIONS
+    import livedic.stream.replay.parallel_replay as parallel_replay
+    from livedic.stream.replay.parallel_replay import LOCAL_SCHEDULER_OPTIONS
     monkeypatch.setattr(parallel_replay, "CONNECT_TIMEOUT_S", 1)
     out = tmp_path / "out.csv"
     with LocalCluster(n_workers=0, processes=True, dashboard_address=None, scheduler_kwargs=LOCAL_SCHEDULER_OPTIONS,

@@ -13,7 +13,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from livedic.stream.cli import main
-from livedic.stream.replay_rows import FrameRows, ParquetRows, rows_output
+from livedic.stream.replay.rows import FrameRows, ParquetRows, rows_output
 from tests.stream.test_replay_export import recording  # noqa: F401 - the fixture: a 12-frame session
 
 INTEGERS = ("frame", "timestamp_ns", "point_id", "status", "iterations")
@@ -119,7 +119,7 @@ def test_force_added_to_lines_or_to_columns_gives_the_same_text(rng):
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])
 def test_a_failure_mid_replay_leaves_no_file(recording, tmp_path, monkeypatch, suffix):  # noqa: F811
     """Ctrl-C at the fourth frame's rows: exit 130 and nothing written, not even the staged file."""
-    from livedic.stream import replay_rows
+    from livedic.stream.replay import rows as replay_rows
     calls = []
     writer = replay_rows.ParquetRows if suffix == ".parquet" else replay_rows.CsvRows
     original = writer.__call__

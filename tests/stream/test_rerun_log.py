@@ -12,7 +12,7 @@ from livedic.dic.result import Measurement
 from livedic.stream.view import colour_scale, entities, viewer
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.view.viewer import parse_viewer
-from livedic.stream.pipeline.tracker_loop import FrameResult, SessionStats
+from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -150,7 +150,7 @@ import os, signal, sys, time
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
 from test_rerun_log import _result
 from livedic.stream.view.logger import RerunLogger
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 logger = RerunLogger("save", {str(path)!r}, flush_interval_s=0.2)
 logger.start(image_shape=(96, 128), p0_index=0, points=None)
 for i in range(30):

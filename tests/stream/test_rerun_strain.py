@@ -12,7 +12,7 @@ from livedic.stream.stages.contraction import ContractionWatch
 from livedic.stream.view.colour_scale import nice_ceil
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.stages.strain import StrainConfig
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 from tests.stream.test_rerun_view import SHAPE, _frame_result, _lut_indices, _rows
 
 STEP = 16

@@ -15,7 +15,7 @@ from livedic.stream.view import blueprint, entities, xy_plot
 from livedic.stream.stages.force import LoadStage, axial_strain
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.stages.stress import NECKING_DROP, UniformElongationWatch
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 from tests.stream.test_rerun_strain import EYY, FRAMES, ROI, _field, _points, _stage, _views
 from tests.stream.test_rerun_view import SHAPE, _frame_result, _rows
 

@@ -14,7 +14,7 @@ from livedic.stream.view import colour_bar, entities
 from livedic.stream.view.colour_bar import colour_bar_image
 from livedic.stream.view.colour_scale import colormap_lut, grow_limits, nice_ceil, typical_spacing
 from livedic.stream.view.logger import RerunLogger
-from livedic.stream.pipeline.tracker_loop import FrameResult, SessionStats
+from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
 
 SHAPE = (240, 320)
 

@@ -125,7 +125,7 @@ def test_connect_to_no_viewer_fails_first_with_one_line(tmp_path, capsys):
 
 
 def test_connect_to_a_listening_viewer_goes_ahead(monkeypatch):
-    from livedic.stream.session import check_viewer_reachable
+    from livedic.stream.session.session import check_viewer_reachable
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
         server.listen()
@@ -208,7 +208,7 @@ def _holed(shift=(0.0, 0.0), seed=4):
 
 
 def test_p0_moves_off_a_hole_at_the_centre_and_a_given_p0_there_is_weak():
-    from livedic.stream.p0 import P0Reason, choose_p0
+    from livedic.stream.session.p0 import P0Reason, choose_p0
     image = _holed()
     subset = 21
     choice = choose_p0(image, None, subset)
@@ -229,7 +229,7 @@ def test_p0_moves_off_a_hole_at_the_centre_and_a_given_p0_there_is_weak():
 
 def test_p0_stays_near_the_centre_on_plain_speckle_and_blank_images_say_so():
     from livedic.dic.speckle import SpecklePattern, render
-    from livedic.stream.p0 import P0Reason, choose_p0
+    from livedic.stream.session.p0 import P0Reason, choose_p0
     image = render(SpecklePattern((160, 200), n_speckles=700, radius=3.0, seed=9), bit_depth=8)
     choice = choose_p0(image, (20, 20, 160, 120), 21)
     assert choice.reason is P0Reason.BEST_NEAR_CENTRE and not choice.weak

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from livedic.acquire.recording.reader import read_events
-from livedic.stream.config import PointsConfig, SessionConfig, ViewerConfig
-from livedic.stream.session import Session, drop_policy, is_live
+from livedic.stream.session.config import PointsConfig, SessionConfig, ViewerConfig
+from livedic.stream.session.session import Session, drop_policy, is_live
 from livedic.stream.stages.strain import NOISE_LIMIT, StrainConfig
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # 150 frames: the elastic part is the first 23 (to 0.4 % axial strain), the E fit's range about 7 of them
@@ -280,7 +280,7 @@ def test_a_full_disk_for_the_rerun_file_is_one_warning_the_session_goes_on(tmp_p
 
 def test_a_report_without_a_transverse_extensometer_says_so():
     from livedic.dic.tensile.properties import tensile_properties
-    from livedic.stream.report import report_json, report_markdown
+    from livedic.stream.export.report import report_json, report_markdown
     strain = np.linspace(0.0, 0.01, 20)
     report = report_json(tensile_properties(strain, 200e3 * strain), {"area_mm2": 20.0, "gauge_length_px": 200.0},
                          {"recording": "r.mcap", "truncated": False, "load": "csv:f.csv", "load_offset_s": 0.0,

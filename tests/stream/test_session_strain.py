@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from livedic.dic.strain.extensometer import ExtensometerStatus
-from livedic.stream.config import SessionConfig, ViewerConfig
-from livedic.stream.session import Session
+from livedic.stream.session.config import SessionConfig, ViewerConfig
+from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import StrainConfig, parse_extensometer, parse_gauge_length
 from tests.stream.conftest import refused_run
 
@@ -135,7 +135,7 @@ def test_bad_strain_options_are_one_line_exit_2_and_leave_no_file(tmp_path, extr
 
 
 def test_replay_recomputes_the_same_extensometers(tmp_path):
-    from livedic.stream.replay import replay
+    from livedic.stream.replay.replay import replay
     record = str(tmp_path / "session.mcap")
     session, readings, _ = run_session(StrainConfig(gauge_length=200, gauge_width=60), record=record, frames=8)
     report = replay(record)

@@ -12,7 +12,7 @@ import pytest
 from livedic.stream.view import entities
 from livedic.stream.view.camera_image import IMAGE_SKIP_MAX
 from livedic.stream.view.logger import RerunLogger
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 from livedic.stream.view.process import BEHIND, ViewProcess, ViewProcessError
 from tests.stream.test_rerun_log import _result, _scalars, _store_summary
 from tests.waiting import wait_until
@@ -100,7 +100,7 @@ import os, sys
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {HERE!r})
 from tests.stream.test_rerun_log import _result
 from livedic.stream.view.process import ViewProcess
-from livedic.stream.pipeline.tracker_loop import SessionStats
+from livedic.stream.pipeline.frame_result import SessionStats
 view = ViewProcess("save", {str(path)!r}, image_max_side=64)
 view.start(image_shape=(96, 128), p0_index=0, points=None)
 for i in range(20):

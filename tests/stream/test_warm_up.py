@@ -14,8 +14,8 @@ from numba.core.registry import CPUDispatcher
 from livedic.acquire.simulator.sources import SyntheticTensileSource
 from livedic.dic.tracking import grid_in_roi, step_for_count
 from livedic.stream.cli import build_parser
-from livedic.stream.config import SessionConfig
-from livedic.stream.session import warm_up
+from livedic.stream.session.config import SessionConfig
+from livedic.stream.session.session import warm_up
 
 
 def _compiled():

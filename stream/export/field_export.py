@@ -1,6 +1,6 @@
 """``livedic export``'s pictures of the fields: maps (PNG), an overlay video (MP4) and VTK for ParaView.
 
-What ``livedic export FILE.mcap -o DIR`` writes besides its CSV files (``stream.export``):
+What ``livedic export FILE.mcap -o DIR`` writes besides its CSV files (``stream.export.export``):
 
 ``maps/Q/Q_FFFFFF.png`` (``--maps``: any of ``u,v,exx,eyy,exy``, default all; ``none``)
     Quantity Q of frame F colour-mapped over that frame's camera image, for every ``--every``-th

@@ -33,14 +33,14 @@ task per frame (the image as recorded, uint8/uint16, plus its seed; the segment'
 tracker goes to each worker once, as a task's result that the scheduler can compute
 again if its worker dies), at most ``in_flight`` ahead of the frame being written,
 so memory stays bounded on a 20,000-frame recording. The results come back to the
-replay's own session (``stream.session.Session``: the same strain stage, comparison
+replay's own session (``stream.session.session.Session``: the same strain stage, comparison
 with the recording, reference-update and fracture events, CSV rows and progress line
 as the sequential replay) in frame order: the session's tracker (``ServedTracker``)
 hands it the next frame's result, checking that it is the result of that very frame
 (position and key), so a frame is never lost, duplicated or out of place. A worker
 that dies has its running and held tasks re-run elsewhere by the scheduler
 (``distributed`` reassigns them; ``retries=`` re-runs a task that raised). A frame's
-output rows are made on the worker (``stream.replay_rows``: for a CSV its lines, formatted
+output rows are made on the worker (``stream.replay.rows``: for a CSV its lines, formatted
 there; for Parquet its columns), after a fracture in the client, whose strain stage splits the
 windows at the crack.
 
@@ -81,8 +81,8 @@ import numpy as np
 from livedic.dic.result import Measurement
 from livedic.dic.status import SEPARATED
 from livedic.dic.tracking import last_good_after
-from livedic.stream.replay_rows import frame_rows
-from livedic.stream.session import Session
+from livedic.stream.replay.rows import frame_rows
+from livedic.stream.session.session import Session
 
 # Tasks submitted ahead of the frame being written, per worker thread: enough to keep every worker busy
 # while one frame is late, few enough that a 5 MP recording does not pile up in memory (4 x 5 MB a worker).
@@ -306,7 +306,7 @@ class FrameMeasured:
     update: object = None                 # dic.tracking.key_frames.ReferenceUpdate: the reference moved to this frame
     fracture: object = None               # dic.tensile.fracture.Fracture detected in this frame
     tracker: object = None                # the KeyFrameTracker after this frame, when this frame rebuilt it
-    rows: object = None                   # the frame's output rows (stream.replay_rows.FrameRows)
+    rows: object = None                   # the frame's output rows (stream.replay.rows.FrameRows)
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
 
 

@@ -51,7 +51,7 @@ Numbers are written at full precision (the shortest text that reads back as the
 same float64), NaN as ``nan``, ``ok`` as 1/0: a value read back from these files is
 bit-for-bit the recorded one.
 
-Then the fields as pictures (``stream.field_export``, options ``--maps --every --video
+Then the fields as pictures (``stream.export.field_export``, options ``--maps --every --video
 --vtk --map-range ...``): ``maps/Q/Q_FRAME.png``, ``overlay_Q.mp4``, ``vtk/frame_FRAME.vtu``
 and ``fields.pvd``, in a second pass over the recording (the colour ranges, one per quantity
 for the whole test, are known only after the first), and ``session.json`` again with a
@@ -68,7 +68,7 @@ one line says so (exit 130 or 143). Existing files are not replaced unless ``--o
 the note's text.
 
 The helpers here (CSV formatting, atomic files, reader notes, P0 lookup) are also
-used by ``stream.replay``.
+used by ``stream.replay.replay``.
 """
 
 import csv
@@ -88,7 +88,7 @@ import numpy as np
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.output.files import AtomicFile, check_output_folder, json_text, write_text_atomic
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
+from livedic.stream.export.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
                                          FieldWriter, RecordedImages, quantities, remove_stale, video_name)
 from livedic.stream.pipeline.progress import ProgressBar, progress_enabled
 
@@ -297,7 +297,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
     """Write ``EXPORT_FILES`` for recording ``path`` into ``directory`` (see module notes).
 
     The CSV files, plots and ``session.json`` are written first, together (all or none); then, with
-    ``fields``, the maps, video and VTK files (``stream.field_export``), each file whole, and
+    ``fields``, the maps, video and VTK files (``stream.export.field_export``), each file whole, and
     ``session.json`` again with what they are.
 
     Parameters
@@ -308,7 +308,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         Strain settings replacing the recorded ones (``stream.stages.strain.overrides_from_args``).
     stress : stream.stages.stress.StressOptions, optional
         Force file and cross-section: also write ``STRESS_FILES``.
-    fields : stream.field_export.FieldOptions
+    fields : stream.export.field_export.FieldOptions
         The maps, video and VTK to write (default none).
     stop : callable, optional
         Called once per frame; raises ``ExportStopped`` to end the export there (``StopSignals.check``).
@@ -322,7 +322,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         ``truncated``, ``notes`` (list of lines), ``extensometers`` (names),
         ``strain`` (one line: window, VSG, measure, extensometers; "" without results),
         ``stress`` (None, or ``frames_with_force`` and ``uniform_frame``, the frame of maximum force or -1),
-        ``fields`` (None, or a ``stream.field_export.FieldReport``).
+        ``fields`` (None, or a ``stream.export.field_export.FieldReport``).
 
     Raises
     ------
@@ -495,7 +495,7 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
 
 def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
                   title_note):
-    """The second pass over the recording: ``stream.field_export.FieldWriter`` on every frame with results."""
+    """The second pass over the recording: ``stream.export.field_export.FieldWriter`` on every frame with results."""
     from livedic.acquire.recording.reader import Recording
     if overwrite:
         remove_stale(directory, fields)

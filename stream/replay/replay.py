@@ -3,7 +3,7 @@
 ``livedic replay FILE.mcap [-o OUT.csv | -o OUT.parquet] [method options] [--all-frames]``
 
 The recorded frames are tracked again by the session ``livedic run`` runs
-(``stream.session.Session``: the recorded frames -> a blocking queue, nothing
+(``stream.session.session.Session``: the recorded frames -> a blocking queue, nothing
 dropped -> the tracker -> the comparison with the recording, the CSV rows and
 the progress line), its ``TrackingConfig`` built from the recording's metadata
 and the options given. Every option that is not given is taken from the
@@ -28,7 +28,7 @@ point: ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for
 first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``, then the strain ``exx,eyy,exy``
 recomputed on the replayed displacements (``stream.stages.strain``; NaN where a point has none); numbers at full
 precision (they read back as the same float64). ``-o OUT.parquet`` writes the same columns as a Parquet
-file instead (typed: integers int64, ``ok`` bool, the rest float64 with NaN; ``stream.replay_rows``);
+file instead (typed: integers int64, ``ok`` bool, the rest float64 with NaN; ``stream.replay.rows``);
 any other suffix is refused. The output is written under a temporary name and renamed into place
 when the replay is complete: an error or Ctrl-C leaves no file. At the end a line on stderr says
 how the replay compares with the recording (``ReplayReport.agreement``, an
@@ -54,7 +54,7 @@ Truncated recordings (crash, kill, disk full) are replayed on what can be recove
 
 In parallel (``--workers N``: a local Dask cluster of N worker processes; ``--cluster
 ADDRESS``: an existing Dask scheduler) every frame is measured on its own, started from
-the recorded result of the frame before it (``stream.parallel_replay``), and the results
+the recorded result of the frame before it (``stream.replay.parallel_replay``), and the results
 come back in frame order to the same session: the CSV, the comparison and its verdict are
 the sequential replay's (bit for bit on the machine that recorded; within rounding of it
 elsewhere). ``--shared-path`` lets the workers read the frames from the file instead of
@@ -72,19 +72,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from livedic.dic.strain.extensometer import ExtensometerOffPoints
-from livedic.stream.config import (DEFAULT_POINTS, ROI_AUTO, ROI_FULL, PointsConfig, SessionConfig, TrackingConfig,
-                                   parse_exclusion, parse_p0, parse_roi, read_mask,
-                                   search_method, subpixel_method)
-from livedic.stream.points import add_region_arguments, place_points, read_points_csv
+from livedic.stream.session.config import DEFAULT_POINTS, PointsConfig, SessionConfig, TrackingConfig
+from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, parse_exclusion, parse_p0, parse_roi, read_mask,
+                                            search_method, subpixel_method)
+from livedic.stream.session.points import add_region_arguments, place_points, read_points_csv
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
-from livedic.stream.replay_rows import CsvRows, check_rows_output, frame_rows, rows_output
-from livedic.stream.session import NoFrame, Session, format_strain_summary
+from livedic.stream.replay.rows import CsvRows, check_rows_output, frame_rows, rows_output
+from livedic.stream.session.session import NoFrame, Session
+from livedic.stream.session.summary import format_strain_summary
 from livedic.stream.pipeline.sinks import FunctionSink
 from livedic.stream.stages.force import format_force_summary
 from livedic.stream.stages.strain import StrainConfig, add_strain_arguments, overrides_from_args
 from livedic.stream.stages.stress import add_stress_arguments, stress_options_from_args
 
-from livedic.stream.export import read_session_or_note, reader_notes, say
+from livedic.stream.export.export import read_session_or_note, reader_notes, say
 
 # A replay on another machine agrees within these (see the module notes). Rounding differences of the
 # compiled kernels moved u and v by 1.8e-6 px on the sample session (issue 8, another x86_64 CPU);
@@ -154,7 +155,7 @@ def add_replay_arguments(parser):
 # ----------------------------------------------------------------------------- parameters
 
 def run_defaults():
-    """The ``livedic run`` defaults of the method options (and ``n_points``): ``stream.config``'s."""
+    """The ``livedic run`` defaults of the method options (and ``n_points``): ``stream.session.config``'s."""
     return dict(TrackingConfig().as_dict(), n_points=DEFAULT_POINTS)
 
 
@@ -207,7 +208,7 @@ def resolve_parameters(metadata, given, method_text=""):
 def check_parameters(params, threads=None):
     """ValueError (one line, as ``livedic run`` words it) for a bad method parameter or thread count.
 
-    The checks are ``stream.config``'s (``TrackingConfig``, ``SessionConfig``): returns the ``TrackingConfig``.
+    The checks are ``stream.session.config``'s (``TrackingConfig``, ``SessionConfig``): returns the ``TrackingConfig``.
     """
     tracking = TrackingConfig(**{key: params[key] for key in METHOD_KEYS})
     if threads is not None:
@@ -356,7 +357,7 @@ class ReplayReport:
     notes: list = field(default_factory=list)
     truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
     strain: dict = None              # stream.stages.strain.StrainStage.summary() of the replay (final extensometers)
-    parallel: object = None          # stream.parallel_replay.ParallelStats when measured on Dask (--workers, --cluster)
+    parallel: object = None          # stream.replay.parallel_replay.ParallelStats when measured on Dask (--workers, --cluster)
     force: dict = None               # stream.stages.force.LoadStage.summary() with --load
 
     @property
@@ -481,7 +482,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         ``on_result(frame, measurement, point_ids, strain)`` for each tracked frame, in order
         (``strain``: its ``dic.strain.StrainField``).
     on_rows : callable, optional
-        ``on_rows(rows)`` for each tracked frame, in order: its ``stream.replay_rows.FrameRows``. When
+        ``on_rows(rows)`` for each tracked frame, in order: its ``stream.replay.rows.FrameRows``. When
         ``on_rows.csv_text`` is true (``CsvRows``), a parallel replay formats the CSV lines on the worker that
         measured the frame and sends only them; else the columns.
     progress : callable, optional
@@ -493,7 +494,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
         strain fields and extensometers are recomputed on the replayed displacements.
     workers : int, optional
         Measure the frames in parallel on a local Dask cluster of this many worker processes
-        (``stream.parallel_replay``); the outputs are the sequential replay's.
+        (``stream.replay.parallel_replay``); the outputs are the sequential replay's.
     cluster : str, optional
         ... on the Dask scheduler at this address (``tcp://HOST:8786``) instead.
     in_flight : int, optional
@@ -520,7 +521,7 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     point_options = point_options or PointOptions()
     point_options.check()
     if workers is not None or cluster is not None:
-        from livedic.stream.parallel_replay import check_cluster_address, check_worker_count, check_workers, dask_client
+        from livedic.stream.replay.parallel_replay import check_cluster_address, check_worker_count, check_workers, dask_client
         if workers is not None:
             check_worker_count(workers)
         if cluster is not None:
@@ -635,7 +636,7 @@ def _replay(path, given, point_options, all_frames, on_result, progress, threads
         else:
             from functools import partial
 
-            from livedic.stream.parallel_replay import ParallelSession
+            from livedic.stream.replay.parallel_replay import ParallelSession
             again = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
             make_session = partial(ParallelSession, client=client, frames_again=again, recorded=recorded,
                                    in_flight=in_flight, shared_path=shared_path, point_ids=point_ids,

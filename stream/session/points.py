@@ -22,8 +22,9 @@ from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.validation import check_subset
 from livedic.dic.region import (Rectangle, Region, Specimen, bounding_box, find_specimen, grid_in_region,
                                 placeable)
-from livedic.stream.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS, ROI_AUTO, ROI_FULL, UsageError
-from livedic.stream.p0 import P0Choice, choose_p0
+from livedic.stream.session.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS
+from livedic.stream.session.parsing import ROI_AUTO, ROI_FULL, UsageError
+from livedic.stream.session.p0 import P0Choice, choose_p0
 
 # Around a found specimen's edge a subset keeps this many px more inside it: the edge is found to about
 # a pixel, and a subset touching the edge's dark outline would see it move against the background.
@@ -150,7 +151,7 @@ class Placement:
     ----------
     points : ndarray (N, 2)
         (x, y) pixel centres, P0 first.
-    p0 : stream.p0.P0Choice
+    p0 : stream.session.p0.P0Choice
         Where P0 is and why.
     step : int or None
         Grid step, px (None for given points).
@@ -285,7 +286,7 @@ def placeable_points(points: np.ndarray, allowed: np.ndarray) -> np.ndarray:
 
 
 def place_points(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple | None = None) -> Placement:
-    """The points on the reference ``image`` as ``wanted`` (a ``stream.config.PointsConfig``) asks.
+    """The points on the reference ``image`` as ``wanted`` (a ``stream.session.config.PointsConfig``) asks.
 
     Where the points go, in order: the given points (``--points``; less those an exclusion or a mask
     leaves out); the given region (``--roi`` rectangle or polygon, ``--mask``); ``--roi full``; the

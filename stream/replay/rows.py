@@ -1,7 +1,7 @@
 """The rows of ``livedic replay``: one frame's columns, and the writers of ``-o OUT.csv`` and ``-o OUT.parquet``.
 
 ``frame_rows`` gives a frame's ``FrameRows`` wherever the frame was measured: the sequential
-replay in its own process, the parallel one (``stream.parallel_replay``) on the worker that
+replay in its own process, the parallel one (``stream.replay.parallel_replay``) on the worker that
 measured the frame, which for a CSV also formats its lines there (``FrameRows.as_text``), so the
 replaying process, the serial part of a parallel replay, only writes them. One function either
 way, so the files are the same.
@@ -25,7 +25,7 @@ import pyarrow as pa
 
 from livedic.stream.output.files import OutputError, check_output_file
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
+from livedic.stream.export.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")
 FORCE_COLUMNS = ("force_N", "eng_stress_MPa")

@@ -16,13 +16,13 @@ import signal
 import sys
 import threading
 
-from livedic.stream.config import UsageError, search_method, subpixel_method
-from livedic.stream.field_export import add_field_arguments
-from livedic.stream.points import add_region_arguments, read_points_table
-from livedic.stream.preview import add_preview_arguments, preview_command
+from livedic.stream.session.parsing import UsageError, search_method, subpixel_method
+from livedic.stream.export.field_export import add_field_arguments
+from livedic.stream.session.points import add_region_arguments, read_points_table
+from livedic.stream.session.preview import add_preview_arguments, preview_command
 from livedic.stream.pipeline.progress import add_progress_argument
-from livedic.stream.replay import add_replay_arguments, replay_command
-from livedic.stream.run import add_run_arguments, run_session
+from livedic.stream.replay.replay import add_replay_arguments, replay_command
+from livedic.stream.cli.run import add_run_arguments, run_session
 from livedic.stream.stages.strain import add_strain_arguments
 from livedic.stream.stages.stress import add_stress_arguments
 
@@ -333,8 +333,9 @@ def _measure_points(args, reference):
     """``(points (N, 2), extra columns, note or None)``: the grid (``--grid``, over ``--roi``, ``--mask``, less
     ``--exclude``; the whole image by default) or the points file (less those a mask or exclusion leaves out)."""
     from livedic.dic.region import grid_in_region
-    from livedic.stream.config import ROI_FULL, PointsConfig
-    from livedic.stream.points import placeable_points, where_points_go
+    from livedic.stream.session.config import PointsConfig
+    from livedic.stream.session.parsing import ROI_FULL
+    from livedic.stream.session.points import placeable_points, where_points_go
     if args.points is not None and args.roi is not None:
         raise UsageError("--roi places a grid: use it with --grid (with --points, --mask and --exclude leave "
                          "points out)")
@@ -493,14 +494,11 @@ def _cmd_recover(args):
 
 
 def _cmd_export(args):
-    from livedic.stream.export import export_command
+    from livedic.stream.export.export import export_command
     return export_command(args)
 
 
 def _cmd_report(args):
-    from livedic.stream.report import report_command
+    from livedic.stream.export.report import report_command
     return report_command(args)
 
-
-if __name__ == "__main__":
-    sys.exit(entry_point())

@@ -22,7 +22,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     Engineering curve, true curve up to uniform elongation, Rp0.2 and Rm marked.
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
-(``stream.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
+(``stream.export.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
 (``stream.stages.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
 engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
 0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
@@ -140,7 +140,7 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     from livedic.acquire.recording.reader import Recording
     from livedic.dic.tensile.poisson import contraction_ratios
     from livedic.dic.tensile.properties import tensile_properties
-    from livedic.stream.export import RecordedForce, axial_series, reader_notes
+    from livedic.stream.export.export import RecordedForce, axial_series, reader_notes
     from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)
@@ -186,9 +186,9 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
 def report_command(args):
     """``livedic report FILE.mcap -o DIR [--load csv:FILE] [--area | --width --thickness]``; the exit code.
 
-    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.stress_from_args``).
+    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.export.stress_from_args``).
     """
-    from livedic.stream.export import say, stress_from_args
+    from livedic.stream.export.export import say, stress_from_args
     from livedic.stream.stages.strain import overrides_from_args
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
     stress, stress_notes = stress_from_args(args)

@@ -8,9 +8,9 @@ summary: frames, fps, POI/s, latency p50/p99, drops and, for synthetic
 sources, the error against the exact displacement.
 
 This module is the command: its options (``add_run_arguments``), the
-``SessionConfig`` they make (``stream.config``), the stop signals, and what is
+``SessionConfig`` they make (``stream.session.config``), the stop signals, and what is
 printed and raised at the end. The session itself, source -> queue -> tracker
--> sinks, is ``stream.session.Session``.
+-> sinks, is ``stream.session.session.Session``.
 
 Ctrl-C (SIGINT) or SIGTERM stops acquisition, tracks what is already queued,
 and closes the recording properly. A camera lost mid-run ends the session
@@ -23,12 +23,12 @@ import signal
 import threading
 
 from livedic.acquire.base import SourceError, SourceLost
-from livedic.stream.config import (DEFAULT_SOURCE, DROP_CHOICES, add_subset_argument,
-                                   PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig, search_method,
-                                   subpixel_method)
+from livedic.stream.session.config import (DEFAULT_SOURCE, DROP_CHOICES, add_subset_argument,
+                                   PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig)
+from livedic.stream.session.parsing import search_method, subpixel_method
 from livedic.stream.output.files import json_text, write_text_atomic
-from livedic.stream.points import add_point_arguments
-from livedic.stream.session import Session
+from livedic.stream.session.points import add_point_arguments
+from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import add_strain_arguments
 from livedic.stream.stages.stress import add_stress_arguments
 
@@ -36,7 +36,7 @@ _TRACKING = TrackingConfig()
 
 
 def add_run_arguments(parser):
-    """Add the ``livedic run`` options to an ``argparse`` (sub)parser (defaults: ``stream.config``)."""
+    """Add the ``livedic run`` options to an ``argparse`` (sub)parser (defaults: ``stream.session.config``)."""
     from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
     parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
                         help="frame source (default synthetic:tensile): synthetic:[tensile|translate][?opts], "

@@ -2,8 +2,8 @@
 
 ``livedic run`` builds it from its command line (``SessionConfig.from_args``),
 ``livedic replay`` from a recording's metadata and the options given, and the
-benchmarks directly; ``stream.session.Session`` runs it. Every check is made
-here, when a config is built, and a bad value is a ``ValueError`` with one line
+benchmarks directly; ``stream.session.session.Session`` runs it. Every check is made
+here (one value at a time: ``stream.session.parsing``), when a config is built, and a bad value is a ``ValueError`` with one line
 that names the option as the command line spells it (the CLI prints it and
 exits 2). Nothing downstream re-checks a value or reads an argparse Namespace.
 
@@ -18,20 +18,19 @@ The pieces:
   pipeline settings.
 """
 
-import argparse
 import math
 import os
 import sys
 from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
 
-import numpy as np
-
-from livedic.dic import DEFAULT_SUBSET, SEARCH_METHODS, SUBPIXEL_METHODS
+from livedic.dic import DEFAULT_SUBSET
 from livedic.dic.quality import MIN_ZNCC
-from livedic.dic.region import Circle, Polygon, Rectangle, Region, parse_shape
+from livedic.dic.region import Polygon, Rectangle, Region
 from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
 from livedic.dic.tracking.tracker import REFIND_ZNCC
+from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_search, check_subpixel, parse_color_range,
+                                           parse_exclusion, parse_p0, parse_roi, read_mask)
 from livedic.stream.stages.strain import StrainConfig
 
 DEFAULT_SOURCE = "synthetic:tensile"
@@ -47,131 +46,6 @@ CAMERA_SCHEMES = ("aravis", "v4l2")
 DROP_CHOICES = ("auto", "oldest", "newest", "block")
 PROGRESS_CHOICES = ("auto", "on", "off")
 VIEWER_NONE = "none"
-
-
-class UsageError(ValueError):
-    """Bad command-line input; the message is shown to the user as is."""
-
-
-# ----------------------------------------------------------------------------- single values
-
-def check_search(name):
-    """``name`` if it is an integer search method, else ValueError (one line)."""
-    if name not in SEARCH_METHODS:
-        raise ValueError(f"unknown search method {name!r}: choose one of {', '.join(SEARCH_METHODS)}")
-    return name
-
-
-def check_subpixel(name):
-    """``name`` if it is a sub-pixel method (``none`` included), else ValueError (one line)."""
-    if name not in SUBPIXEL_METHODS:
-        raise ValueError(f"unknown sub-pixel method {name!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
-    return name
-
-
-def argument_type(check):
-    """An argparse ``type=`` from a check: its ValueError message becomes argparse's error as is.
-
-    (argparse replaces a plain ValueError's message by "invalid <type> value"; an
-    ``ArgumentTypeError`` keeps the one line the check wrote.)
-    """
-    def convert(text):
-        try:
-            return check(text)
-        except ValueError as error:
-            raise argparse.ArgumentTypeError(str(error)) from None
-    convert.__name__ = check.__name__
-    return convert
-
-
-search_method = argument_type(check_search)
-subpixel_method = argument_type(check_subpixel)
-
-
-def parse_numbers(text, count, what, example):
-    """``"a,b,..."`` -> ``count`` finite floats, or ValueError naming ``what`` with an ``example``."""
-    try:
-        values = [float(part) for part in str(text).split(",")]
-    except ValueError:
-        values = []
-    if len(values) != count or not all(math.isfinite(v) for v in values):
-        raise ValueError(f"{what} must be {count} comma-separated numbers, e.g. {example}; got {text!r}")
-    return values
-
-
-ROI_AUTO = "auto"      # --roi auto: the speckled specimen found in the image
-ROI_FULL = "full"      # --roi full: the whole image
-
-
-def parse_roi(text):
-    """``--roi``: None when not given, ``"auto"``, ``"full"``, or a ``dic.region`` Rectangle or Polygon.
-
-    ``X,Y,W,H`` is a rectangle (rounded to whole pixels); ``rect:X,Y,W,H`` and
-    ``polygon:X1,Y1,X2,Y2,X3,Y3[,...]`` name their shape.
-    """
-    if text is None:
-        return None
-    word = str(text).strip().lower()
-    if word in (ROI_AUTO, ROI_FULL):
-        return word
-    if ":" not in word:
-        x, y, w, h = (int(round(v)) for v in parse_numbers(text, 4, "--roi", "100,50,400,800"))
-        if w <= 0 or h <= 0:
-            raise ValueError(f"--roi width and height must be positive, got {text!r}")
-        return Rectangle(x, y, w, h)
-    try:
-        shape = parse_shape(text)
-    except ValueError as error:
-        raise ValueError(f"--roi {error}") from None
-    if isinstance(shape, Circle):
-        raise ValueError(f"--roi {text}: a region is a rectangle (X,Y,W,H) or a polygon (polygon:X1,Y1,...); "
-                         f"circles are for --exclude")
-    return shape
-
-
-def read_mask(path: str) -> np.ndarray:
-    """``--mask FILE.png``: True where the image is white (above half its grey range); UsageError if unusable."""
-    from livedic.acquire.files.image_file import read_grey_image
-    try:
-        image, _ = read_grey_image(path)
-    except ValueError as error:
-        raise UsageError(f"--mask {error}") from None
-    full = 255 if image.dtype == np.uint8 else 65535
-    mask = image > full // 2
-    if not mask.any():
-        raise UsageError(f"--mask {path} has no white pixel: white (or light grey) marks the specimen, black the rest")
-    return mask
-
-
-def parse_exclusion(text: str):
-    """``--exclude`` ``circle:X,Y,R``, ``rect:X,Y,W,H`` or ``polygon:X1,Y1,...`` -> a ``dic.region`` shape."""
-    try:
-        return parse_shape(text)
-    except ValueError as error:
-        raise ValueError(f"--exclude {error}") from None
-
-
-def parse_p0(text):
-    """``--p0`` "X,Y" -> (x, y) floats, or None when not given."""
-    if text is None:
-        return None
-    return tuple(parse_numbers(text, 2, "--p0", "512,400"))
-
-
-def parse_color_range(text):
-    """``--color-range`` "LO,HI" -> (lo, hi) in px, or None when not given.
-
-    Raises
-    ------
-    ValueError
-        Not two finite comma-separated numbers, or LO not below HI.
-    """
-    if text is None:
-        return None
-    lo, hi = parse_numbers(text, 2, "--color-range", "-2,2")
-    if not lo < hi:
-        raise ValueError(f"--color-range {text}: LO must be below HI, e.g. -2,2")
-    return lo, hi
 
 
 def _check_threads(threads):
@@ -270,7 +144,7 @@ def add_subset_argument(parser):
 
 @dataclass(frozen=True)
 class PointsConfig:
-    """Which points a session tracks (P0, the traced point, is always point 0); ``stream.points.place_points``.
+    """Which points a session tracks (P0, the traced point, is always point 0); ``stream.session.points.place_points``.
 
     Attributes
     ----------
@@ -294,7 +168,7 @@ class PointsConfig:
     n_points : int
         Points wanted when ``step`` is None.
     p0 : (x, y) or None
-        P0; None: the best-textured point near the region's centre (``stream.p0``).
+        P0; None: the best-textured point near the region's centre (``stream.session.p0``).
     max_points : int
         A live session refuses to start with more points (their cost is in the message).
     """
@@ -552,7 +426,7 @@ class SessionConfig:
 
     @classmethod
     def from_args(cls, args, *, stem=None):
-        """From ``livedic run``'s parsed options (``stream.run.add_run_arguments``).
+        """From ``livedic run``'s parsed options (``stream.cli.run.add_run_arguments``).
 
         Resolves what the options leave open: the recording's default name
         (``recordings/session-YYYYmmdd-HHMMSS.mcap``, never an existing file), the

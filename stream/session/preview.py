@@ -2,7 +2,7 @@
 
 ``livedic preview --source URI [placement options] -o PREVIEW.png`` takes the
 source's first frame and places the points, P0 and the extensometers exactly as
-``livedic run`` would with the same options (``stream.points.place_points``,
+``livedic run`` would with the same options (``stream.session.points.place_points``,
 ``StrainConfig.place``), then draws them, labelled, over the frame, beside a map
 of what DIC needs from the image: the speckle contrast per subset (mean intensity
 gradient), clipped pixels, and the figures of ``dic.region.pattern_quality`` (speckle
@@ -23,7 +23,7 @@ import numpy as np
 
 from livedic.dic.region.pattern_quality import PatternQuality, pattern_quality
 from livedic.dic.region import Circle, Polygon, Rectangle, find_specimen, straddling
-from livedic.stream.points import Placement, PlacedBy
+from livedic.stream.session.points import Placement, PlacedBy
 
 __all__ = ["SetupOverlay", "setup_overlay", "region_outlines", "shape_outline", "render_preview",
            "add_preview_arguments", "preview_command"]
@@ -47,7 +47,7 @@ class SetupOverlay:
     ----------
     image : ndarray (H, W)
         The reference frame.
-    placement : stream.points.Placement
+    placement : stream.session.points.Placement
     extensometers : tuple of dic.strain.extensometer.Extensometer
         As placed (reference px).
     scale : float or None
@@ -355,8 +355,8 @@ def render_preview(overlay: SetupOverlay, path: str) -> None:
 
 def add_preview_arguments(parser) -> None:
     """``livedic preview``'s options: the source, the output, and ``livedic run``'s placement options."""
-    from livedic.stream.config import DEFAULT_SOURCE, add_subset_argument
-    from livedic.stream.points import add_point_arguments
+    from livedic.stream.session.config import DEFAULT_SOURCE, add_subset_argument
+    from livedic.stream.session.points import add_point_arguments
     from livedic.stream.stages.strain import add_strain_arguments
     parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
                         help="frame source, as for livedic run (default synthetic:tensile): its first frame is drawn")
@@ -373,7 +373,7 @@ def first_frame(uri: str):
     """
     from livedic.acquire import sources
     from livedic.acquire.base import SourceError
-    from livedic.stream.points import default_roi
+    from livedic.stream.session.points import default_roi
     options = {}
     if sources.parse_scheme(uri) == "synthetic" and "frames=" not in uri:
         options["frames"] = 2
@@ -392,9 +392,10 @@ def first_frame(uri: str):
 
 def preview_command(args) -> int:
     """``livedic preview``: place as ``run`` would, draw, write ``-o``, say what was placed. Returns 0."""
-    from livedic.stream.config import PointsConfig, parse_p0
+    from livedic.stream.session.config import PointsConfig
+    from livedic.stream.session.parsing import parse_p0
     from livedic.stream.output.files import check_output_file
-    from livedic.stream.points import check_point_count, place_points, read_points_csv
+    from livedic.stream.session.points import check_point_count, place_points, read_points_csv
     from livedic.stream.stages.strain import StrainConfig
     if not args.output.lower().endswith(".png"):
         raise ValueError(f"-o {args.output}: the preview is a PNG picture: name it PREVIEW.png")
