@@ -1,7 +1,7 @@
 """The measurements behind ``livedic bench paper``: image pairs, runs and raw numbers.
 
 Nothing here plots or writes files; every function returns plain dicts/lists of
-numbers that ``bench._paper_figures`` draws and ``bench._paper_report`` writes.
+numbers that ``bench.paper.figures`` draws and ``bench.paper.report`` writes.
 Everything is seeded: the same configuration gives the same numbers (timings aside).
 """
 
