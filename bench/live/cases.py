@@ -17,7 +17,7 @@ TARGET_FPS = 50.0
 TARGET_P99_MS = 25.0
 TARGET_STRAIN_MS = 2.0
 TARGET_STRAIN_OUT_P99_MS = 5.0
-GAUGE_LENGTH_PX = 400.0       # the main job's --gauge-length (setup.sh, README)
+GAUGE_LENGTH_PX = 400.0       # the main job's --gauge-length (setup.sh, docs/guide/index.md)
 
 
 class ResultTimes:
