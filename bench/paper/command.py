@@ -37,6 +37,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+import livedic.bench.paper.figures as figures
+import livedic.bench.paper.report as report
+import livedic.bench.paper.runs as runs
+from livedic.bench.paper.runs import LABELS, SUBPIXELS
 from livedic.bench.patterns import GENERATORS
 
 
@@ -121,98 +125,20 @@ def run_paper_benchmark(output_dir, quick=False, *, config=None, log=None):
         report and on the console; the other stages still ran). Accuracy checks
         that FAIL are reported in ``report.md``, not in the exit code.
     """
-    from livedic.bench import _paper_figures as figures
-    from livedic.bench import _paper_report as report
-    from livedic.bench import _paper_runs as runs
-
     cfg = config or (PaperConfig.quick() if quick else PaperConfig.full())
     log = log or _print
     os.makedirs(output_dir, exist_ok=True)
     began = time.perf_counter()
     log(f"livedic bench paper ({cfg.name}): results in {output_dir}")
     results = dict(config=_config_dict(cfg), machine=machine_info(), stages={}, errors={})
-    sigmas = (0.0, cfg.noise_sigma)
+    stage = _Stages(results, log)
     images = runs.Images(cfg)
-
-    def stage(name, function, *args, **kwargs):
-        t0 = time.perf_counter()
-        try:
-            value = function(*args, **kwargs)
-        except Exception as error:  # noqa: BLE001 - reported, the other stages go on
-            import traceback
-            results["errors"][name] = f"{type(error).__name__}: {error}"
-            log(f"[{name}] FAILED: {type(error).__name__}: {error}")
-            log("".join(traceback.format_exception(error)).rstrip())
-            value = None
-        results["stages"][name] = round(time.perf_counter() - t0, 2)
-        return value
-
-    def note_failures(name, value):
-        for method, error in (value or {}).get("failed_methods", {}).items():
-            results["errors"][f"{name}: {method}"] = error
-
-    warm = stage("warm-up", runs.warm_up, cfg, log)
-    for method, error in (warm or {}).get("failed", {}).items():
-        results["errors"][f"warm-up: {method}"] = error
-    results["warm_up_s"] = (warm or {}).get("seconds", {})
-
-    for sigma in sigmas:
-        tag = _noise_tag(sigma)
-        log(f"[fig 9/10] integer searches, {tag}")
-        value = stage(f"integer {tag}", runs.run_integer, cfg, images, sigma, log)
-        note_failures(f"integer {tag}", value)
-        if value is not None:
-            value["cost"] = runs.cost_summary(value["rows"])
-            results[f"integer_{_key(sigma)}"] = value
-            _log_cost(log, value["cost"])
-
-    log(f"[radius study] every search at radii {', '.join(map(str, cfg.radius_study))} px, "
-        f"{len(cfg.radius_generators)} pattern generators, noise-free and sigma = {cfg.noise_sigma:g}")
-    value = stage("radius study", runs.run_radius, cfg, log)
-    note_failures("radius study", value)
-    if value is not None:
-        value["summary"] = runs.radius_summary(value["rows"])
-        results["radius"] = value
-        for row in value["summary"]:
-            log(f"  r = {row['radius']:>2} {runs.RADIUS_LABELS[row['method']]:<28} success {row['success_pct']:7.3f} % "
-                f"({row['misses']} misses in {row['n']})  {row['evaluations']:7.1f} evaluations  "
-                f"{row['us_per_point']:7.1f} us/pt")
-
-    for sigma in sigmas:
-        tag = _noise_tag(sigma)
-        repeats = cfg.timing_repeats if sigma == 0 else 1
-        log(f"[fig 11/7, table 1] sub-pixel methods, {tag}"
-            + (f" (sub-pixel stage timed, best of {repeats})" if sigma == 0 else ""))
-        value = stage(f"subpixel {tag}", runs.run_subpixel, cfg, images, sigma, log, repeats=repeats)
-        note_failures(f"subpixel {tag}", value)
-        if value is not None:
-            results[f"subpixel_{_key(sigma)}"] = value
-            _log_subpixel(log, value)
-
-    if cfg.bit_depth is not None:
-        log("[fig 11 check] sub-pixel methods on exact (unrounded) images, noise-free")
-        exact = dataclasses.replace(cfg, bit_depth=None)
-        value = stage("subpixel exact", runs.run_subpixel, exact, runs.Images(exact), 0.0, log, repeats=1)
-        note_failures("subpixel exact", value)
-        if value is not None:
-            results["subpixel_exact"] = value
-
-    log("[table 1] whole measure() calls (improved-WSO search + each sub-pixel method), noise-free")
-    value = stage("measure timing", runs.run_measure_timing, cfg, images, log)
-    note_failures("measure timing", value)
-    if value is not None:
-        results["measure_timing"] = value
-        nr = value["methods"].get("newton-raphson", {}).get("time_s", float("nan"))
-        for method, entry in value["methods"].items():
-            log(f"  {runs.LABELS[method]:<22} {entry['time_s']:7.2f} s  ({100 * entry['time_s'] / nr:5.1f} % of N-R)")
-
-    for sigma in sigmas:
-        tag = _noise_tag(sigma)
-        log(f"[fig 12] u field at {cfg.field_displacement} px, {tag}")
-        value = stage(f"field {tag}", runs.run_field, cfg, images, sigma, log)
-        note_failures(f"field {tag}", value)
-        if value is not None:
-            results[f"field_{_key(sigma)}"] = value
+    _warm_up(stage, cfg, log)
+    _integer_searches(stage, cfg, images, log)
+    _radius_study(stage, cfg, log)
+    _subpixel_methods(stage, cfg, images, log)
+    _measure_timing(stage, cfg, images, log)
+    _fields(stage, cfg, images, log)
 
     log("[figures and report]")
     written = stage("figures", figures.draw_all, results, cfg, output_dir)
@@ -226,6 +152,103 @@ def run_paper_benchmark(output_dir, quick=False, *, config=None, log=None):
         log(f"{len(results['errors'])} stage(s) failed: {', '.join(results['errors'])}")
         return 1
     return 0
+
+
+class _Stages:
+    """Runs one stage at a time into ``results``: timed; an error is logged and recorded, and the others go on."""
+
+    def __init__(self, results, log):
+        self.results = results
+        self.log = log
+
+    def __call__(self, name, function, *args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            value = function(*args, **kwargs)
+        except Exception as error:  # noqa: BLE001 - reported, the other stages go on
+            import traceback
+            self.results["errors"][name] = f"{type(error).__name__}: {error}"
+            self.log(f"[{name}] FAILED: {type(error).__name__}: {error}")
+            self.log("".join(traceback.format_exception(error)).rstrip())
+            value = None
+        self.results["stages"][name] = round(time.perf_counter() - t0, 2)
+        return value
+
+    def keep(self, name, key, function, *args, **kwargs):
+        """Run the stage, record the methods that failed in it, keep its value (if any) as ``results[key]``."""
+        value = self(name, function, *args, **kwargs)
+        for method, error in (value or {}).get("failed_methods", {}).items():
+            self.results["errors"][f"{name}: {method}"] = error
+        if value is not None:
+            self.results[key] = value
+        return value
+
+
+def _sigmas(cfg):
+    return (0.0, cfg.noise_sigma)
+
+
+def _warm_up(stage, cfg, log):
+    warm = stage("warm-up", runs.warm_up, cfg, log)
+    for method, error in (warm or {}).get("failed", {}).items():
+        stage.results["errors"][f"warm-up: {method}"] = error
+    stage.results["warm_up_s"] = (warm or {}).get("seconds", {})
+
+
+def _integer_searches(stage, cfg, images, log):
+    for sigma in _sigmas(cfg):
+        tag = _noise_tag(sigma)
+        log(f"[fig 9/10] integer searches, {tag}")
+        value = stage.keep(f"integer {tag}", f"integer_{_key(sigma)}", runs.run_integer, cfg, images, sigma, log)
+        if value is not None:
+            value["cost"] = runs.cost_summary(value["rows"])
+            _log_cost(log, value["cost"])
+
+
+def _radius_study(stage, cfg, log):
+    log(f"[radius study] every search at radii {', '.join(map(str, cfg.radius_study))} px, "
+        f"{len(cfg.radius_generators)} pattern generators, noise-free and sigma = {cfg.noise_sigma:g}")
+    value = stage.keep("radius study", "radius", runs.run_radius, cfg, log)
+    if value is not None:
+        value["summary"] = runs.radius_summary(value["rows"])
+        for row in value["summary"]:
+            log(f"  r = {row['radius']:>2} {runs.RADIUS_LABELS[row['method']]:<28} success {row['success_pct']:7.3f} % "
+                f"({row['misses']} misses in {row['n']})  {row['evaluations']:7.1f} evaluations  "
+                f"{row['us_per_point']:7.1f} us/pt")
+
+
+def _subpixel_methods(stage, cfg, images, log):
+    for sigma in _sigmas(cfg):
+        tag = _noise_tag(sigma)
+        repeats = cfg.timing_repeats if sigma == 0 else 1
+        log(f"[fig 11/7, table 1] sub-pixel methods, {tag}"
+            + (f" (sub-pixel stage timed, best of {repeats})" if sigma == 0 else ""))
+        value = stage.keep(f"subpixel {tag}", f"subpixel_{_key(sigma)}", runs.run_subpixel, cfg, images, sigma, log,
+                           repeats=repeats)
+        if value is not None:
+            _log_subpixel(log, value)
+
+    if cfg.bit_depth is not None:
+        log("[fig 11 check] sub-pixel methods on exact (unrounded) images, noise-free")
+        exact = dataclasses.replace(cfg, bit_depth=None)
+        stage.keep("subpixel exact", "subpixel_exact", runs.run_subpixel, exact, runs.Images(exact), 0.0, log,
+                   repeats=1)
+
+
+def _measure_timing(stage, cfg, images, log):
+    log("[table 1] whole measure() calls (improved-WSO search + each sub-pixel method), noise-free")
+    value = stage.keep("measure timing", "measure_timing", runs.run_measure_timing, cfg, images, log)
+    if value is not None:
+        nr = value["methods"].get("newton-raphson", {}).get("time_s", float("nan"))
+        for method, entry in value["methods"].items():
+            log(f"  {LABELS[method]:<22} {entry['time_s']:7.2f} s  ({100 * entry['time_s'] / nr:5.1f} % of N-R)")
+
+
+def _fields(stage, cfg, images, log):
+    for sigma in _sigmas(cfg):
+        tag = _noise_tag(sigma)
+        log(f"[fig 12] u field at {cfg.field_displacement} px, {tag}")
+        stage.keep(f"field {tag}", f"field_{_key(sigma)}", runs.run_field, cfg, images, sigma, log)
 
 
 def _print(line):
@@ -245,7 +268,6 @@ def _config_dict(cfg):
 
 
 def _log_cost(log, cost):
-    from livedic.bench._paper_runs import LABELS
     for method, entry in cost.items():
         ratios = "  ".join(f"{entry[f'time_vs_{b}']:.2f}x {LABELS[b]}" for b in ("pso", "coarse-fine")
                            if f"time_vs_{b}" in entry)
@@ -254,7 +276,6 @@ def _log_cost(log, cost):
 
 
 def _log_subpixel(log, value):
-    from livedic.bench._paper_runs import LABELS, SUBPIXELS
     for method in SUBPIXELS:
         rows = [r for r in value["rows"] if r["method"] == method and r["n"]]
         if not rows:

@@ -5,7 +5,7 @@ import os
 
 import numpy as np
 
-from livedic.bench._paper_runs import LABELS, RADIUS_LABELS, RADIUS_SEARCHES, REFERENCE_SEARCH, SEARCHES, SUBPIXELS
+from livedic.bench.paper.runs import LABELS, RADIUS_LABELS, RADIUS_SEARCHES, REFERENCE_SEARCH, SEARCHES, SUBPIXELS
 
 COLOURS = {
     "exhaustive": "0.45",
@@ -72,51 +72,8 @@ def draw_all(results, cfg, out):
         plt.close(fig)
         written.setdefault(name.split("_")[0], []).append(name)
 
-    integer = [results[k] for k in ("integer_clean", "integer_noisy") if k in results]
-    if integer:
-        rows = [r for block in integer for r in block["rows"]]
-        write_csv(os.path.join(out, "fig09_success.csv"), rows,
-                  ["sigma", "method", "displacement", "n", "failed", "success_pct", "truth_pct",
-                   "evaluations", "calls", "time_s", "time_ms_per_point"])
-        written.setdefault("fig09", []).append("fig09_success.csv")
-        for block in integer:
-            sigma = block["rows"][0]["sigma"]
-            save(_fig09(plt, block, sigma, cfg), "fig09_success.png" if sigma == 0 else "fig09_success_noise.png")
-        cost_rows = []
-        for block in integer:
-            for method, entry in block["cost"].items():
-                cost_rows.append(dict(sigma=block["rows"][0]["sigma"], method=method, **entry))
-        write_csv(os.path.join(out, "fig10_cost.csv"), cost_rows,
-                  ["sigma", "method", "n", "success_pct", "time_s", "time_ms_per_point", "evaluations", "calls",
-                   "time_vs_pso", "time_vs_coarse-fine", "evaluations_vs_pso", "evaluations_vs_coarse-fine"])
-        save(_fig10(plt, integer), "fig10_cost.png")
-        written["fig10"].append("fig10_cost.csv")
-
-    sub = [results[k] for k in ("subpixel_clean", "subpixel_noisy") if k in results]
-    if sub:
-        rows = [r for block in sub for r in block["rows"]]
-        write_csv(os.path.join(out, "fig11_subpixel.csv"), rows,
-                  ["sigma", "method", "displacement", "n", "failed", "mean_u", "sd_u", "rmse_u", "max_abs_u",
-                   "mean_v", "sd_v"])
-        written.setdefault("fig11", []).append("fig11_subpixel.csv")
-        for block in sub:
-            sigma = block["rows"][0]["sigma"]
-            save(_fig11(plt, block, sigma), "fig11_subpixel.png" if sigma == 0 else "fig11_subpixel_noise.png")
-        noisy = results.get("subpixel_noisy", {}).get("icgn_noise")
-        if noisy:
-            write_csv(os.path.join(out, "fig11_icgn_noise_check.csv"), noisy["rows"],
-                      ["displacement", "n", "measured_sd", "predicted_sd", "ratio"])
-            written["fig11"].append("fig11_icgn_noise_check.csv")
-        fit_rows = [r for block in sub for r in block["fit_rows"]]
-        if fit_rows:
-            write_csv(os.path.join(out, "fig07_fitting_distance.csv"), fit_rows,
-                      ["sigma", "displacement", "spacing", "n", "failed", "mean_u", "sd_u", "rmse_u", "max_abs_u"])
-            written.setdefault("fig07", []).append("fig07_fitting_distance.csv")
-            for block in sub:
-                if block["fit_rows"]:
-                    sigma = block["rows"][0]["sigma"]
-                    save(_fig07(plt, block["fit_rows"], sigma),
-                         "fig07_fitting_distance.png" if sigma == 0 else "fig07_fitting_distance_noise.png")
+    _integer_figures(plt, save, written, results, cfg, out)
+    _subpixel_figures(plt, save, written, results, out)
 
     if "subpixel_clean" in results or "measure_timing" in results:
         rows = table1_rows(results)
@@ -146,6 +103,58 @@ def draw_all(results, cfg, out):
         for block in fields:
             save(_fig12(plt, block), "fig12_u_field.png" if block["sigma"] == 0 else "fig12_u_field_noise.png")
     return written
+
+
+def _integer_figures(plt, save, written, results, cfg, out):
+    """Figs 9 and 10 with their CSVs (integer searches)."""
+    integer = [results[k] for k in ("integer_clean", "integer_noisy") if k in results]
+    if integer:
+        rows = [r for block in integer for r in block["rows"]]
+        write_csv(os.path.join(out, "fig09_success.csv"), rows,
+                  ["sigma", "method", "displacement", "n", "failed", "success_pct", "truth_pct",
+                   "evaluations", "calls", "time_s", "time_ms_per_point"])
+        written.setdefault("fig09", []).append("fig09_success.csv")
+        for block in integer:
+            sigma = block["rows"][0]["sigma"]
+            save(_fig09(plt, block, sigma, cfg), "fig09_success.png" if sigma == 0 else "fig09_success_noise.png")
+        cost_rows = []
+        for block in integer:
+            for method, entry in block["cost"].items():
+                cost_rows.append(dict(sigma=block["rows"][0]["sigma"], method=method, **entry))
+        write_csv(os.path.join(out, "fig10_cost.csv"), cost_rows,
+                  ["sigma", "method", "n", "success_pct", "time_s", "time_ms_per_point", "evaluations", "calls",
+                   "time_vs_pso", "time_vs_coarse-fine", "evaluations_vs_pso", "evaluations_vs_coarse-fine"])
+        save(_fig10(plt, integer), "fig10_cost.png")
+        written["fig10"].append("fig10_cost.csv")
+
+
+def _subpixel_figures(plt, save, written, results, out):
+    """Figs 11 and 7 with their CSVs (sub-pixel methods, fitting distance)."""
+    sub = [results[k] for k in ("subpixel_clean", "subpixel_noisy") if k in results]
+    if sub:
+        rows = [r for block in sub for r in block["rows"]]
+        write_csv(os.path.join(out, "fig11_subpixel.csv"), rows,
+                  ["sigma", "method", "displacement", "n", "failed", "mean_u", "sd_u", "rmse_u", "max_abs_u",
+                   "mean_v", "sd_v"])
+        written.setdefault("fig11", []).append("fig11_subpixel.csv")
+        for block in sub:
+            sigma = block["rows"][0]["sigma"]
+            save(_fig11(plt, block, sigma), "fig11_subpixel.png" if sigma == 0 else "fig11_subpixel_noise.png")
+        noisy = results.get("subpixel_noisy", {}).get("icgn_noise")
+        if noisy:
+            write_csv(os.path.join(out, "fig11_icgn_noise_check.csv"), noisy["rows"],
+                      ["displacement", "n", "measured_sd", "predicted_sd", "ratio"])
+            written["fig11"].append("fig11_icgn_noise_check.csv")
+        fit_rows = [r for block in sub for r in block["fit_rows"]]
+        if fit_rows:
+            write_csv(os.path.join(out, "fig07_fitting_distance.csv"), fit_rows,
+                      ["sigma", "displacement", "spacing", "n", "failed", "mean_u", "sd_u", "rmse_u", "max_abs_u"])
+            written.setdefault("fig07", []).append("fig07_fitting_distance.csv")
+            for block in sub:
+                if block["fit_rows"]:
+                    sigma = block["rows"][0]["sigma"]
+                    save(_fig07(plt, block["fit_rows"], sigma),
+                         "fig07_fitting_distance.png" if sigma == 0 else "fig07_fitting_distance_noise.png")
 
 
 # --------------------------------------------------------------------------- individual figures

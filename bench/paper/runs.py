@@ -1,7 +1,7 @@
 """The measurements behind ``livedic bench paper``: image pairs, runs and raw numbers.
 
 Nothing here plots or writes files; every function returns plain dicts/lists of
-numbers that ``bench._paper_figures`` draws and ``bench._paper_report`` writes.
+numbers that ``bench.paper.figures`` draws and ``bench.paper.report`` writes.
 Everything is seeded: the same configuration gives the same numbers (timings aside).
 """
 
@@ -412,21 +412,39 @@ def run_subpixel(cfg, images, sigma, log, *, repeats=1):
                     err = np.where(ok, res.u - s, np.nan)
                     per_point.setdefault(s, []).append(err)
             if s in fit_targets:
-                for h in cfg.fit_spacings:
-                    res, _ = guard.call("improved-surface-fit", lambda: _refine(
-                        subpixel_module("improved-surface-fit"), ref32, def32, start, half, spacing=float(h)))
-                    if res is None:
-                        break
-                    ok = res.status == 0
-                    key = (round(s, 6), round(float(h), 6))
-                    eu, ev, nt = fit.get(key, ([], [], 0))
-                    eu.append(res.u[ok] - s)
-                    ev.append(res.v[ok])
-                    fit[key] = (eu, ev, nt + ok.size)
+                _fitting_distances(guard, ref32, def32, start, half, s, cfg.fit_spacings, fit)
         if (k + 1) % max(1, len(cfg.sub_displacements) // 5) == 0 or k + 1 == len(cfg.sub_displacements):
             log(f"  s = {s:.2f} px done ({k + 1}/{len(cfg.sub_displacements)}, {time.perf_counter() - t_all:.1f} s)")
     images.forget_clean()
 
+    rows, fit_rows = _subpixel_rows(errors, fit, sigma)
+    times = {m: t for m, t in times.items() if guard.ok(m)}
+    result = dict(rows=rows, fit_rows=fit_rows, points_per_pair=int(points.shape[0]), n_refined=n_refined,
+                  stage_time_s=times, stage_us_per_point={m: 1e6 * t / max(n_refined, 1) for m, t in times.items()},
+                  failed_methods=guard.failed)
+    if predictions and per_point:
+        result["icgn_noise"] = _noise_check(cfg, per_point, predictions, prediction_sigma)
+    return result
+
+
+
+def _fitting_distances(guard, ref32, def32, start, half, s, spacings, fit):
+    """Fig 7: the improved surface fit at each fitting distance h for displacement ``s``, errors added to ``fit``."""
+    for h in spacings:
+        res, _ = guard.call("improved-surface-fit", lambda: _refine(
+            subpixel_module("improved-surface-fit"), ref32, def32, start, half, spacing=float(h)))
+        if res is None:
+            break
+        ok = res.status == 0
+        key = (round(s, 6), round(float(h), 6))
+        eu, ev, nt = fit.get(key, ([], [], 0))
+        eu.append(res.u[ok] - s)
+        ev.append(res.v[ok])
+        fit[key] = (eu, ev, nt + ok.size)
+
+
+def _subpixel_rows(errors, fit, sigma):
+    """The error statistics per (method, s) for Fig 11 and per (s, h) for Fig 7, as rows."""
     rows = []
     for (method, s), (eu, ev, nt) in errors.items():
         if not nt:
@@ -438,14 +456,7 @@ def run_subpixel(cfg, images, sigma, log, *, repeats=1):
     for (s, h), (eu, ev, nt) in sorted(fit.items()):
         stats = _error_stats(np.concatenate(eu), np.concatenate(ev), nt)
         fit_rows.append(dict(sigma=sigma, displacement=s, spacing=h, **stats))
-    times = {m: t for m, t in times.items() if guard.ok(m)}
-    result = dict(rows=rows, fit_rows=fit_rows, points_per_pair=int(points.shape[0]), n_refined=n_refined,
-                  stage_time_s=times, stage_us_per_point={m: 1e6 * t / max(n_refined, 1) for m, t in times.items()},
-                  failed_methods=guard.failed)
-    if predictions and per_point:
-        result["icgn_noise"] = _noise_check(cfg, per_point, predictions, prediction_sigma)
-    return result
-
+    return rows, fit_rows
 
 def _noise_check(cfg, per_point, predictions, sigma):
     """Measured IC-GN SD of u per displacement vs the prediction pooled over the same points."""

@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 
-from livedic.bench import _paper_runs as runs
+from livedic.bench.paper import runs
 from livedic.bench.paper import PaperConfig, run_paper_benchmark
 
 FIGURES = ["fig09_success.png", "fig09_success_noise.png", "fig10_cost.png", "fig_radius.png", "fig11_subpixel.png",

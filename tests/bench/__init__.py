@@ -1,0 +1,1 @@
+"""Tests of the benchmarks (livedic bench ...): plumbing and sanity, no timing asserted."""
