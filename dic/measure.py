@@ -9,14 +9,15 @@ from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
 from livedic.dic.result import Measurement, SubpixelResult
-from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES, search_points
+from livedic.dic.search import (DEFAULT_RADIUS, DEFAULT_SEARCH, NO_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES,
+                                SearchMethod, search_method, search_points)
 from livedic.dic.status import Status
 from livedic.dic.subpixel import icgn
 from livedic.dic.subpixel.method import SUBPIXEL_METHODS, SubpixelMethod, subpixel_method
 from livedic.dic.validation import as_guess, as_image, as_points, check_radius, check_same_shape, check_subset
 
 # The integer searches, and "none": start the sub-pixel method from the guess.
-SEARCH_METHODS = _INTEGER_SEARCHES + ("none",)
+SEARCH_METHODS = _INTEGER_SEARCHES + (NO_SEARCH,)
 
 
 
@@ -84,8 +85,7 @@ def measure(reference, deformed, points, *, subset=DEFAULT_SUBSET, search=DEFAUL
     >>> round(float(m.u[0]), 2), round(float(m.v[0]), 2), bool(m.ok[0])
     (2.3, -1.4, True)
     """
-    if search not in SEARCH_METHODS:
-        raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
+    searching = search_method(search)
     method = subpixel_method(subpixel)
     if gates is not None and not isinstance(gates, Gates):
         raise ValueError(f"gates must be a dic.quality.Gates or None, got {gates!r}")
@@ -101,18 +101,18 @@ def measure(reference, deformed, points, *, subset=DEFAULT_SUBSET, search=DEFAUL
     prep = icgn.prepare_reference(reference, xs, ys, half, hessian=icgn_options.pop("hessian", "projected"))
     texture = quality.texture(prep)
     thresholds = gates or Gates()
-    prep = method.reference_data(prep, icgn_options)
+    prep = method.reference_data(prep, **method.pop_reference_options(icgn_options))
     translation_only = texture.translation_only(thresholds) if method.first_order else None
-    guided = guess is None and guided and search != "none" and xs.shape[0] > 0
+    guided = guess is None and guided and searching.searches and xs.shape[0] > 0
     # neighbours serve the propagation and the median test only (a tracker that gates itself needs neither)
     graph = neighbour_graph(np.column_stack([xs, ys]).astype(np.float64)) if guided or gates is not None else None
     if guided:
         poor = texture.poor(thresholds)
-        raw = _guided(reference, deformed, prep, search, method, radius, seed, search_options, subpixel_options,
+        raw = _guided(reference, deformed, prep, searching, method, radius, seed, search_options, subpixel_options,
                       icgn_options, thresholds, texture, poor, translation_only, graph)
     else:
         start = as_guess(guess, xs.shape[0])
-        raw = _solve(reference, deformed, prep, start, search, method, radius, seed, search_options,
+        raw = _solve(reference, deformed, prep, start, searching, method, radius, seed, search_options,
                      subpixel_options, icgn_options, translation_only)
     status = raw.status
     if gates is not None:
@@ -138,13 +138,13 @@ def _finish(xs, ys, raw, status, translation_only):
                        evaluations=raw.evaluations, **grads)
 
 
-def _solve(reference, deformed, prep, start, search, method: SubpixelMethod, radius, seed, search_options,
+def _solve(reference, deformed, prep, start, search: SearchMethod, method: SubpixelMethod, radius, seed, search_options,
            subpixel_options, icgn_options, translation_only):
-    """Search around ``start`` (unless ``search == "none"``), then the sub-pixel method; no gates."""
+    """Search around ``start`` (unless ``search`` does not search), then the sub-pixel method; no gates."""
     first = method.first_order_data(prep)
     xs, ys, half = first.xs, first.ys, first.half
     margin = method.margin
-    if search == "none":
+    if not search.searches:
         u0 = start[:, 0].copy()
         v0 = start[:, 1].copy()
         status = _start_status(reference.shape, xs, ys, u0, v0, half, margin)
@@ -155,13 +155,13 @@ def _solve(reference, deformed, prep, start, search, method: SubpixelMethod, rad
             u0, v0 = np.floor(u0 + 0.5), np.floor(v0 + 0.5)
     else:
         found = search_points(reference, deformed, xs, ys, start[:, 0], start[:, 1], half, radius,
-                              search, seed=seed, margin=margin, options=search_options)
+                              search.name, seed=seed, margin=margin, options=search_options)
         u0 = found.u.astype(np.float64)
         v0 = found.v.astype(np.float64)
         status = found.status.copy()
         zncc = found.zncc
         evaluations = found.evaluations
-    return _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, search == "none", method, seed,
+    return _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, not search.searches, method, seed,
                    subpixel_options, icgn_options, translation_only)
 
 
@@ -231,7 +231,7 @@ def _refine_by_order(method, reference, deformed, xs, ys, u0, v0, status, half, 
 _START_GRADIENTS = ("ux0", "uy0", "vx0", "vy0")
 
 
-def _guided(reference, deformed, prep, search, method: SubpixelMethod, radius, seed, search_options, subpixel_options,
+def _guided(reference, deformed, prep, search: SearchMethod, method: SubpixelMethod, radius, seed, search_options, subpixel_options,
             icgn_options, gates, texture, poor, translation_only, graph):
     """Reliability-guided measurement (``dic.reliability_guided``), then the chosen sub-pixel method."""
     first = method.first_order_data(prep)
@@ -243,7 +243,7 @@ def _guided(reference, deformed, prep, search, method: SubpixelMethod, radius, s
 
     def full_search(idx):
         zero = np.zeros(idx.size)
-        found = search_points(reference, deformed, xs[idx], ys[idx], zero, zero, half, radius, search, seed=seed,
+        found = search_points(reference, deformed, xs[idx], ys[idx], zero, zero, half, radius, search.name, seed=seed,
                               margin=INTERPOLATION_MARGIN, options=search_options)
         return found.u, found.v, found.status, found.evaluations
 

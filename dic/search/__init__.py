@@ -26,6 +26,9 @@ radius 10-48. For a seeded search with a small radius (tracking), ``"exhaustive"
 the cheapest: at radius 2 it costs 25 evaluations.
 """
 
+from dataclasses import dataclass
+from types import ModuleType
+
 import numpy as np
 
 from livedic.dic.correlation import DEFAULT_SUBSET
@@ -47,9 +50,46 @@ _MODULES = {
 }
 # The integer searches; ``dic.measure.SEARCH_METHODS`` adds "none" (no search: start from the guess).
 SEARCH_METHODS = tuple(_MODULES)
+# No integer search: the sub-pixel method starts from the guess (``dic.measure``, ``dic.tracking``).
+NO_SEARCH = "none"
 # The integer search, and its box's half-side (px), that measure, track and the commands use unless told otherwise.
 DEFAULT_SEARCH = "improved-wso"
 DEFAULT_RADIUS = 16
+
+
+@dataclass(frozen=True)
+class SearchMethod:
+    """An integer search as measure and tracking ask of it (they never compare its name).
+
+    ``module`` holds its ``DEFAULTS``, ``CHECKS`` and kernel; None for ``"none"``, no search.
+    """
+    name: str
+    module: ModuleType | None
+
+    @property
+    def searches(self) -> bool:
+        """It searches (``"none"`` does not: the sub-pixel method starts from the guess)."""
+        return self.module is not None
+
+    @property
+    def swarm(self) -> bool:
+        """A population search (a swarm of candidates over iterations): a seeded search sizes it down."""
+        return self.module is not None and "population" in self.module.DEFAULTS
+
+    def __reduce__(self):
+        return search_method, (self.name,)        # pickled by name (replay --workers), not with its module
+
+
+SEARCHES: dict[str, SearchMethod] = {**{name: SearchMethod(name, module) for name, module in _MODULES.items()},
+                                     NO_SEARCH: SearchMethod(NO_SEARCH, None)}
+
+
+def search_method(name: str) -> SearchMethod:
+    """The search called ``name`` (``"none"`` included); ValueError (one line) naming the choices otherwise."""
+    try:
+        return SEARCHES[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown search method {name!r}: choose one of {', '.join(SEARCHES)}") from None
 
 
 def method_options(method):

@@ -42,6 +42,8 @@ class SubpixelMethod:
         The reliability-guided propagation (first-order IC-GN) already is this method's result.
     shape_terms : tuple of str
         Start terms it carries from frame to frame beyond u, v and the gradients.
+    reference_options : tuple of str
+        Its options that shape the prepared reference data (set once), not each refinement.
     """
     name: str
     module: ModuleType | None
@@ -51,6 +53,11 @@ class SubpixelMethod:
     seeded: bool = False
     final_after_guidance: bool = False
     shape_terms: tuple[str, ...] = ()
+    reference_options: tuple[str, ...] = ()
+
+    def __reduce__(self):
+        # a tracker sent to another process (replay --workers) carries its method by name, not its module
+        return subpixel_method, (self.name,)
 
     @property
     def first_order(self) -> bool:
@@ -58,9 +65,12 @@ class SubpixelMethod:
         the others work around an integer peak, so a float start is rounded for them."""
         return self.shape_order >= 1
 
-    def reference_data(self, first: icgn.IcgnReference, options: dict[str, Any]) -> Any:
-        """The prepared reference data this method refines from, given the first-order ones (options it
-        takes for them are popped from ``options``)."""
+    def pop_reference_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        """The options of ``options`` that shape the reference data (``reference_options``), taken out of it."""
+        return {name: options.pop(name) for name in self.reference_options if name in options}
+
+    def reference_data(self, first: icgn.IcgnReference, **reference_options: Any) -> Any:
+        """The prepared reference data this method refines from, given the first-order ones."""
         return first
 
     def first_order_data(self, prepared: Any) -> icgn.IcgnReference:
@@ -76,8 +86,8 @@ class SubpixelMethod:
 class _SecondOrderIcgn(SubpixelMethod):
     """icgn2: its 12-parameter reference data extend the first-order ones (``icgn2.prepare_from``)."""
 
-    def reference_data(self, first, options):
-        return icgn2.prepare_from(first, vif_max=options.pop("vif_max", icgn2.VIF2_MAX))
+    def reference_data(self, first, *, vif_max=icgn2.VIF2_MAX):
+        return icgn2.prepare_from(first, vif_max=vif_max)
 
     def first_order_data(self, prepared):
         return prepared.first
@@ -91,7 +101,7 @@ METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (
     SubpixelMethod("improved-surface-fit", improved_surface_fit, 3, seeded=True),
     SubpixelMethod("icgn", icgn, INTERPOLATION_MARGIN, shape_order=1, prepared=True, final_after_guidance=True),
     _SecondOrderIcgn("icgn2", icgn2, INTERPOLATION_MARGIN, shape_order=2, prepared=True,
-                     shape_terms=icgn2.SECOND_ORDER),
+                     shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max",)),
 )}
 SUBPIXEL_METHODS: tuple[str, ...] = tuple(METHODS)
 

@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livedic.dic.subpixel import icgn2
-from livedic.dic.subpixel.icgn import prepare_target, refine_prepared
+from livedic.dic.subpixel.icgn import prepare_target
+from livedic.dic.subpixel.method import SubpixelMethod
 
 
 def window_coefficients(image, window, out=None):
@@ -18,13 +18,14 @@ def window_coefficients(image, window, out=None):
 
 @dataclass(frozen=True)
 class KernelJob:
-    """One run of the prepared IC-GN kernel (``"icgn"``, ``"icgn2"``) as ``Tracker`` makes it.
+    """One run of a prepared sub-pixel method's kernel (``method``: IC-GN of either order) as ``Tracker`` makes it.
 
     ``run(coefficients)`` refines the prepared points ``points`` from (``u0``, ``v0``) and the start
     shape terms ``shape`` (``ux, uy, vx, vy`` and, for icgn2, its second-order terms) with ``order``
     and ``options`` (``refine_prepared``'s), on ``coefficients(frame)``: the frame's ``window``
     (y0, y1, x0, x1), to which the prepared data's positions are relative.
     """
+    method: SubpixelMethod
     prep: object
     window: tuple
     points: np.ndarray
@@ -40,12 +41,7 @@ class KernelJob:
         return window_coefficients(image, self.window, out)
 
     def run(self, coefficients):
-        """The sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""
-        g = self.shape
-        if isinstance(self.prep, icgn2.Icgn2Reference):
-            second = {f"{name}0": g[name] for name in icgn2.SECOND_ORDER}
-            return icgn2.refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
-                                         status=self.status, points=self.points, order=self.order, **second,
-                                         **self.options)
-        return refine_prepared(self.prep, coefficients, self.u0, self.v0, g["ux"], g["uy"], g["vx"], g["vy"],
-                               status=self.status, points=self.points, order=self.order, **self.options)
+        """The method's sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""
+        starts = {f"{name}0": values for name, values in self.shape.items()}
+        return self.method.refine_prepared(self.prep, coefficients, self.u0, self.v0, status=self.status,
+                                           points=self.points, order=self.order, **starts, **self.options)

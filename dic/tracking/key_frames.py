@@ -333,7 +333,7 @@ class KeyFrameTracker:
         if guessed.size == 0:
             return out_u, out_v, out_grad
         start_grad = np.where(np.isfinite(grad[guessed]), grad[guessed], 0.0)
-        subpixel = self._inner.subpixel if self._inner.subpixel in ("icgn", "icgn2") else "icgn"
+        subpixel = self._inner.method.name if self._inner.method.prepared else "icgn"
         first, now, at, shift = _crops(self._first, image, points[idx[guessed]],
                                        np.column_stack([u[guessed], v[guessed]]), self._inner.subset)
         m = measure(first, now, at, subset=self._inner.subset, search="none", subpixel=subpixel,

@@ -8,15 +8,17 @@ import numpy as np
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
-from livedic.dic.measure import SEARCH_METHODS, SUBPIXEL_METHODS, measure
+from livedic.dic.measure import measure
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
-from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES, search_points
+from livedic.dic.search import (DEFAULT_RADIUS, DEFAULT_SEARCH, NO_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES,
+                                search_method, search_points)
 from livedic.dic.status import Status
-from livedic.dic.subpixel import icgn2
 from livedic.dic.subpixel.icgn import prepare_reference
+from livedic.dic.subpixel.icgn2 import SECOND_ORDER
+from livedic.dic.subpixel.method import subpixel_method
 from livedic.dic.validation import as_image, as_points, check_radius, check_subset, checked_image
 from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
 
@@ -35,13 +37,6 @@ REFIND_ZNCC = 0.8
 REFIND_SEEDS = 16
 # Seeded-search options for the swarm methods (see Tracker).
 SEED_SWARM = {"population": 6, "iterations": 8}
-_SWARMS = ("improved-wso", "wso", "pso")
-# Sub-pixel methods that converge from a sub-pixel start: the seeded search runs only for doubtful points.
-_ITERATIVE = ("icgn", "icgn2", "newton-raphson")
-# Sub-pixel methods on the prepared-reference fast path (IC-GN).
-_PREPARED = ("icgn", "icgn2")
-# Methods that report displacement gradients.
-_GRADIENTS = ("icgn", "icgn2", "newton-raphson")
 # IC-GN reads each frame on a window around the points: displacement room it starts with (px) and the
 # extra border that keeps the B-spline prefilter's edge effects (pole 2 - sqrt(3): 0.27^12 < 1e-6) away.
 _WINDOW_ALLOWANCE = 48
@@ -185,12 +180,10 @@ class Tracker:
                  seed_radius=2, refind_radius=DEFAULT_RADIUS, refind_zncc=REFIND_ZNCC, refind_drop=0.05,
                  refind_gradient=0.1, refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
                  seed_search_options=None, subpixel_options=None, gates=Gates()):
-        if search not in SEARCH_METHODS:
-            raise ValueError(f"unknown search method {search!r}: choose one of {', '.join(SEARCH_METHODS)}")
-        if subpixel not in SUBPIXEL_METHODS:
-            raise ValueError(f"unknown sub-pixel method {subpixel!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
+        self.searching = search_method(search)
+        self.method = subpixel_method(subpixel)
         if refind_search is None:
-            refind_search = search if search != "none" else DEFAULT_SEARCH
+            refind_search = search if self.searching.searches else DEFAULT_SEARCH
         if refind_search not in _INTEGER_SEARCHES:
             raise ValueError(f"re-find search must be one of {', '.join(_INTEGER_SEARCHES)}, "
                              f"got {refind_search!r}")
@@ -215,11 +208,11 @@ class Tracker:
         self.seed = int(seed)
         self.search_options = search_options
         if seed_search_options is None:
-            seed_search_options = dict(SEED_SWARM) if search in _SWARMS else search_options
+            seed_search_options = dict(SEED_SWARM) if self.searching.swarm else search_options
         self.seed_search_options = seed_search_options
         self.subpixel_options = dict(subpixel_options or {})
-        self._vif_max = self.subpixel_options.pop("vif_max", icgn2.VIF2_MAX) if subpixel == "icgn2" else None
-        if subpixel in _PREPARED:
+        self._reference_options = self.method.pop_reference_options(self.subpixel_options)
+        if self.method.prepared:
             self.subpixel_options.setdefault("max_iterations", ICGN_MAX_ITERATIONS)
         if not isinstance(gates, Gates):
             raise ValueError(f"gates must be a dic.quality.Gates, got {gates!r}")
@@ -229,8 +222,8 @@ class Tracker:
         self.x = self._xs.astype(np.float64)
         self.y = self._ys.astype(np.float64)
         n = self._xs.shape[0]
-        # icgn2 also starts each point from its previous second-order terms
-        self._shape_terms = _SHAPE + (icgn2.SECOND_ORDER if subpixel == "icgn2" else ())
+        # a second-order method also starts each point from its previous second-order terms
+        self._shape_terms = _SHAPE + self.method.shape_terms
         self._prev = {name: np.zeros(n) for name in ("u", "v") + self._shape_terms}
         self._prev_zncc = np.full(n, np.nan)
         self._good_u = np.zeros(n)
@@ -244,7 +237,7 @@ class Tracker:
         self._window = None
         self._allowance = 0
         self._graph = neighbour_graph(np.column_stack([self.x, self.y]))
-        if subpixel in _PREPARED:
+        if self.method.prepared:
             self._prepare_window(_WINDOW_ALLOWANCE)
             self._ref_status = np.where(self._ref_status != Status.OK, self._ref_status,
                                         self._prep.status).astype(np.int8)
@@ -254,7 +247,7 @@ class Tracker:
         poor = texture.poor(gates) & (self._ref_status == Status.OK)
         self._ref_status[poor] = Status.POOR_TEXTURE
         # first-order methods fit a translation where one or two speckles cannot pin a 6-parameter warp
-        self._order = np.where(texture.translation_only(gates), 0, 2 if subpixel == "icgn2" else 1)
+        self._order = np.where(texture.translation_only(gates), 0, max(self.method.shape_order, 1))
         self.trackable = self._ref_status == Status.OK
         self.frames_tracked = 0
         self.last_refound = np.zeros(self.n_points, dtype=bool)
@@ -287,11 +280,8 @@ class Tracker:
         x1 = min(int(self._xs.max()) + reach + 1, width)
         y1 = min(int(self._ys.max()) + reach + 1, height)
         window = np.ascontiguousarray(self.reference[y0:y1, x0:x1])
-        if self.subpixel == "icgn2":
-            self._prep = icgn2.prepare_reference(window, self._xs - x0, self._ys - y0, self.half,
-                                                 vif_max=self._vif_max)
-        else:
-            self._prep = prepare_reference(window, self._xs - x0, self._ys - y0, self.half)
+        self._prep = self.method.reference_data(prepare_reference(window, self._xs - x0, self._ys - y0, self.half),
+                                                **self._reference_options)
         self._window = (y0, y1, x0, x1)
         self._allowance = int(allowance)
         self._window_full = (y0, x0) == (0, 0) and (y1, x1) == (height, width)
@@ -306,8 +296,8 @@ class Tracker:
         return True
 
     def _first_order_prep(self):
-        """The first-order IC-GN reference data (icgn2's extend them)."""
-        return self._prep.first if self.subpixel == "icgn2" else self._prep
+        """The first-order IC-GN reference data (a second-order method's extend them)."""
+        return self.method.first_order_data(self._prep)
 
     @property
     def window(self):
@@ -393,7 +383,7 @@ class Tracker:
         status = None
         evaluations = None
         u0, v0 = start_u, start_v
-        if search != "none":
+        if search_method(search).searches:
             found = search_points(self.reference, target.grey, self._xs[idx], self._ys[idx], start_u, start_v,
                                   self.half, radius, search, seed=self.seed, margin=INTERPOLATION_MARGIN,
                                   options=options)
@@ -416,7 +406,7 @@ class Tracker:
         order = options.pop("order", self._order)
         if np.ndim(order) > 0:
             order = np.asarray(order)[idx]
-        return KernelJob(self._prep, self._window, idx, u0, v0, grads, order, options, status)
+        return KernelJob(self.method, self._prep, self._window, idx, u0, v0, grads, order, options, status)
 
     def kernel_job(self):
         """The kernel stage of the next ``track`` on its own: a ``KernelJob``, or None (no IC-GN, no point).
@@ -439,8 +429,8 @@ class Tracker:
         fields = dict(x=self.x[idx], y=self.y[idx], u=result.u, v=result.v, zncc=result.zncc,
                       ok=result.status == Status.OK, status=result.status, ux=result.ux, uy=result.uy,
                       vx=result.vx, vy=result.vy, iterations=result.iterations, evaluations=evaluations)
-        if self.subpixel == "icgn2":
-            return _Curved(**fields, **{name: getattr(result, name) for name in icgn2.SECOND_ORDER})
+        if self.method.shape_terms:
+            return _Curved(**fields, **{name: getattr(result, name) for name in SECOND_ORDER})
         return Measurement(**fields)
 
     def track(self, image):
@@ -478,12 +468,12 @@ class Tracker:
                 else:
                     target.grey                 # the methods without IC-GN's window read the whole frame
         grads = self._gradients()
-        on_demand = self.search != "none" and self.subpixel in _ITERATIVE
+        on_demand = self.searching.searches and self.method.first_order
         self.last_seed_searches = 0
         result = None
         if idx.size:
             with times.stage("kernel"):
-                first = self._measure(target, idx, start_u[idx], start_v[idx], "none" if on_demand else self.search,
+                first = self._measure(target, idx, start_u[idx], start_v[idx], NO_SEARCH if on_demand else self.search,
                                       self.seed_radius, {k: g[idx] for k, g in grads.items()},
                                       self.seed_search_options)
             if self._prep is not None and idx.size == self.n_points and first.evaluations is None:
@@ -491,7 +481,7 @@ class Tracker:
             else:
                 result = self._empty_result()
                 self._scatter(result, idx, first)
-            self.last_seed_searches = int(idx.size) if self.search != "none" and not on_demand else 0
+            self.last_seed_searches = int(idx.size) if self.searching.searches and not on_demand else 0
         if result is None:
             result = self._empty_result()
         weak = None
@@ -527,7 +517,7 @@ class Tracker:
         self._coeffs = None
         self.last_timings = times.ns
         if isinstance(result, _Curved):
-            self.last_second_order = {name: getattr(result, name) for name in icgn2.SECOND_ORDER}
+            self.last_second_order = {name: getattr(result, name) for name in SECOND_ORDER}
             result = _take(result, slice(None), Measurement)
         return result
 
@@ -718,12 +708,12 @@ class Tracker:
         idx = np.flatnonzero(accepted)
         if idx.size:
             p = params[idx]
-            if self.subpixel == "icgn2":
-                # the first-order warp from the neighbour starts icgn2 (no second-order terms: its first-order
-                # stage confirms the propagated result, then the 2nd-order iteration runs)
-                again = icgn2.refine_prepared(self._prep, self._target_coefficients(), p[:, 0], p[:, 3], p[:, 1],
-                                              p[:, 2], p[:, 4], p[:, 5], points=idx, order=self._order[idx],
-                                              **options)
+            if self.method.shape_order > 1:
+                # the first-order warp from the neighbour starts a second-order method (no second-order terms: its
+                # first-order stage confirms the propagated result, then the 2nd-order iteration runs)
+                again = self.method.refine_prepared(self._prep, self._target_coefficients(), p[:, 0], p[:, 3],
+                                                    ux0=p[:, 1], uy0=p[:, 2], vx0=p[:, 4], vy0=p[:, 5], points=idx,
+                                                    order=self._order[idx], **options)
                 again.iterations += iterations[idx]
                 found = self._measurement(idx, again)
             else:
@@ -812,21 +802,21 @@ class Tracker:
     def _empty_result(self):
         n = self.n_points
         nan = np.full(n, np.nan)
-        first_order = self.subpixel in _GRADIENTS
+        first_order = self.method.first_order
         fields = dict(x=self.x.copy(), y=self.y.copy(), u=nan.copy(), v=nan.copy(), zncc=nan.copy(),
                       ok=np.zeros(n, dtype=bool), status=self._ref_status.copy(),
                       ux=nan.copy() if first_order else None, uy=nan.copy() if first_order else None,
                       vx=nan.copy() if first_order else None, vy=nan.copy() if first_order else None,
                       iterations=np.zeros(n, dtype=np.int64) if first_order else None)
-        if self.subpixel == "icgn2":
-            return _Curved(**fields, **{name: nan.copy() for name in icgn2.SECOND_ORDER})
+        if self.method.shape_terms:
+            return _Curved(**fields, **{name: nan.copy() for name in SECOND_ORDER})
         return Measurement(**fields)
 
     @staticmethod
     def _scatter(result, idx, part):
         for name in ("u", "v", "zncc", "ok", "status"):
             getattr(result, name)[idx] = getattr(part, name)
-        for name in ("ux", "uy", "vx", "vy", "iterations") + icgn2.SECOND_ORDER:
+        for name in ("ux", "uy", "vx", "vy", "iterations") + SECOND_ORDER:
             target = getattr(result, name, None)
             values = getattr(part, name, None)
             if target is not None and values is not None:
@@ -907,7 +897,7 @@ def _take(measurement, mask, kind=None):
     kind = kind or type(measurement)
     names = ("x", "y", "u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations", "evaluations")
     if kind is _Curved:
-        names += icgn2.SECOND_ORDER
+        names += SECOND_ORDER
     values = {}
     for name in names:
         array = getattr(measurement, name)
@@ -921,7 +911,7 @@ _SHAPE = ("ux", "uy", "vx", "vy")
 
 @dataclass
 class _Curved(Measurement):
-    """A tracker result inside ``Tracker.track`` with icgn2's second-order terms (``icgn2.SECOND_ORDER``)."""
+    """A tracker result inside ``Tracker.track`` with a second-order method's terms (``icgn2.SECOND_ORDER``)."""
     uxx: np.ndarray = None
     uxy: np.ndarray = None
     uyy: np.ndarray = None
