@@ -16,12 +16,12 @@ import signal
 import sys
 import threading
 
-from livedic.stream.session.parsing import UsageError, search_method, subpixel_method
+from livedic.stream.cli.measure import add_measure_arguments, measure_command
+from livedic.stream.session.parsing import UsageError
 from livedic.stream.export.field_export import add_field_arguments
-from livedic.stream.session.points import add_region_arguments, read_points_table
-from livedic.stream.session.preview import add_preview_arguments, preview_command
+from livedic.stream.cli.preview import add_preview_arguments, preview_command
 from livedic.stream.pipeline.progress import add_progress_argument
-from livedic.stream.replay.replay import add_replay_arguments, replay_command
+from livedic.stream.cli.replay import add_replay_arguments, replay_command
 from livedic.stream.cli.run import add_run_arguments, run_session
 from livedic.stream.stages.strain import add_strain_arguments
 from livedic.stream.stages.stress import add_stress_arguments
@@ -151,10 +151,6 @@ def build_parser(extensions=()):
         prog="livedic", description="Real-time digital image correlation: measure, track, record, replay.")
     commands = parser.add_subparsers(metavar="COMMAND")
 
-    from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
-    from livedic.dic.quality import MIN_ZNCC
-    from livedic.dic.strain import MEASURES
-
     run = commands.add_parser("run", help="live tracking of a camera or the simulated tensile test")
     add_run_arguments(run)
     run.set_defaults(handler=run_session)
@@ -170,37 +166,8 @@ def build_parser(extensions=()):
     preview.set_defaults(handler=preview_command)
 
     measure = commands.add_parser("measure", help="displacements of points between two images")
-    measure.add_argument("reference", metavar="REF", help="reference image (8/16-bit grey PNG or TIFF)")
-    measure.add_argument("deformed", metavar="DEF", help="deformed image, same size")
-    where = measure.add_mutually_exclusive_group(required=True)
-    where.add_argument("--grid", type=int, metavar="STEP", help="points on a grid every STEP pixels")
-    where.add_argument("--points", metavar="FILE.csv",
-                       help="CSV with header x,y (other columns are carried through to the output)")
-    add_region_arguments(measure, points=False)
-    _add_method_options(measure, SEARCH_METHODS, SUBPIXEL_METHODS)
-    measure.add_argument("-o", "--output", metavar="OUT.csv",
-                         help="output CSV (default: stdout): x,y,u,v,zncc,ok,status, then the method's columns, "
-                              "then the points file's other columns (e.g. id, label)")
-    measure.add_argument("--min-zncc", type=float, default=MIN_ZNCC, metavar="Z",
-                         help=f"a point is ok only if its ZNCC is at least Z (default {MIN_ZNCC}, measured: no "
-                              "correct point of a low-contrast, noisy pair falls below it); the other quality gates "
-                              "(texture, neighbours, border) always apply")
-    measure.add_argument("--no-guided", dest="guided", action="store_false",
-                         help="search every point over the full radius instead of a few seeds whose results are "
-                              "propagated to their neighbours (reliability-guided, the default)")
-    measure.add_argument("--strain-window", type=int, metavar="N",
-                         help="add the strain columns exx,eyy,exy: plane fits of u and v over N x N points "
-                              "(odd, >= 3; pointwise least squares; VSG = (N - 1) x step + subset, step = --grid "
-                              "or the points' spacing)")
-    measure.add_argument("--strain-measure", choices=MEASURES,
-                         help="strain measure of those columns: engineering (small strain, the default), green "
-                              "(Green-Lagrange) or true (logarithmic, Hencky); implies --strain-window 5 when "
-                              "that is not given")
-    measure.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
-                         help="say on stderr how long a measurement has run once it takes over 1.5 s: on = one "
-                              "line redrawn in place; auto (default) = that on a terminal, else a line every 15 s; "
-                              "off = nothing")
-    measure.set_defaults(handler=_cmd_measure)
+    add_measure_arguments(measure)
+    measure.set_defaults(handler=measure_command)
 
     cameras = commands.add_parser("cameras", help="list GenICam cameras (GigE Vision, USB3 Vision) Aravis can see")
     cameras.add_argument("--fake", action="store_true", help="also list Aravis's in-process fake camera")
@@ -260,211 +227,6 @@ def build_parser(extensions=()):
     return parser
 
 
-def _add_method_options(parser, searches, subpixels, *, subpixel_default="improved-surface-fit"):
-    from livedic.dic import DEFAULT_SUBSET
-    from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
-    parser.add_argument("--subset", type=int, default=DEFAULT_SUBSET, metavar="N",
-                        help=f"odd subset side, pixels (default {DEFAULT_SUBSET})")
-    parser.add_argument("--search", type=search_method, default=DEFAULT_SEARCH, metavar="NAME",
-                        help=f"integer search: {', '.join(searches)} (default {DEFAULT_SEARCH})")
-    parser.add_argument("--subpixel", type=subpixel_method, default=subpixel_default, metavar="NAME",
-                        help=f"sub-pixel method: {', '.join(subpixels)} (default {subpixel_default})")
-    parser.add_argument("--radius", type=int, default=DEFAULT_RADIUS, metavar="R",
-                        help=f"search radius, pixels (default {DEFAULT_RADIUS})")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
-
-
-def _cmd_measure(args):
-    import numpy as np
-
-    from livedic.acquire.files.image_file import read_grey_image
-    from livedic.stream.output.files import check_output_file, write_csv
-    from livedic.stream.pipeline.sinks import bit_depth_change
-
-    to_file = args.output not in (None, "-")
-    strain = _measure_strain_config(args)            # bad values: one line, before anything is read
-    if to_file:
-        check_output_file(args.output, "-o")          # before the images are read and the work is done
-    reference, note_ref = read_grey_image(args.reference)
-    deformed, note_def = read_grey_image(args.deformed)
-    for note in (note_ref, note_def):
-        if note:
-            print(f"livedic: note: {note}", file=sys.stderr)
-    depths = bit_depth_change(reference.dtype, deformed.dtype, f"the reference {args.reference}", args.deformed)
-    if depths:
-        print(f"livedic: warning: {depths}", file=sys.stderr)
-    if reference.shape != deformed.shape:
-        raise UsageError(f"{args.reference} is {reference.shape[1]}x{reference.shape[0]} but {args.deformed} is "
-                         f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
-    extras = {}
-    points, extras, left_out = _measure_points(args, reference)
-    if left_out:
-        print(f"livedic: {left_out}", file=sys.stderr)
-    progress = None
-    if args.progress != "off":
-        in_place = args.progress == "on" or sys.stderr.isatty()
-        progress = MeasureProgress(len(points), f"{args.search} + {args.subpixel}", in_place=in_place)
-    from livedic.dic.quality import Gates
-    if not -1.0 <= args.min_zncc <= 1.0:
-        raise UsageError(f"--min-zncc must be between -1 and 1, got {args.min_zncc}")
-    result = measure_with_progress(reference, deformed, points, subset=args.subset, search=args.search,
-                                   subpixel=args.subpixel, radius=args.radius, seed=args.seed, progress=progress,
-                                   guided=args.guided, gates=Gates(min_zncc=args.min_zncc))
-    columns = {"x": result.x, "y": result.y, "u": result.u, "v": result.v,
-               "zncc": result.zncc, "ok": result.ok, "status": result.status.astype(np.int64)}
-    for name in ("ux", "uy", "vx", "vy", "iterations", "evaluations"):
-        value = getattr(result, name)
-        if value is not None:
-            columns[name] = value
-    if strain is not None:
-        field, described = _measure_strain(result, strain, step=args.grid, subset=args.subset)
-        columns.update(exx=field.exx, eyy=field.eyy, exy=field.exy)
-        print(f"livedic: {described}", file=sys.stderr)
-    for name, values in extras.items():              # the points file's own columns, after ours
-        columns[name if name not in columns else f"points_{name}"] = np.array(values, dtype=object)
-    write_csv(args.output, columns)
-    n_ok = int(result.ok.sum())
-    if to_file:
-        print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
-    return 0
-
-
-def _measure_points(args, reference):
-    """``(points (N, 2), extra columns, note or None)``: the grid (``--grid``, over ``--roi``, ``--mask``, less
-    ``--exclude``; the whole image by default) or the points file (less those a mask or exclusion leaves out)."""
-    from livedic.dic.region import grid_in_region
-    from livedic.stream.session.config import PointsConfig
-    from livedic.stream.session.parsing import ROI_FULL
-    from livedic.stream.session.points import placeable_points, where_points_go
-    if args.points is not None and args.roi is not None:
-        raise UsageError("--roi places a grid: use it with --grid (with --points, --mask and --exclude leave "
-                         "points out)")
-    if args.grid is not None and args.grid < 1:
-        raise UsageError(f"grid step must be a positive integer number of pixels, got {args.grid}")
-    region = PointsConfig.region_from_args(args)
-    if region["roi"] is None:
-        region["roi"] = ROI_FULL
-    wanted = PointsConfig(step=args.grid, **region)
-    spec, _, allowed, _, _ = where_points_go(reference, wanted, subset=args.subset)
-    if args.grid is not None:
-        points = grid_in_region(allowed, args.grid)
-        if not len(points):
-            raise UsageError(f"{spec.describe()} holds no whole {args.subset}x{args.subset} subset: enlarge the "
-                             f"region or use a smaller --subset")
-        return points, {}, None
-    points, extras = read_points_table(args.points)
-    if spec.mask is None and not spec.exclude:
-        return points, extras, None
-    keep = placeable_points(points, allowed)
-    if not keep.any():
-        raise UsageError(f"every point's subset reaches outside {spec.describe()}: none is left to measure")
-    extras = {name: [value for value, k in zip(values, keep) if k] for name, values in extras.items()}
-    note = f"{int((~keep).sum())} of {len(keep)} points left out: their subset reaches outside {spec.describe()}"
-    return points[keep], extras, note if not keep.all() else None
-
-
-def _measure_strain_config(args):
-    """The strain settings of ``livedic measure`` (None: no strain columns); ValueError for bad values."""
-    if args.strain_window is None and args.strain_measure is None:
-        return None
-    from livedic.stream.stages.strain import StrainConfig
-    given = {"window": args.strain_window, "measure": args.strain_measure}
-    return StrainConfig(**{key: value for key, value in given.items() if value is not None})
-
-
-def _measure_strain(result, config, *, step, subset):
-    """(dic.strain.StrainField, one line saying how) of a measurement on its own points.
-
-    The window is laid on the measured points (pixel centres); the grid step is ``step``
-    (``--grid``), or the points' typical spacing for a points file.
-    """
-    import numpy as np
-
-    from livedic.dic.strain import strain_field, strain_window
-    points = np.column_stack([result.x, result.y]).astype(np.float64)
-    windows = strain_window(points, window=config.window, step=step, subset=subset)
-    field = strain_field(windows, result.u, result.v, result.ok, measure=config.measure)
-    how = (f"strain: {config.measure}, window {windows.window} points x step {windows.step:g} px + subset "
-           f"{windows.subset} = VSG {windows.vsg_px:.0f} px; {int(field.ok.sum())}/{field.ok.size} points with strain")
-    return field, how
-
-
-class MeasureProgress:
-    """Progress of one long ``dic.measure`` call on stderr: nothing for the first ``after_s`` seconds.
-
-    ``in_place``: one line redrawn (a terminal); otherwise a line every ``every_s``
-    seconds (logs). The measurement is one call (see ``measure_with_progress``),
-    so the line says how long it has run, not how far it is.
-    """
-
-    def __init__(self, n_points, method, *, in_place=True, after_s=1.5, every_s=15.0, stream=None):
-        self.n_points = n_points
-        self.method = method
-        self.in_place = in_place
-        self.after_s = after_s
-        self.every_s = every_s
-        self.stream = stream or sys.stderr
-        self.lines = 0
-        self._last_line_s = None
-
-    def tick(self, elapsed_s):
-        """Called about every 0.25 s while the measurement runs."""
-        if elapsed_s < self.after_s:
-            return
-        text = f"livedic: measuring {self.n_points:,} points ({self.method}): {elapsed_s:.0f} s"
-        if self.in_place:
-            self.stream.write(f"\r{text}\033[K")
-        elif self._last_line_s is None or elapsed_s - self._last_line_s >= self.every_s:
-            self.stream.write(text + "\n")
-            self._last_line_s = elapsed_s
-        else:
-            return
-        self.stream.flush()
-        self.lines += 1
-
-    def done(self, elapsed_s):
-        if self.lines:
-            end = f"livedic: measured {self.n_points:,} points ({self.method}) in {elapsed_s:.1f} s"
-            self.stream.write(f"\r{end}\033[K\n" if self.in_place else end + "\n")
-            self.stream.flush()
-
-
-def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=0.25, **method):
-    """``dic.measure(reference, deformed, points, **method)``, showing ``progress`` while it runs.
-
-    The measurement is one ``dic.measure`` call, run in a worker thread (its
-    kernels release the GIL) while this thread reports progress and stays
-    responsive to Ctrl-C. It is not split into chunks of points: the stochastic
-    searches (PSO, WSO, improved WSO) and surface fits seed each point's random
-    stream with its index in the call, so chunks would give other numbers than one
-    call. The result is therefore exactly ``dic.measure``'s.
-    """
-    import time
-
-    from livedic.dic import measure
-
-    outcome = {}
-
-    def work():
-        try:
-            outcome["result"] = measure(reference, deformed, points, **method)
-        except BaseException as error:  # noqa: BLE001 - handed to the calling thread
-            outcome["error"] = error
-
-    worker = threading.Thread(target=work, name="livedic-measure", daemon=True)
-    started = time.monotonic()
-    worker.start()
-    while worker.is_alive():
-        worker.join(tick_s)
-        if progress is not None and worker.is_alive():
-            progress.tick(time.monotonic() - started)
-    if progress is not None:
-        progress.done(time.monotonic() - started)
-    if "error" in outcome:
-        raise outcome["error"]
-    return outcome["result"]
-
-
 def _cmd_cameras(args):
     from livedic.acquire.camera.aravis_discovery import list_cameras
 
@@ -494,11 +256,11 @@ def _cmd_recover(args):
 
 
 def _cmd_export(args):
-    from livedic.stream.export.export import export_command
+    from livedic.stream.cli.export import export_command
     return export_command(args)
 
 
 def _cmd_report(args):
-    from livedic.stream.export.report import report_command
+    from livedic.stream.cli.report import report_command
     return report_command(args)
 

@@ -90,7 +90,6 @@ from livedic.stream.output.files import AtomicFile, check_output_folder, json_te
 from livedic.stream.output.csv_text import csv_rows, scalar_text
 from livedic.stream.export.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
                                          FieldWriter, RecordedImages, quantities, remove_stale, video_name)
-from livedic.stream.pipeline.progress import ProgressBar, progress_enabled
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
 EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
@@ -557,10 +556,10 @@ def _fields_settings(fields, shown, ranges, report, stage):
 def _field_notes(report):
     notes = []
     if report.no_image:
-        notes.append(f"{_plural(report.no_image, 'frame')} with results have no camera image in the recording: "
+        notes.append(f"{plural(report.no_image, 'frame')} with results have no camera image in the recording: "
                      f"no map or video frame for them")
     if report.other_points:
-        notes.append(f"{_plural(report.other_points, 'frame')} track other points than the first: no map, video "
+        notes.append(f"{plural(report.other_points, 'frame')} track other points than the first: no map, video "
                      f"frame or VTK file for them")
     return notes
 
@@ -725,7 +724,7 @@ def stress_from_args(args):
         if not section:                                       # A0 from the session, when it recorded one
             stress = stress_options_from_args(args, metadata=metadata)
         notes = [f"--load {stress.load} is the force here, not the one recorded on {TOPIC_FORCE} "
-                 f"({_plural(len(recorded.forces), 'frame')})"] if recorded.forces else []
+                 f"({plural(len(recorded.forces), 'frame')})"] if recorded.forces else []
         return stress, notes
     return stress_options_from_args(args, recorded_force=bool(recorded.forces), metadata=metadata), []
 
@@ -821,47 +820,6 @@ def _strain_settings(stage, config, overrides):
     return settings
 
 
-def _plural(count, word):
+def plural(count, word):
+    """``"1 frame"``, ``"3 frames"``."""
     return f"{count} {word}" + ("" if count == 1 else "s")
-
-
-def export_command(args):
-    """``livedic export FILE.mcap -o DIR [--overwrite] [strain options] [field options]``; returns the exit code.
-
-    Stopped by SIGINT or SIGTERM: one line saying what the folder holds, exit 128 + the signal's
-    number (130 for Ctrl-C, 143 for SIGTERM), as a shell reports a command a signal ended.
-    """
-    from livedic.stream.stages.strain import overrides_from_args
-    overrides = overrides_from_args(args)              # bad values: one line, before anything is read
-    fields = FieldOptions.from_args(args)
-    stress, stress_notes = stress_from_args(args)
-    bar = ProgressBar(None, enabled=progress_enabled(args.progress))
-    try:
-        with StopSignals() as signals:
-            summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides,
-                                       stress=stress, fields=fields, stop=signals.check, progress=bar)
-    except ExportStopped as stopped:
-        bar.close()
-        say(f"export stopped on {stopped.signal_name} {stopped.state}")
-        return 128 + stopped.signum
-    finally:
-        bar.close()
-    for note in stress_notes + summary["notes"]:
-        say(f"note: {note}")
-    if summary["strain"]:
-        say(summary["strain"])
-    state = " (what could be recovered from the truncated recording)" if summary["truncated"] else ""
-    say(f"exported {summary['frames']} frames x {summary['points']} points{state}, P0 = point "
-        f"{summary['p0_id']} ({summary['p0_rows']} rows), {_plural(summary['events'], 'event')} "
-        f"to {summary['directory']}/ "
-        f"({', '.join(os.path.basename(name) for name in summary['files'])})")
-    if summary["fields"] is not None:
-        say(f"and {summary['fields'].written(fields)}")
-    if summary["stress"] is not None:
-        stress_summary = summary["stress"]
-        for note in stress_summary.get("notes", []):
-            say(f"note: {note}")
-        if stress_summary["uniform_frame"] >= 0:
-            say(f"stress-strain: force at {stress_summary['frames_with_force']} of {summary['frames']} frames, "
-                f"maximum force at frame {stress_summary['uniform_frame']} (true values up to it)")
-    return 0

@@ -36,7 +36,7 @@ from datetime import datetime, timezone
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.output.files import check_output_folder, json_text
 
-__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_command", "report_json", "report_markdown"]
+__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_json", "report_markdown"]
 
 REPORT_FILES = ("report.md", "report.json", "stress_strain.png")
 PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent")
@@ -181,30 +181,3 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
         plot_stress_strain(staged["stress_strain.png"].handle, table, properties=properties,
                            title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
     return report
-
-
-def report_command(args):
-    """``livedic report FILE.mcap -o DIR [--load csv:FILE] [--area | --width --thickness]``; the exit code.
-
-    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.export.stress_from_args``).
-    """
-    from livedic.stream.export.export import say, stress_from_args
-    from livedic.stream.stages.strain import overrides_from_args
-    overrides = overrides_from_args(args)              # bad values: one line, before anything is read
-    stress, stress_notes = stress_from_args(args)
-    if stress is None:
-        raise ValueError("the report needs the machine's force: --load csv:FILE with the cross-section (--area MM2, "
-                         "or --width MM --thickness MM), or a recording that holds it (/machine/force)")
-    report = report_recording(args.recording, args.output, stress=stress, strain=overrides,
-                              overwrite=args.overwrite)
-    for note in stress_notes + report["source"]["notes"]:
-        say(f"note: {note}")
-    values = []
-    for key in PROPERTY_KEYS:
-        name, unit = PROPERTY_TITLES[key]
-        value = report[key]["value"]
-        values.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
-    nu = report[POISSON_KEY]["value"]
-    values.append(f"Poisson's ratio (elastic) {'n/a' if nu is None else f'{nu:.3f}'}")
-    say(f"report: {', '.join(values)}; written to {args.output}/ ({', '.join(REPORT_FILES)})")
-    return 0

@@ -414,7 +414,7 @@ def _report_args(recording, out):
 
 def test_report_command_without_load_reads_the_recorded_force_or_says_what_is_missing(test_run, force_recordings,
                                                                                        tmp_path, capsys):
-    from livedic.stream.export.report import report_command
+    from livedic.stream.cli.report import report_command
 
     out = tmp_path / "report"
     assert report_command(_report_args(force_recordings["with_area"], out)) == 0

@@ -1,0 +1,52 @@
+"""``livedic export FILE.mcap -o DIR``: a recording's results as CSV files, maps, an overlay video and VTK.
+
+``export_command`` runs it (``stream.export.export.export_recording``); its options are declared in ``cli.main``.
+"""
+
+import os
+
+from livedic.stream.export.export import ExportStopped, StopSignals, export_recording, plural, say, stress_from_args
+from livedic.stream.export.field_export import FieldOptions
+from livedic.stream.pipeline.progress import ProgressBar, progress_enabled
+from livedic.stream.stages.strain import overrides_from_args
+
+
+def export_command(args):
+    """``livedic export FILE.mcap -o DIR [--overwrite] [strain options] [field options]``; returns the exit code.
+
+    Stopped by SIGINT or SIGTERM: one line saying what the folder holds, exit 128 + the signal's
+    number (130 for Ctrl-C, 143 for SIGTERM), as a shell reports a command a signal ended.
+    """
+    overrides = overrides_from_args(args)              # bad values: one line, before anything is read
+    fields = FieldOptions.from_args(args)
+    stress, stress_notes = stress_from_args(args)
+    bar = ProgressBar(None, enabled=progress_enabled(args.progress))
+    try:
+        with StopSignals() as signals:
+            summary = export_recording(args.recording, args.output, overwrite=args.overwrite, strain=overrides,
+                                       stress=stress, fields=fields, stop=signals.check, progress=bar)
+    except ExportStopped as stopped:
+        bar.close()
+        say(f"export stopped on {stopped.signal_name} {stopped.state}")
+        return 128 + stopped.signum
+    finally:
+        bar.close()
+    for note in stress_notes + summary["notes"]:
+        say(f"note: {note}")
+    if summary["strain"]:
+        say(summary["strain"])
+    state = " (what could be recovered from the truncated recording)" if summary["truncated"] else ""
+    say(f"exported {summary['frames']} frames x {summary['points']} points{state}, P0 = point "
+        f"{summary['p0_id']} ({summary['p0_rows']} rows), {plural(summary['events'], 'event')} "
+        f"to {summary['directory']}/ "
+        f"({', '.join(os.path.basename(name) for name in summary['files'])})")
+    if summary["fields"] is not None:
+        say(f"and {summary['fields'].written(fields)}")
+    if summary["stress"] is not None:
+        stress_summary = summary["stress"]
+        for note in stress_summary.get("notes", []):
+            say(f"note: {note}")
+        if stress_summary["uniform_frame"] >= 0:
+            say(f"stress-strain: force at {stress_summary['frames_with_force']} of {summary['frames']} frames, "
+                f"maximum force at frame {stress_summary['uniform_frame']} (true values up to it)")
+    return 0

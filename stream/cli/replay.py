@@ -1,0 +1,129 @@
+"""``livedic replay FILE.mcap``: a recording tracked again, its rows as CSV or Parquet, the verdict on stderr.
+
+``add_replay_arguments`` declares its options, ``replay_command`` runs it (``stream.replay.replay.replay``);
+``describe_parallel`` is the line a replay on Dask adds.
+"""
+
+import os
+import sys
+
+from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
+from livedic.stream.export.export import say
+from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
+from livedic.stream.replay.replay import METHOD_KEYS, PointOptions, replay
+from livedic.stream.replay.rows import CsvRows, check_rows_output, rows_output
+from livedic.stream.session.parsing import search_method, subpixel_method
+from livedic.stream.session.points import add_region_arguments
+from livedic.stream.session.summary import format_strain_summary
+from livedic.stream.stages.force import format_force_summary
+from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
+from livedic.stream.stages.stress import add_stress_arguments, stress_options_from_args
+
+
+def add_replay_arguments(parser):
+    """Add the ``livedic replay`` arguments to an ``argparse`` (sub)parser."""
+    parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
+    parser.add_argument("-o", "--output", metavar="OUT.csv",
+                        help="output file, its format by the suffix: .csv, or .parquet (typed columns, for pandas, "
+                             "polars, DuckDB) (default: CSV on stdout)")
+    method = parser.add_argument_group("method options (default: the recorded value)")
+    method.add_argument("--subset", type=int, metavar="N", help="odd subset side, pixels")
+    method.add_argument("--search", type=search_method, metavar="NAME",
+                        help=f"integer search: {', '.join(SEARCH_METHODS)}")
+    method.add_argument("--subpixel", type=subpixel_method, metavar="NAME",
+                        help=f"sub-pixel method: {', '.join(m for m in SUBPIXEL_METHODS if m != 'none')}")
+    method.add_argument("--seed-radius", type=int, metavar="R", help="search radius around the previous result, px")
+    method.add_argument("--refind-radius", type=int, metavar="R", help="search radius for re-finding lost points, px")
+    method.add_argument("--refind-zncc", type=float, metavar="Z", help="re-find points whose ZNCC falls below Z")
+    method.add_argument("--min-zncc", type=float, metavar="Z", help="a point is ok only if its ZNCC is at least Z")
+    method.add_argument("--reference-update", metavar="WHEN", help="auto, never or every:N (reference updates)")
+    method.add_argument("--seed", type=int, help="seed of the stochastic searches")
+    points = parser.add_argument_group("point options (default: the recorded points)")
+    add_region_arguments(points)
+    points.add_argument("--step", type=int, metavar="S", help="grid step in pixels")
+    points.add_argument("--n-points", type=int, metavar="N", help="points wanted when --step is not given")
+    points.add_argument("--p0", metavar="X,Y", help="the traced point P0 (point 0)")
+    parser.add_argument("--all-frames", action="store_true",
+                        help="track every recorded frame from the reference on, also those the live run dropped "
+                             "(default: exactly the frames with recorded results, in order: the replay then "
+                             "equals the recording bit for bit)")
+    parser.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1)")
+    parallel = parser.add_argument_group("parallel replay on Dask (default: sequential, in this process)")
+    where = parallel.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, metavar="N",
+                       help="measure the frames in parallel on a local Dask cluster of N worker processes "
+                            "(1 thread each), seeded by the recorded results")
+    where.add_argument("--cluster", metavar="ADDRESS",
+                       help="... on the Dask scheduler at ADDRESS (tcp://HOST:8786), its workers started with "
+                            "`dask worker` (livedic installed there)")
+    parallel.add_argument("--shared-path", nargs="?", const="", metavar="PATH",
+                          help="the workers read the frames from the recording themselves (a shared file system; "
+                               "PATH: the recording as the workers see it, default the same path) instead of "
+                               "receiving each image from this process")
+    add_progress_argument(parser)
+    add_strain_arguments(parser, recorded=True)
+    add_stress_arguments(parser)
+    return parser
+
+
+def describe_parallel(stats):
+    """One line: where the frames were measured, the tracker's own time and what travelled."""
+    per_frame = stats.image_bytes / stats.frames if stats.frames else 0.0
+    images = f"{per_frame / 1e6:.2f} MB of image (as recorded)" if stats.shared_path is None \
+        else f"the images read by the workers from {stats.shared_path}"
+    moves = ""
+    if stats.segments > 1:
+        moves = (f"; {stats.segments - 1} reference move(s) or fracture(s): {stats.resubmitted} frame(s) measured "
+                 f"ahead against the earlier reference were measured again")
+    return (f"parallel: {stats.frames} frames measured on {stats.where} ({stats.workers} worker thread(s)): "
+            f"{stats.compute_seconds:.1f} s of tracking in the tasks; {images} and "
+            f"{stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent{moves}")
+
+
+def replay_command(args):
+    """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
+    check_rows_output(args.output, args.recording)
+    given = {key: getattr(args, key) for key in METHOD_KEYS}
+    options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
+                           mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
+    strain = overrides_from_args(args)
+    stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
+    to_file = args.output not in (None, "-")
+    bar = ProgressBar(None, enabled=progress_enabled(args.progress))
+    def progress(done):
+        bar.update(done, "frames replayed")
+
+    try:
+        if to_file:
+            with rows_output(args.output) as write_rows:
+                report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
+                                on_rows=write_rows, progress=progress, threads=args.threads, strain=strain,
+                                workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
+                                stress=stress)
+        else:
+            report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
+                            on_rows=CsvRows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
+                            workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
+                            stress=stress)
+            sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())        # keep Python's exit flush quiet
+        bar.close()
+        say("output closed early (broken pipe); replay stopped")
+        return 1
+    finally:
+        bar.close()
+    for note in report.notes:
+        say(f"note: {note}")
+    rate = f"{1e3 * report.seconds / report.frames:.0f} ms/frame" if report.frames else ""
+    where = f"; wrote {args.output}" if to_file else ""
+    frames_text = "every recorded frame from the reference on" if args.all_frames else "the recorded frame set"
+    say(f"replayed {report.frames} frames x {report.points} points ({frames_text}; "
+        f"{report.params['search']}+{report.params['subpixel']}) in {report.seconds:.1f} s ({rate}){where}")
+    say(report.verdict())
+    if report.parallel is not None:
+        say(describe_parallel(report.parallel))
+    for line in format_strain_summary(report.strain) + format_force_summary(report.force):
+        say(line.strip())
+    return 0

@@ -1,0 +1,34 @@
+"""``livedic report FILE.mcap -o DIR``: the tensile test report (E, Rp0.2, Rm, Ag, A; ISO 6892-1) of a recording.
+
+``report_command`` runs it (``stream.export.report.report_recording``); its options are declared in ``cli.main``.
+"""
+
+from livedic.stream.export.export import say, stress_from_args
+from livedic.stream.export.report import (POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
+                                          report_recording)
+from livedic.stream.stages.strain import overrides_from_args
+
+
+def report_command(args):
+    """``livedic report FILE.mcap -o DIR [--load csv:FILE] [--area | --width --thickness]``; the exit code.
+
+    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.export.stress_from_args``).
+    """
+    overrides = overrides_from_args(args)              # bad values: one line, before anything is read
+    stress, stress_notes = stress_from_args(args)
+    if stress is None:
+        raise ValueError("the report needs the machine's force: --load csv:FILE with the cross-section (--area MM2, "
+                         "or --width MM --thickness MM), or a recording that holds it (/machine/force)")
+    report = report_recording(args.recording, args.output, stress=stress, strain=overrides,
+                              overwrite=args.overwrite)
+    for note in stress_notes + report["source"]["notes"]:
+        say(f"note: {note}")
+    values = []
+    for key in PROPERTY_KEYS:
+        name, unit = PROPERTY_TITLES[key]
+        value = report[key]["value"]
+        values.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
+    nu = report[POISSON_KEY]["value"]
+    values.append(f"Poisson's ratio (elastic) {'n/a' if nu is None else f'{nu:.3f}'}")
+    say(f"report: {', '.join(values)}; written to {args.output}/ ({', '.join(REPORT_FILES)})")
+    return 0
