@@ -60,6 +60,11 @@ class SubpixelMethod:
         return subpixel_method, (self.name,)
 
     @property
+    def refines(self) -> bool:
+        """It refines to sub-pixel values (``"none"`` keeps the integer search's)."""
+        return self.module is not None
+
+    @property
     def first_order(self) -> bool:
         """It estimates displacement gradients (and fits a shift where the texture cannot pin an affine warp);
         the others work around an integer peak, so a float start is rounded for them."""

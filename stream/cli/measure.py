@@ -7,14 +7,14 @@ shows ``MeasureProgress`` on stderr while the measurement runs.
 import sys
 import threading
 
-from livedic.stream.session.parsing import UsageError, search_method, subpixel_method
+from livedic.stream.session.config import MeasureConfig
+from livedic.stream.session.options import add_config_arguments, config_values
+from livedic.stream.session.parsing import UsageError
 from livedic.stream.session.points import add_region_arguments, read_points_table
 
 
 def add_measure_arguments(parser):
     """Add the ``livedic measure`` options to an ``argparse`` (sub)parser."""
-    from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
-    from livedic.dic.quality import MIN_ZNCC
     from livedic.dic.strain import MEASURES
 
     parser.add_argument("reference", metavar="REF", help="reference image (8/16-bit grey PNG or TIFF)")
@@ -24,17 +24,10 @@ def add_measure_arguments(parser):
     where.add_argument("--points", metavar="FILE.csv",
                        help="CSV with header x,y (other columns are carried through to the output)")
     add_region_arguments(parser, points=False)
-    _add_method_options(parser, SEARCH_METHODS, SUBPIXEL_METHODS)
+    add_config_arguments(parser, MeasureConfig)
     parser.add_argument("-o", "--output", metavar="OUT.csv",
                         help="output CSV (default: stdout): x,y,u,v,zncc,ok,status, then the method's columns, "
                               "then the points file's other columns (e.g. id, label)")
-    parser.add_argument("--min-zncc", type=float, default=MIN_ZNCC, metavar="Z",
-                        help=f"a point is ok only if its ZNCC is at least Z (default {MIN_ZNCC}, measured: no "
-                              "correct point of a low-contrast, noisy pair falls below it); the other quality gates "
-                              "(texture, neighbours, border) always apply")
-    parser.add_argument("--no-guided", dest="guided", action="store_false",
-                        help="search every point over the full radius instead of a few seeds whose results are "
-                              "propagated to their neighbours (reliability-guided, the default)")
     parser.add_argument("--strain-window", type=int, metavar="N",
                         help="add the strain columns exx,eyy,exy: plane fits of u and v over N x N points "
                               "(odd, >= 3; pointwise least squares; VSG = (N - 1) x step + subset, step = --grid "
@@ -49,16 +42,6 @@ def add_measure_arguments(parser):
                               "off = nothing")
 
 
-def _add_method_options(parser, searches, subpixels, *, subpixel_default="improved-surface-fit"):
-    parser.add_argument("--subset", type=int, default=21, metavar="N", help="odd subset side, pixels (default 21)")
-    parser.add_argument("--search", type=search_method, default="improved-wso", metavar="NAME",
-                        help=f"integer search: {', '.join(searches)} (default improved-wso)")
-    parser.add_argument("--subpixel", type=subpixel_method, default=subpixel_default, metavar="NAME",
-                        help=f"sub-pixel method: {', '.join(subpixels)} (default {subpixel_default})")
-    parser.add_argument("--radius", type=int, default=16, metavar="R", help="search radius, pixels (default 16)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the stochastic searches (default 0)")
-
-
 def measure_command(args):
     """``livedic measure`` with parsed ``args`` (see ``add_measure_arguments``); returns the exit code."""
     import numpy as np
@@ -68,7 +51,8 @@ def measure_command(args):
     from livedic.stream.pipeline.sinks import bit_depth_change
 
     to_file = args.output not in (None, "-")
-    strain = _measure_strain_config(args)            # bad values: one line, before anything is read
+    config = MeasureConfig(**config_values(MeasureConfig, args))   # bad values: one line, before anything is read
+    strain = _measure_strain_config(args)
     if to_file:
         check_output_file(args.output, "-o")          # before the images are read and the work is done
     reference, note_ref = read_grey_image(args.reference)
@@ -89,13 +73,11 @@ def measure_command(args):
     progress = None
     if args.progress != "off":
         in_place = args.progress == "on" or sys.stderr.isatty()
-        progress = MeasureProgress(len(points), f"{args.search} + {args.subpixel}", in_place=in_place)
+        progress = MeasureProgress(len(points), config.method, in_place=in_place)
     from livedic.dic.quality import Gates
-    if not -1.0 <= args.min_zncc <= 1.0:
-        raise UsageError(f"--min-zncc must be between -1 and 1, got {args.min_zncc}")
-    result = measure_with_progress(reference, deformed, points, subset=args.subset, search=args.search,
-                                   subpixel=args.subpixel, radius=args.radius, seed=args.seed, progress=progress,
-                                   guided=args.guided, gates=Gates(min_zncc=args.min_zncc))
+    result = measure_with_progress(reference, deformed, points, subset=config.subset, search=config.search,
+                                   subpixel=config.subpixel, radius=config.radius, seed=config.seed,
+                                   progress=progress, guided=config.guided, gates=Gates(min_zncc=config.min_zncc))
     columns = {"x": result.x, "y": result.y, "u": result.u, "v": result.v,
                "zncc": result.zncc, "ok": result.ok, "status": result.status.astype(np.int64)}
     for name in ("ux", "uy", "vx", "vy", "iterations", "evaluations"):

@@ -7,12 +7,12 @@
 import os
 import sys
 
-from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.stream.export.export import say
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
-from livedic.stream.replay.replay import METHOD_KEYS, PointOptions, replay
+from livedic.stream.replay.replay import PointOptions, replay
 from livedic.stream.replay.rows import CsvRows, check_rows_output, rows_output
-from livedic.stream.session.parsing import search_method, subpixel_method
+from livedic.stream.session.config import TrackingConfig
+from livedic.stream.session.options import add_config_arguments, config_values
 from livedic.stream.session.points import add_region_arguments
 from livedic.stream.session.summary import format_strain_summary
 from livedic.stream.stages.force import format_force_summary
@@ -27,17 +27,7 @@ def add_replay_arguments(parser):
                         help="output file, its format by the suffix: .csv, or .parquet (typed columns, for pandas, "
                              "polars, DuckDB) (default: CSV on stdout)")
     method = parser.add_argument_group("method options (default: the recorded value)")
-    method.add_argument("--subset", type=int, metavar="N", help="odd subset side, pixels")
-    method.add_argument("--search", type=search_method, metavar="NAME",
-                        help=f"integer search: {', '.join(SEARCH_METHODS)}")
-    method.add_argument("--subpixel", type=subpixel_method, metavar="NAME",
-                        help=f"sub-pixel method: {', '.join(m for m in SUBPIXEL_METHODS if m != 'none')}")
-    method.add_argument("--seed-radius", type=int, metavar="R", help="search radius around the previous result, px")
-    method.add_argument("--refind-radius", type=int, metavar="R", help="search radius for re-finding lost points, px")
-    method.add_argument("--refind-zncc", type=float, metavar="Z", help="re-find points whose ZNCC falls below Z")
-    method.add_argument("--min-zncc", type=float, metavar="Z", help="a point is ok only if its ZNCC is at least Z")
-    method.add_argument("--reference-update", metavar="WHEN", help="auto, never or every:N (reference updates)")
-    method.add_argument("--seed", type=int, help="seed of the stochastic searches")
+    add_config_arguments(method, TrackingConfig, with_defaults=False)
     points = parser.add_argument_group("point options (default: the recorded points)")
     add_region_arguments(points)
     points.add_argument("--step", type=int, metavar="S", help="grid step in pixels")
@@ -83,7 +73,7 @@ def describe_parallel(stats):
 def replay_command(args):
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
     check_rows_output(args.output, args.recording)
-    given = {key: getattr(args, key) for key in METHOD_KEYS}
+    given = config_values(TrackingConfig, args)
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
                            mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
     strain = overrides_from_args(args)

@@ -23,51 +23,25 @@ import signal
 import threading
 
 from livedic.acquire.base import SourceError, SourceLost
-from livedic.stream.session.config import (DEFAULT_SOURCE, DROP_CHOICES, add_subset_argument,
-                                   PROGRESS_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig)
-from livedic.stream.session.parsing import search_method, subpixel_method
+from livedic.stream.session.config import (DEFAULT_SOURCE, DROP_CHOICES, PROGRESS_CHOICES, RECORDINGS_DIR,
+                                           SessionConfig, TrackingConfig)
+from livedic.stream.session.options import add_config_arguments
 from livedic.stream.output.files import json_text, write_text_atomic
 from livedic.stream.session.points import add_point_arguments
 from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import add_strain_arguments
 from livedic.stream.stages.stress import add_stress_arguments
 
-_TRACKING = TrackingConfig()
-
 
 def add_run_arguments(parser):
     """Add the ``livedic run`` options to an ``argparse`` (sub)parser (defaults: ``stream.session.config``)."""
-    from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
     parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
                         help="frame source (default synthetic:tensile): synthetic:[tensile|translate][?opts], "
                              "aravis:[ID], v4l2:/dev/videoN, video:FILE, images:GLOB, mcap:FILE")
     parser.add_argument("--frames", type=int, metavar="N",
                         help="stop after N frames (synthetic: also the length of the test; default 300)")
     add_point_arguments(parser)
-    add_subset_argument(parser)
-    parser.add_argument("--search", type=search_method, default=_TRACKING.search, metavar="NAME",
-                        help=f"integer search seeded by the previous frame: {', '.join(SEARCH_METHODS)} "
-                             f"(default {_TRACKING.search}; with icgn or newton-raphson it runs only for the points the "
-                             "sub-pixel method, started from the previous result, leaves doubtful; none = never)")
-    parser.add_argument("--subpixel", type=subpixel_method, default=_TRACKING.subpixel, metavar="NAME",
-                        help=f"sub-pixel method: {', '.join(SUBPIXEL_METHODS)} (default {_TRACKING.subpixel})")
-    parser.add_argument("--seed-radius", type=int, default=_TRACKING.seed_radius, metavar="R",
-                        help=f"search radius around the previous result, pixels (default {_TRACKING.seed_radius}: "
-                             "covers 1.5 px of motion between two frames; faster motion is caught by the re-find "
-                             "search)")
-    parser.add_argument("--refind-radius", type=int, default=_TRACKING.refind_radius, metavar="R",
-                        help=f"search radius for re-finding lost points, pixels (default {_TRACKING.refind_radius})")
-    parser.add_argument("--refind-zncc", type=float, default=_TRACKING.refind_zncc, metavar="Z",
-                        help=f"re-find points whose ZNCC falls below Z (default {_TRACKING.refind_zncc})")
-    parser.add_argument("--reference-update", default=_TRACKING.reference_update, metavar="WHEN",
-                        help="move the reference to a recent frame as the specimen deforms (results stay "
-                             "displacements from the first frame): auto (default: when correlation falls, points "
-                             "fail or the strain since the reference passes 0.05), never, or every:N frames")
-    parser.add_argument("--min-zncc", type=float, default=_TRACKING.min_zncc, metavar="Z",
-                        help=f"a point is ok only if its ZNCC is at least Z (default {_TRACKING.min_zncc}); the other "
-                             "quality gates (texture, neighbours, border) always apply")
-    parser.add_argument("--seed", type=int, default=_TRACKING.seed,
-                        help=f"seed of the stochastic searches (default {_TRACKING.seed})")
+    add_config_arguments(parser, TrackingConfig)
     record = parser.add_mutually_exclusive_group()
     record.add_argument("--record", metavar="FILE.mcap",
                         help=f"recording file (default {RECORDINGS_DIR}/session-YYYYmmdd-HHMMSS.mcap)")

@@ -24,13 +24,16 @@ import sys
 from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
 
-from livedic.dic import DEFAULT_SUBSET
+from livedic.dic import DEFAULT_SUBSET, SEARCH_METHODS
+from livedic.dic.subpixel.method import METHODS as SUBPIXEL
 from livedic.dic.quality import MIN_ZNCC
 from livedic.dic.region import Polygon, Rectangle, Region
 from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
 from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_search, check_subpixel, parse_color_range,
+                                           search_method, subpixel_method,
                                            parse_exclusion, parse_p0, parse_roi, read_mask)
+from livedic.stream.session.options import add_config_arguments, config_values, option
 from livedic.stream.stages.strain import StrainConfig
 
 DEFAULT_SOURCE = "synthetic:tensile"
@@ -60,6 +63,10 @@ def _option(name):
 
 # ----------------------------------------------------------------------------- tracking
 
+SUBSET_HELP = "odd subset side, pixels (default {default})"
+# The sub-pixel methods a tracking session takes (not "none": a live session needs sub-pixel values).
+_SUBPIXEL_REFINING = tuple(name for name, method in SUBPIXEL.items() if method.refines)
+
 @dataclass(frozen=True)
 class TrackingConfig:
     """How points are tracked frame to frame (``dic.tracking.Tracker``'s settings).
@@ -83,23 +90,40 @@ class TrackingConfig:
     reference_update : str
         When the reference moves to a recent frame (``dic.tracking.key_frames``): ``auto``, ``never`` or ``every:N``.
     """
-    subset: int = DEFAULT_SUBSET
-    search: str = DEFAULT_SEARCH
-    subpixel: str = "icgn"
-    seed_radius: int = 2
-    refind_radius: int = DEFAULT_RADIUS
-    refind_zncc: float = REFIND_ZNCC
-    min_zncc: float = MIN_ZNCC
-    seed: int = 0
-    reference_update: str = "auto"
+    subset: int = option(DEFAULT_SUBSET, SUBSET_HELP, brief="odd subset side, pixels", metavar="N")
+    search: str = option(
+        DEFAULT_SEARCH, f"integer search seeded by the previous frame: {', '.join(SEARCH_METHODS)} (default "
+        "{default}; with icgn or newton-raphson it runs only for the points the sub-pixel method, started from the "
+        "previous result, leaves doubtful; none = never)", brief=f"integer search: {', '.join(SEARCH_METHODS)}",
+        metavar="NAME", type=search_method)
+    subpixel: str = option("icgn", f"sub-pixel method: {', '.join(_SUBPIXEL_REFINING)} (default {{default}})",
+                           brief=f"sub-pixel method: {', '.join(_SUBPIXEL_REFINING)}", metavar="NAME",
+                           type=subpixel_method)
+    seed_radius: int = option(2, "search radius around the previous result, pixels (default {default}: covers "
+                                 "1.5 px of motion between two frames; faster motion is caught by the re-find search)",
+                              brief="search radius around the previous result, px", metavar="R")
+    refind_radius: int = option(DEFAULT_RADIUS, "search radius for re-finding lost points, pixels (default {default})",
+                                brief="search radius for re-finding lost points, px", metavar="R")
+    refind_zncc: float = option(REFIND_ZNCC, "re-find points whose ZNCC falls below Z (default {default})",
+                                brief="re-find points whose ZNCC falls below Z", metavar="Z")
+    min_zncc: float = option(MIN_ZNCC, "a point is ok only if its ZNCC is at least Z (default {default}); the other "
+                                       "quality gates (texture, neighbours, border) always apply",
+                             brief="a point is ok only if its ZNCC is at least Z", metavar="Z")
+    seed: int = option(0, "seed of the stochastic searches (default {default})",
+                       brief="seed of the stochastic searches")
+    reference_update: str = option(
+        "auto", "move the reference to a recent frame as the specimen deforms (results stay displacements from the "
+        "first frame): auto (default: when correlation falls, points fail or the strain since the reference passes "
+        "0.05), never, or every:N frames", brief="auto, never or every:N (reference updates)", metavar="WHEN")
 
     def __post_init__(self):
         if self.subset < 3 or self.subset % 2 == 0:
             raise ValueError(f"--subset must be an odd integer >= 3, got {self.subset}")
         check_search(self.search)
         check_subpixel(self.subpixel)
-        if self.subpixel == "none":
-            raise ValueError("--subpixel none gives integer displacements only: choose a sub-pixel method (e.g. icgn)")
+        if not SUBPIXEL[self.subpixel].refines:
+            raise ValueError(f"--subpixel {self.subpixel} gives integer displacements only: choose a sub-pixel method "
+                             f"(e.g. icgn)")
         for name in ("seed_radius", "refind_radius"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{_option(name)} must be >= 0, got {getattr(self, name)}")
@@ -134,10 +158,58 @@ class TrackingConfig:
         return KeyFrameTracker(image, points, gates=Gates(min_zncc=min_zncc), **settings)
 
 
+@dataclass(frozen=True)
+class MeasureConfig:
+    """How ``livedic measure`` measures one pair of images (``dic.measure``'s settings), validated.
+
+    Attributes
+    ----------
+    subset : int
+        Odd subset side, pixels (>= 3).
+    search, subpixel : str
+        Integer search and sub-pixel method (``dic.SEARCH_METHODS``, ``dic.SUBPIXEL_METHODS``).
+    radius : int
+        Search radius, pixels (>= 0).
+    seed : int
+        Seed of the stochastic searches.
+    min_zncc : float
+        The correlation gate (-1..1).
+    guided : bool
+        Reliability-guided (a few seeds, propagated) rather than every point searched over the radius.
+    """
+    subset: int = option(DEFAULT_SUBSET, SUBSET_HELP, metavar="N")
+    search: str = option(DEFAULT_SEARCH, f"integer search: {', '.join(SEARCH_METHODS)} (default {{default}})",
+                         metavar="NAME", type=search_method)
+    subpixel: str = option("improved-surface-fit", f"sub-pixel method: {', '.join(SUBPIXEL)} (default {{default}})",
+                           metavar="NAME", type=subpixel_method)
+    radius: int = option(DEFAULT_RADIUS, "search radius, pixels (default {default})", metavar="R")
+    seed: int = option(0, "seed of the stochastic searches (default {default})")
+    min_zncc: float = option(MIN_ZNCC, "a point is ok only if its ZNCC is at least Z (default {default}, measured: no "
+                                       "correct point of a low-contrast, noisy pair falls below it); the other quality "
+                                       "gates (texture, neighbours, border) always apply", metavar="Z")
+    guided: bool = option(True, "search every point over the full radius instead of a few seeds whose results are "
+                                "propagated to their neighbours (reliability-guided, the default)",
+                          flag="--no-guided", action="store_false")
+
+    def __post_init__(self):
+        if self.subset < 3 or self.subset % 2 == 0:
+            raise ValueError(f"--subset must be an odd integer >= 3, got {self.subset}")
+        check_search(self.search)
+        check_subpixel(self.subpixel)
+        if self.radius < 0:
+            raise ValueError(f"--radius must be >= 0, got {self.radius}")
+        if not -1.0 <= self.min_zncc <= 1.0:
+            raise ValueError(f"--min-zncc must be between -1 and 1, got {self.min_zncc}")
+
+    @property
+    def method(self) -> str:
+        """``"search + subpixel"``, as the progress line names it."""
+        return f"{self.search} + {self.subpixel}"
+
+
 def add_subset_argument(parser):
-    """``--subset``, declared once for ``run`` and ``preview`` (its default: ``TrackingConfig``'s)."""
-    parser.add_argument("--subset", type=int, default=TrackingConfig.subset, metavar="N",
-                        help=f"odd subset side, pixels (default {TrackingConfig.subset})")
+    """``--subset`` for ``preview``, as ``TrackingConfig`` declares it for ``run``."""
+    add_config_arguments(parser, TrackingConfig, names=("subset",))
 
 
 # ----------------------------------------------------------------------------- points
@@ -438,10 +510,7 @@ class SessionConfig:
         ValueError
             A bad option (one line); an existing ``--record`` file.
         """
-        tracking = TrackingConfig(subset=args.subset, search=args.search, subpixel=args.subpixel,
-                                  seed_radius=args.seed_radius, refind_radius=args.refind_radius,
-                                  refind_zncc=args.refind_zncc, min_zncc=args.min_zncc, seed=args.seed,
-                                  reference_update=args.reference_update)
+        tracking = TrackingConfig(**config_values(TrackingConfig, args))
         points = PointsConfig(points_file=args.points, step=args.step, n_points=args.n_points, p0=parse_p0(args.p0),
                               max_points=args.max_points, **PointsConfig.region_from_args(args))
         if args.record is not None and args.record.endswith(".mcap") and os.path.exists(args.record):
