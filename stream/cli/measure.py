@@ -7,6 +7,7 @@ shows ``MeasureProgress`` on stderr while the measurement runs.
 import sys
 import threading
 
+from livedic.stream.pipeline.progress import add_progress_argument, progress_enabled
 from livedic.stream.session.config import MeasureConfig
 from livedic.stream.session.options import add_config_arguments, config_values
 from livedic.stream.session.parsing import UsageError
@@ -36,10 +37,9 @@ def add_measure_arguments(parser):
                         help="strain measure of those columns: engineering (small strain, the default), green "
                               "(Green-Lagrange) or true (logarithmic, Hencky); implies --strain-window 5 when "
                               "that is not given")
-    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
-                        help="say on stderr how long a measurement has run once it takes over 1.5 s: on = one "
-                              "line redrawn in place; auto (default) = that on a terminal, else a line every 15 s; "
-                              "off = nothing")
+    add_progress_argument(parser, help="say on stderr how long a measurement has run once it takes over 1.5 s: "
+                                       "on = one line redrawn in place; auto (default) = that on a terminal, else a "
+                                       "line every 15 s; off = nothing")
 
 
 def measure_command(args):
@@ -72,7 +72,7 @@ def measure_command(args):
         print(f"livedic: {left_out}", file=sys.stderr)
     progress = None
     if args.progress != "off":
-        in_place = args.progress == "on" or sys.stderr.isatty()
+        in_place = progress_enabled(args.progress)
         progress = MeasureProgress(len(points), config.method, in_place=in_place)
     from livedic.dic.quality import Gates
     result = measure_with_progress(reference, deformed, points, subset=config.subset, search=config.search,

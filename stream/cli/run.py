@@ -23,8 +23,8 @@ import signal
 import threading
 
 from livedic.acquire.base import SourceError, SourceLost
-from livedic.stream.session.config import (DEFAULT_SOURCE, DROP_CHOICES, PROGRESS_CHOICES, RECORDINGS_DIR,
-                                           SessionConfig, TrackingConfig)
+from livedic.stream.pipeline.progress import add_progress_argument
+from livedic.stream.session.config import DEFAULT_SOURCE, DROP_CHOICES, RECORDINGS_DIR, SessionConfig, TrackingConfig
 from livedic.stream.session.options import add_config_arguments
 from livedic.stream.output.files import json_text, write_text_atomic
 from livedic.stream.session.points import add_point_arguments
@@ -60,8 +60,7 @@ def add_run_arguments(parser):
                              "0.5-99.5 percentiles of the ok points")
     parser.add_argument("--image-max-side", type=int, default=512, metavar="PX",
                         help="camera image shown in Rerun downsampled to at most PX pixels a side (default 512)")
-    parser.add_argument("--progress", choices=PROGRESS_CHOICES, default="auto",
-                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+    add_progress_argument(parser)
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="numba threads for rendering and tracking (default 1: the other core serves "
                              "acquisition, recording and display, and parallel regions stall when cores are shared)")

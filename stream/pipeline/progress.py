@@ -6,10 +6,9 @@ import time
 PROGRESS_CHOICES = ("auto", "on", "off")
 
 
-def add_progress_argument(parser):
-    """Add ``--progress auto|on|off`` (the progress bar of ``replay`` and ``export``) to an argparse parser."""
-    parser.add_argument("--progress", choices=PROGRESS_CHOICES, default="auto",
-                        help="progress bar on stderr (default auto: when stderr is a terminal)")
+def add_progress_argument(parser, help="progress bar on stderr (default auto: when stderr is a terminal)"):
+    """Add ``--progress auto|on|off`` to an argparse parser (every command's; ``help`` says what it shows)."""
+    parser.add_argument("--progress", choices=PROGRESS_CHOICES, default="auto", help=help)
     return parser
 
 

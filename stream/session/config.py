@@ -20,7 +20,6 @@ The pieces:
 
 import math
 import os
-import sys
 from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
 
@@ -33,6 +32,7 @@ from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_search, check_subpixel, parse_color_range,
                                            search_method, subpixel_method,
                                            parse_exclusion, parse_p0, parse_roi, read_mask)
+from livedic.stream.pipeline.progress import progress_enabled
 from livedic.stream.session.options import add_config_arguments, config_values, option
 from livedic.stream.stages.strain import StrainConfig
 
@@ -47,7 +47,6 @@ RECORDINGS_DIR = "recordings"
 CAMERA_SCHEMES = ("aravis", "v4l2")
 # --drop: "auto" picks oldest for live sources and block for files (``Session`` decides, knowing the source).
 DROP_CHOICES = ("auto", "oldest", "newest", "block")
-PROGRESS_CHOICES = ("auto", "on", "off")
 VIEWER_NONE = "none"
 
 
@@ -525,7 +524,7 @@ class SessionConfig:
             record_named=args.record is not None, viewer=viewer, name=os.path.basename(stem),
             queue=args.queue, drop=args.drop, color_range=parse_color_range(args.color_range),
             image_max_side=args.image_max_side,
-            show_progress=args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty()),
+            show_progress=progress_enabled(args.progress),
             threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
             reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args),
             publish=tuple(getattr(args, "publish", None) or ()), **_load_from_args(args))
