@@ -28,6 +28,7 @@ import numpy as np
 from livedic.acquire.atomic_file import TEMP_PREFIX as _TEMP_PREFIX
 from livedic.acquire.atomic_file import AtomicFile, OutputError, current_umask
 from livedic.acquire.recording.metadata import json_default
+from livedic.stream.output.csv_text import csv_rows
 
 __all__ = ["AtomicFile", "OutputError", "check_output_file", "check_output_folder", "current_umask", "json_text",
            "write_csv", "write_text_atomic"]
@@ -139,20 +140,19 @@ def _json_ready(value):
 
 # ----------------------------------------------------------------------------- CSV tables
 
-def write_csv(path, columns):
+def write_csv(path, columns) -> None:
     """Write ``columns`` (ordered name -> 1-D array) as CSV to ``path``, or stdout when path is None/'-'.
 
-    Numbers get 6 decimals (``nan`` for NaN), booleans 1/0, integers as they are,
-    text (object or string arrays) as given, quoted where CSV needs it. The file
-    is written through ``AtomicFile``.
+    Numbers in the format of every livedic CSV (``stream.output.csv_text``: full precision, ``nan``,
+    ``inf``), booleans 1/0, integers as they are, text (object or string arrays) quoted where CSV needs
+    it, as the header. The file is written through ``AtomicFile``.
     """
     names = list(columns)
     arrays = [np.asarray(columns[name]) for name in names]
-    lines = [",".join(_quoted(name) for name in names)]
-    formatters = [_formatter(a) for a in arrays]
-    for row in range(len(arrays[0]) if arrays else 0):
-        lines.append(",".join(fmt(a[row]) for fmt, a in zip(formatters, arrays)))
-    text = "\n".join(lines) + "\n"
+    n = len(arrays[0]) if arrays else 0
+    cells = {name: np.array([_quoted(value) for value in array.tolist()], dtype=object)
+             if array.dtype.kind in "OUS" else array for name, array in zip(names, arrays)}
+    text = ",".join(_quoted(name) for name in names) + "\n" + csv_rows(cells, n)
     if path in (None, "-"):
         sys.stdout.write(text)
         return
@@ -166,13 +166,3 @@ def _quoted(text):
         csv.writer(buffer, lineterminator="").writerow([text])
         return buffer.getvalue()
     return text
-
-
-def _formatter(array):
-    if array.dtype == bool:
-        return lambda value: "1" if value else "0"
-    if array.dtype.kind in "iu":
-        return lambda value: str(int(value))
-    if array.dtype.kind in "OUS":
-        return _quoted
-    return lambda value: "nan" if not np.isfinite(value) else f"{value:.6f}"
