@@ -53,8 +53,10 @@ Modules: tracker (``Tracker``), grid (where its points go), kernel_job (one IC-G
 
 from livedic.dic.tracking.grid import grid_in_roi, step_for_count
 from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
-from livedic.dic.tracking.tracker import (ICGN_MAX_ITERATIONS, REFIND_MAX_WAIT, REFIND_SEEDS, REFIND_ZNCC,
-                                          SEED_SWARM, TRACKER_STAGES, StageTimes, Tracker, last_good_after)
+from livedic.dic.tracking.refind import REFIND_SEEDS
+from livedic.dic.tracking.results import last_good_after
+from livedic.dic.tracking.tracker import (ICGN_MAX_ITERATIONS, REFIND_MAX_WAIT, REFIND_ZNCC, SEED_SWARM,
+                                          TRACKER_STAGES, StageTimes, Tracker)
 
 __all__ = ["ICGN_MAX_ITERATIONS", "REFIND_MAX_WAIT", "REFIND_SEEDS", "REFIND_ZNCC", "SEED_SWARM", "TRACKER_STAGES",
            "StageTimes",

@@ -62,7 +62,8 @@ from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
-from livedic.dic.tracking.tracker import _SHAPE, ICGN_MAX_ITERATIONS, StageTimes, Tracker
+from livedic.dic.tracking.results import _SHAPE
+from livedic.dic.tracking.tracker import ICGN_MAX_ITERATIONS, StageTimes, Tracker
 from livedic.dic.tracking.update_policy import ReferenceUpdate, UpdatePolicy
 
 

@@ -1,7 +1,6 @@
 """``Tracker``: points tracked frame to frame against a fixed reference (the package docstring says how)."""
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -11,7 +10,6 @@ from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.measure import measure
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
-from livedic.dic.reliability_guided import propagate
 from livedic.dic.result import Measurement
 from livedic.dic.search import (DEFAULT_RADIUS, DEFAULT_SEARCH, NO_SEARCH, SEARCH_METHODS as _INTEGER_SEARCHES,
                                 search_method, search_points)
@@ -21,6 +19,8 @@ from livedic.dic.subpixel.icgn2 import SECOND_ORDER
 from livedic.dic.subpixel.method import subpixel_method
 from livedic.dic.validation import as_image, as_points, check_radius, check_subset, checked_image
 from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
+from livedic.dic.tracking.refind import RefindSteps
+from livedic.dic.tracking.results import _SHAPE, _Curved, _gradients_of, _median_test_inputs, _same_bits, _take
 
 # IC-GN iteration cap used for tracking (dic.subpixel.icgn's own default is 10): measured here, a
 # few subsets of the tensile sequence need 16-40 iterations from the exact displacement with zero
@@ -30,11 +30,6 @@ ICGN_MAX_ITERATIONS = 50
 REFIND_MAX_WAIT = 32
 # Points whose ZNCC falls below this are re-found (``Tracker``'s ``refind_zncc``, the view's low-ZNCC colour).
 REFIND_ZNCC = 0.8
-# With at least twice this many points to re-find in one frame, the wide search runs for this many
-# (spread over them) and IC-GN carries their result to the rest: measured after the fracture of the
-# simulated test with frames dropped (the upper half jumping 4-10 px), ~500 wide searches took the
-# frame to 133 ms and more frames were dropped.
-REFIND_SEEDS = 16
 # Seeded-search options for the swarm methods (see Tracker).
 SEED_SWARM = {"population": 6, "iterations": 8}
 # IC-GN reads each frame on a window around the points: displacement room it starts with (px) and the
@@ -79,7 +74,7 @@ class StageTimes:
         return False
 
 
-class Tracker:
+class Tracker(RefindSteps):
     """Track points of a reference image through later frames.
 
     Parameters
@@ -521,43 +516,6 @@ class Tracker:
             result = _take(result, slice(None), Measurement)
         return result
 
-    def _refind_weak(self, target, result, weak, start_u, start_v, grads):
-        """Re-find the ``weak`` points (in place in ``weak`` and ``result``), but not those whose material
-        left the view (``_at_the_edge``) nor those waiting out their back-off; returns the points still lost."""
-        if not weak.any():
-            self.last_refound = np.zeros(self.n_points, dtype=bool)
-            self.last_refind_attempts = 0
-            return np.flatnonzero(weak)
-        gone = weak & self._at_the_edge(start_u, start_v)
-        stale = np.flatnonzero(weak & ~gone & ~np.isfinite(self._prev["u"]))
-        if stale.size:
-            # lost before this frame: its own last result is where it was, not where its material went;
-            # its nearest tracked neighbour's motion says whether that has left the view
-            nu, nv = self._neighbour_guess(stale)
-            gone[stale] = self._at_the_edge(nu, nv, stale)
-        if gone.any():
-            result.ok[gone] = False
-            result.status[gone] = Status.OUTSIDE_TARGET
-            weak &= ~gone
-        waiting = weak & (self._refind_skip > 0)
-        self._refind_skip[waiting] -= 1
-        weak &= ~waiting
-        retry = np.flatnonzero(weak)
-        self.last_refound = np.zeros(self.n_points, dtype=bool)
-        self.last_refind_attempts = int(retry.size)
-        if retry.size and self._prep is not None:
-            retry = self._from_neighbours(result, retry, weak)
-        if retry.size >= 2 * REFIND_SEEDS and self._prep is not None:
-            retry = self._refind_from_seeds(target, result, retry, weak, grads)
-        for method in (self.refind_search, self.refind_fallback):
-            if retry.size == 0 or method is None:
-                break
-            self._refind(target, result, retry, method, grads)
-            with np.errstate(invalid="ignore"):
-                still = ~result.ok[retry] | (result.zncc[retry] < self.refind_zncc)
-            retry = retry[still]
-        return retry
-
     def resume(self, previous, *, last_good=None):
         """Start the next ``track`` from a known earlier result, as if the frames before had been tracked here.
 
@@ -647,87 +605,6 @@ class Tracker:
             if fields.get(name) is not None:
                 self._good_grad[name] = np.where(ok, fields[name], self._good_grad[name])
 
-    def _at_the_edge(self, start_u, start_v, points=None):
-        """Points (all, or the indices ``points``) whose start (previous result) puts their subset at the image's edge.
-
-        A doubtful result there (failed, low or falling ZNCC) is taken as the material leaving the
-        field of view (the top of a coupon pulled out of the picture): it is not searched for elsewhere,
-        where only something else can be found. Measured on the simulated test to fracture: the
-        wide search "found" such points 20-60 px off at ZNCC 0.5-0.95, and they passed as ok.
-        """
-        height, width = self.reference.shape
-        edge = self.half + INTERPOLATION_MARGIN + self.seed_radius + 1
-        index = slice(None) if points is None else points
-        with np.errstate(invalid="ignore"):
-            x = self.x[index] + start_u
-            y = self.y[index] + start_v
-            return (x < edge) | (y < edge) | (x > width - 1 - edge) | (y > height - 1 - edge)
-
-    def _outliers(self, result):
-        """Ok points that fail the normalised median test against their ok neighbours.
-
-        Kept with a copy of what it tested (``_tested``): ``_gate`` runs the same test at the end of the
-        frame and, when re-finding changed nothing, takes this answer instead of computing it again.
-        """
-        flagged, _ = quality.median_test(self.x, self.y, result.u, result.v, result.ok, self._graph,
-                                         gradients=_gradients_of(result), epsilon=self.gates.outlier_epsilon,
-                                         threshold=self.gates.outlier_threshold)
-        self._tested = (_median_test_inputs(result, copy=True), flagged)
-        return flagged.copy()
-
-    def _refind_from_seeds(self, target, result, retry, weak, grads):
-        """Many points to re-find at once (a whole region jumped: a grip slip, the half of a broken coupon):
-        the wide search for ``REFIND_SEEDS`` of them spread over the list, then IC-GN from those to the
-        rest (``_from_neighbours``), as the reliability-guided measurement does; returns the points left."""
-        seeds = retry[np.linspace(0, retry.size - 1, REFIND_SEEDS).astype(np.int64)]
-        self._refind(target, result, seeds, self.refind_search, grads)
-        with np.errstate(invalid="ignore"):
-            found = seeds[result.ok[seeds] & (result.zncc[seeds] >= self.refind_zncc)]
-        if found.size == 0:
-            return retry
-        weak = weak.copy()
-        weak[found] = False
-        rest = retry[~np.isin(retry, found)]
-        return self._from_neighbours(result, rest, weak) if rest.size else rest
-
-    def _from_neighbours(self, result, retry, weak):
-        """IC-GN for the points ``retry`` from their best neighbour measured in this frame
-        (``dic.reliability_guided.propagate``); returns the points still to search."""
-        solved = result.ok & ~weak
-        if not solved.any():
-            return retry
-        pending = np.zeros(self.n_points, dtype=bool)
-        pending[retry] = True
-        params = np.column_stack([result.u, result.ux, result.uy, result.v, result.vx, result.vy])
-        params = np.where(np.isfinite(params), params, 0.0)
-        options = {k: v for k, v in self.subpixel_options.items() if k in ("max_iterations", "tolerance")}
-        accepted, params, status, zncc, iterations = propagate(
-            self._first_order_prep(), self._target_coefficients(), self._graph, order=np.minimum(self._order, 1),
-            accept=max(self.gates.min_zncc, self.refind_zncc), params=params, zncc=result.zncc, solved=solved,
-            pending=pending, options=options)
-        idx = np.flatnonzero(accepted)
-        if idx.size:
-            p = params[idx]
-            if self.method.shape_order > 1:
-                # the first-order warp from the neighbour starts a second-order method (no second-order terms: its
-                # first-order stage confirms the propagated result, then the 2nd-order iteration runs)
-                again = self.method.refine_prepared(self._prep, self._target_coefficients(), p[:, 0], p[:, 3],
-                                                    ux0=p[:, 1], uy0=p[:, 2], vx0=p[:, 4], vy0=p[:, 5], points=idx,
-                                                    order=self._order[idx], **options)
-                again.iterations += iterations[idx]
-                found = self._measurement(idx, again)
-            else:
-                translation = self._order[idx] == 0
-                grads = {name: np.where(translation, np.nan, p[:, c]) for name, c in (("ux", 1), ("uy", 2),
-                                                                                      ("vx", 4), ("vy", 5))}
-                found = Measurement(x=self.x[idx], y=self.y[idx], u=p[:, 0], v=p[:, 3], zncc=zncc[idx],
-                                    ok=np.ones(idx.size, dtype=bool), status=status[idx], iterations=iterations[idx],
-                                    **grads)
-            self.last_refound[idx[self._keep_better(result, idx, found)]] = True
-        with np.errstate(invalid="ignore"):
-            still = ~result.ok[retry] | (result.zncc[retry] < self.refind_zncc)
-        return retry[still]
-
     def _gate(self, result):
         """The quality gates on the frame's result (in place): LOW_CORRELATION, OUTLIER; NaN where not ok."""
         known = None
@@ -753,51 +630,6 @@ class Tracker:
             self._spare = window_coefficients(self._target.raw, self._window, out=self._spare)
             self._coeffs = (self._window, self._spare)
         return self._coeffs[1]
-
-    def _weak(self, result):
-        """Trackable points that failed, correlate below ``refind_zncc``, lost ZNCC or jumped in gradient."""
-        zncc = result.zncc
-        prev = self._prev_zncc
-        with np.errstate(invalid="ignore"):
-            weak = ~result.ok | (zncc < self.refind_zncc) | (np.isfinite(prev) & (zncc < prev - self.refind_drop))
-        weak |= self._gradient_jump(result)
-        return weak & self.trackable
-
-    def _keep_better(self, result, idx, again):
-        """Put the rows of ``again`` (points ``idx``) into ``result`` where they correlate better; their mask."""
-        old = np.where(result.ok[idx], result.zncc[idx], -np.inf)
-        better = again.ok & (np.nan_to_num(again.zncc, nan=-np.inf) > old)
-        if better.any():
-            self._scatter(result, idx[better], _take(again, better))
-        return better
-
-    def _gradient_jump(self, result):
-        """Points whose displacement gradients moved more than ``refind_gradient`` since their last good frame."""
-        jump = np.zeros(self.n_points, dtype=bool)
-        if result.ux is None:
-            return jump
-        for name in ("ux", "uy", "vx", "vy"):
-            now = getattr(result, name)
-            before = self._good_grad[name]
-            jump |= np.isfinite(now) & (np.abs(now - before) > self.refind_gradient)
-        return jump & self._ever_good
-
-    def _refind(self, target, result, retry, method, grads):
-        """Wide search + sub-pixel for points ``retry``; keep what correlates better."""
-        ru, rv = self._refind_start(retry)
-        options = self.search_options if method == self.refind_search else None
-        again = self._measure(target, retry, ru, rv, method, self.refind_radius,
-                              {k: np.zeros(retry.size) for k in grads}, options)
-        self.last_refound[retry[self._keep_better(result, retry, again)]] = True
-
-    def _refind_start(self, retry):
-        u = np.where(self._ever_good[retry], self._good_u[retry], np.nan)
-        v = np.where(self._ever_good[retry], self._good_v[retry], np.nan)
-        missing = ~np.isfinite(u)
-        if missing.any():
-            nu, nv = self._neighbour_guess(retry[missing])
-            u[missing], v[missing] = nu, nv
-        return u, v
 
     def _empty_result(self):
         n = self.n_points
@@ -853,68 +685,3 @@ class _Frame:
         if self._grey is None:
             self._grey = as_image(self.raw, "frame")
         return self._grey
-
-
-def last_good_after(last_good, result):
-    """Each point's last ok result (``Tracker.resume``'s ``last_good``) once ``result`` has been tracked.
-
-    ``last_good``: the dict before ``result`` (None: before the first frame, every value 0, never ok);
-    ``result``: a ``Measurement`` (``u, v, ok`` and, when it has them, ``ux, uy, vx, vy``). The rule is
-    the tracker's own: ok values replace, the others keep what was there.
-    """
-    ok = np.asarray(result.ok, dtype=bool)
-    if last_good is None:
-        last_good = {name: np.zeros(ok.size) for name in ("u", "v") + _SHAPE}
-        last_good["ever"] = np.zeros(ok.size, dtype=bool)
-    out = {"ever": last_good["ever"] | ok}
-    for name in ("u", "v") + _SHAPE:
-        values = getattr(result, name, None)
-        out[name] = last_good[name] if values is None else np.where(ok, np.asarray(values, dtype=np.float64),
-                                                                    last_good[name])
-    return out
-
-
-def _gradients_of(measurement):
-    """(ux, uy, vx, vy) of a first-order result, or None."""
-    if measurement.ux is None:
-        return None
-    return measurement.ux, measurement.uy, measurement.vx, measurement.vy
-
-
-def _median_test_inputs(result, copy=False):
-    """(ok, u, v and, where the result has them, ux, uy, vx, vy): what ``quality.median_test`` reads of it."""
-    arrays = (result.ok, result.u, result.v) + (_gradients_of(result) or ())
-    return tuple(np.array(a, copy=True) for a in arrays) if copy else arrays
-
-
-def _same_bits(a, b):
-    """Whether two arrays hold the same values bit for bit (NaN and the sign of zero included)."""
-    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
-
-
-def _take(measurement, mask, kind=None):
-    """The rows of ``measurement`` where ``mask`` is True (a new record of its kind, or of ``kind``)."""
-    kind = kind or type(measurement)
-    names = ("x", "y", "u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations", "evaluations")
-    if kind is _Curved:
-        names += SECOND_ORDER
-    values = {}
-    for name in names:
-        array = getattr(measurement, name)
-        values[name] = None if array is None else np.asarray(array)[mask]
-    return kind(**values)
-
-
-# Displacement-gradient names of a first-order result.
-_SHAPE = ("ux", "uy", "vx", "vy")
-
-
-@dataclass
-class _Curved(Measurement):
-    """A tracker result inside ``Tracker.track`` with a second-order method's terms (``icgn2.SECOND_ORDER``)."""
-    uxx: np.ndarray = None
-    uxy: np.ndarray = None
-    uyy: np.ndarray = None
-    vxx: np.ndarray = None
-    vxy: np.ndarray = None
-    vyy: np.ndarray = None
