@@ -20,9 +20,12 @@ the file's signature so the message says *truncated or corrupt PNG* rather
 than *unreadable*.
 """
 
+from __future__ import annotations
+
 import os
 import warnings
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 
@@ -46,24 +49,24 @@ _SAVE_AS = "save as 8- or 16-bit grey"
 _HEADER_BITS = {"1": 8, "L": 8, "P": 8, "LA": 8, "PA": 8, "I;16": 16, "I;16B": 16, "I;16L": 16, "I;16N": 16}
 
 
-def _format_of(data):
+def _format_of(data: bytes) -> str | None:
     for signature, name in SIGNATURES:
         if data.startswith(signature):
             return name
     return None
 
 
-def _fail(path, problem):
+def _fail(path: str, problem: str) -> NoReturn:
     raise ValueError(f"{path}: {problem}")
 
 
-def _channels_equal(image):
+def _channels_equal(image: np.ndarray) -> bool:
     """True when every channel of ``image`` (H, W, C) equals the first: grey stored as colour."""
     first = image[:, :, 0]
     return all(np.array_equal(first, image[:, :, k]) for k in range(1, image.shape[2]))
 
 
-def _decode(data):
+def _decode(data: bytes) -> np.ndarray | str | None:
     """``cv2.imdecode(..., IMREAD_UNCHANGED)`` with OpenCV's own stderr warnings silenced."""
     import cv2
 
@@ -93,10 +96,10 @@ class ImageHeader:
     """
     width: int
     height: int
-    bits: int = None
+    bits: int | None = None
 
 
-def read_image_header(path):
+def read_image_header(path: str | os.PathLike[str]) -> ImageHeader:
     """The size (and, for a grey file, the bit depth) of an image file, from its header.
 
     Pillow reads the header only (about 0.2 ms a file); a file Pillow cannot
@@ -125,11 +128,12 @@ def read_image_header(path):
                 return ImageHeader(image.width, image.height, _HEADER_BITS.get(image.mode))
     except Exception:  # noqa: BLE001 - not for Pillow (or too big for its guard): OpenCV decides, and says why
         pass
-    image, _ = read_grey_image(path)
-    return ImageHeader(image.shape[1], image.shape[0], image.dtype.itemsize * 8)
+    pixels, _ = read_grey_image(path)
+    return ImageHeader(pixels.shape[1], pixels.shape[0], pixels.dtype.itemsize * 8)
 
 
-def read_grey_image(path):
+def read_grey_image(path: str | os.PathLike[str]) -> tuple[np.ndarray, str | None]:
+
     """Read an 8- or 16-bit grey image file.
 
     Parameters

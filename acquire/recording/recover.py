@@ -1,10 +1,13 @@
 """``recover``: a crashed or truncated livedic recording rewritten as a complete, indexed MCAP."""
 
+from __future__ import annotations
+
 import os
 from collections import Counter
 from datetime import datetime, timezone
+from typing import Any
 
-from mcap.records import Channel, Metadata, Schema
+from mcap.records import Channel, Message, Metadata, Schema
 
 from livedic.acquire.atomic_file import AtomicFile
 from livedic.acquire.recording import schema as rs
@@ -15,7 +18,8 @@ from livedic.acquire.recording.reader import Recording
 __all__ = ["recover"]
 
 
-def recover(src, dst, *, overwrite=False, chunk_bytes=1 << 20, compression=None):
+def recover(src: str | os.PathLike[str], dst: str | os.PathLike[str], *, overwrite: bool = False,
+            chunk_bytes: int = 1 << 20, compression: str | None = None) -> dict[str, Any]:
     """Rewrite a crashed or truncated livedic recording as a complete, indexed MCAP.
 
     Copies every schema, channel, metadata record and readable message of ``src``
@@ -54,9 +58,11 @@ def recover(src, dst, *, overwrite=False, chunk_bytes=1 << 20, compression=None)
         raise RecordingError(f"recover: {dst_path} already exists; pass overwrite=True to replace it")
     recording = Recording(src_path)
     recording.forget_index()                       # walk every record, whatever the index says
-    counts = Counter()
+    counts: Counter[str] = Counter()
     skipped = 0
-    schema_map, channel_map, kinds = {}, {}, {}
+    schema_map: dict[int, int] = {}
+    channel_map: dict[int, int] = {}
+    kinds: dict[int, str] = {}
     with AtomicFile(dst_path, binary=True) as out:
         writer = ChunkedWriter(out.handle, chunk_bytes=chunk_bytes, compression=compression,
                                library=library_name("recovered"))
@@ -72,6 +78,8 @@ def recover(src, dst, *, overwrite=False, chunk_bytes=1 << 20, compression=None)
                 kinds[record.id] = "image" if record.topic in (rs.TOPIC_IMAGE, rs.TOPIC_FRAME_INFO) else "data"
             elif isinstance(record, Metadata):
                 writer.writer.add_metadata(record.name, record.metadata)
+            elif not isinstance(record, Message):
+                continue                           # the scan yields schemas, channels, metadata and messages only
             elif record.channel_id not in channel_map:
                 skipped += 1
             else:
