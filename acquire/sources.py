@@ -69,14 +69,14 @@ def open_source(uri: str, **options: Any) -> FrameSource:
         from livedic.acquire.simulator.sources import open_synthetic
         return open_synthetic(uri, **options)
     if scheme == "aravis":
-        from livedic.acquire.camera.aravis import open_uri
-        return open_uri(uri, **options)
+        from livedic.acquire.camera.aravis import open_uri as open_aravis
+        return open_aravis(uri, **options)
     if scheme in ("v4l2", "video"):
-        from livedic.acquire.camera.opencv import open_uri
-        return open_uri(uri, **options)
+        from livedic.acquire.camera.opencv import open_uri as open_opencv
+        return open_opencv(uri, **options)
     if scheme == "images":
-        from livedic.acquire.files.image_sequence import open_uri
-        return open_uri(uri, **options)
+        from livedic.acquire.files.image_sequence import open_uri as open_images
+        return open_images(uri, **options)
     return _open_mcap(uri, options)
 
 
