@@ -12,11 +12,10 @@ and all commands create files alike. It lives here, in ``acquire``, because
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Collection, Iterator, Mapping
-from typing import IO, Any, Literal
-
 import os
 import tempfile
+from collections.abc import Collection, Iterator, Mapping
+from typing import IO, Any, Literal
 
 __all__ = ["AtomicFile", "OutputError", "current_umask"]
 
@@ -98,7 +97,6 @@ class AtomicFile:
         self.handle.close()
         try:
             os.replace(self.tmp, self.path)  # type: ignore[arg-type]  # None only after a commit: fails as before
-
         except IsADirectoryError:
             # A folder of that name appeared since the check: say so without the temporary name.
             self.discard()

@@ -2,9 +2,7 @@
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Iterator
-
 from dataclasses import dataclass, field
-
 from typing import Literal, TypeVar
 
 import numpy as np

@@ -14,7 +14,6 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-
 from livedic.acquire.base import SourceError
 
 __all__ = ["parse_bool", "parse_number", "as_bool", "as_int", "as_float"]
@@ -43,7 +42,6 @@ def parse_number(value: object, *, integer: bool = False, low: float | None = No
         raise ValueError(f"expected {kind}")
     text: Any = value.strip() if isinstance(value, str) else value     # int()/float() judge the rest
     number: float | None = None
-
     if integer:
         try:
             number = int(text)            # exact for large integers (seeds), unlike float

@@ -118,5 +118,4 @@ class CsvLoad(_KnownSamples):
 
     @property
     def settings(self) -> dict[str, Any]:
-
         return {**super().settings, "offset_s": self.offset_s}

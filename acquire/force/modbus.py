@@ -8,7 +8,6 @@ import time
 from collections.abc import Sequence
 from typing import Any, Literal, cast
 
-
 from livedic.acquire.force.source import (DEFAULT_KEEP_S, DEFAULT_MAX_GAP_S, DEFAULT_MAX_SAMPLES, DEFAULT_RETRY_S,
                                           LoadError, LoadEventKind, _address_and_options, _exception_name, _first_line,
                                           _option)
@@ -233,7 +232,6 @@ def _open_modbus(uri: str, options: dict[str, Any]) -> ModbusLoad:
         raise LoadError(f"load {uri!r}: register= is required (the force register's 0-based address); "
                         f"expected {MODBUS_FORM}")
     kwargs: dict[str, Any] = {"register": int(_option("register", merged.pop("register"), low=0, integer=True))}
-
     for name, keyword, allowed in (("kind", "kind", MODBUS_KINDS), ("type", "value_type", MODBUS_TYPES),
                                    ("word_order", "word_order", MODBUS_WORD_ORDERS)):
         if name in merged:

@@ -8,7 +8,6 @@ docs/guide/tensile-test.md ("The force sources in detail").
 from typing import Any
 
 from livedic.acquire.force.csv_file import CsvLoad
-
 from livedic.acquire.force.modbus import _open_modbus
 from livedic.acquire.force.simulated import _open_synthetic
 from livedic.acquire.force.source import LoadError, LoadSource, _option

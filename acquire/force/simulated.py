@@ -4,7 +4,6 @@ from typing import Any
 
 import numpy as np
 
-
 from livedic.acquire.force.csv_file import _KnownSamples, csv_max_gap_s
 from livedic.acquire.force.source import LoadError, _option
 

@@ -230,7 +230,6 @@ def _option(name: str, value: object, low: float | None = None, low_open: bool =
 
 
 def _address_and_options(uri: str, options: Mapping[str, Any], form: str) -> tuple[str, int, dict[str, Any]]:
-
     """(host, port, options of the query updated with ``options``) of a stream URI; LoadError naming ``form``."""
     parts = urlsplit(uri)
     try:

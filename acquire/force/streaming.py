@@ -260,7 +260,6 @@ class StreamingLoad(LoadSource):
             self._counts[name] += n
 
     def _append(self, time_s: float, force_n: float) -> bool:
-
         """Add one sample (NaN force: a gap marker) if it is later than the last one; whether it was."""
         with self._lock:
             if time_s > self._buffer.last_time:

@@ -4,7 +4,6 @@ import socket
 import time
 from typing import Any
 
-
 from livedic.acquire.force.source import (DEFAULT_KEEP_S, DEFAULT_MAX_GAP_S, DEFAULT_MAX_SAMPLES, DEFAULT_RETRY_S,
                                           MAX_LINE_BYTES, LoadError, LoadEventKind, _address_and_options, _option)
 from livedic.acquire.force.streaming import StreamingLoad, parse_line
@@ -30,7 +29,6 @@ class TcpLoad(StreamingLoad):
         self.connect_timeout_s = float(connect_timeout_s)
         self.poll_s = float(poll_s)
         self._socket: socket.socket | None = None
-
         self._garbage_told = False
         self._start_thread()
 
