@@ -223,25 +223,29 @@ class Recorder:
             self._file = open(self.path, "wb" if overwrite else "xb")
         except FileExistsError:
             raise FileExistsError(f"{self.path} exists: choose a new name or pass overwrite=True") from None
+        self._start_file(strings, int(chunk_bytes), compression, fsync_interval_s)
+        if fsync_interval_s is not None:
+            self._sync_fd = os.dup(self._file.fileno())
+        self._last_sync = time.monotonic()
+        self._synced_bytes = self.bytes_written
+        self._thread = threading.Thread(target=self._background, name="livedic-recorder", daemon=True)
+        self._thread.start()
+
+    def _start_file(self, strings: dict[str, str], chunk_bytes: int, compression: str | None,
+                    fsync_interval_s: float | None) -> None:
+        """The chunk writer, every channel and the session metadata, on disk; the file removed if any fails."""
         try:
-            self._cw = ChunkedWriter(self._file, chunk_bytes=int(chunk_bytes), compression=compression,
+            self._cw = ChunkedWriter(self._file, chunk_bytes=chunk_bytes, compression=compression,
                                       library=library_name(), flush_interval_s=self._flush_interval_s)
-            self._ch_image = self._cw.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA,
-                                               rs.schema_data(rs.RAW_IMAGE_SCHEMA))
-            self._ch_info = self._cw.register(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA,
-                                              rs.schema_data(rs.FRAME_INFO_SCHEMA))
-            self._ch_results = self._cw.register(rs.TOPIC_RESULTS, rs.FRAME_RESULTS_SCHEMA,
-                                                 rs.schema_data(rs.FRAME_RESULTS_SCHEMA))
-            self._ch_events = self._cw.register(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA,
-                                                rs.schema_data(rs.EVENT_SCHEMA))
-            self._ch_strain = self._cw.register(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA,
-                                                rs.schema_data(rs.STRAIN_FIELD_SCHEMA))
-            self._ch_extensometers = self._cw.register(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA,
-                                                       rs.schema_data(rs.EXTENSOMETER_SAMPLE_SCHEMA))
-            self._ch_force = self._cw.register(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA,
-                                               rs.schema_data(rs.FORCE_SAMPLE_SCHEMA))
-            self._ch_session = self._cw.register(rs.TOPIC_SESSION, rs.SESSION_SCHEMA,
-                                                 rs.schema_data(rs.SESSION_SCHEMA))
+            channel = self._channel
+            self._ch_image = channel(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA)
+            self._ch_info = channel(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA)
+            self._ch_results = channel(rs.TOPIC_RESULTS, rs.FRAME_RESULTS_SCHEMA)
+            self._ch_events = channel(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA)
+            self._ch_strain = channel(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA)
+            self._ch_extensometers = channel(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA)
+            self._ch_force = channel(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA)
+            self._ch_session = channel(rs.TOPIC_SESSION, rs.SESSION_SCHEMA)
             self._cw.writer.add_metadata(rs.METADATA_NAME, strings)
             self._session_payload = rs.Session(metadata=strings).SerializeToString()
             if self._start_ns is not None:
@@ -258,12 +262,9 @@ class Recorder:
             except OSError:
                 pass
             raise
-        if fsync_interval_s is not None:
-            self._sync_fd = os.dup(self._file.fileno())
-        self._last_sync = time.monotonic()
-        self._synced_bytes = self.bytes_written
-        self._thread = threading.Thread(target=self._background, name="livedic-recorder", daemon=True)
-        self._thread.start()
+
+    def _channel(self, topic: str, schema_name: str) -> int:
+        return self._cw.register(topic, schema_name, rs.schema_data(schema_name))
 
     # ------------------------------------------------------------------ public API
 
@@ -439,9 +440,8 @@ class Recorder:
         window = 0 if window is None else int(window)
         if not 0 <= window < 1 << 32:
             raise ValueError(f"write_strain: window must be a number of points >= 0, got {window}")
-        values: dict[str, Any] = {"frame_index": frame_index, "timestamp_ns": timestamp_ns,
-                                  "measure": str(strain_field.measure), "window": window,
-                                  "vsg_px": float(strain_field.vsg_px)}
+        values: dict[str, Any] = {"frame_index": frame_index, "timestamp_ns": timestamp_ns, "window": window,
+                                  "measure": str(strain_field.measure), "vsg_px": float(strain_field.vsg_px)}
         length = None
         for name in rs.STRAIN_ARRAYS[1:]:
             array = _as_1d(getattr(strain_field, name), name, "write_strain")
