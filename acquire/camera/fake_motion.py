@@ -78,8 +78,9 @@ class SpeckleMotion:
     True
     """
 
-    def __init__(self, shape: tuple[int, int] = (512, 512), *, step: tuple[int, int] = (1, -1), max_displacement: int = 32,
-                 bit_depth: int = 8, seed: int = 0, speckle_px: float = 2.0, pattern: str = "blur") -> None:
+    def __init__(self, shape: tuple[int, int] = (512, 512), *, step: tuple[int, int] = (1, -1),
+                 max_displacement: int = 32, bit_depth: int = 8, seed: int = 0, speckle_px: float = 2.0,
+                 pattern: str = "blur") -> None:
         height, width = (int(shape[0]), int(shape[1]))
         if height <= 0 or width <= 0:
             raise ValueError(f"shape {shape} must be positive")
