@@ -9,9 +9,13 @@ and all commands create files alike. It lives here, in ``acquire``, because
 ``recover`` (the recording format's repair) is its lowest user.
 """
 
+from __future__ import annotations
+
 import contextlib
 import os
 import tempfile
+from collections.abc import Collection, Iterator, Mapping
+from typing import IO, Any, Literal
 
 __all__ = ["AtomicFile", "OutputError", "current_umask"]
 
@@ -22,7 +26,7 @@ class OutputError(ValueError):
     """An output path that cannot be written; the message is one line for the user."""
 
 
-def current_umask():
+def current_umask() -> int:
     """The process umask, read without changing it where the system allows (Linux: /proc)."""
     try:
         with open("/proc/self/status") as handle:
@@ -62,7 +66,11 @@ class AtomicFile:
         The folder does not exist, or ``path`` is a folder.
     """
 
-    def __init__(self, path, *, binary=False, suffix=""):
+    tmp: str | None           # None once committed or discarded
+    handle: IO[Any]
+
+
+    def __init__(self, path: str | os.PathLike[str], *, binary: bool = False, suffix: str = "") -> None:
         self.path = os.fspath(path)
         if os.path.isdir(self.path):
             raise OutputError(f"{self.path} is a folder: give a file name")
@@ -78,41 +86,42 @@ class AtomicFile:
             os.unlink(self.tmp)
             raise
 
-    def write(self, data):
+    def write(self, data: str | bytes) -> None:
         self.handle.write(data)
 
-    def commit(self, *, sync=False):
+    def commit(self, *, sync: bool = False) -> None:
         """Flush, close and rename into place; ``sync`` also fsyncs the data first (survives a power cut)."""
         if sync:
             self.handle.flush()
             os.fsync(self.handle.fileno())
         self.handle.close()
         try:
-            os.replace(self.tmp, self.path)
+            os.replace(self.tmp, self.path)  # type: ignore[arg-type]  # None only after a commit: fails as before
         except IsADirectoryError:
             # A folder of that name appeared since the check: say so without the temporary name.
             self.discard()
             raise OutputError(f"{self.path} is a folder: give a file name") from None
         self.tmp = None
 
-    def discard(self):
+    def discard(self) -> None:
         if not self.handle.closed:
             self.handle.close()
         if self.tmp is not None and os.path.exists(self.tmp):
             os.unlink(self.tmp)
         self.tmp = None
 
-    def __enter__(self):
+    def __enter__(self) -> AtomicFile:
         return self
 
-    def __exit__(self, exc_type, *exc):
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> Literal[False]:
         if exc_type is not None or self.tmp is not None:
             self.discard()
         return False
 
 
 @contextlib.contextmanager
-def atomic_files(paths, *, binary=()):
+def atomic_files(paths: Mapping[str, str | os.PathLike[str]], *,
+                 binary: Collection[str] = ()) -> Iterator[dict[str, AtomicFile]]:
     """All of ``paths`` (name -> path) written whole, or none: yields name -> ``AtomicFile``.
 
     The folder is created if missing. On leaving normally every file is committed; on an error

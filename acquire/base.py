@@ -1,7 +1,9 @@
 """What every frame source yields and how it is opened and closed."""
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
+from typing import Literal, TypeVar
 
 import numpy as np
 
@@ -17,7 +19,7 @@ class NoFirstFrame(SourceError):
     firewall, another program holding it), each a short phrase; the message has them too.
     """
 
-    def __init__(self, message, *, checks=()):
+    def __init__(self, message: str, *, checks: Iterable[str] = ()) -> None:
         super().__init__(message)
         self.checks = tuple(checks)
 
@@ -44,7 +46,11 @@ class Frame:
     metadata: dict = field(default_factory=dict)
 
 
+_Source = TypeVar("_Source", bound="FrameSource")
+
+
 class FrameSource(ABC):
+
     """A context manager that yields ``Frame`` objects.
 
     ``with open_source(uri) as source: for frame in source: ...``. Iteration ends
@@ -55,7 +61,7 @@ class FrameSource(ABC):
     uri: str = ""
 
     @abstractmethod
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         ...
 
     @property
@@ -70,12 +76,12 @@ class FrameSource(ABC):
     def settings(self) -> dict:
         return {}
 
-    def close(self):
+    def close(self) -> None:
         pass
 
-    def __enter__(self):
+    def __enter__(self: _Source) -> _Source:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.close()
         return False

@@ -11,6 +11,8 @@ Examples
 """
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 from livedic.acquire.base import SourceError
 
@@ -20,7 +22,7 @@ _TRUE = ("1", "true", "yes", "on")
 _FALSE = ("0", "false", "no", "off", "")
 
 
-def parse_bool(value):
+def parse_bool(value: object) -> bool:
     """``True``/``False`` from a bool or 1/0, true/false, yes/no, on/off (empty is False)."""
     if isinstance(value, bool):
         return value
@@ -32,13 +34,14 @@ def parse_bool(value):
     raise ValueError("not a boolean: write 1 or 0 (true/false)")
 
 
-def parse_number(value, *, integer=False, low=None, low_open=False):
+def parse_number(value: object, *, integer: bool = False, low: float | None = None,
+                 low_open: bool = False) -> float:
     """A finite float (or an int with ``integer``), at least ``low`` (above it with ``low_open``)."""
     kind = "an integer" if integer else "a number"
     if isinstance(value, bool):
         raise ValueError(f"expected {kind}")
-    text = value.strip() if isinstance(value, str) else value
-    number = None
+    text: Any = value.strip() if isinstance(value, str) else value     # int()/float() judge the rest
+    number: float | None = None
     if integer:
         try:
             number = int(text)            # exact for large integers (seeds), unlike float
@@ -60,23 +63,23 @@ def parse_number(value, *, integer=False, low=None, low_open=False):
     return number
 
 
-def _named(name, value, parse, **limits):
+def _named(name: str, value: object, parse: Callable[..., Any], **limits: Any) -> Any:
     try:
         return parse(value, **limits)
     except ValueError as error:
         raise SourceError(f"option {name}={value!r}: {error}") from None
 
 
-def as_bool(name, value):
+def as_bool(name: str, value: object) -> bool:
     """``parse_bool`` with the option named in a ``SourceError``."""
     return _named(name, value, parse_bool)
 
 
-def as_int(name, value, *, low=None):
+def as_int(name: str, value: object, *, low: float | None = None) -> int:
     """``parse_number(integer=True)`` with the option named in a ``SourceError``."""
     return _named(name, value, parse_number, integer=True, low=low)
 
 
-def as_float(name, value, *, low=None, low_open=False):
+def as_float(name: str, value: object, *, low: float | None = None, low_open: bool = False) -> float:
     """``parse_number`` with the option named in a ``SourceError``."""
     return _named(name, value, parse_number, low=low, low_open=low_open)

@@ -15,9 +15,11 @@ override those in the query string. Malformed or unknown URIs raise
 ``SourceError`` listing these forms.
 """
 
+from typing import Any
 from urllib.parse import parse_qsl
 
-from livedic.acquire.base import SourceError
+from livedic.acquire.base import FrameSource, SourceError
+
 
 SCHEMES = ("synthetic", "aravis", "v4l2", "video", "images", "mcap")
 
@@ -26,7 +28,7 @@ USAGE = ("valid sources: synthetic:[tensile|translate][?frames=N&fps=F&size=WxH&
          "mcap:FILE.mcap[?realtime=1]")
 
 
-def parse_scheme(uri):
+def parse_scheme(uri: str) -> str:
     """The scheme of ``uri`` (one of ``SCHEMES``) or SourceError."""
     if not isinstance(uri, str) or not uri.strip():
         raise SourceError(f"empty source URI; {USAGE}")
@@ -42,7 +44,7 @@ def parse_scheme(uri):
     return scheme
 
 
-def open_source(uri, **options):
+def open_source(uri: str, **options: Any) -> FrameSource:
     """Open the frame source named by ``uri``.
 
     Parameters
@@ -67,14 +69,14 @@ def open_source(uri, **options):
         from livedic.acquire.simulator.sources import open_synthetic
         return open_synthetic(uri, **options)
     if scheme == "aravis":
-        from livedic.acquire.camera.aravis import open_uri
-        return open_uri(uri, **options)
+        from livedic.acquire.camera.aravis import open_uri as open_aravis
+        return open_aravis(uri, **options)
     if scheme in ("v4l2", "video"):
-        from livedic.acquire.camera.opencv import open_uri
-        return open_uri(uri, **options)
+        from livedic.acquire.camera.opencv import open_uri as open_opencv
+        return open_opencv(uri, **options)
     if scheme == "images":
-        from livedic.acquire.files.image_sequence import open_uri
-        return open_uri(uri, **options)
+        from livedic.acquire.files.image_sequence import open_uri as open_images
+        return open_images(uri, **options)
     return _open_mcap(uri, options)
 
 

@@ -62,6 +62,8 @@ timeouts (about 7 s in Aravis 0.8.26), so it runs in a background
 Finding cameras and their URIs: ``aravis_discovery``; the declared settings: ``aravis_settings``.
 """
 
+from __future__ import annotations
+
 import atexit
 import contextlib
 import ctypes
@@ -70,6 +72,7 @@ import math
 import threading
 import time
 import weakref
+from typing import Any
 
 import numpy as np
 
@@ -101,11 +104,11 @@ _GV_ID_WRAP = 65535              # GigE Vision 16-bit block ids go 65535 -> 1 (0
 # is released only after the stream and camera are gone.
 FAKE_FILL_HOOKS: dict = {}
 
-_OPEN_SOURCES = weakref.WeakSet()
-_TEARDOWN_THREADS = []
+_OPEN_SOURCES: weakref.WeakSet[AravisCamera] = weakref.WeakSet()
+_TEARDOWN_THREADS: list[threading.Thread] = []
 
 
-def open_uri(uri, **options):
+def open_uri(uri: str, **options: Any) -> AravisCamera:
     """Open an ``aravis:`` URI; keyword options override those in the query string."""
     device_id, query = parse_uri(uri)
     merged = {**query, **options}
@@ -169,15 +172,16 @@ class AravisCamera(FrameSource):
         "copy": "1 to copy frames out of the pool (default 0: zero copy)",
     }
 
-    def __init__(self, device_id=None, *, uri=None, n_buffers=10, timeout_s=None, copy=False,
-                 user_set=genicam.DEFAULT_USER_SET, **settings):
+    def __init__(self, device_id: str | None = None, *, uri: str | None = None, n_buffers: int | str = 10,
+                 timeout_s: float | str | None = None, copy: bool | str = False,
+                 user_set: str = genicam.DEFAULT_USER_SET, **settings: Any) -> None:
         features = {key[len(FEATURE_PREFIX):]: value for key, value in settings.items()
                     if key.startswith(FEATURE_PREFIX)}
         unknown = sorted(set(settings) - {s.name for s in self.SETTINGS} - {FEATURE_PREFIX + f for f in features})
         if unknown or "" in features:
             raise SourceError(f"unknown aravis option(s) {', '.join(unknown) or FEATURE_PREFIX}; "
                               f"known: {', '.join(self.OPTIONS)}")
-        requested = {}
+        requested: dict[str, Any] = {}
         for setting in self.SETTINGS:
             value = settings.get(setting.name)
             if value is not None and value != "":
@@ -198,22 +202,23 @@ class AravisCamera(FrameSource):
 
         self._lock = threading.RLock()          # guards camera/stream calls and teardown
         self._recycle_lock = threading.RLock()  # guards push_buffer from lease finalizers
-        self._camera = None
-        self._device = None
-        self._stream = None
+        # gi objects (Aravis.Camera, Aravis.Device, Aravis.Stream) while open: no type stubs, hence Any
+        self._camera: Any = None
+        self._device: Any = None
+        self._stream: Any = None
         self._stream_alive = False
-        self._keepalive = None
-        self._lost_handler = None
+        self._keepalive: Any = None
+        self._lost_handler: int | None = None
         self._control_lost = False
         self._lost = False
         self._closed = False
         self._closing = False
         self._started = False
-        self._pool = {}        # hash(buffer) -> (numpy array, Aravis.Buffer)
+        self._pool: dict[int, tuple[np.ndarray, Any]] = {}        # hash(buffer) -> (numpy array, Aravis.Buffer)
         self._n_leased = 0
         self._payload = 0
         self._grow_warned = False
-        self._notes = []
+        self._notes: list[str] = []
         self._frames = 0
         self._dropped = 0
         self._incomplete = 0
@@ -227,11 +232,11 @@ class AravisCamera(FrameSource):
         self._next_trigger_t = 0.0
         self._triggers_fired = 0
         self._label = device_id or "(first camera)"
-        self._info = {}
-        self._applied = {}
-        self._found = {}
-        self._features = {}
-        self._user_set = None
+        self._info: dict[str, Any] = {}
+        self._applied: dict[str, Any] = {}
+        self._found: dict[str, Any] = {}
+        self._features: dict[str, dict[str, Any]] = {}
+        self._user_set: str | None = None
         try:
             self._open(device_id)
         except BaseException as error:
@@ -239,7 +244,7 @@ class AravisCamera(FrameSource):
             _, GLib = load_aravis()
             if isinstance(error, GLib.Error):
                 message = f"camera {self._label}: {gerror_message(error)}"
-                error = None
+                error = None  # type: ignore[assignment]  # drops the traceback's frames before the raise
                 raise SourceError(message) from None
             raise
         _OPEN_SOURCES.add(self)
@@ -292,7 +297,7 @@ class AravisCamera(FrameSource):
         by = listed["address"] if listed["protocol"] == "GigEVision" and listed["address"] else listed["id"]
         return self._camera_new(by, asked=device_id, cameras=cameras), listed
 
-    def _describe(self, device_id, listed):
+    def _describe(self, device_id, listed) -> None:
         """``self._info``: what the camera says it is (model, serial, firmware, sensor, address)."""
         cam = self._camera
         protocol = "GigEVision" if cam.is_gv_device() else "USB3Vision" if cam.is_uv_device() else "Fake"
@@ -314,7 +319,7 @@ class AravisCamera(FrameSource):
         self._label = f"{name} ({vendor} {model} #{serial}, {protocol})"
         self._wrap16 = protocol == "GigEVision"
 
-    def _open(self, device_id):
+    def _open(self, device_id) -> None:
         self._camera, listed = self._connect(device_id)
         cam = self._camera
         self._device = cam.get_device()
@@ -359,7 +364,7 @@ class AravisCamera(FrameSource):
         if changed:
             self._note("the camera was not in livedic's default state; set at open: " + "; ".join(changed))
 
-    def _apply_features(self):
+    def _apply_features(self) -> None:
         for name, text in self._features_asked.items():
             asked, got, note = genicam.set_feature(self._camera, self._call, name, text)
             self._features[name] = {"asked": asked, "read": got}
@@ -410,14 +415,14 @@ class AravisCamera(FrameSource):
         for _ in range(self._n_buffers):
             self._add_buffer()
 
-    def _note(self, text):
+    def _note(self, text) -> None:
         self._notes.append(text)
         log.info("%s: %s", self._label, text)
 
-    def _on_control_lost(self, *_args):
+    def _on_control_lost(self, *_args) -> None:
         self._control_lost = True
 
-    def _add_buffer(self):
+    def _add_buffer(self) -> None:
         Aravis, _ = load_aravis()
         array = np.empty(self._payload, np.uint8)
         buffer = Aravis.Buffer.new_full(self._payload, array.ctypes.data, None, None)
@@ -426,11 +431,11 @@ class AravisCamera(FrameSource):
 
     # ------------------------------------------------------------- settings
     @property
-    def live(self):
+    def live(self) -> bool:
         return True          # a camera: frames at its own pace
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         """What the camera reports (read back), what was asked, and stream counters (the session metadata)."""
         out = {"source": SCHEME, "uri": self.uri, **self._info}
         out.update({k: _plain(v) for k, v in self._applied.items()})
@@ -457,7 +462,7 @@ class AravisCamera(FrameSource):
         })
         return out
 
-    def stream_statistics(self):
+    def stream_statistics(self) -> dict[str, Any]:
         """Aravis stream counters: completed, failures, underruns, missing/resent packets (GigE)."""
         with self._recycle_lock:
             stream = self._stream if self._stream_alive else None
@@ -480,7 +485,7 @@ class AravisCamera(FrameSource):
     def __iter__(self):
         return _FrameIterator(self)
 
-    def _start(self):
+    def _start(self) -> None:
         with self._lock:
             if not self._started and self._camera is not None and not self._closed:
                 self._call("start acquisition", self._camera.start_acquisition)
@@ -549,7 +554,7 @@ class AravisCamera(FrameSource):
         stream = buffer = None
         raise error
 
-    def discard_buffered(self):
+    def discard_buffered(self) -> int:
         """Give back to the camera every frame it has sent and no one has taken yet; returns how many.
 
         A session takes the first frame, prepares (points, set-up, outputs), then starts: the frames the
@@ -568,7 +573,7 @@ class AravisCamera(FrameSource):
                 discarded += 1
         return discarded
 
-    def _grow_pool(self):
+    def _grow_pool(self) -> None:
         """Add a buffer when the consumer holds almost all of them (up to the cap)."""
         if len(self._pool) >= self._max_buffers:
             return  # at the cap: _make_frame hands out copies instead of leases
@@ -580,7 +585,7 @@ class AravisCamera(FrameSource):
             if self._stream_alive:
                 self._add_buffer()
 
-    def _stream_counts(self):
+    def _stream_counts(self) -> str:
         stats = self.stream_statistics()
         status = f", last incomplete buffer status {self._last_status}" if self._last_status else ""
         return (f"stream: {stats.get('n_completed', 0)} completed, {stats.get('n_failures', 0)} failed, "
@@ -691,14 +696,14 @@ class AravisCamera(FrameSource):
             self._n_leased += 1
         return np.ndarray(shape, dtype, lease, 0, (row_bytes, dtype.itemsize))
 
-    def _recycle(self, buffer):
+    def _recycle(self, buffer) -> None:
         with self._recycle_lock:
             self._n_leased -= 1
             if self._stream_alive and self._stream is not None:
                 self._stream.push_buffer(buffer)
 
     # ------------------------------------------------------------- teardown
-    def close(self):
+    def close(self) -> None:
         """Stop acquisition, drop the stream then the camera. Safe to call twice, from any thread."""
         if self._closed:
             return
@@ -710,7 +715,7 @@ class AravisCamera(FrameSource):
             _OPEN_SOURCES.discard(self)
             self._teardown(background=self._lost and self._frames > 0)
 
-    def _teardown(self, *, background):
+    def _teardown(self, *, background) -> None:
         with self._recycle_lock:
             stream, camera, device = self._stream, self._camera, self._device
             if stream is not None:
@@ -728,10 +733,10 @@ class AravisCamera(FrameSource):
         # A camera lost mid-stream would make the stop wait on register writes; one that never delivered answers.
         stop = self._started and not (self._lost and self._frames)
         label = self._label
-        objects = [stream, camera, device, keepalive, pool]
+        objects: list[Any] = [stream, camera, device, keepalive, pool]
         del stream, camera, device, keepalive, pool
 
-        def work():
+        def work() -> None:
             stream, camera, device, keepalive, pool = objects
             objects.clear()
             if camera is not None and stop:
@@ -754,7 +759,7 @@ class AravisCamera(FrameSource):
             del pool
 
         if background and any(o is not None for o in objects[:2]):
-            def run():
+            def run() -> None:
                 try:
                     work()
                 finally:
@@ -766,14 +771,14 @@ class AravisCamera(FrameSource):
         else:
             work()
 
-    def __del__(self):
+    def __del__(self) -> None:
         try:
             if not self._closed and self._camera is not None:
                 self.close()
         except Exception:  # noqa: BLE001 - never raise from a finalizer
             pass
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         state = "closed" if self._closed else "open"
         return f"<AravisCamera {self._label} {state}>"
 
@@ -784,7 +789,7 @@ class _FrameIterator:
     (A generator would hold its last frame, and so one buffer, until the next ``next``.)
     """
 
-    def __init__(self, source):
+    def __init__(self, source) -> None:
         self._source = source
 
     def __iter__(self):
@@ -805,7 +810,7 @@ class _FrameIterator:
 # Buffer leases: the numpy view's base object; dropping it re-queues the buffer.
 # --------------------------------------------------------------------------- #
 
-_LEASE_TYPES = {}
+_LEASE_TYPES: dict[int, type] = {}          # nbytes -> BufferLease class
 
 
 def _plain(value):
@@ -815,7 +820,7 @@ def _plain(value):
     return list(value) if isinstance(value, tuple) else value
 
 
-def _lease_del(self):
+def _lease_del(self) -> None:
     owner = getattr(self, "owner", None)
     if owner is not None:
         self.owner = None
@@ -835,7 +840,7 @@ def _lease_type(nbytes):
 
 
 @atexit.register
-def _close_all_at_exit():
+def _close_all_at_exit() -> None:
     """Close sources left open, in the right order, before the interpreter tears modules down."""
     for source in list(_OPEN_SOURCES):
         try:

@@ -2,7 +2,11 @@
 (``aravis:[DEVICE_ID][?key=value&...]``). ``aravis.open_uri`` opens what they find.
 """
 
+from __future__ import annotations
+
 import ipaddress
+from collections.abc import Callable, Sequence
+from typing import Any
 from urllib.parse import parse_qsl
 
 from livedic.acquire.base import SourceError
@@ -10,13 +14,13 @@ from livedic.acquire.base import SourceError
 __all__ = ["SCHEME", "list_cameras", "load_aravis", "parse_uri"]
 
 SCHEME = "aravis"
-_ARAVIS = None
+_ARAVIS: tuple[Any, Any] | None = None          # (Aravis, GLib) gi modules once loaded
 
 # --------------------------------------------------------------------------- #
 # Loading Aravis
 # --------------------------------------------------------------------------- #
 
-def load_aravis():
+def load_aravis() -> tuple[Any, Any]:
     """Import ``gi.repository.Aravis`` 0.8 (and GLib) once; ``SourceError`` with the fix if missing."""
     global _ARAVIS
     if _ARAVIS is None:
@@ -33,7 +37,7 @@ def load_aravis():
     return _ARAVIS
 
 
-def gerror_message(error):
+def gerror_message(error: BaseException) -> str:
     return getattr(error, "message", None) or str(error)
 
 
@@ -41,7 +45,7 @@ def gerror_message(error):
 # Listing cameras and parsing URIs
 # --------------------------------------------------------------------------- #
 
-def list_cameras(*, include_fake=False):
+def list_cameras(*, include_fake: bool = False) -> list[dict[str, Any]]:
     """Cameras Aravis can see now (GigE discovery takes about 1 s).
 
     Parameters
@@ -61,7 +65,7 @@ def list_cameras(*, include_fake=False):
     if include_fake:
         Aravis.enable_interface("Fake")
     Aravis.update_device_list()
-    cameras = []
+    cameras: list[dict[str, Any]] = []
     for i in range(Aravis.get_n_devices()):
         protocol = Aravis.get_device_protocol(i) or ""
         device_id = Aravis.get_device_id(i)
@@ -79,11 +83,11 @@ def list_cameras(*, include_fake=False):
     return cameras
 
 
-def interface_name(protocol):
-    return {"GigEVision": "gige", "USB3Vision": "usb3", "Fake": "fake"}.get(protocol, (protocol or "?").lower())
+def interface_name(protocol: str | None) -> str:
+    return {"GigEVision": "gige", "USB3Vision": "usb3", "Fake": "fake"}.get(protocol or "", (protocol or "?").lower())
 
 
-def is_ip_address(text):
+def is_ip_address(text: str) -> bool:
     try:
         ipaddress.ip_address(text)
     except ValueError:
@@ -91,7 +95,7 @@ def is_ip_address(text):
     return True
 
 
-def address_text(get):
+def address_text(get: Callable[[], Any]) -> str | None:
     """``get()``'s IP address as text (a GInetSocketAddress without its port), None if unreadable."""
     try:
         address = get()
@@ -102,11 +106,11 @@ def address_text(get):
         return None
 
 
-def find_listed(cameras, device_id):
+def find_listed(cameras: Sequence[dict[str, Any]], device_id: str | None) -> dict[str, Any] | None:
     """The listed camera ``device_id`` names (its id, serial or MAC); the first one (not a fake) for None."""
     if device_id is None:
         real = [c for c in cameras if c["protocol"] != "Fake"]
-        return (real or cameras or [None])[0]
+        return real[0] if real else (cameras[0] if cameras else None)
     wanted = device_id.strip().lower()
     for camera in cameras:
         if wanted in {str(camera.get(key) or "").lower() for key in ("id", "serial", "physical_id")}:
@@ -114,7 +118,7 @@ def find_listed(cameras, device_id):
     return None
 
 
-def parse_uri(uri):
+def parse_uri(uri: str) -> tuple[str | None, dict[str, str]]:
     """Split ``aravis:[DEVICE_ID][?key=value&...]`` into ``(device_id or None, {key: str})``."""
     if not isinstance(uri, str) or not uri[:len(SCHEME) + 1].lower() == SCHEME + ":":
         raise SourceError(f"not an Aravis URI: {uri!r} (expected 'aravis:' or 'aravis:DEVICE_ID')")
@@ -122,7 +126,7 @@ def parse_uri(uri):
     device, _, query = rest.partition("?")
     if device.startswith("//"):
         device = device[2:]
-    options = {}
+    options: dict[str, str] = {}
     if query:
         for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=False):
             options[key] = value

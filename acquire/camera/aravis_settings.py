@@ -60,7 +60,7 @@ def _as_pixel_format(name, value):
     return fmt.name
 
 
-def as_user_set(name, value):
+def as_user_set(name: str, value: object) -> str:
     text = str(value).strip()
     if not text:
         raise SourceError(f"option {name}=: name a user set (e.g. Default, UserSet1) or none")
@@ -247,7 +247,7 @@ def _read_packet_size(source):
     return cam.gv_get_packet_size() if cam.is_gv_device() else None
 
 
-def _apply_trigger(source, value):
+def _apply_trigger(source, value) -> None:
     genicam.apply_trigger(source._camera, source._call, value)
 
 
@@ -255,7 +255,7 @@ def _read_trigger(source):
     return genicam.read_trigger(source._camera, source._call)
 
 
-def shown(value):
+def shown(value: object) -> str:
     """A setting as a note shows it: 0,0,64,48 for a region, mode=On source=Line0 for a trigger."""
     if isinstance(value, (tuple, list)):
         return ",".join(str(v) for v in value)

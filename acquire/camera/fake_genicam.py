@@ -10,6 +10,12 @@
 The GigE Vision fakes are ``acquire.camera.fake_gige``'s; the images, ``acquire.camera.fake_motion``'s.
 """
 
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any, Literal
+
 from livedic.acquire.base import SourceError
 from livedic.acquire.camera import pixel_formats
 from livedic.acquire.camera.aravis import FAKE_FILL_HOOKS
@@ -29,13 +35,13 @@ USER_SET_SELECTOR_REGISTER = 0x1F4
 USER_SET_LOAD_REGISTER = 0x1F8
 
 
-def _int_reg(name, address):
+def _int_reg(name, address) -> str:
     return (f'\t<IntReg Name="{name}" NameSpace="Custom">\n\t\t<Address>0x{address:x}</Address>\n'
             "\t\t<Length>4</Length>\n\t\t<AccessMode>RW</AccessMode>\n\t\t<pPort>Device</pPort>\n"
             "\t\t<Sign>Unsigned</Sign>\n\t\t<Endianess>BigEndian</Endianess>\n\t</IntReg>\n\n")
 
 
-def _entry(name, value):
+def _entry(name, value) -> str:
     return f'\t\t<EnumEntry Name="{name}" NameSpace="Standard">\n\t\t\t<Value>{value}</Value>\n\t\t</EnumEntry>\n'
 
 
@@ -45,7 +51,7 @@ def _insert_before(xml, anchor, text):
     return xml.replace(anchor, text + anchor, 1)
 
 
-def extended_genicam_xml():
+def extended_genicam_xml() -> str:
     """Aravis's fake-camera GenICam XML (this Aravis's own) with more for tests.
 
     Added: the pixel formats Mono10, Mono12, Mono10p, Mono12p, Mono10Packed and Mono12Packed (the
@@ -91,23 +97,24 @@ class InProcessFakeCamera:
     ...         frame = next(iter(camera))
     """
 
-    def __init__(self, image_fn=None, *, device_id="Fake_1", genicam=None):
+    def __init__(self, image_fn: Callable[[int], Any] | None = None, *, device_id: str = "Fake_1",
+                 genicam: str | os.PathLike[str] | None = None) -> None:
         self.image_fn = image_fn if image_fn is not None else SpeckleMotion()
         self.device_id = device_id
         self.genicam = genicam
-        self.patterns = []  # one FillPattern per open, newest last
+        self.patterns: list[FillPattern] = []  # one FillPattern per open, newest last
 
     @property
-    def uri(self):
+    def uri(self) -> str:
         return f"{SCHEME}:{self.device_id}"
 
-    def _attach(self, camera):
+    def _attach(self, camera: Any) -> FillPattern:
         pattern = FillPattern(self.image_fn)
         pattern.install(camera.get_device().get_fake_camera())
         self.patterns.append(pattern)
         return pattern
 
-    def start(self):
+    def start(self) -> InProcessFakeCamera:
         Aravis, _ = load_aravis()
         Aravis.enable_interface("Fake")
         if self.genicam is not None:
@@ -115,15 +122,15 @@ class InProcessFakeCamera:
         FAKE_FILL_HOOKS[self.device_id] = self._attach
         return self
 
-    def stop(self):
+    def stop(self) -> None:
         if FAKE_FILL_HOOKS.get(self.device_id) == self._attach:
             del FAKE_FILL_HOOKS[self.device_id]
         if self.genicam is not None:
             set_fake_genicam(None)                # Aravis's own XML again
 
-    def __enter__(self):
+    def __enter__(self) -> InProcessFakeCamera:
         return self.start()
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.stop()
         return False

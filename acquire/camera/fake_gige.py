@@ -14,6 +14,8 @@ Run a GigE fake camera by hand (Ctrl-C stops it)::
     livedic cameras        # lists Aravis-Fake-LIVEDIC0 at 127.0.0.1
 """
 
+from __future__ import annotations
+
 import argparse
 import contextlib
 import ctypes
@@ -29,6 +31,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Sequence
+from typing import IO, Any, Literal, TypeVar, cast
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.camera import aravis as _aravis
@@ -44,7 +48,7 @@ GVCP_PORT = 3956
 # GigE Vision fake camera in a child process
 # --------------------------------------------------------------------------- #
 
-def _serve_gige_child():
+def _serve_gige_child() -> int:
     """Child process body (``python -m acquire.camera.fake_gige --child``).
 
     stdin: 8-byte length + pickle of ``(image_fn, address, serial, genicam)``, then command
@@ -54,7 +58,7 @@ def _serve_gige_child():
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
     stdin, stdout = sys.stdin.buffer, sys.stdout
 
-    def answer(**message):
+    def answer(**message) -> None:
         stdout.write(json.dumps(message) + "\n")
         stdout.flush()
 
@@ -108,7 +112,7 @@ class _GvcpAddressLock:
     in this process (its GVCP writes time out for ~7 s) so that they cannot reach the new simulator.
     """
 
-    def __init__(self, address, timeout_s):
+    def __init__(self, address, timeout_s) -> None:
         self.address = address
         self.timeout_s = timeout_s
         self._file = None
@@ -138,7 +142,7 @@ class _GvcpAddressLock:
             self.release()
             raise
 
-    def release(self):
+    def release(self) -> None:
         if self._file is not None:
             try:
                 fcntl.flock(self._file, fcntl.LOCK_UN)
@@ -147,7 +151,7 @@ class _GvcpAddressLock:
                 self._file = None
 
 
-def _stop_process(process, polite):
+def _stop_process(process, polite) -> None:
     """End a simulator process: ``polite()`` (may be None), then SIGTERM, then SIGKILL; waits for it."""
     steps = ([polite] if polite is not None else []) + [process.terminate, process.kill]
     for step in steps:
@@ -174,34 +178,46 @@ _PRCTL = _load_prctl()           # looked up here: the forked child only calls i
 _PR_SET_PDEATHSIG = 1
 
 
-def _die_with_parent():
+def _die_with_parent() -> None:
     """``preexec_fn``: the kernel kills the child when the thread that started it dies (a killed test run
     leaves no simulator holding port 3956). Linux only; elsewhere a no-op."""
     if _PRCTL is not None:
         _PRCTL(_PR_SET_PDEATHSIG, int(signal.SIGKILL))
 
 
+_S = TypeVar("_S", bound="_Simulator")
+
+
 class _Simulator:
     """A GigE simulator process (``serial``, ``_process``): ``with simulator:`` starts it and stops it;
     dropping it stops it too (the address is freed)."""
 
+    serial: str
+    _process: subprocess.Popen[bytes] | None
+
+    def start(self: _S) -> _S:
+        raise NotImplementedError        # each simulator starts its own process
+
+    def stop(self) -> None:
+        raise NotImplementedError
+
     @property
-    def device_id(self):
+    def device_id(self) -> str:
         """The Aravis id discovery lists it by."""
         return f"Aravis-Fake-{self.serial}"
 
     @property
-    def alive(self):
+    def alive(self) -> bool:
         return self._process is not None and self._process.poll() is None
 
-    def __enter__(self):
+    def __enter__(self: _S) -> _S:
         return self.start()
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.stop()
         return False
 
-    def __del__(self):
+    def __del__(self) -> None:
         with contextlib.suppress(Exception):
             self.stop()
 
@@ -233,8 +249,9 @@ class GigEFakeCamera(_Simulator):
     9000-byte packets unless ``packet_size`` says otherwise (the camera's default is 1400).
     """
 
-    def __init__(self, image_fn=None, *, serial="LIVEDIC0", address="127.0.0.1", genicam=None,
-                 start_timeout_s=20.0, lock_timeout_s=60.0):
+    def __init__(self, image_fn: Callable[[int], Any] | None = None, *, serial: str = "LIVEDIC0",
+                 address: str = "127.0.0.1", genicam: str | os.PathLike[str] | None = None,
+                 start_timeout_s: float = 20.0, lock_timeout_s: float = 60.0) -> None:
         self.image_fn = image_fn if image_fn is not None else SpeckleMotion()
         self.serial = serial
         self.address = address
@@ -245,12 +262,12 @@ class GigEFakeCamera(_Simulator):
         self._lock = _GvcpAddressLock(address, lock_timeout_s)
 
     @property
-    def uri(self):
+    def uri(self) -> str:
         """``aravis:<address>``: opening by address skips matching the discovered list."""
         return f"{SCHEME}:{self.address}"
 
     @property
-    def pid(self):
+    def pid(self) -> int | None:
         return self._process.pid if self._process is not None else None
 
     def start(self):
@@ -308,24 +325,26 @@ class GigEFakeCamera(_Simulator):
         if self._read_answer(2.0) != {"reset": True}:
             raise SourceError("the fake GigE camera did not acknowledge reset")
 
-    def kill(self):
+    def kill(self) -> None:
         """SIGKILL the child: the camera vanishes mid-stream, like a pulled cable."""
-        if self.alive:
-            self._process.kill()
-            self._process.wait(timeout=5)
+        process = self._process
+        if self.alive and process is not None:       # alive: it is there and running
+            process.kill()
+            process.wait(timeout=5)
 
-    def stop(self):
+    def stop(self) -> None:
         """Stop the child (politely, then by force) and free the address."""
         process, self._process = self._process, None
         try:
             if process is not None:
-                def ask():
-                    process.stdin.write(b"stop\n")
-                    process.stdin.flush()
+                stdin = cast(IO[bytes], process.stdin)        # the child was started with stdin=PIPE
+
+                def ask() -> None:
+                    stdin.write(b"stop\n")
+                    stdin.flush()
                 _stop_process(process, ask)
         finally:
             self._lock.release()
-
 
 
 # --------------------------------------------------------------------------- #
@@ -362,8 +381,9 @@ class ArvFakeGvCamera(_Simulator):
         ``start_timeout_s`` (its stderr is quoted).
     """
 
-    def __init__(self, *, serial="GV01", address="127.0.0.1", genicam=None, program=ARV_FAKE_GV_CAMERA,
-                 start_timeout_s=20.0, lock_timeout_s=60.0):
+    def __init__(self, *, serial: str = "GV01", address: str = "127.0.0.1",
+                 genicam: str | os.PathLike[str] | None = None, program: str = ARV_FAKE_GV_CAMERA,
+                 start_timeout_s: float = 20.0, lock_timeout_s: float = 60.0) -> None:
         self.serial = serial
         self.address = address
         self.genicam = genicam
@@ -371,8 +391,8 @@ class ArvFakeGvCamera(_Simulator):
         self.start_timeout_s = start_timeout_s
         self._lock = _GvcpAddressLock(address, lock_timeout_s)
         self._process = None
-        self._log = None
-        self.listing = None            # the list_cameras() entry that found it
+        self._log: IO[bytes] | None = None
+        self.listing: dict[str, Any] | None = None     # the list_cameras() entry that found it
 
     def start(self):
         """Run the program and wait until GigE discovery lists it; returns self."""
@@ -410,14 +430,14 @@ class ArvFakeGvCamera(_Simulator):
         raise SourceError(f"GigE discovery did not find {self.device_id} on {self.address} within "
                           f"{self.start_timeout_s:g} s; {self.program} said: {self.output() or 'nothing'}")
 
-    def output(self):
+    def output(self) -> str:
         """What the program printed (stdout and stderr), for error messages."""
         if self._log is None:
             return ""
         self._log.seek(0)
         return self._log.read().decode(errors="replace").strip()[-2000:]
 
-    def stop(self):
+    def stop(self) -> None:
         """End the program and free the address."""
         process, self._process = self._process, None
         try:
@@ -430,19 +450,18 @@ class ArvFakeGvCamera(_Simulator):
             self._lock.release()
 
 
-
 # --------------------------------------------------------------------------- #
 # Command line: run a GigE fake camera until Ctrl-C
 # --------------------------------------------------------------------------- #
 
-def _pair(text):
+def _pair(text: str) -> tuple[int, ...]:
     parts = text.lower().replace("x", ",").split(",")
     if len(parts) != 2:
         raise argparse.ArgumentTypeError(f"expected two integers, got {text!r}")
     return tuple(int(p) for p in parts)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     if (sys.argv[1:] if argv is None else argv) == ["--child"]:
         return _serve_gige_child()
     parser = argparse.ArgumentParser(prog="python -m livedic.acquire.camera.fake_gige",

@@ -12,10 +12,15 @@ bit depth (uint8 x 257 for Mono16, uint16 >> 8 for Mono8) and packed formats are
 packed (``acquire.camera.pixel_formats.pack``).
 """
 
+from __future__ import annotations
+
 import ctypes
 import logging
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.acquire.camera import pixel_formats
 from livedic.acquire.camera.aravis_discovery import load_aravis
@@ -73,8 +78,9 @@ class SpeckleMotion:
     True
     """
 
-    def __init__(self, shape=(512, 512), *, step=(1, -1), max_displacement=32, bit_depth=8, seed=0,
-                 speckle_px=2.0, pattern="blur"):
+    def __init__(self, shape: tuple[int, int] = (512, 512), *, step: tuple[int, int] = (1, -1),
+                 max_displacement: int = 32, bit_depth: int = 8, seed: int = 0, speckle_px: float = 2.0,
+                 pattern: str = "blur") -> None:
         height, width = (int(shape[0]), int(shape[1]))
         if height <= 0 or width <= 0:
             raise ValueError(f"shape {shape} must be positive")
@@ -92,22 +98,22 @@ class SpeckleMotion:
         self.seed = seed
         self.speckle_px = float(speckle_px)
         self.pattern = pattern
-        self._canvas = None
+        self._canvas: np.ndarray | None = None
 
-    def __getstate__(self):  # pickled into the GigE child: send parameters, not pixels
+    def __getstate__(self) -> dict[str, Any]:  # pickled into the GigE child: send parameters, not pixels
         state = dict(self.__dict__)
         state["_canvas"] = None
         return state
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f"SpeckleMotion(shape={self.shape}, step={self.step}, max_displacement={self.max_displacement}, "
                 f"bit_depth={self.bit_depth}, seed={self.seed})")
 
     @property
-    def dtype(self):
+    def dtype(self) -> type[np.unsignedinteger]:
         return np.uint8 if self.bit_depth == 8 else np.uint16
 
-    def displacement(self, k):
+    def displacement(self, k: int) -> tuple[int, int]:
         """Integer ``(u, v)`` of frame k relative to frame 0."""
         m = self.max_displacement
         return (_triangle(k * self.step[0], m), _triangle(k * self.step[1], m))
@@ -145,7 +151,7 @@ class SpeckleMotion:
 
 _FILL_TYPE = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32, ctypes.c_uint32,
                               ctypes.c_uint32)
-_LIB = None
+_LIB: Any = None        # libaravis through ctypes, once loaded
 
 
 def _libaravis():
@@ -165,7 +171,7 @@ def _libaravis():
     return _LIB
 
 
-def set_fake_genicam(path):
+def set_fake_genicam(path: str | None) -> None:
     """``arv_set_fake_camera_genicam_filename`` (through ctypes: gi refuses None, which restores Aravis's XML)."""
     lib = _libaravis()
     lib.arv_set_fake_camera_genicam_filename.argtypes = [ctypes.c_char_p]
@@ -188,18 +194,18 @@ class FillPattern:
     the C side holds a bare pointer to the callback.
     """
 
-    def __init__(self, image_fn):
+    def __init__(self, image_fn: Callable[[int], Any]) -> None:
         self.image_fn = image_fn
         self.frames_served = 0
         self.errors = 0
-        self.last_error = None
+        self.last_error: str | None = None
         self._callback = _FILL_TYPE(self._fill)
 
-    def install(self, fake_camera):
+    def install(self, fake_camera: Any) -> None:
         """Attach to a gi ``Aravis.FakeCamera``."""
         _libaravis().arv_fake_camera_set_fill_pattern(_gobject_address(fake_camera), self._callback, None)
 
-    def _fill(self, buffer, _data, _exposure_us, _gain, pixel_format):
+    def _fill(self, buffer, _data, _exposure_us, _gain, pixel_format) -> None:
         # Runs in an Aravis thread: an exception must not cross into C.
         try:
             k = self.frames_served
@@ -232,7 +238,7 @@ class FillPattern:
             self.last_error = repr(error)
 
 
-def served_as(image, bit_depth):
+def served_as(image: npt.ArrayLike, bit_depth: int) -> np.ndarray:
     """``image`` (uint8 or uint16) as a ``bit_depth``-bit camera sends it: uint8 for 8 bits, else uint16.
 
     8-bit images are stretched to the full range (x 257 for 16 bits: 255 -> 65535), 16-bit ones keep

@@ -23,8 +23,12 @@ Trigger(mode='line', line=1, edge='falling')
 ('software', 'RisingEdge')
 """
 
+from __future__ import annotations
+
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, cast
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.options import parse_bool, parse_number
@@ -36,6 +40,9 @@ TRIGGER_SELECTOR = "FrameStart"      # the trigger livedic sets: one exposure pe
 DEFAULT_USER_SET = "Default"         # the factory settings (SFNC UserSetSelector entry)
 _EDGES = {"rising": "RisingEdge", "falling": "FallingEdge"}
 _TRIGGER_FORMS = "trigger=free, trigger=software or trigger=line:N[:rising|falling] (e.g. line:1:rising)"
+
+Camera = Any                     # an opened Aravis.Camera (gi objects come without type stubs)
+Call = Callable[..., Any]        # call(what, function, *args): AravisCamera._call, GLib.Error -> SourceError
 
 
 @dataclass(frozen=True)
@@ -59,16 +66,16 @@ class Trigger:
     @property
     def activation(self) -> str | None:
         """The TriggerActivation entry (line triggers only)."""
-        return _EDGES[self.edge] if self.mode == "line" else None
+        return _EDGES[cast(str, self.edge)] if self.mode == "line" else None     # a line trigger has an edge
 
-    def __str__(self):
+    def __str__(self) -> str:
         return f"line:{self.line}:{self.edge}" if self.mode == "line" else self.mode
 
 
 FREE_RUNNING = Trigger("free")
 
 
-def parse_trigger(name: str, value) -> Trigger:
+def parse_trigger(name: str, value: object) -> Trigger:
     """A ``Trigger`` from ``free``, ``software`` or ``line:N[:rising|falling]``; ``SourceError`` otherwise."""
     if isinstance(value, Trigger):
         return value
@@ -84,11 +91,11 @@ def parse_trigger(name: str, value) -> Trigger:
     raise SourceError(f"option {name}={value!r}: write {_TRIGGER_FORMS}")
 
 
-def _entries(camera, call, feature):
+def _entries(camera: Camera, call: Call, feature: str) -> list[str]:
     return list(call(f"read the entries of {feature}", camera.dup_available_enumerations_as_strings, feature) or [])
 
 
-def _set_entry(camera, call, feature, entry, asked):
+def _set_entry(camera: Camera, call: Call, feature: str, entry: str | None, asked: str) -> None:
     """Set enumeration ``feature`` to ``entry`` (it must be offered); ``asked`` names the option in errors."""
     offered = _entries(camera, call, feature)
     if entry not in offered:
@@ -97,7 +104,7 @@ def _set_entry(camera, call, feature, entry, asked):
     call(f"set {feature}={entry}", camera.set_string, feature, entry)
 
 
-def apply_trigger(camera, call, trigger: Trigger):
+def apply_trigger(camera: Camera, call: Call, trigger: Trigger) -> None:
     """Switch every trigger off, then set ``trigger`` (TriggerSelector=FrameStart, mode, source, activation).
 
     A camera without trigger features runs free; asking it for a trigger raises ``SourceError``.
@@ -125,9 +132,9 @@ def apply_trigger(camera, call, trigger: Trigger):
         call("set AcquisitionFrameRateEnable=false", camera.set_boolean, "AcquisitionFrameRateEnable", False)
 
 
-def read_trigger(camera, call) -> dict:
+def read_trigger(camera: Camera, call: Call) -> dict[str, Any]:
     """The FrameStart trigger as the camera reports it: mode, source, activation, selector (None if absent)."""
-    out = {}
+    out: dict[str, Any] = {}
     if camera.is_feature_available("TriggerSelector"):
         if TRIGGER_SELECTOR in _entries(camera, call, "TriggerSelector"):
             call(f"select the {TRIGGER_SELECTOR} trigger", camera.set_string, "TriggerSelector", TRIGGER_SELECTOR)
@@ -143,7 +150,7 @@ _KINDS = (("enumeration", "GcEnumeration"), ("boolean", "GcBoolean"), ("command"
           ("integer", "GcInteger"), ("float", "GcFloat"), ("string", "GcString"))
 
 
-def feature_kind(camera, name: str) -> str | None:
+def feature_kind(camera: Camera, name: str) -> str | None:
     """The GenICam type of feature ``name``: integer, float, boolean, enumeration, string, command; None if absent."""
     node = camera.get_device().get_feature(name)
     if node is None:
@@ -154,7 +161,7 @@ def feature_kind(camera, name: str) -> str | None:
     return next((kind for kind, type_name in _KINDS if type_name in types), "other")
 
 
-def _parse_value(kind, option, text):
+def _parse_value(kind: str, option: str, text: object) -> Any:
     try:
         if kind == "integer":
             stripped = str(text).strip()
@@ -168,15 +175,16 @@ def _parse_value(kind, option, text):
     return str(text)
 
 
-def read_feature(camera, call, name: str, kind: str | None = None):
+def read_feature(camera: Camera, call: Call, name: str, kind: str | None = None) -> Any:
     """The value of feature ``name`` as the camera reports it (int, float, bool or str)."""
     kind = kind or feature_kind(camera, name)
-    getter = {"integer": camera.get_integer, "float": camera.get_float, "boolean": camera.get_boolean}.get(
-        kind, camera.get_string)
+    getters: dict[str | None, Call] = {"integer": camera.get_integer, "float": camera.get_float,
+                                       "boolean": camera.get_boolean}
+    getter = getters.get(kind, camera.get_string)
     return call(f"read {name}", getter, name)
 
 
-def _check_writable(camera, option, name):
+def _check_writable(camera: Camera, option: str, name: str) -> None:
     node = camera.get_device().get_feature(name)
     if getattr(node.get_actual_access_mode(), "value_nick", "") == "ro":
         raise SourceError(f"option {option}: {name} is read-only on this camera")
@@ -185,7 +193,7 @@ def _check_writable(camera, option, name):
                           "it may depend on another feature)")
 
 
-def set_feature(camera, call, name: str, text) -> tuple:
+def set_feature(camera: Camera, call: Call, name: str, text: object) -> tuple[Any, Any, str | None]:
     """Set GenICam feature ``name`` from ``text`` by its type, then read it back.
 
     Returns
@@ -238,14 +246,14 @@ def set_feature(camera, call, name: str, text) -> tuple:
 
 # --------------------------------------------------------------------------- user sets
 
-def user_sets(camera, call) -> list:
+def user_sets(camera: Camera, call: Call) -> list[str]:
     """The UserSetSelector entries, [] when the camera cannot load user sets."""
     if not (camera.is_feature_available("UserSetSelector") and camera.is_feature_available("UserSetLoad")):
         return []
     return _entries(camera, call, "UserSetSelector")
 
 
-def load_user_set(camera, call, name: str) -> bool:
+def load_user_set(camera: Camera, call: Call, name: str) -> bool:
     """Load user set ``name`` (UserSetSelector, then UserSetLoad); False when the camera has no such set."""
     if name not in user_sets(camera, call):
         return False

@@ -20,10 +20,14 @@ or ``v4l2:0`` with options in a query string
 (``v4l2:/dev/video0?width=1280&height=1024&fourcc=GREY&frame_rate=30``).
 """
 
+from __future__ import annotations
+
 import logging
 import math
 import os
 import time
+from collections.abc import Sequence
+from typing import Any, Literal, cast
 from urllib.parse import parse_qsl
 
 import numpy as np
@@ -51,7 +55,7 @@ def _fourcc_bytes(value):
     return code.to_bytes(4, "little", signed=False) if code < 2 ** 32 else _UNKNOWN_FORMAT
 
 
-def _quiet_ffmpeg():
+def _quiet_ffmpeg() -> None:
     """Silence FFmpeg's own stderr lines ("moov atom not found" ...): livedic says what went wrong, in one line.
 
     OpenCV reads ``OPENCV_FFMPEG_LOGLEVEL`` (an FFmpeg ``AV_LOG_*`` level; -8 is ``AV_LOG_QUIET``) when it first
@@ -63,7 +67,7 @@ def _quiet_ffmpeg():
 def _quiet(cv2):
     """Context manager silencing OpenCV's own log lines (e.g. the CONVERT_RGB=0 warning)."""
     class _Quiet:
-        def __enter__(self):
+        def __enter__(self) -> None:
             self.logging = getattr(getattr(cv2, "utils", None), "logging", None)
             self.level = None
             if self.logging is not None:
@@ -73,7 +77,7 @@ def _quiet(cv2):
                 except Exception:  # noqa: BLE001 - cosmetic
                     self.logging = None
 
-        def __exit__(self, *exc):
+        def __exit__(self, *exc: object) -> Literal[False]:
             if self.logging is not None and self.level is not None:
                 self.logging.setLogLevel(self.level)
             return False
@@ -99,7 +103,8 @@ class OpenCVCapture(FrameSource):
 
     is_device = False
 
-    def __init__(self, target, *, api, kind, open_params=(), realtime=False, uri=None):
+    def __init__(self, target: str | int, *, api: int, kind: str, open_params: Sequence[int] = (),
+                 realtime: bool = False, uri: str | None = None) -> None:
         import cv2
 
         self._cv2 = cv2
@@ -110,12 +115,12 @@ class OpenCVCapture(FrameSource):
         self._api = api
         self._open_params = list(open_params)
         self._convert = False   # True once the stream is known to need BGR -> grey
-        self._note = None
-        self._first = None      # (first frame already read) for the iterator
+        self._note: str | None = None
+        self._first: tuple[np.ndarray, int, Any] | None = None   # (first frame already read) for the iterator
         self._index = 0
         self._closed = False
-        self._capture = None
-        self._stream_info = {}
+        self._capture: Any = None              # the cv2.VideoCapture while open
+        self._stream_info: dict[str, Any] = {}
         self._pixel_format_code = _UNKNOWN_FORMAT
         try:
             self._open(convert_rgb=False)
@@ -123,11 +128,12 @@ class OpenCVCapture(FrameSource):
         except BaseException:
             self.close()
             raise
-        self._pixel_format = "Mono8" if self._first[0].dtype == np.uint8 else "Mono16"
+        first_image = cast(tuple[np.ndarray, int, Any], self._first)[0]      # set by _probe_first_frame
+        self._pixel_format = "Mono8" if first_image.dtype == np.uint8 else "Mono16"
         self._describe_stream()
 
     # ------------------------------------------------------------------ open
-    def _describe(self):
+    def _describe(self) -> str:
         return f"{self.kind} source {self.target}"
 
     def _open(self, *, convert_rgb):
@@ -144,12 +150,12 @@ class OpenCVCapture(FrameSource):
         self._capture = capture
         self._after_open(capture)
 
-    def _open_failure(self):
+    def _open_failure(self) -> str:
         if not os.path.exists(str(self.target)):
             return f"{self._describe()}: file not found"
         return f"{self._describe()}: OpenCV could not open it (not a video, or a codec FFmpeg lacks)"
 
-    def _after_open(self, capture):
+    def _after_open(self, capture) -> None:
         """Device settings go here (V4L2Camera)."""
 
     def _probe_first_frame(self):
@@ -207,13 +213,13 @@ class OpenCVCapture(FrameSource):
 
     # ------------------------------------------------------------- settings
     @property
-    def live(self):
+    def live(self) -> bool:
         return self.is_device or self.realtime     # a camera, or a file delivered at its timestamps
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         """Source description; stays available after close (taken when the stream was probed)."""
-        out = {"source": self.kind, "uri": self.uri, "target": str(self.target)}
+        out: dict[str, Any] = {"source": self.kind, "uri": self.uri, "target": str(self.target)}
         out.update(self._describe_stream())
         out["pixel_format"] = self._pixel_format
         out["converted_to_grey"] = self._convert
@@ -274,7 +280,7 @@ class OpenCVCapture(FrameSource):
             log.warning("%s: video ended after %d of %d frames announced (truncated file?)",
                         self._describe(), self._index, expected)
 
-    def close(self):
+    def close(self) -> None:
         self._closed = True
         capture, self._capture = self._capture, None
         if capture is not None:
@@ -290,7 +296,7 @@ class VideoFile(OpenCVCapture):
 
     OPTIONS = {"realtime": "1 to deliver frames at the file's pace"}
 
-    def __init__(self, path, *, realtime=False, uri=None):
+    def __init__(self, path: str | os.PathLike[str], *, realtime: bool = False, uri: str | None = None) -> None:
         import cv2
 
         path = os.path.expanduser(os.fspath(path))
@@ -330,13 +336,14 @@ class V4L2Camera(OpenCVCapture):
                "fourcc": "pixel format, e.g. GREY, Y16, MJPG", "exposure_us": "manual exposure, microseconds",
                "gain": "gain, driver units"}
 
-    def __init__(self, device, *, width=None, height=None, frame_rate=None, fourcc=None, exposure_us=None,
-                 gain=None, api=None, uri=None):
+    def __init__(self, device: str | int, *, width: object = None, height: object = None, frame_rate: object = None,
+                 fourcc: object = None, exposure_us: object = None, gain: object = None, api: int | None = None,
+                 uri: str | None = None) -> None:
         import cv2
 
         if isinstance(device, str) and device.isdigit():
             device = int(device)
-        self._requested = {k: v for k, v in dict(width=width, height=height, frame_rate=frame_rate,
+        self._requested: dict[str, Any] = {k: v for k, v in dict(width=width, height=height, frame_rate=frame_rate,
                                                    fourcc=fourcc, exposure_us=exposure_us, gain=gain).items()
                            if v not in (None, "")}
         # Checked before opening; applied after (set() while not streaming, what the V4L2 backend expects).
@@ -355,7 +362,7 @@ class V4L2Camera(OpenCVCapture):
             self._requested["gain"] = as_float("gain", self._requested["gain"])
         super().__init__(device, api=cv2.CAP_V4L2 if api is None else api, kind="v4l2", uri=uri)
 
-    def _open_failure(self):
+    def _open_failure(self) -> str:
         target = self.target
         if isinstance(target, str) and target.startswith("/dev/") and not os.path.exists(target):
             present = sorted(n for n in os.listdir("/dev") if n.startswith("video")) if os.path.isdir("/dev") else []
@@ -364,7 +371,7 @@ class V4L2Camera(OpenCVCapture):
         return (f"{self._describe()}: OpenCV's V4L2 backend could not open it (busy in another program, "
                 f"no permission — add the user to the 'video' group — or not a capture device)")
 
-    def _after_open(self, capture):
+    def _after_open(self, capture) -> None:
         cv2 = self._cv2
         requested = self._requested
         if "fourcc" in requested:
@@ -395,13 +402,13 @@ class V4L2Camera(OpenCVCapture):
         return info
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         out = super().settings
         out["requested"] = dict(self._requested)
         return out
 
 
-def open_uri(uri, **options):
+def open_uri(uri: str, **options: Any) -> VideoFile | V4L2Camera:
     """``video:PATH`` -> :class:`VideoFile`; ``v4l2:DEVICE[?opts]`` -> :class:`V4L2Camera`."""
     scheme, _, rest = uri.partition(":")
     scheme = scheme.lower()
@@ -409,7 +416,8 @@ def open_uri(uri, **options):
         if not rest:
             raise SourceError("video: needs a file, e.g. 'video:test.mkv'")
         known = VideoFile.OPTIONS
-        cls, target, query = VideoFile, rest, {}
+        cls: type[VideoFile] | type[V4L2Camera] = VideoFile
+        target, query = rest, {}
     elif scheme == "v4l2":
         device, _, query_text = rest.partition("?")
         if device.startswith("//"):

@@ -143,7 +143,8 @@ def _unpack_stream(data, fmt, count):
     return out.reshape(-1)[:count]
 
 
-def unpack(data, fmt: PixelFormat, width: int, height: int, row_stride: int | None = None) -> np.ndarray:
+def unpack(data: np.ndarray | bytes | memoryview, fmt: PixelFormat, width: int, height: int,
+           row_stride: int | None = None) -> np.ndarray:
     """A packed image as a new ``uint16`` array of shape (height, width), values LSB-aligned.
 
     Parameters
@@ -166,17 +167,18 @@ def unpack(data, fmt: PixelFormat, width: int, height: int, row_stride: int | No
     data = np.frombuffer(data, np.uint8) if not isinstance(data, np.ndarray) else data.reshape(-1)
     _groups(fmt)
     line = fmt.line_bytes(width)
-    padded = row_stride is not None and row_stride != line
-    need = (height - 1) * row_stride + line if padded else -(-width * height * fmt.bits_per_pixel // 8)
+    stride = line if row_stride is None else row_stride
+    padded = stride != line
+    need = (height - 1) * stride + line if padded else -(-width * height * fmt.bits_per_pixel // 8)
     if data.size < need:
         raise ValueError(f"a {width}x{height} {fmt.name} image needs {need} bytes, got {data.size}")
     if not padded:
         return _unpack_stream(data, fmt, width * height).reshape(height, width)
-    rows = np.lib.stride_tricks.as_strided(data, (height, line), (row_stride, 1))
+    rows = np.lib.stride_tricks.as_strided(data, (height, line), (stride, 1))
     return np.stack([_unpack_stream(row, fmt, width) for row in rows])
 
 
-def pack(image, fmt: PixelFormat) -> np.ndarray:
+def pack(image: np.ndarray, fmt: PixelFormat) -> np.ndarray:
     """The bytes a camera sends for ``image`` (2-D, values below ``2**fmt.bit_depth``) in a packed format.
 
     The inverse of ``unpack`` (one bit stream over the frame); the fake cameras use it to serve packed

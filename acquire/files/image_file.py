@@ -20,9 +20,12 @@ the file's signature so the message says *truncated or corrupt PNG* rather
 than *unreadable*.
 """
 
+from __future__ import annotations
+
 import os
 import warnings
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 
@@ -46,24 +49,24 @@ _SAVE_AS = "save as 8- or 16-bit grey"
 _HEADER_BITS = {"1": 8, "L": 8, "P": 8, "LA": 8, "PA": 8, "I;16": 16, "I;16B": 16, "I;16L": 16, "I;16N": 16}
 
 
-def _format_of(data):
+def _format_of(data: bytes) -> str | None:
     for signature, name in SIGNATURES:
         if data.startswith(signature):
             return name
     return None
 
 
-def _fail(path, problem):
+def _fail(path: str, problem: str) -> NoReturn:
     raise ValueError(f"{path}: {problem}")
 
 
-def _channels_equal(image):
+def _channels_equal(image: np.ndarray) -> bool:
     """True when every channel of ``image`` (H, W, C) equals the first: grey stored as colour."""
     first = image[:, :, 0]
     return all(np.array_equal(first, image[:, :, k]) for k in range(1, image.shape[2]))
 
 
-def _decode(data):
+def _decode(data: bytes) -> np.ndarray | str | None:
     """``cv2.imdecode(..., IMREAD_UNCHANGED)`` with OpenCV's own stderr warnings silenced."""
     import cv2
 
@@ -93,10 +96,10 @@ class ImageHeader:
     """
     width: int
     height: int
-    bits: int = None
+    bits: int | None = None
 
 
-def read_image_header(path):
+def read_image_header(path: str | os.PathLike[str]) -> ImageHeader:
     """The size (and, for a grey file, the bit depth) of an image file, from its header.
 
     Pillow reads the header only (about 0.2 ms a file); a file Pillow cannot
@@ -125,11 +128,12 @@ def read_image_header(path):
                 return ImageHeader(image.width, image.height, _HEADER_BITS.get(image.mode))
     except Exception:  # noqa: BLE001 - not for Pillow (or too big for its guard): OpenCV decides, and says why
         pass
-    image, _ = read_grey_image(path)
-    return ImageHeader(image.shape[1], image.shape[0], image.dtype.itemsize * 8)
+    pixels, _ = read_grey_image(path)
+    return ImageHeader(pixels.shape[1], pixels.shape[0], pixels.dtype.itemsize * 8)
 
 
-def read_grey_image(path):
+def read_grey_image(path: str | os.PathLike[str]) -> tuple[np.ndarray, str | None]:
+
     """Read an 8- or 16-bit grey image file.
 
     Parameters
@@ -161,9 +165,16 @@ def read_grey_image(path):
     >>> image.dtype, image.shape, note
     (dtype('uint16'), (4, 5), None)
     """
-    import cv2
-
     name = os.fspath(path)
+    data = _read_file(name)
+    image = _decoded(name, data)
+    image, note = _as_grey(name, image)
+    _check_pixels(name, image)
+    return np.ascontiguousarray(image), note
+
+
+def _read_file(name: str) -> bytes:
+    """The file's bytes; the one-line ValueError of ``read_grey_image`` when it cannot be read or is empty."""
     try:
         with open(name, "rb") as file:
             data = file.read()
@@ -177,7 +188,11 @@ def read_grey_image(path):
         _fail(name, f"cannot read the file: {error.strerror or error}")
     if not data:
         _fail(name, "empty file (0 bytes)")
+    return data
 
+
+def _decoded(name: str, data: bytes) -> np.ndarray:
+    """The decoded pixels, as stored; a file OpenCV cannot decode, a cut PNG or an image without pixels fail."""
     kind = _format_of(data)
     decoded = _decode(data)
     if decoded is None or isinstance(decoded, str):
@@ -190,33 +205,47 @@ def read_grey_image(path):
         _fail(name, "truncated PNG file (no IEND chunk at the end)")
     if image.size == 0 or image.ndim < 2:
         _fail(name, f"image has no pixels (shape {image.shape})")
+    return image
 
+
+def _as_grey(name: str, image: np.ndarray) -> tuple[np.ndarray, str | None]:
+    """One channel from a multi-channel image, and the note saying what was dropped or converted.
+
+    Float and wider-than-16-bit colour images are left as they are: ``_check_pixels`` names their type.
+    """
+    import cv2
+
+    if image.ndim != 3:
+        return image, None
     note = None
-    if image.ndim == 3:
-        channels = image.shape[2]
-        if channels == 1:
-            image = image[:, :, 0]
-        elif channels in (3, 4):
-            if image.dtype.kind == "f" or image.dtype.itemsize > 2 or image.dtype.kind == "i":
-                pass  # reported below, before any conversion
-            elif _channels_equal(image[:, :, :3]):
-                # A grey image stored as colour: a palette (indexed) TIFF or PNG whose entries are all
-                # grey decodes to three equal channels. Its grey levels are exact: no conversion, no note.
-                image = np.ascontiguousarray(image[:, :, 0])
-                if channels == 4:
-                    note = f"{name}: grey + alpha image: alpha channel dropped"
-            else:
-                code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
-                image = cv2.cvtColor(image, code)
-                note = (f"{name}: colour image ({channels} channels) converted to grey "
-                        f"(0.299 R + 0.587 G + 0.114 B{', alpha dropped' if channels == 4 else ''}); "
-                        f"save grey images to avoid this")
-        elif channels == 2:
+    channels = image.shape[2]
+    if channels == 1:
+        image = image[:, :, 0]
+    elif channels in (3, 4):
+        if image.dtype.kind == "f" or image.dtype.itemsize > 2 or image.dtype.kind == "i":
+            pass  # reported by _check_pixels, before any conversion
+        elif _channels_equal(image[:, :, :3]):
+            # A grey image stored as colour: a palette (indexed) TIFF or PNG whose entries are all
+            # grey decodes to three equal channels. Its grey levels are exact: no conversion, no note.
             image = np.ascontiguousarray(image[:, :, 0])
-            note = f"{name}: grey + alpha image: alpha channel dropped"
+            if channels == 4:
+                note = f"{name}: grey + alpha image: alpha channel dropped"
         else:
-            _fail(name, f"{channels}-channel images are not supported: {_SAVE_AS}")
+            code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
+            image = cv2.cvtColor(image, code)
+            note = (f"{name}: colour image ({channels} channels) converted to grey "
+                    f"(0.299 R + 0.587 G + 0.114 B{', alpha dropped' if channels == 4 else ''}); "
+                    f"save grey images to avoid this")
+    elif channels == 2:
+        image = np.ascontiguousarray(image[:, :, 0])
+        note = f"{name}: grey + alpha image: alpha channel dropped"
+    else:
+        _fail(name, f"{channels}-channel images are not supported: {_SAVE_AS}")
+    return image, note
 
+
+def _check_pixels(name: str, image: np.ndarray) -> None:
+    """ValueError unless ``image`` is 2-D, unsigned 8 or 16 bits: the pixel types DIC reads untouched."""
     dtype = image.dtype
     if dtype.kind == "f":
         _fail(name, f"{dtype.itemsize * 8}-bit float images are not supported: {_SAVE_AS}")
@@ -230,4 +259,3 @@ def read_grey_image(path):
         _fail(name, f"pixel type {dtype} is not supported: {_SAVE_AS}")
     if image.ndim != 2:
         _fail(name, f"unexpected image shape {image.shape}: {_SAVE_AS}")
-    return np.ascontiguousarray(image), note

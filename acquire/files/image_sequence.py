@@ -18,12 +18,18 @@ files are converted to grey with a note logged once.
 Timestamps are ``index / frame_rate`` (default 1 fps): files carry no capture time.
 """
 
+from __future__ import annotations
+
 import glob
 import logging
 import os
 import re
 import time
+from collections.abc import Iterator, Sequence
+from typing import Any
 from urllib.parse import parse_qsl
+
+import numpy as np
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.files.image_file import read_grey_image, read_image_header
@@ -40,13 +46,13 @@ _DIGITS = re.compile(r"(\d+)")
 _QUERY = re.compile(r"\w+=[^&=]*(&\w+=[^&=]*)*")
 
 
-def natural_key(path):
+def natural_key(path: str | os.PathLike[str]) -> list[tuple[int, int, str]]:
     """Sort key where digit runs compare as numbers: frame_2 < frame_10 (case-insensitive)."""
     parts = _DIGITS.split(os.fspath(path).lower())
     return [(0, int(part), part) if part.isdigit() else (1, 0, part) for part in parts]
 
 
-def _find(pattern):
+def _find(pattern: str) -> list[str]:
     expanded = os.path.expanduser(pattern)
     if os.path.isdir(expanded):
         names = [os.path.join(expanded, n) for n in os.listdir(expanded)
@@ -57,7 +63,7 @@ def _find(pattern):
     return sorted(names, key=natural_key)
 
 
-def _check_alike(files):
+def _check_alike(files: Sequence[str]) -> None:
     """SourceError (one line) at the first file whose header differs in size or bit depth from the first's."""
     try:
         first = read_image_header(files[0])
@@ -100,7 +106,8 @@ class ImageSequence(FrameSource):
     OPTIONS = {"frame_rate": "frames per second for timestamps (default 1)",
                "realtime": "1 to deliver at frame_rate", "loop": "1 to repeat forever"}
 
-    def __init__(self, pattern, *, frame_rate=1.0, realtime=False, loop=False, uri=None):
+    def __init__(self, pattern: str | os.PathLike[str], *, frame_rate: float = 1.0, realtime: bool = False,
+                 loop: bool = False, uri: str | None = None) -> None:
         self.pattern = os.fspath(pattern)
         self.uri = uri or f"{SCHEME}:{self.pattern}"
         self.frame_rate = as_float("frame_rate", frame_rate, low=0, low_open=True)
@@ -111,16 +118,16 @@ class ImageSequence(FrameSource):
             raise SourceError(f"no image files match '{self.pattern}' (give a glob such as "
                               f"'frames/img_*.png' or a folder of PNG/TIFF files)")
         _check_alike(self.files)
-        self.notes = []
-        self._first = None  # (shape, dtype, name) of the first image
+        self.notes: list[str] = []
+        self._first: tuple[tuple[int, ...], np.dtype, str] | None = None  # (shape, dtype, name) of the first image
         self._closed = False
 
     @property
-    def live(self):
+    def live(self) -> bool:
         return self.realtime          # delivered at the frames' own pace, like a camera
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         out = {"source": SCHEME, "uri": self.uri, "pattern": self.pattern, "n_files": len(self.files),
                "first_file": self.files[0], "last_file": self.files[-1], "frame_rate": self.frame_rate,
                "realtime": self.realtime, "loop": self.loop, "notes": list(self.notes)}
@@ -130,7 +137,7 @@ class ImageSequence(FrameSource):
                         "pixel_format": "Mono8" if dtype.itemsize == 1 else "Mono16"})
         return out
 
-    def _read(self, path):
+    def _read(self, path: str) -> tuple[np.ndarray, str | None]:
         try:
             image, note = read_grey_image(path)
         except ValueError as error:
@@ -149,7 +156,7 @@ class ImageSequence(FrameSource):
                     f"{first} ({shape[1]}x{shape[0]} {dtype}): every image must have the same size and bit depth")
         return image, note
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         index = 0
         start = time.monotonic()
         while not self._closed:
@@ -162,7 +169,7 @@ class ImageSequence(FrameSource):
                     delay = start + timestamp_ns * 1e-9 - time.monotonic()
                     if delay > 0:
                         time.sleep(delay)
-                metadata = {"path": path}
+                metadata: dict[str, Any] = {"path": path}
                 if note:
                     metadata["note"] = note
                 yield Frame(index=index, timestamp_ns=timestamp_ns, image=image,
@@ -171,14 +178,14 @@ class ImageSequence(FrameSource):
             if not self.loop:
                 return
 
-    def close(self):
+    def close(self) -> None:
         self._closed = True
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.files)
 
 
-def open_uri(uri, **options):
+def open_uri(uri: str, **options: Any) -> ImageSequence:
     """``images:PATTERN[?frame_rate=F&realtime=0|1&loop=0|1]`` -> :class:`ImageSequence` (keywords override)."""
     if uri[:len(SCHEME) + 1].lower() != SCHEME + ":":
         raise SourceError(f"not an images URI: {uri!r} (expected 'images:GLOB' or 'images:FOLDER')")

@@ -2,10 +2,15 @@
 time; and ``_KnownSamples``, what a force known in full before the session shares (a file, the simulator's law).
 """
 
+from __future__ import annotations
+
 import csv
 import math
+import os
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.acquire.force.source import (CSV_HEADER, DEFAULT_MAX_GAP_S, TIME_BASE_SESSION, LoadError, LoadSource,
                                           interpolate_force)
@@ -13,7 +18,7 @@ from livedic.acquire.force.source import (CSV_HEADER, DEFAULT_MAX_GAP_S, TIME_BA
 __all__ = ["CsvLoad", "read_force_csv", "csv_max_gap_s"]
 
 
-def read_force_csv(path):
+def read_force_csv(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     """``(time_s, force_N)`` arrays from a CSV with header ``time_s,force_N`` (more columns allowed after).
 
     Raises
@@ -27,7 +32,8 @@ def read_force_csv(path):
     except OSError as error:
         raise LoadError(f"load file {path}: cannot be read ({error.strerror or error}); "
                         f"expected a CSV with header time_s,force_N") from None
-    times, forces = [], []
+    times: list[float] = []
+    forces: list[float] = []
     with handle:
         try:
             rows = csv.reader(handle)
@@ -56,17 +62,17 @@ def read_force_csv(path):
     return np.asarray(times, np.float64), np.asarray(forces, np.float64)
 
 
-def _finite(path, line, name, cell):
+def _finite(path: str | os.PathLike[str], line: int, name: str, cell: str) -> float:
     try:
         value = float(cell)
     except ValueError:
-        value = None
-    if value is None or not math.isfinite(value):
+        value = math.nan
+    if not math.isfinite(value):
         raise LoadError(f"load file {path} line {line}: {name} {cell.strip()[:30]!r} is not a finite number")
     return value
 
 
-def csv_max_gap_s(time_s):
+def csv_max_gap_s(time_s: np.ndarray) -> float:
     """Default gap that is a stall in a file: ``DEFAULT_MAX_GAP_S`` or 5 median sample intervals if longer.
 
     Why: a slow export (1 Hz) is not a stall at every sample, yet a hole of several intervals is.
@@ -87,21 +93,22 @@ class _KnownSamples(LoadSource):
     _time = np.zeros(0)
     _force = np.zeros(0)
 
-    def samples(self):
+    def samples(self) -> tuple[np.ndarray, np.ndarray]:
         return self._time.copy(), self._force.copy()
 
-    def force_at(self, times_s):
+    def force_at(self, times_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
         return interpolate_force(self._time, self._force, times_s, self.max_gap_s)
 
     @property
-    def last_sample_time_s(self):
+    def last_sample_time_s(self) -> float:
         return float(self._time[-1]) if self._time.size else math.nan
 
 
 class CsvLoad(_KnownSamples):
     """Force from a CSV file; times are seconds since the session's first frame, plus ``offset_s``."""
 
-    def __init__(self, path, *, offset_s=0.0, max_gap_s=None, uri=None):
+    def __init__(self, path: str | os.PathLike[str], *, offset_s: float = 0.0, max_gap_s: float | None = None,
+                 uri: str | None = None) -> None:
         self.path = str(path)
         self.uri = uri or f"csv:{self.path}"
         self.offset_s = float(offset_s)
@@ -110,5 +117,5 @@ class CsvLoad(_KnownSamples):
         self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(time_s)
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return {**super().settings, "offset_s": self.offset_s}

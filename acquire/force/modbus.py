@@ -1,8 +1,12 @@
 """``modbus://HOST:PORT?register=N``: force polled from one Modbus TCP register by a background thread."""
 
+from __future__ import annotations
+
 import math
 import socket
 import time
+from collections.abc import Sequence
+from typing import Any, Literal, cast
 
 from livedic.acquire.force.source import (DEFAULT_KEEP_S, DEFAULT_MAX_GAP_S, DEFAULT_MAX_SAMPLES, DEFAULT_RETRY_S,
                                           LoadError, LoadEventKind, _address_and_options, _exception_name, _first_line,
@@ -21,12 +25,13 @@ MODBUS_FORM = ("modbus://HOST:PORT?register=N[&scale=K&kind=holding|input&type=i
                "&word_order=big|little&unit=ID&rate=HZ]")
 
 
-def modbus_register_count(value_type):
+def modbus_register_count(value_type: str) -> int:
     """Registers one value of ``value_type`` takes: 1 for 16-bit types, 2 for 32-bit ones."""
     return 2 if value_type in ("int32", "uint32", "float32") else 1
 
 
-def decode_registers(registers, value_type, word_order="big"):
+def decode_registers(registers: Sequence[int], value_type: str,
+                     word_order: Literal["big", "little"] = "big") -> int | float:
     """The number held in ``registers`` (16-bit words) as ``value_type``, by pymodbus's own conversion.
 
     Parameters
@@ -43,11 +48,12 @@ def decode_registers(registers, value_type, word_order="big"):
     int or float (float32 may be NaN or infinite: the caller decides).
     """
     from pymodbus.client import ModbusTcpClient
-    return ModbusTcpClient.convert_from_registers(list(registers), ModbusTcpClient.DATATYPE[value_type.upper()],
-                                                  word_order=word_order)
+    value = ModbusTcpClient.convert_from_registers(list(registers), ModbusTcpClient.DATATYPE[value_type.upper()],
+                                                   word_order=word_order)
+    return cast("int | float", value)        # one number for the numeric types MODBUS_TYPES holds
 
 
-def _quiet_pymodbus():
+def _quiet_pymodbus() -> None:
     """pymodbus logs every refused connection and timeout as an error, with a dump of the last frames;
     livedic says each as one event instead. A NullHandler keeps those records from Python's
     last-resort stderr handler while still passing them to handlers an application configured."""
@@ -95,10 +101,12 @@ class ModbusLoad(StreamingLoad):
         Connect and answer timeout of one poll.
     """
 
-    def __init__(self, host, port, *, register, scale=1.0, kind="holding", value_type="int16", word_order="big",
-                 unit=1, rate_hz=DEFAULT_MODBUS_RATE_HZ, max_gap_s=None, retry_s=DEFAULT_RETRY_S,
-                 timeout_s=DEFAULT_MODBUS_TIMEOUT_S, keep_s=DEFAULT_KEEP_S, max_samples=DEFAULT_MAX_SAMPLES,
-                 offset_s=0.0, uri=None):
+    def __init__(self, host: str, port: int | str, *, register: int, scale: float = 1.0, kind: str = "holding",
+                 value_type: str = "int16", word_order: Literal["big", "little"] = "big", unit: int = 1,
+                 rate_hz: float = DEFAULT_MODBUS_RATE_HZ, max_gap_s: float | None = None,
+                 retry_s: float = DEFAULT_RETRY_S, timeout_s: float = DEFAULT_MODBUS_TIMEOUT_S,
+                 keep_s: float = DEFAULT_KEEP_S, max_samples: int = DEFAULT_MAX_SAMPLES, offset_s: float = 0.0,
+                 uri: str | None = None) -> None:
         rate_hz = float(rate_hz)
         if max_gap_s is None:
             max_gap_s = max(DEFAULT_MAX_GAP_S, 5.0 / rate_hz)
@@ -111,17 +119,17 @@ class ModbusLoad(StreamingLoad):
         self.uri = uri or f"modbus://{host}:{port}?register={self.register}&scale={self.scale:g}"
         self._count_registers = modbus_register_count(value_type)
         self.nominal_interval_s = 1.0 / rate_hz
-        self._client = None
+        self._client: Any = None                 # the reader thread's ModbusTcpClient while connected
         _quiet_pymodbus()
         self._start_thread()
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return {**super().settings, "register": self.register, "scale": self.scale, "kind": self.kind,
                 "type": self.value_type, "word_order": self.word_order, "unit": self.unit, "rate_hz": self.rate_hz,
                 "timeout_s": self.timeout_s}
 
-    def _wake(self):
+    def _wake(self) -> None:
         client = self._client
         sock = getattr(client, "socket", None)
         if sock is not None:
@@ -132,10 +140,10 @@ class ModbusLoad(StreamingLoad):
 
     # -- the reader thread --
 
-    def _where(self):
+    def _where(self) -> str:
         return f"{self.kind} register {self.register} ({self.value_type}) of unit {self.unit}"
 
-    def _connect(self):
+    def _connect(self) -> tuple[Any, str]:
         from pymodbus.client import ModbusTcpClient
         client = ModbusTcpClient(self.host, port=self.port, timeout=self.timeout_s, retries=0)
         if not client.connect():
@@ -144,11 +152,11 @@ class ModbusLoad(StreamingLoad):
         self._client = client
         return client, f"connected; polling the {self._where()} at {self.rate_hz:g} Hz"
 
-    def _hang_up(self, client):
+    def _hang_up(self, client: Any) -> None:
         self._client = None
         client.close()
 
-    def _read_until_lost(self, client):
+    def _read_until_lost(self, client: Any) -> str:
         """Poll until the connection is lost or ``close()``; the reason it ended."""
         from pymodbus.exceptions import ConnectionException, ModbusException
         read = client.read_holding_registers if self.kind == "holding" else client.read_input_registers
@@ -195,7 +203,7 @@ class ModbusLoad(StreamingLoad):
             self._stop.wait(due - now)
         return "closed"
 
-    def _take(self, response, stamp_s):
+    def _take(self, response: Any, stamp_s: float) -> str | None:
         """Store the sample a poll's answer holds; None, or what went wrong (counted)."""
         if isinstance(response, Exception):
             self._count("timeouts")
@@ -217,13 +225,13 @@ class ModbusLoad(StreamingLoad):
         return None
 
 
-def _open_modbus(uri, options):
+def _open_modbus(uri: str, options: dict[str, Any]) -> ModbusLoad:
     """``modbus://HOST:PORT?register=N&...`` (see ``ModbusLoad`` and docs/guide/tensile-test.md)."""
     host, port, merged = _address_and_options(uri, options, f"{MODBUS_FORM} (port 1-65535)")
     if "register" not in merged:
         raise LoadError(f"load {uri!r}: register= is required (the force register's 0-based address); "
                         f"expected {MODBUS_FORM}")
-    kwargs = {"register": int(_option("register", merged.pop("register"), low=0, integer=True))}
+    kwargs: dict[str, Any] = {"register": int(_option("register", merged.pop("register"), low=0, integer=True))}
     for name, keyword, allowed in (("kind", "kind", MODBUS_KINDS), ("type", "value_type", MODBUS_TYPES),
                                    ("word_order", "word_order", MODBUS_WORD_ORDERS)):
         if name in merged:

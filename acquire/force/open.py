@@ -5,10 +5,12 @@
 docs/guide/tensile-test.md ("The force sources in detail").
 """
 
+from typing import Any
+
 from livedic.acquire.force.csv_file import CsvLoad
 from livedic.acquire.force.modbus import _open_modbus
 from livedic.acquire.force.simulated import _open_synthetic
-from livedic.acquire.force.source import LoadError, _option
+from livedic.acquire.force.source import LoadError, LoadSource, _option
 from livedic.acquire.force.tcp import _open_tcp
 
 __all__ = ["open_load", "LOAD_USAGE"]
@@ -18,7 +20,7 @@ LOAD_USAGE = ("valid loads: csv:FILE (header time_s,force_N), tcp://HOST:PORT[?c
               "synthetic (with the synthetic:tensile camera) or synthetic:tensile?...")
 
 
-def open_load(uri, **options):
+def open_load(uri: str, **options: Any) -> LoadSource:
     """Open the force signal named by ``uri``.
 
     Parameters

@@ -1,5 +1,7 @@
 """``synthetic``: the simulated tensile test's force, one sample per frame of the simulated camera."""
 
+from typing import Any
+
 import numpy as np
 
 from livedic.acquire.force.csv_file import _KnownSamples, csv_max_gap_s
@@ -28,7 +30,8 @@ class SyntheticLoad(_KnownSamples):
         The source's ``specimen`` (A0, E, yield, Rp0.2, Rm): what the stress-strain curve needs.
     """
 
-    def __init__(self, source, *, uri="synthetic", offset_s=0.0, max_gap_s=None):
+    def __init__(self, source: Any, *, uri: str = "synthetic", offset_s: float = 0.0,
+                 max_gap_s: float | None = None) -> None:
         self.uri = uri
         self.source_uri = getattr(source, "uri", None)
         self.offset_s = float(offset_s)
@@ -38,11 +41,11 @@ class SyntheticLoad(_KnownSamples):
         self.max_gap_s = float(max_gap_s) if max_gap_s is not None else csv_max_gap_s(self._time)
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return {**super().settings, "source": self.source_uri, "offset_s": self.offset_s, "specimen": self.specimen}
 
 
-def _open_synthetic(uri, options):
+def _open_synthetic(uri: str, options: dict[str, Any]) -> SyntheticLoad:
     """``synthetic`` with ``source=`` (the session's simulated camera) or ``synthetic:tensile?...``."""
     source = options.pop("source", None)
     offset_s = _option("offset_s", options.pop("offset_s", 0.0))

@@ -4,13 +4,18 @@ two time bases, force interpolated between samples, and the parsing of a URI's o
 How a URI opens a source, the time bases and each source's behaviour: docs/guide/tensile-test.md.
 """
 
+from __future__ import annotations
+
 import enum
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any, Literal, TypeVar
 from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.acquire.options import parse_number
 
@@ -44,7 +49,7 @@ class LoadEventKind(str, enum.Enum):
     READ_FAILED = "read_failed"          # a poll without a value (exception, timeout): once per run of failures
 
     @property
-    def is_trouble(self):
+    def is_trouble(self) -> bool:
         """Whether the event is a warning (the force is, or may be, missing) rather than news."""
         return self in _TROUBLE
 
@@ -72,13 +77,14 @@ class LoadWarnings:
     timeouts: int = 0                # modbus: no answer to a poll within timeout_s
     bad_values: int = 0              # modbus: a float32 register holding NaN or infinity
 
-    def total(self):
+    def total(self) -> int:
         """How many lines or polls gave no sample (``trimmed`` excluded: those were good samples, dropped when old)."""
         return (self.garbage_lines + self.out_of_order + self.exception_responses + self.timeouts
                 + self.bad_values)
 
 
-def interpolate_force(sample_t, sample_f, times_s, max_gap_s):
+def interpolate_force(sample_t: npt.ArrayLike, sample_f: npt.ArrayLike, times_s: npt.ArrayLike,
+                      max_gap_s: float) -> npt.NDArray[np.float64]:
     """Force at ``times_s`` by linear interpolation between samples.
 
     Parameters
@@ -120,6 +126,9 @@ def interpolate_force(sample_t, sample_f, times_s, max_gap_s):
     return out
 
 
+_Load = TypeVar("_Load", bound="LoadSource")
+
+
 class LoadSource(ABC):
     """A force signal: ``force_at(times_s)`` on the clock named by ``time_base``.
 
@@ -132,15 +141,15 @@ class LoadSource(ABC):
     max_gap_s: float = DEFAULT_MAX_GAP_S
 
     @abstractmethod
-    def samples(self):
+    def samples(self) -> tuple[np.ndarray, np.ndarray]:
         """``(time_s, force_N)`` copies of the samples kept, on ``time_base``."""
 
-    def force_at(self, times_s):
+    def force_at(self, times_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Force (N) at ``times_s`` (see ``interpolate_force``): NaN where it is not known."""
         t, f = self.samples()
         return interpolate_force(t, f, times_s, self.max_gap_s)
 
-    def force_when_known(self, time_s, *, wait_s=None):
+    def force_when_known(self, time_s: float, *, wait_s: float | None = None) -> float:
         """Force (N) at one frame time, waiting (bounded) for a live stream's next sample.
 
         A live frame usually arrives before the stream's next sample, and force is never
@@ -154,7 +163,8 @@ class LoadSource(ABC):
         """
         return float(np.asarray(self.force_at(np.atleast_1d(np.float64(time_s))), np.float64)[0])
 
-    def frame_time_s(self, *, since_first_frame_s=None, arrival_ns=None):
+    def frame_time_s(self, *, since_first_frame_s: npt.ArrayLike | None = None,
+                     arrival_ns: npt.ArrayLike | None = None) -> np.ndarray:
         """A frame's time on ``time_base``: its time since the first frame (session) or its arrival (monotonic).
 
         Both may be given (the session need not know the base); the one the base needs must be.
@@ -168,37 +178,37 @@ class LoadSource(ABC):
         return np.asarray(arrival_ns, np.float64) / 1e9
 
     @property
-    def last_sample_time_s(self):
+    def last_sample_time_s(self) -> float:
         """Time of the newest sample (NaN if none): frames later than this have no force yet."""
         t, _ = self.samples()
         return float(t[-1]) if t.size else math.nan
 
-    def events(self, since=0):
+    def events(self, since: int = 0) -> list[LoadEvent]:
         """``LoadEvent`` list, oldest first (a copy); ``since=n`` skips the n already seen (a poller's count)."""
         return []
 
     @property
-    def warnings(self):
+    def warnings(self) -> LoadWarnings:
         """``LoadWarnings`` snapshot."""
         return LoadWarnings()
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         """What describes this source in session metadata."""
         return {"uri": self.uri, "time_base": self.time_base, "max_gap_s": self.max_gap_s}
 
-    def close(self):
+    def close(self) -> None:
         pass
 
-    def __enter__(self):
+    def __enter__(self: _Load) -> _Load:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.close()
         return False
 
 
-def _exception_name(code):
+def _exception_name(code: int) -> str:
     from pymodbus.constants import ExcCodes
     try:
         return f"{int(code)} ({ExcCodes(code).name.lower().replace('_', ' ')})"
@@ -206,19 +216,20 @@ def _exception_name(code):
         return str(code)
 
 
-def _first_line(error):
+def _first_line(error: BaseException) -> str:
     text = str(error).strip().splitlines()
     return text[0] if text else type(error).__name__
 
 
-def _option(name, value, low=None, low_open=False, integer=False):
+def _option(name: str, value: object, low: float | None = None, low_open: bool = False,
+            integer: bool = False) -> float:
     try:
         return parse_number(value, low=low, low_open=low_open, integer=integer)
     except ValueError as error:
         raise LoadError(f"load option {name}={value!r}: {error}") from None
 
 
-def _address_and_options(uri, options, form):
+def _address_and_options(uri: str, options: Mapping[str, Any], form: str) -> tuple[str, int, dict[str, Any]]:
     """(host, port, options of the query updated with ``options``) of a stream URI; LoadError naming ``form``."""
     parts = urlsplit(uri)
     try:

@@ -3,12 +3,17 @@ monotonic clock in a bounded buffer, events, warning counts, the bounded wait fo
 reconnection; and ``parse_line``, a stream's text line (``force_N`` or ``time_s,force_N``).
 """
 
+from __future__ import annotations
+
 import math
 import threading
 import time
 from abc import abstractmethod
+from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.acquire.force.source import (MAX_EVENTS, TIME_BASE_MONOTONIC, LoadEvent, LoadEventKind, LoadSource,
                                           LoadWarnings, interpolate_force)
@@ -22,7 +27,7 @@ class _SampleBuffer:
     Not locked: its owner holds a lock around every call.
     """
 
-    def __init__(self, keep_s, max_samples):
+    def __init__(self, keep_s: float, max_samples: int) -> None:
         self.keep_s = keep_s
         self.max_samples = max_samples
         capacity = min(1024, max_samples)
@@ -32,24 +37,24 @@ class _SampleBuffer:
         self._end = 0
         self.trimmed = 0
 
-    def __len__(self):
+    def __len__(self) -> int:
         return self._end - self._start
 
     @property
-    def last_time(self):
+    def last_time(self) -> float:
         return self._t[self._end - 1] if self._end > self._start else -math.inf
 
-    def append(self, time_s, force_n):
+    def append(self, time_s: float, force_n: float) -> None:
         if self._end == self._t.size:
             self._make_room()
         self._t[self._end] = time_s
         self._f[self._end] = force_n
         self._end += 1
 
-    def view(self):
+    def view(self) -> tuple[np.ndarray, np.ndarray]:
         return self._t[self._start:self._end], self._f[self._start:self._end]
 
-    def _make_room(self):
+    def _make_room(self) -> None:
         # Why amortised: drop what is too old, then grow (doubling, up to max_samples) or drop the
         # oldest quarter at the cap, and move what is left to the front in one copy.
         t, f = self.view()
@@ -69,7 +74,7 @@ class _SampleBuffer:
         self._start, self._end = 0, kept_t.size
 
 
-def parse_line(text):
+def parse_line(text: str) -> tuple[float | None, float] | None:
     """``(time_s or None, force_N)`` from ``force_N`` or ``time_s,force_N``; None if it is garbage."""
     fields = text.split(",")
     if len(fields) > 2:
@@ -95,7 +100,8 @@ class StreamingLoad(LoadSource):
 
     time_base = TIME_BASE_MONOTONIC
 
-    def __init__(self, *, max_gap_s, retry_s, keep_s, max_samples, counts, offset_s=0.0):
+    def __init__(self, *, max_gap_s: float, retry_s: float, keep_s: float, max_samples: int, counts: Iterable[str],
+                 offset_s: float = 0.0) -> None:
         self.offset_s = float(offset_s)
         self.max_gap_s = float(max_gap_s)
         self.retry_s = float(retry_s)
@@ -103,36 +109,36 @@ class StreamingLoad(LoadSource):
         self._lock = threading.Lock()
         self._arrived = threading.Condition(self._lock)      # notified with every sample stored
         self._last_arrival_s = -math.inf                       # monotonic time the newest sample was stored
-        self.nominal_interval_s = None                         # a source that polls knows its period
-        self._events = []
+        self.nominal_interval_s: float | None = None           # a source that polls knows its period
+        self._events: list[LoadEvent] = []
         self._counts = dict.fromkeys(counts, 0)
         self._stop = threading.Event()
         self.connected = False
         self.connect_attempts = 0            # every try, the failed ones too (an outage is one event, not one per try)
-        self._thread = None
+        self._thread: threading.Thread | None = None
 
-    def _start_thread(self):
+    def _start_thread(self) -> None:
         self._thread = threading.Thread(target=self._run, name=f"livedic-load {self.uri}", daemon=True)
         self._thread.start()
 
     # -- what the session reads --
 
-    def samples(self):
+    def samples(self) -> tuple[np.ndarray, np.ndarray]:
         with self._lock:
             t, f = self._buffer.view()
             return t + self.offset_s, f.copy()
 
-    def force_at(self, times_s):
+    def force_at(self, times_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
         with self._lock:                       # no copy of the whole buffer per frame
             t, f = self._buffer.view()
             return interpolate_force(t, f, np.asarray(times_s, np.float64) - self.offset_s, self.max_gap_s)
 
     @property
-    def last_sample_time_s(self):
+    def last_sample_time_s(self) -> float:
         with self._lock:
             return float(self._buffer.last_time) + self.offset_s if len(self._buffer) else math.nan
 
-    def force_when_known(self, time_s, *, wait_s=None):
+    def force_when_known(self, time_s: float, *, wait_s: float | None = None) -> float:
         # Why the deadline is time_s + wait and not "now + wait": a session that is behind (its frames
         # queued) does not wait for frames whose samples are long known, so waits never add up; and
         # why the wait is about two sample intervals, not max_gap_s: at the start of a stall every
@@ -151,7 +157,7 @@ class StreamingLoad(LoadSource):
             times, forces = self._buffer.view()
             return float(interpolate_force(times, forces, np.float64(t), self.max_gap_s))
 
-    def _default_wait_s(self):
+    def _default_wait_s(self) -> float:
         """Two sample intervals (the median of the last few, else ``nominal_interval_s``) plus the
         newest sample's delivery lag (arrival minus its time: a sender's delay, a Modbus round
         trip), at most ``max_gap_s``; 0 while the interval is unknown. Called with the lock held."""
@@ -163,26 +169,26 @@ class StreamingLoad(LoadSource):
         lag = max(0.0, self._last_arrival_s - float(self._buffer.last_time)) if times.size else 0.0
         return min(self.max_gap_s, 2.0 * interval + lag)
 
-    def events(self, since=0):
+    def events(self, since: int = 0) -> list[LoadEvent]:
         with self._lock:
             return self._events[since:]
 
     @property
-    def warnings(self):
+    def warnings(self) -> LoadWarnings:
         with self._lock:
             return LoadWarnings(trimmed=self._buffer.trimmed, **self._counts)
 
     @property
-    def running(self):
+    def running(self) -> bool:
         """Whether the reader thread is alive."""
         return self._thread is not None and self._thread.is_alive()
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return {**super().settings, "retry_s": self.retry_s, "offset_s": self.offset_s,
                 "keep_s": self._buffer.keep_s, "max_samples": self._buffer.max_samples}
 
-    def close(self, timeout_s=2.0):
+    def close(self, timeout_s: float = 2.0) -> None:
         """Stop the reader thread (``_wake`` interrupts a blocked read; joined for at most ``timeout_s``)."""
         self._stop.set()
         with self._arrived:
@@ -191,12 +197,12 @@ class StreamingLoad(LoadSource):
         if self._thread is not None:
             self._thread.join(timeout_s)
 
-    def _wake(self):
+    def _wake(self) -> None:
         """Interrupt a read in progress (the thread checks ``_stop`` after it)."""
 
     # -- for the reader thread --
 
-    def _run(self):
+    def _run(self) -> None:
         """The reader thread: connect, read until the connection ends, reconnect every ``retry_s``, until ``_stop``.
 
         A failed connection is one event until one succeeds; each loss is an event, and a gap
@@ -228,32 +234,32 @@ class StreamingLoad(LoadSource):
             self._stop.wait(self.retry_s)
 
     @abstractmethod
-    def _connect(self):
+    def _connect(self) -> tuple[Any, str]:
         """(connection, "connected ..." message), or (None, "cannot connect ...") for the event."""
 
     @abstractmethod
-    def _read_until_lost(self, connection):
+    def _read_until_lost(self, connection: Any) -> str:
         """Read samples until the connection is lost or ``close()``; the reason it ended, in words."""
 
     @abstractmethod
-    def _hang_up(self, connection):
+    def _hang_up(self, connection: Any) -> None:
         """Close ``connection`` (the reader thread's; after ``_read_until_lost``)."""
 
     @property
-    def _outage_is_a_gap(self):
+    def _outage_is_a_gap(self) -> bool:
         """Whether a lost connection adds a NaN gap marker (sources stamping samples on arrival)."""
         return True
 
-    def _event(self, kind, message):
+    def _event(self, kind: LoadEventKind, message: str) -> None:
         with self._lock:
             if len(self._events) < MAX_EVENTS:
                 self._events.append(LoadEvent(kind, f"{self.uri}: {message}", time.monotonic()))
 
-    def _count(self, name, n=1):
+    def _count(self, name: str, n: int = 1) -> None:
         with self._lock:
             self._counts[name] += n
 
-    def _append(self, time_s, force_n):
+    def _append(self, time_s: float, force_n: float) -> bool:
         """Add one sample (NaN force: a gap marker) if it is later than the last one; whether it was."""
         with self._lock:
             if time_s > self._buffer.last_time:
@@ -262,7 +268,7 @@ class StreamingLoad(LoadSource):
                 return True
             return False
 
-    def _stored(self):
+    def _stored(self) -> None:
         """After samples were stored (lock held): note when, and wake ``force_when_known``."""
         self._last_arrival_s = time.monotonic()
         self._arrived.notify_all()

@@ -2,6 +2,7 @@
 
 import socket
 import time
+from typing import Any
 
 from livedic.acquire.force.source import (DEFAULT_KEEP_S, DEFAULT_MAX_GAP_S, DEFAULT_MAX_SAMPLES, DEFAULT_RETRY_S,
                                           MAX_LINE_BYTES, LoadError, LoadEventKind, _address_and_options, _option)
@@ -16,9 +17,10 @@ class TcpLoad(StreamingLoad):
     ``connected`` says whether a connection is open now, ``running`` whether the thread is alive.
     """
 
-    def __init__(self, host, port, *, clock="arrival", max_gap_s=DEFAULT_MAX_GAP_S, retry_s=DEFAULT_RETRY_S,
-                 keep_s=DEFAULT_KEEP_S, max_samples=DEFAULT_MAX_SAMPLES, connect_timeout_s=0.5, poll_s=0.05,
-                 offset_s=0.0, uri=None):
+    def __init__(self, host: str, port: int | str, *, clock: str = "arrival", max_gap_s: float = DEFAULT_MAX_GAP_S,
+                 retry_s: float = DEFAULT_RETRY_S, keep_s: float = DEFAULT_KEEP_S,
+                 max_samples: int = DEFAULT_MAX_SAMPLES, connect_timeout_s: float = 0.5, poll_s: float = 0.05,
+                 offset_s: float = 0.0, uri: str | None = None) -> None:
         super().__init__(max_gap_s=max_gap_s, retry_s=retry_s, keep_s=keep_s, max_samples=max_samples,
                          counts=("garbage_lines", "out_of_order", "superseded"), offset_s=offset_s)
         self.host, self.port = host, int(port)
@@ -26,15 +28,15 @@ class TcpLoad(StreamingLoad):
         self.clock = clock
         self.connect_timeout_s = float(connect_timeout_s)
         self.poll_s = float(poll_s)
-        self._socket = None
+        self._socket: socket.socket | None = None
         self._garbage_told = False
         self._start_thread()
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return {**super().settings, "clock": self.clock}
 
-    def _wake(self):
+    def _wake(self) -> None:
         sock = self._socket
         if sock is not None:
             try:
@@ -44,7 +46,7 @@ class TcpLoad(StreamingLoad):
 
     # -- the reader thread --
 
-    def _connect(self):
+    def _connect(self) -> tuple[socket.socket | None, str]:
         try:
             sock = socket.create_connection((self.host, self.port), timeout=self.connect_timeout_s)
         except OSError as error:
@@ -53,15 +55,15 @@ class TcpLoad(StreamingLoad):
         self._garbage_told = False
         return sock, "connected"
 
-    def _hang_up(self, sock):
+    def _hang_up(self, sock: socket.socket) -> None:
         self._socket = None
         sock.close()
 
     @property
-    def _outage_is_a_gap(self):
+    def _outage_is_a_gap(self) -> bool:
         return self.clock == "arrival"      # sender times: the gap shows in the samples' own times
 
-    def _read_until_lost(self, sock):
+    def _read_until_lost(self, sock: socket.socket) -> str:
         """Read until the stream ends, fails or ``close()``; the reason it ended."""
         sock.settimeout(self.poll_s)
         pending = b""
@@ -92,7 +94,7 @@ class TcpLoad(StreamingLoad):
             self._take(lines, arrival_ns)
         return "closed"
 
-    def _garbage(self, text, n=1):
+    def _garbage(self, text: str, n: int = 1) -> None:
         """Count ``n`` garbage lines; the first of a connection is also a ``BAD_DATA`` event."""
         self._count("garbage_lines", n)
         if not self._garbage_told:
@@ -100,8 +102,8 @@ class TcpLoad(StreamingLoad):
             self._event(LoadEventKind.BAD_DATA, f"skipped a line that is not force_N or time_s,force_N: {text}; "
                                                 f"further ones are counted (warnings.garbage_lines)")
 
-    def _take(self, lines, arrival_ns):
-        parsed = []
+    def _take(self, lines: list[bytes], arrival_ns: int) -> None:
+        parsed: list[tuple[float | None, float]] = []
         garbage = 0
         for raw in lines:
             text = raw.decode("utf-8", "replace").strip()
@@ -134,13 +136,13 @@ class TcpLoad(StreamingLoad):
             self._stored()
 
 
-def _open_tcp(uri, options):
+def _open_tcp(uri: str, options: dict[str, Any]) -> TcpLoad:
     host, port, merged = _address_and_options(uri, options, "tcp://HOST:PORT (port 1-65535)[?clock=arrival|sender]")
     clock = str(merged.pop("clock", "arrival")).strip().lower()
     if clock not in ("arrival", "sender"):
         raise LoadError(f"load {uri!r}: clock={clock!r}; use clock=arrival (stamp lines on arrival) "
                         f"or clock=sender (time_s is on the monotonic clock already)")
-    kwargs = {}
+    kwargs: dict[str, Any] = {}
     for name, low in (("max_gap_s", 0.0), ("retry_s", 0.0), ("keep_s", 0.0), ("connect_timeout_s", 0.0),
                       ("poll_s", 0.0)):
         if name in merged:

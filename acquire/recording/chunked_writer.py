@@ -5,24 +5,30 @@ keeping images and data in chunks of their own (see its notes); ``acquire.record
 sessions with it and ``acquire.recording.recover`` rewrites damaged ones.
 """
 
+from __future__ import annotations
+
 import io
 import struct
 import time
 import zlib
 from collections import Counter
+from collections.abc import Callable, Mapping, Sequence
+from typing import IO, Any
 
 import numpy as np
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import Channel, ChunkIndex, MessageIndex, Schema
+from mcap.records import Channel, ChunkIndex, McapRecord, MessageIndex, Schema
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
 
 from livedic.acquire.recording.container import MESSAGE_HEADER_BYTES
 
 __all__ = ["ChunkedWriter", "library_name", "software_version"]
 
+_BytesLike = bytes | bytearray | memoryview      # a payload or a part of one
 
-def software_version():
+
+def software_version() -> str:
     """The installed livedic version, or "unknown"."""
     try:
         from importlib.metadata import version
@@ -31,7 +37,7 @@ def software_version():
         return "unknown"
 
 
-def library_name(how=""):
+def library_name(how: str = "") -> str:
     """The MCAP header's ``library``: livedic's version, ``how`` it was written (e.g. "recovered"), mcap's."""
     return f"livedic/{software_version()} {f'({how}) ' if how else ''}{LIBRARY_IDENTIFIER}"
 
@@ -54,31 +60,33 @@ class _ChunkRecords:
     it out with calls that let the GIL go too.
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.buffer = np.empty(0, np.uint8)
         self.reset()
 
-    def reset(self):
+    def reset(self) -> None:
         self.size = 0
         self.num_messages = 0
         self.start_time = self.end_time = 0
-        self.indexes = {}                # channel id -> [(log_time, offset in the chunk)], in order of first use
+        # channel id -> [(log_time, offset in the chunk)], in order of first use
+        self.indexes: dict[int, list[tuple[int, int]]] = {}
 
-    def view(self):
-        return memoryview(self.buffer)[:self.size]
+    def view(self) -> memoryview:
+        return self.buffer.data[:self.size]
 
-    def append(self, data):
+    def append(self, data: _BytesLike) -> None:
         """Copy the bytes-like ``data`` to the end."""
-        data = np.frombuffer(data, np.uint8)
-        end = self.size + data.size
+        octets = np.frombuffer(data, np.uint8)
+        end = self.size + octets.size
         if end > self.buffer.size:
             grown = np.empty(max(end, 2 * self.buffer.size), np.uint8)
             grown[:self.size] = self.buffer[:self.size]
             self.buffer = grown
-        self.buffer[self.size:end] = data
+        self.buffer[self.size:end] = octets
         self.size = end
 
-    def add_message(self, channel_id, log_time, publish_time, sequence, parts):
+    def add_message(self, channel_id: int, log_time: int, publish_time: int, sequence: int,
+                    parts: Sequence[_BytesLike]) -> None:
         """A Message record whose data is the concatenation of ``parts`` (bytes-like, 1-D)."""
         length = sum(memoryview(part).nbytes for part in parts)
         offset = self.size
@@ -104,27 +112,28 @@ class _SummaryWriter(Writer):
     chunked mcap file carries them in its next chunk.
     """
 
-    def __init__(self, stream, on_record, **options):
+    def __init__(self, stream: IO[bytes], on_record: Callable[[McapRecord], None], **options: Any) -> None:
         super().__init__(stream, **options)
         self._on_record = on_record
-        self._statistics = self._Writer__statistics
-        self._chunk_indices = self._Writer__chunk_indices
+        self._statistics = getattr(self, "_Writer__statistics")
+        self._chunk_indices: list[ChunkIndex] = getattr(self, "_Writer__chunk_indices")
 
-    def register_schema(self, name, encoding, data):
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         schema_id = super().register_schema(name, encoding, data)
         self._on_record(Schema(id=schema_id, data=data, encoding=encoding, name=name))
         return schema_id
 
-    def register_channel(self, topic, message_encoding, schema_id, metadata={}):  # noqa: B006 - mcap's signature
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
+                         metadata: dict[str, str] = {}) -> int:  # noqa: B006 - mcap's signature
         channel_id = super().register_channel(topic, message_encoding, schema_id, metadata)
         self._on_record(Channel(id=channel_id, topic=topic, message_encoding=message_encoding,
                                 schema_id=schema_id, metadata=metadata))
         return channel_id
 
-    def add_message(self, *args, **kwargs):
+    def add_message(self, *args: Any, **kwargs: Any) -> None:
         raise TypeError("a ChunkedWriter's messages go through ChunkedWriter.add")
 
-    def add_chunk(self, chunk_index, records):
+    def add_chunk(self, chunk_index: ChunkIndex, records: _ChunkRecords) -> None:
         """Count the chunk ``chunk_index`` (written at its offset) and its ``_ChunkRecords``' messages."""
         stats = self._statistics
         if stats.message_count == 0:
@@ -197,12 +206,13 @@ class ChunkedWriter:
     no ``flush_interval_s``: size and ``finish`` only).
     """
 
-    def __init__(self, stream, *, chunk_bytes, compression, library, flush_interval_s=None,
-                 data_with_images=False, clock=time.monotonic):
+    def __init__(self, stream: IO[bytes], *, chunk_bytes: int, compression: str | None, library: str,
+                 flush_interval_s: float | None = None, data_with_images: bool = False,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         codec = {None: CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
         if isinstance(stream, io.RawIOBase):
             stream = io.BufferedWriter(stream)   # as mcap's writer would: then both write to the same buffer
-        self.stream = stream
+        self.stream: IO[bytes] = stream
         self.compression = compression or ""
         self._open = _ChunkRecords()         # mcap's open chunk: image messages, schema and channel records
         self._data = _ChunkRecords()         # the data messages waiting
@@ -214,22 +224,22 @@ class ChunkedWriter:
         self.data_with_images = bool(data_with_images)
         self.clock = clock                   # seconds, monotonic (a test may drive it by hand)
         self.image_bytes = 0                 # the open image chunk's messages
-        self.image_since = None              # monotonic time of its first message; None: no open chunk
-        self.image_counts = Counter()
+        self.image_since: float | None = None    # monotonic time of its first message; None: no open chunk
+        self.image_counts: Counter[str] = Counter()
         self.pending_bytes = 0               # the data waiting
-        self.pending_since = None
-        self.pending_counts = Counter()
-        self.durable_counts = Counter()
+        self.pending_since: float | None = None
+        self.pending_counts: Counter[str] = Counter()
+        self.durable_counts: Counter[str] = Counter()
         self.chunks_written = 0
-        self._schemas = {}
+        self._schemas: dict[tuple[str, str, bytes], int] = {}
 
-    def chunk_indexes(self):
+    def chunk_indexes(self) -> list[ChunkIndex]:
         """The chunk indexes mcap's writer holds in memory until ``finish`` writes the summary (a diagnostic:
         ``livedic bench soak`` sizes it)."""
         return self.writer._chunk_indices
 
-    def register(self, topic, schema_name, schema_data, *, schema_encoding="protobuf",
-                 message_encoding="protobuf", metadata=None):
+    def register(self, topic: str, schema_name: str, schema_data: bytes, *, schema_encoding: str = "protobuf",
+                 message_encoding: str = "protobuf", metadata: Mapping[str, str] | None = None) -> int:
         key = (schema_name, schema_encoding, schema_data)
         schema_id = self._schemas.get(key)
         if schema_id is None:
@@ -237,14 +247,16 @@ class ChunkedWriter:
             self._schemas[key] = schema_id
         return self.writer.register_channel(topic, message_encoding, schema_id, dict(metadata or {}))
 
-    def add(self, kind, channel_id, log_time, data, *, publish_time=0, sequence=0, count_as=None):
+    def add(self, kind: str, channel_id: int, log_time: int,
+            data: _BytesLike | tuple[_BytesLike, ...] | list[_BytesLike], *,
+            publish_time: int = 0, sequence: int = 0, count_as: str | None = None) -> None:
         """Add one message of ``kind`` ("image" or "data"); writes a chunk when one is full.
 
         ``data`` is the payload, bytes-like, or a tuple (or list) of bytes-like parts whose concatenation
         is the payload (e.g. a header and an image's pixels, which are then copied only once). It is
         copied here: the caller may reuse its buffers once ``add`` returns.
         """
-        parts = tuple(data) if isinstance(data, (tuple, list)) else (data,)
+        parts: tuple[_BytesLike, ...] = tuple(data) if isinstance(data, (tuple, list)) else (data,)
         if kind == "image":
             records = self._open
         elif kind == "data":
@@ -273,12 +285,12 @@ class ChunkedWriter:
             if self.pending_bytes >= self.chunk_bytes:
                 self.write_data()
 
-    def age(self):
+    def age(self) -> float:
         """Seconds since the oldest message not yet written (0 when everything is written)."""
         oldest = min((t for t in (self.image_since, self.pending_since) if t is not None), default=None)
         return 0.0 if oldest is None else self.clock() - oldest
 
-    def flush_due(self):
+    def flush_due(self) -> bool:
         """Write everything if the oldest unwritten message is ``flush_interval_s`` old; True if it did."""
         if self.flush_interval_s is None or self.age() < self.flush_interval_s:
             return False
@@ -286,7 +298,7 @@ class ChunkedWriter:
         self.write_data()
         return True
 
-    def close_image_chunk(self):
+    def close_image_chunk(self) -> None:
         if self.image_since is None:
             return
         self._write_chunk(self._open)
@@ -296,7 +308,7 @@ class ChunkedWriter:
         self.image_since = None
         self.image_bytes = 0
 
-    def write_data(self):
+    def write_data(self) -> None:
         """Write the pending data messages as one chunk (after closing the open image chunk)."""
         if not self._data.num_messages:
             return
@@ -311,18 +323,19 @@ class ChunkedWriter:
         self.pending_since = None
         self.pending_bytes = 0
 
-    def _add_record(self, record):
+    def _add_record(self, record: McapRecord) -> None:
         """A schema or channel record, registered: into the open chunk, where mcap's writer puts it."""
         builder = RecordBuilder()
         record.write(builder)
         self._open.append(builder.end())
 
-    def _write_chunk(self, records, records_first=None):
+    def _write_chunk(self, records: _ChunkRecords, records_first: _ChunkRecords | None = None) -> None:
         """Write the messages of ``records`` (after the schema and channel records of ``records_first``) as
         one chunk, then its message indexes, as mcap's ``Writer`` does; flush the stream to the kernel."""
-        pieces = [records.view()] if records_first is None else [records_first.view(), records.view()]
+        pieces: list[memoryview | bytes] = ([records.view()] if records_first is None
+                                            else [records_first.view(), records.view()])
         shift = 0 if records_first is None else records_first.size
-        uncompressed_size = sum(piece.nbytes for piece in pieces)
+        uncompressed_size = sum(memoryview(piece).nbytes for piece in pieces)
         crc = 0
         for piece in pieces:
             crc = zlib.crc32(piece, crc)
@@ -354,19 +367,19 @@ class ChunkedWriter:
             uncompressed_size=uncompressed_size), records)
         self.chunks_written += 1
 
-    def flush(self):
+    def flush(self) -> None:
         """Write the image chunk and the pending data, and flush the stream to the kernel."""
         self.close_image_chunk()
         self.write_data()
         self.writer.flush()                  # records outside chunks (header, metadata) too
 
-    def finish(self):
+    def finish(self) -> None:
         self.flush()
         self.writer.finish()
         self.stream.flush()
 
 
-def _compress(compression, data):
+def _compress(compression: str, data: bytes) -> bytes:
     """``data`` compressed by the call mcap's writer makes for ``compression``."""
     if compression == "lz4":
         import lz4.frame

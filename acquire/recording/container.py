@@ -28,17 +28,21 @@ the file name: the reader adds that).
 Writing is ``acquire.recording.chunked_writer``'s.
 """
 
+from __future__ import annotations
+
 import dataclasses
 import enum
 import io
 import struct
 import zlib
+from collections.abc import Iterator
+from typing import Any, BinaryIO, cast
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
-from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, Metadata, MetadataIndex,
-                          Schema, Statistics)
+from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, McapRecord, Message, Metadata,
+                          MetadataIndex, Schema, Statistics)
 from mcap.stream_reader import CRCValidationError, breakup_chunk
 from mcap.summary import Summary
 
@@ -51,10 +55,12 @@ MAX_CHUNK_BYTES = 1 << 30           # a chunk claiming more once decompressed is
 MAX_METADATA_BYTES = 1 << 26
 _HEAD = struct.Struct("<BQ")        # opcode, length: the 9 bytes before every record body
 _FOOTER_BYTES = _HEAD.size + 20
-_RECORD_TYPES = {Opcode.HEADER: Header, Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message,
-                 Opcode.CHUNK: Chunk, Opcode.METADATA: Metadata, Opcode.CHUNK_INDEX: ChunkIndex,
-                 Opcode.METADATA_INDEX: MetadataIndex, Opcode.DATA_END: DataEnd, Opcode.FOOTER: Footer,
-                 Opcode.STATISTICS: Statistics}
+# Any: each record class has a static read(stream), which mcap's base class McapRecord does not declare.
+_RECORD_TYPES: dict[int, Any] = {
+    Opcode.HEADER: Header, Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message,
+    Opcode.CHUNK: Chunk, Opcode.METADATA: Metadata, Opcode.CHUNK_INDEX: ChunkIndex,
+    Opcode.METADATA_INDEX: MetadataIndex, Opcode.DATA_END: DataEnd, Opcode.FOOTER: Footer,
+    Opcode.STATISTICS: Statistics}
 MESSAGE_HEADER_BYTES = 2 + 4 + 8 + 8    # a Message record's fields before its data
 # What mcap's record parsers raise on bytes that are not what they claim (struct.error: a short field;
 # OverflowError: a length beyond any buffer, inside a chunk).
@@ -74,10 +80,10 @@ class _Body:
     fields are read straight from ``f`` (a chunk's data is read once, into its own bytes).
     """
 
-    def __init__(self, f, length):
+    def __init__(self, f: BinaryIO, length: int) -> None:
         self.f, self.left = f, length
 
-    def read(self, size=-1):
+    def read(self, size: int | None = -1) -> bytes:
         if size is None or not 0 <= size <= self.left:
             raise Damaged("a field runs past the end of its record")
         data = self.f.read(size)
@@ -87,10 +93,10 @@ class _Body:
         return data
 
 
-def read_record(f, opcode, length):
+def read_record(f: BinaryIO, opcode: int, length: int) -> McapRecord:
     """The ``mcap.records`` record of ``opcode`` whose ``length``-byte body starts at ``f``'s position."""
     record_type = _RECORD_TYPES[opcode]
-    stream = ReadDataStream(_Body(f, length))
+    stream = ReadDataStream(_Body(f, length))  # type: ignore[arg-type]  # reads like the IO[bytes] it expects
     try:
         if record_type is Message:
             if length < MESSAGE_HEADER_BYTES:
@@ -101,7 +107,7 @@ def read_record(f, opcode, length):
         raise Damaged(f"bad {record_type.__name__.lower()} record ({type(error).__name__})") from None
 
 
-def parse_record(opcode, body):
+def parse_record(opcode: int, body: bytes) -> McapRecord:
     """The ``mcap.records`` record of ``opcode`` parsed from ``body`` (bytes), or ``Damaged``."""
     return read_record(io.BytesIO(body), opcode, len(body))
 
@@ -115,7 +121,7 @@ class ScanEnd(enum.Enum):
     TOO_LARGE = "too large"          # a record claims more than MAX_RECORD_BYTES: corrupt
 
     @property
-    def complete(self):
+    def complete(self) -> bool:
         """The data section ended as a finished file's does."""
         return self is ScanEnd.DATA_END
 
@@ -130,13 +136,13 @@ class RecordScan:
     ``claimed`` what a ``TOO_LARGE`` record claimed.
     """
 
-    def __init__(self, f, start, end):
+    def __init__(self, f: BinaryIO, start: int, end: int) -> None:
         self.f, self.start, self.end = f, start, end
         self.valid_bytes = start
-        self.stop = None
+        self.stop: ScanEnd | None = None
         self.claimed = 0
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[tuple[int, int, int]]:
         f, pos, end = self.f, self.start, self.end
         while True:
             self.valid_bytes = pos
@@ -165,7 +171,7 @@ class RecordScan:
             pos += _HEAD.size + length
 
 
-def read_record_at(f, offset, length, opcode):
+def read_record_at(f: BinaryIO, offset: int, length: int, opcode: int) -> McapRecord:
     """The record of ``opcode`` that an index says is ``length`` bytes at ``offset`` (``Damaged`` if not)."""
     f.seek(offset)
     head = f.read(_HEAD.size)
@@ -204,7 +210,7 @@ def _decompress(chunk):
     raise Damaged(f"unsupported chunk compression {compression!r}")
 
 
-def open_chunk(chunk):
+def open_chunk(chunk: Chunk) -> list[McapRecord]:
     """The records of ``chunk`` (an ``mcap.records.Chunk``): Schema, Channel and Message, in order.
 
     Decompressed within bounds, CRC checked (when the writer stored one) and broken up
@@ -223,7 +229,7 @@ def open_chunk(chunk):
 
 # ----------------------------------------------------------------------------- summary
 
-def read_summary(f, size, data_start):
+def read_summary(f: BinaryIO, size: int, data_start: int) -> tuple[Summary | None, str]:
     """``(summary, problem)``: the file's ``mcap.summary.Summary`` when it has a sound one, else None.
 
     ``problem`` is "" when there is simply no summary (a file cut short, or written
@@ -240,7 +246,7 @@ def read_summary(f, size, data_start):
     head = f.read(_FOOTER_BYTES)
     if _HEAD.unpack_from(head) != (Opcode.FOOTER, 20):
         return None, "its footer is damaged"
-    footer = parse_record(Opcode.FOOTER, head[_HEAD.size:])
+    footer = cast(Footer, parse_record(Opcode.FOOTER, head[_HEAD.size:]))
     if footer.summary_start == 0:
         return None, ""                                  # a complete file written without a summary
     if not data_start <= footer.summary_start <= footer_start:

@@ -3,7 +3,11 @@
 Nothing read is ever unpickled or evaluated: values are decoded with ``json.loads`` only.
 """
 
+from __future__ import annotations
+
 import json
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -11,7 +15,7 @@ from livedic.acquire.recording.schema import JSON_KEYS_KEY
 
 # ----------------------------------------------------------------------------- metadata as strings
 
-def json_default(value):
+def json_default(value: object) -> Any:
     """``json.dumps`` fallback: numpy values to Python, anything else to its str().
 
     The format's conversion for ``json.dumps(..., default=json_default)``: session and
@@ -29,7 +33,7 @@ def json_default(value):
     return str(value)
 
 
-def to_json(value):
+def to_json(value: object) -> str:
     """JSON text for ``value``; never raises (unknown types become strings, NaN stays NaN)."""
     try:
         return json.dumps(value, default=json_default, allow_nan=True)
@@ -37,13 +41,14 @@ def to_json(value):
         return json.dumps(str(value))
 
 
-def metadata_to_strings(metadata):
+def metadata_to_strings(metadata: Mapping[Any, Any]) -> dict[str, str]:
     """String->string map for MCAP: str values as is, everything else as JSON.
 
     The keys whose values are JSON are listed (as a JSON list) under ``livedic.json_keys``
     so ``metadata_from_strings`` can give back the original types.
     """
-    strings, json_keys = {}, []
+    strings: dict[str, str] = {}
+    json_keys: list[str] = []
     for key, value in metadata.items():
         key = str(key)
         if key == JSON_KEYS_KEY:
@@ -57,7 +62,7 @@ def metadata_to_strings(metadata):
     return strings
 
 
-def metadata_from_strings(strings):
+def metadata_from_strings(strings: Mapping[str, str]) -> dict[str, Any]:
     """Inverse of ``metadata_to_strings``; values that fail to decode stay strings."""
     try:
         json_keys = json.loads(strings.get(JSON_KEYS_KEY, "[]"))
@@ -65,13 +70,14 @@ def metadata_from_strings(strings):
             json_keys = []
     except (ValueError, RecursionError):
         json_keys = []
-    out = {}
-    for key, value in strings.items():
+    out: dict[str, Any] = {}
+    for key, text in strings.items():
         if key == JSON_KEYS_KEY:
             continue
+        value: Any = text
         if key in json_keys:
             try:
-                value = json.loads(value)
+                value = json.loads(text)
             except (ValueError, RecursionError):
                 pass
         out[key] = value

@@ -50,21 +50,28 @@ Examples
 >>> n = sum(1 for _ in recording.results()); recording.info.truncated   # doctest: +SKIP
 """
 
+from __future__ import annotations
+
 import logging
 import os
 from collections import Counter
+from collections.abc import Callable, Collection, Iterator
+from typing import Any, BinaryIO, TypeVar, cast
 
 from mcap.opcode import Opcode
-from mcap.records import Channel, Message, Metadata, Schema
+from mcap.records import Channel, Chunk, Header, McapRecord, Message, Metadata, Schema
+from mcap.summary import Summary
 
 from livedic.acquire.recording import schema as rs
 from livedic.acquire.recording import wire
-from livedic.acquire.recording.container import (MAGIC, Damaged, RecordScan, open_chunk, parse_record, read_record,
-                                                 read_record_at, read_summary)
+from livedic.acquire.recording.container import (MAGIC, Damaged, RecordScan, ScanEnd, open_chunk, parse_record,
+                                                 read_record, read_record_at, read_summary)
 from livedic.acquire.recording.errors import CorruptRecording, NoSessionMetadata, NotLivedic, NotMcap, RecordingError
 from livedic.acquire.recording.metadata import metadata_from_strings
 from livedic.acquire.recording.records import (RecordedEvent, RecordedExtensometerSample, RecordedForceSample,
-                                               RecordingInfo, frame_readings, recorded_results, recorded_strain)
+                                               RecordedResults, RecordedStrain, RecordingInfo, frame_readings,
+                                               recorded_results, recorded_strain)
+from livedic.dic.strain.extensometer import ExtensometerReadings
 
 __all__ = ["Recording", "inspect_recording", "iter_results", "read_events", "read_extensometer_samples",
            "read_force_samples", "read_results", "read_session", "read_strain_fields"]
@@ -73,6 +80,7 @@ log = logging.getLogger(__name__)
 
 _HEAD_BYTES = 9                         # opcode (1) and length (8) before every record body
 _MAX_HEADER_BYTES = 1 << 20
+_T = TypeVar("_T")
 _DATA_RECORDS = frozenset({Opcode.HEADER, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, Opcode.CHUNK,
                            Opcode.METADATA})
 
@@ -98,13 +106,14 @@ class Recording:
         Missing, unreadable, ``NotMcap``, ``CorruptRecording`` header, ``NotLivedic``.
     """
 
-    def __init__(self, path, *, livedic_only=True):
+    def __init__(self, path: str | os.PathLike[str], *, livedic_only: bool = True) -> None:
         self.path = os.fspath(path)
         self.name = self.path
         try:
             with open(self.path, "rb") as f:
                 size = os.fstat(f.fileno()).st_size
                 self._check_start(f, size)
+                self.summary: Summary | None
                 self.summary, self.summary_problem = read_summary(f, size, self.data_start)
         except FileNotFoundError:
             raise RecordingError(f"{self.name} does not exist") from None
@@ -115,10 +124,12 @@ class Recording:
         indexed = self.summary is not None
         self.info = RecordingInfo(self.path, size, indexed=indexed, library=self.library,
                                   valid_bytes=size if indexed else self.data_start)
-        self.schemas = dict(self.summary.schemas) if indexed else {}
-        self.channels = dict(self.summary.channels) if indexed else {}
-        self.metadata_names = {index.name for index in self.summary.metadata_indexes} if indexed else set()
-        self.probe_metadata, self.probe_session = {}, None
+        self.schemas: dict[int, Schema] = dict(self.summary.schemas) if self.summary is not None else {}
+        self.channels: dict[int, Channel] = dict(self.summary.channels) if self.summary is not None else {}
+        self.metadata_names: set[str] = ({index.name for index in self.summary.metadata_indexes}
+                                         if self.summary is not None else set())
+        self.probe_metadata: dict[str, dict[str, str]] = {}
+        self.probe_session: Message | None = None
         if not indexed:
             self._probe()
         self.info.is_livedic = self._is_livedic()
@@ -127,7 +138,7 @@ class Recording:
 
     # -- opening checks
 
-    def _check_start(self, f, size):
+    def _check_start(self, f: BinaryIO, size: int) -> None:
         head = f.read(len(MAGIC))
         if size == 0:
             raise NotMcap(f"{self.name} is empty (0 bytes), not an MCAP recording")
@@ -147,13 +158,13 @@ class Recording:
         if length > _MAX_HEADER_BYTES:
             raise CorruptRecording(f"{self.name} is corrupt: its header record claims {length} bytes")
         try:
-            header = parse_record(Opcode.HEADER, f.read(length))
+            header = cast(Header, parse_record(Opcode.HEADER, f.read(length)))
         except Damaged as bad:
             raise CorruptRecording(f"{self.name} is corrupt: bad header record ({bad})") from None
         self.profile, self.library = header.profile, header.library
         self.data_start = len(MAGIC) + _HEAD_BYTES + length
 
-    def _probe(self):
+    def _probe(self) -> None:
         """Recovery-scan the start of the file (up to the first chunk) for channels and metadata."""
         scratch = RecordingInfo(self.path, self.info.size_bytes)
         try:
@@ -167,35 +178,36 @@ class Recording:
         except RecordingError:
             pass
 
-    def _is_livedic(self):
+    def _is_livedic(self) -> bool:
         if self.library.startswith("livedic") or rs.METADATA_NAME in self.metadata_names:
             return True
         return any(self.schema_name(channel) == rs.RAW_IMAGE_SCHEMA for channel in self.channels.values()
                    if channel.topic == rs.TOPIC_IMAGE)
 
-    def schema_name(self, channel):
+    def schema_name(self, channel: Channel) -> str | None:
         """Name of the protobuf schema of ``channel`` (an ``mcap.records.Channel``), None if not protobuf."""
         schema = self.schemas.get(channel.schema_id)
         return schema.name if schema is not None and channel.message_encoding == "protobuf" else None
 
-    def forget_index(self):
+    def forget_index(self) -> None:
         """Read the file record by record from now on, whatever its index says (``recover``)."""
         self.summary = None
         self.schemas, self.channels = {}, {}
 
     # -- passes
 
-    def _open_file(self):
+    def _open_file(self) -> BinaryIO:
         try:
             return open(self.path, "rb")
         except OSError as error:
             raise RecordingError(f"{self.name} cannot be read any more ({error.strerror or error})") from None
 
-    def _corrupt(self, what, offset, bad):
+    def _corrupt(self, what: str, offset: int, bad: object) -> CorruptRecording:
         return CorruptRecording(f"{self.name} is corrupt: {what} at byte {offset} ({bad}); "
                                 f"`recover` can rewrite what is readable")
 
-    def _scan(self, *, strict=True, first_chunk_only=False, info=None):
+    def _scan(self, *, strict: bool = True, first_chunk_only: bool = False,
+              info: RecordingInfo | None = None) -> Iterator[McapRecord]:
         """Recovery scan from the start: yields mcap ``Schema``, ``Channel``, ``Metadata`` and ``Message`` records.
 
         Updates ``info`` (default ``self.info``): ``valid_bytes``, ``truncated``,
@@ -224,7 +236,7 @@ class Recording:
                 if opcode == Opcode.CHUNK and first_chunk_only:
                     return
             info.valid_bytes = scan.valid_bytes
-            info.truncated = not scan.stop.complete
+            info.truncated = not cast(ScanEnd, scan.stop).complete        # set once the scan has run
             if scan.claimed and strict:
                 raise self._corrupt("a record", scan.valid_bytes, f"it claims {scan.claimed} bytes")
         if info.truncated and not first_chunk_only:
@@ -232,7 +244,7 @@ class Recording:
                          f"read {sum(info.message_counts.values())} messages "
                          f"({info.frames} frames) from the first {info.valid_bytes} of {info.size_bytes} bytes")
 
-    def _register(self, record, strict, offset):
+    def _register(self, record: McapRecord, strict: bool, offset: int) -> bool:
         """Remember schemas and channels; False for a record that refers to an unknown one (corrupt if strict)."""
         if isinstance(record, Schema):
             self.schemas[record.id] = record
@@ -248,16 +260,19 @@ class Recording:
             return False
         return True
 
-    def _indexed(self, channel_ids):
+    def _indexed(self, channel_ids: set[int] | None) -> Iterator[Message]:
         """Messages of ``channel_ids`` (None: all) through the chunk index, in file order."""
+        summary = self.summary
+        if summary is None:              # only called while there is an index
+            return
         with self._open_file() as f:
-            for index in self.summary.chunk_indexes:
+            for index in summary.chunk_indexes:
                 held = index.message_index_offsets.keys()
                 if channel_ids is not None and held and not channel_ids & held:
                     continue
                 offset = index.chunk_start_offset
                 try:
-                    records = open_chunk(read_record_at(f, offset, index.chunk_length, Opcode.CHUNK))
+                    records = open_chunk(cast(Chunk, read_record_at(f, offset, index.chunk_length, Opcode.CHUNK)))
                 except Damaged as bad:
                     raise self._corrupt("a chunk", offset, bad) from None
                 for record in records:
@@ -271,14 +286,14 @@ class Recording:
                     elif isinstance(record, Schema):
                         self.schemas.setdefault(record.id, record)
 
-    def messages(self, topics=None):
+    def messages(self, topics: Collection[str] | None = None) -> Iterator[tuple[Channel, Message]]:
         """Yield ``(channel, message)`` (mcap records) for ``topics`` (None: all), in file order, by the best path."""
         info = self.info
-        counts = Counter()
+        counts: Counter[str] = Counter()
         info.message_counts = counts
         if self.summary is not None:
             ids = None if topics is None else {cid for cid, ch in self.channels.items() if ch.topic in topics}
-            source = self._indexed(ids)
+            source: Iterator[Message] = self._indexed(ids)
         else:
             source = (record for record in self._scan() if isinstance(record, Message))
         for message in source:
@@ -296,7 +311,7 @@ class Recording:
             info.note = f"{self.name}: {self.summary_problem}; it was read record by record instead"
             log.warning("note: %s", info.note)
 
-    def count(self, topic):
+    def count(self, topic: str) -> int:
         """How many messages ``topic`` holds: from the summary's statistics, else by reading the file.
 
         A file cut short has no summary: its messages are counted by the recovery scan (a pass over
@@ -308,13 +323,13 @@ class Recording:
                        if channel_id in self.channels and self.channels[channel_id].topic == topic)
         return sum(1 for _ in self.messages({topic}))
 
-    def records(self, *, strict=True):
+    def records(self, *, strict: bool = True) -> Iterator[McapRecord]:
         """Every schema, channel, metadata and message record in file order, by the recovery scan."""
         return self._scan(strict=strict)
 
     # -- content
 
-    def session_strings(self):
+    def session_strings(self) -> dict[str, str] | None:
         """The ``livedic.session`` string map (Metadata record, else the first session message), or None."""
         if self.summary is not None:
             with self._open_file() as f:
@@ -322,7 +337,8 @@ class Recording:
                     if index.name != rs.METADATA_NAME:
                         continue
                     try:
-                        return read_record_at(f, index.offset, index.length, Opcode.METADATA).metadata
+                        record = read_record_at(f, index.offset, index.length, Opcode.METADATA)
+                        return cast(Metadata, record).metadata       # read_record_at checked the opcode
                     except Damaged as bad:
                         raise self._corrupt("the session metadata", index.offset, bad) from None
             for _, message in self.messages({rs.TOPIC_SESSION}):
@@ -334,21 +350,21 @@ class Recording:
             return self._decode_session(self.probe_session)
         return None
 
-    def _decode_session(self, message):
+    def _decode_session(self, message: Message) -> dict[str, str]:
         try:
             return dict(rs.Session.FromString(message.data).metadata)
         except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
             raise CorruptRecording(f"{self.name} is corrupt: undecodable session message "
                                    f"({type(error).__name__})") from None
 
-    def session(self):
+    def session(self) -> dict[str, Any]:
         """Session metadata, with non-string values decoded from JSON (``NoSessionMetadata`` if none)."""
         strings = self.session_strings()
         if strings is None:
             raise NoSessionMetadata(f"{self.name} has no session metadata ({rs.METADATA_NAME})")
         return metadata_from_strings(strings)
 
-    def results(self):
+    def results(self) -> Iterator[RecordedResults]:
         """Yield ``RecordedResults`` per frame from ``/dic/results``, in recorded order."""
         for channel, message in self.messages({rs.TOPIC_RESULTS}):
             if self.schema_name(channel) != rs.FRAME_RESULTS_SCHEMA:
@@ -360,7 +376,7 @@ class Recording:
                                        f"({bad})") from None
             yield recorded_results(values, message.publish_time)
 
-    def _decoded(self, topic, schema, decode, what):
+    def _decoded(self, topic: str, schema: str, decode: Callable[[bytes], _T], what: str) -> Iterator[_T]:
         """Yield ``decode(message bytes)`` for each message of ``topic`` with ``schema``; CorruptRecording if bad."""
         for channel, message in self.messages({topic}):
             if self.schema_name(channel) != schema:
@@ -373,12 +389,12 @@ class Recording:
                                        ) from None
             yield value
 
-    def strain_fields(self):
+    def strain_fields(self) -> Iterator[RecordedStrain]:
         """Yield ``RecordedStrain`` per frame from ``/dic/strain`` (nothing for a recording without strain)."""
         yield from self._decoded(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA,
                                  lambda data: recorded_strain(rs.StrainField.FromString(data)), "strain")
 
-    def extensometer_samples(self):
+    def extensometer_samples(self) -> Iterator[RecordedExtensometerSample]:
         """Yield ``RecordedExtensometerSample`` from ``/dic/extensometers``: per frame, one per extensometer."""
         for sample in self._decoded(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA,
                                     rs.ExtensometerSample.FromString, "extensometer"):
@@ -387,13 +403,13 @@ class Recording:
                 l0_px=sample.l0_px, l_px=sample.l_px, eng_strain=sample.eng_strain, true_strain=sample.true_strain,
                 ok=sample.ok, status=sample.status)
 
-    def extensometer_readings(self):
+    def extensometer_readings(self) -> Iterator[tuple[int, int, ExtensometerReadings]]:
         """Yield ``(frame_index, timestamp_ns, dic.strain.extensometer.ExtensometerReadings)`` per recorded frame.
 
         The samples of one frame (consecutive messages with the same frame index) gathered
         in recorded order, as ``dic.strain.extensometer.read_extensometers`` returns them.
         """
-        frame = []
+        frame: list[RecordedExtensometerSample] = []
         for sample in self.extensometer_samples():
             if frame and (sample.frame_index, sample.timestamp_ns) != (frame[0].frame_index, frame[0].timestamp_ns):
                 yield frame[0].frame_index, frame[0].timestamp_ns, frame_readings(frame)
@@ -402,16 +418,16 @@ class Recording:
         if frame:
             yield frame[0].frame_index, frame[0].timestamp_ns, frame_readings(frame)
 
-    def force_samples(self):
+    def force_samples(self) -> Iterator[RecordedForceSample]:
         """Yield ``RecordedForceSample`` from ``/machine/force``: one per tracked frame, none in older recordings."""
         for sample in self._decoded(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA, rs.ForceSample.FromString, "force"):
             yield RecordedForceSample(frame_index=sample.frame_index, timestamp_ns=sample.timestamp_ns,
                                       force_N=sample.force_N, stress_MPa=sample.stress_MPa, ok=sample.ok,
                                       source=sample.source)
 
-    def events(self):
+    def events(self) -> list[RecordedEvent]:
         """List of ``RecordedEvent`` from ``/livedic/events``."""
-        out = []
+        out: list[RecordedEvent] = []
         for _, message in self.messages({rs.TOPIC_EVENTS}):
             try:
                 event = rs.Event.FromString(message.data)
@@ -422,12 +438,12 @@ class Recording:
         return out
 
 
-def _data_records(f, opcode, length):
+def _data_records(f: BinaryIO, opcode: int, length: int) -> list[McapRecord]:
     """The records a data-section record at ``f``'s position holds: a chunk's contents, or the record itself."""
     if opcode == Opcode.HEADER:
         raise Damaged("a second header record")
     record = read_record(f, opcode, length)
-    records = open_chunk(record) if opcode == Opcode.CHUNK else [record]
+    records = open_chunk(record) if isinstance(record, Chunk) else [record]
     if any(isinstance(record, Schema) and record.id == 0 for record in records):
         raise Damaged("schema id 0")
     return records
@@ -435,7 +451,7 @@ def _data_records(f, opcode, length):
 
 # ----------------------------------------------------------------------------- public readers
 
-def read_session(path):
+def read_session(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Session metadata of a recording, with non-string values decoded from JSON.
 
     Raises
@@ -446,37 +462,37 @@ def read_session(path):
     return Recording(path).session()
 
 
-def iter_results(path):
+def iter_results(path: str | os.PathLike[str]) -> Iterator[RecordedResults]:
     """Yield ``RecordedResults`` per frame from ``/dic/results``, in recorded order."""
     yield from Recording(path).results()
 
 
-def read_results(path):
+def read_results(path: str | os.PathLike[str]) -> list[RecordedResults]:
     """List of ``RecordedResults``, one per recorded frame (see ``iter_results``)."""
     return list(iter_results(path))
 
 
-def read_strain_fields(path):
+def read_strain_fields(path: str | os.PathLike[str]) -> list[RecordedStrain]:
     """List of ``RecordedStrain``, one per frame recorded with strain (empty for older recordings)."""
     return list(Recording(path).strain_fields())
 
 
-def read_extensometer_samples(path):
+def read_extensometer_samples(path: str | os.PathLike[str]) -> list[RecordedExtensometerSample]:
     """List of ``RecordedExtensometerSample``: per frame, one per extensometer (empty without extensometers)."""
     return list(Recording(path).extensometer_samples())
 
 
-def read_force_samples(path):
+def read_force_samples(path: str | os.PathLike[str]) -> list[RecordedForceSample]:
     """List of ``RecordedForceSample``, one per tracked frame (empty for recordings without force)."""
     return list(Recording(path).force_samples())
 
 
-def read_events(path):
+def read_events(path: str | os.PathLike[str]) -> list[RecordedEvent]:
     """List of ``RecordedEvent`` from ``/livedic/events``."""
     return Recording(path).events()
 
 
-def inspect_recording(path):
+def inspect_recording(path: str | os.PathLike[str]) -> RecordingInfo:
     """``RecordingInfo`` for any MCAP file: how it reads, what it holds, whether it is truncated.
 
     Reads every message (the recovery scan, or the index); raises ``RecordingError``

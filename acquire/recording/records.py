@@ -2,14 +2,18 @@
 ``RecordingInfo``, what a pass over a file found.
 """
 
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from livedic.acquire.recording import schema as rs
 from livedic.acquire.recording import wire
-from livedic.dic.strain.extensometer import ExtensometerReadings
 from livedic.dic.result import Measurement
+from livedic.dic.strain.extensometer import ExtensometerReadings
 
 __all__ = ["RecordedEvent", "RecordedExtensometerSample", "RecordedForceSample", "RecordedResults", "RecordedStrain",
            "RecordingInfo"]
@@ -17,7 +21,7 @@ __all__ = ["RecordedEvent", "RecordedExtensometerSample", "RecordedForceSample",
 _MEASURED = ("x", "y", "u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations")
 
 
-def _measured(name):
+def _measured(name: str) -> Any:
     return property(lambda self: getattr(self.measurement, name), doc=f"``measurement.{name}``")
 
 
@@ -57,7 +61,7 @@ class RecordedResults:
     iterations = _measured("iterations")
 
 
-def recorded_results(values, publish_time_ns):
+def recorded_results(values: Mapping[str, Any], publish_time_ns: int) -> RecordedResults:
     """``RecordedResults`` from ``wire.decode_results`` values."""
     return RecordedResults(
         frame_index=values["frame_index"], timestamp_ns=values["timestamp_ns"], point_id=values["point_id"],
@@ -90,7 +94,7 @@ class RecordedStrain:
     vsg_px: float
 
     @property
-    def ok(self):
+    def ok(self) -> np.ndarray:
         return self.status == 0
 
 
@@ -131,7 +135,7 @@ class RecordedForceSample:
 _STRAIN_FLOATS = ("exx", "eyy", "exy", "e1", "e2")
 
 
-def recorded_strain(message):
+def recorded_strain(message: Any) -> RecordedStrain:
     """``RecordedStrain`` from a decoded ``livedic.StrainField``; WireError when its arrays differ in length."""
     arrays = {"point_id": np.array(message.point_id, dtype=np.uint32),
               "status": np.array(message.status, dtype=np.int32)}
@@ -144,7 +148,7 @@ def recorded_strain(message):
                           window=message.window, vsg_px=message.vsg_px, **arrays)
 
 
-def frame_readings(samples):
+def frame_readings(samples: Sequence[RecordedExtensometerSample]) -> ExtensometerReadings:
     """``dic.strain.extensometer.ExtensometerReadings`` of one frame's samples, in recorded order."""
     return ExtensometerReadings(names=tuple(s.name for s in samples),
                                 l0_px=np.array([s.l0_px for s in samples], dtype=np.float64),
@@ -172,13 +176,13 @@ class RecordingInfo:
     truncated: bool = False           # data ends early: no DataEnd/footer (crash, kill, disk full)
     library: str = ""
     is_livedic: bool = False
-    message_counts: dict = field(default_factory=dict)   # topic -> messages read
+    message_counts: dict[str, int] = field(default_factory=dict)   # topic -> messages read
     valid_bytes: int = 0              # bytes of complete records (recovery scan)
     corrupt_chunks: int = 0           # skipped by ``recover``
-    start_ns: int = None
-    end_ns: int = None
+    start_ns: int | None = None
+    end_ns: int | None = None
     note: str = ""                    # one line for people, "" when all is normal
 
     @property
-    def frames(self):
+    def frames(self) -> int:
         return self.message_counts.get(rs.TOPIC_IMAGE, 0)

@@ -43,8 +43,8 @@ EVENT_SCHEMA = "livedic.Event"
 SESSION_SCHEMA = "livedic.Session"
 
 IMAGE_FRAME_ID = "camera"
-ENCODING_DTYPES = {"mono8": np.dtype("u1"), "8UC1": np.dtype("u1"),
-                   "mono16": np.dtype("<u2"), "16UC1": np.dtype("<u2")}
+ENCODING_DTYPES: dict[str, np.dtype] = {"mono8": np.dtype("u1"), "8UC1": np.dtype("u1"),
+                                     "mono16": np.dtype("<u2"), "16UC1": np.dtype("<u2")}
 DEFAULT_PIXEL_FORMAT = {np.dtype("u1"): "Mono8", np.dtype("u2"): "Mono16"}
 EVENT_LEVELS = ("info", "warning", "error")
 
@@ -179,7 +179,7 @@ ExtensometerSample = message_factory.GetMessageClass(_POOL.FindMessageTypeByName
 ForceSample = message_factory.GetMessageClass(_POOL.FindMessageTypeByName(FORCE_SAMPLE_SCHEMA))
 
 
-def schema_data(name):
+def schema_data(name: str) -> bytes:
     """Serialized ``FileDescriptorSet`` stored as the MCAP schema ``name`` (encoding "protobuf")."""
     if name == RAW_IMAGE_SCHEMA:
         from foxglove_schemas_protobuf.RawImage_pb2 import RawImage

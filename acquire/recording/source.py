@@ -2,13 +2,18 @@
 ``FrameSource``) and ``FrameReader`` (one frame at a time, by its key, from an indexed file).
 """
 
+from __future__ import annotations
+
 import json
+import os
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any, cast
 
 import numpy as np
 from mcap.opcode import Opcode
-from mcap.records import Message
+from mcap.records import Chunk, ChunkIndex, McapRecord, Message
 
 from livedic.acquire.base import Frame, FrameSource
 from livedic.acquire.recording import schema as rs
@@ -17,12 +22,13 @@ from livedic.acquire.recording.container import Damaged, open_chunk, read_record
 from livedic.acquire.recording.errors import CorruptRecording, RecordingError, RecordingSourceError
 from livedic.acquire.recording.metadata import metadata_from_strings
 from livedic.acquire.recording.reader import Recording
+from livedic.acquire.recording.records import RecordingInfo
 
 __all__ = ["FrameReader", "McapSource"]
 
 
 @contextmanager
-def _as_source_errors():
+def _as_source_errors() -> Iterator[None]:
     """``RecordingError`` raised inside becomes ``RecordingSourceError`` (same line, the original as cause)."""
     try:
         yield
@@ -55,7 +61,7 @@ class McapSource(FrameSource):
         iteration, at a corrupt record (frames before it have been delivered).
     """
 
-    def __init__(self, path, *, realtime=False):
+    def __init__(self, path: str | os.PathLike[str], *, realtime: bool = False) -> None:
         with _as_source_errors():
             self._recording = Recording(path)
         self.path = self._recording.path
@@ -69,31 +75,31 @@ class McapSource(FrameSource):
         self.session = metadata_from_strings(strings) if strings else {}
 
     @property
-    def info(self):
+    def info(self) -> RecordingInfo:
         """``RecordingInfo`` of the last (or current) pass over the file."""
         return self._recording.info
 
     @property
-    def live(self):
+    def live(self) -> bool:
         return self.realtime          # delivered at the frames' own pace, like a camera
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return {"kind": "mcap_replay", "path": self.path, "realtime": self.realtime,
                 "recorded_source_uri": self.session.get("source_uri", ""),
                 "recorded_start_time": self.session.get("start_time", "")}
 
-    def close(self):
+    def close(self) -> None:
         self._closed = True
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         with _as_source_errors():
             yield from self._frames()
 
-    def _frames(self):
+    def _frames(self) -> Iterator[Frame]:
         recording = self._recording
         pending_info = None
-        first = None
+        first: tuple[float, int] | None = None
         for channel, message in recording.messages({rs.TOPIC_IMAGE, rs.TOPIC_FRAME_INFO}):
             if self._closed:
                 return
@@ -117,7 +123,7 @@ class McapSource(FrameSource):
                 return
             yield frame
 
-    def _frame_info(self, message):
+    def _frame_info(self, message: Message) -> Any:
         try:
             return rs.FrameInfo.FromString(message.data)
         except Exception as error:  # noqa: BLE001 - protobuf raises DecodeError and friends
@@ -125,10 +131,10 @@ class McapSource(FrameSource):
                                    f"{message.log_time} ({type(error).__name__})") from None
 
     @staticmethod
-    def _frame(message, image, info):
+    def _frame(message: Message, image: np.ndarray, info: Any) -> Frame:
         index = message.sequence
         pixel_format = "Mono8" if image.dtype == np.uint8 else "Mono16"
-        metadata = {}
+        metadata: dict[str, Any] = {}
         if info is not None and (info.frame_index & 0xFFFFFFFF) == message.sequence \
                 and info.timestamp_ns == message.log_time:
             index = info.frame_index
@@ -142,7 +148,7 @@ class McapSource(FrameSource):
         return Frame(index=index, timestamp_ns=message.log_time, image=image, pixel_format=pixel_format,
                      metadata=metadata)
 
-    def _pace(self, first, timestamp_ns):
+    def _pace(self, first: tuple[float, int] | None, timestamp_ns: int) -> tuple[float, int]:
         """Sleep until ``timestamp_ns`` is due (in slices, so ``close`` is prompt); returns the origin."""
         now = time.monotonic()
         if first is None:
@@ -176,7 +182,7 @@ class FrameReader:
         damaged chunk.
     """
 
-    def __init__(self, path):
+    def __init__(self, path: str | os.PathLike[str]) -> None:
         self._recording = Recording(path)
         recording = self._recording
         if recording.summary is None:
@@ -184,34 +190,37 @@ class FrameReader:
                                  f"frames cannot be read one by one; `recover` rewrites it indexed")
         self._image_ids = {cid for cid, channel in recording.channels.items()
                            if channel.topic == rs.TOPIC_IMAGE and recording.schema_name(channel) == rs.RAW_IMAGE_SCHEMA}
-        self._chunk = (None, [])            # (offset, its records): the last chunk read
+        self._chunk: tuple[int | None, list[McapRecord]] = (None, [])   # (offset, its records): the last chunk read
         self.chunks_read = 0
 
     @property
-    def path(self):
+    def path(self) -> str:
         return self._recording.path
 
-    def _candidates(self, timestamp_ns):
-        for index in self._recording.summary.chunk_indexes:
+    def _candidates(self, timestamp_ns: int) -> Iterator[ChunkIndex]:
+        summary = self._recording.summary
+        if summary is None:              # refused at construction
+            return
+        for index in summary.chunk_indexes:
             held = set(index.message_index_offsets)
             if held and not held & self._image_ids:
                 continue
             if index.message_start_time <= timestamp_ns <= index.message_end_time:
                 yield index
 
-    def _records(self, index):
+    def _records(self, index: ChunkIndex) -> list[McapRecord]:
         offset = index.chunk_start_offset
         if self._chunk[0] != offset:
             with self._recording._open_file() as f:
                 try:
-                    records = open_chunk(read_record_at(f, offset, index.chunk_length, Opcode.CHUNK))
+                    records = open_chunk(cast(Chunk, read_record_at(f, offset, index.chunk_length, Opcode.CHUNK)))
                 except Damaged as bad:
                     raise self._recording._corrupt("a chunk", offset, bad) from None
             self._chunk = (offset, records)
             self.chunks_read += 1
         return self._chunk[1]
 
-    def image(self, index, timestamp_ns):
+    def image(self, index: int, timestamp_ns: int) -> np.ndarray:
         """The image (H, W) uint8/uint16 of frame ``index`` logged at ``timestamp_ns`` (read-only)."""
         timestamp_ns, index = int(timestamp_ns), int(index)
         for chunk in self._candidates(timestamp_ns):

@@ -9,8 +9,12 @@ tests check that the hand codecs agree with the protobuf library in both directi
 not decode is a ``WireError``; nothing read is ever unpickled or evaluated.
 """
 
+from __future__ import annotations
+
 import struct
 import sys
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from google.protobuf import descriptor_pb2
@@ -65,7 +69,7 @@ def _signed64(value):
     return value - (1 << 64) if value >= 1 << 63 else value
 
 
-def _iter_fields(buf, start=0, end=None):
+def _iter_fields(buf, start: int = 0, end=None):
     """Yield (number, wire, value) for each field; LEN values are (offset, length) into ``buf``."""
     end = len(buf) if end is None else end
     pos = start
@@ -104,7 +108,7 @@ def _string(buf, value):
 
 # ----------------------------------------------------------------------------- foxglove.RawImage
 
-def image_encoding(image):
+def image_encoding(image: np.ndarray) -> str:
     """RawImage encoding name and canonical pixel format for a 2-D uint8/uint16 image."""
     if not isinstance(image, np.ndarray) or image.ndim != 2:
         raise ValueError(f"a frame image must be a 2-D numpy array, got "
@@ -116,7 +120,7 @@ def image_encoding(image):
     raise ValueError(f"a frame image must be uint8 or uint16, got {image.dtype}")
 
 
-def encode_raw_image(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
+def encode_raw_image(image: np.ndarray, timestamp_ns: int, frame_id: str = IMAGE_FRAME_ID) -> bytes:
     """``foxglove.RawImage`` bytes for a 2-D uint8 (mono8) or uint16 (mono16, little-endian) image.
 
     Field order and encoding are those of ``RawImage.SerializeToString()``; the pixels are
@@ -125,7 +129,8 @@ def encode_raw_image(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
     return b"".join(raw_image_parts(image, timestamp_ns, frame_id))
 
 
-def raw_image_parts(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
+def raw_image_parts(image: np.ndarray, timestamp_ns: int,
+                    frame_id: str = IMAGE_FRAME_ID) -> tuple[bytes, memoryview, bytes]:
     """``encode_raw_image``'s bytes in three parts, ``(head, pixels, tail)``, the pixels not copied.
 
     ``pixels`` is a flat memoryview of ``image`` (of a contiguous little-endian copy when the
@@ -146,7 +151,7 @@ def raw_image_parts(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
         stamp += _tag(1, _WIRE_VARINT) + _varint(seconds)
     if nanos:
         stamp += _tag(2, _WIRE_VARINT) + _varint(nanos)
-    head = [_len_field(1, len(stamp)), stamp]
+    head: list[bytes] = [_len_field(1, len(stamp)), stamp]
     if width:
         head += [_tag(2, _WIRE_I32), struct.pack("<I", width)]
     if height:
@@ -162,10 +167,10 @@ def raw_image_parts(image, timestamp_ns, frame_id=IMAGE_FRAME_ID):
     if frame_id:
         fid = frame_id.encode()
         tail = _len_field(7, len(fid)) + fid
-    return b"".join(head), memoryview(image).cast("B"), tail
+    return b"".join(head), image.data.cast("B"), tail
 
 
-def decode_raw_image(data):
+def decode_raw_image(data: bytes | bytearray | memoryview) -> tuple[np.ndarray, str, int | None, str]:
     """Decode ``foxglove.RawImage`` bytes without copying the pixels.
 
     Returns ``(image, encoding, timestamp_ns, frame_id)``; ``image`` is a read-only
@@ -175,8 +180,8 @@ def decode_raw_image(data):
     buf = memoryview(data).cast("B") if not isinstance(data, bytes) else data
     width = height = step = 0
     encoding = frame_id = ""
-    pixels = None
-    timestamp_ns = None
+    pixels: tuple[int, int] | None = None
+    timestamp_ns: int | None = None
     for number, wire, value in _iter_fields(buf):
         if number == 1 and wire == _WIRE_LEN:
             seconds = nanos = 0
@@ -224,15 +229,15 @@ def decode_raw_image(data):
 
 _RESULT_SPEC = {name: (number, kind, repeated) for name, number, kind, repeated, _ in FRAME_RESULTS_FIELDS}
 _RESULT_BY_NUMBER = {number: (name, kind, repeated) for name, (number, kind, repeated) in _RESULT_SPEC.items()}
-_ARRAY_DTYPES = {_F.TYPE_DOUBLE: np.dtype("<f8"), _F.TYPE_FIXED32: np.dtype("<u4"),
-                 _F.TYPE_SFIXED32: np.dtype("<i4"), _F.TYPE_BOOL: np.dtype("u1")}
+_ARRAY_DTYPES: dict[int, np.dtype] = {_F.TYPE_DOUBLE: np.dtype("<f8"), _F.TYPE_FIXED32: np.dtype("<u4"),
+                                     _F.TYPE_SFIXED32: np.dtype("<i4"), _F.TYPE_BOOL: np.dtype("u1")}
 _ELEMENT_WIRE = {_F.TYPE_DOUBLE: _WIRE_I64, _F.TYPE_FIXED32: _WIRE_I32, _F.TYPE_SFIXED32: _WIRE_I32,
                  _F.TYPE_BOOL: _WIRE_VARINT}
 RESULT_DTYPES = {"point_id": np.dtype(np.uint32), "ok": np.dtype(bool), "status": np.dtype(np.int32),
                  "iterations": np.dtype(np.uint32)}   # every other array is float64
 
 
-def encode_results(values):
+def encode_results(values: Mapping[str, Any]) -> bytes:
     """``livedic.FrameResults`` bytes from a dict of already-validated values.
 
     Arrays must be 1-D numpy arrays of equal length with the dtypes of ``RESULT_DTYPES``
@@ -242,7 +247,7 @@ def encode_results(values):
     return _encode_fields(FRAME_RESULTS_FIELDS, values)
 
 
-def encode_strain(values):
+def encode_strain(values: Mapping[str, Any]) -> bytes:
     """``livedic.StrainField`` bytes from a dict of already-validated values.
 
     Arrays (``STRAIN_ARRAYS``) must be 1-D numpy arrays of equal length with the dtypes of
@@ -252,12 +257,12 @@ def encode_strain(values):
     return _encode_fields(STRAIN_FIELD_FIELDS, values)
 
 
-def _encode_fields(fields, values):
+def _encode_fields(fields: tuple[tuple[str, int, int, bool, Any], ...], values: Mapping[str, Any]) -> bytes:
     """Protobuf bytes of the message described by ``fields`` (the spec tuples above), in field order.
 
     Packed arrays are one copy of the numpy data; scalars follow proto3 (zero, empty: not written).
     """
-    parts = []
+    parts: list[bytes | memoryview] = []
     for name, number, kind, repeated, _ in fields:
         value = values.get(name)
         if value is None:
@@ -270,7 +275,7 @@ def _encode_fields(fields, values):
             else:
                 payload = np.asarray(value, dtype=_ARRAY_DTYPES[kind])
             payload = np.ascontiguousarray(payload)
-            parts += [_len_field(number, payload.nbytes), memoryview(payload).cast("B")]
+            parts += [_len_field(number, payload.nbytes), payload.data.cast("B")]
         elif kind == _F.TYPE_STRING:
             if value:
                 raw = str(value).encode("utf-8")
@@ -285,15 +290,16 @@ def _encode_fields(fields, values):
     return b"".join(parts)
 
 
-def decode_results(data):
+def decode_results(data: bytes | bytearray | memoryview) -> dict[str, Any]:
     """Dict of numpy arrays and scalars from ``livedic.FrameResults`` bytes (packed or not).
 
     Required arrays are always present (possibly empty); optional arrays absent from
     the message are None. Raises ``WireError`` when arrays differ in length.
     """
     buf = data if isinstance(data, bytes) else memoryview(data).cast("B")
-    pieces = {}
-    out = {"frame_index": 0, "timestamp_ns": 0, "method": "", "processing_ns": 0, "latency_ns": 0,
+    pieces: dict[str, list[np.ndarray]] = {}
+    out: dict[str, Any] = {"frame_index": 0,
+ "timestamp_ns": 0, "method": "", "processing_ns": 0, "latency_ns": 0,
            "reference_frame_index": 0, "dropped_frames": 0}
     for number, wire, value in _iter_fields(buf):
         spec = _RESULT_BY_NUMBER.get(number)

@@ -78,12 +78,15 @@ True
 (1, None)
 """
 
+from __future__ import annotations
+
 import logging
 import os
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import datetime, timezone
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 
@@ -91,6 +94,14 @@ from livedic.acquire.recording import schema as rs
 from livedic.acquire.recording import wire
 from livedic.acquire.recording.chunked_writer import ChunkedWriter, library_name, software_version
 from livedic.acquire.recording.metadata import metadata_to_strings, to_json
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    from mcap.records import ChunkIndex
+
+    from livedic.acquire.base import Frame
+    from livedic.dic.strain.extensometer import ExtensometerReadings
+    from livedic.dic.strain.field import StrainField
 
 __all__ = ["Recorder"]
 
@@ -162,9 +173,11 @@ class Recorder:
         The file cannot be created or its first records cannot be written.
     """
 
-    def __init__(self, path, session_metadata, *, chunk_bytes=DEFAULT_CHUNK_BYTES, compression=None,
-                 flush_interval_s=0.25, fsync_interval_s=1.0, on_error=None, overwrite=False,
-                 start_time_ns=None):
+    def __init__(self, path: str | os.PathLike[str], session_metadata: Mapping[str, Any], *,
+                 chunk_bytes: int = DEFAULT_CHUNK_BYTES, compression: str | None = None,
+                 flush_interval_s: float = 0.25, fsync_interval_s: float | None = 1.0,
+                 on_error: Callable[[str], object] | None = None, overwrite: bool = False,
+                 start_time_ns: int | None = None) -> None:
         if not isinstance(session_metadata, Mapping):
             raise TypeError(f"session_metadata must be a dict, got {type(session_metadata).__name__}")
         if not isinstance(chunk_bytes, (int, np.integer)) or chunk_bytes <= 0:
@@ -176,7 +189,7 @@ class Recorder:
         if fsync_interval_s is not None and fsync_interval_s <= 0:
             raise ValueError(f"fsync_interval_s must be > 0 or None, got {fsync_interval_s!r}")
         self.path = os.fspath(path)
-        self.error = None
+        self.error: str | None = None
         self.frames_written = self.results_written = self.events_written = 0
         self.frames_dropped = self.results_dropped = self.events_dropped = 0
         self.strain_written = self.extensometers_written = self.force_written = 0
@@ -188,15 +201,15 @@ class Recorder:
         self._lock = threading.RLock()
         self._closed = False
         self._stop = threading.Event()
-        self._thread = None
-        self._sync_fd = None
+        self._thread: threading.Thread | None = None
+        self._sync_fd: int | None = None
         self._event_count = 0
         self._notify_pending = False
         wall_ns = time.time_ns()
         self._start_ns = None if start_time_ns is None else _log_time(start_time_ns, "start_time_ns")
         self._start_mono = time.monotonic_ns()
-        self._session_payload = None         # until written: the session message waits for the clock
-        self._last_frame = None              # (timestamp_ns, monotonic_ns) of the last frame
+        self._session_payload: bytes | None = None   # until written: the session message waits for the clock
+        self._last_frame: tuple[int, int] | None = None   # (timestamp_ns, monotonic_ns) of the last frame
         self._chunks_seen = 0                # chunks_written when bytes_written was last updated
 
         metadata = dict(session_metadata)
@@ -210,25 +223,29 @@ class Recorder:
             self._file = open(self.path, "wb" if overwrite else "xb")
         except FileExistsError:
             raise FileExistsError(f"{self.path} exists: choose a new name or pass overwrite=True") from None
+        self._start_file(strings, int(chunk_bytes), compression, fsync_interval_s)
+        if fsync_interval_s is not None:
+            self._sync_fd = os.dup(self._file.fileno())
+        self._last_sync = time.monotonic()
+        self._synced_bytes = self.bytes_written
+        self._thread = threading.Thread(target=self._background, name="livedic-recorder", daemon=True)
+        self._thread.start()
+
+    def _start_file(self, strings: dict[str, str], chunk_bytes: int, compression: str | None,
+                    fsync_interval_s: float | None) -> None:
+        """The chunk writer, every channel and the session metadata, on disk; the file removed if any fails."""
         try:
-            self._cw = ChunkedWriter(self._file, chunk_bytes=int(chunk_bytes), compression=compression,
+            self._cw = ChunkedWriter(self._file, chunk_bytes=chunk_bytes, compression=compression,
                                       library=library_name(), flush_interval_s=self._flush_interval_s)
-            self._ch_image = self._cw.register(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA,
-                                               rs.schema_data(rs.RAW_IMAGE_SCHEMA))
-            self._ch_info = self._cw.register(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA,
-                                              rs.schema_data(rs.FRAME_INFO_SCHEMA))
-            self._ch_results = self._cw.register(rs.TOPIC_RESULTS, rs.FRAME_RESULTS_SCHEMA,
-                                                 rs.schema_data(rs.FRAME_RESULTS_SCHEMA))
-            self._ch_events = self._cw.register(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA,
-                                                rs.schema_data(rs.EVENT_SCHEMA))
-            self._ch_strain = self._cw.register(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA,
-                                                rs.schema_data(rs.STRAIN_FIELD_SCHEMA))
-            self._ch_extensometers = self._cw.register(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA,
-                                                       rs.schema_data(rs.EXTENSOMETER_SAMPLE_SCHEMA))
-            self._ch_force = self._cw.register(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA,
-                                               rs.schema_data(rs.FORCE_SAMPLE_SCHEMA))
-            self._ch_session = self._cw.register(rs.TOPIC_SESSION, rs.SESSION_SCHEMA,
-                                                 rs.schema_data(rs.SESSION_SCHEMA))
+            channel = self._channel
+            self._ch_image = channel(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA)
+            self._ch_info = channel(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA)
+            self._ch_results = channel(rs.TOPIC_RESULTS, rs.FRAME_RESULTS_SCHEMA)
+            self._ch_events = channel(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA)
+            self._ch_strain = channel(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA)
+            self._ch_extensometers = channel(rs.TOPIC_EXTENSOMETERS, rs.EXTENSOMETER_SAMPLE_SCHEMA)
+            self._ch_force = channel(rs.TOPIC_FORCE, rs.FORCE_SAMPLE_SCHEMA)
+            self._ch_session = channel(rs.TOPIC_SESSION, rs.SESSION_SCHEMA)
             self._cw.writer.add_metadata(rs.METADATA_NAME, strings)
             self._session_payload = rs.Session(metadata=strings).SerializeToString()
             if self._start_ns is not None:
@@ -245,36 +262,33 @@ class Recorder:
             except OSError:
                 pass
             raise
-        if fsync_interval_s is not None:
-            self._sync_fd = os.dup(self._file.fileno())
-        self._last_sync = time.monotonic()
-        self._synced_bytes = self.bytes_written
-        self._thread = threading.Thread(target=self._background, name="livedic-recorder", daemon=True)
-        self._thread.start()
+
+    def _channel(self, topic: str, schema_name: str) -> int:
+        return self._cw.register(topic, schema_name, rs.schema_data(schema_name))
 
     # ------------------------------------------------------------------ public API
 
     @property
-    def frames_durable(self):
+    def frames_durable(self) -> int:
         return self._cw.durable_counts["frame"]
 
     @property
-    def results_durable(self):
+    def results_durable(self) -> int:
         return self._cw.durable_counts["results"]
 
     @property
-    def chunks_written(self):
+    def chunks_written(self) -> int:
         return self._cw.chunks_written
 
-    def chunk_indexes(self):
+    def chunk_indexes(self) -> list[ChunkIndex]:
         """The chunk indexes held in memory for the file's summary (a diagnostic), or None."""
         return self._cw.chunk_indexes()
 
     @property
-    def closed(self):
+    def closed(self) -> bool:
         return self._closed
 
-    def write_frame(self, frame):
+    def write_frame(self, frame: Frame) -> bool:
         """Record ``frame`` (an ``acquire.base.Frame``) on ``/camera/image``.
 
         The image becomes a ``foxglove.RawImage`` (mono8 for uint8, mono16 for uint16)
@@ -304,7 +318,7 @@ class Recorder:
                                 metadata_json=to_json(dict(frame.metadata)) if frame.metadata else "")
             info = info.SerializeToString()
 
-        def add():
+        def add() -> None:
             now = time.time_ns()
             sequence = index & 0xFFFFFFFF
             if info is not None:
@@ -315,7 +329,9 @@ class Recorder:
 
         return self._write("frames", "write_frame", timestamp_ns, add)
 
-    def write_results(self, frame_index, timestamp_ns, point_ids, x, y, u, v, zncc, ok, **extra):
+    def write_results(self, frame_index: int, timestamp_ns: int, point_ids: npt.ArrayLike, x: npt.ArrayLike,
+                      y: npt.ArrayLike, u: npt.ArrayLike, v: npt.ArrayLike, zncc: npt.ArrayLike, ok: npt.ArrayLike,
+                      **extra: Any) -> bool:
         """Record one frame's DIC results on ``/dic/results`` (``livedic.FrameResults``).
 
         Parameters
@@ -358,7 +374,7 @@ class Recorder:
         frame_index = int(frame_index)
         if not 0 <= frame_index < _U64:
             raise ValueError(f"frame_index must be >= 0, got {frame_index}")
-        values = {"frame_index": frame_index, "timestamp_ns": timestamp_ns}
+        values: dict[str, Any] = {"frame_index": frame_index, "timestamp_ns": timestamp_ns}
         arrays = {"point_id": point_ids, "x": x, "y": y, "u": u, "v": v, "zncc": zncc, "ok": ok}
         arrays.update({name: extra[name] for name in rs.OPTIONAL_ARRAYS if extra.get(name) is not None})
         length = None
@@ -370,25 +386,26 @@ class Recorder:
                 raise ValueError(f"write_results: {name} has {array.size} entries but point_ids has {length}")
             values[name] = _convert(array, name)
         for name in rs.RESULT_SCALARS:
-            value = extra.get(name)
-            if value is None:
+            given = extra.get(name)
+            if given is None:
                 continue
             if name == "method":
-                values[name] = str(value)
+                values[name] = str(given)
                 continue
-            value = int(value)
-            if name in ("reference_frame_index", "dropped_frames") and value < 0:
-                raise ValueError(f"write_results: {name} must be >= 0, got {value}")
+            number = int(given)
+            if name in ("reference_frame_index", "dropped_frames") and number < 0:
+                raise ValueError(f"write_results: {name} must be >= 0, got {number}")
             limit = 1 << 32 if name == "dropped_frames" else 1 << 63
-            if not -limit <= value < limit:
-                raise ValueError(f"write_results: {name}={value} is out of range")
-            values[name] = value
+            if not -limit <= number < limit:
+                raise ValueError(f"write_results: {name}={number} is out of range")
+            values[name] = number
         payload = wire.encode_results(values)
         return self._write("results", "write_results", timestamp_ns, lambda: self._cw.add(
             "data", self._ch_results, timestamp_ns, payload, publish_time=time.time_ns(),
             sequence=frame_index & 0xFFFFFFFF, count_as="results"))
 
-    def write_strain(self, frame_index, timestamp_ns, strain_field, *, window=None):
+    def write_strain(self, frame_index: int, timestamp_ns: int, strain_field: StrainField, *,
+                     window: int | None = None) -> bool:
         """Record one frame's strain field on ``/dic/strain`` (``livedic.StrainField``).
 
         Parameters
@@ -423,8 +440,8 @@ class Recorder:
         window = 0 if window is None else int(window)
         if not 0 <= window < 1 << 32:
             raise ValueError(f"write_strain: window must be a number of points >= 0, got {window}")
-        values = {"frame_index": frame_index, "timestamp_ns": timestamp_ns,
-                  "measure": str(strain_field.measure), "window": window, "vsg_px": float(strain_field.vsg_px)}
+        values: dict[str, Any] = {"frame_index": frame_index, "timestamp_ns": timestamp_ns, "window": window,
+                                  "measure": str(strain_field.measure), "vsg_px": float(strain_field.vsg_px)}
         length = None
         for name in rs.STRAIN_ARRAYS[1:]:
             array = _as_1d(getattr(strain_field, name), name, "write_strain")
@@ -433,13 +450,13 @@ class Recorder:
             elif array.size != length:
                 raise ValueError(f"write_strain: {name} has {array.size} entries but exx has {length}")
             values[name] = _convert(array, name, "write_strain", rs.STRAIN_DTYPES)
-        values["point_id"] = np.arange(length, dtype=np.uint32)
+        values["point_id"] = np.arange(length or 0, dtype=np.uint32)      # length: set by the loop
         payload = wire.encode_strain(values)
         return self._write("strain", "write_strain", timestamp_ns, lambda: self._cw.add(
             "data", self._ch_strain, timestamp_ns, payload, publish_time=time.time_ns(),
             sequence=frame_index & 0xFFFFFFFF, count_as="strain"))
 
-    def write_extensometers(self, frame_index, timestamp_ns, readings):
+    def write_extensometers(self, frame_index: int, timestamp_ns: int, readings: ExtensometerReadings) -> bool:
         """Record one frame's extensometer readings on ``/dic/extensometers``: one message each.
 
         Parameters
@@ -482,7 +499,7 @@ class Recorder:
             true_strain=columns["true_strain"][i], ok=bool(ok[i]), status=int(columns["status"][i])
         ).SerializeToString() for i, name in enumerate(names)]
 
-        def add():
+        def add() -> None:
             publish_time = time.time_ns()
             for payload in payloads:
                 self._cw.add("data", self._ch_extensometers, timestamp_ns, payload, publish_time=publish_time,
@@ -490,7 +507,8 @@ class Recorder:
 
         return self._write("extensometers", "write_extensometers", timestamp_ns, add)
 
-    def write_force(self, frame_index, timestamp_ns, force_N, stress_MPa, *, source=""):
+    def write_force(self, frame_index: int, timestamp_ns: int, force_N: float | None, stress_MPa: float | None, *,
+                    source: str = "") -> bool:
         """Record the machine's force on one tracked frame on ``/machine/force`` (``livedic.ForceSample``).
 
         Parameters
@@ -530,7 +548,7 @@ class Recorder:
             "data", self._ch_force, timestamp_ns, payload, publish_time=time.time_ns(),
             sequence=frame_index & 0xFFFFFFFF, count_as="force"))
 
-    def write_event(self, kind, message, *, level="info", timestamp_ns=None):
+    def write_event(self, kind: str, message: str, *, level: str = "info", timestamp_ns: int | None = None) -> bool:
         """Record a note on ``/livedic/events`` (``livedic.Event``).
 
         Parameters
@@ -566,14 +584,14 @@ class Recorder:
         payload = rs.Event(timestamp_ns=timestamp_ns, kind=str(kind), message=str(message),
                            level=level).SerializeToString()
 
-        def add():
+        def add() -> None:
             self._event_count += 1
             self._cw.add("data", self._ch_events, timestamp_ns, payload, publish_time=time.time_ns(),
                          sequence=self._event_count & 0xFFFFFFFF, count_as="event")
 
         return self._write("events", "write_event", timestamp_ns, add)
 
-    def flush(self):
+    def flush(self) -> bool:
         """Write the open image chunk and the pending data, and fsync now. Never raises; False if stopped."""
         written = True
         with self._lock:
@@ -589,7 +607,7 @@ class Recorder:
         self._notify()
         return written
 
-    def close(self):
+    def close(self) -> None:
         """Finish the file (last chunk, summary, index, footer), fsync and close it.
 
         Idempotent and never raises: a failure on the way sets ``error`` (and calls
@@ -614,21 +632,21 @@ class Recorder:
             self._close_file()
         self._notify()
 
-    def __enter__(self):
+    def __enter__(self) -> Recorder:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         self.close()
         return False
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         state = "closed" if self._closed else ("stopped" if self.error else "recording")
         return (f"Recorder({self.path!r}, {state}, frames={self.frames_written}, "
                 f"bytes={self.bytes_written})")
 
     # ------------------------------------------------------------------ internals
 
-    def _refused(self, what):
+    def _refused(self, what: str) -> bool:
         """True (and counted in ``{what}_dropped``) once recording has stopped: skip the encoding."""
         if self.error is None and not self._closed:
             return False
@@ -636,7 +654,7 @@ class Recorder:
             setattr(self, f"{what}_dropped", getattr(self, f"{what}_dropped") + 1)
         return True
 
-    def _write(self, what, during, timestamp_ns, add):
+    def _write(self, what: str, during: str, timestamp_ns: int, add: Callable[[], None]) -> bool:
         """Run ``add()`` under the lock unless recording has stopped; count it in ``{what}_written``
         or ``{what}_dropped``; a failure stops recording (never raised). Returns True if written."""
         written = False
@@ -654,20 +672,20 @@ class Recorder:
         self._notify()
         return written
 
-    def _write_session(self, log_time):
+    def _write_session(self, log_time: int) -> None:
         """The ``/livedic/session`` message, once, before any other message (frame clock)."""
         if self._session_payload is not None:
             payload, self._session_payload = self._session_payload, None
             self._cw.add("data", self._ch_session, log_time, payload, publish_time=time.time_ns())
             self._cw.write_data()            # its own chunk, first in the file: a cut file still has it
 
-    def _after_write(self):
+    def _after_write(self) -> None:
         self._cw.flush_due()
         if self._cw.chunks_written != self._chunks_seen:
             self._chunks_seen = self._cw.chunks_written
             self.bytes_written = self._file.tell()
 
-    def _background(self):
+    def _background(self) -> None:
         """Close chunks that have waited too long and fsync periodically (owns ``_sync_fd``)."""
         try:
             self._background_loop()
@@ -680,7 +698,7 @@ class Recorder:
                     pass
                 self._sync_fd = None
 
-    def _background_loop(self):
+    def _background_loop(self) -> None:
         period = min(self._flush_interval_s / 2, 0.1)
         while not self._stop.wait(period):
             with self._lock:
@@ -695,7 +713,7 @@ class Recorder:
                     return
                 target = self.bytes_written
             if (self._sync_fd is not None and target > self._synced_bytes
-                    and time.monotonic() - self._last_sync >= self._fsync_interval_s):
+                    and time.monotonic() - self._last_sync >= cast(float, self._fsync_interval_s)):
                 try:
                     os.fsync(self._sync_fd)  # outside the lock: writers never wait for the disk
                 except OSError as error:
@@ -705,7 +723,7 @@ class Recorder:
                 self._synced_bytes = target
                 self._last_sync = time.monotonic()
 
-    def _fail(self, error, during):
+    def _fail(self, error: BaseException, during: str) -> None:
         if self.error is not None:
             return
         if isinstance(error, OSError) and error.strerror:
@@ -719,38 +737,38 @@ class Recorder:
         self._close_file()
         self._notify_pending = self._on_error is not None
 
-    def _notify(self):
+    def _notify(self) -> None:
         """Call ``on_error`` once, outside the lock (so the callback may call ``close``)."""
         with self._lock:
             pending, self._notify_pending = self._notify_pending, False
-        if pending:
+        if pending and self._on_error is not None and self.error is not None:    # pending implies both
             try:
                 self._on_error(self.error)
             except Exception:  # noqa: BLE001 - a broken callback must not break the caller's loop
                 log.exception("Recorder on_error callback failed")
 
-    def _close_file(self):
+    def _close_file(self) -> None:
         try:
             self._file.close()
         except Exception:  # noqa: BLE001 - buffered bytes that cannot be written are lost anyway
             pass
 
 
-def _log_time(value, name):
+def _log_time(value: int, name: str) -> int:
     value = int(value)
     if not 0 <= value < _U64:
         raise ValueError(f"{name} must be in [0, 2**64) ns for MCAP, got {value}")
     return value
 
 
-def _frame_index(value, during):
+def _frame_index(value: int, during: str) -> int:
     value = int(value)
     if not 0 <= value < _U64:
         raise ValueError(f"{during}: frame_index must be >= 0, got {value}")
     return value
 
 
-def _scalar(value, name, during):
+def _scalar(value: float | None, name: str, during: str) -> float:
     """``value`` as a float, NaN for None; ValueError when it is not a number."""
     if value is None:
         return float("nan")
@@ -760,14 +778,15 @@ def _scalar(value, name, during):
         raise ValueError(f"{during}: {name} must be a number or NaN, got {value!r}") from None
 
 
-def _as_1d(value, name, during="write_results"):
+def _as_1d(value: npt.ArrayLike, name: str, during: str = "write_results") -> np.ndarray:
     array = np.asarray(value)
     if array.ndim != 1:
         raise ValueError(f"{during}: {name} must be 1-D, got shape {array.shape}")
     return array
 
 
-def _convert(array, name, during="write_results", dtypes=wire.RESULT_DTYPES):
+def _convert(array: np.ndarray, name: str, during: str = "write_results",
+             dtypes: Mapping[str, np.dtype] = wire.RESULT_DTYPES) -> np.ndarray:
     dtype = dtypes.get(name, np.dtype(np.float64))
     name = "point_ids" if name == "point_id" else name          # the argument's name, for messages
     if dtype == np.uint32 and array.dtype != np.uint32:

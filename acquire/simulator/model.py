@@ -4,9 +4,14 @@ visibility, fracture) and ``FrameTruth``, one frame's exact displacement of refe
 The model's equations: docs/guide/sources.md ("The tensile test").
 """
 
+from __future__ import annotations
+
 import math
+from collections.abc import Callable
+from typing import Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.simulator.options import (DEFAULT_MODULUS_GPA, DEFAULT_SCALE_PX_PER_MM, DEFAULT_THICKNESS_MM,
@@ -82,9 +87,10 @@ class TensileModel:
     LATERAL_LAWS = LATERAL_LAWS
     VIEWS = VIEWS
 
-    def __init__(self, shape, frames, *, strain=0.05, neck=0.15, seed=0, lateral="linear", view="grip",
-                 fracture_frame=None, modulus_gpa=DEFAULT_MODULUS_GPA, hardening=0.0,
-                 thickness_mm=DEFAULT_THICKNESS_MM, scale_px_per_mm=DEFAULT_SCALE_PX_PER_MM):
+    def __init__(self, shape: tuple[int, int], frames: int, *, strain: float = 0.05, neck: float = 0.15, seed: int = 0,
+                 lateral: str = "linear", view: str = "grip", fracture_frame: int | None = None,
+                 modulus_gpa: float = DEFAULT_MODULUS_GPA, hardening: float = 0.0,
+                 thickness_mm: float = DEFAULT_THICKNESS_MM, scale_px_per_mm: float = DEFAULT_SCALE_PX_PER_MM) -> None:
         H, W = int(shape[0]), int(shape[1])
         self.shape = (H, W)
         self.frames = int(frames)
@@ -128,17 +134,17 @@ class TensileModel:
         self._jitter = jitter
 
     # -- schedule ---------------------------------------------------------
-    def tau(self, i):
+    def tau(self, i: int) -> float:
         """Normalised time of the loading schedule: 0 at frame 0, 1 at the last frame before any fracture."""
         if self.fracture_frame is None:
             return i / max(self.frames - 1, 1)
         return min(i, self.fracture_frame - 1) / (self.fracture_frame - 1)
 
-    def fractured(self, i):
+    def fractured(self, i: int) -> bool:
         """Whether frame ``i`` shows the specimen broken."""
         return self.fracture_frame is not None and i >= self.fracture_frame
 
-    def state(self, i):
+    def state(self, i: int) -> dict[str, Any]:
         """Strains and rigid motion of frame ``i`` (a dict of floats; ``gap`` is the crack opening, px)."""
         tau = self.tau(i)
         if tau <= self.TAU_YIELD:
@@ -173,25 +179,25 @@ class TensileModel:
         if self.fractured(i):
             # The load drops to zero: both halves unload elastically; the crack opens.
             st.update(phase="fractured", e_el=0.0,
-                      gap=self.GAP_START_PX + self.GAP_RATE_PX * (i - self.fracture_frame))
+                      gap=self.GAP_START_PX + self.GAP_RATE_PX * (i - cast(int, self.fracture_frame)))
         return st
 
     # -- force (docs/guide/sources.md, Force) ------------------------------------------
     @property
-    def area_mm2(self):
+    def area_mm2(self) -> float:
         """A0: the gauge section's initial cross-section, gauge width (px) / scale (px/mm) x thickness (mm)."""
         return 2.0 * self.gauge_half / self.scale_px_per_mm * self.thickness_mm
 
-    def stress_mpa(self, i):
+    def stress_mpa(self, i: int) -> float:
         """Engineering stress of the gauge section in frame ``i`` (MPa): E x e_el, 0 once broken."""
         return self.modulus_gpa * 1e3 * self.state(i)["e_el"]
 
-    def force_n(self, i):
+    def force_n(self, i: int) -> float:
         """Force on the coupon in frame ``i`` (N): stress x A0; 0 from the fracture frame on."""
         return self.stress_mpa(i) * self.area_mm2
 
     @property
-    def specimen(self):
+    def specimen(self) -> dict[str, Any]:
         """The coupon and its exact material law (dict; docs/guide/sources.md, Force).
 
         ``A0_mm2``, ``gauge_width_px``, ``thickness_mm``, ``scale_px_per_mm``, ``E_GPa``,
@@ -221,13 +227,13 @@ class TensileModel:
         d = self.box_edge
         return 0.5 * d * (_logcosh((Y - self.gauge_top) / d) - _logcosh((Y - self.gauge_bottom) / d))
 
-    def half_width(self, Y):
+    def half_width(self, Y: np.ndarray | float) -> np.ndarray:
         """Half-width of the undeformed coupon at reference row Y (px)."""
         f = self.fillet
         shoulder = 1.0 + 0.5 * (np.tanh((self.gauge_top - Y) / f) + np.tanh((Y - self.gauge_bottom) / f))
         return self.gauge_half + (self.shoulder_half - self.gauge_half) * shoulder
 
-    def strain_yy(self, i, Y):
+    def strain_yy(self, i: int, Y: npt.ArrayLike) -> np.ndarray:
         """Exact axial engineering strain dV/dY at reference rows Y for frame ``i`` (away from a crack)."""
         st = self.state(i)
         Y = np.asarray(Y, dtype=np.float64)
@@ -236,7 +242,7 @@ class TensileModel:
         return (st["e_el"] * (a + (1.0 - a) * g) + st["e_pl"] * g
                 + st["e_neck"] * _sech2((Y - self.y_neck) / self.neck_width))
 
-    def plastic_strain_yy(self, i, Y):
+    def plastic_strain_yy(self, i: int, Y: npt.ArrayLike) -> np.ndarray:
         """The plastic part of the axial strain at reference rows Y for frame ``i`` (never decreases)."""
         st = self.state(i)
         Y = np.asarray(Y, dtype=np.float64)
@@ -268,7 +274,7 @@ class TensileModel:
     def _shear(self, st, Y):
         return st["shear_top"] * (self.y_grip - Y) / self.y_grip
 
-    def displacement(self, i, X, Y):
+    def displacement(self, i: int, X: npt.ArrayLike, Y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Exact (U, V) of reference points (X, Y) in frame ``i`` (float64 arrays, broadcast).
 
         Once broken, points with Y < ``y_neck`` belong to the upper half (moved away by the gap).
@@ -281,7 +287,7 @@ class TensileModel:
             V = V - st["gap"] * (Y < self.y_neck)
         return U, V
 
-    def crack_faces(self, i):
+    def crack_faces(self, i: int) -> tuple[float, float] | None:
         """Deformed rows (upper face, lower face) of the crack in frame ``i``; None before the fracture."""
         st = self.state(i)
         if not st["gap"]:
@@ -289,7 +295,7 @@ class TensileModel:
         lower = self.y_neck + st["v_rigid"] + float(self._axial(st, self.y_neck))
         return lower - st["gap"], lower
 
-    def row_cover(self, i, rows):
+    def row_cover(self, i: int, rows: npt.ArrayLike) -> np.ndarray:
         """Fraction of each deformed row's pixel covered by material along y: 1, or less at and in the crack."""
         y = np.asarray(rows, dtype=np.float64)
         faces = self.crack_faces(i)
@@ -305,7 +311,7 @@ class TensileModel:
         upper = self.y_neck + st["v_rigid"] + float(self._axial(st, self.y_neck)) - st["gap"]
         return st["gap"] * (y < upper + 0.5 * st["gap"])
 
-    def inverse_rows(self, i, rows):
+    def inverse_rows(self, i: int, rows: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For deformed rows y: the reference row Y and the column map X = alpha + beta * x.
 
         Solves ``y = Y + V(Y)`` by safeguarded Newton (a bracket kept from f' >= 1, bisection when a
@@ -347,14 +353,14 @@ class TensileModel:
         alpha = self.x_centre - (offset + self.x_centre) * beta
         return Y, alpha, beta
 
-    def nominal_strain(self, i):
+    def nominal_strain(self, i: int) -> float:
         """Mean axial strain over the gauge section (what an extensometer would read; with the crack's gap)."""
         st = self.state(i)
         top, bottom = self.gauge_top, self.gauge_bottom
         return float((self._antiderivative(st, bottom) - self._antiderivative(st, top) + st["gap"])
                      / (bottom - top))
 
-    def visible(self, i, X, Y, half_width=0.0):
+    def visible(self, i: int, X: npt.ArrayLike, Y: npt.ArrayLike, half_width: float = 0.0) -> np.ndarray:
         """Whether the square subset of half-width ``half_width`` around each reference point (X, Y) is fully seen.
 
         True where the subset is all specimen (inside the coupon's outline), on one side of the crack
@@ -385,20 +391,22 @@ class FrameTruth:
     that frame (the source's ``visible``; all of them when the source gives none).
     """
 
-    def __init__(self, function, frame_index, description, visible=None):
+    def __init__(self, function: Callable[[int, npt.ArrayLike, npt.ArrayLike], tuple[np.ndarray, np.ndarray]],
+                 frame_index: int, description: str,
+                 visible: Callable[[int, npt.ArrayLike, npt.ArrayLike, float], np.ndarray] | None = None) -> None:
         self._function = function
         self._visible = visible
         self.frame_index = int(frame_index)
         self.description = description
 
-    def __call__(self, x, y):
+    def __call__(self, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         return self._function(self.frame_index, x, y)
 
-    def visible(self, x, y, half_width=0.0):
+    def visible(self, x: npt.ArrayLike, y: npt.ArrayLike, half_width: float = 0.0) -> np.ndarray:
         """Boolean array: the subset of half-width ``half_width`` px around each reference point is fully seen."""
         if self._visible is None:
             return np.ones(np.broadcast(np.asarray(x), np.asarray(y)).shape, dtype=bool)
         return self._visible(self.frame_index, x, y, half_width)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"FrameTruth({self.description}, frame={self.frame_index})"

@@ -4,9 +4,13 @@ Every option, its default and its check is declared here once (``TENSILE_DEFAULT
 a bad value is one ``SourceError`` line naming the option. The options' meaning: docs/guide/sources.md.
 """
 
+from __future__ import annotations
+
 import math
 import urllib.parse
+from collections.abc import Mapping
 from functools import partial
+from typing import Any
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.options import parse_bool, parse_number
@@ -34,7 +38,7 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 # URI parsing
 # --------------------------------------------------------------------------- #
 
-def _usage():
+def _usage() -> str:
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
             "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
             "&modulus=200&thickness=2&scale=10&hardening=0, "
@@ -42,7 +46,7 @@ def _usage():
             "(same common options)")
 
 
-def parse_synthetic_uri(uri):
+def parse_synthetic_uri(uri: str) -> tuple[str, dict[str, str]]:
     """Split ``synthetic:MODEL?k=v&...`` into (model, {option: text}); raises SourceError."""
     if not isinstance(uri, str) or not uri.startswith("synthetic:"):
         raise SourceError(f"not a synthetic source URI: {uri!r}; use {_usage()}")
@@ -52,7 +56,7 @@ def parse_synthetic_uri(uri):
     if model not in MODELS:
         raise SourceError(f"unknown synthetic model {model!r} in {uri!r}: choose one of {', '.join(MODELS)} "
                           f"(e.g. {_usage()})")
-    options = {}
+    options: dict[str, str] = {}
     if query:
         for part in query.split("&"):
             if not part:
@@ -64,7 +68,7 @@ def parse_synthetic_uri(uri):
     return model, options
 
 
-def convert_options(model, raw):
+def convert_options(model: str, raw: Mapping[str, Any]) -> dict[str, Any]:
     """Typed options for ``model`` from text or Python values; SourceError names the bad one."""
     defaults = TENSILE_DEFAULTS if model == "tensile" else TRANSLATE_DEFAULTS
     unknown = sorted(set(raw) - set(defaults))
@@ -85,7 +89,7 @@ def convert_options(model, raw):
     return out
 
 
-def resolve_tensile_options(options):
+def resolve_tensile_options(options: Mapping[str, Any]) -> dict[str, Any]:
     """The tensile options with ``lateral``/``view`` chosen and ``fracture`` as a frame (0: none).
 
     ``auto`` keeps the small-strain model (linear lateral law, bottom grip fixed in view) up to the
@@ -117,7 +121,7 @@ def resolve_tensile_options(options):
     return out
 
 
-def rendered_count(options):
+def rendered_count(options: Mapping[str, Any]) -> int:
     """Frames actually rendered: ``loop`` when it is on and below ``frames``, else ``frames``."""
     loop = options["loop"]
     return min(loop, options["frames"]) if loop else options["frames"]

@@ -134,12 +134,12 @@ def _quantise_into(image, noise, sigma, full, out):
             out[r, c] = np.rint(value)
 
 
-def paint(intensity, full):
+def paint(intensity: np.ndarray, full: float) -> np.ndarray:
     """Grey level of speckled paint for the Zhou-Goodson intensity (float)."""
     return full * (PAINT_FLOOR + PAINT_GAIN * np.exp(-intensity))
 
 
-def quantise(image, bit, noise_sigma, noise_seed):
+def quantise(image: np.ndarray, bit: int, noise_sigma: float, noise_seed: int) -> np.ndarray:
     """Add camera noise (seeded), clip and round to Mono8 / Mono12."""
     full = FULL_SCALE[bit]
     out = np.empty(image.shape, dtype=np.uint8 if bit == 8 else np.uint16)

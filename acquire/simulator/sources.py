@@ -5,11 +5,16 @@ rendered ahead (``prepare``), then delivered paced at ``fps``, with the exact di
 ``metadata["truth"]``. URIs, options, the model and the force law: docs/guide/sources.md ("The simulator").
 """
 
+from __future__ import annotations
+
 import math
 import threading
 import time
+from collections.abc import Callable, Iterator
+from typing import Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.simulator.model import FrameTruth, TensileModel
@@ -36,7 +41,7 @@ class _PrerenderedSource(FrameSource):
 
     model_name = ""
 
-    def __init__(self, options, uri):
+    def __init__(self, options: dict[str, Any], uri: str) -> None:
         self.options = options
         self.uri = uri
         width, height = options["size"]
@@ -52,29 +57,36 @@ class _PrerenderedSource(FrameSource):
                 f"{uri}: {self.rendered_frames} frames of {width}x{height} at {self.bit} bit need "
                 f"{nbytes / 2**30:.1f} GiB rendered ahead (limit {MAX_RENDER_BYTES / 2**30:.0f} GiB): "
                 "lower frames= or size=, or render fewer and cycle them with loop=K")
-        self._images = None
+        self._images: list[np.ndarray] | None = None
         self._lock = threading.Lock()
         self._closed = False
-        self.render_seconds = None
+        self.render_seconds: float | None = None
         from livedic.dic.speckle import SpecklePattern
         self.pattern = SpecklePattern(self.shape, density=SPECKLE_DENSITY, radius=options["radius"],
                                       seed=options["seed"], margin=self._pattern_margin())
 
-    def _pattern_margin(self):
+    def _pattern_margin(self) -> int | None:
         return None
 
+    def truth(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Exact (u, v) at reference points (x, y) in frame ``frame_index`` (each model says how)."""
+        raise NotImplementedError
+
+    def _render(self, i: int) -> np.ndarray:
+        raise NotImplementedError
+
     @property
-    def live(self):
+    def live(self) -> bool:
         return bool(self.options.get("pace", True))     # paced: a simulated camera
 
     @property
-    def full_scale(self):
+    def full_scale(self) -> int:
         return FULL_SCALE[self.bit]
 
-    def _noise_sigma(self):
+    def _noise_sigma(self) -> float:
         return self.options["noise"] * self.full_scale / 255.0
 
-    def prepare(self, progress=None):
+    def prepare(self, progress: Callable[[int, int], object] | None = None) -> None:
         """Render the frames into memory (idempotent); ``progress(done, total)`` after each.
 
         ``rendered_frames`` of them: all ``frames``, or ``loop`` when cycling.
@@ -93,7 +105,7 @@ class _PrerenderedSource(FrameSource):
             self._images = images
             self.render_seconds = time.perf_counter() - start
 
-    def rendered_index(self, i):
+    def rendered_index(self, i: int) -> int:
         """The rendered frame delivered as frame ``i``: ``i``, or its place in the forward-back cycle (loop)."""
         k = self.rendered_frames
         if k >= self.frames:
@@ -101,16 +113,16 @@ class _PrerenderedSource(FrameSource):
         m = i % (2 * (k - 1))
         return m if m < k else 2 * (k - 1) - m
 
-    def _check_index(self, frame_index):
+    def _check_index(self, frame_index: int) -> int:
         if not 0 <= frame_index < self.frames:
             raise ValueError(f"frame index {frame_index} outside 0..{self.frames - 1}")
         return self.rendered_index(frame_index)
 
-    def frame_metadata(self, i):
+    def frame_metadata(self, i: int) -> dict[str, Any]:
         return {"synthetic": self.model_name,
                 "truth": FrameTruth(self.truth, i, f"synthetic:{self.model_name}", visible=self.visible)}
 
-    def visible(self, frame_index, x, y, half_width=0.0):
+    def visible(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike, half_width: float = 0.0) -> np.ndarray:
         """Whether the square subset of half-width ``half_width`` px around each reference point (x, y)
         lies inside the image in the reference and in frame ``frame_index`` (boolean array)."""
         j = self._check_index(frame_index)
@@ -125,12 +137,13 @@ class _PrerenderedSource(FrameSource):
                     seen &= (px >= 0.0) & (px <= W - 1.0) & (py >= 0.0) & (py <= H - 1.0)
         return seen
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         self.prepare()
         period_ns = 1e9 / self.fps
         start_ns = time.monotonic_ns()
+        images = cast(list[np.ndarray], self._images)       # prepare() rendered them
         for i in range(self.frames):
-            image = self._images[self.rendered_index(i)]
+            image = images[self.rendered_index(i)]
             if self._closed:
                 return
             metadata = self.frame_metadata(i)
@@ -149,11 +162,11 @@ class _PrerenderedSource(FrameSource):
             yield Frame(index=i, timestamp_ns=int(round(i * period_ns)), image=image,
                         pixel_format=self.pixel_format, metadata=metadata)
 
-    def close(self):
+    def close(self) -> None:
         self._closed = True
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         width, height = self.options["size"]
         settings = {key: value for key, value in self.options.items() if key != "size"}
         settings.update({"model": self.model_name, "width": width, "height": height,
@@ -189,7 +202,7 @@ class SyntheticTensileSource(_PrerenderedSource):
 
     model_name = "tensile"
 
-    def __init__(self, uri="synthetic:tensile", **options):
+    def __init__(self, uri: str = "synthetic:tensile", **options: Any) -> None:
         model, raw = parse_synthetic_uri(uri)
         if model != "tensile":
             raise SourceError(f"{uri!r} is not a tensile URI: use synthetic:tensile?...")
@@ -213,7 +226,7 @@ class SyntheticTensileSource(_PrerenderedSource):
                             if opts["fade"] > 0.0 else None)
 
     @property
-    def suggested_roi(self):
+    def suggested_roi(self) -> tuple[int, int, int, int]:
         m = self.model
         inset = 0.15 * m.gauge_half + 8.0
         x0 = int(math.ceil(m.x_centre - m.gauge_half + inset))
@@ -222,15 +235,15 @@ class SyntheticTensileSource(_PrerenderedSource):
         y1 = int(math.floor(m.gauge_bottom))
         return (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
 
-    def truth(self, frame_index, x, y):
+    def truth(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Exact (u, v) at reference points (x, y) in frame ``frame_index``."""
         return self.model.displacement(self._check_index(frame_index), x, y)
 
-    def force_N(self, frame_index):  # noqa: N802 (the unit is part of the name, as in force_N columns)
+    def force_N(self, frame_index: int) -> float:  # noqa: N802 (the unit is part of the name, as in force_N columns)
         """Force on the coupon in frame ``frame_index`` (N): E x e_el x A0, 0 from the fracture frame on."""
         return self.model.force_n(self._check_index(frame_index))
 
-    def forces_N(self):  # noqa: N802
+    def forces_N(self) -> np.ndarray:  # noqa: N802
         """Force (N) of every delivered frame 0 .. frames - 1 (float64 array; cycled with ``loop``)."""
         rendered = np.array([self.model.force_n(j) for j in range(self.rendered_frames)])
         k = self.rendered_frames
@@ -241,16 +254,16 @@ class SyntheticTensileSource(_PrerenderedSource):
         return rendered[index]
 
     @property
-    def specimen(self):
+    def specimen(self) -> dict[str, Any]:
         return self.model.specimen
 
-    def visible(self, frame_index, x, y, half_width=0.0):
+    def visible(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike, half_width: float = 0.0) -> np.ndarray:
         """Whether the square subset of half-width ``half_width`` px around each reference point (x, y) is
         fully seen in frame ``frame_index``: all specimen, on one side of the crack (once broken), inside
         the image in the reference and in that frame (boolean array; ``TensileModel.visible``)."""
         return self.model.visible(self._check_index(frame_index), x, y, half_width)
 
-    def frame_metadata(self, i):
+    def frame_metadata(self, i: int) -> dict[str, Any]:
         meta = super().frame_metadata(i)
         j = self.rendered_index(i)
         st = self.model.state(j)
@@ -260,7 +273,7 @@ class SyntheticTensileSource(_PrerenderedSource):
             meta["fracture_frame"] = self.fracture_frame
         return meta
 
-    def fade_amplitudes(self, i):
+    def fade_amplitudes(self, i: int) -> np.ndarray:
         """Optical density factor of every speckle in frame ``i``: 1 - fade r_k e_p(y_k) / (strain + neck), >= 0.
 
         ``r_k`` is the spot's seeded rate (uniform 0..2), ``e_p(y_k)`` the plastic strain at its centre's
@@ -273,7 +286,7 @@ class SyntheticTensileSource(_PrerenderedSource):
         damage = self.model.plastic_strain_yy(i, self._ys) / peak
         return np.maximum(1.0 - fade * self._fade_rates * damage, 0.0)
 
-    def _render(self, i):
+    def _render(self, i: int) -> np.ndarray:
         full = float(self.full_scale)
         Y, alpha, beta = self.model.inverse_rows(i, self._rows)
         hw = self.model.half_width(Y)
@@ -297,7 +310,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
 
     model_name = "translate"
 
-    def __init__(self, uri="synthetic:translate", **options):
+    def __init__(self, uri: str = "synthetic:translate", **options: Any) -> None:
         model, raw = parse_synthetic_uri(uri)
         if model != "translate":
             raise SourceError(f"{uri!r} is not a translate URI: use synthetic:translate?...")
@@ -306,7 +319,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
         self._opts_for_margin = opts
         super().__init__(opts, uri)
 
-    def _pattern_margin(self):
+    def _pattern_margin(self) -> int:
         opts = self._opts_for_margin
         n = rendered_count(opts) - 1
         extent = max(abs(opts["du"]), abs(opts["dv"])) * n
@@ -315,7 +328,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
         reach = 5.0 * opts["radius"]
         return math.ceil(reach) + 16 + math.ceil(extent)
 
-    def shift(self, frame_index):
+    def shift(self, frame_index: int) -> tuple[float, float]:
         """(u, v) of every point in frame ``frame_index``."""
         u = frame_index * self.options["du"]
         v = frame_index * self.options["dv"]
@@ -325,19 +338,19 @@ class SyntheticTranslateSource(_PrerenderedSource):
             v += jump[2]
         return u, v
 
-    def truth(self, frame_index, x, y):
+    def truth(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         j = self._check_index(frame_index)
         x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
         u, v = self.shift(j)
         return np.full(x.shape, u), np.full(y.shape, v)
 
     @property
-    def suggested_roi(self):
+    def suggested_roi(self) -> tuple[int, int, int, int]:
         H, W = self.shape
         margin = 32
         return (margin, margin, W - 2 * margin, H - 2 * margin)
 
-    def _render(self, i):
+    def _render(self, i: int) -> np.ndarray:
         from livedic.dic.speckle import render
         u, v = self.shift(i)
         intensity = render(self.pattern, (u, v) if (u or v) else None, bit_depth=None)
@@ -345,7 +358,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
         return quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
 
 
-def open_synthetic(uri, **options):
+def open_synthetic(uri: str, **options: Any) -> SyntheticTensileSource | SyntheticTranslateSource:
     """The source named by ``uri``: ``synthetic:``, ``synthetic:tensile?...`` or ``synthetic:translate?...``."""
     model, _ = parse_synthetic_uri(uri)
     if model == "translate":
