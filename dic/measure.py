@@ -1,6 +1,9 @@
 """``measure``: integer-pixel search followed by sub-pixel refinement, for many points."""
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
@@ -21,9 +24,10 @@ SEARCH_METHODS = _INTEGER_SEARCHES + (NO_SEARCH,)
 
 
 
-def measure(reference, deformed, points, *, subset=DEFAULT_SUBSET, search=DEFAULT_SEARCH,
-            subpixel="improved-surface-fit", radius=DEFAULT_RADIUS, guess=None, seed=0,
-            search_options=None, subpixel_options=None, guided=True, gates=Gates()):
+def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, subset: int = DEFAULT_SUBSET,
+            search: str = DEFAULT_SEARCH, subpixel: str = "improved-surface-fit", radius: int = DEFAULT_RADIUS,
+            guess: ArrayLike | None = None, seed: int = 0, search_options: dict | None = None,
+            subpixel_options: dict | None = None, guided: bool = True, gates: Gates | None = Gates()) -> Measurement:
     """Displacement of each point from ``reference`` to ``deformed``.
 
     Parameters

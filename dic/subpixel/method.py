@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
+import numpy as np
+
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
 
@@ -82,7 +84,7 @@ class SubpixelMethod:
         """The first-order IC-GN part of ``prepared`` (what the guided propagation and re-finds run on)."""
         return prepared
 
-    def refine_prepared(self, prepared: Any, target: Any, u0, v0, **options) -> Any:
+    def refine_prepared(self, prepared: Any, target: Any, u0: np.ndarray, v0: np.ndarray, **options: Any) -> Any:
         """``module.refine_prepared`` (prepared methods only)."""
         return self.module.refine_prepared(prepared, target, u0, v0, **options)
 

@@ -1,13 +1,16 @@
 """Where a tracker's points go in a rectangle: ``grid_in_roi`` (a grid every ``step`` px centred in the
 ROI, each subset inside the image) and ``step_for_count`` (the step giving about N points)."""
 
+from __future__ import annotations
+
 import numpy as np
 
 from livedic.dic.region import centred_axis
 from livedic.dic.validation import check_subset
 
 
-def grid_in_roi(shape, roi, step, subset):
+def grid_in_roi(shape: tuple[int, int], roi: tuple[int, int, int, int] | None, step: int,
+                subset: int) -> np.ndarray:
     """Points every ``step`` px over a region of interest, where a whole subset fits.
 
     Parameters
@@ -58,7 +61,7 @@ def grid_in_roi(shape, roi, step, subset):
     return np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
 
 
-def step_for_count(roi, n_points, subset):
+def step_for_count(roi: tuple[int, int, int, int], n_points: int, subset: int) -> int:
     """Grid step giving about ``n_points`` points over ``roi`` = (x, y, w, h) (>= 1)."""
     _, _, w, h = roi
     half = int(subset) // 2

@@ -1,15 +1,21 @@
 """``KernelJob``: one run of the prepared IC-GN kernel (icgn, icgn2) on a frame's window, as ``Tracker``
 makes it, so that a caller may run it elsewhere (another thread, another process)."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
+
+from livedic.dic.bspline import BSplineCoefficients
+from livedic.dic.result import SubpixelResult
 
 from livedic.dic.subpixel.icgn import prepare_target
 from livedic.dic.subpixel.method import SubpixelMethod
 
 
-def window_coefficients(image, window, out=None):
+def window_coefficients(image: np.ndarray, window: tuple[int, int, int, int],
+                        out: BSplineCoefficients | None = None) -> BSplineCoefficients:
     """IC-GN's B-spline coefficients (``prepare_target``) of ``image``'s rows y0:y1, columns x0:x1 (``window``);
     ``out``: an earlier frame's, overwritten where the window's size is theirs."""
     y0, y1, x0, x1 = window
@@ -36,11 +42,11 @@ class KernelJob:
     options: dict
     status: np.ndarray = None
 
-    def coefficients(self, image, out=None):
+    def coefficients(self, image: np.ndarray, out: BSplineCoefficients | None = None) -> BSplineCoefficients:
         """``image``'s coefficients on the window (``window_coefficients``; ``out`` an earlier frame's)."""
         return window_coefficients(image, self.window, out)
 
-    def run(self, coefficients):
+    def run(self, coefficients: BSplineCoefficients) -> SubpixelResult:
         """The method's sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""
         starts = {f"{name}0": values for name, values in self.shape.items()}
         return self.method.refine_prepared(self.prep, coefficients, self.u0, self.v0, status=self.status,

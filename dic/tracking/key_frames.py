@@ -52,7 +52,10 @@ points 4.69 % of the point-frames against frame 0 only, 1.83 % with AUTO_STRAIN 
 noise in, so not fewer). ``livedic bench fracture`` reruns it.
 """
 
+from __future__ import annotations
+
 import time
+from typing import Any
 
 import numpy as np
 
@@ -65,6 +68,7 @@ from livedic.dic.measure import measure
 from livedic.dic.tracking.results import _SHAPE
 from livedic.dic.tracking.tracker import ICGN_MAX_ITERATIONS, StageTimes, Tracker
 from livedic.dic.tracking.update_policy import ReferenceUpdate, UpdatePolicy
+from livedic.dic.tracking.kernel_job import KernelJob
 
 
 class KeyFrameTracker:
@@ -100,8 +104,8 @@ class KeyFrameTracker:
         the fracture check, the update policy and any move of the reference.
     """
 
-    def __init__(self, reference_image, points, *, reference_update="auto", detect_fractures=True,
-                 **tracker_options):
+    def __init__(self, reference_image: np.ndarray, points: np.ndarray, *, reference_update: str = "auto",
+                 detect_fractures: bool = True, **tracker_options: Any):
         self.policy = UpdatePolicy.parse(reference_update)
         self.detect_fractures = bool(detect_fractures)
         self._options = tracker_options
@@ -129,38 +133,38 @@ class KeyFrameTracker:
 
     # the Tracker interface the session uses
     @property
-    def n_points(self):
+    def n_points(self) -> int:
         return self.x.size
 
     @property
-    def trackable(self):
+    def trackable(self) -> np.ndarray:
         mask = np.zeros(self.n_points, dtype=bool)
         mask[self._members] = self._inner.trackable
         return mask
 
     @property
-    def last_refound(self):
+    def last_refound(self) -> np.ndarray:
         mask = np.zeros(self.n_points, dtype=bool)
         mask[self._members] = self._inner.last_refound
         return mask
 
     @property
-    def last_refind_attempts(self):
+    def last_refind_attempts(self) -> int:
         return self._inner.last_refind_attempts
 
     @property
-    def last_seed_searches(self):
+    def last_seed_searches(self) -> int:
         return self._inner.last_seed_searches
 
     @property
-    def window(self):
+    def window(self) -> tuple[int, int, int, int] | None:
         return self._inner.window
 
-    def kernel_job(self):
+    def kernel_job(self) -> KernelJob:
         """``Tracker.kernel_job`` of the current key frame's tracker (displacements from the key frame)."""
         return self._inner.kernel_job()
 
-    def track(self, image):
+    def track(self, image: np.ndarray) -> Measurement:
         """Displacement of every material point from the first frame to ``image`` (a ``Measurement``)."""
         tracker = self._inner
         inner = tracker.track(image)
@@ -211,7 +215,7 @@ class KeyFrameTracker:
         self.last_fracture = fracture
         self.fractures.append(fracture)
 
-    def stop_tracking(self, mask, status=Status.SEPARATED):
+    def stop_tracking(self, mask: np.ndarray, status: int = Status.SEPARATED) -> None:
         """Stop tracking the points ``mask`` (N,) from the next frame on (a fracture): reported with ``status``.
 
         The current key frame stays the reference; its tracker is rebuilt without those points.
@@ -369,7 +373,8 @@ class KeyFrameTracker:
         with np.errstate(invalid="ignore"):
             return result.ok & (result.zncc >= self._inner.refind_zncc) & (near_failures == 0)
 
-    def resume(self, previous, *, last_good=None, frames_tracked, frames_since_key, frames_since_rebuild):
+    def resume(self, previous: Measurement, *, last_good: dict[str, np.ndarray] | None = None, frames_tracked: int,
+               frames_since_key: int, frames_since_rebuild: int) -> None:
         """``Tracker.resume`` for key frames: the next ``track`` starts as it would in sequence.
 
         For ``livedic replay --workers``, which measures frames apart and follows reference updates and
@@ -415,7 +420,7 @@ class KeyFrameTracker:
         inner.resume(start, last_good=good)
 
     @property
-    def state(self):
+    def state(self) -> object:
         """An opaque token of the key-frame state (compare with ``is``): it changes whenever ``track``
         rebuilds the inner tracker: a reference move, a fracture, or a known crack widening (which stops
         tracking more points without a new ``last_fracture``)."""

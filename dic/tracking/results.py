@@ -1,6 +1,8 @@
 """What ``Tracker`` returns and the helpers on its rows: the second-order result inside a frame, rows taken
 from a result, the last good values of each point, the inputs of the median test."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,7 +11,7 @@ from livedic.dic.result import Measurement
 from livedic.dic.subpixel.icgn2 import SECOND_ORDER
 
 
-def last_good_after(last_good, result):
+def last_good_after(last_good: dict[str, np.ndarray] | None, result: Measurement) -> dict[str, np.ndarray]:
     """Each point's last ok result (``Tracker.resume``'s ``last_good``) once ``result`` has been tracked.
 
     ``last_good``: the dict before ``result`` (None: before the first frame, every value 0, never ok);

@@ -1,5 +1,7 @@
 """``Tracker``: points tracked frame to frame against a fixed reference (the package docstring says how)."""
 
+from __future__ import annotations
+
 import time
 
 import numpy as np
@@ -56,12 +58,12 @@ class StageTimes:
     """
     __slots__ = ("ns", "_stage", "_started")
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.ns = dict.fromkeys(TRACKER_STAGES, 0)
         self._stage = None
         self._started = 0
 
-    def stage(self, name):
+    def stage(self, name: str) -> StageTimes:
         self._stage = name
         return self
 
@@ -171,10 +173,13 @@ class Tracker(RefindSteps):
     (0.4, -0.3)
     """
 
-    def __init__(self, reference_image, points, *, subset=DEFAULT_SUBSET, search=DEFAULT_SEARCH, subpixel="icgn",
-                 seed_radius=2, refind_radius=DEFAULT_RADIUS, refind_zncc=REFIND_ZNCC, refind_drop=0.05,
-                 refind_gradient=0.1, refind_search=None, refind_fallback="exhaustive", seed=0, search_options=None,
-                 seed_search_options=None, subpixel_options=None, gates=Gates()):
+    def __init__(self, reference_image: np.ndarray, points: np.ndarray, *, subset: int = DEFAULT_SUBSET,
+                 search: str = DEFAULT_SEARCH, subpixel: str = "icgn", seed_radius: int = 2,
+                 refind_radius: int = DEFAULT_RADIUS, refind_zncc: float = REFIND_ZNCC, refind_drop: float = 0.05,
+                 refind_gradient: float = 0.1, refind_search: str | None = None,
+                 refind_fallback: str | None = "exhaustive", seed: int = 0, search_options: dict | None = None,
+                 seed_search_options: dict | None = None, subpixel_options: dict | None = None,
+                 gates: Gates = Gates()):
         self.searching = search_method(search)
         self.method = subpixel_method(subpixel)
         if refind_search is None:
@@ -295,12 +300,12 @@ class Tracker(RefindSteps):
         return self.method.first_order_data(self._prep)
 
     @property
-    def window(self):
+    def window(self) -> tuple[int, int, int, int] | None:
         """(y0, y1, x0, x1): the part of each frame IC-GN reads, or None (other methods read all)."""
         return self._window
 
     @property
-    def n_points(self):
+    def n_points(self) -> int:
         return self._xs.shape[0]
 
     def _reference_status(self):
@@ -403,7 +408,7 @@ class Tracker(RefindSteps):
             order = np.asarray(order)[idx]
         return KernelJob(self.method, self._prep, self._window, idx, u0, v0, grads, order, options, status)
 
-    def kernel_job(self):
+    def kernel_job(self) -> KernelJob:
         """The kernel stage of the next ``track`` on its own: a ``KernelJob``, or None (no IC-GN, no point).
 
         For timing the bare kernel against the tracker on the same points from the same start
@@ -428,7 +433,7 @@ class Tracker(RefindSteps):
             return _Curved(**fields, **{name: getattr(result, name) for name in SECOND_ORDER})
         return Measurement(**fields)
 
-    def track(self, image):
+    def track(self, image: np.ndarray) -> Measurement:
         """Displacement of every point from the reference to ``image``.
 
         Parameters
@@ -516,7 +521,7 @@ class Tracker(RefindSteps):
             result = _take(result, slice(None), Measurement)
         return result
 
-    def resume(self, previous, *, last_good=None):
+    def resume(self, previous: Measurement, *, last_good: dict[str, np.ndarray] | None = None) -> None:
         """Start the next ``track`` from a known earlier result, as if the frames before had been tracked here.
 
         ``track`` starts each frame from what it keeps of the frames before: the previous
@@ -586,7 +591,7 @@ class Tracker(RefindSteps):
         self._good_grad = {name: np.array(last_good[name], dtype=np.float64) for name in _SHAPE}
         self._ever_good = np.array(last_good["ever"], dtype=bool)
 
-    def carry(self, fields):
+    def carry(self, fields: dict[str, np.ndarray]) -> None:
         """Start the next frame from ``fields`` instead of the displacements the frame just tracked gave.
 
         ``fields``: that frame's ``u, v, ok`` and, for first-order methods, ``ux, uy, vx, vy`` (N,), the same
@@ -676,12 +681,12 @@ class _Frame:
     when a search first needs it, as the float32 image the searches read (``grey``)."""
     __slots__ = ("raw", "_grey")
 
-    def __init__(self, raw):
+    def __init__(self, raw: np.ndarray):
         self.raw = raw
         self._grey = None
 
     @property
-    def grey(self):
+    def grey(self) -> np.ndarray:
         if self._grey is None:
             self._grey = as_image(self.raw, "frame")
         return self._grey

@@ -1,10 +1,13 @@
 """When a key-frame tracker moves its reference (``UpdatePolicy``: auto, never, every N frames) and what a
 move reports (``ReferenceUpdate``); ``dic.tracking.key_frames``' docstring gives the rules and their reasons."""
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
 
+from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 
 # The auto policy's thresholds (dic.tracking.key_frames' docstring says why these values).
@@ -20,7 +23,7 @@ class UpdatePolicy:
     every: int = 0
 
     @classmethod
-    def parse(cls, text):
+    def parse(cls, text: str | UpdatePolicy) -> UpdatePolicy:
         """``auto``, ``never`` or ``every:N`` (N >= 1); ValueError (one line) otherwise."""
         if isinstance(text, UpdatePolicy):
             return text
@@ -39,7 +42,7 @@ class UpdatePolicy:
     def __str__(self):
         return f"every:{self.every}" if self.mode == "every" else self.mode
 
-    def reason(self, frames_since_key, measurement, trackable):
+    def reason(self, frames_since_key: int, measurement: Measurement, trackable: np.ndarray) -> str | None:
         """Why the frame just tracked should become the reference, or None.
 
         ``measurement`` is its result on the current key frame's points, ``trackable`` the points
@@ -113,7 +116,7 @@ class ReferenceUpdate:
     lost: int
     seconds: float
 
-    def describe(self):
+    def describe(self) -> str:
         text = f"reference moved to tracked frame {self.frame} ({self.reason}): {self.carried} points carried"
         if self.estimated:
             text += f", {self.estimated} placed from their neighbours"
