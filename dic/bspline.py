@@ -33,6 +33,7 @@ Processing Magazine 16(6):22-38 (1999), :DOI:`10.1109/79.799930`.
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 
 POLE = np.sqrt(3.0) - 2.0  # z of the cubic B-spline prefilter
@@ -187,7 +188,8 @@ def _mirror_pad(out, height, width):
 _READ_AS_IS = tuple(np.dtype(t) for t in (np.uint8, np.uint16, np.float32, np.float64))
 
 
-def prefilter(image, dtype=np.float32, *, out=None):
+def prefilter(image: np.ndarray, dtype: npt.DTypeLike = np.float32, *,
+              out: BSplineCoefficients | None = None) -> BSplineCoefficients:
     """B-spline coefficients of ``image``.
 
     Parameters
@@ -350,7 +352,8 @@ def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, out_v, out_
             out_v[i] = value_at(coeffs, x, y)
 
 
-def interpolate(image_or_coeffs, x, y, *, gradient=False):
+def interpolate(image_or_coeffs: np.ndarray | BSplineCoefficients, x: npt.ArrayLike, y: npt.ArrayLike, *,
+                gradient: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bicubic B-spline value (and gradient) at arbitrary points.
 
     Parameters

@@ -12,6 +12,7 @@ because ``sum(fhat) == 0`` the target mean cancels from the numerator.
 """
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 
 from livedic.dic.status import FLAT_REFERENCE, FLAT_TARGET, OK, OUTSIDE_REFERENCE, OUTSIDE_TARGET
@@ -136,7 +137,8 @@ def _zncc_batch(reference, target, xs, ys, us, vs, half, out_c, out_status):
 DEFAULT_SUBSET = 21
 
 
-def zncc(reference, deformed, points, displacements, *, subset=DEFAULT_SUBSET):
+def zncc(reference: np.ndarray, deformed: np.ndarray, points: npt.ArrayLike, displacements: npt.ArrayLike, *,
+         subset: int = DEFAULT_SUBSET) -> tuple[np.ndarray, np.ndarray]:
     """ZNCC between reference subsets and deformed subsets at integer displacements.
 
     Parameters
@@ -179,7 +181,7 @@ def zncc(reference, deformed, points, displacements, *, subset=DEFAULT_SUBSET):
     return out_c, out_status
 
 
-def snap_points(xy):
+def snap_points(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Integer pixel (xs, ys) nearest to float points (N, 2); halves round up."""
     snapped = np.floor(xy + 0.5).astype(np.int64)
     return np.ascontiguousarray(snapped[:, 0]), np.ascontiguousarray(snapped[:, 1])

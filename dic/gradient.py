@@ -12,6 +12,7 @@ with the best stencil that fits: central difference one pixel in, one-sided
 """
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 
 
@@ -98,7 +99,7 @@ def _gradient(image, fourth, dtype):
     return gx, gy
 
 
-def gradient_4th(image, dtype=np.float64):
+def gradient_4th(image: np.ndarray, dtype: npt.DTypeLike = np.float64) -> tuple[np.ndarray, np.ndarray]:
     """4th-order central-difference gradient of ``image``.
 
     Parameters
@@ -121,6 +122,6 @@ def gradient_4th(image, dtype=np.float64):
     return _gradient(image, True, dtype)
 
 
-def gradient_central(image, dtype=np.float64):
+def gradient_central(image: np.ndarray, dtype: npt.DTypeLike = np.float64) -> tuple[np.ndarray, np.ndarray]:
     """Central-difference gradient ``(I[x+1] - I[x-1]) / 2`` of ``image``; see ``gradient_4th``."""
     return _gradient(image, False, dtype)

@@ -13,11 +13,19 @@ Examples
 """
 
 import numbers
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
+Predicate = Callable[[Any], bool]
+"""A check of one option's value: True when the value is acceptable."""
+Checks = Mapping[str, tuple[Predicate, str]]
+"""Option name -> (predicate, description of what the value must be)."""
 
-def resolve_options(method, options, defaults, checks):
+
+def resolve_options(method: str, options: Mapping[str, Any] | None, defaults: Mapping[str, Any],
+                    checks: Checks) -> dict[str, Any]:
     """Merge ``options`` into ``defaults`` after checking names and values.
 
     ``checks`` maps option name -> (predicate, description). Raises ValueError
@@ -35,12 +43,12 @@ def resolve_options(method, options, defaults, checks):
     return merged
 
 
-def is_int_at_least(low):
+def is_int_at_least(low: int) -> Predicate:
     """Predicate: an integer (not a bool) >= ``low``."""
-    return lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= low
+    return lambda v: isinstance(v, numbers.Integral) and not isinstance(v, bool) and int(v) >= low
 
 
-def is_real_in(low, high, low_open=False, high_open=False):
+def is_real_in(low: float, high: float, low_open: bool = False, high_open: bool = False) -> Predicate:
     """Predicate: a finite real number (not a bool) in [low, high], either end open if told."""
     def check(v):
         if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(v):
@@ -51,12 +59,12 @@ def is_real_in(low, high, low_open=False, high_open=False):
     return check
 
 
-def is_bool(v):
+def is_bool(v: Any) -> bool:
     """Predicate: a Python or numpy bool."""
     return isinstance(v, (bool, np.bool_))
 
 
-def seed_to_uint(seed):
+def seed_to_uint(seed: int) -> np.uint64:
     """Seed as np.uint64 (any Python int, negative ones wrap)."""
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral):
         raise ValueError(f"seed must be an integer, got {seed!r}")

@@ -14,6 +14,7 @@ of far-away values says nothing about a point.
 """
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 DEFAULT_NEIGHBOURS = 8
@@ -21,6 +22,9 @@ DEFAULT_NEIGHBOURS = 8
 # neighbours (1.41 steps) and the next ring's axis neighbours (2 steps), not more.
 SPACING_REACH = 2.5
 _SPACING_SAMPLE = 64
+
+NeighbourGraph = tuple[np.ndarray, np.ndarray]
+"""(start, index): point i's neighbours are ``index[start[i]:start[i + 1]]`` (see ``neighbour_graph``)."""
 
 
 @njit(cache=True)
@@ -40,7 +44,7 @@ def _nearest_distance_sample(x, y, sample):
     return out
 
 
-def typical_spacing(points):
+def typical_spacing(points: npt.ArrayLike) -> float:
     """Typical distance between neighbouring ``points`` (N, 2); inf for fewer than 2 distinct points.
 
     The larger of the median nearest-neighbour distance (on a sample of the
@@ -119,7 +123,8 @@ def _graph(x, y, k, reach, cell, start, index):
     return total
 
 
-def neighbour_graph(points, *, k=DEFAULT_NEIGHBOURS, max_distance=None):
+def neighbour_graph(points: npt.ArrayLike, *, k: int = DEFAULT_NEIGHBOURS,
+                    max_distance: float | None = None) -> NeighbourGraph:
     """The ``k`` nearest neighbours of every point, within ``max_distance``.
 
     Parameters

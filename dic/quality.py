@@ -54,12 +54,19 @@ J. Westerweel and F. Scarano, "Universal outlier detection for PIV data",
 Exp. Fluids 39:1096-1100 (2005), :DOI:`10.1007/s00348-005-0016-6`.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic.status import LOW_CORRELATION, OK, OUTLIER, POOR_TEXTURE
+
+if TYPE_CHECKING:
+    from livedic.dic.neighbours import NeighbourGraph
+    from livedic.dic.subpixel.icgn import IcgnReference
 
 MIN_ZNCC = 0.5
 TEXTURE_FRACTION = 0.05
@@ -70,6 +77,10 @@ OUTLIER_EPSILON = 0.1
 MIN_NEIGHBOURS = 3
 # "well-textured points of the same image": this percentile of the texture of the measured points.
 _TYPICAL_PERCENTILE = 75
+
+
+Gradients = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""The displacement gradients (ux, uy, vx, vy), float64 (N,) each."""
 
 
 @dataclass(frozen=True)
@@ -109,19 +120,19 @@ class Texture:
     aperture: np.ndarray
     vif: np.ndarray
 
-    def poor(self, gates=Gates()):
+    def poor(self, gates: Gates = Gates()) -> np.ndarray:
         """True where the subset is too poorly textured to measure (``POOR_TEXTURE``)."""
         finite = np.isfinite(self.weakest)
         typical = np.percentile(self.weakest[finite], _TYPICAL_PERCENTILE) if finite.any() else 0.0
         weak = self.weakest < gates.texture_fraction * typical
         return finite & (weak | ~(self.aperture <= gates.aperture_max))
 
-    def translation_only(self, gates=Gates()):
+    def translation_only(self, gates: Gates = Gates()) -> np.ndarray:
         """True where a first-order warp is ill-determined and translation-only should be fitted."""
         return np.isfinite(self.energy) & ~(self.vif <= gates.vif_max)
 
 
-def texture(prep):
+def texture(prep: IcgnReference) -> Texture:
     """Texture measures of the reference subsets (see ``Texture``), from IC-GN's reference data.
 
     The step matrix ``H`` of IC-GN (``dic.subpixel.icgn.prepare_reference``) is
@@ -375,7 +386,9 @@ def _median_test(x, y, u, v, grads, ok, start, index, epsilon, threshold, outlie
             outlier[i] = r > threshold
 
 
-def median_test(x, y, u, v, ok, graph, *, gradients=None, epsilon=OUTLIER_EPSILON, threshold=OUTLIER_THRESHOLD):
+def median_test(x: np.ndarray, y: np.ndarray, u: np.ndarray, v: np.ndarray, ok: np.ndarray, graph: NeighbourGraph, *,
+                gradients: Gradients | None = None, epsilon: float = OUTLIER_EPSILON,
+                threshold: float = OUTLIER_THRESHOLD) -> tuple[np.ndarray, np.ndarray]:
     """Normalised median test (Westerweel & Scarano 2005) on the displacement of each ok point.
 
     Parameters
@@ -424,8 +437,10 @@ def median_test(x, y, u, v, ok, graph, *, gradients=None, epsilon=OUTLIER_EPSILO
     return outlier, residual
 
 
-def gate_status(status, zncc, x, y, u, v, graph, gates=Gates(), *, gradients=None, poor_texture=None,
-                known_outliers=None):
+def gate_status(status: np.ndarray, zncc: np.ndarray, x: np.ndarray, y: np.ndarray, u: np.ndarray, v: np.ndarray,
+                graph: NeighbourGraph | None, gates: Gates = Gates(), *, gradients: Gradients | None = None,
+                poor_texture: np.ndarray | None = None,
+                known_outliers: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Status after the correlation, texture and neighbour gates (a new array).
 
     Parameters

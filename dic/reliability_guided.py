@@ -38,11 +38,21 @@ B. Pan, "Reliability-guided digital image correlation for image deformation
 measurement", Appl. Opt. 48(8):1535-1542 (2009), :DOI:`10.1364/AO.48.001535`.
 """
 
+from collections.abc import Callable, Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
+from livedic.dic.bspline import BSplineCoefficients
+from livedic.dic.neighbours import NeighbourGraph
 from livedic.dic.status import LOW_CORRELATION, OK
-from livedic.dic.subpixel.icgn import refine_point, refine_point_scratch
+from livedic.dic.subpixel.icgn import IcgnReference, refine_point, refine_point_scratch
+
+IntegerSearch = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+"""``search(idx) -> (u, v, status, evaluations)``: the full integer search of points ``idx``."""
+Repair = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""``repair(params, ok) -> outlier mask``: points to solve again from their best neighbour."""
 
 SEEDS = 9
 MAX_TRIES = 3
@@ -176,7 +186,7 @@ def _solve(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, f
 class _Problem:
     """The prepared data of one reliability-guided measurement and its per-point state."""
 
-    def __init__(self, prep, coeffs, order, graph, accept, options):
+    def __init__(self, prep, coeffs, order, graph, accept, options) -> None:
         self.prep = prep
         self.coeffs = coeffs
         self.order = np.ascontiguousarray(order, dtype=np.int64)
@@ -224,7 +234,7 @@ class _Problem:
                           *self._option_args())
 
 
-def regions(xs, ys, n_active):
+def regions(xs: np.ndarray, ys: np.ndarray, n_active: int) -> tuple[np.ndarray, int]:
     """Region of each point (``part``) and the number of regions: 4 quadrants split at the medians
     when there are at least ``4 * MIN_REGION_POINTS`` points to measure, else one region.
 
@@ -256,7 +266,10 @@ def _spread_seeds(candidates, xs, ys, energy, count):
     return candidates[order[first]]
 
 
-def guided_icgn(prep, coeffs, search, graph, *, order, accept, energy, active=None, options=None, repair=None):
+def guided_icgn(prep: IcgnReference, coeffs: BSplineCoefficients, search: IntegerSearch, graph: NeighbourGraph, *,
+                order: np.ndarray, accept: float, energy: np.ndarray, active: np.ndarray | None = None,
+                options: Mapping[str, Any] | None = None,
+                repair: Repair | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Reliability-guided IC-GN over every point of ``prep`` whose reference status is OK.
 
     Parameters
@@ -292,55 +305,72 @@ def guided_icgn(prep, coeffs, search, graph, *, order, accept, energy, active=No
         IC-GN iterations and integer-search evaluations spent on each point.
     """
     problem = _Problem(prep, coeffs, order, graph, accept, options)
-    n = prep.xs.shape[0]
     todo = problem.status == OK if active is None else (problem.status == OK) & active
     state = np.where(todo, 0, 2).astype(np.int8)
-    evaluations = np.zeros(n, dtype=np.int64)
-    xs, ys = prep.xs, prep.ys
-
-    def full_search(idx):
-        u, v, st, ev = search(idx)
-        evaluations[idx] += ev
-        starts = np.zeros((idx.size, 6))
-        starts[:, 0] = u
-        starts[:, 3] = v
-        found = st == OK
-        accepted = np.zeros(idx.size, dtype=bool)
-        if found.any():
-            accepted[found] = problem.solve(idx[found], starts[found])
-        problem.status[idx[~found]] = st[~found]
-        state[idx] = np.where(accepted, 1, 2)
-        return accepted
-
-    part, n_parts = regions(xs, ys, np.flatnonzero(state == 0).size)
+    evaluations = np.zeros(prep.xs.shape[0], dtype=np.int64)
+    part, n_parts = regions(prep.xs, prep.ys, np.flatnonzero(state == 0).size)
     seeds_wanted = np.full(n_parts, SEEDS)
     while True:
+        # points IC-GN could not reach from a neighbour are searched in full; else new seeds where none reached
         failed = np.flatnonzero((state == 0) & (problem.tries > 0))
         if failed.size:
-            full_search(failed)
+            _search_and_solve(problem, search, failed, state, evaluations)
         else:
-            seeds = []
-            for region in range(n_parts):
-                unreached = np.flatnonzero((state == 0) & (part == region))
-                if unreached.size:
-                    seeds.append(_spread_seeds(unreached, xs, ys, energy, int(seeds_wanted[region])))
-            if not seeds:
+            seeds = _next_seeds(state, part, seeds_wanted, prep.xs, prep.ys, energy)
+            if seeds is None:
                 break
-            seeds = np.concatenate(seeds)
-            accepted = full_search(seeds)
-            for region in range(n_parts):
-                mine = part[seeds] == region
-                if mine.any():
-                    seeds_wanted[region] = SEEDS if accepted[mine].any() else 2 * seeds_wanted[region]
+            accepted = _search_and_solve(problem, search, seeds, state, evaluations)
+            _adapt_seed_counts(seeds_wanted, part[seeds], accepted)
         problem.propagate(state, part, n_parts)
     if repair is not None:
         _repair(problem, state, repair)
-    ok = problem.status == OK
-    problem.params[~ok] = np.nan
+    problem.params[problem.status != OK] = np.nan
     return problem.params, problem.status, problem.zncc, problem.iterations, evaluations
 
 
-def propagate(prep, coeffs, graph, *, order, accept, params, zncc, solved, pending, options=None):
+def _search_and_solve(problem: _Problem, search: IntegerSearch, idx: np.ndarray, state: np.ndarray,
+                      evaluations: np.ndarray) -> np.ndarray:
+    """The full integer search of points ``idx``, then IC-GN from what it found; returns the accepted mask.
+
+    Points the search found are solved (state 1 if accepted, else 2); the others keep its status (state 2).
+    """
+    u, v, st, ev = search(idx)
+    evaluations[idx] += ev
+    starts = np.zeros((idx.size, 6))
+    starts[:, 0] = u
+    starts[:, 3] = v
+    found = st == OK
+    accepted = np.zeros(idx.size, dtype=bool)
+    if found.any():
+        accepted[found] = problem.solve(idx[found], starts[found])
+    problem.status[idx[~found]] = st[~found]
+    state[idx] = np.where(accepted, 1, 2)
+    return accepted
+
+
+def _next_seeds(state: np.ndarray, part: np.ndarray, seeds_wanted: np.ndarray, xs: np.ndarray, ys: np.ndarray,
+                energy: np.ndarray) -> np.ndarray | None:
+    """Seeds spread over the pending points of each region (``seeds_wanted`` a region); None: none pending."""
+    per_region = []
+    for region in range(seeds_wanted.size):
+        unreached = np.flatnonzero((state == 0) & (part == region))
+        if unreached.size:
+            per_region.append(_spread_seeds(unreached, xs, ys, energy, int(seeds_wanted[region])))
+    return np.concatenate(per_region) if per_region else None
+
+
+def _adapt_seed_counts(seeds_wanted: np.ndarray, seed_regions: np.ndarray, accepted: np.ndarray) -> None:
+    """Back to ``SEEDS`` in a region where a seed was accepted; twice as many next time where none was."""
+    for region in range(seeds_wanted.size):
+        mine = seed_regions == region
+        if mine.any():
+            seeds_wanted[region] = SEEDS if accepted[mine].any() else 2 * seeds_wanted[region]
+
+
+def propagate(prep: IcgnReference, coeffs: BSplineCoefficients, graph: NeighbourGraph, *, order: np.ndarray,
+              accept: float, params: np.ndarray, zncc: np.ndarray, solved: np.ndarray, pending: np.ndarray,
+              options: Mapping[str, Any] | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Hand the warps of ``solved`` points to ``pending`` ones, most reliable first (one region).
 
     What a tracker does for points it lost: before a wide search, try IC-GN
@@ -376,7 +406,7 @@ def propagate(prep, coeffs, graph, *, order, accept, params, zncc, solved, pendi
     return accepted, problem.params, problem.status, problem.zncc, problem.iterations
 
 
-def _repair(problem, state, find_outliers):
+def _repair(problem, state, find_outliers) -> None:
     """Solve the points ``find_outliers`` flags again from their best ok neighbour; keep what is better.
 
     The same propagation as the first pass, with the outliers pending and every other ok point solved.

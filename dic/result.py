@@ -45,12 +45,12 @@ class SubpixelResult:
     v: np.ndarray
     zncc: np.ndarray
     status: np.ndarray
-    ux: np.ndarray = None
-    uy: np.ndarray = None
-    vx: np.ndarray = None
-    vy: np.ndarray = None
-    iterations: np.ndarray = None
-    evaluations: np.ndarray = None
+    ux: np.ndarray | None = None
+    uy: np.ndarray | None = None
+    vx: np.ndarray | None = None
+    vy: np.ndarray | None = None
+    iterations: np.ndarray | None = None
+    evaluations: np.ndarray | None = None
 
 
 @dataclass
@@ -73,14 +73,14 @@ class Measurement:
     zncc: np.ndarray
     ok: np.ndarray
     status: np.ndarray
-    ux: np.ndarray = None
-    uy: np.ndarray = None
-    vx: np.ndarray = None
-    vy: np.ndarray = None
-    iterations: np.ndarray = None
-    evaluations: np.ndarray = None
+    ux: np.ndarray | None = None
+    uy: np.ndarray | None = None
+    vx: np.ndarray | None = None
+    vy: np.ndarray | None = None
+    iterations: np.ndarray | None = None
+    evaluations: np.ndarray | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # Rounding in the solvers' sums lets a perfect match score a hair above 1 (1.0000002 for a frame
         # tracked against itself): ZNCC lies within [-1, 1] by definition, so it is clipped here, where every
         # measurement is assembled, after the gates have judged it (which points are ok does not change).

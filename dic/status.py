@@ -22,7 +22,7 @@ class Status(IntEnum):
     SEPARATED = 11          # its material separated (fracture): no longer tracked
 
     @property
-    def description(self):
+    def description(self) -> str:
         return _DESCRIPTIONS[self]
 
 

@@ -2,14 +2,15 @@
 with one line that names the problem and what to do about it."""
 
 import numpy as np
+import numpy.typing as npt
 
 
-def as_image(image, name):
+def as_image(image: npt.ArrayLike, name: str) -> np.ndarray:
     """Return ``image`` as a C-contiguous float32 2-D array, or raise ValueError."""
     return np.ascontiguousarray(checked_image(image, name), dtype=np.float32)
 
 
-def checked_image(image, name):
+def checked_image(image: npt.ArrayLike, name: str) -> np.ndarray:
     """Return ``image`` as an array, unconverted, if ``as_image`` takes it, or raise ValueError."""
     array = np.asarray(image)
     if array.ndim != 2:
@@ -23,14 +24,14 @@ def checked_image(image, name):
     return array
 
 
-def check_same_shape(reference, deformed):
+def check_same_shape(reference: np.ndarray, deformed: np.ndarray) -> None:
     if reference.shape != deformed.shape:
         raise ValueError(
             f"reference is {reference.shape[1]}x{reference.shape[0]} but deformed is "
             f"{deformed.shape[1]}x{deformed.shape[0]}: both images must have the same size")
 
 
-def check_subset(subset, shape):
+def check_subset(subset: int, shape: tuple[int, ...]) -> int:
     """Return the half-width of a valid odd ``subset`` side for an image of ``shape``."""
     if isinstance(subset, bool) or not isinstance(subset, (int, np.integer)):
         raise ValueError(f"subset must be an odd integer number of pixels, got {subset!r}")
@@ -41,13 +42,13 @@ def check_subset(subset, shape):
     return int(subset) // 2
 
 
-def check_radius(radius):
+def check_radius(radius: int) -> int:
     if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 0:
         raise ValueError(f"search radius must be a non-negative integer number of pixels, got {radius!r}")
     return int(radius)
 
 
-def as_points(points):
+def as_points(points: npt.ArrayLike) -> np.ndarray:
     """Return points as float64 (N, 2) of finite (x, y), or raise ValueError."""
     xy = np.asarray(points, dtype=np.float64)
     if xy.ndim == 1 and xy.shape[0] == 2:
@@ -59,7 +60,7 @@ def as_points(points):
     return np.ascontiguousarray(xy)
 
 
-def as_guess(guess, n_points):
+def as_guess(guess: npt.ArrayLike | None, n_points: int) -> np.ndarray:
     """Return the initial (u, v) guess as float64 (N, 2); NaN rows are allowed (flagged per point)."""
     if guess is None:
         return np.zeros((n_points, 2))

@@ -80,9 +80,10 @@ class Specimen:
         return bounding_box(self.mask)
 
     def describe(self) -> str:
-        if not self.mask.any():
+        bounds = self.bounds
+        if bounds is None:
             return "no speckled area found"
-        x, y, w, h = self.bounds
+        x, y, w, h = bounds
         what = "the speckled specimen" if self.separated else "speckle over the whole image"
         pieces = f" in {self.pieces} pieces" if self.pieces > 1 else ""
         return (f"{what}{pieces}: {100 * self.share:.0f} % of the image, within {x},{y},{w},{h} "
@@ -145,7 +146,7 @@ def find_specimen(image: np.ndarray, subset: int) -> Specimen:
         threshold = float(10.0 ** split)
     else:
         threshold = FLAT_SHARE * float(np.median(texture))
-    speckled = (texture > threshold).astype(np.uint8)
+    speckled: np.ndarray = (texture > threshold).astype(np.uint8)
 
     half = max(int(subset) // 2, 1)
     close = np.ones((half | 1, half | 1), np.uint8)

@@ -26,10 +26,13 @@ radius 10-48. For a seeded search with a small radius (tracking), ``"exhaustive"
 the cheapest: at radius 2 it costs 25 evaluations.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import ModuleType
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.dic.correlation import DEFAULT_SUBSET
 from livedic.dic.result import IntegerSearchResult
@@ -76,7 +79,7 @@ class SearchMethod:
         """A population search (a swarm of candidates over iterations): a seeded search sizes it down."""
         return self.module is not None and "population" in self.module.DEFAULTS
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple:
         return search_method, (self.name,)        # pickled by name (replay --workers), not with its module
 
 
@@ -92,19 +95,20 @@ def search_method(name: str) -> SearchMethod:
         raise ValueError(f"unknown search method {name!r}: choose one of {', '.join(SEARCHES)}") from None
 
 
-def method_options(method):
+def method_options(method: str) -> dict[str, Any]:
     """Default options of a search method (a copy), e.g. ``method_options("pso")["population"]``."""
     _check_method(method)
     return dict(_MODULES[method].DEFAULTS)
 
 
-def _check_method(method):
+def _check_method(method: str) -> None:
     if method not in _MODULES:
         raise ValueError(f"unknown search method {method!r}: choose one of {', '.join(SEARCH_METHODS)}")
 
 
-def search_points(reference, deformed, xs, ys, guess_u, guess_v, half, radius, method, *, seed=0, margin=0,
-                  options=None):
+def search_points(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, guess_u: np.ndarray,
+                  guess_v: np.ndarray, half: int, radius: int, method: str, *, seed: int = 0, margin: int = 0,
+                  options: Mapping[str, Any] | None = None) -> IntegerSearchResult:
     """Integer search for already validated inputs (the kernel entry used by ``dic.measure``).
 
     Parameters
@@ -148,7 +152,7 @@ def search_points(reference, deformed, xs, ys, guess_u, guess_v, half, radius, m
     _check_method(method)
     module = _MODULES[method]
     params = resolve_options(method, options, module.DEFAULTS, module.CHECKS)
-    seed = seed_to_uint(seed)
+    stream_seed = seed_to_uint(seed)
     xs = np.ascontiguousarray(xs, dtype=np.int64)
     ys = np.ascontiguousarray(ys, dtype=np.int64)
     guess_u = np.asarray(guess_u, dtype=np.float64)
@@ -158,18 +162,19 @@ def search_points(reference, deformed, xs, ys, guess_u, guess_v, half, radius, m
     outputs = new_outputs(xs.shape[0])
     levels = levels_for(int(radius), params["top_radius"], int(half), deformed.shape) if params.get("pyramid") else 0
     if xs.shape[0] and levels:
-        pyramid_search(module, reference, deformed, xs, ys, ulo, uhi, vlo, vhi, int(half), status, seed, params,
+        pyramid_search(module, reference, deformed, xs, ys, ulo, uhi, vlo, vhi, int(half), status, stream_seed, params,
                        outputs, (cu, cv), levels=levels, top_radius=params["top_radius"])
     elif xs.shape[0]:
-        module.run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, int(half), status, seed, params, outputs,
+        module.run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, int(half), status, stream_seed, params, outputs,
                    (cu, cv))
     u, v, zncc, evaluations, calls = outputs
     return IntegerSearchResult(xs=xs, ys=ys, u=u, v=v, zncc=zncc, status=status, evaluations=evaluations,
                                calls=calls)
 
 
-def integer_search(reference, deformed, points, *, method=DEFAULT_SEARCH, subset=DEFAULT_SUBSET, radius=DEFAULT_RADIUS,
-                   guess=None, seed=0, **options):
+def integer_search(reference: np.ndarray, deformed: np.ndarray, points: npt.ArrayLike, *, method: str = DEFAULT_SEARCH,
+                   subset: int = DEFAULT_SUBSET, radius: int = DEFAULT_RADIUS, guess: npt.ArrayLike | None = None,
+                   seed: int = 0, **options: Any) -> IntegerSearchResult:
     """Integer-pixel displacement of each point: the ZNCC maximum in a box around the guess.
 
     Parameters

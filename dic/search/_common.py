@@ -26,8 +26,12 @@ from livedic.dic.status import BAD_GUESS, FLAT_REFERENCE, FLAT_TARGET, OK, OUTSI
 # to int64 (avoids overflow on absurd guesses such as 1e300).
 _FAR = 1 << 40
 
+SearchOutputs = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""A search kernel's outputs per point: u, v (int64), zncc (float64), evaluations, calls (int64)."""
 
-def search_boxes(shape, xs, ys, guess_u, guess_v, half, radius, margin):
+
+def search_boxes(shape: tuple[int, ...], xs: np.ndarray, ys: np.ndarray, guess_u: np.ndarray, guess_v: np.ndarray,
+                 half: int, radius: int, margin: int) -> tuple[np.ndarray, ...]:
     """Integer search box per point and the status of points that cannot be searched.
 
     Parameters
@@ -160,7 +164,7 @@ def finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out
     out_c[i] = c
 
 
-def new_outputs(n):
+def new_outputs(n: int) -> SearchOutputs:
     """Output arrays of a search kernel: u, v, zncc, evaluations, calls."""
     return (np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.full(n, np.nan),
             np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64))

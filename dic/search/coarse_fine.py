@@ -13,11 +13,14 @@ It fails when ``step`` exceeds the half-width of the correlation peak (about the
 speckle radius) and a side lobe beats the sampled flank of the true peak.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic.method_options import is_int_at_least
-from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
+from livedic.dic.search._common import SearchOutputs, begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {"step": 3}
 CHECKS = {"step": (is_int_at_least(1), "an integer >= 1 (coarse lattice step, pixels)")}
@@ -69,6 +72,8 @@ def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, cus, cvs, half, step, 
         finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out_calls)
 
 
-def run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs, centre):
+def run(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, ulo: np.ndarray,
+        uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray, seed: np.uint64,
+        params: Mapping[str, Any], outputs: SearchOutputs, centre: tuple[np.ndarray, np.ndarray]) -> None:
     _batch(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, centre[0], centre[1], half,
            int(params["step"]), status, *outputs)

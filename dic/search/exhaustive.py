@@ -6,13 +6,17 @@ position, ``(2 * radius + 1) ** 2`` for a box that the image does not clip.
 Ties keep the first position in row-major order (v outer, u inner).
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
-from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
+from livedic.dic.method_options import Checks
+from livedic.dic.search._common import SearchOutputs, begin_point, finish_point, fitness, new_cache
 
-DEFAULTS = {}
-CHECKS = {}
+DEFAULTS: dict[str, Any] = {}
+CHECKS: Checks = {}
 
 
 @njit(cache=True)
@@ -45,5 +49,7 @@ def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, half, status,
         finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out_calls)
 
 
-def run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs, centre):
+def run(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, ulo: np.ndarray,
+        uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray, seed: np.uint64 | int,
+        params: Mapping[str, Any], outputs: SearchOutputs, centre: tuple[np.ndarray, np.ndarray] | None) -> None:
     _batch(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, *outputs)

@@ -24,14 +24,19 @@ B. Pan, H. Xie, Z. Wang, "Equivalence of digital image correlation criteria for
 pattern matching", Appl. Opt. 49(28):5501-5509 (2010), :DOI:`10.1364/AO.49.005501`.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic.correlation import FLAT_VARIANCE
+from livedic.dic.method_options import Checks
+from livedic.dic.search._common import SearchOutputs
 from livedic.dic.status import FLAT_REFERENCE, FLAT_TARGET, OK
 
-DEFAULTS = {}
-CHECKS = {}
+DEFAULTS: dict[str, Any] = {}
+CHECKS: Checks = {}
 # Points per batched FFT: bounds the transform arrays to ~50 MB for a 64 x 64 window.
 _CHUNK_BYTES = 50_000_000
 
@@ -141,7 +146,9 @@ def _search_group(reference, deformed, tables, xs, ys, ulo, vlo, nu, nv, half):
     return best_u, best_v, best_c, flat
 
 
-def run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs, centre):
+def run(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, ulo: np.ndarray,
+        uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray, seed: np.uint64,
+        params: Mapping[str, Any], outputs: SearchOutputs, centre: tuple[np.ndarray, np.ndarray]) -> None:
     """Search every point whose status is OK (the ``dic.search`` kernel contract)."""
     out_u, out_v, out_c, out_evals, out_calls = outputs
     todo = np.flatnonzero(status == OK)

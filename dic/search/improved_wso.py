@@ -144,13 +144,16 @@ The swarm update is written ask/tell style (``iwso_init``, ``iwso_move``,
 of the improved surface fit (``dic.subpixel.improved_surface_fit``).
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import uniform, new_state
 from livedic.dic.correlation import round_half_up
 from livedic.dic.method_options import is_bool, is_int_at_least, is_real_in
-from livedic.dic.search._common import begin_point, finish_point, fitness, hill_climb, new_cache
+from livedic.dic.search._common import SearchOutputs, begin_point, finish_point, fitness, hill_climb, new_cache
 
 DEFAULTS = {"population": 20, "iterations": 50, "mu": 0.7, "p_min": 0.5, "p_max": 1.5,
             "a1": 6.25, "a2": 5.0, "sd_tol": 1e-3, "tent_a": 0.5, "polish": True,
@@ -181,10 +184,10 @@ CHECKS = {
     "pyramid": (is_bool, "True or False"),
     "top_radius": (is_int_at_least(2), "an integer >= 2 (pixels)"),
 }
-_BOUNDARY = {"clip": 0, "reflect": 1, "random": 2}
-_SD_OF = {"current": 0, "pbest": 1}
-_POLISH = {"hill-climb": 0, "three-step": 1}
-_POLISH_FROM = {"pbest": 0, "evaluated": 1}
+_BOUNDARY: dict[str, int] = {"clip": 0, "reflect": 1, "random": 2}
+_SD_OF: dict[str, int] = {"current": 0, "pbest": 1}
+_POLISH: dict[str, int] = {"hill-climb": 0, "three-step": 1}
+_POLISH_FROM: dict[str, int] = {"pbest": 0, "evaluated": 1}
 
 
 @njit(cache=True)
@@ -467,7 +470,9 @@ def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, half, seed, n, n_iter,
         finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out_calls)
 
 
-def run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs, centre):
+def run(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, ulo: np.ndarray,
+        uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray, seed: np.uint64,
+        params: Mapping[str, Any], outputs: SearchOutputs, centre: tuple[np.ndarray, np.ndarray]) -> None:
     p = params
     _batch(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, seed, int(p["population"]),
            int(p["iterations"]), float(p["mu"]), float(p["p_min"]), float(p["p_max"]), float(p["a1"]),

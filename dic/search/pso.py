@@ -22,13 +22,16 @@ within noise; 1.49445 is the constriction-equivalent value, kept); v_max 0.1,
 on an earlier 6000-trial run.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import new_state, uniform
 from livedic.dic.correlation import round_half_up
 from livedic.dic.method_options import is_int_at_least, is_real_in
-from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
+from livedic.dic.search._common import SearchOutputs, begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {"population": 20, "iterations": 50, "c1": 1.49445, "c2": 1.49445,
             "w_start": 0.9, "w_end": 0.4, "v_max": 0.2, "patience": 0}
@@ -121,7 +124,9 @@ def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, half, seed, n, n_iter,
         finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out_calls)
 
 
-def run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs, centre):
+def run(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, ulo: np.ndarray,
+        uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray, seed: np.uint64,
+        params: Mapping[str, Any], outputs: SearchOutputs, centre: tuple[np.ndarray, np.ndarray]) -> None:
     p = params
     _batch(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, seed, int(p["population"]),
            int(p["iterations"]), float(p["c1"]), float(p["c2"]), float(p["w_start"]), float(p["w_end"]),

@@ -36,11 +36,15 @@ P. J. Burt and E. H. Adelson, "The Laplacian pyramid as a compact image code",
 IEEE Trans. Commun. 31(4):532-540 (1983), :DOI:`10.1109/TCOM.1983.1095851`.
 """
 
+from collections.abc import Mapping
+from types import ModuleType
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic.search import exhaustive
-from livedic.dic.search._common import begin_point, hill_climb, new_cache, new_outputs
+from livedic.dic.search._common import SearchOutputs, begin_point, hill_climb, new_cache, new_outputs
 from livedic.dic.status import FLAT_TARGET, OK, OUTSIDE_TARGET
 
 # Smallest subset half-width used on a coarse level (a 7 x 7 subset).
@@ -90,7 +94,7 @@ def _reduce(image, out):
                 out[i, j] = (rows[m2, j] + rows[p2, j] + 4.0 * (rows[m1, j] + rows[p1, j]) + 6.0 * rows[c, j]) * 0.0625
 
 
-def build_pyramid(image, levels):
+def build_pyramid(image: np.ndarray, levels: int) -> list[np.ndarray]:
     """``[image, image/2, ..., image/2^levels]`` as float32 arrays (level l has ceil(H / 2^l) rows)."""
     out = [np.ascontiguousarray(image, dtype=np.float32)]
     for _ in range(levels):
@@ -101,7 +105,7 @@ def build_pyramid(image, levels):
     return out
 
 
-def levels_for(radius, top_radius, half, shape):
+def levels_for(radius: int, top_radius: int, half: int, shape: tuple[int, ...]) -> int:
     """Pyramid levels so that the box radius at the top is <= ``top_radius`` (0: no pyramid).
 
     Capped so that the top level still holds a subset and its search box.
@@ -142,7 +146,7 @@ def _climb(reference, target, xs, ys, start_u, start_v, ulo, uhi, vlo, vhi, halv
         out_c[i] = c
 
 
-def min_half(half, level):
+def min_half(half: int, level: int) -> int:
     """Smallest coarse subset half-width at ``level``: it still covers the level-0 subset, and is >= 3."""
     return max(int(np.ceil(((2 * half + 1) / 2 ** level - 1) / 2)), MIN_COARSE_HALF)
 
@@ -166,8 +170,10 @@ def _geometry(shape, xs, ys, ulo, uhi, vlo, vhi, level, half):
     return lx, ly, lo_u, hi_u, lo_v, hi_v, np.minimum(room, half)
 
 
-def pyramid_search(module, reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs,
-                   centre, *, levels, top_radius):
+def pyramid_search(module: ModuleType, reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray,
+                   ulo: np.ndarray, uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray,
+                   seed: np.uint64, params: Mapping[str, Any], outputs: SearchOutputs,
+                   centre: tuple[np.ndarray, np.ndarray], *, levels: int, top_radius: int) -> None:
     """Coarse-to-fine search (module notes): ``module.run`` at the top level, hill climbs below.
 
     Same contract as a search module's ``run`` (boxes, status and outputs of
@@ -243,7 +249,7 @@ def pyramid_search(module, reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half
         out_c[idx[done]] = part_c[done]
 
 
-def _verify(ref, tar, lx, ly, lo_u, hi_u, lo_v, hi_v, half, group, status, level_out):
+def _verify(ref, tar, lx, ly, lo_u, hi_u, lo_v, hi_v, half, group, status, level_out) -> None:
     """Search exhaustively the (small) top box of the points where the swarm's best ZNCC is below ``VERIFY_ZNCC``.
 
     A coarse level's correct peak correlates well (its noise is averaged away); a
@@ -269,7 +275,7 @@ def _verify(ref, tar, lx, ly, lo_u, hi_u, lo_v, hi_v, half, group, status, level
     calls[doubtful] += check[4]
 
 
-def _take(level_out, level_status, idx, candidate_u, candidate_v, out_evals, out_calls, top):
+def _take(level_out, level_status, idx, candidate_u, candidate_v, out_evals, out_calls, top) -> None:
     """Keep a level's answers; points that failed there drop to a plain search at level 0."""
     u, v, _, evals, calls = level_out
     out_evals[idx] += evals

@@ -39,13 +39,16 @@ towards that origin), fitness ZNCC at ``floor(w + 0.5)`` (maximised, i.e. the
 reference code's minimisation of -ZNCC). Defaults n = 20, K = 50.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
 from livedic.dic._random import new_state, uniform
 from livedic.dic.correlation import round_half_up
 from livedic.dic.method_options import is_bool, is_int_at_least
-from livedic.dic.search._common import begin_point, finish_point, fitness, new_cache
+from livedic.dic.search._common import SearchOutputs, begin_point, finish_point, fitness, new_cache
 
 DEFAULTS = {"population": 20, "iterations": 50, "variant": "code", "fix_gbest": True}
 CHECKS = {
@@ -66,7 +69,7 @@ TAU_CODE = 4.11
 TAU_PAPER = 4.125
 
 
-def constriction(tau):
+def constriction(tau: float) -> float:
     """mu = 2 / |2 - tau - sqrt(tau^2 - 4 tau)| (Clerc-Kennedy form)."""
     return 2.0 / abs(2.0 - tau - np.sqrt(tau * tau - 4.0 * tau))
 
@@ -215,7 +218,9 @@ def _batch(reference, target, xs, ys, ulo, uhi, vlo, vhi, cus, cvs, half, seed, 
         finish_point(i, u, v, c, counts, status, out_u, out_v, out_c, out_evals, out_calls)
 
 
-def run(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, half, status, seed, params, outputs, centre):
+def run(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, ulo: np.ndarray,
+        uhi: np.ndarray, vlo: np.ndarray, vhi: np.ndarray, half: int, status: np.ndarray, seed: np.uint64,
+        params: Mapping[str, Any], outputs: SearchOutputs, centre: tuple[np.ndarray, np.ndarray]) -> None:
     paper = params["variant"] == "paper"
     mu = constriction(TAU_PAPER if paper else TAU_CODE)
     _batch(reference, deformed, xs, ys, ulo, uhi, vlo, vhi, centre[0], centre[1], half, seed,

@@ -4,9 +4,16 @@
 import math
 import numbers
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from livedic.dic.speckle.kernels import _AFFINE, _SINUSOID, _TRANSLATION
+
+Displacement = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``(X, Y) -> (U, V)`` on float64 arrays of reference coordinates (Lagrangian)."""
 
 
 class DisplacementField:
@@ -25,13 +32,14 @@ class DisplacementField:
         The arguments it was built with.
     """
 
-    def __init__(self, kind, params, evaluate, kernel_params):
+    def __init__(self, kind: str, params: dict[str, Any], evaluate: Displacement,
+                 kernel_params: Callable[[], tuple[int, np.ndarray]]) -> None:
         self.kind = kind
         self.params = dict(params)
         self._evaluate = evaluate
         self._kernel_params = kernel_params
 
-    def __call__(self, X, Y):
+    def __call__(self, X: npt.ArrayLike, Y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Displacement at reference points.
 
         Parameters
@@ -51,18 +59,18 @@ class DisplacementField:
         return (np.broadcast_to(np.asarray(U, dtype=np.float64), shape).copy(),
                 np.broadcast_to(np.asarray(V, dtype=np.float64), shape).copy())
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
         return f"{self.kind}({args})"
 
 
-def _finite(value, name):
+def _finite(value: float, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise ValueError(f"{name} must be a finite real number, got {value!r}")
     return float(value)
 
 
-def translation(u, v):
+def translation(u: float, v: float) -> DisplacementField:
     """Rigid translation: content at (X, Y) moves to (X + u, Y + v).
 
     Parameters
@@ -86,7 +94,8 @@ def translation(u, v):
     return DisplacementField("translation", {"u": u, "v": v}, evaluate, kernel_params)
 
 
-def affine(u=0.0, v=0.0, ux=0.0, uy=0.0, vx=0.0, vy=0.0, centre=(0.0, 0.0)):
+def affine(u: float = 0.0, v: float = 0.0, ux: float = 0.0, uy: float = 0.0, vx: float = 0.0, vy: float = 0.0,
+           centre: tuple[float, float] = (0.0, 0.0)) -> DisplacementField:
     """Homogeneous (first-order) deformation about ``centre``.
 
     ``U = u + ux (X - cx) + uy (Y - cy)`` and ``V = v + vx (X - cx) + vy (Y - cy)``,
@@ -131,7 +140,8 @@ def affine(u=0.0, v=0.0, ux=0.0, uy=0.0, vx=0.0, vy=0.0, centre=(0.0, 0.0)):
     return DisplacementField("affine", params, evaluate, kernel_params)
 
 
-def sinusoid(amplitude, period, *, axis="x", direction="v", phase=0.0):
+def sinusoid(amplitude: float, period: float, *, axis: str = "x", direction: str = "v",
+             phase: float = 0.0) -> DisplacementField:
     """One displacement component varying sinusoidally along one axis.
 
     ``direction = A sin(2 pi * axis / period + phase)``, the other component

@@ -5,6 +5,7 @@ import math
 import numbers
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.dic.speckle.fields import _finite
 from livedic.dic.speckle.intensity import _render_float
@@ -19,10 +20,86 @@ DEFAULT_FILL = 0.8
 _FULL_SCALE = {8: 255, 12: 4095, 16: 65535}
 
 
-def _positive_int(value, name, what):
+def _positive_int(value: int, name: str, what: str) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value <= 0:
         raise ValueError(f"{name} must be a positive integer ({what}), got {value!r}")
     return int(value)
+
+
+def _checked_shape(shape: tuple[int, int]) -> tuple[int, int]:
+    try:
+        H, W = shape
+    except (TypeError, ValueError):
+        raise ValueError(f"shape must be (H, W), two positive integers, got {shape!r}") from None
+    return _positive_int(H, "shape H", "image rows"), _positive_int(W, "shape W", "image columns")
+
+
+def _checked_spot(radius: float, cutoff: float, fill: float) -> tuple[float, float, float]:
+    """The spot's radius, cutoff and fill as floats, or ValueError naming the one out of range."""
+    radius = _finite(radius, "radius")
+    if radius <= 0.0:
+        raise ValueError(f"radius must be > 0 px (R in exp(-d^2/R^2)), got {radius}")
+    cutoff = _finite(cutoff, "cutoff")
+    if not 3.0 <= cutoff <= 6.0:
+        raise ValueError(f"cutoff must be in [3, 6] (units of R; 5 keeps errors near 1e-11), got {cutoff}")
+    fill = _finite(fill, "fill")
+    if not 0.0 < fill <= 1.0:
+        raise ValueError(f"fill must be in (0, 1] (fraction of full scale for the brightest pixel), got {fill}")
+    return radius, cutoff, fill
+
+
+def _count_in_image(H: int, W: int, n_speckles: int | None, density: float | None) -> int:
+    """Speckles whose centre lies in the image: from ``density`` or ``n_speckles`` (default 1000)."""
+    if density is None:
+        return 1000 if n_speckles is None else _positive_int(n_speckles, "n_speckles", "speckles in the image")
+    if n_speckles is not None:
+        raise ValueError("give either n_speckles or density, not both")
+    density = _finite(density, "density")
+    if density <= 0.0:
+        raise ValueError(f"density must be > 0 speckles per pixel, got {density}")
+    n_image = int(round(density * float(H * W)))
+    if n_image < 1:
+        raise ValueError(f"density {density} gives no speckle in a {W}x{H} image: raise the density")
+    return n_image
+
+
+def _checked_margin(margin: float | None, reach: float, H: int, W: int) -> float:
+    """The speckled frame's width (default: the spot's reach, 16 px and a quarter of the image), >= ``reach``."""
+    if margin is None:
+        margin = math.ceil(reach) + 16 + math.ceil(max(H, W) / 4)
+    margin = _finite(margin, "margin")
+    if margin < reach:
+        raise ValueError(f"margin {margin} px is below the spot cutoff {reach:g} px: the image borders "
+                         f"would lack speckles; use margin >= {math.ceil(reach)}")
+    return margin
+
+
+def _draw_centres(seed: int, H: int, W: int, n_image: int, density: float,
+                  margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded uniform centres (x, y), sorted by y: ``n_image`` in the image, then the frame around it at the
+    same density, drawn by rejection from the whole domain."""
+    rng = np.random.default_rng(seed)
+    xs_in = rng.uniform(-0.5, W - 0.5, n_image)
+    ys_in = rng.uniform(-0.5, H - 0.5, n_image)
+    area = float(H * W)
+    lo_x, hi_x = -0.5 - margin, W - 0.5 + margin
+    lo_y, hi_y = -0.5 - margin, H - 0.5 + margin
+    dom_area = (hi_x - lo_x) * (hi_y - lo_y)
+    n_frame = int(round(density * (dom_area - area)))
+    fx, fy = [], []
+    got = 0
+    while got < n_frame:
+        batch = int(1.2 * (n_frame - got) * dom_area / (dom_area - area)) + 16
+        bx = rng.uniform(lo_x, hi_x, batch)
+        by = rng.uniform(lo_y, hi_y, batch)
+        keep = (bx < -0.5) | (bx >= W - 0.5) | (by < -0.5) | (by >= H - 0.5)
+        fx.append(bx[keep])
+        fy.append(by[keep])
+        got += int(keep.sum())
+    xs = np.concatenate([xs_in] + fx)[: n_image + n_frame]
+    ys = np.concatenate([ys_in] + fy)[: n_image + n_frame]
+    order = np.argsort(ys, kind="stable")
+    return np.ascontiguousarray(xs[order]), np.ascontiguousarray(ys[order])
 
 
 class SpecklePattern:
@@ -67,82 +144,44 @@ class SpecklePattern:
         Truncation distance ``cutoff * radius`` in px.
     """
 
-    def __init__(self, shape=(256, 256), n_speckles=None, radius=4.0, seed=0, *, density=None,
-                 margin=None, cutoff=DEFAULT_CUTOFF, fill=DEFAULT_FILL):
-        try:
-            H, W = shape
-        except (TypeError, ValueError):
-            raise ValueError(f"shape must be (H, W), two positive integers, got {shape!r}") from None
-        H = _positive_int(H, "shape H", "image rows")
-        W = _positive_int(W, "shape W", "image columns")
-        radius = _finite(radius, "radius")
-        if radius <= 0.0:
-            raise ValueError(f"radius must be > 0 px (R in exp(-d^2/R^2)), got {radius}")
-        cutoff = _finite(cutoff, "cutoff")
-        if not 3.0 <= cutoff <= 6.0:
-            raise ValueError(f"cutoff must be in [3, 6] (units of R; 5 keeps errors near 1e-11), got {cutoff}")
-        fill = _finite(fill, "fill")
-        if not 0.0 < fill <= 1.0:
-            raise ValueError(f"fill must be in (0, 1] (fraction of full scale for the brightest pixel), got {fill}")
+    def __init__(self, shape: tuple[int, int] = (256, 256), n_speckles: int | None = None, radius: float = 4.0,
+                 seed: int = 0, *, density: float | None = None, margin: float | None = None,
+                 cutoff: float = DEFAULT_CUTOFF, fill: float = DEFAULT_FILL) -> None:
+        H, W = _checked_shape(shape)
+        radius, cutoff, fill = _checked_spot(radius, cutoff, fill)
         if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-        area = float(H * W)
-        if density is not None:
-            if n_speckles is not None:
-                raise ValueError("give either n_speckles or density, not both")
-            density = _finite(density, "density")
-            if density <= 0.0:
-                raise ValueError(f"density must be > 0 speckles per pixel, got {density}")
-            n_image = int(round(density * area))
-            if n_image < 1:
-                raise ValueError(f"density {density} gives no speckle in a {W}x{H} image: raise the density")
-        else:
-            n_image = 1000 if n_speckles is None else _positive_int(n_speckles, "n_speckles", "speckles in the image")
+        n_image = _count_in_image(H, W, n_speckles, density)
         reach = cutoff * radius
-        if margin is None:
-            margin = math.ceil(reach) + 16 + math.ceil(max(H, W) / 4)
-        margin = _finite(margin, "margin")
-        if margin < reach:
-            raise ValueError(f"margin {margin} px is below the spot cutoff {reach:g} px: the image borders "
-                             f"would lack speckles; use margin >= {math.ceil(reach)}")
+        margin = _checked_margin(margin, reach, H, W)
 
-        self.shape = (H, W)
-        self.radius = radius
-        self.seed = int(seed)
-        self.n_speckles = n_image
-        self.density = n_image / area
-        self.margin = margin
-        self.cutoff = cutoff
-        self.cutoff_px = reach
-        self.fill = fill
+        self.shape: tuple[int, int] = (H, W)
+        self.radius: float = radius
+        self.seed: int = int(seed)
+        self.n_speckles: int = n_image
+        self.density: float = n_image / float(H * W)
+        self.margin: float = margin
+        self.cutoff: float = cutoff
+        self.cutoff_px: float = reach
+        self.fill: float = fill
 
-        rng = np.random.default_rng(self.seed)
-        xs_in = rng.uniform(-0.5, W - 0.5, n_image)
-        ys_in = rng.uniform(-0.5, H - 0.5, n_image)
-        lo_x, hi_x = -0.5 - margin, W - 0.5 + margin
-        lo_y, hi_y = -0.5 - margin, H - 0.5 + margin
-        dom_area = (hi_x - lo_x) * (hi_y - lo_y)
-        n_frame = int(round(self.density * (dom_area - area)))
-        fx, fy = [], []
-        got = 0
-        while got < n_frame:     # uniform over the frame: rejection from the domain
-            batch = int(1.2 * (n_frame - got) * dom_area / (dom_area - area)) + 16
-            bx = rng.uniform(lo_x, hi_x, batch)
-            by = rng.uniform(lo_y, hi_y, batch)
-            keep = (bx < -0.5) | (bx >= W - 0.5) | (by < -0.5) | (by >= H - 0.5)
-            fx.append(bx[keep])
-            fy.append(by[keep])
-            got += int(keep.sum())
-        xs = np.concatenate([xs_in] + fx)[: n_image + n_frame]
-        ys = np.concatenate([ys_in] + fy)[: n_image + n_frame]
-        order = np.argsort(ys, kind="stable")
-        self._xs = np.ascontiguousarray(xs[order])
-        self._ys = np.ascontiguousarray(ys[order])
+        self._xs: np.ndarray
+        self._ys: np.ndarray
+        self._xs, self._ys = _draw_centres(self.seed, H, W, n_image, self.density, margin)
         centres = np.stack([self._xs, self._ys], axis=1)
         centres.flags.writeable = False
         self.centres = centres
+        self._bin_centres(reach)
+        # Reference points further than this outside the image would see a depleted pattern.
+        self._slack = margin - reach
+        self._peak: float | None = None
 
-        # Bin grid (cell = cutoff distance, so a disc of the cutoff touches <= 3 x 3 cells).
+    def _bin_centres(self, reach: float) -> None:
+        """The bin grid over the domain (image and margin): cell = cutoff distance, so a disc of the cutoff
+        touches <= 3 x 3 cells; the centres sorted by cell (``_gx``, ``_gy``) and each cell's first (``_start``)."""
+        H, W = self.shape
+        lo_x, hi_x = -0.5 - self.margin, W - 0.5 + self.margin
+        lo_y, hi_y = -0.5 - self.margin, H - 0.5 + self.margin
         self._x0, self._y0 = lo_x, lo_y
         self._cell = reach
         self._ncx = max(int(math.ceil((hi_x - lo_x) / reach)), 1)
@@ -155,29 +194,26 @@ class SpecklePattern:
         self._gy = np.ascontiguousarray(self._ys[by_cell])
         self._start = np.zeros(self._ncx * self._ncy + 1, dtype=np.int64)
         np.cumsum(np.bincount(cell_id, minlength=self._ncx * self._ncy), out=self._start[1:])
-        # Reference points further than this outside the image would see a depleted pattern.
-        self._slack = margin - reach
-        self._peak = None
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         H, W = self.shape
         return (f"SpecklePattern(shape=({H}, {W}), n_speckles={self.n_speckles}, radius={self.radius:g}, "
                 f"seed={self.seed}, margin={self.margin:g}, cutoff={self.cutoff:g})")
 
     @property
-    def peak(self):
+    def peak(self) -> float:
         """Brightest pixel of the point-sampled float reference, in units of I0 (float)."""
         if self._peak is None:
             self._peak = float(_render_float(self, None, False).max())
         return self._peak
 
-    def grey_scale(self, bit_depth):
+    def grey_scale(self, bit_depth: int | None) -> float:
         """Grey levels per unit I0 for ``bit_depth`` (8, 12 or 16): one factor for all images (float)."""
         if bit_depth not in _FULL_SCALE:
             raise ValueError(f"bit_depth must be 8, 12, 16 or None, got {bit_depth!r}")
         return self.fill * _FULL_SCALE[bit_depth] / self.peak
 
-    def intensity(self, X, Y):
+    def intensity(self, X: npt.ArrayLike, Y: npt.ArrayLike) -> np.ndarray:
         """Reference intensity I(X, Y) (I0 = 1) at arbitrary points, truncated at the cutoff.
 
         Parameters
@@ -194,7 +230,8 @@ class SpecklePattern:
         X2 = np.ascontiguousarray(X.reshape(1, -1))
         Y2 = np.ascontiguousarray(Y.reshape(1, -1))
         out = np.zeros(X2.shape)
-        _gather_points(X2, Y2, 1.0, *self._grid_args(), out)
+        gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2 = self._grid_args()
+        _gather_points(X2, Y2, 1.0, gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2, out)
         return out.reshape(shape)
 
     def _grid_args(self):

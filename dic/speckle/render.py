@@ -5,7 +5,7 @@ import numbers
 
 import numpy as np
 
-from livedic.dic.speckle.fields import DisplacementField, _finite, translation
+from livedic.dic.speckle.fields import Displacement, DisplacementField, _finite, translation
 from livedic.dic.speckle.intensity import _render_float
 from livedic.dic.speckle.kernels import _to_grey
 from livedic.dic.speckle.pattern import _FULL_SCALE, SpecklePattern
@@ -30,7 +30,9 @@ def _as_displacement(displacement):
     return translation(u, v)
 
 
-def render(pattern, displacement=None, *, bit_depth=8, noise_sigma=0.0, noise_seed=0, pixel_integration=False):
+def render(pattern: SpecklePattern, displacement: Displacement | tuple[float, float] | None = None, *,
+           bit_depth: int | None = 8, noise_sigma: float = 0.0, noise_seed: int = 0,
+           pixel_integration: bool = False) -> np.ndarray:
     """Render the reference or an exactly deformed image of ``pattern``.
 
     Parameters

@@ -19,7 +19,10 @@ import enum
 import math
 from dataclasses import dataclass
 
+from collections.abc import Iterable
+
 import numpy as np
+import numpy.typing as npt
 
 from livedic.dic.strain import field_fit
 from livedic.dic.neighbours import typical_spacing
@@ -37,7 +40,7 @@ POISSON_MIN_AXIAL = 5e-4
 class ExtensometerOffPoints(ValueError):
     """An extensometer's end has no tracked points around it (one line); ``name`` is the extensometer's."""
 
-    def __init__(self, message, name):
+    def __init__(self, message: str, name: str) -> None:
         super().__init__(message)
         self.name = name
 
@@ -48,7 +51,7 @@ class ExtensometerStatus(enum.IntEnum):
     END_LOST = 1            # too few valid tracked points around one of its ends in this frame
 
     @property
-    def description(self):
+    def description(self) -> str:
         return _DESCRIPTIONS[self]
 
 
@@ -68,11 +71,11 @@ class Extensometer:
     y2: float
 
     @property
-    def length_px(self):
+    def length_px(self) -> float:
         return math.hypot(self.x2 - self.x1, self.y2 - self.y1)
 
     @property
-    def ends(self):
+    def ends(self) -> np.ndarray:
         return np.array([[self.x1, self.y1], [self.x2, self.y2]], dtype=np.float64)
 
 
@@ -90,10 +93,10 @@ class ExtensometerReadings:
     status: np.ndarray
 
     @property
-    def ok(self):
+    def ok(self) -> np.ndarray:
         return self.status == int(ExtensometerStatus.OK)
 
-    def reading(self, name):
+    def reading(self, name: str) -> tuple[float, float, bool]:
         """(eng_strain, true_strain, ok) of the extensometer ``name``."""
         i = self.names.index(name)
         return float(self.eng_strain[i]), float(self.true_strain[i]), bool(self.ok[i])
@@ -109,11 +112,12 @@ class ExtensometerSet:
     step: float
 
     @property
-    def names(self):
+    def names(self) -> tuple[str, ...]:
         return tuple(e.name for e in self.extensometers)
 
 
-def place_extensometers(extensometers, points, *, step=None):
+def place_extensometers(extensometers: Iterable[Extensometer], points: npt.ArrayLike, *,
+                        step: float | None = None) -> ExtensometerSet:
     """Attach ``extensometers`` to the tracked reference ``points`` (N, 2).
 
     Raises
@@ -152,7 +156,9 @@ def _spread_enough(offsets, step):
     return np.linalg.eigvalsh(cov)[0] >= END_MIN_SPREAD * step * step
 
 
-def end_displacements(placed, points, u, v, ok, *, point_labels=None, end_labels=None):
+def end_displacements(placed: ExtensometerSet, points: np.ndarray, u: np.ndarray, v: np.ndarray, ok: np.ndarray, *,
+                      point_labels: np.ndarray | None = None,
+                      end_labels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(u, v) of every end (2E,) in this frame, NaN where the end is lost.
 
     ``point_labels`` (N,) and ``end_labels`` (2E,): regions that must not be mixed (the two sides of
@@ -170,7 +176,9 @@ def end_displacements(placed, points, u, v, ok, *, point_labels=None, end_labels
     return out_u, out_v
 
 
-def read_extensometers(placed, points, u, v, ok, *, point_labels=None, end_labels=None):
+def read_extensometers(placed: ExtensometerSet, points: np.ndarray, u: np.ndarray, v: np.ndarray, ok: np.ndarray, *,
+                      point_labels: np.ndarray | None = None,
+                      end_labels: np.ndarray | None = None) -> ExtensometerReadings:
     """Every extensometer's reading in one frame.
 
     Parameters
@@ -204,7 +212,8 @@ def read_extensometers(placed, points, u, v, ok, *, point_labels=None, end_label
                                 status=status)
 
 
-def strain_noise(placed, points, point_noise_px, *, independent_ends=False):
+def strain_noise(placed: ExtensometerSet, points: npt.ArrayLike, point_noise_px: float, *,
+                 independent_ends: bool = False) -> np.ndarray:
     """Expected standard deviation of each extensometer's strain, from the points' displacement noise.
 
     Each end's displacement is a linear combination of its neighbours' (``field_fit.fit_weights``), and the
@@ -238,7 +247,8 @@ def strain_noise(placed, points, point_noise_px, *, independent_ends=False):
     return out
 
 
-def poisson_ratio(e_axial, e_transverse, *, min_axial=POISSON_MIN_AXIAL):
+def poisson_ratio(e_axial: npt.ArrayLike, e_transverse: npt.ArrayLike, *,
+                  min_axial: float = POISSON_MIN_AXIAL) -> np.ndarray:
     """-e_transverse / e_axial; NaN where either is NaN or |e_axial| < ``min_axial`` (noise over noise)."""
     e_axial = np.asarray(e_axial, dtype=np.float64)
     e_transverse = np.asarray(e_transverse, dtype=np.float64)

@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 from livedic.dic.correlation import DEFAULT_SUBSET
@@ -62,7 +63,7 @@ class StrainStatus(enum.IntEnum):
     ONE_DIRECTION = 3       # the valid points lie (nearly) on a line: no gradient across it
 
     @property
-    def description(self):
+    def description(self) -> str:
         return _DESCRIPTIONS[self]
 
 
@@ -78,7 +79,7 @@ _TOO_FEW_POINTS = int(StrainStatus.TOO_FEW_POINTS)
 _ONE_DIRECTION = int(StrainStatus.ONE_DIRECTION)
 
 
-def virtual_strain_gauge(window, step, subset):
+def virtual_strain_gauge(window: int, step: float, subset: int) -> float:
     """VSG in pixels: ``(window - 1) * step + subset`` (iDICs Good Practices Guide)."""
     return (int(window) - 1) * float(step) + int(subset)
 
@@ -110,11 +111,11 @@ class StrainWindow:
     subset: int
 
     @property
-    def vsg_px(self):
+    def vsg_px(self) -> float:
         return virtual_strain_gauge(self.window, self.step, self.subset)
 
     @property
-    def n_points(self):
+    def n_points(self) -> int:
         return self.start.shape[0] - 1
 
 
@@ -146,7 +147,8 @@ def _square_neighbourhoods(x, y, reach):
     return counts, index
 
 
-def strain_window(points, *, window=DEFAULT_WINDOW, step=None, subset=DEFAULT_SUBSET):
+def strain_window(points: npt.ArrayLike, *, window: int = DEFAULT_WINDOW, step: float | None = None,
+                  subset: int = DEFAULT_SUBSET) -> StrainWindow:
     """The neighbourhoods of the plane fits for ``points`` (N, 2) in the reference image.
 
     Parameters
@@ -253,7 +255,8 @@ def _plane_slopes(start, index, dx, dy, u, v, valid, min_fraction, min_points, m
         status[i] = _OK
 
 
-def displacement_gradients(neighbourhoods, u, v, ok):
+def displacement_gradients(neighbourhoods: StrainWindow, u: npt.ArrayLike, v: npt.ArrayLike,
+                           ok: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """ux, uy, vx, vy at each point by pointwise least squares, and a ``StrainStatus`` code per point.
 
     Parameters
@@ -275,15 +278,16 @@ def displacement_gradients(neighbourhoods, u, v, ok):
     if u.shape != (n,) or v.shape != (n,) or np.shape(ok) != (n,):
         raise ValueError(f"strain window holds {n} points; got u {u.shape}, v {v.shape}, ok {np.shape(ok)}")
     valid = np.asarray(ok, dtype=bool) & np.isfinite(u) & np.isfinite(v)
-    out = [np.empty(n) for _ in range(4)]
+    ux, uy, vx, vy = (np.empty(n) for _ in range(4))
     status = np.empty(n, dtype=np.int32)
     step = neighbourhoods.step
     _plane_slopes(neighbourhoods.start, neighbourhoods.index, neighbourhoods.dx, neighbourhoods.dy, u, v, valid,
-                  MIN_VALID_FRACTION, MIN_POINTS, MIN_SPREAD * step * step, *out, status)
-    return (*out, status)
+                  MIN_VALID_FRACTION, MIN_POINTS, MIN_SPREAD * step * step, ux, uy, vx, vy, status)
+    return ux, uy, vx, vy, status
 
 
-def strain_tensor(ux, uy, vx, vy, measure=DEFAULT_MEASURE):
+def strain_tensor(ux: np.ndarray, uy: np.ndarray, vx: np.ndarray, vy: np.ndarray,
+                  measure: str = DEFAULT_MEASURE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(exx, eyy, exy) of the chosen measure (``MEASURES``) from the displacement gradients.
 
     ``exy`` is the tensor shear component. NaN gradients give NaN strains.
@@ -320,7 +324,8 @@ def _half_log_symmetric(cxx, cyy, cxy):
     return h1 * c * c + h2 * s * s, h1 * s * s + h2 * c * c, (h1 - h2) * c * s
 
 
-def principal_strains(exx, eyy, exy):
+def principal_strains(exx: npt.ArrayLike, eyy: npt.ArrayLike,
+                      exy: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Principal strains e1 >= e2 of the tensor (exx, eyy, exy) and the angle of e1 from x, radians."""
     return _symmetric_eigen(np.asarray(exx, dtype=np.float64), np.asarray(eyy, dtype=np.float64),
                             np.asarray(exy, dtype=np.float64))
@@ -359,11 +364,12 @@ class StrainField:
     vsg_px: float
 
     @property
-    def ok(self):
+    def ok(self) -> np.ndarray:
         return self.status == _OK
 
 
-def strain_field(neighbourhoods, u, v, ok, *, measure=DEFAULT_MEASURE, labels=None):
+def strain_field(neighbourhoods: StrainWindow, u: npt.ArrayLike, v: npt.ArrayLike, ok: npt.ArrayLike, *,
+                 measure: str = DEFAULT_MEASURE, labels: npt.ArrayLike | None = None) -> StrainField:
     """The strain field of one frame: plane fits over ``neighbourhoods``, then the chosen measure.
 
     Parameters

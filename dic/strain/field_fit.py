@@ -133,7 +133,8 @@ def _quadratic_fits(ends, start, index, x, y, u, v, valid, step, min_points, min
         out_v[k] = rhs[0, 1]
 
 
-def neighbourhoods(where, points, step, reach=REACH):
+def neighbourhoods(where: np.ndarray, points: np.ndarray, step: float,
+                   reach: float = REACH) -> tuple[np.ndarray, np.ndarray]:
     """CSR lists (start, index) of the ``points`` (N, 2) within ``reach`` grid steps of each of ``where`` (M, 2)."""
     where = np.asarray(where, dtype=np.float64).reshape(-1, 2)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
@@ -141,7 +142,8 @@ def neighbourhoods(where, points, step, reach=REACH):
                  np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]), float(reach) * float(step))
 
 
-def fit_at(where, start, index, points, u, v, ok, step):
+def fit_at(where: np.ndarray, start: np.ndarray, index: np.ndarray, points: np.ndarray, u: np.ndarray, v: np.ndarray,
+           ok: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
     """(u, v) at each of ``where`` (M, 2) from the quadratic fit over its neighbourhood (``neighbourhoods``).
 
     NaN where the neighbourhood holds too few valid (ok and finite) points or points along a line.
@@ -157,7 +159,8 @@ def fit_at(where, start, index, points, u, v, ok, step):
     return out_u, out_v
 
 
-def displacement_at(where, points, u, v, ok, step):
+def displacement_at(where: np.ndarray, points: np.ndarray, u: np.ndarray, v: np.ndarray, ok: np.ndarray,
+                    step: float) -> tuple[np.ndarray, np.ndarray]:
     """(u, v) at the positions ``where`` (M, 2) from the tracked ``points`` (N, 2) and their ``u, v, ok``.
 
     Parameters
@@ -180,7 +183,7 @@ def displacement_at(where, points, u, v, ok, step):
     return fit_at(where, start, index, points, u, v, ok, step)
 
 
-def fit_weights(where, index, points, step):
+def fit_weights(where: np.ndarray, index: np.ndarray, points: np.ndarray, step: float) -> np.ndarray:
     """The weights w of the quadratic fit at ``where`` (x, y) over ``points[index]``: u(where) = w . u[index].
 
     All the points valid; the fit is linear in the displacements, so a point noise sigma (independent

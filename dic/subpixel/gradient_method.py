@@ -157,7 +157,9 @@ def _gradient_batch(reference, deformed, xs, ys, half, u0, v0, fourth, status, o
             out_zncc[i] = zn
 
 
-def refine(reference, deformed, xs, ys, u0, v0, status, half, *, gradient="4th"):
+def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+           v0: np.ndarray, status: np.ndarray, half: int, *,
+           gradient: str = "4th") -> SubpixelResult:
     """Gradient-method refinement of every point whose ``status`` is OK.
 
     Parameters

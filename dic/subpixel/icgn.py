@@ -82,18 +82,20 @@ calculation without redundant computations", Exp. Mech. 53:1277-1289 (2013),
 """
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 from numpy import float32 as _F32
 
-from livedic.dic.bspline import FASTMATH, PAD, prefilter, sample_shift, warped_subset_inside
+from livedic.dic.bspline import FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
 from livedic.dic.subpixel.linalg import cholesky_lower
 from livedic.dic.result import SubpixelResult
-from livedic.dic.subpixel.prepared import (check_iterations, checked_points, point_orders, start_status,
+from livedic.dic.subpixel.prepared import (PerPoint, check_iterations, checked_points, point_orders, start_status,
                                            start_values)
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, FLAT_REFERENCE as _FLAT_REFERENCE, FLAT_TARGET as _FLAT_TARGET,
                         NOT_CONVERGED as _NOT_CONVERGED, OK as _OK, OUTSIDE_REFERENCE as _OUTSIDE_REFERENCE,
@@ -103,6 +105,7 @@ from livedic.dic.validation import as_image, check_same_shape, checked_image
 # |ux|, |uy|, |vx|, |vy| beyond this is no longer a small-strain subset: declared diverged.
 _MAX_GRADIENT = 1.0
 _NO_RUN = -(1 << 62)  # tap origin of pad lanes in split rows
+_GRADIENT_COLUMNS = np.array([1, 2, 4, 5])  # ux, uy, vx, vy in (u, ux, uy, v, vx, vy)
 _CHUNK = 32  # points per parallel task (scratch arrays are per task, not per point)
 # Frame dtypes whose grey levels float32 holds exactly (``prepare_target`` reads them unconverted).
 _EXACT_IN_FLOAT32 = tuple(np.dtype(t) for t in (np.uint8, np.uint16, np.float32))
@@ -340,7 +343,8 @@ def _prepare_batch(reference, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hin
             sum_f[i] = sf
 
 
-def prepare_reference(reference, xs, ys, half, *, hessian="projected"):
+def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLike, half: int, *,
+                      hessian: str = "projected") -> IcgnReference:
     """Per-point reference data for IC-GN (once per session).
 
     Parameters
@@ -392,7 +396,7 @@ def prepare_reference(reference, xs, ys, half, *, hessian="projected"):
                          sum_j, sum_jf, sum_f, status, hessian)
 
 
-def prepare_target(deformed, *, out=None):
+def prepare_target(deformed: np.ndarray, *, out: BSplineCoefficients | None = None) -> BSplineCoefficients:
     """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32.
 
     The grey levels are those of ``dic.validation.as_image`` (float32); 8- and 16-bit frames, whose
@@ -765,8 +769,11 @@ def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, 
 # public API
 
 
-def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
-                    points=None, order=1, max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
+def refine_prepared(ref_prep: IcgnReference, target_coeffs: BSplineCoefficients, u0: npt.ArrayLike, v0: npt.ArrayLike,
+                    ux0: PerPoint = None, uy0: PerPoint = None, vx0: PerPoint = None, vy0: PerPoint = None,
+                    status: PerPoint = None, *, points: npt.ArrayLike | None = None, order: npt.ArrayLike = 1,
+                    max_iterations: int = 50, tolerance: float = 0.001, translation_iterations: int = 4,
+                    translation_tolerance: float = 0.02) -> SubpixelResult:
     """IC-GN from prepared reference data and target coefficients.
 
     Parameters
@@ -828,7 +835,7 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
         params[:, c] = start_values(start, npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
     shift_only = np.flatnonzero(orders == 0)        # usually none: no fancy-index assignment then
     if shift_only.size:
-        params[np.ix_(shift_only, [1, 2, 4, 5])] = 0.0
+        params[np.ix_(shift_only, _GRADIENT_COLUMNS)] = 0.0
     st = start_status(ref_prep.status[points], status, npts)
     out_zncc = np.empty(npts)
     out_iter = np.empty(npts, dtype=np.int64)
@@ -843,13 +850,15 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     grads = {}
     if per_point or order == 1:
         if shift_only.size:
-            params[np.ix_(shift_only, [1, 2, 4, 5])] = np.nan
+            params[np.ix_(shift_only, _GRADIENT_COLUMNS)] = np.nan
         grads = dict(ux=params[:, 1].copy(), uy=params[:, 2].copy(), vx=params[:, 4].copy(), vy=params[:, 5].copy())
     return SubpixelResult(u=params[:, 0].copy(), v=params[:, 3].copy(), zncc=np.where(ok, out_zncc, np.nan),
                           status=st, iterations=out_iter, **grads)
 
 
-def refine(reference, deformed, xs, ys, u0, v0, status, half, **options):
+def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+           v0: np.ndarray, status: np.ndarray, half: int,
+           **options: Any) -> SubpixelResult:
     """IC-GN refinement of every point whose ``status`` is OK (the ``dic.measure`` contract).
 
     ``prepare_reference`` + ``prepare_target`` + ``refine_prepared``.

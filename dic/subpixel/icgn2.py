@@ -97,12 +97,14 @@ Opt. Lasers Eng. 65:73-80 (2015), :DOI:`10.1016/j.optlaseng.2014.05.013`.
 """
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 from numpy import float32 as _F32
 
-from livedic.dic.bspline import FASTMATH, INTERPOLATION_MARGIN, PAD
+from livedic.dic.bspline import FASTMATH, BSplineCoefficients, INTERPOLATION_MARGIN, PAD
 from livedic.dic.result import SubpixelResult
 from livedic.dic.status import (BAD_GUESS as _BAD_GUESS, NOT_CONVERGED as _NOT_CONVERGED, OK as _OK,
                                 OUTSIDE_TARGET as _OUTSIDE_TARGET, FLAT_TARGET as _FLAT_TARGET, Status)
@@ -110,7 +112,8 @@ from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.subpixel.icgn import (IcgnReference, _invert_spd, bspline_tap,
                                        prepare_reference as _prepare_first, prepare_target, refine_point,
                                        refine_point_scratch)
-from livedic.dic.subpixel.prepared import check_iterations, checked_points, point_orders, start_status, start_values
+from livedic.dic.subpixel.prepared import (PerPoint, check_iterations, checked_points, point_orders, start_status,
+                                           start_values)
 from livedic.dic.validation import as_image, check_same_shape
 
 # Parameter order (OpenCorr's Deformation2D2).
@@ -152,35 +155,35 @@ class Icgn2Reference:
     max_order: np.ndarray
 
     @property
-    def xs(self):
+    def xs(self) -> np.ndarray:
         return self.first.xs
 
     @property
-    def ys(self):
+    def ys(self) -> np.ndarray:
         return self.first.ys
 
     @property
-    def half(self):
+    def half(self) -> int:
         return self.first.half
 
     @property
-    def shape(self):
+    def shape(self) -> tuple[int, int]:
         return self.first.shape
 
     @property
-    def status(self):
+    def status(self) -> np.ndarray:
         return self.first.status
 
 
 @dataclass
 class Icgn2Result(SubpixelResult):
     """``SubpixelResult`` plus the second-order terms (NaN where not estimated: status not OK, order < 2)."""
-    uxx: np.ndarray = None
-    uxy: np.ndarray = None
-    uyy: np.ndarray = None
-    vxx: np.ndarray = None
-    vxy: np.ndarray = None
-    vyy: np.ndarray = None
+    uxx: np.ndarray | None = None
+    uxy: np.ndarray | None = None
+    uyy: np.ndarray | None = None
+    vxx: np.ndarray | None = None
+    vxy: np.ndarray | None = None
+    vyy: np.ndarray | None = None
 
 
 # ---------------------------------------------------------------------------
@@ -278,7 +281,7 @@ def _prepare2_batch(half, lanes, fhat, fx, fy, status, projected, hinv2, sum_j2,
                 max_order[i] = 2
 
 
-def prepare_from(first, *, vif_max=VIF2_MAX):
+def prepare_from(first: IcgnReference, *, vif_max: float = VIF2_MAX) -> Icgn2Reference:
     """Extend first-order reference data (``dic.subpixel.icgn.prepare_reference``) to 12 parameters.
 
     Parameters
@@ -311,7 +314,8 @@ def prepare_from(first, *, vif_max=VIF2_MAX):
     return Icgn2Reference(first, hinv2, sum_j2, sum_jf2, max_order)
 
 
-def prepare_reference(reference, xs, ys, half, *, hessian="projected", vif_max=VIF2_MAX):
+def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLike, half: int, *,
+                      hessian: str = "projected", vif_max: float = VIF2_MAX) -> Icgn2Reference:
     """Per-point reference data for 2nd-order IC-GN (once per session).
 
     ``dic.subpixel.icgn.prepare_reference`` (same arguments, same ``status``)
@@ -739,9 +743,13 @@ def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat,
 # public API
 
 
-def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=None, vy0=None, status=None, *,
-                    uxx0=None, uxy0=None, uyy0=None, vxx0=None, vxy0=None, vyy0=None, points=None, order=2,
-                    max_iterations=50, tolerance=0.001, translation_iterations=4, translation_tolerance=0.02):
+def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients, u0: npt.ArrayLike,
+                    v0: npt.ArrayLike, ux0: PerPoint = None, uy0: PerPoint = None, vx0: PerPoint = None,
+                    vy0: PerPoint = None, status: PerPoint = None, *, uxx0: PerPoint = None, uxy0: PerPoint = None,
+                    uyy0: PerPoint = None, vxx0: PerPoint = None, vxy0: PerPoint = None, vyy0: PerPoint = None,
+                    points: npt.ArrayLike | None = None, order: npt.ArrayLike = 2, max_iterations: int = 50,
+                    tolerance: float = 0.001, translation_iterations: int = 4, translation_tolerance: float = 0.02
+                    ) -> Icgn2Result:
     """2nd-order IC-GN from prepared reference data and target coefficients.
 
     Parameters
@@ -794,11 +802,10 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     orders, _ = point_orders(order, npts, max_order=2)
     orders = np.minimum(orders, ref_prep.max_order[points])
     check_iterations(max_iterations, tolerance, translation_iterations, translation_tolerance)
-    starts = dict(u=u0, ux=ux0, uy=uy0, uxx=uxx0, uxy=uxy0, uyy=uyy0, v=v0, vx=vx0, vy=vy0, vxx=vxx0, vxy=vxy0,
-                  vyy=vyy0)
+    starts = (u0, ux0, uy0, uxx0, uxy0, uyy0, v0, vx0, vy0, vxx0, vxy0, vyy0)      # in PARAMETERS' order
     params = np.empty((npts, 12))
-    for c, name in enumerate(PARAMETERS):
-        params[:, c] = start_values(starts[name], npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
+    for c, (name, start) in enumerate(zip(PARAMETERS, starts)):
+        params[:, c] = start_values(start, npts, f"{name}0", np.nan if name in ("u", "v") else 0.0)
     params[np.ix_(orders == 0, [1, 2, 7, 8])] = 0.0
     params[np.ix_(orders < 2, _SECOND_INDEX)] = 0.0
     st = start_status(first.status[points], status, npts)
@@ -818,7 +825,9 @@ def refine_prepared(ref_prep, target_coeffs, u0, v0, ux0=None, uy0=None, vx0=Non
     return Icgn2Result(zncc=np.where(ok, out_zncc, np.nan), status=st, iterations=out_iter, **values)
 
 
-def refine(reference, deformed, xs, ys, u0, v0, status, half, **options):
+def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+           v0: np.ndarray, status: np.ndarray, half: int,
+           **options: Any) -> Icgn2Result:
     """2nd-order IC-GN refinement of every point whose ``status`` is OK (the ``dic.measure`` contract).
 
     ``prepare_reference`` + ``prepare_target`` + ``refine_prepared``.

@@ -60,6 +60,8 @@ beyond the subset (2 at the default), the extended polish up to
 ``2 ceil(extent) + 1``; dic.measure reserves 3.
 """
 
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
@@ -257,12 +259,14 @@ def _batch(reference, target, xs, ys, u0s, v0s, half, spacing, m, L, ix, ph, lr,
                 out_c[i] = out[2]
 
 
-def lattice_half_nodes(spacing, extent):
+def lattice_half_nodes(spacing: float, extent: float) -> int:
     """Nodes each side of the centre for a lattice of ``spacing`` reaching +-``extent`` px."""
     return max(1, int(round(extent / spacing)))
 
 
-def refine(reference, deformed, xs, ys, u0, v0, status, half, *, seed=0, **options):
+def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+           v0: np.ndarray, status: np.ndarray, half: int, *, seed: int = 0,
+           **options: Any) -> SubpixelResult:
     """Sub-pixel displacement by the paper's improved surface fit.
 
     Parameters
@@ -296,10 +300,12 @@ def refine(reference, deformed, xs, ys, u0, v0, status, half, *, seed=0, **optio
     return refine_with_counts(reference, deformed, xs, ys, u0, v0, status, half, seed=seed, **options)[0]
 
 
-def refine_with_counts(reference, deformed, xs, ys, u0, v0, status, half, *, seed=0, **options):
+def refine_with_counts(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+                       v0: np.ndarray, status: np.ndarray, half: int, *,
+                       seed: int = 0, **options: Any) -> tuple[SubpixelResult, np.ndarray]:
     """``refine`` plus the number of distinct lattice nodes evaluated per point (int64 (N,))."""
     params = resolve_options("improved-surface-fit", options, DEFAULTS, CHECKS)
-    seed = seed_to_uint(seed)
+    stream_seed = seed_to_uint(seed)
     spacing = float(params["spacing"])
     m = lattice_half_nodes(spacing, float(params["extent"]))
     L = 2 * m
@@ -319,6 +325,6 @@ def refine_with_counts(reference, deformed, xs, ys, u0, v0, status, half, *, see
     if n:
         _batch(reference, deformed, np.ascontiguousarray(xs, dtype=np.int64),
                np.ascontiguousarray(ys, dtype=np.int64), u0i, v0i, int(half), spacing, m, L, ix, ph, lr, rr, wts,
-               int(params["population"]), int(params["iterations"]), float(params["sd_tol"]), seed, st,
+               int(params["population"]), int(params["iterations"]), float(params["sd_tol"]), stream_seed, st,
                out_u, out_v, out_c, evals)
     return SubpixelResult(u=out_u, v=out_v, zncc=out_c, status=st), evals

@@ -27,7 +27,7 @@ from livedic.dic.correlation import FLAT_VARIANCE
 from livedic.dic.subpixel.keys_cubic import keys_weights
 
 
-def lattice_tables(spacing, half_nodes):
+def lattice_tables(spacing: float, half_nodes: int) -> tuple[np.ndarray, ...]:
     """Tables for lattice indices -half_nodes..half_nodes at ``spacing`` px (Python side)."""
     idx = np.arange(-half_nodes, half_nodes + 1)
     offsets = idx * spacing

@@ -45,6 +45,7 @@ Part 2. Improved digital image correlation", Exp. Mech. 38:86-92 (1998),
 """
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 
 from livedic.dic.bspline import PAD, prefilter, value_gradient_at, warped_subset_inside
@@ -257,8 +258,11 @@ def _nr_batch(reference, coeffs, xs, ys, half, params, status, order, projected,
                 out_zncc[i] = zn
 
 
-def refine(reference, deformed, xs, ys, u0, v0, status, half, *, order=1, max_iterations=20, tolerance=0.001,
-           hessian="opencorr", ux0=None, uy0=None, vx0=None, vy0=None):
+def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+           v0: np.ndarray, status: np.ndarray, half: int, *, order: int = 1,
+           max_iterations: int = 20, tolerance: float = 0.001, hessian: str = "opencorr",
+           ux0: npt.ArrayLike | None = None, uy0: npt.ArrayLike | None = None, vx0: npt.ArrayLike | None = None,
+           vy0: npt.ArrayLike | None = None) -> SubpixelResult:
     """Forward-additive Newton-Raphson refinement of every point whose ``status`` is OK.
 
     Parameters

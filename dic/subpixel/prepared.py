@@ -6,15 +6,29 @@ tolerances, start values (NaN start = ``BAD_GUESS``), the caller's status merged
 checks raise ValueError with one line naming the bad argument.
 """
 
+from typing import Protocol
+
 import numpy as np
+import numpy.typing as npt
 
 from livedic.dic.bspline import BSplineCoefficients
 from livedic.dic.status import Status
 
+PerPoint = npt.ArrayLike | None
+"""One value for every point, one per point (N,), or None for the default."""
+
+
+class PreparedPoints(Protocol):
+    """What the checks read of prepared reference data (``dic.subpixel.icgn.IcgnReference``)."""
+    xs: np.ndarray
+    shape: tuple
+
+
 _ORDER_WORDS = ("0 (shift)", "1 (affine)", "2 (quadratic)")
 
 
-def checked_points(ref_prep, target_coeffs, points) -> np.ndarray:
+def checked_points(ref_prep: PreparedPoints, target_coeffs: BSplineCoefficients,
+                   points: npt.ArrayLike | None) -> np.ndarray:
     """The indices of the prepared points to refine (int64), after checking the target's coefficients.
 
     ``ref_prep`` is an ``IcgnReference`` (the first-order data of any IC-GN order); ValueError (one
@@ -35,7 +49,7 @@ def checked_points(ref_prep, target_coeffs, points) -> np.ndarray:
     return np.ascontiguousarray(points, dtype=np.int64)
 
 
-def point_orders(order, n_points: int, max_order: int) -> tuple[np.ndarray, bool]:
+def point_orders(order: npt.ArrayLike, n_points: int, max_order: int) -> tuple[np.ndarray, bool]:
     """``order`` (one for all, or one per point) as an int64 array of ``n_points``, and whether it was per point.
 
     ValueError unless every order is an integer from 0 to ``max_order`` (a bool is not an order).
@@ -54,7 +68,8 @@ def point_orders(order, n_points: int, max_order: int) -> tuple[np.ndarray, bool
     return orders, per_point
 
 
-def check_iterations(max_iterations, tolerance, translation_iterations, translation_tolerance) -> None:
+def check_iterations(max_iterations: int, tolerance: float, translation_iterations: int,
+                     translation_tolerance: float) -> None:
     """ValueError for an iteration cap below 1, a negative translation pre-stage cap or a tolerance <= 0."""
     if int(max_iterations) < 1:
         raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
@@ -64,7 +79,7 @@ def check_iterations(max_iterations, tolerance, translation_iterations, translat
         raise ValueError(f"tolerances must be > 0, got {tolerance} and {translation_tolerance}")
 
 
-def start_values(values, n_points: int, name: str, default: float) -> np.ndarray:
+def start_values(values: npt.ArrayLike | None, n_points: int, name: str, default: float) -> np.ndarray:
     """A start array of ``n_points`` float64 from ``values`` (None: ``default``; a scalar: broadcast)."""
     if values is None:
         return np.full(n_points, default, dtype=np.float64)
@@ -76,7 +91,7 @@ def start_values(values, n_points: int, name: str, default: float) -> np.ndarray
     return arr
 
 
-def start_status(prepared_status: np.ndarray, status, n_points: int) -> np.ndarray:
+def start_status(prepared_status: np.ndarray, status: npt.ArrayLike | None, n_points: int) -> np.ndarray:
     """The status to refine from (int8): the prepared points' own, overridden where the caller's is not OK."""
     if status is not None:
         status = np.asarray(status)

@@ -20,6 +20,8 @@ are copied through; u, v NaN where not OK. ``zncc`` is the fitted quadratic's
 value at its peak (clipped to 1). The target needs 1 px of margin.
 """
 
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
@@ -89,7 +91,9 @@ def _batch(reference, target, xs, ys, u0s, v0s, half, max_moves, status, out_u, 
             out_c[i] = out[2]
 
 
-def refine(reference, deformed, xs, ys, u0, v0, status, half, *, seed=0, **options):
+def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.ndarray, u0: np.ndarray,
+           v0: np.ndarray, status: np.ndarray, half: int, *, seed: int = 0,
+           **options: Any) -> SubpixelResult:
     """Sub-pixel displacement by the classic 3x3 quadratic surface fit (1 px spacing).
 
     Parameters

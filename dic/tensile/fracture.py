@@ -29,6 +29,7 @@ neither side), so wide searches are no longer spent on them; the rest go on.
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 MIN_LOST_POINTS = 8
 MIN_LOST_SHARE = 0.005
@@ -64,14 +65,16 @@ class Fracture:
     separated: np.ndarray
     side: np.ndarray
 
-    def describe(self):
+    def describe(self) -> str:
         angle = float(np.degrees(np.arctan2(self.direction[1], self.direction[0]))) % 180.0
         return (f"fracture: {self.lost} points lost at once along a line through ({self.centre[0]:.0f}, "
                 f"{self.centre[1]:.0f}) px at {angle:.0f} deg, the two sides {self.jump_px:.1f} px apart in one "
                 f"frame; {int(self.separated.sum())} points across the crack no longer tracked")
 
 
-def detect_fracture(x, y, ok_before, ok_now, u_before, v_before, u_now, v_now, *, step, subset, trackable=None):
+def detect_fracture(x: npt.ArrayLike, y: npt.ArrayLike, ok_before: npt.ArrayLike, ok_now: npt.ArrayLike,
+                    u_before: np.ndarray, v_before: np.ndarray, u_now: np.ndarray, v_now: np.ndarray, *,
+                    step: float, subset: int, trackable: npt.ArrayLike | None = None) -> Fracture | None:
     """A ``Fracture`` when the points newly lost form a band across which the material jumped, else None.
 
     Parameters

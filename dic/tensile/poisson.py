@@ -45,7 +45,10 @@ import enum
 import math
 from dataclasses import dataclass
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from livedic.dic.tensile.properties import MIN_POINTS, NECKING_DROP, PROOF_OFFSET, fit_line, tensile_properties
 
@@ -119,13 +122,13 @@ class ContractionRatio:
     axial_noise: float
     basis: Basis
     method: str
-    reason: Reason = None
+    reason: Reason | None = None
     elastic: bool = True
     intercept: float = _NAN
     linear_to_end: bool = False
 
     @property
-    def label(self):
+    def label(self) -> str:
         """"Poisson's ratio (elastic, frames a-b, axial strain x-y %)" or the plastic ratio's label."""
         parts = ["elastic"] if self.elastic else []
         if self.frames[0] >= 0:
@@ -134,7 +137,7 @@ class ContractionRatio:
         name = "Poisson's ratio" if self.elastic else "plastic contraction ratio"
         return f"{name} ({', '.join(parts)})" if parts else name
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, Any]:
         """A JSON-ready object: value, stderr, label, range, basis, method, reason (NaN stays NaN)."""
         return {"value": float(self.value), "stderr": float(self.standard_error), "label": self.label,
                 "n_frames": int(self.n_frames), "frames": [int(f) for f in self.frames],
@@ -149,7 +152,7 @@ def _percent(strain):
     return "0" if text in ("", "-0") else text
 
 
-def series_noise(values, positions=None):
+def series_noise(values: npt.ArrayLike, positions: npt.ArrayLike | None = None) -> float:
     """Noise (standard deviation) of a series smooth in ``positions`` (frame numbers; default 0, 1, 2 ...).
 
     The third divided difference of each four consecutive values (at their positions: frames the queue
@@ -159,23 +162,23 @@ def series_noise(values, positions=None):
     sigma; the median ignores the few windows over a kink (yield, the neck's start). NaN with fewer
     than 4 values.
     """
-    values = np.asarray(values, dtype=np.float64)
-    positions = np.arange(values.size, dtype=np.float64) if positions is None else \
-        np.asarray(positions, dtype=np.float64)
-    keep = np.isfinite(values)
-    values, positions = values[keep], positions[keep]
-    if values.size < NOISE_WINDOW:
+    series = np.asarray(values, dtype=np.float64)
+    at = np.arange(series.size, dtype=np.float64) if positions is None else np.asarray(positions, dtype=np.float64)
+    keep = np.isfinite(series)
+    series, at = series[keep], at[keep]
+    if series.size < NOISE_WINDOW:
         return _NAN
-    windows = np.lib.stride_tricks.sliding_window_view(positions, NOISE_WINDOW)
+    windows = np.lib.stride_tricks.sliding_window_view(at, NOISE_WINDOW)
     gaps = windows[:, :, None] - windows[:, None, :]
     np.einsum("wii->wi", gaps)[:] = 1.0
     weights = 1.0 / np.prod(gaps, axis=2)
     weights /= np.sqrt(np.sum(weights * weights, axis=1, keepdims=True))
-    off = np.sum(weights * np.lib.stride_tricks.sliding_window_view(values, NOISE_WINDOW), axis=1)
+    off = np.sum(weights * np.lib.stride_tricks.sliding_window_view(series, NOISE_WINDOW), axis=1)
     return float(1.4826 * np.median(np.abs(off - np.median(off))))
 
 
-def linear_part(x, y, *, x_noise, y_noise, min_frames=LINE_FRAMES):
+def linear_part(x: npt.ArrayLike, y: npt.ArrayLike, *, x_noise: float, y_noise: float,
+                min_frames: int = LINE_FRAMES) -> tuple[int, bool]:
     """Frames (count from the first) of the initial linear part of ``y`` against ``x``.
 
     Parameters
@@ -233,7 +236,7 @@ def _sse(count, sa, st, saa, stt, sat):
         return np.where(sxx > 0, syy - sxy * sxy / sxx, syy)
 
 
-def bend(axial, transverse):
+def bend(axial: np.ndarray, transverse: np.ndarray) -> int | None:
     """Where the frames split best into two lines (transverse, or force, on axial strain) when two fit
     significantly better than one, else None.
 
@@ -321,12 +324,14 @@ def _uniform_plastic_frames(axial, force, E):
     return frames[plastic >= PROOF_OFFSET]
 
 
-def without_pair():
+def without_pair() -> tuple[ContractionRatio, ContractionRatio]:
     """(Poisson's ratio, plastic contraction ratio), both NaN with ``Reason.NO_PAIR``."""
     return (_empty(_NAN, Basis.NONE, "", Reason.NO_PAIR, True), _empty(_NAN, Basis.NONE, "", Reason.NO_PAIR, False))
 
 
-def contraction_ratios(axial, transverse, *, force=None, frames=None, min_frames=MIN_FRAMES):
+def contraction_ratios(axial: npt.ArrayLike, transverse: npt.ArrayLike, *, force: npt.ArrayLike | None = None,
+                       frames: npt.ArrayLike | None = None,
+                       min_frames: int = MIN_FRAMES) -> tuple[ContractionRatio, ContractionRatio]:
     """Poisson's ratio over the elastic range and the plastic contraction ratio (see the module notes).
 
     Parameters

@@ -37,7 +37,10 @@ A property that cannot be computed is NaN with a ``Reason`` (data, not text).
 import enum
 from dataclasses import dataclass
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 DEFAULT_RANGE = (0.10, 0.40)   # share of Rp0.2 (or of the maximum stress) fitted for E
 MIN_POINTS = 5                 # fewest frames in the range to fit E
@@ -89,7 +92,7 @@ class Modulus:
     stress_range_MPa: tuple
     strain_at_zero_stress: float
     method: str
-    reason: Reason = None
+    reason: Reason | None = None
     basis: str = ""
 
 
@@ -99,7 +102,7 @@ class ProofStrength:
     value: float
     frames: tuple
     method: str
-    reason: Reason = None
+    reason: Reason | None = None
 
 
 @dataclass(frozen=True)
@@ -109,7 +112,7 @@ class TensileStrength:
     frame: int
     strain: float
     method: str
-    reason: Reason = None
+    reason: Reason | None = None
 
 
 @dataclass(frozen=True)
@@ -118,7 +121,7 @@ class UniformElongation:
     value: float
     total: float
     method: str
-    reason: Reason = None
+    reason: Reason | None = None
 
 
 @dataclass(frozen=True)
@@ -127,7 +130,7 @@ class ElongationAfterFracture:
     value: float
     frame: int
     method: str
-    reason: Reason = None
+    reason: Reason | None = None
 
 
 @dataclass(frozen=True)
@@ -139,9 +142,9 @@ class TensileProperties:
     Ag_percent: UniformElongation
     A_percent: ElongationAfterFracture
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, dict[str, Any]]:
         """``{"E_GPa": {"value": float, "method": str, "reason": str or None}, ...}`` (NaN stays NaN)."""
-        out = {}
+        out: dict[str, dict[str, Any]] = {}
         for name in ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent"):
             prop = getattr(self, name)
             out[name] = {"value": float(prop.value), "method": prop.method,
@@ -149,7 +152,7 @@ class TensileProperties:
         return out
 
 
-def _valid(strain, stress):
+def _valid(strain: npt.ArrayLike, stress: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The input as float arrays, and the indices of the frames with both values finite."""
     strain = np.asarray(strain, dtype=np.float64)
     stress = np.asarray(stress, dtype=np.float64)
@@ -160,7 +163,7 @@ def _valid(strain, stress):
     return strain, stress, frames
 
 
-def fit_line(x, y):
+def fit_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     """Least squares y = a x + b: slope, intercept, standard error of the slope (NaN if x is constant)."""
     if np.ptp(x) == 0:
         return _NAN, _NAN, _NAN
@@ -178,7 +181,8 @@ def _plastic_strain(strain, stress, E_GPa, strain_at_zero_stress):
     return strain - stress / (E_GPa * 1000.0) - strain_at_zero_stress
 
 
-def modulus(strain, stress, *, stress_range=None, rp02_MPa=None, min_points=MIN_POINTS):
+def modulus(strain: npt.ArrayLike, stress: npt.ArrayLike, *, stress_range: tuple[float, float] | None = None,
+            rp02_MPa: float | None = None, min_points: int = MIN_POINTS) -> Modulus:
     """Elastic modulus E by a least-squares line over a stress range of the loading branch.
 
     Parameters
@@ -227,7 +231,7 @@ def modulus(strain, stress, *, stress_range=None, rp02_MPa=None, min_points=MIN_
                    float(-intercept / slope), method, basis=basis)
 
 
-def elastic_fit_frames(strain, stress, low, high):
+def elastic_fit_frames(strain: npt.ArrayLike, stress: npt.ArrayLike, low: float, high: float) -> np.ndarray:
     """Indices of the frames the elastic fit uses: stress within [low, high] on the loading branch.
 
     The loading branch is the frames (with both values finite) before the stress first exceeds
@@ -240,7 +244,8 @@ def elastic_fit_frames(strain, stress, low, high):
     return branch[(stress[branch] >= low) & (stress[branch] <= high)]
 
 
-def proof_strength(strain, stress, E_GPa, offset=PROOF_OFFSET, *, strain_at_zero_stress=0.0):
+def proof_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, offset: float = PROOF_OFFSET, *,
+                   strain_at_zero_stress: float = 0.0) -> ProofStrength:
     """Proof strength Rp (Rp0.2 by default) by the offset line.
 
     Parameters
@@ -283,7 +288,7 @@ def proof_strength(strain, stress, E_GPa, offset=PROOF_OFFSET, *, strain_at_zero
     return ProofStrength(float(value), (int(frames[i]), int(frames[i + 1])), method)
 
 
-def tensile_strength(strain, stress):
+def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike) -> TensileStrength:
     """Tensile strength Rm: the maximum engineering stress.
 
     Parameters
@@ -313,7 +318,7 @@ def tensile_strength(strain, stress):
     return TensileStrength(float(stress[frame]), frame, float(strain[frame]), method)
 
 
-def uniform_elongation(Rm, E_GPa, *, strain_at_zero_stress=0.0):
+def uniform_elongation(Rm: TensileStrength, E_GPa: float, *, strain_at_zero_stress: float = 0.0) -> UniformElongation:
     """Ag and Agt: plastic and total extension at maximum force, percent.
 
     Parameters
@@ -340,7 +345,7 @@ def uniform_elongation(Rm, E_GPa, *, strain_at_zero_stress=0.0):
     return UniformElongation(float(plastic), float(total), method)
 
 
-def fracture_frame(strain, stress, *, drop=FRACTURE_DROP):
+def fracture_frame(strain: npt.ArrayLike, stress: npt.ArrayLike, *, drop: float = FRACTURE_DROP) -> int:
     """The first frame whose stress falls below ``drop`` x Rm after the frame of Rm (-1: none).
 
     Only frames with both a strain and a stress count. The frames from this one on are the
@@ -355,8 +360,9 @@ def fracture_frame(strain, stress, *, drop=FRACTURE_DROP):
     return int(frames[peak + fallen[0]]) if fallen.size else -1
 
 
-def elongation_after_fracture(strain, stress, E_GPa, *, drop=FRACTURE_DROP,
-                              strain_at_zero_stress=0.0):
+def elongation_after_fracture(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, *,
+                              drop: float = FRACTURE_DROP,
+                              strain_at_zero_stress: float = 0.0) -> ElongationAfterFracture:
     """A: plastic elongation at fracture, percent.
 
     Parameters
@@ -390,8 +396,9 @@ def elongation_after_fracture(strain, stress, E_GPa, *, drop=FRACTURE_DROP,
     return ElongationAfterFracture(float(plastic), frame, method)
 
 
-def tensile_properties(strain, stress, *, stress_range=None, offset=PROOF_OFFSET,
-                       drop=FRACTURE_DROP, min_points=MIN_POINTS):
+def tensile_properties(strain: npt.ArrayLike, stress: npt.ArrayLike, *, stress_range: tuple[float, float] | None = None,
+                       offset: float = PROOF_OFFSET, drop: float = FRACTURE_DROP,
+                       min_points: int = MIN_POINTS) -> TensileProperties:
     """E, Rp0.2, Rm, Ag and A of one test.
 
     Parameters
