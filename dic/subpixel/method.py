@@ -86,6 +86,7 @@ class SubpixelMethod:
 
     def refine_prepared(self, prepared: Any, target: Any, u0: np.ndarray, v0: np.ndarray, **options: Any) -> Any:
         """``module.refine_prepared`` (prepared methods only)."""
+        assert self.module is not None, f"{self.name} has no prepared refinement"
         return self.module.refine_prepared(prepared, target, u0, v0, **options)
 
 

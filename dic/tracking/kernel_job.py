@@ -40,7 +40,7 @@ class KernelJob:
     shape: dict
     order: object
     options: dict
-    status: np.ndarray = None
+    status: np.ndarray | None = None
 
     def coefficients(self, image: np.ndarray, out: BSplineCoefficients | None = None) -> BSplineCoefficients:
         """``image``'s coefficients on the window (``window_coefficients``; ``out`` an earlier frame's)."""

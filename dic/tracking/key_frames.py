@@ -124,11 +124,11 @@ class KeyFrameTracker:
         self.key_frame = 0
         self.frames_tracked = 0
         self._since_key = 0
-        self.updates = []
-        self.last_update = None
-        self.fractures = []
+        self.updates: list[ReferenceUpdate] = []
+        self.last_update: ReferenceUpdate | None = None
+        self.fractures: list[Any] = []
         self.last_fracture = None
-        self._previous = None                   # the last result (for the fracture test)
+        self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None   # the last result (fracture test)
         self.last_timings = StageTimes().ns
 
     # the Tracker interface the session uses
@@ -160,7 +160,7 @@ class KeyFrameTracker:
     def window(self) -> tuple[int, int, int, int] | None:
         return self._inner.window
 
-    def kernel_job(self) -> KernelJob:
+    def kernel_job(self) -> KernelJob | None:
         """``Tracker.kernel_job`` of the current key frame's tracker (displacements from the key frame)."""
         return self._inner.kernel_job()
 
@@ -373,7 +373,7 @@ class KeyFrameTracker:
         with np.errstate(invalid="ignore"):
             return result.ok & (result.zncc >= self._inner.refind_zncc) & (near_failures == 0)
 
-    def resume(self, previous: Measurement, *, last_good: dict[str, np.ndarray] | None = None, frames_tracked: int,
+    def resume(self, previous: Measurement | None, *, last_good: dict[str, np.ndarray] | None = None, frames_tracked: int,
                frames_since_key: int, frames_since_rebuild: int) -> None:
         """``Tracker.resume`` for key frames: the next ``track`` starts as it would in sequence.
 

@@ -68,9 +68,9 @@ _SHAPE = ("ux", "uy", "vx", "vy")
 @dataclass
 class _Curved(Measurement):
     """A tracker result inside ``Tracker.track`` with a second-order method's terms (``icgn2.SECOND_ORDER``)."""
-    uxx: np.ndarray = None
-    uxy: np.ndarray = None
-    uyy: np.ndarray = None
-    vxx: np.ndarray = None
-    vxy: np.ndarray = None
-    vyy: np.ndarray = None
+    uxx: np.ndarray | None = None
+    uxy: np.ndarray | None = None
+    uyy: np.ndarray | None = None
+    vxx: np.ndarray | None = None
+    vxy: np.ndarray | None = None
+    vyy: np.ndarray | None = None

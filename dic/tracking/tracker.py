@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -60,7 +61,7 @@ class StageTimes:
 
     def __init__(self) -> None:
         self.ns = dict.fromkeys(TRACKER_STAGES, 0)
-        self._stage = None
+        self._stage: str | None = None
         self._started = 0
 
     def stage(self, name: str) -> StageTimes:
@@ -233,14 +234,15 @@ class Tracker(RefindSteps):
         self._refind_wait = np.zeros(n, dtype=np.int64)    # frames to skip before the next wide search
         self._refind_skip = np.zeros(n, dtype=np.int64)
         self._ref_status = self._reference_status()
-        self._prep = None
-        self._window = None
+        self._prep: Any = None          # the method's prepared reference data (IC-GN), on the window
+        self._window: tuple[int, int, int, int] | None = None
         self._allowance = 0
         self._graph = neighbour_graph(np.column_stack([self.x, self.y]))
         if self.method.prepared:
             self._prepare_window(_WINDOW_ALLOWANCE)
+            prepared_status = self._first_order_prep().status      # the same points: either order's
             self._ref_status = np.where(self._ref_status != Status.OK, self._ref_status,
-                                        self._prep.status).astype(np.int8)
+                                        prepared_status).astype(np.int8)
             texture = quality.texture(self._first_order_prep())
         else:
             texture = quality.texture(prepare_reference(self.reference, self._xs, self._ys, self.half))
@@ -253,10 +255,10 @@ class Tracker(RefindSteps):
         self.last_refound = np.zeros(self.n_points, dtype=bool)
         self.last_refind_attempts = 0
         self.last_seed_searches = 0
-        self.last_second_order = None
+        self.last_second_order: dict[str, np.ndarray] | None = None
         self.last_timings = StageTimes().ns
-        self._tested = None
-        self._spare = None          # the IC-GN window's coefficients buffer, reused frame after frame
+        self._tested: Any = None
+        self._spare: Any = None     # the IC-GN window's coefficients buffer, reused frame after frame
 
     def __getstate__(self):
         # a copy or a pickle (replay --workers) leaves the coefficients buffer behind: it is scratch
@@ -408,7 +410,7 @@ class Tracker(RefindSteps):
             order = np.asarray(order)[idx]
         return KernelJob(self.method, self._prep, self._window, idx, u0, v0, grads, order, options, status)
 
-    def kernel_job(self) -> KernelJob:
+    def kernel_job(self) -> KernelJob | None:
         """The kernel stage of the next ``track`` on its own: a ``KernelJob``, or None (no IC-GN, no point).
 
         For timing the bare kernel against the tracker on the same points from the same start
@@ -513,7 +515,7 @@ class Tracker(RefindSteps):
             self._refind_skip[retry] = self._refind_wait[retry]
         self._remember(result)
         self.frames_tracked += 1
-        self._target = None
+        self._target = None         # type: ignore[assignment]  # only inside track: its frame
         self._coeffs = None
         self.last_timings = times.ns
         if isinstance(result, _Curved):
@@ -521,7 +523,7 @@ class Tracker(RefindSteps):
             result = _take(result, slice(None), Measurement)
         return result
 
-    def resume(self, previous: Measurement, *, last_good: dict[str, np.ndarray] | None = None) -> None:
+    def resume(self, previous: Measurement | None, *, last_good: dict[str, np.ndarray] | None = None) -> None:
         """Start the next ``track`` from a known earlier result, as if the frames before had been tracked here.
 
         ``track`` starts each frame from what it keeps of the frames before: the previous
@@ -683,7 +685,7 @@ class _Frame:
 
     def __init__(self, raw: np.ndarray):
         self.raw = raw
-        self._grey = None
+        self._grey: np.ndarray | None = None
 
     @property
     def grey(self) -> np.ndarray:
