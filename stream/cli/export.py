@@ -3,6 +3,10 @@
 ``export_command`` runs it (``stream.export.export.export_recording``); its options are declared in ``cli.main``.
 """
 
+from __future__ import annotations
+
+import argparse
+
 import os
 
 from livedic.stream.export.export import ExportStopped, StopSignals, export_recording, plural, say, stress_from_args
@@ -11,7 +15,7 @@ from livedic.stream.pipeline.progress import ProgressBar, progress_enabled
 from livedic.stream.stages.strain import overrides_from_args
 
 
-def export_command(args):
+def export_command(args: argparse.Namespace) -> int:
     """``livedic export FILE.mcap -o DIR [--overwrite] [strain options] [field options]``; returns the exit code.
 
     Stopped by SIGINT or SIGTERM: one line saying what the folder holds, exit 128 + the signal's

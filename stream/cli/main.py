@@ -9,6 +9,11 @@ that sits above them: ``livedic.bench.cli`` passes ``extensions`` to ``main``
 (stream never imports bench).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import NoReturn
+
 import argparse
 import logging
 import os
@@ -37,7 +42,7 @@ _SIGNED_LIST_OPTIONS = ("--color-range",)
 class LivedicParser(argparse.ArgumentParser):
     """argparse with livedic's one-line errors: ``livedic: error: ...`` on stderr, exit 2 (no usage block)."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_BAD_INPUT, f"livedic: error: {message} (see {self.prog} --help)\n")
 
 
@@ -58,7 +63,7 @@ def _attach_signed_values(argv):
     return joined
 
 
-def main(argv=None, *, extensions=()):
+def main(argv: Sequence[str] | None = None, *, extensions: Sequence[Callable] = ()) -> int:
     """Parse ``argv`` (default: the process's), run the command; returns the exit code.
 
     ``extensions``: callables ``add(commands)`` that add subcommands (see ``build_parser``).
@@ -67,7 +72,7 @@ def main(argv=None, *, extensions=()):
     try:
         args = parser.parse_args(_attach_signed_values(argv))
     except SystemExit as done:        # --help (0), or a bad option: argparse said so in one line (2)
-        return done.code
+        return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
     if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
         # A file-size limit (ulimit -f) must fail a write with EFBIG, which stops a recording
         # cleanly, rather than kill livedic (and the measurement) with SIGXFSZ.
@@ -91,7 +96,7 @@ def main(argv=None, *, extensions=()):
         return EXIT_BAD_INPUT if kind == "" else 1
 
 
-def entry_point(extensions=()):
+def entry_point(extensions: Sequence[Callable] = ()) -> int:
     """The ``livedic`` console script: ``main()``, then exit without waiting for a dead camera.
 
     After a GigE camera is lost, Aravis's teardown of it waits on register writes
@@ -119,7 +124,7 @@ class _LogLine(logging.StreamHandler):
     """What livedic's modules log (a truncated recording's note, a colour file converted ...), said as
     ``livedic: MESSAGE`` like every other line livedic writes, not as Python's bare last-resort output."""
 
-    def format(self, record):
+    def format(self, record: logging.LogRecord) -> str:
         clear = "\r\033[K" if self.stream.isatty() else ""     # clear of an in-place progress line
         return f"{clear}livedic: {record.getMessage()}"
 
@@ -138,7 +143,7 @@ def _error_kind(error):
     return f"internal {type(error).__name__}: "
 
 
-def build_parser(extensions=()):
+def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
     """The ``livedic`` parser: this layer's commands, then those ``extensions`` add.
 
     Parameters

@@ -4,6 +4,16 @@
 shows ``MeasureProgress`` on stderr while the measurement runs.
 """
 
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING, Any, TextIO
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from livedic.dic.result import Measurement
+
 import sys
 import threading
 
@@ -14,7 +24,7 @@ from livedic.stream.session.parsing import UsageError
 from livedic.stream.session.points import add_region_arguments, read_points_table
 
 
-def add_measure_arguments(parser):
+def add_measure_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``livedic measure`` options to an ``argparse`` (sub)parser."""
     from livedic.dic.strain import MEASURES
 
@@ -42,7 +52,7 @@ def add_measure_arguments(parser):
                                        "line every 15 s; off = nothing")
 
 
-def measure_command(args):
+def measure_command(args: argparse.Namespace) -> int:
     """``livedic measure`` with parsed ``args`` (see ``add_measure_arguments``); returns the exit code."""
     import numpy as np
 
@@ -165,7 +175,8 @@ class MeasureProgress:
     so the line says how long it has run, not how far it is.
     """
 
-    def __init__(self, n_points, method, *, in_place=True, after_s=1.5, every_s=15.0, stream=None):
+    def __init__(self, n_points: int, method: str, *, in_place: bool = True, after_s: float = 1.5,
+                 every_s: float = 15.0, stream: TextIO | None = None):
         self.n_points = n_points
         self.method = method
         self.in_place = in_place
@@ -173,9 +184,9 @@ class MeasureProgress:
         self.every_s = every_s
         self.stream = stream or sys.stderr
         self.lines = 0
-        self._last_line_s = None
+        self._last_line_s: float | None = None
 
-    def tick(self, elapsed_s):
+    def tick(self, elapsed_s: float) -> None:
         """Called about every 0.25 s while the measurement runs."""
         if elapsed_s < self.after_s:
             return
@@ -190,14 +201,15 @@ class MeasureProgress:
         self.stream.flush()
         self.lines += 1
 
-    def done(self, elapsed_s):
+    def done(self, elapsed_s: float) -> None:
         if self.lines:
             end = f"livedic: measured {self.n_points:,} points ({self.method}) in {elapsed_s:.1f} s"
             self.stream.write(f"\r{end}\033[K\n" if self.in_place else end + "\n")
             self.stream.flush()
 
 
-def measure_with_progress(reference, deformed, points, *, progress=None, tick_s=0.25, **method):
+def measure_with_progress(reference: np.ndarray, deformed: np.ndarray, points: np.ndarray, *,
+                          progress: MeasureProgress | None = None, tick_s: float = 0.25, **method: Any) -> Measurement:
     """``dic.measure(reference, deformed, points, **method)``, showing ``progress`` while it runs.
 
     The measurement is one ``dic.measure`` call, run in a worker thread (its

@@ -4,12 +4,20 @@
 ``stream.session.preview``'s.
 """
 
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from livedic.acquire.base import Frame
+
 import sys
 
 from livedic.stream.session.preview import render_preview, setup_overlay
 
 
-def add_preview_arguments(parser) -> None:
+def add_preview_arguments(parser: argparse.ArgumentParser) -> None:
     """``livedic preview``'s options: the source, the output, and ``livedic run``'s placement options."""
     from livedic.stream.session.config import DEFAULT_SOURCE, add_subset_argument
     from livedic.stream.session.points import add_point_arguments
@@ -22,7 +30,7 @@ def add_preview_arguments(parser) -> None:
     add_strain_arguments(parser)
 
 
-def first_frame(uri: str):
+def first_frame(uri: str) -> tuple[Frame, Any, dict]:
     """``(frame, the source's suggested ROI or None, its settings)``: the first frame of ``uri``; the source closed.
 
     The simulator renders only what the first frame needs.
@@ -46,7 +54,7 @@ def first_frame(uri: str):
         source.close()
 
 
-def preview_command(args) -> int:
+def preview_command(args: argparse.Namespace) -> int:
     """``livedic preview``: place as ``run`` would, draw, write ``-o``, say what was placed. Returns 0."""
     from livedic.stream.session.config import PointsConfig
     from livedic.stream.session.parsing import parse_p0

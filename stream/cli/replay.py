@@ -4,6 +4,11 @@
 ``describe_parallel`` is the line a replay on Dask adds.
 """
 
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
 import os
 import sys
 
@@ -20,7 +25,7 @@ from livedic.stream.stages.strain import add_strain_arguments, overrides_from_ar
 from livedic.stream.stages.stress import add_stress_arguments, stress_options_from_args
 
 
-def add_replay_arguments(parser):
+def add_replay_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the ``livedic replay`` arguments to an ``argparse`` (sub)parser."""
     parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
     parser.add_argument("-o", "--output", metavar="OUT.csv",
@@ -56,7 +61,7 @@ def add_replay_arguments(parser):
     return parser
 
 
-def describe_parallel(stats):
+def describe_parallel(stats: Any) -> str:
     """One line: where the frames were measured, the tracker's own time and what travelled."""
     per_frame = stats.image_bytes / stats.frames if stats.frames else 0.0
     images = f"{per_frame / 1e6:.2f} MB of image (as recorded)" if stats.shared_path is None \
@@ -70,7 +75,7 @@ def describe_parallel(stats):
             f"{stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent{moves}")
 
 
-def replay_command(args):
+def replay_command(args: argparse.Namespace) -> int:
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
     check_rows_output(args.output, args.recording)
     given = config_values(TrackingConfig, args)

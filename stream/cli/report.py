@@ -3,13 +3,17 @@
 ``report_command`` runs it (``stream.export.report.report_recording``); its options are declared in ``cli.main``.
 """
 
+from __future__ import annotations
+
+import argparse
+
 from livedic.stream.export.export import say, stress_from_args
 from livedic.stream.export.report import (POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
                                           report_recording)
 from livedic.stream.stages.strain import overrides_from_args
 
 
-def report_command(args):
+def report_command(args: argparse.Namespace) -> int:
     """``livedic report FILE.mcap -o DIR [--load csv:FILE] [--area | --width --thickness]``; the exit code.
 
     Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.export.stress_from_args``).

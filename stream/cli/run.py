@@ -19,6 +19,12 @@ reopened until it is back while the session, its reference and its recording
 stay open (``stream.pipeline.acquisition.Reconnect``).
 """
 
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from typing import Any
+
 import signal
 import threading
 
@@ -33,7 +39,7 @@ from livedic.stream.stages.strain import add_strain_arguments
 from livedic.stream.stages.stress import add_stress_arguments
 
 
-def add_run_arguments(parser):
+def add_run_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the ``livedic run`` options to an ``argparse`` (sub)parser (defaults: ``stream.session.config``)."""
     parser.add_argument("--source", default=DEFAULT_SOURCE, metavar="URI",
                         help="frame source (default synthetic:tensile): synthetic:[tensile|translate][?opts], "
@@ -89,7 +95,7 @@ def add_run_arguments(parser):
 class _StoppedBeforeStart(Exception):
     """A stop signal arrived before the session started (nothing was recorded)."""
 
-    def __init__(self, signal_name):
+    def __init__(self, signal_name: str):
         super().__init__(signal_name)
         self.signal_name = signal_name
 
@@ -105,12 +111,12 @@ class _Interrupt:
     properly. A second Ctrl-C gives up at once (``KeyboardInterrupt``).
     """
 
-    def __init__(self):
-        self.on_signal = None
+    def __init__(self) -> None:
+        self.on_signal: Callable[[str], None] | None = None
         self.received = None
-        self._previous = {}
+        self._previous: dict[int, Any] = {}
 
-    def session_started(self, on_signal):
+    def session_started(self, on_signal: Callable[[str], None]) -> None:
         self.on_signal = on_signal
 
     def __enter__(self):
@@ -137,7 +143,7 @@ class _Interrupt:
 
 # ----------------------------------------------------------------------------- the command
 
-def write_summary_json(path, summary, say):
+def write_summary_json(path: str, summary: dict, say: Callable[[str], None]) -> None:
     """``--summary-json``: written whole or not at all; a failure (a full disk) is one warning, not an error.
 
     The outputs were checked before the session; what fails now is the disk, and the summary has been
@@ -150,7 +156,7 @@ def write_summary_json(path, summary, say):
             f"(the summary is printed above)")
 
 
-def run_session(args):
+def run_session(args: argparse.Namespace) -> int:
     """Run ``livedic run`` with parsed ``args`` (see ``add_run_arguments``); returns the exit code.
 
     Everything that can be checked before the session is: options (``SessionConfig``),

@@ -18,10 +18,16 @@ The pieces:
   pipeline settings.
 """
 
+from __future__ import annotations
+
+import argparse
 import math
 import os
 from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from livedic.dic import DEFAULT_SUBSET, SEARCH_METHODS
 from livedic.dic.subpixel.method import METHODS as SUBPIXEL
@@ -35,6 +41,9 @@ from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_search, ch
 from livedic.stream.pipeline.progress import progress_enabled
 from livedic.stream.session.options import add_config_arguments, config_values, option
 from livedic.stream.stages.strain import StrainConfig
+
+if TYPE_CHECKING:
+    from livedic.dic.tracking.key_frames import KeyFrameTracker
 
 DEFAULT_SOURCE = "synthetic:tensile"
 DEFAULT_POINTS = 1000
@@ -133,19 +142,19 @@ class TrackingConfig:
         object.__setattr__(self, "reference_update", str(UpdatePolicy.parse(self.reference_update)))
 
     @classmethod
-    def keys(cls):
+    def keys(cls) -> tuple[str, ...]:
         """The parameter names, in order (the keys a recording's session metadata holds them under)."""
         return tuple(f.name for f in fields(cls))
 
     @property
-    def method(self):
+    def method(self) -> str:
         """``"search+subpixel"``, as recorded with every result."""
         return f"{self.search}+{self.subpixel}"
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
-    def tracker(self, image, points, **overrides):
+    def tracker(self, image: np.ndarray, points: np.ndarray, **overrides: Any) -> KeyFrameTracker:
         """A ``dic.tracking.key_frames.KeyFrameTracker`` on reference ``image`` for ``points`` with these settings.
 
         ``overrides`` replace settings for this tracker only (the warm-up's smaller subset and radius).
@@ -206,7 +215,7 @@ class MeasureConfig:
         return f"{self.search} + {self.subpixel}"
 
 
-def add_subset_argument(parser):
+def add_subset_argument(parser: argparse.ArgumentParser) -> None:
     """``--subset`` for ``preview``, as ``TrackingConfig`` declares it for ``run``."""
     add_config_arguments(parser, TrackingConfig, names=("subset",))
 
@@ -243,15 +252,15 @@ class PointsConfig:
     max_points : int
         A live session refuses to start with more points (their cost is in the message).
     """
-    roi: object = None
-    mask: object = field(default=None, compare=False, repr=False)
-    mask_file: str = None
+    roi: Any = None
+    mask: np.ndarray | None = field(default=None, compare=False, repr=False)
+    mask_file: str | None = None
     exclude: tuple = ()
-    points_file: str = None
-    xy: object = field(default=None, compare=False, repr=False)
-    step: int = None
+    points_file: str | None = None
+    xy: np.ndarray | None = field(default=None, compare=False, repr=False)
+    step: int | None = None
     n_points: int = DEFAULT_POINTS
-    p0: tuple = None
+    p0: tuple | None = None
     max_points: int = DEFAULT_MAX_POINTS
 
     def __post_init__(self):
@@ -275,7 +284,7 @@ class PointsConfig:
             raise ValueError(f"--max-points must be >= 1, got {self.max_points}")
 
     @classmethod
-    def region_from_args(cls, args) -> dict:
+    def region_from_args(cls, args: argparse.Namespace) -> dict:
         """``roi``, ``mask``, ``mask_file``, ``exclude`` from ``--roi --mask --exclude`` (``add_region_arguments``).
 
         Raises
@@ -289,17 +298,17 @@ class PointsConfig:
                 "exclude": tuple(parse_exclusion(t) for t in (getattr(args, "exclude", None) or ()))}
 
     @property
-    def region(self):
+    def region(self) -> Region:
         """What the user gave as a ``dic.region.Region`` (outline, mask, exclusions)."""
         outline = self.roi if self.roi not in (None, ROI_AUTO, ROI_FULL) else None
         return Region(outline=outline, mask=self.mask, mask_name=self.mask_file, exclude=self.exclude)
 
     @property
-    def given(self):
+    def given(self) -> bool:
         """Whether the points come from a file or a list rather than a grid."""
         return self.xy is not None or self.points_file is not None
 
-    def how(self, step):
+    def how(self, step: float | None) -> str:
         """How the points were asked for, for messages (``step``: the grid step used)."""
         if self.points_file:
             return f"--points {self.points_file}"
@@ -319,23 +328,23 @@ class ViewerConfig:
     ``note`` says why a requested mode was changed (spawn without a display saves instead).
     """
     mode: str = VIEWER_NONE
-    target: str = None
-    note: str = None
+    target: str | None = None
+    note: str | None = None
 
     @classmethod
-    def parse(cls, words, default_save_path):
+    def parse(cls, words: list[str], default_save_path: str) -> ViewerConfig:
         """From ``--viewer`` words (``stream.view.viewer.parse_viewer``); ValueError for a bad mode or URL."""
         from livedic.stream.view.viewer import parse_viewer
         return cls(*parse_viewer(words, default_save_path))
 
-    def describe(self):
+    def describe(self) -> str:
         """For the summary: the mode and where it goes."""
         return f"{self.mode} {self.target}" if self.target else self.mode
 
 
 # ----------------------------------------------------------------------------- the session
 
-def session_name():
+def session_name() -> str:
     """``session-YYYYmmdd-HHMMSS``, the default name of a session's files."""
     return "session-" + datetime.now().strftime("%Y%m%d-%H%M%S")
 
@@ -356,7 +365,7 @@ def _load_from_args(args):
     return {"load": load, "load_offset": offset, "area_mm2": area}
 
 
-def unique_path(path):
+def unique_path(path: str) -> str:
     """``path``, or ``path`` with -2, -3 ... before the extension if it exists."""
     if not os.path.exists(path):
         return path
@@ -423,28 +432,28 @@ class SessionConfig:
         ``modbus://HOST:PORT``, ``stream.publish``); needs extensometers.
     """
     source: str = DEFAULT_SOURCE
-    frames: int = None
+    frames: int | None = None
     points: PointsConfig = field(default_factory=PointsConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
-    record: str = None
+    record: str | None = None
     record_named: bool = True
     viewer: ViewerConfig = field(default_factory=ViewerConfig)
     name: str = "livedic session"
     queue: int = 4
     drop: str = "auto"
-    color_range: tuple = None
+    color_range: tuple | None = None
     image_max_side: int = 512
     show_progress: bool = False
     threads: int = 1
-    summary_json: str = None
+    summary_json: str | None = None
     reconnect: bool = False
-    reconnect_timeout: float = None
+    reconnect_timeout: float | None = None
     warm_up: bool = True
     command: str = "livedic run"
     strain: StrainConfig = field(default_factory=StrainConfig)
-    load: str = None
+    load: str | None = None
     load_offset: float = 0.0
-    area_mm2: float = None
+    area_mm2: float | None = None
     publish: tuple = ()
 
     def __post_init__(self):
@@ -484,19 +493,19 @@ class SessionConfig:
                              f"source")
 
     @property
-    def publish_targets(self):
+    def publish_targets(self) -> list:
         """``publish`` parsed (``stream.publish.PublishTarget``); ValueError (one line) for a bad URI."""
         from livedic.stream.publish import parse_publish_uris
         return parse_publish_uris(self.publish)
 
     @property
-    def scheme(self):
+    def scheme(self) -> str:
         """The source's scheme (``acquire.sources.SCHEMES``); SourceError for an unknown or malformed URI."""
         from livedic.acquire.sources import parse_scheme
         return parse_scheme(self.source)
 
     @classmethod
-    def from_args(cls, args, *, stem=None):
+    def from_args(cls, args: argparse.Namespace, *, stem: str | None = None) -> SessionConfig:
         """From ``livedic run``'s parsed options (``stream.cli.run.add_run_arguments``).
 
         Resolves what the options leave open: the recording's default name
