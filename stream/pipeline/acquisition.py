@@ -128,7 +128,7 @@ class AcquisitionThread(threading.Thread):
         self._stop_requested = threading.Event()
         self._continuity: tuple[int, int] | None = None          # (index offset, timestamp offset) after a reconnection
         self._continuity_pending = False  # reconnected: the next frame sets _continuity
-        self._last: tuple[Any, ...] | None = None                # (index, timestamp_ns, arrival_ns, shape, dtype, pixel format)
+        self._last: tuple[Any, ...] | None = None  # (index, timestamp_ns, arrival_ns, shape, dtype, pixel format)
 
     def stop(self) -> None:
         """Ask the thread to stop after the frame it is waiting for (does not block)."""
