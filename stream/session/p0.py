@@ -5,8 +5,11 @@ the ROI centre, or assesses a given one; ``P0Choice`` says where and why, for
 the session's note, its summary and a warning when P0 is weak.
 """
 
+from __future__ import annotations
+
 import enum
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,24 +46,24 @@ class P0Choice:
     centre_weak : whether the ROI centre's subset is weak
     radius : the search radius around the centre that found P0 (px; 0 when given)
     """
-    xy: tuple
+    xy: tuple[float, float]
     reason: P0Reason
     relative_texture: float
     flat_share: float
-    centre: tuple
+    centre: tuple[float, float]
     centre_weak: bool
     radius: int = 0
 
     @property
-    def weak(self):
+    def weak(self) -> bool:
         """P0's subset is partly flat or has little texture: its trace may be wrong."""
         return self.flat_share > P0_FLAT_SHARE or not (self.relative_texture >= P0_WEAK_TEXTURE)
 
-    def _quality(self):
+    def _quality(self) -> str:
         texture = "n/a" if not math.isfinite(self.relative_texture) else f"{self.relative_texture:.2f}x"
         return f"texture {texture} the ROI's median, {100 * self.flat_share:.0f} % of its subset flat"
 
-    def describe(self):
+    def describe(self) -> str:
         """Which point, and why, for the session's note."""
         x, y = self.xy
         cx, cy = self.centre
@@ -76,7 +79,7 @@ class P0Choice:
         return (f"P0 = point 0 at ({x:g}, {y:g}), the best-textured point within {self.radius} px of the ROI "
                 f"centre ({cx:g}, {cy:g}) ({self._quality()})")
 
-    def warning(self):
+    def warning(self) -> str | None:
         """A line for the user when P0 is weak, else None."""
         if not self.weak:
             return None
@@ -87,7 +90,8 @@ class P0Choice:
         return f"P0 ({x:g}, {y:g}) is on weak texture ({self._quality()}): its trace may be wrong"
 
 
-def _texture_maps(image, roi, subset):
+def _texture_maps(image: np.ndarray, roi: Sequence[int],
+                  subset: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
     """Maps over ``roi`` grown by a subset, indexed [row - y0, column - x0]: (floor, texture, flat, x0, y0).
 
     floor: the weakest local texture in and around each subset; texture: mean |grad I|^2 over each
@@ -118,7 +122,8 @@ def _texture_maps(image, roi, subset):
     return floor, texture, flat, x0, y0
 
 
-def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
+def choose_p0(image: np.ndarray, roi: Sequence[int] | None, subset: int, p0: Sequence[float] | None = None,
+              allowed: np.ndarray | None = None, centre: Sequence[float] | None = None) -> P0Choice:
     """P0 on the specimen: the best-textured point near the ROI centre, or the given ``p0`` assessed.
 
     Without ``p0``: among the pixel centres within a radius of the ROI centre whose
@@ -155,7 +160,7 @@ def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
     half = int(subset) // 2
     if centre is None:
         centre = (x + (w - 1) / 2.0, y + (h - 1) / 2.0)
-    centre = (float(np.floor(centre[0] + 0.5)), float(np.floor(centre[1] + 0.5)))
+    snapped = (float(np.floor(centre[0] + 0.5)), float(np.floor(centre[1] + 0.5)))
     floor, texture, flat, x0, y0 = _texture_maps(image, (x, y, w, h), subset)
     rows, cols = floor.shape
     # Candidates: pixel centres of the ROI whose subset lies inside the image.
@@ -169,24 +174,24 @@ def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
     typical_texture = float(np.median(texture[inside][::3])) if inside.any() else 0.0
     typical_floor = float(np.median(floor[inside][::3])) if inside.any() else 0.0
 
-    def assess(xy):
+    def assess(xy: tuple[float, float]) -> tuple[float, float]:
         col, row = int(xy[0]) - x0, int(xy[1]) - y0
         if not (0 <= row < rows and 0 <= col < cols) or typical_texture <= 0:
             return float("nan"), 1.0
         return float(texture[row, col]) / typical_texture, float(flat[row, col])
 
-    def weak(xy):
+    def weak(xy: tuple[float, float]) -> bool:
         relative, flat_share = assess(xy)
         return flat_share > P0_FLAT_SHARE or not (relative >= P0_WEAK_TEXTURE)
 
-    centre_weak = weak(centre)
+    centre_weak = weak(snapped)
     if p0 is not None:
         xy = (float(np.floor(p0[0] + 0.5)), float(np.floor(p0[1] + 0.5)))
-        return P0Choice(xy, P0Reason.GIVEN, *assess(xy), centre, centre_weak)
+        return P0Choice(xy, P0Reason.GIVEN, *assess(xy), snapped, centre_weak)
     if not inside.any() or typical_floor <= 0:
-        return P0Choice(centre, P0Reason.NO_TEXTURE, *assess(centre), centre, centre_weak)
+        return P0Choice(snapped, P0Reason.NO_TEXTURE, *assess(snapped), snapped, centre_weak)
     row_index, col_index = np.nonzero(inside)
-    distance2 = (col_index + x0 - centre[0]) ** 2 + (row_index + y0 - centre[1]) ** 2
+    distance2 = (col_index + x0 - snapped[0]) ** 2 + (row_index + y0 - snapped[1]) ** 2
     scores = floor[row_index, col_index]
     radius = max(int(subset), 1)
     limit = np.sqrt(float(distance2.max()))
@@ -198,4 +203,4 @@ def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
     best = near[int(np.argmax(scores[near]))]        # the first of equals in row-major order: deterministic
     xy = (float(col_index[best] + x0), float(row_index[best] + y0))
     reason = P0Reason.MOVED_OFF_WEAK_CENTRE if centre_weak else P0Reason.BEST_NEAR_CENTRE
-    return P0Choice(xy, reason, *assess(xy), centre, centre_weak, radius)
+    return P0Choice(xy, reason, *assess(xy), snapped, centre_weak, radius)
