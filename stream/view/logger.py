@@ -49,11 +49,13 @@ if TYPE_CHECKING:
     from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerSet
     from livedic.dic.tensile.poisson import ContractionRatio
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
-    from livedic.stream.session.preview import SetupOverlay
     from livedic.stream.stages.force import LoadStage
     from livedic.stream.stages.strain import StrainStage
 
 Limits = tuple[float, float]
+# A stream.session.preview.SetupOverlay: not imported, even for typing (the session imports the view, and
+# the packages of stream import one another without cycles: .importlinter)
+SetupOverlay = Any
 
 
 def _label_anchors(first: np.ndarray, second: np.ndarray, labels: Sequence[str], side: float) -> np.ndarray:
