@@ -121,11 +121,12 @@ def parse_exclusion(text: str) -> Shape:
         raise ValueError(f"--exclude {error}") from None
 
 
-def parse_p0(text: str | None) -> tuple[float, ...] | None:
+def parse_p0(text: str | None) -> tuple[float, float] | None:
     """``--p0`` "X,Y" -> (x, y) floats, or None when not given."""
     if text is None:
         return None
-    return tuple(parse_numbers(text, 2, "--p0", "512,400"))
+    x, y = parse_numbers(text, 2, "--p0", "512,400")
+    return x, y
 
 
 def parse_color_range(text: str | None) -> tuple[float, float] | None:
