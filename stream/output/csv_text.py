@@ -17,10 +17,15 @@ checked once, on values of every decimal exponent, against ``repr``; where it do
 written by ``repr`` (slower, the same text).
 """
 
+from __future__ import annotations
+
 import functools
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pyarrow as pa
 import pyarrow.compute as pc
 
@@ -40,7 +45,7 @@ _POSITIONAL_SMALL = (5e-7, 2e-4)
 _REPR_RANGE = (1e10, 1e16)              # exact bounds: both are doubles, so the text's exponent is 10..15
 
 
-def scalar_text(value) -> str:
+def scalar_text(value: object) -> str:
     """One cell: a float as its ``repr`` (``nan``, ``inf``), a boolean 1/0, anything else its ``str``."""
     if isinstance(value, (bool, np.bool_)):
         return "1" if value else "0"
@@ -49,7 +54,7 @@ def scalar_text(value) -> str:
     return str(value)
 
 
-def float_texts(values) -> pa.StringArray:
+def float_texts(values: npt.ArrayLike) -> pa.StringArray:
     """``values`` (any real array) as float64 texts, each Python's ``repr`` of the float64."""
     values = np.ascontiguousarray(values, dtype=np.float64).ravel()
     if not _arrow_lays_out_as_expected():
@@ -131,7 +136,7 @@ def _is_float_column(array):
     return array.ndim == 1 and array.dtype.kind not in "biuOUS"
 
 
-def csv_rows(columns, n) -> str:
+def csv_rows(columns: Mapping[str, Any], n: int) -> str:
     """CSV lines (no header, each ending in a newline) for ``columns``: ordered name -> scalar or (n,) array."""
     if n == 0:
         return ""
@@ -142,9 +147,11 @@ def csv_rows(columns, n) -> str:
     floats = [array for array in arrays if _is_float_column(array)]
     # every float column in one call: the rewrites' fixed cost once a frame, not once a column
     float_text = float_texts(np.concatenate(floats)) if floats else None
-    texts, start = [], 0
+    texts: list[Any] = []
+    start = 0
     for array in arrays:
         if _is_float_column(array):
+            assert float_text is not None     # a float column was among those concatenated
             texts.append(float_text.slice(start, n))
             start += n
         else:

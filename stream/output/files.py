@@ -15,6 +15,8 @@ line turns it into one line and exit code 2) instead of an ``OSError`` after
 minutes of work.
 """
 
+from __future__ import annotations
+
 import csv
 import io
 import json
@@ -22,6 +24,8 @@ import math
 import os
 import sys
 import tempfile
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -67,7 +71,7 @@ def _probe_folder(folder, what, path):
     os.unlink(probe)
 
 
-def check_output_file(path, what, *, create_folders=False):
+def check_output_file(path: str | os.PathLike[str], what: str, *, create_folders: bool = False) -> None:
     """Raise ``OutputError`` unless ``path`` can be written as a (new or replaced) file.
 
     Parameters
@@ -96,7 +100,7 @@ def check_output_file(path, what, *, create_folders=False):
         raise OutputError(f"cannot write {what} {path}: the file is read-only")
 
 
-def check_output_folder(path, what):
+def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
     """Raise ``OutputError`` unless ``path`` is (or can be created as) a folder that files can be written in."""
     path = os.fspath(path)
     if os.path.lexists(path) and not os.path.isdir(path):
@@ -111,7 +115,7 @@ def _example_name(what):
 
 # ----------------------------------------------------------------------------- atomic files
 
-def write_text_atomic(path, text):
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> None:
     """Write ``text`` to ``path`` through an ``AtomicFile``."""
     with AtomicFile(path) as out:
         out.write(text)
@@ -120,7 +124,7 @@ def write_text_atomic(path, text):
 
 # ----------------------------------------------------------------------------- JSON
 
-def json_text(value, *, indent=2):
+def json_text(value: object, *, indent: int = 2) -> str:
     """``value`` as strict JSON text: NaN and infinities become ``null`` (JSON has no NaN),
     numpy scalars and arrays become numbers and lists, anything else unknown its ``str``."""
     return json.dumps(_json_ready(value), indent=indent, allow_nan=False) + "\n"
@@ -140,7 +144,7 @@ def _json_ready(value):
 
 # ----------------------------------------------------------------------------- CSV tables
 
-def write_csv(path, columns) -> None:
+def write_csv(path: str | os.PathLike[str] | None, columns: Mapping[str, Any]) -> None:
     """Write ``columns`` (ordered name -> 1-D array) as CSV to ``path``, or stdout when path is None/'-'.
 
     Numbers in the format of every livedic CSV (``stream.output.csv_text``: full precision, ``nan``,

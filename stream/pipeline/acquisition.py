@@ -19,13 +19,20 @@ image size or pixel format cannot continue the session: that ends it with
 an error.
 """
 
+from __future__ import annotations
+
 import dataclasses
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from livedic.acquire.base import Frame, SourceError
-from livedic.stream.pipeline.frame_queue import QueueClosed
+from livedic.stream.pipeline.frame_queue import FrameQueue, QueueClosed
+
+if TYPE_CHECKING:
+    from livedic.acquire.base import FrameSource
 
 
 @dataclass(frozen=True)
@@ -43,10 +50,10 @@ class Reconnect:
         ``on_event(kind, message, level)`` from the acquisition thread: ``"camera_lost"``,
         ``"camera_waiting"`` (about every 10 s), ``"camera_reconnected"``, ``"camera_gave_up"``.
     """
-    reopen: object
+    reopen: Callable[[], FrameSource]
     retry_s: float = 1.0
-    timeout_s: float = None
-    on_event: object = None
+    timeout_s: float | None = None
+    on_event: Callable[[str, str, str], None] | None = None
 
 
 @dataclass(frozen=True)
@@ -99,37 +106,39 @@ class AcquisitionThread(threading.Thread):
         True while the source is lost and being reopened.
     """
 
-    def __init__(self, source, queue, *, max_frames=None, on_frame=None, reconnect=None,
-                 name="livedic-acquisition"):
+    def __init__(self, source: FrameSource, queue: FrameQueue, *, max_frames: int | None = None,
+                 on_frame: Callable[[QueuedFrame], None] | None = None, reconnect: Reconnect | None = None,
+                 name: str = "livedic-acquisition") -> None:
         super().__init__(name=name, daemon=True)
-        self.source = source
+        self.source: FrameSource | None = source
         self.queue = queue
         self.max_frames = max_frames
         self.on_frame = on_frame
-        self.error = None
+        self.error: BaseException | None = None
         self.frames = 0
-        self.first_index = None
-        self.last_index = None
+        self.first_index: int | None = None
+        self.last_index: int | None = None
         self.skipped_before_start = 0
-        self.finished_reason = None
+        self.finished_reason: str | None = None
         self.reconnect = reconnect
         self.reconnects = 0
         self.outage_s = 0.0
-        self.losses = []
+        self.losses: list[str] = []
         self.waiting = False
         self._stop_requested = threading.Event()
-        self._continuity = None          # (index offset, timestamp offset) after a reconnection
-        self._last = None                # (index, timestamp_ns, arrival_ns, shape, dtype, pixel format)
+        self._continuity: tuple[int, int] | None = None          # (index offset, timestamp offset) after a reconnection
+        self._continuity_pending = False  # reconnected: the next frame sets _continuity
+        self._last: tuple[Any, ...] | None = None  # (index, timestamp_ns, arrival_ns, shape, dtype, pixel format)
 
-    def stop(self):
+    def stop(self) -> None:
         """Ask the thread to stop after the frame it is waiting for (does not block)."""
         self._stop_requested.set()
 
     @property
-    def stop_requested(self):
+    def stop_requested(self) -> bool:
         return self._stop_requested.is_set()
 
-    def run(self):
+    def run(self) -> None:
         reason = "end"
         try:
             if self.max_frames is not None and self.max_frames <= 0:
@@ -168,8 +177,9 @@ class AcquisitionThread(threading.Thread):
                     self.finished_reason = "error"
             self.queue.close()
 
-    def _pump(self):
+    def _pump(self) -> str:
         """Move frames from the source to the queue; returns the finish reason."""
+        assert self.source is not None          # None only while a lost source is being reopened
         for frame in self.source:
             arrival_ns = time.monotonic_ns()
             if self._stop_requested.is_set():
@@ -199,11 +209,10 @@ class AcquisitionThread(threading.Thread):
                 return "stopped"
         return "end"
 
-    def _continue_session(self, frame, arrival_ns):
+    def _continue_session(self, frame: Frame, arrival_ns: int) -> Frame:
         """After a reconnection: check the image matches, then renumber and re-time the frame."""
-        if self._continuity is None:
-            return frame
-        if self._continuity == "pending":
+        if self._continuity_pending:
+            assert self._last is not None       # a reconnection follows a delivered frame
             last_index, last_ts, last_arrival, shape, dtype, pixel_format = self._last
             if (frame.image.shape, frame.image.dtype, frame.pixel_format) != (shape, dtype, pixel_format):
                 height, width = frame.image.shape[:2]
@@ -212,15 +221,20 @@ class AcquisitionThread(threading.Thread):
                     f"started with {shape[1]}x{shape[0]} {pixel_format}: start a new session")
             gap_ns = max(arrival_ns - last_arrival, 1)
             self._continuity = (last_index + 1 - frame.index, last_ts + gap_ns - frame.timestamp_ns)
+            self._continuity_pending = False
+        if self._continuity is None:
+            return frame
         index_offset, time_offset = self._continuity
         metadata = dict(frame.metadata) if isinstance(frame.metadata, dict) else {}
         metadata.update(source_index=frame.index, source_timestamp_ns=frame.timestamp_ns)
         return dataclasses.replace(frame, index=frame.index + index_offset,
                                    timestamp_ns=frame.timestamp_ns + time_offset, metadata=metadata)
 
-    def _wait_for_source(self, error):
+    def _wait_for_source(self, error: SourceError) -> str:
         """Close the failed source and reopen it until it works: "back", "stopped" or "gave up"."""
         policy = self.reconnect
+        last = self._last
+        assert policy is not None and last is not None     # run() waits only with a policy, after a frame
         lost_at = time.monotonic()
         message = str(error)
         self.losses.append(message)
@@ -229,7 +243,8 @@ class AcquisitionThread(threading.Thread):
                     + (f"for up to {policy.timeout_s:g} s" if policy.timeout_s else "until stopped"), "error")
         source, self.source = self.source, None
         try:
-            source.close()
+            if source is not None:
+                source.close()
         except Exception:  # noqa: BLE001 - the source is gone anyway
             pass
         attempts = 0
@@ -251,19 +266,19 @@ class AcquisitionThread(threading.Thread):
                                     f"{retry_error}", "warning")
                     continue
                 self.reconnects += 1
-                self._continuity = "pending"
+                self._continuity_pending = True
                 self._event("camera_reconnected", f"source back after {time.monotonic() - lost_at:.1f} s "
-                            f"({attempts} attempt(s)); the session continues from frame {self._last[0] + 1}",
+                            f"({attempts} attempt(s)); the session continues from frame {last[0] + 1}",
                             "warning")
                 return "back"
             self._event("note", "session stopped while waiting for the source", "warning")
             return "stopped"
         finally:
             # Counted from the last frame received, not from the detection: the frames missed.
-            self.outage_s += (time.monotonic_ns() - self._last[2]) / 1e9
+            self.outage_s += (time.monotonic_ns() - last[2]) / 1e9
             self.waiting = False
 
-    def _event(self, kind, message, level):
+    def _event(self, kind: str, message: str, level: str) -> None:
         callback = self.reconnect.on_event if self.reconnect is not None else None
         if callback is not None:
             try:
@@ -271,7 +286,7 @@ class AcquisitionThread(threading.Thread):
             except Exception:  # noqa: BLE001 - a broken reporter must not stop acquisition
                 pass
 
-    def raise_error(self):
+    def raise_error(self) -> None:
         """Raise the source failure in the calling thread, if there was one."""
         if self.error is not None:
             raise self.error

@@ -22,8 +22,11 @@ where waiting loses nothing (a recording or image files replayed as fast as
 they can be read, an unpaced simulator). Never use it for a live camera.
 """
 
+from __future__ import annotations
+
 import collections
 import threading
+from typing import Any
 
 DROP_OLDEST = "drop-oldest"
 DROP_NEWEST = "drop-newest"
@@ -53,14 +56,14 @@ class FrameQueue:
     ``QueueClosed``). ``close`` wakes every waiting ``get``.
     """
 
-    def __init__(self, maxsize=4, policy=DROP_OLDEST):
+    def __init__(self, maxsize: int = 4, policy: str = DROP_OLDEST) -> None:
         if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
             raise ValueError(f"queue size must be a positive integer number of frames, got {maxsize!r}")
         if policy not in DROP_POLICIES:
             raise ValueError(f"unknown drop policy {policy!r}: choose one of {', '.join(DROP_POLICIES)}")
         self.maxsize = maxsize
         self.policy = policy
-        self._items = collections.deque()
+        self._items: collections.deque[Any] = collections.deque()      # QueuedFrame, or what a test puts
         lock = threading.Lock()
         self._cond = threading.Condition(lock)
         self._waiters_changed = threading.Condition(lock)   # for callers watching who waits, not for frames
@@ -69,12 +72,12 @@ class FrameQueue:
         self._closed = False
         self.put_count = 0
         self.dropped = 0
-        self.dropped_indices = collections.deque(maxlen=1000)
+        self.dropped_indices: collections.deque[int | None] = collections.deque(maxlen=1000)
         self.max_depth = 0
-        self._first = None              # the first frame put, until it is taken: never dropped
+        self._first: Any = None              # the first frame put, until it is taken: never dropped
         self._first_seen = False
 
-    def put(self, item):
+    def put(self, item: Any) -> Any:
         """Queue ``item``; returns the item dropped to make room (or ``item`` itself), else None.
 
         Raises ``QueueClosed`` if the queue was closed.
@@ -105,7 +108,7 @@ class FrameQueue:
             self._cond.notify_all()
             return victim
 
-    def get(self, timeout=None):
+    def get(self, timeout: float | None = None) -> Any:
         """The oldest queued item; None after ``timeout`` seconds; ``QueueClosed`` once closed and empty."""
         with self._cond:
             if not self._items and not self._closed:
@@ -120,13 +123,13 @@ class FrameQueue:
                 raise QueueClosed("frame queue is closed and empty")
             return None
 
-    def close(self):
+    def close(self) -> None:
         """No more frames will be put; waiting and later ``get`` calls drain what is left, then raise."""
         with self._cond:
             self._closed = True
             self._cond.notify_all()
 
-    def _wait_for_room(self):
+    def _wait_for_room(self) -> None:
         self.waiting_puts += 1
         self._waiters_changed.notify_all()
         try:
@@ -134,7 +137,7 @@ class FrameQueue:
         finally:
             self.waiting_puts -= 1
 
-    def _wait_for_frame(self, timeout):
+    def _wait_for_frame(self, timeout: float | None) -> None:
         self.waiting_gets += 1
         self._waiters_changed.notify_all()
         try:
@@ -153,14 +156,14 @@ class FrameQueue:
                 lambda: self.waiting_puts >= puts and self.waiting_gets >= gets, timeout)
 
     @property
-    def closed(self):
+    def closed(self) -> bool:
         return self._closed
 
-    def __len__(self):
+    def __len__(self) -> int:
         with self._cond:
             return len(self._items)
 
 
-def _index_of(item):
+def _index_of(item: Any) -> int | None:
     frame = getattr(item, "frame", item)
     return getattr(frame, "index", None)

@@ -1,18 +1,24 @@
 """The progress line of ``livedic run``, ``replay`` and ``export``: one line on stderr, redrawn in place."""
 
+from __future__ import annotations
+
+import argparse
 import sys
 import time
+from typing import TextIO
 
 PROGRESS_CHOICES = ("auto", "on", "off")
 
 
-def add_progress_argument(parser, help="progress bar on stderr (default auto: when stderr is a terminal)"):
+def add_progress_argument(parser: argparse.ArgumentParser,
+                          help: str = "progress bar on stderr (default auto: when stderr is a terminal)"
+                          ) -> argparse.ArgumentParser:
     """Add ``--progress auto|on|off`` to an argparse parser (every command's; ``help`` says what it shows)."""
     parser.add_argument("--progress", choices=PROGRESS_CHOICES, default="auto", help=help)
     return parser
 
 
-def progress_enabled(choice, stream=None):
+def progress_enabled(choice: str, stream: TextIO | None = None) -> bool:
     """Whether ``--progress choice`` shows the bar: on, or auto and ``stream`` (stderr) is a terminal."""
     return choice == "on" or (choice == "auto" and (stream or sys.stderr).isatty())
 
@@ -34,7 +40,8 @@ class ProgressBar:
         Characters of the bar.
     """
 
-    def __init__(self, total=None, *, enabled=True, stream=None, hz=8.0, width=24):
+    def __init__(self, total: int | None = None, *, enabled: bool = True, stream: TextIO | None = None,
+                 hz: float = 8.0, width: int = 24) -> None:
         self.total = total
         self.enabled = enabled
         self.stream = stream or sys.stderr
@@ -44,11 +51,11 @@ class ProgressBar:
         self._shown = False
         self.last_text = ""
 
-    def due(self):
+    def due(self) -> bool:
         """Whether ``update`` would redraw now (a caller can skip making its text when not)."""
         return self.enabled and time.monotonic() - self._last >= self.period
 
-    def update(self, done, text="", force=False):
+    def update(self, done: int, text: str = "", force: bool = False) -> None:
         """Show ``done`` (of ``total``) and ``text``, unless the last redraw is too recent."""
         if not self.enabled:
             return
@@ -66,12 +73,12 @@ class ProgressBar:
         self.stream.flush()
         self._shown = True
 
-    def clear(self):
+    def clear(self) -> None:
         """Wipe the line so that a message can be printed in its place (it comes back on the next update)."""
         if self.enabled:
             self.stream.write("\r\033[K")
 
-    def close(self):
+    def close(self) -> None:
         """End the line (a newline after the last redraw)."""
         if self.enabled and self._shown:
             self.stream.write("\n")

@@ -2,13 +2,19 @@
 and ``ModbusOutlet``, the pymodbus server that serves each frame's values whole.
 """
 
+from __future__ import annotations
+
+import asyncio
 import errno
 import math
 import socket
 import struct
 import threading
 import time
+from collections.abc import Sequence
+from typing import Any
 
+from livedic.stream.publish.uri import PublishTarget
 from livedic.stream.publish.values import FrameValues
 
 # Holding registers (0-based addresses, as a request gives them; a PLC's "4xxxx" numbering is address + 40001).
@@ -39,24 +45,24 @@ EXTENSOMETER_MAP = (
 _AGE_ADDRESS = 8
 
 
-def register_count(n_extensometers):
+def register_count(n_extensometers: int) -> int:
     """Holding registers the map takes for ``n_extensometers``."""
     return HEADER_REGISTERS + EXTENSOMETER_REGISTERS * n_extensometers
 
 
-def _words(fmt, value):
+def _words(fmt: str, value: float) -> list[int]:
     """``value`` packed big-endian as ``fmt`` ("I" or "f"), as 16-bit registers, high word first."""
     raw = struct.pack(">" + fmt, value)
     return [int.from_bytes(raw[i:i + 2], "big") for i in range(0, len(raw), 2)]
 
 
-def _float32(value):
+def _float32(value: float | None) -> list[int]:
     """``value`` as float32 registers; NaN stays NaN (a legitimate float32 a PLC can test)."""
     value = float(value) if value is not None else math.nan
     return _words("f", value if math.isfinite(value) else math.nan)
 
 
-def encode_registers(values, *, update_count, state=STATE_RUNNING):
+def encode_registers(values: FrameValues, *, update_count: int, state: int = STATE_RUNNING) -> list[int]:
     """One frame's ``FrameValues`` as the holding registers of ``REGISTER_MAP`` (``age_ms`` 0).
 
     Parameters
@@ -79,17 +85,17 @@ def encode_registers(values, *, update_count, state=STATE_RUNNING):
     return registers
 
 
-def decode_registers(registers):
+def decode_registers(registers: Sequence[int]) -> dict[str, Any]:
     """The values a client reads back from ``registers`` (a whole map, address 0 first), as a dict.
 
     The inverse of ``encode_registers`` as the register map of docs/guide/strain-out.md states it: what a controller
     does with the registers (the tests check the map through it and through pymodbus's own
     decoding).
     """
-    def u32(at):
+    def u32(at: int) -> int:
         return (registers[at] << 16) | registers[at + 1]
 
-    def f32(at):
+    def f32(at: int) -> float:
         return struct.unpack(">f", struct.pack(">HH", registers[at], registers[at + 1]))[0]
 
     n = registers[9]
@@ -116,7 +122,7 @@ class ModbusOutlet:
         The address cannot be listened on (in use, not allowed, not this machine's), when opened.
     """
 
-    def __init__(self, target, names):
+    def __init__(self, target: PublishTarget, names: Sequence[str]) -> None:
         self.target = target
         self.names = tuple(names)
         self.count = register_count(len(self.names))
@@ -124,11 +130,12 @@ class ModbusOutlet:
                             true_strain=(math.nan,) * len(self.names), valid=(False,) * len(self.names))
         # (registers, monotonic ns written): replaced whole by the tracker thread, read once per request.
         self._snapshot = (tuple(encode_registers(empty, update_count=0, state=STATE_WAITING)), time.monotonic_ns())
-        self._last = None
-        self._ended_ns = None              # monotonic ns when the session ended (finish)
-        self._loop = None
-        self._server = None
-        self._error = None
+        self._last: tuple[FrameValues, int] | None = None
+        self._ended_ns: int | None = None           # monotonic ns when the session ended (finish)
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._server: Any = None              # pymodbus's ModbusTcpServer once it listens
+        self._error: str | None = None
+        self.port: int = target.port          # the system's choice for port 0, once listening
         self._ready = threading.Event()
         _check_listen(target)
         self._thread = threading.Thread(target=self._serve_thread, name=f"livedic publish {target.describe()}",
@@ -139,21 +146,21 @@ class ModbusOutlet:
             self.close()
             raise ValueError(f"--publish {target.uri}: cannot serve Modbus on {target.describe()}: "
                              f"{self._error or 'the server did not start within 10 s'}")
-        self.where = f"modbus://{_bracketed(target.host)}:{self.port}"
+        self.where: str = f"modbus://{_bracketed(target.host)}:{self.port}"
 
-    def note(self):
+    def note(self) -> str:
         """What the session says at the start: where it listens, where each extensometer's block is."""
         blocks = ", ".join(f"{name} at {HEADER_REGISTERS + EXTENSOMETER_REGISTERS * k}"
                            for k, name in enumerate(self.names))
         return (f"publishing strain on {self.where} (Modbus TCP, holding registers 0..{self.count - 1}: header at 0, "
                 f"extensometers {blocks})")
 
-    def send(self, values, update_count):
+    def send(self, values: FrameValues, update_count: int) -> None:
         """Make ``values`` the registers' content (the next read gets all of them)."""
         self._last = (values, update_count)
         self._snapshot = (tuple(encode_registers(values, update_count=update_count)), time.monotonic_ns())
 
-    def finish(self):
+    def finish(self) -> None:
         """The session ended: the last frame's values stay, with state 2 (ended), ``linger_s`` more seconds."""
         self._ended_ns = time.monotonic_ns()
         if self._last is None:
@@ -165,7 +172,8 @@ class ModbusOutlet:
         self._snapshot = (tuple(encode_registers(values, update_count=update_count, state=STATE_ENDED)),
                           self._snapshot[1])
 
-    async def _fill(self, function_code, start_address, address, count, current_registers, set_values):
+    async def _fill(self, function_code: int, start_address: int, address: int, count: int,
+                    current_registers: list[int], set_values: list[int] | list[bool] | None) -> None:
         """pymodbus's action before every request: the registers become the latest snapshot, whole."""
         registers, written_ns = self._snapshot
         offset = -start_address
@@ -174,8 +182,7 @@ class ModbusOutlet:
         current_registers[offset + _AGE_ADDRESS] = min(MAX_AGE_MS, max(0, age))
         return None
 
-    def _serve_thread(self):
-        import asyncio
+    def _serve_thread(self) -> None:
         loop = asyncio.new_event_loop()
         self._loop = loop
         try:
@@ -183,7 +190,7 @@ class ModbusOutlet:
         finally:
             loop.close()
 
-    async def _serve(self):
+    async def _serve(self) -> None:
         from pymodbus.server import ModbusTcpServer
         from pymodbus.simulator import DataType, SimData, SimDevice
         try:
@@ -193,7 +200,8 @@ class ModbusOutlet:
             server = ModbusTcpServer(device, address=(self.target.host, self.target.port))
             if not await server.listen():
                 raise OSError(f"cannot listen on {self.target.describe()}")
-            self.port = server.transport.sockets[0].getsockname()[1]
+            # pymodbus types transport as asyncio's BaseTransport; listening, it is the asyncio.Server
+            self.port = server.transport.sockets[0].getsockname()[1]  # type: ignore[attr-defined]
         except Exception as error:  # noqa: BLE001 - handed to the opening thread as its one line
             self._error = f"{type(error).__name__}: {error}" if not isinstance(error, OSError) else str(error)
             self._ready.set()
@@ -202,14 +210,14 @@ class ModbusOutlet:
         self._ready.set()
         await server.serving
 
-    def linger_left_s(self):
+    def linger_left_s(self) -> float:
         """Seconds the server still answers before ``close`` stops it: what is left of ``linger_s``
         since ``finish`` (0 when the session did not end: ``close`` after a failure stops at once)."""
         if self._ended_ns is None:
             return 0.0
         return max(0.0, self.target.linger_s - (time.monotonic_ns() - self._ended_ns) / 1e9)
 
-    def close(self):
+    def close(self) -> None:
         """Stop the server (its port is free afterwards) and its thread, after what is left of the linger."""
         try:
             if self._server is not None:
@@ -217,11 +225,10 @@ class ModbusOutlet:
         finally:
             self._shutdown()
 
-    def _shutdown(self):
+    def _shutdown(self) -> None:
         server, loop = self._server, self._loop
         self._server = None
         if server is not None and loop is not None and loop.is_running():
-            import asyncio
             future = asyncio.run_coroutine_threadsafe(server.shutdown(), loop)
             try:
                 future.result(timeout=5.0)
@@ -230,11 +237,11 @@ class ModbusOutlet:
         self._thread.join(timeout=5.0)
 
 
-def _bracketed(host):
+def _bracketed(host: str) -> str:
     return f"[{host}]" if ":" in host else host
 
 
-def _check_listen(target):
+def _check_listen(target: PublishTarget) -> None:
     """ValueError (one line) when ``target``'s address cannot be listened on: in use, not allowed, not here.
 
     A probe bound as pymodbus binds (SO_REUSEADDR) and released: the server's own failure

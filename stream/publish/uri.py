@@ -3,7 +3,10 @@
 Every error is one line naming the option (see ``stream.publish.stage`` for what each scheme sends).
 """
 
+from __future__ import annotations
+
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
@@ -25,13 +28,13 @@ class PublishTarget:
     port: int
     linger_s: float = DEFAULT_LINGER_S
 
-    def describe(self):
+    def describe(self) -> str:
         """``udp://127.0.0.1:9870`` (the host as used; an IPv6 one in brackets)."""
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"{self.scheme}://{host}:{self.port}"
 
 
-def parse_publish_uri(text):
+def parse_publish_uri(text: str) -> PublishTarget:
     """``--publish`` ``udp://HOST:PORT`` or ``modbus://HOST:PORT`` -> ``PublishTarget``.
 
     No host (``udp://:9870``) means 127.0.0.1. A modbus port may be 0 (any free port); a modbus
@@ -67,7 +70,7 @@ def parse_publish_uri(text):
     return PublishTarget(uri=raw, scheme=scheme, host=parts.hostname or DEFAULT_HOST, port=port, linger_s=linger_s)
 
 
-def _linger_option(raw, scheme, query):
+def _linger_option(raw: str, scheme: str, query: str) -> float | None:
     """A URI's ``linger_s`` (the default without a query); None for a query that is not one modbus ``linger_s``.
 
     Raises
@@ -89,7 +92,7 @@ def _linger_option(raw, scheme, query):
     return linger_s
 
 
-def parse_publish_uris(texts):
+def parse_publish_uris(texts: Iterable[str]) -> tuple[PublishTarget, ...]:
     """Every ``--publish`` given, parsed (``parse_publish_uri``); ValueError for one given twice."""
     targets = tuple(parse_publish_uri(text) for text in texts)
     seen = set()

@@ -5,8 +5,11 @@ the ROI centre, or assesses a given one; ``P0Choice`` says where and why, for
 the session's note, its summary and a warning when P0 is weak.
 """
 
+from __future__ import annotations
+
 import enum
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,24 +46,24 @@ class P0Choice:
     centre_weak : whether the ROI centre's subset is weak
     radius : the search radius around the centre that found P0 (px; 0 when given)
     """
-    xy: tuple
+    xy: tuple[float, float]
     reason: P0Reason
     relative_texture: float
     flat_share: float
-    centre: tuple
+    centre: tuple[float, float]
     centre_weak: bool
     radius: int = 0
 
     @property
-    def weak(self):
+    def weak(self) -> bool:
         """P0's subset is partly flat or has little texture: its trace may be wrong."""
         return self.flat_share > P0_FLAT_SHARE or not (self.relative_texture >= P0_WEAK_TEXTURE)
 
-    def _quality(self):
+    def _quality(self) -> str:
         texture = "n/a" if not math.isfinite(self.relative_texture) else f"{self.relative_texture:.2f}x"
         return f"texture {texture} the ROI's median, {100 * self.flat_share:.0f} % of its subset flat"
 
-    def describe(self):
+    def describe(self) -> str:
         """Which point, and why, for the session's note."""
         x, y = self.xy
         cx, cy = self.centre
@@ -76,7 +79,7 @@ class P0Choice:
         return (f"P0 = point 0 at ({x:g}, {y:g}), the best-textured point within {self.radius} px of the ROI "
                 f"centre ({cx:g}, {cy:g}) ({self._quality()})")
 
-    def warning(self):
+    def warning(self) -> str | None:
         """A line for the user when P0 is weak, else None."""
         if not self.weak:
             return None
@@ -87,7 +90,8 @@ class P0Choice:
         return f"P0 ({x:g}, {y:g}) is on weak texture ({self._quality()}): its trace may be wrong"
 
 
-def _texture_maps(image, roi, subset):
+def _texture_maps(image: np.ndarray, roi: Sequence[int],
+                  subset: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
     """Maps over ``roi`` grown by a subset, indexed [row - y0, column - x0]: (floor, texture, flat, x0, y0).
 
     floor: the weakest local texture in and around each subset; texture: mean |grad I|^2 over each
@@ -118,7 +122,8 @@ def _texture_maps(image, roi, subset):
     return floor, texture, flat, x0, y0
 
 
-def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
+def choose_p0(image: np.ndarray, roi: Sequence[int] | None, subset: int, p0: Sequence[float] | None = None,
+              allowed: np.ndarray | None = None, centre: Sequence[float] | None = None) -> P0Choice:
     """P0 on the specimen: the best-textured point near the ROI centre, or the given ``p0`` assessed.
 
     Without ``p0``: among the pixel centres within a radius of the ROI centre whose
@@ -151,51 +156,87 @@ def choose_p0(image, roi, subset, p0=None, allowed=None, centre=None):
     P0Choice
     """
     height, width = image.shape
-    x, y, w, h = roi if roi is not None else (0, 0, width, height)
-    half = int(subset) // 2
+    box = tuple(roi) if roi is not None else (0, 0, width, height)
     if centre is None:
+        x, y, w, h = box
         centre = (x + (w - 1) / 2.0, y + (h - 1) / 2.0)
-    centre = (float(np.floor(centre[0] + 0.5)), float(np.floor(centre[1] + 0.5)))
-    floor, texture, flat, x0, y0 = _texture_maps(image, (x, y, w, h), subset)
-    rows, cols = floor.shape
-    # Candidates: pixel centres of the ROI whose subset lies inside the image.
-    cx_lo, cx_hi = max(x, half), min(x + w - 1, width - 1 - half)
-    cy_lo, cy_hi = max(y, half), min(y + h - 1, height - 1 - half)
-    inside = np.zeros(floor.shape, dtype=bool)
-    if cx_lo <= cx_hi and cy_lo <= cy_hi:
-        inside[cy_lo - y0:cy_hi - y0 + 1, cx_lo - x0:cx_hi - x0 + 1] = True
-    if allowed is not None:
-        inside &= allowed[y0:y0 + rows, x0:x0 + cols]
-    typical_texture = float(np.median(texture[inside][::3])) if inside.any() else 0.0
-    typical_floor = float(np.median(floor[inside][::3])) if inside.any() else 0.0
+    snapped = _pixel_centre(centre)
+    field = _TextureField.over(image, box, subset, allowed)
+    centre_weak = field.weak(snapped)
+    if p0 is not None:
+        xy = _pixel_centre(p0)
+        return P0Choice(xy, P0Reason.GIVEN, *field.assess(xy), snapped, centre_weak)
+    if not field.inside.any() or field.typical_floor <= 0:
+        return P0Choice(snapped, P0Reason.NO_TEXTURE, *field.assess(snapped), snapped, centre_weak)
+    xy, radius = field.best_near(snapped, subset)
+    reason = P0Reason.MOVED_OFF_WEAK_CENTRE if centre_weak else P0Reason.BEST_NEAR_CENTRE
+    return P0Choice(xy, reason, *field.assess(xy), snapped, centre_weak, radius)
 
-    def assess(xy):
-        col, row = int(xy[0]) - x0, int(xy[1]) - y0
-        if not (0 <= row < rows and 0 <= col < cols) or typical_texture <= 0:
+
+def _pixel_centre(xy: Sequence[float]) -> tuple[float, float]:
+    """The pixel centre nearest to ``xy``."""
+    return float(np.floor(xy[0] + 0.5)), float(np.floor(xy[1] + 0.5))
+
+
+@dataclass(frozen=True)
+class _TextureField:
+    """The texture maps of ``_texture_maps`` around the ROI, where P0 may go, and their typical values.
+
+    ``inside``: the candidates, pixel centres of the ROI whose subset lies inside the image (and that
+    ``allowed`` allows); ``typical_texture`` and ``typical_floor``: the median over them (0 without any).
+    """
+    floor: np.ndarray
+    texture: np.ndarray
+    flat: np.ndarray
+    x0: int
+    y0: int
+    inside: np.ndarray
+    typical_texture: float
+    typical_floor: float
+
+    @classmethod
+    def over(cls, image: np.ndarray, roi: Sequence[int], subset: int,
+             allowed: np.ndarray | None) -> _TextureField:
+        height, width = image.shape
+        x, y, w, h = roi
+        half = int(subset) // 2
+        floor, texture, flat, x0, y0 = _texture_maps(image, (x, y, w, h), subset)
+        rows, cols = floor.shape
+        cx_lo, cx_hi = max(x, half), min(x + w - 1, width - 1 - half)
+        cy_lo, cy_hi = max(y, half), min(y + h - 1, height - 1 - half)
+        inside = np.zeros(floor.shape, dtype=bool)
+        if cx_lo <= cx_hi and cy_lo <= cy_hi:
+            inside[cy_lo - y0:cy_hi - y0 + 1, cx_lo - x0:cx_hi - x0 + 1] = True
+        if allowed is not None:
+            inside &= allowed[y0:y0 + rows, x0:x0 + cols]
+        typical_texture = float(np.median(texture[inside][::3])) if inside.any() else 0.0
+        typical_floor = float(np.median(floor[inside][::3])) if inside.any() else 0.0
+        return cls(floor, texture, flat, x0, y0, inside, typical_texture, typical_floor)
+
+    def assess(self, xy: tuple[float, float]) -> tuple[float, float]:
+        """(relative texture, flat share) of the subset at ``xy``: (NaN, 1) off the maps or without texture."""
+        rows, cols = self.floor.shape
+        col, row = int(xy[0]) - self.x0, int(xy[1]) - self.y0
+        if not (0 <= row < rows and 0 <= col < cols) or self.typical_texture <= 0:
             return float("nan"), 1.0
-        return float(texture[row, col]) / typical_texture, float(flat[row, col])
+        return float(self.texture[row, col]) / self.typical_texture, float(self.flat[row, col])
 
-    def weak(xy):
-        relative, flat_share = assess(xy)
+    def weak(self, xy: tuple[float, float]) -> bool:
+        relative, flat_share = self.assess(xy)
         return flat_share > P0_FLAT_SHARE or not (relative >= P0_WEAK_TEXTURE)
 
-    centre_weak = weak(centre)
-    if p0 is not None:
-        xy = (float(np.floor(p0[0] + 0.5)), float(np.floor(p0[1] + 0.5)))
-        return P0Choice(xy, P0Reason.GIVEN, *assess(xy), centre, centre_weak)
-    if not inside.any() or typical_floor <= 0:
-        return P0Choice(centre, P0Reason.NO_TEXTURE, *assess(centre), centre, centre_weak)
-    row_index, col_index = np.nonzero(inside)
-    distance2 = (col_index + x0 - centre[0]) ** 2 + (row_index + y0 - centre[1]) ** 2
-    scores = floor[row_index, col_index]
-    radius = max(int(subset), 1)
-    limit = np.sqrt(float(distance2.max()))
-    while True:
-        near = np.flatnonzero(distance2 <= radius * radius)
-        if near.size and (scores[near].max() >= P0_WEAK_TEXTURE * typical_floor or radius >= limit):
-            break
-        radius *= 2
-    best = near[int(np.argmax(scores[near]))]        # the first of equals in row-major order: deterministic
-    xy = (float(col_index[best] + x0), float(row_index[best] + y0))
-    reason = P0Reason.MOVED_OFF_WEAK_CENTRE if centre_weak else P0Reason.BEST_NEAR_CENTRE
-    return P0Choice(xy, reason, *assess(xy), centre, centre_weak, radius)
+    def best_near(self, centre: tuple[float, float], subset: int) -> tuple[tuple[float, float], int]:
+        """The candidate textured best throughout its subset within a radius of ``centre``, and that radius: one
+        subset, doubled until a candidate reaches ``P0_WEAK_TEXTURE`` times the typical floor (or all are in)."""
+        row_index, col_index = np.nonzero(self.inside)
+        distance2 = (col_index + self.x0 - centre[0]) ** 2 + (row_index + self.y0 - centre[1]) ** 2
+        scores = self.floor[row_index, col_index]
+        radius = max(int(subset), 1)
+        limit = np.sqrt(float(distance2.max()))
+        while True:
+            near = np.flatnonzero(distance2 <= radius * radius)
+            if near.size and (scores[near].max() >= P0_WEAK_TEXTURE * self.typical_floor or radius >= limit):
+                break
+            radius *= 2
+        best = near[int(np.argmax(scores[near]))]        # the first of equals in row-major order: deterministic
+        return (float(col_index[best] + self.x0), float(row_index[best] + self.y0)), radius

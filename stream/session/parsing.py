@@ -4,13 +4,19 @@
 option as the command line spells it; ``argument_type`` makes an argparse ``type=`` of a check.
 """
 
+from __future__ import annotations
+
 import argparse
 import math
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
-from livedic.dic.region import Circle, Rectangle, parse_shape
+from livedic.dic.region import Circle, Polygon, Rectangle, Shape, parse_shape
+
+T = TypeVar("T")
 
 
 class UsageError(ValueError):
@@ -19,27 +25,27 @@ class UsageError(ValueError):
 
 # ----------------------------------------------------------------------------- single values
 
-def check_search(name):
+def check_search(name: str) -> str:
     """``name`` if it is an integer search method, else ValueError (one line)."""
     if name not in SEARCH_METHODS:
         raise ValueError(f"unknown search method {name!r}: choose one of {', '.join(SEARCH_METHODS)}")
     return name
 
 
-def check_subpixel(name):
+def check_subpixel(name: str) -> str:
     """``name`` if it is a sub-pixel method (``none`` included), else ValueError (one line)."""
     if name not in SUBPIXEL_METHODS:
         raise ValueError(f"unknown sub-pixel method {name!r}: choose one of {', '.join(SUBPIXEL_METHODS)}")
     return name
 
 
-def argument_type(check):
+def argument_type(check: Callable[[str], T]) -> Callable[[str], T]:
     """An argparse ``type=`` from a check: its ValueError message becomes argparse's error as is.
 
     (argparse replaces a plain ValueError's message by "invalid <type> value"; an
     ``ArgumentTypeError`` keeps the one line the check wrote.)
     """
-    def convert(text):
+    def convert(text: str) -> T:
         try:
             return check(text)
         except ValueError as error:
@@ -52,7 +58,7 @@ search_method = argument_type(check_search)
 subpixel_method = argument_type(check_subpixel)
 
 
-def parse_numbers(text, count, what, example):
+def parse_numbers(text: object, count: int, what: str, example: str) -> list[float]:
     """``"a,b,..."`` -> ``count`` finite floats, or ValueError naming ``what`` with an ``example``."""
     try:
         values = [float(part) for part in str(text).split(",")]
@@ -67,7 +73,7 @@ ROI_AUTO = "auto"      # --roi auto: the speckled specimen found in the image
 ROI_FULL = "full"      # --roi full: the whole image
 
 
-def parse_roi(text):
+def parse_roi(text: str | None) -> str | Rectangle | Polygon | None:
     """``--roi``: None when not given, ``"auto"``, ``"full"``, or a ``dic.region`` Rectangle or Polygon.
 
     ``X,Y,W,H`` is a rectangle (rounded to whole pixels); ``rect:X,Y,W,H`` and
@@ -107,7 +113,7 @@ def read_mask(path: str) -> np.ndarray:
     return mask
 
 
-def parse_exclusion(text: str):
+def parse_exclusion(text: str) -> Shape:
     """``--exclude`` ``circle:X,Y,R``, ``rect:X,Y,W,H`` or ``polygon:X1,Y1,...`` -> a ``dic.region`` shape."""
     try:
         return parse_shape(text)
@@ -115,14 +121,15 @@ def parse_exclusion(text: str):
         raise ValueError(f"--exclude {error}") from None
 
 
-def parse_p0(text):
+def parse_p0(text: str | None) -> tuple[float, float] | None:
     """``--p0`` "X,Y" -> (x, y) floats, or None when not given."""
     if text is None:
         return None
-    return tuple(parse_numbers(text, 2, "--p0", "512,400"))
+    x, y = parse_numbers(text, 2, "--p0", "512,400")
+    return x, y
 
 
-def parse_color_range(text):
+def parse_color_range(text: str | None) -> tuple[float, float] | None:
     """``--color-range`` "LO,HI" -> (lo, hi) in px, or None when not given.
 
     Raises

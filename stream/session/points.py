@@ -12,9 +12,13 @@ session can take (``--max-points``), saying what they would cost.
 
 from __future__ import annotations
 
+import argparse
 import csv
 import enum
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,17 +30,20 @@ from livedic.stream.session.config import DEFAULT_MAX_POINTS, DEFAULT_POINTS
 from livedic.stream.session.parsing import ROI_AUTO, ROI_FULL, UsageError
 from livedic.stream.session.p0 import P0Choice, choose_p0
 
+if TYPE_CHECKING:
+    from livedic.stream.session.config import PointsConfig
+
 # Around a found specimen's edge a subset keeps this many px more inside it: the edge is found to about
 # a pixel, and a subset touching the edge's dark outline would see it move against the background.
 SPECIMEN_MARGIN = 2
 
 
-def read_points_csv(path):
+def read_points_csv(path: str | os.PathLike[str]) -> np.ndarray:
     """Points from a CSV whose header names columns x and y (other columns ignored); (N, 2) float64."""
     return read_points_table(path)[0]
 
 
-def read_points_table(path):
+def read_points_table(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, list[str]]]:
     """Points and the file's other columns from a CSV whose header names columns x and y.
 
     Returns
@@ -68,7 +75,7 @@ def read_points_table(path):
     ix, iy = header.index("x"), header.index("y")
     extra_columns = [(k, name) for k, name in enumerate(names) if k not in (ix, iy) and name]
     points = []
-    extras = {name: [] for _, name in extra_columns}
+    extras: dict[str, list[str]] = {name: [] for _, name in extra_columns}
     for number, fields in enumerate(rows[1:], start=2):
         try:
             points.append((float(fields[ix]), float(fields[iy])))
@@ -85,7 +92,7 @@ def read_points_table(path):
     return xy, extras
 
 
-def default_roi(source):
+def default_roi(source: object) -> tuple[int, ...] | None:
     """The source's suggested ROI (the simulator's gauge section), a replayed session's ROI, or None."""
     roi = getattr(source, "suggested_roi", None)
     if roi is not None:
@@ -96,7 +103,7 @@ def default_roi(source):
     return None
 
 
-def add_region_arguments(parser, *, points: bool = True) -> None:
+def add_region_arguments(parser: argparse.ArgumentParser, *, points: bool = True) -> None:
     """Declare ``--roi``, ``--mask``, ``--exclude`` (and ``--points`` when ``points``) on an argparse parser.
 
     Every command that places points (``run``, ``replay``, ``preview``, ``measure``) takes them from here.
@@ -117,7 +124,7 @@ def add_region_arguments(parser, *, points: bool = True) -> None:
                              "rect:X,Y,W,H or polygon:X1,Y1,X2,Y2,X3,Y3[,...] (px; repeatable)")
 
 
-def add_point_arguments(parser) -> None:
+def add_point_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the point options of ``livedic run`` and ``preview``: the region (``add_region_arguments``),
     ``--step``, ``--n-points``, ``--p0``, ``--max-points``."""
     add_region_arguments(parser)
@@ -217,7 +224,7 @@ def _step_for(allowed: np.ndarray, n_points: int) -> int:
     return best
 
 
-def where_points_go(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple | None = None) -> tuple:
+def where_points_go(image: np.ndarray, wanted: PointsConfig, *, subset: int, suggested_roi: tuple | None = None) -> tuple:
     """``(spec, region, allowed, placed_by, specimen)``: where subsets may lie, and the centres that keep them there.
 
     ``spec`` is the ``dic.region.Region`` applied (the user's, or the source's rectangle); ``region``
@@ -285,7 +292,7 @@ def placeable_points(points: np.ndarray, allowed: np.ndarray) -> np.ndarray:
     return keep
 
 
-def place_points(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple | None = None) -> Placement:
+def place_points(image: np.ndarray, wanted: PointsConfig, *, subset: int, suggested_roi: tuple | None = None) -> Placement:
     """The points on the reference ``image`` as ``wanted`` (a ``stream.session.config.PointsConfig``) asks.
 
     Where the points go, in order: the given points (``--points``; less those an exclusion or a mask
@@ -349,7 +356,9 @@ def place_points(image: np.ndarray, wanted, *, subset: int, suggested_roi: tuple
                      specimen=specimen, spec=spec, dropped=dropped)
 
 
-def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
+def build_points(shape: tuple[int, int], *, roi: Sequence[int] | None, step: int | None, n_points: int, subset: int,
+                 p0: Sequence[float] | None = None,
+                 points: np.ndarray | None = None) -> tuple[np.ndarray, tuple[int, ...], int | None]:
     """Tracked points with P0 first: ``(points (N, 2), roi used, step used)``.
 
     P0 is ``p0`` or the ROI centre, snapped to a pixel; a grid point on the same
@@ -383,12 +392,12 @@ def build_points(shape, *, roi, step, n_points, subset, p0=None, points=None):
         grid = np.asarray(points, dtype=np.float64)
     if p0 is None:
         p0 = (x + (w - 1) / 2.0, y + (h - 1) / 2.0)
-    p0 = np.floor(np.asarray(p0, dtype=np.float64) + 0.5)
-    if not (0 <= p0[0] < width and 0 <= p0[1] < height):
-        raise ValueError(f"P0 ({p0[0]:g}, {p0[1]:g}) is outside the {width}x{height} image")
-    same = np.all(np.floor(grid + 0.5) == p0[None, :], axis=1)
+    first = np.floor(np.asarray(p0, dtype=np.float64) + 0.5)
+    if not (0 <= first[0] < width and 0 <= first[1] < height):
+        raise ValueError(f"P0 ({first[0]:g}, {first[1]:g}) is outside the {width}x{height} image")
+    same = np.all(np.floor(grid + 0.5) == first[None, :], axis=1)
     grid = grid[~same]
-    return np.vstack([p0[None, :], grid]), tuple(int(v) for v in roi), step
+    return np.vstack([first[None, :], grid]), tuple(int(v) for v in roi), step
 
 
 # Tracker memory per point, measured with IC-GN and the seeded search on 1 MP: 5,184 points 31 MB,
@@ -399,11 +408,12 @@ TRACKER_BYTES_PER_POINT = 7_000
 RESULT_BYTES_PER_POINT = 90
 
 
-def _size(n_bytes):
+def _size(n_bytes: float) -> str:
     return f"{n_bytes / 1e9:.1f} GB" if n_bytes >= 1e9 else f"{n_bytes / 1e6:.0f} MB"
 
 
-def check_point_count(n_points, max_points, *, how, frames=None, recording=True):
+def check_point_count(n_points: int, max_points: int, *, how: str, frames: int | None = None,
+                      recording: bool = True) -> None:
     """ValueError (one line, with the cost) when ``n_points`` is more than ``max_points``."""
     if n_points <= max_points:
         return

@@ -4,10 +4,21 @@
 tensile test is watched by, and the small plots; docs/guide/live-view.md shows the result. Imports rerun when called.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
 from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
 from livedic.stream.view.entities import (
     CAMERA, DROPS, ERROR, EVENTS, EXTENSOMETER_LINES, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FORCE, LATENCY,
     LEGEND_EYY, LEGEND_U, LEGEND_V, LOST, LOW_ZNCC, P0, QUALITY, SETUP, SETUP_NOTES, SUMMARY, THROUGHPUT, TRACKING)
+
+if TYPE_CHECKING:
+    import rerun.blueprint as rrb
+
+    from livedic.stream.stages.force import LoadStage
+    from livedic.stream.stages.strain import StrainStage
+    from livedic.stream.view.xy_plot import XYPlot
 
 # The small plots' names say which colour is which series: Rerun draws a plot's legend over the plot, where in
 # a plot this small it hides the curves, so it is switched off there (the colours are SERIES_STYLE's). Short
@@ -22,31 +33,31 @@ _SMALL_PLOT_NAMES = {
 }
 
 
-def _plot_share(view):
+def _plot_share(view: object) -> float:
     """A strain plot's height in the plot column: the XY plots (stress-strain, transverse vs axial) more than
     the time series, since their box keeps its aspect and their numbers and titles need the room."""
     return 3.5 if type(view).__name__ == "Spatial2DView" else 2.5
 
 
-def _legend_top_left():
+def _legend_top_left() -> rrb.PlotLegend:
     """The legend of the strain and force plots: a tensile test's strains and force start at 0 and move away
     from it as time goes right, so the top left corner stays clear of the curves."""
     import rerun.blueprint as rrb
     return rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True)
 
 
-def _small_plot(path):
+def _small_plot(path: str) -> rrb.TimeSeriesView:
     """A small time-series view of ``path``: its name keys the colours, no legend over the curves."""
     import rerun.blueprint as rrb
     return rrb.TimeSeriesView(name=_SMALL_PLOT_NAMES[path], origin=path, plot_legend=rrb.PlotLegend(visible=False))
 
 
-def _strain_view_name(strain):
+def _strain_view_name(strain: StrainStage) -> str:
     """The e_yy view's name: the measure and the virtual strain gauge, e.g. "e_yy (%) engineering, VSG 77 px"."""
     return f"e_yy (%) {strain.config.measure}, VSG {strain.vsg_px:.0f} px"
 
 
-def axial_transverse_pair(strain):
+def axial_transverse_pair(strain: StrainStage | None) -> tuple[int, int] | None:
     """(index of "axial", index of "transverse") among the extensometers, or None without the pair."""
     names = [e.name for e in strain.extensometers] if strain is not None else []
     if AXIAL in names and TRANSVERSE in names:
@@ -54,29 +65,32 @@ def axial_transverse_pair(strain):
     return None
 
 
-def make_blueprint(has_truth, strain=None, load=None, *, setup=False, strain_xy=None, stress_xy=None):
+def make_blueprint(has_truth: bool, strain: StrainStage | None = None, load: LoadStage | None = None, *,
+                   setup: bool = False, strain_xy: XYPlot | None = None,
+                   stress_xy: XYPlot | None = None) -> rrb.Blueprint:
     """The session's layout (docs/guide/live-view.md): ``has_truth`` adds the error plot, ``strain`` (the session's
     ``stream.stages.strain.StrainStage``) the e_yy view and the extensometer plots, ``load`` the force plot,
     ``setup`` the set-up tabs; ``strain_xy`` and ``stress_xy`` are the ``xy_plot.XYPlot``s shown (or None)."""
     import rerun.blueprint as rrb
     field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
     extensometers = [f"/{EXTENSOMETER_LINES}"] if strain is not None else []
-    camera = rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi/**", *extensometers])
+    camera: Any = rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi/**", *extensometers])
     if setup:      # the set-up a tab behind the camera: one click away, the live image in front
         camera = rrb.Tabs(camera, rrb.Spatial2DView(name="set-up", origin=SETUP),
                           rrb.TextDocumentView(name="set-up notes", origin=SETUP_NOTES), active_tab=0)
-    image_views = [
+    image_views: list[Any] = [
         camera,
         rrb.Spatial2DView(name="u (px)", origin=CAMERA, contents=[*field, f"/{FIELD_U}"]),
         rrb.Spatial2DView(name="v (px)", origin=CAMERA, contents=[*field, f"/{FIELD_V}"]),
     ]
-    legend_views = [
+    legend_views: list[Any] = [
         rrb.Vertical(rrb.TextDocumentView(name="tracking", origin=TRACKING),
                      rrb.TextDocumentView(name="session", origin=SUMMARY), row_shares=[1, 2]),
         rrb.Spatial2DView(name="u colour scale (px)", origin=LEGEND_U),
         rrb.Spatial2DView(name="v colour scale (px)", origin=LEGEND_V),
     ]
-    strain_plots = []
+    strain_plots: list[Any] = []
+    left: Any
     if strain is None:
         left = rrb.Vertical(rrb.Horizontal(*image_views), rrb.Horizontal(*legend_views), row_shares=[4, 1])
     else:
@@ -97,6 +111,7 @@ def make_blueprint(has_truth, strain=None, load=None, *, setup=False, strain_xy=
     small = [_small_plot(path) for path in (P0, QUALITY, THROUGHPUT, LATENCY, DROPS)]
     small += [_small_plot(ERROR)] if has_truth else []
     events = rrb.TextLogView(name="events", origin=EVENTS)
+    plots: Any
     if not strain_plots:
         plots = rrb.Vertical(*small, events)
     else:
@@ -110,12 +125,12 @@ def make_blueprint(has_truth, strain=None, load=None, *, setup=False, strain_xy=
     return rrb.Blueprint(rrb.Horizontal(left, plots, column_shares=[3, 2]), collapse_panels=True)
 
 
-def _strain_plots(strain, strain_xy):
+def _strain_plots(strain: StrainStage, strain_xy: XYPlot | None) -> list[Any]:
     """The extensometer strain series and the transverse-vs-axial plot (none without extensometers)."""
     import rerun.blueprint as rrb
     if not strain.extensometers:
         return []
-    plots = [rrb.TimeSeriesView(name="extensometer strain (%)", origin=EXTENSOMETER_STRAIN,
+    plots: list[Any] = [rrb.TimeSeriesView(name="extensometer strain (%)", origin=EXTENSOMETER_STRAIN,
                                 plot_legend=_legend_top_left())]
     if strain_xy is not None:
         plots.append(strain_xy.view("transverse vs axial strain (%)"))

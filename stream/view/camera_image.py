@@ -4,6 +4,8 @@ Pure numpy/OpenCV (no rerun): the session's process prepares the image here befo
 view's process, and ``livedic export`` draws its maps on the same grey.
 """
 
+from __future__ import annotations
+
 import numpy as np
 
 from livedic.acquire.camera.pixel_formats import FRAME_BIT_DEPTH
@@ -16,7 +18,7 @@ IMAGE_MAX_HZ = 25.0
 IMAGE_SKIP_MAX = 4
 
 
-def display_gray(image, pixel_format=""):
+def display_gray(image: np.ndarray, pixel_format: str = "") -> np.ndarray:
     """A camera image as 8-bit grey for display: the top 8 of its significant bits (a 10- or 12-bit camera's
     uint16 holds 0..1023 or 0..4095; Mono16 and unknown formats 16 bits)."""
     if image.dtype != np.uint8:
@@ -25,7 +27,7 @@ def display_gray(image, pixel_format=""):
     return image
 
 
-def display_scale(image_shape, max_side):
+def display_scale(image_shape: tuple[int, ...], max_side: int) -> int:
     """The integer factor the view downsamples a camera image of ``image_shape`` by: its larger side <= max_side."""
     height, width = image_shape[:2]
     scale = 1
@@ -34,7 +36,7 @@ def display_scale(image_shape, max_side):
     return scale
 
 
-def display_image(image, pixel_format, scale):
+def display_image(image: np.ndarray, pixel_format: str, scale: int) -> np.ndarray:
     """The camera image as the view draws it: 8-bit grey (``display_gray``), 1/``scale`` of its size."""
     image = display_gray(image, pixel_format)
     if scale > 1:
@@ -54,18 +56,19 @@ class CameraImagePacing:
     by the rate and while behind (the session's summary says both).
     """
 
-    def __init__(self, *, image_every=1, image_max_hz=None, thin_when_behind=False):
+    def __init__(self, *, image_every: int = 1, image_max_hz: float | None = None,
+                 thin_when_behind: bool = False) -> None:
         self.image_every = max(int(image_every), 1)
         self.image_max_hz = image_max_hz
         self.thin_when_behind = bool(thin_when_behind)
         self._period_ns = int(1e9 / image_max_hz) if image_max_hz else 0
-        self._last_image_ns = None               # the frame time of the last camera image drawn
+        self._last_image_ns: int | None = None               # the frame time of the last camera image drawn
         self._frames = 0
         self._left_out_in_a_row = 0
         self.images_above_rate = 0
         self.images_left_out = 0
 
-    def due(self, timestamp_ns, behind):
+    def due(self, timestamp_ns: int, behind: bool) -> bool:
         """True when this frame's image is drawn (call once per frame, in order)."""
         frame_number, self._frames = self._frames, self._frames + 1
         if self._last_image_ns is not None and timestamp_ns - self._last_image_ns < self._period_ns:

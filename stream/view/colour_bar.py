@@ -4,6 +4,8 @@ Text drawn into the image reads the same in Rerun's light and dark themes; ``LEG
 entity, unit and display factor each bar has.
 """
 
+from __future__ import annotations
+
 import numpy as np
 
 from livedic.stream.view.entities import LEGEND_EYY, LEGEND_U, LEGEND_V, LIMITS_EYY, LIMITS_U, LIMITS_V
@@ -16,7 +18,7 @@ _BAR_TEXT_HEIGHT = 34
 LEGENDS = {LEGEND_U: (LIMITS_U, "px", 1.0), LEGEND_V: (LIMITS_V, "px", 1.0), LEGEND_EYY: (LIMITS_EYY, "%", 100.0)}
 
 
-def colour_bar_image(lut, lo, hi, unit="px", factor=1.0):
+def colour_bar_image(lut: np.ndarray, lo: float, hi: float, unit: str = "px", factor: float = 1.0) -> np.ndarray:
     """RGB colour bar: the gradient from ``lo`` to ``hi`` over a white strip with the limits and 0 in black.
 
     The limits are written times ``factor`` in ``unit`` (strain: 100 and "%"). White margins left and
@@ -31,10 +33,10 @@ def colour_bar_image(lut, lo, hi, unit="px", factor=1.0):
     baseline_y = _BAR_GRADIENT_HEIGHT + _BAR_TEXT_HEIGHT - 7
     black = (0, 0, 0)
 
-    def tick(x):
+    def tick(x: int) -> None:
         cv2.line(bar, (x, _BAR_GRADIENT_HEIGHT), (x, _BAR_GRADIENT_HEIGHT + 5), black, 2)
 
-    def text_width(text):
+    def text_width(text: str) -> int:
         return cv2.getTextSize(text, font, font_scale, thickness)[0][0]
 
     left, right = f"{_fmt(lo * factor)} {unit}", f"{_fmt(hi * factor)} {unit}"
@@ -52,7 +54,7 @@ def colour_bar_image(lut, lo, hi, unit="px", factor=1.0):
     return bar
 
 
-def _fmt(value):
+def _fmt(value: float) -> str:
     if not np.isfinite(value):
         return "n/a"
     return f"{value:+.3g}" if abs(value) < 1000 else f"{value:+.0f}"

@@ -5,7 +5,12 @@ numbers, and the typical spacing of the points that sets the discs' size. The ru
 docs/guide/live-view.md; ``livedic export`` uses the same limits for its maps.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+
 import numpy as np
+import numpy.typing as npt
 
 MIN_COLOUR_LIMIT_PX = 0.05       # the automatic scale starts at +-this, so reference-frame noise is one colour
 MIN_COLOUR_LIMIT_STRAIN = 1e-3   # e_yy's scale starts at +-0.1 %: strain noise (~1e-4) is one colour
@@ -15,20 +20,20 @@ _LIMIT_PERCENTILES = (0.5, 99.5)
 _SPACING_QUERIES = 128           # points sampled to estimate the typical spacing (once per point set)
 
 
-def colormap_lut():
+def colormap_lut() -> np.ndarray:
     """(256, 3) uint8 RGB 'turbo' colour map (OpenCV's table)."""
     import cv2
     ramp = np.arange(256, dtype=np.uint8).reshape(-1, 1)
     return cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)[:, 0, ::-1].copy()
 
 
-def pack_colours(rgb):
+def pack_colours(rgb: npt.ArrayLike) -> np.ndarray:
     """(N, 3) uint8 RGB -> (N,) uint32 0xRRGGBBAA, opaque: what Rerun stores, without its per-call conversion."""
     rgb = np.asarray(rgb, dtype=np.uint32).reshape(-1, 3)
     return (rgb[:, 0] << 24) | (rgb[:, 1] << 16) | (rgb[:, 2] << 8) | np.uint32(255)
 
 
-def nice_ceil(value, mantissas=NICE_MANTISSAS):
+def nice_ceil(value: float, mantissas: Sequence[float] = NICE_MANTISSAS) -> float:
     """The smallest "nice" number (1, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 times a power of ten) >= ``value`` > 0.
 
     ``mantissas`` (ascending, ending with 10) replaces the nice mantissas.
@@ -41,7 +46,7 @@ def nice_ceil(value, mantissas=NICE_MANTISSAS):
     return float(f"{10.0 ** (exponent + 1):.3g}")
 
 
-def grow_limits(limits, values):
+def grow_limits(limits: tuple[float, float], values: np.ndarray) -> tuple[float, float]:
     """Automatic colour limits after a frame: ``limits`` (lo < 0 < hi) widened to cover ``values``.
 
     The 0.5th/99.5th percentiles of the finite ``values`` are covered; an end that
@@ -59,7 +64,8 @@ def grow_limits(limits, values):
     return float(lo), float(hi)
 
 
-def grow_to_cover(limits, value, mantissas=AXIS_MANTISSAS):
+def grow_to_cover(limits: tuple[float, float], value: float,
+                  mantissas: Sequence[float] = AXIS_MANTISSAS) -> tuple[float, float]:
     """``limits`` (lo <= 0 <= hi) widened to cover one finite ``value``: an end that moves goes out to the next
     1, 2 or 5 times a power of ten (``mantissas``)."""
     lo, hi = limits
@@ -70,7 +76,7 @@ def grow_to_cover(limits, value, mantissas=AXIS_MANTISSAS):
     return float(lo), float(hi)
 
 
-def typical_spacing(x, y):
+def typical_spacing(x: npt.ArrayLike, y: npt.ArrayLike) -> float | None:
     """Typical distance between neighbouring points (docs/guide/live-view.md), or None for fewer than 2 points.
 
     The median, over up to ``_SPACING_QUERIES`` points spread through the set, of

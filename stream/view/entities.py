@@ -4,6 +4,10 @@ The paths are the view's contract with its readers (the tests read the .rrd back
 describes the tree); the styles are shared by the panels that draw (``logger``, ``xy_plot``).
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+
 CAMERA = "camera"
 CAMERA_IMAGE = "camera/image"
 CAMERA_ROI = "camera/roi"
@@ -82,11 +86,11 @@ SERIES_STYLE = {
 }
 
 
-def extensometer_colour(index):
+def extensometer_colour(index: int) -> tuple[int, int, int]:
     """The RGB colour of the extensometer ``index`` (in order of definition; the colours repeat)."""
     return EXTENSOMETER_COLOURS[index % len(EXTENSOMETER_COLOURS)]
 
 
-def darker(rgb, factor=0.45):
+def darker(rgb: Sequence[int], factor: float = 0.45) -> tuple[int, ...]:
     """A darker shade of ``rgb``: label text in a line's colour, legible on Rerun's light label box."""
     return tuple(int(c * factor) for c in rgb)

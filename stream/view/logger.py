@@ -7,10 +7,16 @@ described in docs/guide/live-view.md. ``start`` opens the viewer or file (``view
 runs the logger in a process of its own (``process``).
 """
 
+from __future__ import annotations
+
 import os
+import subprocess
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -26,16 +32,31 @@ from livedic.stream.view.colour_scale import (
     typical_spacing)
 from livedic.stream.view.entities import (
     BLACK, CAMERA_IMAGE, CAMERA_P0, CAMERA_ROI, CAMERA_ROI_LABEL, DROPS, ERROR, EVENTS, EXTENSOMETER_DRAW_ORDER,
-    EXTENSOMETER_LINES, EXTENSOMETER_LOST_COLOUR, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FIT_COLOUR,
-    FORCE, LABEL_CHARACTER, LABEL_GAP, LABEL_HEIGHT, LABEL_TEXT_COLOUR, LATENCY, LEGEND_EYY, LEGEND_U, LEGEND_V,
-    LIMITS_EYY, LOST, LOST_COLOUR, LOW_ZNCC, LOW_ZNCC_COLOUR, MARKER_DRAW_ORDER, NO_STRAIN_COLOUR, P0, QUALITY,
-    SERIES_STYLE, SETUP, SETUP_NOTES, STRAIN_XY, STRAIN_XY_FIT, STRESS_COLOURS, STRESS_STRAIN, SUMMARY, THROUGHPUT,
-    TIMELINE_FRAME, TIMELINE_TIME, TRACKING, darker, extensometer_colour)
+    EXTENSOMETER_LINES, EXTENSOMETER_LOST_COLOUR, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FIT_COLOUR, FORCE,
+    LABEL_CHARACTER, LABEL_GAP, LABEL_HEIGHT, LATENCY, LEGEND_EYY, LEGEND_U, LEGEND_V, LIMITS_EYY, LOST, LOST_COLOUR,
+    LOW_ZNCC, LOW_ZNCC_COLOUR, MARKER_DRAW_ORDER, NO_STRAIN_COLOUR, P0, QUALITY, SERIES_STYLE, STRAIN_XY, STRAIN_XY_FIT,
+    STRESS_COLOURS, STRESS_STRAIN, SUMMARY, THROUGHPUT, TIMELINE_FRAME, TIMELINE_TIME, TRACKING, darker,
+    extensometer_colour)
+from livedic.stream.view.setup_view import SetupOverlay, SetupView
 from livedic.stream.view.viewer import APPLICATION_ID, DEFAULT_PORT, RrdFile, spawn_viewer
 from livedic.stream.view.xy_plot import MIN_XY_LIMIT_STRAIN, MIN_XY_LIMIT_STRESS_MPA, SeriesColumns, XYPlot
 
+if TYPE_CHECKING:
+    import rerun as rerun_sdk
+    import rerun.blueprint as rrb
 
-def _label_anchors(first, second, labels, side):
+    from livedic.acquire.base import Frame
+    from livedic.dic.result import Measurement
+    from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerSet
+    from livedic.dic.tensile.poisson import ContractionRatio
+    from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
+    from livedic.stream.stages.force import LoadStage
+    from livedic.stream.stages.strain import StrainStage
+
+Limits = tuple[float, float]
+
+
+def _label_anchors(first: np.ndarray, second: np.ndarray, labels: Sequence[str], side: float) -> np.ndarray:
     """Where each extensometer's label goes: beyond its second end, clear of the other lines' labels.
 
     A mostly vertical line's label sits under its end (over it, for a line drawn upwards); a mostly horizontal
@@ -53,7 +74,7 @@ def _label_anchors(first, second, labels, side):
     return second + side * np.column_stack([dx, dy])
 
 
-def _poisson_text(poisson):
+def _poisson_text(poisson: ContractionRatio | None) -> str:
     """Poisson's ratio's elastic fit in a few words: "Poisson 0.300 +- 0.002 (elastic fit, frames 0-45)"."""
     if poisson is None:
         return "Poisson: no fit yet"
@@ -110,17 +131,17 @@ class RerunLogger:
     stage = "view"
     required = False
 
-    def __init__(self, mode, target=None, *, recording_name="livedic session", image_max_side=512,
-                 image_every=1, image_max_hz=None, flush_interval_s=1.0, color_range=None, low_zncc=REFIND_ZNCC,
-                 thin_when_behind=False,
-                 on_error=None):
+    def __init__(self, mode: str, target: str | None = None, *, recording_name: str = "livedic session",
+                 image_max_side: int = 512, image_every: int = 1, image_max_hz: float | None = None,
+                 flush_interval_s: float = 1.0, color_range: Sequence[float] | None = None,
+                 low_zncc: float = REFIND_ZNCC, thin_when_behind: bool = False,
+                 on_error: Callable[[str], None] | None = None) -> None:
         if color_range is not None:
             lo, hi = (float(value) for value in color_range)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
                 raise ValueError(f"colour range {lo:g},{hi:g}: give LO,HI with LO below HI, both finite "
                                  f"(e.g. --color-range -2,2)")
-            color_range = (lo, hi)
-        self.color_range = color_range
+        self.color_range: Limits | None = (lo, hi) if color_range is not None else None
         self.low_zncc = float(low_zncc)
         self.mode = mode
         self.target = target
@@ -129,72 +150,82 @@ class RerunLogger:
         self.images = CameraImagePacing(image_every=image_every, image_max_hz=image_max_hz,
                                         thin_when_behind=thin_when_behind)
         self.flush_interval_s = flush_interval_s
-        self.rec = None
-        self.viewer_process = None
-        self._flusher = None
+        self.rec: rerun_sdk.RecordingStream | None = None
+        self.viewer_process: subprocess.Popen[bytes] | None = None
+        self._flusher: threading.Thread | None = None
         self._closing = threading.Event()
         self._scale = 1
-        self._lut = None
-        self._done_times = deque()
-        self._t0_ns = None
-        self._p0 = None
-        start_limits = color_range or (-MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_PX)
-        self.colour_limits = {LEGEND_U: start_limits, LEGEND_V: start_limits,   # what the bars show now
-                              LEGEND_EYY: (-MIN_COLOUR_LIMIT_STRAIN, MIN_COLOUR_LIMIT_STRAIN)}
-        self._limits_logged = {}
-        self._radius_key = None
+        self._lut = np.zeros((0, 3), dtype=np.uint8)    # the colour map (mode "none" draws nothing)
+        self._done_times: deque[tuple[int, int]] = deque()
+        self._t0_ns: int | None = None
+        self._p0: int | None = None
+        start_limits = self.color_range or (-MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_PX)
+        self.colour_limits: dict[str, Limits] = {LEGEND_U: start_limits, LEGEND_V: start_limits,   # what the bars show
+                                                 LEGEND_EYY: (-MIN_COLOUR_LIMIT_STRAIN, MIN_COLOUR_LIMIT_STRAIN)}
+        self._limits_logged: dict[str, Limits] = {}
+        self._radius_key: tuple[Any, ...] | None = None
         self._radius = 4.0
-        self._image_side = None
-        self._last_u = self._last_v = None       # last ok displacement per point, to place lost markers
+        self._image_side = 0                    # the camera image's larger side (px), from start()
+        # the last ok displacement per point, to place lost markers
+        self._last_u: np.ndarray | None = None
+        self._last_v: np.ndarray | None = None
         self._flagged_shown = {LOST: False, LOW_ZNCC: False}
-        self._tracking_text = None
-        self._first_bars = {}                    # legend -> (limits, image) drawn by start()
+        self._tracking_text: str | None = None
+        self._first_bars: dict[str, tuple[Limits, np.ndarray]] = {}  # legend -> (limits, image) drawn by start()
         self._no_strain_colour = pack_colours([NO_STRAIN_COLOUR])[0]
-        self._extensometer_colours = self._lost_colour = None
-        self._strain = None                      # the session's stream.stages.strain.StrainStage, from start()
-        self._end_u = self._end_v = None         # last known displacement of each extensometer end
-        self._series_shown = {}                  # extensometer name -> its strain series has a value now
-        self._xy_pair = None                     # (axial index, transverse index) for the transverse-vs-axial plot
-        self._strain_xy = None                   # that plot (XYPlot), from start()
-        self._fit_drawn = None                   # (value, frames) of the elastic fit drawn on it
-        self._load = None                        # the session's stream.stages.force.LoadStage, from start()
-        self._stress_xy = None                   # the stress-strain plot (XYPlot): with a load, A0 and "axial"
+        self._extensometer_colours = self._label_colours = np.zeros(0, dtype=np.uint32)   # from _start_strain
+        self._lost_colour = self._lost_label_colour = np.uint32(0)
+        self._strain: StrainStage | None = None  # the session's stream.stages.strain.StrainStage, from start()
+        self._end_u = self._end_v = np.zeros(0)  # last known displacement of each extensometer end
+        self._series_shown: dict[str, bool] = {}  # extensometer name -> its strain series has a value now
+        self._xy_pair: tuple[int, int] | None = None  # (axial index, transverse index) for the transverse-vs-axial plot
+        self._strain_xy: XYPlot | None = None                  # that plot (XYPlot), from start()
+        self._fit_drawn: tuple[float, Any] | None = None  # (value, frames) of the elastic fit drawn on it
+        self._load: LoadStage | None = None  # the session's stream.stages.force.LoadStage, from start()
+        self._stress_xy: XYPlot | None = None  # the stress-strain plot (XYPlot): with a load, A0 and "axial"
         self._force_shown = False
         self._fractured = False                  # a fracture was detected (result.fracture)
         self._broken = False                     # ... and the force fell below FRACTURE_DROP of its maximum
         self._max_force_N = -np.inf
         self.log_seconds = 0.0
         self.frames_logged = 0
-        self._file = None                        # RrdFile of mode "save"
+        self._file: RrdFile | None = None                       # RrdFile of mode "save"
         self.on_error = on_error
         if mode == "none":
             return
         import rerun as rr
-        self.rr = rr
+        self.rr: ModuleType = rr
         self.rec = rr.RecordingStream(APPLICATION_ID)
         self.rec.send_recording_name(recording_name)
         self._lut = colormap_lut()
         self._packed_lut = pack_colours(self._lut)
-        self._blueprint = None
         self._series = SeriesColumns(rr, self.rec)
 
     @property
-    def enabled(self):
+    def enabled(self) -> bool:
         return self.rec is not None and not (self._file is not None and self._file.error)
 
     @property
-    def file_error(self):
+    def _stream(self) -> rerun_sdk.RecordingStream:
+        """The open stream: what draws runs only while ``enabled``."""
+        assert self.rec is not None
+        return self.rec
+
+    @property
+    def file_error(self) -> str | None:
         """Why the .rrd of mode "save" stopped (a full disk), or None."""
         return self._file.error if self._file is not None else None
 
-    def _file_failed(self, message):
+    def _file_failed(self, message: str) -> None:
         """The .rrd could not be written (full disk): told once; logging stops, the session goes on."""
         if self.on_error is not None:
             self.on_error(message)
 
     # ----------------------------------------------------------------- setup
-    def start(self, *, image_shape, roi=None, p0_index=None, points=None, has_truth=False, title=None,
-              source_settings=None, strain=None, load=None, setup=None):
+    def start(self, *, image_shape: tuple[int, int], roi: Sequence[float] | None = None, p0_index: int | None = None,
+              points: np.ndarray | None = None, has_truth: bool = False, title: str | None = None,
+              source_settings: Mapping[str, object] | None = None, strain: StrainStage | None = None,
+              load: LoadStage | None = None, setup: SetupOverlay | None = None) -> None:
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
 
         ``setup`` is the session's ``stream.session.preview.SetupOverlay`` (None: the ROI's box only): the region's
@@ -228,29 +259,30 @@ class RerunLogger:
                 self._log_limits(legend, static=True)
         self._log_session_text(title, points, strain, source_settings)
 
-    def _open_stream(self, blueprint):
+    def _open_stream(self, blueprint: rrb.Blueprint) -> None:
         """Start the stream to the mode's destination with ``blueprint``, and the thread that flushes it."""
         if self.mode == "save":
+            assert self.target is not None       # parse_viewer gives "save" its file
             directory = os.path.dirname(os.path.abspath(self.target))
             os.makedirs(directory, exist_ok=True)
             self._file = RrdFile(self.target, self._file_failed)
-            self.rec.save(self._file.sink_path, default_blueprint=blueprint)
+            self._stream.save(self._file.sink_path, default_blueprint=blueprint)
         elif self.mode == "connect":
-            self.rec.connect_grpc(self.target, default_blueprint=blueprint)
+            self._stream.connect_grpc(self.target, default_blueprint=blueprint)
         elif self.mode == "spawn":
             self.viewer_process = spawn_viewer()
-            self.rec.connect_grpc(f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy", default_blueprint=blueprint)
+            self._stream.connect_grpc(f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy", default_blueprint=blueprint)
         self._flusher = threading.Thread(target=self._flush_loop, name="livedic-rerun-flush", daemon=True)
         self._flusher.start()
 
-    def _log_series_styles(self, has_truth):
+    def _log_series_styles(self, has_truth: bool) -> None:
         """The small plots' series names and colours (static; the error plot only with a truth)."""
         for path, (names, colours) in SERIES_STYLE.items():
             if path == ERROR and not has_truth:
                 continue
-            self.rec.log(path, self.rr.SeriesLines(names=names, colors=colours), static=True)
+            self._stream.log(path, self.rr.SeriesLines(names=names, colors=colours), static=True)
 
-    def _draw_first_bars(self, strain):
+    def _draw_first_bars(self, strain: StrainStage | None) -> None:
         """The colour bars at their start limits, drawn now: OpenCV's first text call takes ~30 ms, which would
         land on the first frame."""
         for legend in (LEGEND_U, LEGEND_EYY) if strain is not None else (LEGEND_U,):
@@ -258,16 +290,17 @@ class RerunLogger:
             limits = self.colour_limits[legend]
             self._first_bars[legend] = (limits, colour_bar_image(self._lut, *limits, unit=unit, factor=factor))
 
-    def _start_force(self, load):
+    def _start_force(self, load: LoadStage | None) -> None:
         """The force series' style (with a load) and the stress-strain plot's (when this session shows it)."""
-        rr, rec = self.rr, self.rec
+        rr, rec = self.rr, self._stream
         if load is not None:
             rec.log(FORCE, rr.SeriesLines(names=["force (kN)"], colors=[STRESS_COLOURS[0]], widths=[2.0]),
                     static=True)
         if self._stress_xy is not None:
             self._stress_xy.start(rr, rec)
 
-    def _log_session_text(self, title, points, strain, source_settings):
+    def _log_session_text(self, title: str | None, points: np.ndarray | None, strain: StrainStage | None,
+                          source_settings: Mapping[str, object] | None) -> None:
         """The session document: title, points and display scale, the strain settings, the source's settings.
         ``log_summary`` replaces it at the end."""
         rr = self.rr
@@ -278,116 +311,26 @@ class RerunLogger:
         if source_settings:
             lines += ["", "| setting | value |", "|---|---|"]
             lines += [f"| {k} | {v} |" for k, v in source_settings.items()]
-        self.rec.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
+        self._stream.log(SUMMARY, rr.TextDocument("\n".join(lines), media_type=rr.MediaType.MARKDOWN), static=True)
 
-    def log_setup(self, setup):
+    def log_setup(self, setup: SetupOverlay) -> None:
         """The set-up (a ``stream.session.preview.SetupOverlay``): the region's outline on the camera view, and the
-        set-up view as ``livedic preview`` draws it (docs/guide/live-view.md). Static: logged once, at the start."""
-        rr, rec = self.rr, self.rec
-        preview = setup                 # the overlay carries the palette the preview draws in
-        scale = float(self._scale)
-        excluded = self._log_setup_region(setup)
-        labels = [((float(line[:, 0].max()), float(line[:, 1].min())), "excluded") for line in excluded]
-        rec.log(f"{SETUP}/image", rr.Image(self._display_image(setup.image, setup.pixel_format)), static=True)
-        rec.log(f"{SETUP}/mig", rr.Image(self._contrast_image(setup)), static=True)
-        points = setup.placement.points / scale
-        colours = np.where(setup.weak[:, None], preview.WEAK_POINT_COLOUR, preview.POINT_COLOUR).astype(np.uint8)
-        rec.log(f"{SETUP}/points", rr.Points2D(points, colors=colours, radii=-1.5), static=True)
-        half = setup.subset / 2.0 / scale
-        p0 = points[0]
-        rec.log(f"{SETUP}/p0", rr.Boxes2D(mins=[p0 - half], sizes=[[2 * half, 2 * half]], colors=[preview.P0_COLOUR],
-                                          radii=-1.5), static=True)
-        labels.append(((float(p0[0] - half), float(p0[1] + half)), f"P0 ({setup.subset} px subset)"))
-        labels += self._log_setup_extensometers(setup)
-        rec.log(f"{SETUP}/labels", self._label_points(labels), static=True)
-        advice = setup.advice()
-        notes = ["# set-up", "", *(f"- {line}" for line in setup.lines()), "",
-                 "**check:**" if advice else "nothing to check: pattern, exposure and focus look fit for DIC",
-                 *(f"- {line}" for line in advice)]
-        rec.log(SETUP_NOTES, rr.TextDocument("\n".join(notes), media_type=rr.MediaType.MARKDOWN), static=True)
+        set-up view as ``livedic preview`` draws it (``setup_view``). Static: logged once, at the start."""
+        self._setup_view().log(setup)
 
-    def _log_setup_region(self, setup):
-        """The region's outline and exclusions on the camera view and the set-up view, with the region's name;
-        returns the exclusions' strips (display px), which the caller labels."""
-        rr, rec = self.rr, self.rec
-        scale = float(self._scale)
+    def _setup_view(self) -> SetupView:
+        return SetupView(self.rr, self._stream, self._scale, self._lut, self._image_side)
 
-        def strips(polylines):
-            return [np.asarray(line, dtype=np.float64) / scale for line in polylines]
-
-        region = strips(setup.outlines)
-        excluded = strips(setup.exclusions)
-        outline = rr.LineStrips2D(region + excluded, radii=-1.5, colors=[setup.REGION_COLOUR] * len(region)
-                                  + [setup.EXCLUDED_COLOUR] * len(excluded))
-        # Rerun puts a strip's label at its middle, where P0 and the extensometers cross: the labels are
-        # points of their own, at the ends ``livedic preview`` labels
-        for path in (CAMERA_ROI, f"{SETUP}/region"):
-            rec.log(path, outline, static=True)
-        region_label = self._roi_label(setup.placement.bounds, setup.region_label)
-        rec.log(CAMERA_ROI_LABEL, region_label, static=True)
-        rec.log(f"{SETUP}/region/label", region_label, static=True)
-        return excluded
-
-    def _contrast_image(self, setup):
-        """RGBA of the speckle contrast per subset (MIG), colour-mapped inside the region, clipped pixels in the
-        preview's colour; at the display's scale: this runs as the first frame is tracked, every ms of it a ms
-        of latency."""
-        quality, step = setup.quality, self._scale
-        inside = setup.placement.region[::step, ::step]
-        mig = quality.mig[::step, ::step]
-        top = float(np.percentile(mig[inside], 99)) if inside.any() else 1.0
-        index = np.clip(mig * (255.0 / max(top, 1e-6)), 0, 255).astype(np.uint8)
-        rgba = np.empty(mig.shape + (4,), dtype=np.uint8)
-        rgba[..., :3] = self._lut[index]
-        rgba[..., 3] = np.where(inside, 150, 0)
-        rgba[quality.clipped[::step, ::step] & inside] = (*setup.CLIPPED_COLOUR, 255)
-        return rgba
-
-    def _log_setup_extensometers(self, setup):
-        """The set-up's extensometers, in the preview's colours; returns their labels [((x, y), text)]."""
-        if not setup.extensometers:
-            return []
-        rr, scale = self.rr, float(self._scale)
-        palette = setup.EXTENSOMETER_COLOURS
-        colours = [palette[k % len(palette)] for k in range(len(setup.extensometers))]
-        self.rec.log(f"{SETUP}/extensometers",
-                     rr.LineStrips2D([[(e.x1 / scale, e.y1 / scale), (e.x2 / scale, e.y2 / scale)]
-                                      for e in setup.extensometers], colors=colours, radii=-2.0), static=True)
-        labels = []
-        for e in setup.extensometers:
-            # the far end along x, the upper end along y: clear of the crossing at P0
-            along_y = abs(e.y2 - e.y1) >= abs(e.x2 - e.x1)
-            end = min(((e.x1, e.y1), (e.x2, e.y2)), key=lambda p: p[1] if along_y else -p[0])
-            labels.append(((end[0] / scale, end[1] / scale), setup.extensometer_label(e)))
-        return labels
-
-    def _label_points(self, labels):
-        """Points2D that carry ``labels`` [((x, y) display px, text)]: dark text on Rerun's light label box."""
-        rr = self.rr
-        return rr.Points2D([xy for xy, _ in labels], labels=[text for _, text in labels],
-                           colors=[LABEL_TEXT_COLOUR] * len(labels), radii=0.0, show_labels=True,
-                           draw_order=MARKER_DRAW_ORDER + 2)
-
-    def _roi_label(self, bounds, text):
-        """``text`` above the top-left corner of ``bounds`` (x, y, w, h; image px): clear of what is inside,
-        however narrow the region (labels are drawn centred under their anchor)."""
-        scale = self._scale
-        x, y, _, _ = bounds
-        left, top = x / scale - 0.5, y / scale - 0.5
-        side = self._image_side / scale
-        anchor = (left + 0.5 * len(text) * LABEL_CHARACTER * side, top - (LABEL_HEIGHT + LABEL_GAP) * side)
-        return self._label_points([(anchor, text)])
-
-    def _log_roi(self, roi):
+    def _log_roi(self, roi: Sequence[float]) -> None:
         """The ROI's box (no set-up drawn), and its name above it in dark text on Rerun's light label box (the
         box's own label, in its yellow, was unreadable on speckle)."""
         rr, scale = self.rr, self._scale
         x, y, w, h = roi
-        self.rec.log(CAMERA_ROI, rr.Boxes2D(mins=[[x / scale - 0.5, y / scale - 0.5]], sizes=[[w / scale, h / scale]],
-                                            colors=[(255, 200, 0)]), static=True)
-        self.rec.log(CAMERA_ROI_LABEL, self._roi_label(roi, "ROI"), static=True)
+        self._stream.log(CAMERA_ROI, rr.Boxes2D(mins=[[x / scale - 0.5, y / scale - 0.5]],
+                                                sizes=[[w / scale, h / scale]], colors=[(255, 200, 0)]), static=True)
+        self._stream.log(CAMERA_ROI_LABEL, self._setup_view().roi_label(roi, "ROI"), static=True)
 
-    def _plan_plots(self, strain, load):
+    def _plan_plots(self, strain: StrainStage | None, load: LoadStage | None) -> None:
         """The XY plots this session shows: transverse vs axial, stress-strain (None where it has not the data)."""
         self._xy_pair = axial_transverse_pair(strain)
         self._strain_xy = self._stress_xy = None
@@ -407,14 +350,16 @@ class RerunLogger:
             if plot is not None:
                 plot.columns = self._series       # their segments go out as columns with the series
 
-    def _make_blueprint(self, has_truth, strain=None, load=None, *, setup=False):
+    def _make_blueprint(self, has_truth: bool, strain: StrainStage | None = None, load: LoadStage | None = None, *,
+                        setup: bool = False) -> rrb.Blueprint:
         """The session's layout (``blueprint.make_blueprint``), with the XY plots this session shows."""
         self._plan_plots(strain, load)
         return make_blueprint(has_truth, strain, load, setup=setup, strain_xy=self._strain_xy,
                               stress_xy=self._stress_xy)
 
     # ----------------------------------------------------------------- per frame
-    def log_frame(self, result, stats, *, camera_image=None):
+    def log_frame(self, result: FrameResult, stats: SessionStats | None, *,
+                  camera_image: np.ndarray | None = None) -> None:
         """Log one ``stream.pipeline.frame_result.FrameResult`` (a TrackerLoop sink).
 
         ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
@@ -424,9 +369,11 @@ class RerunLogger:
         if not self.enabled:
             return
         started = time.perf_counter()
-        rr, rec = self.rr, self.rec
-        frame = result.frame
-        m = result.measurement
+        rr, rec = self.rr, self._stream
+        # (FrameResult's fields are untyped: what they hold)
+        frame = cast("Frame", result.frame)
+        m = cast("Measurement", result.measurement)
+        readings = cast("ExtensometerReadings | None", result.extensometers)
         if self._t0_ns is None:
             self._t0_ns = frame.timestamp_ns
         now = self._series.now = (int(frame.index), (frame.timestamp_ns - self._t0_ns) / 1e9)
@@ -434,8 +381,8 @@ class RerunLogger:
         rec.set_time(TIMELINE_TIME, duration=now[1])
         ok = m.ok
         self._log_fields(result, m, camera_image)
-        if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
-            self._log_extensometer_series(result.extensometers, result.poisson)
+        if self._strain is not None and readings is not None and len(readings.names):
+            self._log_extensometer_series(readings, cast("ContractionRatio | None", result.poisson))
         if self._load is not None:
             self._log_force(result)
         p0 = self._p0
@@ -464,13 +411,14 @@ class RerunLogger:
 
     __call__ = log_frame
 
-    def _scalars(self, path, values):
+    def _scalars(self, path: str, values: Any) -> None:
         """This frame's values of the series ``path`` (sent with the next columns: ``SeriesColumns``)."""
         self._series.add(path, values)
 
-    def _log_fields(self, result, m, camera_image=None):
+    def _log_fields(self, result: FrameResult, m: Measurement, camera_image: np.ndarray | None = None) -> None:
         """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
-        rr, rec, frame = self.rr, self.rec, result.frame
+        rr, rec, frame = self.rr, self._stream, cast("Frame", result.frame)
+        readings = cast("ExtensometerReadings | None", result.extensometers)
         if camera_image is None and frame.image is not None and self.images.due(frame.timestamp_ns,
                                                                                   result.output_backlog > 0):
             camera_image = self._display_image(frame.image, frame.pixel_format)
@@ -493,8 +441,8 @@ class RerunLogger:
                                                                               *self.colour_limits[legend])]))
         if self._strain is not None and result.strain is not None:
             self._log_strain_field(result.strain, ok, px, py, radius)
-        if self._strain is not None and result.extensometers is not None and len(result.extensometers.names):
-            self._log_extensometer_lines(m, result.extensometers)
+        if self._strain is not None and readings is not None and len(readings.names):
+            self._log_extensometer_lines(m, readings)
         self._log_flagged(m, px, py, radius)
         p0 = self._p0
         if p0 is not None and 0 <= p0 < m.u.size:
@@ -503,18 +451,18 @@ class RerunLogger:
                                            colors=[(255, 0, 255) if ok[p0] else (128, 128, 128)],
                                            show_labels=True, draw_order=MARKER_DRAW_ORDER + 1))
 
-    def event(self, message, level="info"):
+    def event(self, message: str, level: str = "info") -> None:
         """A line in the viewer's event log (level: info, warning or error)."""
         if not self.enabled:
             return
         rr = self.rr
         levels = {"info": rr.TextLogLevel.INFO, "warning": rr.TextLogLevel.WARN, "error": rr.TextLogLevel.ERROR}
-        self.rec.log(EVENTS, rr.TextLog(message, level=levels.get(level, rr.TextLogLevel.INFO)))
+        self._stream.log(EVENTS, rr.TextLog(message, level=levels.get(level, rr.TextLogLevel.INFO)))
 
-    def _display_image(self, image, pixel_format):
+    def _display_image(self, image: np.ndarray, pixel_format: str) -> np.ndarray:
         return display_image(image, pixel_format, self._scale)
 
-    def _point_radius(self, m):
+    def _point_radius(self, m: Measurement) -> float:
         """Disc radius (image px) so the coloured discs cover the field: the typical spacing / sqrt(2).
 
         Computed once per point set (the points' reference positions do not change).
@@ -528,31 +476,33 @@ class RerunLogger:
             self._radius_key, self._radius = key, max(radius, 0.5 * self._scale)   # >= 1 display px across
         return self._radius
 
-    def _colours(self, values, lo, hi):
+    def _colours(self, values: np.ndarray, lo: float, hi: float) -> np.ndarray:
         """(N, 3) uint8 colours of ``values`` on the scale [lo, hi] (outside: the end colours)."""
         return self._lut[self._lut_index(values, lo, hi)]
 
-    def _lut_index(self, values, lo, hi):
+    def _lut_index(self, values: np.ndarray, lo: float, hi: float) -> np.ndarray:
         """Colour-map index of finite ``values`` on the scale [lo, hi] (outside: the ends)."""
         top = self._lut.shape[0] - 1
         return np.clip((values - lo) * (top / (hi - lo)) + 0.5, 0, top).astype(np.int64)
 
-    def _log_limits(self, legend, static=False):
+    def _log_limits(self, legend: str, static: bool = False) -> None:
         """The colour bar image with its labels and the numeric limits, for ``legend``."""
         rr = self.rr
         lo, hi = self.colour_limits[legend]
         entity, unit, factor = LEGENDS[legend]
-        limits, bar = self._first_bars.get(legend, (None, None))
-        if limits != (lo, hi):
+        first = self._first_bars.get(legend)
+        if first is not None and first[0] == (lo, hi):
+            bar = first[1]
+        else:
             bar = colour_bar_image(self._lut, lo, hi, unit=unit, factor=factor)
-        self.rec.log(f"{legend}/bar", rr.Image(bar), static=static)
-        self.rec.log(entity, rr.Scalars([lo, hi]), static=static)
+        self._stream.log(f"{legend}/bar", rr.Image(bar), static=static)
+        self._stream.log(entity, rr.Scalars([lo, hi]), static=static)
         self._limits_logged[legend] = (lo, hi)
 
     # ----------------------------------------------------------------- strain
-    def _start_strain(self, strain):
+    def _start_strain(self, strain: StrainStage) -> None:
         """Series styles and the drawing styles of the strain entities (static: logged once, not per frame)."""
-        rr, rec = self.rr, self.rec
+        rr, rec = self.rr, self._stream
         rec.log(LIMITS_EYY, rr.SeriesLines(names=["e_yy low", "e_yy high"], colors=[(48, 18, 59), (122, 4, 3)]),
                 static=True)
         count = len(strain.extensometers)
@@ -578,7 +528,7 @@ class RerunLogger:
             rec.log(STRAIN_XY_FIT, rr.LineStrips2D.from_fields(radii=-2.5, colors=[FIT_COLOUR],
                                                                draw_order=MARKER_DRAW_ORDER), static=True)
 
-    def _log_strain_field(self, strain, ok, px, py, radius):
+    def _log_strain_field(self, strain: Any, ok: np.ndarray, px: np.ndarray, py: np.ndarray, radius: float) -> None:
         """e_yy at every point drawn (ok displacement): colour-mapped where it has a strain, grey where not."""
         rr = self.rr
         values = strain.eyy
@@ -591,9 +541,9 @@ class RerunLogger:
         colours = self._packed_lut[self._lut_index(np.where(has_strain[shown], values[shown], 0.0),
                                                    *self.colour_limits[legend])]
         colours[~has_strain[shown]] = self._no_strain_colour
-        self.rec.log(FIELD_EYY, rr.Points2D(np.column_stack([px[shown], py[shown]]), radii=radius, colors=colours))
+        self._stream.log(FIELD_EYY, rr.Points2D(np.column_stack([px[shown], py[shown]]), radii=radius, colors=colours))
 
-    def _log_extensometer_lines(self, m, readings):
+    def _log_extensometer_lines(self, m: Measurement, readings: ExtensometerReadings) -> None:
         """The extensometers on the image, between the ends' current positions, labelled with their strain.
 
         One LineStrips2D: Rerun puts a strip's label at its middle, and labels only the first strips when
@@ -603,12 +553,13 @@ class RerunLogger:
         alone is labelled at its middle). Then each line twice: black and wide, then in its colour, so it shows
         on the speckle and on any colour of the field.
         """
-        rr, rec, strain = self.rr, self.rec, self._strain
+        rr, rec, strain = self.rr, self._stream, self._strain
+        assert strain is not None         # the caller draws extensometers of a strain session only
         end_u, end_v = end_displacements(strain.placed, strain.points, m.u, m.v, m.ok)
         known = np.isfinite(end_u) & np.isfinite(end_v)
         np.copyto(self._end_u, end_u, where=known)     # a lost end stays where it was last seen
         np.copyto(self._end_v, end_v, where=known)
-        ends = strain.placed.ends
+        ends = cast("ExtensometerSet", strain.placed).ends
         scale = float(self._scale)
         where = np.column_stack([(ends[:, 0] + self._end_u) / scale, (ends[:, 1] + self._end_v) / scale])
         first, second = where[0::2], where[1::2]
@@ -627,9 +578,9 @@ class RerunLogger:
         rec.log(EXTENSOMETER_LINES, rr.LineStrips2D.from_fields(strips=np.concatenate(strips),
                                                                 colors=np.concatenate(strip_colours), labels=labels))
 
-    def _log_extensometer_series(self, readings, poisson=None):
+    def _log_extensometer_series(self, readings: ExtensometerReadings, poisson: ContractionRatio | None = None) -> None:
         """Each extensometer's strain series (a gap where it has no reading) and the transverse-vs-axial plot."""
-        rr, rec, ok = self.rr, self.rec, readings.ok
+        rr, rec, ok = self.rr, self._stream, readings.ok
         for name, e, good in zip(readings.names, readings.eng_strain, ok):
             path = f"{EXTENSOMETER_STRAIN}/{name}"
             if good:
@@ -641,34 +592,36 @@ class RerunLogger:
         if self._xy_pair is not None:
             self._log_strain_xy(readings, poisson)
 
-    def _log_strain_xy(self, readings, poisson):
+    def _log_strain_xy(self, readings: ExtensometerReadings, poisson: ContractionRatio | None) -> None:
         """This frame's point of the transverse-vs-axial plot with the two strains, and Poisson's ratio's elastic
         fit so far (``dic.tensile.poisson.ContractionRatio``, or None) as a line over its range and in the numbers."""
         self._log_elastic_fit(poisson)
-        a, t = self._xy_pair
+        plot, pair = self._strain_xy, self._xy_pair
+        assert plot is not None and pair is not None       # planned together (_plan_plots)
+        a, t = pair
         if not (readings.ok[a] and readings.ok[t]):
-            self._strain_xy.gap(self.rr, self.rec)
+            plot.gap(self.rr, self._stream)
             return
         axial, transverse = float(readings.eng_strain[a]), float(readings.eng_strain[t])
         text = f"axial {100 * axial:.3f} %   transverse {100 * transverse:.3f} %\n" + _poisson_text(poisson)
-        self._strain_xy.add(self.rr, self.rec, 100.0 * axial, 100.0 * transverse, text)
+        plot.add(self.rr, self._stream, 100.0 * axial, 100.0 * transverse, text)
 
-    def _log_elastic_fit(self, poisson):
+    def _log_elastic_fit(self, poisson: ContractionRatio | None) -> None:
         """The elastic fit's line over its axial range (in the plot's data units), when it changed; cleared when NaN."""
         drawn = None if poisson is None or not np.isfinite(poisson.value) else (poisson.value, poisson.frames)
         if drawn == self._fit_drawn:
             return
         self._fit_drawn = drawn
-        if drawn is None:
-            self.rec.log(STRAIN_XY_FIT, self.rr.Clear(recursive=False))
+        if poisson is None or drawn is None:
+            self._stream.log(STRAIN_XY_FIT, self.rr.Clear(recursive=False))
             return
         ends = [(100.0 * x, -100.0 * (poisson.intercept - poisson.value * x)) for x in poisson.axial_range]
-        self.rec.log(STRAIN_XY_FIT, self.rr.LineStrips2D.from_fields(strips=[ends]))
+        self._stream.log(STRAIN_XY_FIT, self.rr.LineStrips2D.from_fields(strips=[ends]))
 
     # ----------------------------------------------------------------- force and stress
-    def _log_force(self, result):
+    def _log_force(self, result: FrameResult) -> None:
         """The force against time (a gap where unknown) and this frame's point of the stress-strain curve."""
-        rr, rec = self.rr, self.rec
+        rr, rec = self.rr, self._stream
         force = result.force_N
         if force is not None and np.isfinite(force):
             self._scalars(FORCE, force / 1000.0)
@@ -700,18 +653,18 @@ class RerunLogger:
             text += "   broken"
         plot.add(rr, rec, 100.0 * strain, stress, text, second=true)
 
-    def _last_displacement(self, m):
+    def _last_displacement(self, m: Measurement) -> tuple[np.ndarray, np.ndarray]:
         """Displacement per point, the last ok one where a point is not ok now (0 before its first)."""
         ok = m.ok & np.isfinite(m.u) & np.isfinite(m.v)
-        if self._last_u is None or self._last_u.shape != m.u.shape:
+        if self._last_u is None or self._last_v is None or self._last_u.shape != m.u.shape:
             self._last_u, self._last_v = np.zeros(m.u.shape), np.zeros(m.v.shape)
         np.copyto(self._last_u, m.u, where=ok)
         np.copyto(self._last_v, m.v, where=ok)
         return self._last_u, self._last_v
 
-    def _log_flagged(self, m, px, py, radius):
+    def _log_flagged(self, m: Measurement, px: np.ndarray, py: np.ndarray, radius: float) -> None:
         """Squares at lost and low-ZNCC points, and the counts as text (each logged only when it changes)."""
-        rr, rec = self.rr, self.rec
+        rr, rec = self.rr, self._stream
         lost = ~m.ok
         low = m.ok & (m.zncc < self.low_zncc)
         half_size = max(0.5 * radius, 2.0)      # squares of ~0.7 spacing: neighbours stay apart
@@ -731,7 +684,7 @@ class RerunLogger:
             self._tracking_text = text
             rec.log(TRACKING, rr.TextDocument(text))
 
-    def _rates(self, result, m):
+    def _rates(self, result: FrameResult, m: Measurement) -> tuple[float, float]:
         """Frame rate and POI/s over the last second of results."""
         self._done_times.append((result.done_ns, int(m.ok.size)))
         while len(self._done_times) > 2 and result.done_ns - self._done_times[0][0] > 1_000_000_000:
@@ -746,28 +699,28 @@ class RerunLogger:
         return frames / span, points / span
 
     # ----------------------------------------------------------------- end
-    def log_summary(self, text):
+    def log_summary(self, text: str) -> None:
         """Replace the summary document with ``text`` (markdown)."""
         if not self.enabled:
             return
         rr = self.rr
-        self.rec.log(SUMMARY, rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
+        self._stream.log(SUMMARY, rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
 
-    def flush(self):
+    def flush(self) -> None:
         """Send the plots' waiting values and flush the stream (the logging thread's, once it logs no more)."""
         rec = self.rec
         if rec is not None:
             self._series.send()
             rec.flush(timeout_sec=2.0)
 
-    def _flush_loop(self):
+    def _flush_loop(self) -> None:
         while not self._closing.wait(self.flush_interval_s):
             try:
-                self.rec.flush(timeout_sec=2.0)     # not the series: the logging thread sends those
+                self._stream.flush(timeout_sec=2.0)     # not the series: the logging thread sends those
             except Exception:  # noqa: BLE001 - a failed flush must not kill the thread; close() reports
                 pass
 
-    def close(self):
+    def close(self) -> None:
         """Flush and close the sink (the spawned viewer keeps running)."""
         if self.rec is None:
             return

@@ -29,6 +29,8 @@ summary reads) and runs a ``RerunLogger`` in a child process:
   measurement goes on.
 """
 
+from __future__ import annotations
+
 import os
 import queue
 import subprocess
@@ -36,7 +38,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, cast
 from multiprocessing.connection import Connection
 
 from livedic.acquire.base import Frame
@@ -44,6 +48,10 @@ from livedic.stream.view.camera_image import CameraImagePacing, display_image, d
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.pipeline.frame_result import StageTimes
 from livedic.stream.pipeline.tracker_loop import OUTPUT_NICE
+
+if TYPE_CHECKING:
+    from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
+    from livedic.stream.stages.force import LoadStage
 
 BEHIND = 1                 # frames handed over and not yet drawn, the one being drawn included, that are not "behind"
 BACKLOG_MAX = 2000         # frames waiting for the child beyond which whole frames are left out (~20 s at 100 fps)
@@ -59,15 +67,15 @@ class ViewProcessError(RuntimeError):
 @dataclass(frozen=True)
 class LoadForView:
     """What the view reads of the session's load stage (``stream.stages.force.LoadStage``): its cross-section."""
-    area_mm2: float = None
+    area_mm2: float | None = None
 
 
-def _counters(logger, times):
+def _counters(logger: RerunLogger, times: StageTimes) -> dict[str, Any]:
     return dict(frames_logged=logger.frames_logged, log_seconds=logger.log_seconds, file_error=logger.file_error,
                 stages=times.summary())
 
 
-def _tell(outbox, message):
+def _tell(outbox: Connection, message: tuple[str, Any]) -> None:
     """An answer to the session; lost once the session's process has ended, and the child goes on drawing what
     it was given (a failed answer must not stop the drawing: the .rrd keeps every frame handed over)."""
     try:
@@ -76,7 +84,7 @@ def _tell(outbox, message):
         pass
 
 
-def serve(inbox, outbox):
+def serve(inbox: Connection, outbox: Connection) -> None:
     """The child: a ``RerunLogger`` fed from the connection ``inbox`` until "close" or the end of the pipe (the
     session's process ended); answers and counts on ``outbox``."""
     try:
@@ -126,7 +134,7 @@ class ViewChild:
     """The child process, started: ``python -m livedic.stream.view.process`` importing rerun, numpy and OpenCV
     (~2 s) until its first message; ``ViewProcess`` takes it over. ``close`` ends one that was never used."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         child_in, to_child = os.pipe()
         from_child, child_out = os.pipe()
         self.output = tempfile.TemporaryFile()
@@ -141,7 +149,7 @@ class ViewChild:
         self.to_child = Connection(to_child, readable=False)
         self.from_child = Connection(from_child, writable=False)
 
-    def close(self):
+    def close(self) -> None:
         """End the child (its pipe closes: it finds no options and exits)."""
         for end in (self.to_child, self.from_child):
             end.close()
@@ -166,8 +174,10 @@ class ViewProcess:
     stage = "view"
     required = False
 
-    def __init__(self, mode, target=None, *, image_every=1, image_max_hz=None, thin_when_behind=False,
-                 on_error=None, child=None, **logger_options):
+    def __init__(self, mode: str, target: str | None = None, *, image_every: int = 1,
+                 image_max_hz: float | None = None, thin_when_behind: bool = False,
+                 on_error: Callable[[str], None] | None = None, child: ViewChild | None = None,
+                 **logger_options: Any) -> None:
         if logger_options.get("color_range") is not None:
             RerunLogger("none", color_range=logger_options["color_range"])   # the same check, raised here
         self.mode = mode
@@ -180,16 +190,16 @@ class ViewProcess:
         self.frames_handed = 0
         self.frames_drawn = 0
         self.frames_left_out = 0             # whole frames left out: the child had BACKLOG_MAX waiting
-        self._counters = dict(frames_logged=0, log_seconds=0.0, file_error=None, stages={})
+        self._counters: dict[str, Any] = dict(frames_logged=0, log_seconds=0.0, file_error=None, stages={})
         self._scale = 1
-        self._error = None                   # why the child failed (ViewProcessError at the next frame)
-        self._close_error = None             # why the child's logger failed to close (raised by close)
+        self._error: str | None = None                   # why the child failed (ViewProcessError at the next frame)
+        self._close_error: str | None = None             # why the child's logger failed to close (raised by close)
         self._closed = False
         self._file_error_told = False
         self._child = child if child is not None else ViewChild()
         self._process, self._output = self._child.process, self._child.output
         self._to_child, self._from_child = self._child.to_child, self._child.from_child
-        self._outgoing = queue.SimpleQueue()
+        self._outgoing: queue.SimpleQueue[tuple[str, Any] | None] = queue.SimpleQueue()
         # imports in the background while the session prepares; the writer sends in order, off the output thread
         self._outgoing.put(("options", dict(logger_options, mode=mode, target=target)))
         self._writer = threading.Thread(target=self._write_loop, name="livedic-view-writer", daemon=True)
@@ -197,34 +207,34 @@ class ViewProcess:
 
     # ------------------------------------------------------------ what the summary reads
     @property
-    def enabled(self):
+    def enabled(self) -> bool:
         return not self._closed and self._error is None and self._counters["file_error"] is None
 
     @property
-    def file_error(self):
+    def file_error(self) -> str | None:
         return self._counters["file_error"]
 
     @property
-    def frames_logged(self):
+    def frames_logged(self) -> int:
         return self._counters["frames_logged"]
 
     @property
-    def log_seconds(self):
+    def log_seconds(self) -> float:
         """The child's time logging (``RerunLogger.log_seconds``), as of the last ``flush``."""
         return self._counters["log_seconds"]
 
     @property
-    def stages(self):
+    def stages(self) -> dict[str, Any]:
         """The child's stage times (``DRAW_STAGE``: p50/p99 ms a frame), as of the last ``flush``."""
         return self._counters["stages"]
 
     @property
-    def backlog(self):
+    def backlog(self) -> int:
         """Frames handed over that the child has not drawn yet (as far as its answers have come back)."""
         return self.frames_handed - self.frames_drawn
 
     # ------------------------------------------------------------ the pipes
-    def _write_loop(self):
+    def _write_loop(self) -> None:
         while True:
             message = self._outgoing.get()
             if message is None:
@@ -235,11 +245,11 @@ class ViewProcess:
                 self._fail(f"the view's process stopped taking frames ({error.strerror or error})")
                 return
 
-    def _send(self, kind, payload=None):
+    def _send(self, kind: str, payload: Any = None) -> None:
         if self._error is None and not self._closed:
             self._outgoing.put((kind, payload))
 
-    def _take_answers(self, wanted=None, timeout_s=0.0):
+    def _take_answers(self, wanted: Sequence[str] | None = None, timeout_s: float = 0.0) -> str | None:
         """Read the child's answers; with ``wanted``, until one of those kinds (returned) or the timeout."""
         deadline = time.monotonic() + timeout_s
         while True:
@@ -273,7 +283,7 @@ class ViewProcess:
             if wanted is not None and kind in wanted:
                 return kind
 
-    def _ended(self):
+    def _ended(self) -> str:
         """Why the child ended: its exit code and the last line it printed."""
         try:
             code = self._process.wait(timeout=1.0)
@@ -283,24 +293,25 @@ class ViewProcess:
         lines = [line.strip() for line in self._output.read().decode(errors="replace").splitlines() if line.strip()]
         return f"the view's process ended (exit code {code})" + (f": {lines[-1]}" if lines else "")
 
-    def _fail(self, why):
+    def _fail(self, why: str) -> None:
         if self._error is None:
             self._error = why
 
     # ------------------------------------------------------------ the session's calls
-    def start(self, *, image_shape, load=None, **options):
+    def start(self, *, image_shape: tuple[int, ...], load: LoadStage | None = None, **options: Any) -> None:
         """``RerunLogger.start`` in the child; waits for it and raises its ValueError (a viewer that cannot be
         started or reached) or a ``ViewProcessError`` (the child failed)."""
         self._scale = display_scale(image_shape, self.image_max_side)
-        load = None if load is None else LoadForView(area_mm2=load.area_mm2)
-        self._send("start", dict(options, image_shape=image_shape, load=load))
+        for_view = None if load is None else LoadForView(area_mm2=load.area_mm2)
+        self._send("start", dict(options, image_shape=image_shape, load=for_view))
         kind = self._take_answers(wanted=("started", "start_failed"), timeout_s=START_TIMEOUT_S)
         if kind == "start_failed":
+            assert self._error is not None       # the answer "start_failed" sets it
             raise ValueError(self._error.split(": ", 1)[-1])
         if self._error is not None:
             raise ViewProcessError(f"the Rerun view could not start: {self._error}")
 
-    def __call__(self, result, stats):
+    def __call__(self, result: FrameResult, stats: SessionStats | None) -> None:
         """Hand one ``FrameResult`` to the child (a sink: see module notes)."""
         self._take_answers()
         if self._error is not None:
@@ -311,31 +322,33 @@ class ViewProcess:
         if backlog >= BACKLOG_MAX:
             self.frames_left_out += 1
             return
-        frame = result.frame
+        frame = cast(Frame, result.frame)         # (FrameResult's field is untyped)
         image = None
         if self.images.due(frame.timestamp_ns, backlog > BEHIND):
             image = display_image(frame.image, frame.pixel_format, self._scale)
         # the frame's metadata and full image stay here: the view draws from the measurement's arrays
-        light = replace(result, frame=Frame(frame.index, frame.timestamp_ns, None, frame.pixel_format))
+        # (the image None: Frame's type says a frame has one, this one goes over the pipe without)
+        light = replace(result, frame=Frame(frame.index, frame.timestamp_ns,
+                                            None, frame.pixel_format))  # type: ignore[arg-type]
         self._send("frame", (light, image))
         self.frames_handed += 1
 
     log_frame = __call__
 
-    def event(self, message, level="info"):
+    def event(self, message: str, level: str = "info") -> None:
         """A line in the viewer's event log, after the frames handed over so far."""
         self._send("event", (message, level))
 
-    def log_summary(self, text):
+    def log_summary(self, text: str) -> None:
         self._send("summary", text)
 
-    def flush(self):
+    def flush(self) -> None:
         """Wait until the child has drawn every frame handed over and flushed; brings back its counters."""
         if self._error is None and not self._closed:
             self._send("flush")
             self._take_answers(wanted=("counters",), timeout_s=CLOSE_TIMEOUT_S)
 
-    def close(self):
+    def close(self) -> None:
         """The child draws what it was given, closes the stream (the .rrd complete) and ends; raises
         ``ViewProcessError`` when its logger failed to close."""
         if self._closed:
@@ -351,7 +364,7 @@ class ViewProcess:
             raise ViewProcessError(self._close_error)
 
 
-def _warm_up():
+def _warm_up() -> None:
     """Load the numba kernel the view calls (the extensometers' end fit, ``dic.strain.field_fit``) while the session
     still prepares: a fresh process spends ~1 s on its first numba call, which would land on the view's start."""
     import numpy as np
@@ -362,7 +375,7 @@ def _warm_up():
     field_fit.displacement_at(grid[12:13], grid, still, still, np.ones(len(grid), dtype=bool), 10.0)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> None:
     """``python -m livedic.stream.view.process IN_FD OUT_FD``: the child (``ViewProcess`` starts it)."""
     fd_in, fd_out = (int(word) for word in (argv if argv is not None else sys.argv[1:]))
     try:

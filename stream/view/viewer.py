@@ -5,6 +5,8 @@ to 127.0.0.1 (or reuses one listening there); ``RrdFile`` writes the .rrd of mod
 costs one message, never a hung session. Nothing here listens on a non-loopback interface (docs/guide/live-view.md).
 """
 
+from __future__ import annotations
+
 import os
 import shutil
 import socket
@@ -12,6 +14,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 
 APPLICATION_ID = "livedic"
 DEFAULT_PORT = 9876
@@ -19,14 +22,15 @@ DEFAULT_CONNECT_URL = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 VIEWER_MODES = ("spawn", "connect", "save", "none")
 
 
-def has_display():
+def has_display() -> bool:
     """True unless on Linux/BSD with neither $DISPLAY nor $WAYLAND_DISPLAY set."""
     if sys.platform.startswith(("win", "darwin")):
         return True
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def parse_viewer(values, default_save_path):
+def parse_viewer(values: Sequence[str] | str | None,
+                 default_save_path: str | os.PathLike[str]) -> tuple[str, str | None, str | None]:
     """``--viewer`` words -> (mode, argument, note).
 
     ``["spawn"]``, ``["connect"]``, ``["connect", URL]``, ``["save", FILE]``,
@@ -66,7 +70,7 @@ def parse_viewer(values, default_save_path):
     return mode, None, None
 
 
-def _port_open(host, port, timeout=0.2):
+def _port_open(host: str, port: int, timeout: float = 0.2) -> bool:
     try:
         with socket.create_connection((host, port), timeout=timeout):
             return True
@@ -74,10 +78,9 @@ def _port_open(host, port, timeout=0.2):
         return False
 
 
-def _viewer_command(port):
-    exe = os.path.join(os.path.dirname(sys.executable), "rerun")
-    if not os.path.exists(exe):
-        exe = shutil.which("rerun")
+def _viewer_command(port: int) -> list[str]:
+    beside = os.path.join(os.path.dirname(sys.executable), "rerun")
+    exe = beside if os.path.exists(beside) else shutil.which("rerun")
     if exe is None:
         raise ValueError("cannot spawn a viewer: the 'rerun' program is not installed (pip install rerun-sdk), "
                          "or use --viewer save FILE.rrd")
@@ -95,10 +98,10 @@ class RrdFile:
     give ``save``; ``close`` after the recording stream's ``disconnect``.
     """
 
-    def __init__(self, path, on_error):
+    def __init__(self, path: str | os.PathLike[str], on_error: Callable[[str], None]) -> None:
         self.path = path
         self.on_error = on_error
-        self.error = None
+        self.error: str | None = None
         self.bytes_written = 0
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
         self._read_end, self._write_end = os.pipe()
@@ -106,7 +109,7 @@ class RrdFile:
         self._thread = threading.Thread(target=self._copy, name="livedic-rrd-writer", daemon=True)
         self._thread.start()
 
-    def _copy(self):
+    def _copy(self) -> None:
         while data := os.read(self._read_end, 1 << 20):
             if self.error is not None:
                 continue                  # drained, so the sink never waits on a full pipe
@@ -122,14 +125,14 @@ class RrdFile:
                               f"keeps its first {self.bytes_written / 1e6:.1f} MB")
         os.close(self._read_end)
 
-    def close(self):
+    def close(self) -> None:
         """After the sink let go of the pipe: the copy ends at the pipe's end, the file is closed."""
         os.close(self._write_end)
         self._thread.join(timeout=30.0)
         os.close(self._fd)
 
 
-def spawn_viewer(port=DEFAULT_PORT):
+def spawn_viewer(port: int = DEFAULT_PORT) -> subprocess.Popen[bytes] | None:
     """Start a local viewer bound to 127.0.0.1:``port``; its process, or None when one listens there already.
 
     Raises

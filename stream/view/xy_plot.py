@@ -6,12 +6,23 @@ frame's scalars and plot segments and sends them with ``send_columns``, the same
 at a fraction of the cost. Both log through the ``rr``/``rec`` they are given, from the logging thread only.
 """
 
+from __future__ import annotations
+
 import time
+from collections.abc import Sequence
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from livedic.stream.view.colour_scale import AXIS_MANTISSAS, grow_to_cover, nice_ceil
 from livedic.stream.view.entities import LABEL_TEXT_COLOUR, MARKER_DRAW_ORDER, TIMELINE_FRAME, TIMELINE_TIME, darker
+
+if TYPE_CHECKING:
+    import rerun as rerun_sdk
+    import rerun.blueprint as rrb
+
+    Point = tuple[float, float]
 
 # The plots' values go out as columns this often (a few frames at once: Rerun's cost is per call).
 SERIES_SEND_S = 0.1
@@ -24,14 +35,14 @@ _XY_GRID_COLOUR = (75, 75, 75)
 _XY_MAX_TICKS = 5
 
 
-def _ticks(lo, hi):
+def _ticks(lo: float, hi: float) -> list[float]:
     """At most ``_XY_MAX_TICKS`` + 1 round values from ``lo`` to ``hi`` (lo <= 0 <= hi), 0 among them."""
     step = nice_ceil((hi - lo) / _XY_MAX_TICKS, (1.0, 2.0, 2.5, 5.0, 10.0))
     first = np.ceil(lo / step - 1e-9)
     return [float(f"{k * step:.6g}") + 0.0 for k in np.arange(first, np.floor(hi / step + 1e-9) + 1)]
 
 
-def _tick_label(value):
+def _tick_label(value: float) -> str:
     return "0" if value == 0 else f"{value:g}"
 
 
@@ -50,8 +61,9 @@ class XYPlot:
     per curve) ``ROOT/legend``: a short line in each curve's colour with its name, in the box's lower right.
     """
 
-    def __init__(self, root, *, x_title, y_title, x_start, y_start, colours, second=None, x_title_under_zero=True,
-                 mantissas=AXIS_MANTISSAS, names=None):
+    def __init__(self, root: str, *, x_title: str, y_title: str, x_start: Sequence[float], y_start: Sequence[float],
+                 colours: Sequence[tuple[int, int, int]], second: str | None = None, x_title_under_zero: bool = True,
+                 mantissas: Sequence[float] = AXIS_MANTISSAS, names: Sequence[str] | None = None) -> None:
         self.root = root
         self.data, self.curve, self.now = f"{root}/data", f"{root}/data/curve", f"{root}/now"
         self.axes, self.ticks = f"{root}/axes", f"{root}/ticks"
@@ -61,13 +73,17 @@ class XYPlot:
         self.x_title_under_zero = x_title_under_zero     # inside the box, under the x axis; else above the bottom
         self.mantissas = mantissas                        # the nice numbers the limits grow to
         self.colours = colours
-        self.limits = {"x": tuple(x_start), "y": tuple(y_start)}
-        self._axes_logged = None
-        self._last = {self.curve: None, self.second: None}    # each curve's previous point, None after a gap
-        self.columns = None            # a SeriesColumns the segments go to (the logger's), else logged one by one
+        x_lo, x_hi = x_start
+        y_lo, y_hi = y_start
+        self.limits: dict[str, tuple[float, float]] = {"x": (x_lo, x_hi), "y": (y_lo, y_hi)}
+        self._axes_logged: dict[str, tuple[float, float]] | None = None
+        # each curve's previous point, None after a gap
+        self._last: dict[str | None, Point | None] = {self.curve: None, self.second: None}
+        # a SeriesColumns the segments go to (the logger's), else logged one by one
+        self.columns: SeriesColumns | None = None
         self.transform = ((1.0, 1.0), (0.0, 0.0))
 
-    def view(self, name):
+    def view(self, name: str) -> rrb.Spatial2DView:
         import rerun.blueprint as rrb
         history = rrb.VisibleTimeRanges([
             rrb.VisibleTimeRange(timeline, start=rrb.TimeRangeBoundary.infinite(),
@@ -79,7 +95,7 @@ class XYPlot:
                                  visual_bounds=rrb.VisualBounds2D(x_range=[-0.08 * width, 1.03 * width],
                                                                   y_range=[-0.4 * height, 1.2 * height]))
 
-    def start(self, rr, rec):
+    def start(self, rr: ModuleType, rec: rerun_sdk.RecordingStream) -> None:
         """The curves' and the current point's styles (static: logged once)."""
         rec.log(self.curve, rr.LineStrips2D.from_fields(radii=-1.5, colors=[self.colours[0]]), static=True)
         if self.second:
@@ -89,22 +105,24 @@ class XYPlot:
         if self.names:
             self._log_legend(rr, rec)
 
-    def _log_legend(self, rr, rec):
+    def _log_legend(self, rr: ModuleType, rec: rerun_sdk.RecordingStream) -> None:
         """Which curve is which: a short line in each curve's colour, its name after it (low in the box, left of
         the x axis' title: a tensile test's stress stays high once it has risen), in a darker shade of the colour."""
         width, height = _XY_BOX
-        rows = [0.58 * height + 0.2 * height * k for k in range(len(self.names))]
+        names = list(self.names or ())
+        rows = [0.58 * height + 0.2 * height * k for k in range(len(names))]
         strips = [[(0.32 * width, y), (0.38 * width, y)] for y in rows]
         # a label is drawn centred under its anchor (~1.35 box units a character, ~3 high)
-        anchors = [(0.39 * width + 0.68 * len(name), y - 1.6) for name, y in zip(self.names, rows)]
-        colours = self.colours[:len(self.names)]
+        anchors = [(0.39 * width + 0.68 * len(name), y - 1.6) for name, y in zip(names, rows)]
+        colours = self.colours[:len(names)]
         rec.log(self.legend, rr.LineStrips2D(strips, radii=-1.5, colors=colours, draw_order=MARKER_DRAW_ORDER),
                 static=True)
-        rec.log(f"{self.legend}/names", rr.Points2D(anchors, radii=0.0, labels=list(self.names),
+        rec.log(f"{self.legend}/names", rr.Points2D(anchors, radii=0.0, labels=names,
                                                     colors=[darker(colour) for colour in colours], show_labels=True,
                                                     draw_order=MARKER_DRAW_ORDER), static=True)
 
-    def add(self, rr, rec, x, y, text, second=None):
+    def add(self, rr: ModuleType, rec: rerun_sdk.RecordingStream, x: float, y: float, text: str,
+            second: Point | None = None) -> None:
         """This frame's point (x, y) in data units with its text; ``second``: (x, y) of the second curve or None."""
         self._grow(x, y)
         if second is not None:
@@ -123,13 +141,14 @@ class XYPlot:
                                                              (kx * point[0] + bx, ky * point[1] + by)],
                                                   labels=[text, ""]))
 
-    def gap(self, rr, rec):
+    def gap(self, rr: ModuleType, rec: rerun_sdk.RecordingStream) -> None:
         """No value this frame: a gap in the curves, the current point cleared."""
         if self._last[self.curve] is not None:
             rec.log(self.now, rr.Clear(recursive=False))
         self._last = {key: None for key in self._last}
 
-    def _segment(self, rr, rec, entity, point):
+    def _segment(self, rr: ModuleType, rec: rerun_sdk.RecordingStream, entity: str,
+                 point: Point | None) -> None:
         if point is not None and self._last[entity] is not None:
             if self.columns is not None:
                 self.columns.add(entity, [self._last[entity], point], kind="strip")
@@ -137,11 +156,11 @@ class XYPlot:
                 rec.log(entity, rr.LineStrips2D.from_fields(strips=[[self._last[entity], point]]))
         self._last[entity] = point
 
-    def _grow(self, x, y):
+    def _grow(self, x: float, y: float) -> None:
         self.limits = {"x": grow_to_cover(self.limits["x"], x, self.mantissas),
                        "y": grow_to_cover(self.limits["y"], y, self.mantissas)}
 
-    def _log_axes(self, rr, rec):
+    def _log_axes(self, rr: ModuleType, rec: rerun_sdk.RecordingStream) -> None:
         """The box for the current limits: frame, zero lines, grid and tick labels, and the transform."""
         width, height = _XY_BOX
         (x_lo, x_hi), (y_lo, y_hi) = self.limits["x"], self.limits["y"]
@@ -150,7 +169,8 @@ class XYPlot:
         self.transform = ((kx, ky), (bx, by))
         rec.log(self.data, rr.Transform3D(translation=[bx, by, 0.0], scale=[kx, ky, 1.0]))
         x_ticks, y_ticks = _ticks(x_lo, x_hi), _ticks(y_lo, y_hi)
-        strips, colours = [], []
+        strips: list[list[Point]] = []
+        colours: list[tuple[int, int, int]] = []
         for tick in x_ticks:
             x = kx * tick + bx
             strips.append([(x, 0.0), (x, height)])
@@ -186,13 +206,14 @@ class SeriesColumns:
     thread-safe: the logging thread's alone.
     """
 
-    def __init__(self, rr, rec):
+    def __init__(self, rr: ModuleType, rec: rerun_sdk.RecordingStream) -> None:
         self.rr, self.rec = rr, rec
         self.now = (0, 0.0)            # the frame being logged: (index, seconds since the first)
-        self._rows = {}                # path -> (kind, [frame], [time s], [values])
+        # path -> (kind, [frame], [time s], [values])
+        self._rows: dict[str, tuple[str, list[int], list[float], list[Any]]] = {}
         self._last_sent = time.monotonic()
 
-    def add(self, path, values, kind="scalars"):
+    def add(self, path: str, values: Any, kind: str = "scalars") -> None:
         """``values`` of the series ``path`` at ``now``: scalars, or one 2-D strip (``kind="strip"``)."""
         rows = self._rows.get(path)
         if rows is None:
@@ -201,25 +222,25 @@ class SeriesColumns:
         rows[2].append(self.now[1])
         rows[3].append(values)
 
-    def clear(self, path):
+    def clear(self, path: str) -> None:
         """A gap in the series at the current time: what waits goes first."""
         self.send(path)
         self.rec.log(path, self.rr.Clear(recursive=False))
 
-    def send_when_due(self):
+    def send_when_due(self) -> None:
         if time.monotonic() - self._last_sent >= SERIES_SEND_S:
             self.send()
 
-    def send(self, path=None):
+    def send(self, path: str | None = None) -> None:
         rr = self.rr
         for key in [path] if path is not None else list(self._rows):
             rows = self._rows.pop(key, None)
             if not rows:
                 continue
             kind, frames, seconds, values = rows
-            values = np.asarray(values, dtype=np.float64)
-            columns = rr.Scalars.columns(scalars=values) if kind == "scalars" else rr.LineStrips2D.columns(
-                strips=values)
+            array = np.asarray(values, dtype=np.float64)
+            columns = rr.Scalars.columns(scalars=array) if kind == "scalars" else rr.LineStrips2D.columns(
+                strips=array)
             rr.send_columns(key, indexes=[rr.TimeColumn(TIMELINE_FRAME, sequence=frames),
                                           rr.TimeColumn(TIMELINE_TIME, duration=seconds)],
                             columns=columns, recording=self.rec)
