@@ -3,13 +3,15 @@ ROI, each subset inside the image) and ``step_for_count`` (the step giving about
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from livedic.dic.region import centred_axis
 from livedic.dic.validation import check_subset
 
 
-def grid_in_roi(shape: tuple[int, int], roi: tuple[int, int, int, int] | None, step: int,
+def grid_in_roi(shape: tuple[int, int], roi: Sequence[int] | None, step: int,
                 subset: int) -> np.ndarray:
     """Points every ``step`` px over a region of interest, where a whole subset fits.
 
@@ -61,7 +63,7 @@ def grid_in_roi(shape: tuple[int, int], roi: tuple[int, int, int, int] | None, s
     return np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
 
 
-def step_for_count(roi: tuple[int, int, int, int], n_points: int, subset: int) -> int:
+def step_for_count(roi: Sequence[int], n_points: int, subset: int) -> int:
     """Grid step giving about ``n_points`` points over ``roi`` = (x, y, w, h) (>= 1)."""
     _, _, w, h = roi
     half = int(subset) // 2

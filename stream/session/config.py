@@ -493,7 +493,7 @@ class SessionConfig:
                              f"source")
 
     @property
-    def publish_targets(self) -> list:
+    def publish_targets(self) -> tuple:
         """``publish`` parsed (``stream.publish.PublishTarget``); ValueError (one line) for a bad URI."""
         from livedic.stream.publish import parse_publish_uris
         return parse_publish_uris(self.publish)

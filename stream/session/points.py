@@ -103,7 +103,7 @@ def default_roi(source: object) -> tuple[int, ...] | None:
     return None
 
 
-def add_region_arguments(parser: argparse.ArgumentParser, *, points: bool = True) -> None:
+def add_region_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup, *, points: bool = True) -> None:
     """Declare ``--roi``, ``--mask``, ``--exclude`` (and ``--points`` when ``points``) on an argparse parser.
 
     Every command that places points (``run``, ``replay``, ``preview``, ``measure``) takes them from here.

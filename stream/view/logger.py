@@ -79,7 +79,7 @@ def _poisson_text(poisson: ContractionRatio | None) -> str:
     if poisson is None:
         return "Poisson: no fit yet"
     if not np.isfinite(poisson.value):
-        return f"Poisson: n/a ({poisson.reason.value})"
+        return f"Poisson: n/a ({poisson.reason.value if poisson.reason is not None else 'no fit'})"
     return (f"Poisson {poisson.value:.3f} +- {poisson.standard_error:.3f} "
             f"(elastic fit, frames {poisson.frames[0]}-{poisson.frames[1]})")
 
