@@ -19,16 +19,32 @@ def add_bench_commands(commands):
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
                                              "fracture, tensile, replay, tracker")
     bench_commands = bench.add_subparsers(metavar="BENCH")
+    for add in (_add_paper_command, _add_speed_command, _add_live_command, _add_validate_command, _add_soak_command,
+                _add_strain_command, _add_fracture_command, _add_replay_command, _add_tracker_command,
+                _add_tensile_command):
+        add(bench_commands)
+
+
+def _add_paper_command(bench_commands):
+    """``livedic bench paper``'s options."""
     paper = bench_commands.add_parser("paper", help="reproduce the improved-WSO paper's figures and tables")
     paper.add_argument("--quick", action="store_true", help="small version (minutes) for CI")
     paper.add_argument("-o", "--output", default="results/paper", metavar="DIR", help="results folder")
     paper.set_defaults(handler=_cmd_bench_paper)
+
+
+def _add_speed_command(bench_commands):
+    """``livedic bench speed``'s options."""
     speed = bench_commands.add_parser("speed", help="points per second per method on a 1024x1024 image")
     speed.add_argument("--points", type=int, default=10_000, help="number of points (default 10000)")
     speed.add_argument("--size", type=int, default=1024, help="image side in pixels (default 1024)")
     speed.add_argument("--repeat", type=int, default=3, help="timed repetitions, best kept (default 3)")
     speed.add_argument("--quick", action="store_true", help="fewer points and methods, for CI")
     speed.set_defaults(handler=_cmd_bench_speed)
+
+
+def _add_live_command(bench_commands):
+    """``livedic bench live``'s options."""
     live = bench_commands.add_parser("live", help="the live pipeline on 1 MP simulated frames: fps, latency, drops, "
                                                   "the time of each stage",
                                      description="The main job (livedic run --gauge-length 400 --load synthetic: "
@@ -45,6 +61,10 @@ def add_bench_commands(commands):
     live.add_argument("--threads", type=int, default=1, metavar="N", help="numba threads (default 1, as livedic run)")
     live.add_argument("--verbose", action="store_true", help="also print each session's own summary")
     live.set_defaults(handler=_cmd_bench_live)
+
+
+def _add_validate_command(bench_commands):
+    """``livedic bench validate``'s options."""
     validate = bench_commands.add_parser(
         "validate", help="is every point marked ok right? wrong-but-ok points on other generators and the DIC "
                          "Challenge sets", description="Counts the points dic.measure reports as ok that are more "
@@ -56,6 +76,10 @@ def add_bench_commands(commands):
                                "(e.g. ../shared/datasets); without it only the synthetic cases run")
     validate.add_argument("--quick", action="store_true", help="fewer shifts, points and searches (minutes)")
     validate.set_defaults(handler=_cmd_bench_validate)
+
+
+def _add_soak_command(bench_commands):
+    """``livedic bench soak``'s options."""
     soak = bench_commands.add_parser("soak", help="20,000 frames through the full pipeline: RSS growth, frames "
                                                   "produced vs recorded vs tracked vs dropped")
     soak.add_argument("--frames", type=int, default=20_000, metavar="N", help="frames to produce (default 20000)")
@@ -70,6 +94,10 @@ def add_bench_commands(commands):
     soak.add_argument("--dir", metavar="DIR", help="folder for the recording (default: a temporary folder)")
     soak.add_argument("--keep", action="store_true", help="keep the recording (deleted by default)")
     soak.set_defaults(handler=_cmd_bench_soak)
+
+
+def _add_strain_command(bench_commands):
+    """``livedic bench strain``'s options."""
     strain = bench_commands.add_parser(
         "strain", help="strain fields and virtual extensometers against exact values: uniform strain, the simulated "
                        "tensile test, the real dog-bone", description="Strain error RMS on uniform strain fields "
@@ -82,6 +110,10 @@ def add_bench_commands(commands):
                                                       "without it the real sequence is skipped")
     strain.add_argument("-o", "--output", default="results/strain", metavar="DIR", help="results folder")
     strain.set_defaults(handler=_cmd_bench_strain)
+
+
+def _add_fracture_command(bench_commands):
+    """``livedic bench fracture``'s options."""
     fracture = bench_commands.add_parser(
         "fracture", help="a tensile test to fracture: reference updates, accumulated error, fracture detection",
         description="The simulated test to 30 %% uniform / 100 %% neck strain with fading paint and a fracture, "
@@ -93,6 +125,10 @@ def add_bench_commands(commands):
     fracture.add_argument("--data", metavar="DIR", help="folder with mudic_tensile_dogbone (e.g. ../shared/datasets)")
     fracture.add_argument("-o", "--output", default="results/fracture", metavar="DIR", help="results folder")
     fracture.set_defaults(handler=_cmd_bench_fracture)
+
+
+def _add_replay_command(bench_commands):
+    """``livedic bench replay``'s options."""
     replay = bench_commands.add_parser(
         "replay", help="offline replay: what writing CSV / Parquet costs, sequential vs Dask --workers 1 and 2 "
                        "(frames/s, overhead per frame)",
@@ -115,6 +151,10 @@ def add_bench_commands(commands):
     replay.add_argument("-o", "--output", default="results/replay", metavar="DIR",
                         help="results folder (replay.json; default results/replay)")
     replay.set_defaults(handler=_cmd_bench_replay)
+
+
+def _add_tracker_command(bench_commands):
+    """``livedic bench tracker``'s options."""
     tracker = bench_commands.add_parser(
         "tracker", help="the tracker's own cost per frame by stage, against the bare IC-GN kernel on the same points",
         description="Tracks the main job's frames (synthetic:tensile 1024x1024, its points, TrackingConfig's "
@@ -131,6 +171,10 @@ def add_bench_commands(commands):
     tracker.add_argument("--stacks", metavar="PROFILE.txt",
                          help="only summarise a py-spy raw profile: where the samples inside the tracker end")
     tracker.set_defaults(handler=_cmd_bench_tracker)
+
+
+def _add_tensile_command(bench_commands):
+    """``livedic bench tensile``'s options."""
     tensile = bench_commands.add_parser(
         "tensile", help="E, Rp0.2, Rm, Ag, A recovered from the simulated tensile test with a known law",
         description="Runs the simulated tensile test (E 200 GPa, Rp0.2 816 MPa, Rm 1200 MPa, fracture) through "

@@ -1,18 +1,29 @@
 """``livedic export FILE.mcap -o DIR``: a recording's results as CSV files, maps, an overlay video and VTK.
 
-``export_command`` runs it (``stream.export.export.export_recording``); its options are declared in ``cli.main``.
+``export_command`` runs it (``stream.export.export.export_recording``); ``add_export_arguments`` declares its options.
 """
 
 from __future__ import annotations
 
 import argparse
-
 import os
 
 from livedic.stream.export.export import ExportStopped, StopSignals, export_recording, plural, say, stress_from_args
-from livedic.stream.export.field_export import FieldOptions
-from livedic.stream.pipeline.progress import ProgressBar, progress_enabled
-from livedic.stream.stages.strain import overrides_from_args
+from livedic.stream.export.field_export import FieldOptions, add_field_arguments
+from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
+from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
+from livedic.stream.stages.stress import add_stress_arguments
+
+
+def add_export_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``livedic export`` arguments to an ``argparse`` (sub)parser."""
+    parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
+    parser.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
+    parser.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
+    add_strain_arguments(parser, recorded=True)
+    add_stress_arguments(parser)
+    add_field_arguments(parser)
+    add_progress_argument(parser)
 
 
 def export_command(args: argparse.Namespace) -> int:

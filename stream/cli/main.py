@@ -21,15 +21,13 @@ import signal
 import sys
 import threading
 
+from livedic.stream.cli.export import add_export_arguments, export_command
 from livedic.stream.cli.measure import add_measure_arguments, measure_command
-from livedic.stream.session.parsing import UsageError
-from livedic.stream.export.field_export import add_field_arguments
 from livedic.stream.cli.preview import add_preview_arguments, preview_command
-from livedic.stream.pipeline.progress import add_progress_argument
 from livedic.stream.cli.replay import add_replay_arguments, replay_command
+from livedic.stream.cli.report import add_report_arguments, report_command
 from livedic.stream.cli.run import add_run_arguments, run_session
-from livedic.stream.stages.strain import add_strain_arguments
-from livedic.stream.stages.stress import add_stress_arguments
+from livedic.stream.session.parsing import UsageError
 
 EXIT_BAD_INPUT = 2
 EXIT_SOURCE_LOST = 3
@@ -179,9 +177,7 @@ def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
     cameras.set_defaults(handler=_cmd_cameras)
 
     recover = commands.add_parser("recover", help="rewrite a crashed recording into a complete, indexed MCAP")
-    recover.add_argument("recording", metavar="FILE.mcap", help="recording cut short (crash, power loss, kill)")
-    recover.add_argument("-o", "--output", required=True, metavar="FIXED.mcap", help="new file to write")
-    recover.add_argument("--overwrite", action="store_true", help="replace FIXED.mcap if it exists")
+    add_recover_arguments(recover)
     recover.set_defaults(handler=_cmd_recover)
 
     replay = commands.add_parser("replay", help="re-run tracking offline on a recording's frames (CSV out)",
@@ -205,14 +201,8 @@ def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
                                              "(DIR/overlay_eyy.mp4) and VTK for ParaView (DIR/vtk/, "
                                              "DIR/fields.pvd). Ctrl-C or SIGTERM stops it: the files finished "
                                              "are kept whole, exit 130 or 143.")
-    export.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
-    export.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
-    export.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
-    add_strain_arguments(export, recorded=True)
-    add_stress_arguments(export)
-    add_field_arguments(export)
-    add_progress_argument(export)
-    export.set_defaults(handler=_cmd_export)
+    add_export_arguments(export)
+    export.set_defaults(handler=export_command)
 
     report = commands.add_parser("report", help="tensile test report: E, Rp0.2, Rm, Ag, A (ISO 6892-1) from a "
                                                 "recording and the machine's force",
@@ -220,16 +210,20 @@ def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
                                              "the stress-strain curve of the axial extensometer and the force "
                                              "file, and the tensile properties read from it by the methods of "
                                              "ISO 6892-1.")
-    report.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
-    report.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
-    report.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
-    add_stress_arguments(report)
-    add_strain_arguments(report, recorded=True)
-    report.set_defaults(handler=_cmd_report)
+    add_report_arguments(report)
+    report.set_defaults(handler=report_command)
 
     for extend in extensions:
         extend(commands)
     return parser
+
+
+
+def add_recover_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``livedic recover`` arguments to an ``argparse`` (sub)parser."""
+    parser.add_argument("recording", metavar="FILE.mcap", help="recording cut short (crash, power loss, kill)")
+    parser.add_argument("-o", "--output", required=True, metavar="FIXED.mcap", help="new file to write")
+    parser.add_argument("--overwrite", action="store_true", help="replace FIXED.mcap if it exists")
 
 
 def _cmd_cameras(args):
@@ -260,12 +254,4 @@ def _cmd_recover(args):
     return 0
 
 
-def _cmd_export(args):
-    from livedic.stream.cli.export import export_command
-    return export_command(args)
-
-
-def _cmd_report(args):
-    from livedic.stream.cli.report import report_command
-    return report_command(args)
 

@@ -1,6 +1,6 @@
 """``livedic report FILE.mcap -o DIR``: the tensile test report (E, Rp0.2, Rm, Ag, A; ISO 6892-1) of a recording.
 
-``report_command`` runs it (``stream.export.report.report_recording``); its options are declared in ``cli.main``.
+``report_command`` runs it (``stream.export.report.report_recording``); ``add_report_arguments`` declares its options.
 """
 
 from __future__ import annotations
@@ -10,7 +10,17 @@ import argparse
 from livedic.stream.export.export import say, stress_from_args
 from livedic.stream.export.report import (POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
                                           report_recording)
-from livedic.stream.stages.strain import overrides_from_args
+from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
+from livedic.stream.stages.stress import add_stress_arguments
+
+
+def add_report_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``livedic report`` arguments to an ``argparse`` (sub)parser."""
+    parser.add_argument("recording", metavar="FILE.mcap", help="a recording made by livedic run (may be truncated)")
+    parser.add_argument("-o", "--output", required=True, metavar="DIR", help="folder to write (created if missing)")
+    parser.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
+    add_stress_arguments(parser)
+    add_strain_arguments(parser, recorded=True)
 
 
 def report_command(args: argparse.Namespace) -> int:
