@@ -6,7 +6,7 @@ result made before the loop starts (``reference_ready``). The timings are define
 
 import time
 from array import array
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -82,6 +82,9 @@ class FrameResult:
     poisson: object = None        # dic.poisson.ContractionRatio: Poisson's ratio fitted so far (stream.stages.contraction)
     output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
 
+    # The tracker's fields are set by ``TrackerLoop`` (``TRACKER_FIELDS``); the rest by the stage that ``provides``
+    # it (``stream.pipeline.stage``) or by the output thread (the truth's error, the backlog, Poisson's ratio).
+
     @property
     def origin_ns(self):
         """Where latency starts: capture when known (and earlier than arrival), else arrival."""
@@ -97,6 +100,13 @@ class FrameResult:
     def delivery_delay_ns(self):
         """Arrival in the acquisition thread - capture (None when the source gives no capture time)."""
         return None if self.capture_ns is None else self.arrival_ns - self.capture_ns
+
+
+RESULT_FIELDS = frozenset(f.name for f in fields(FrameResult))
+# What ``TrackerLoop`` sets when it makes a frame's result: what the first stage may read.
+TRACKER_FIELDS = ("frame", "arrival_ns", "done_ns", "processing_ns", "measurement", "is_reference", "frames_done",
+                  "dropped_total", "dropped_since_last", "queue_depth", "refind_attempts", "refound", "capture_ns",
+                  "reference_update", "fracture")
 
 
 @dataclass

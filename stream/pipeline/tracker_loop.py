@@ -3,7 +3,7 @@
 One linear loop (the Rerun examples' shape) in the tracking thread: take the
 next frame, track it, run the measurement's own *stages* on it (strain and
 extensometers, strain out to the controller, force: what the result is made
-of and what must leave at once), update the statistics, and hand the result
+of and what must leave at once; ``stream.pipeline.stage.Stage``), update the statistics, and hand the result
 to the *output thread*, which runs the *sinks* (recording of results, Rerun
 view, events, progress; a replay's CSV) in order, at their own pace: the
 measurement never waits for the display or the disk. The output thread's
@@ -171,10 +171,10 @@ class TrackerLoop:
         The tracker already built on the first frame the queue will give, and that frame tracked
         (before acquisition started: the frames after it do not queue up behind its set-up);
         ``make_tracker`` is not called.
-    stages : sequence of callables
-        ``stage(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the tracking
-        thread right after ``track``: what the result is made of (strain, force) and what must leave at
-        once (strain out).
+    stages : sequence of stream.pipeline.stage.Stage
+        ``stage.on_frame(result: FrameResult)`` for each frame, in order, in the tracking thread right
+        after ``track``: what the result is made of (strain, force) and what must leave at once (strain
+        out). The caller checks their order (``stream.pipeline.stage.check_stage_order``).
     sinks : sequence of callables
         ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the output
         thread (``stream.pipeline.sinks``): recording, view, events, progress.
@@ -279,7 +279,7 @@ class TrackerLoop:
             for stage in list(self.stages):
                 started = time.perf_counter_ns()
                 try:
-                    stage(result, stats)
+                    stage.on_frame(result)
                 except Exception as error:  # noqa: BLE001 - keep measuring, report later
                     if getattr(stage, "required", False):
                         raise             # the session's output itself: it cannot go on without it

@@ -725,13 +725,17 @@ class ParallelStats:
 
 
 class ParallelSession(Session):
-    """The replay's ``Session`` with its frames measured on a Dask cluster (``ServedTracker``); same sinks."""
+    """The replay's ``Session`` with its frames measured on a Dask cluster (``ServedTracker``); same sinks.
+
+    It gives the session its tracker factory (``serve``): the tracker a sequential replay would use, built on the
+    reference, stands for the workers' copies of it.
+    """
 
     def __init__(self, config, *, client, frames_again, recorded, in_flight=None, shared_path=None, point_ids=None,
                  rows=None, stats=None, **kwargs):
         self._keys = deque()
         source = kwargs.pop("source")
-        super().__init__(config, source=KeyedFrames(source, self._keys), **kwargs)
+        super().__init__(config, source=KeyedFrames(source, self._keys), tracker_factory=self.serve, **kwargs)
         self._client = client
         self._frames_again = frames_again
         self._recorded = recorded
@@ -743,8 +747,10 @@ class ParallelSession(Session):
         self.served = None
         self.results = None
 
-    def _make_tracker(self, frame):
-        tracker = super()._make_tracker(frame)       # the KeyFrameTracker a sequential replay would use
+    def serve(self, reference_image: np.ndarray, points: np.ndarray) -> ServedTracker:
+        """The ``ServedTracker`` on the reference: the results of the cluster's copies of the tracker a sequential
+        replay would build there (``config.tracking.tracker``), in order."""
+        tracker = self.config.tracking.tracker(reference_image, points)
         threads = cluster_threads(self._client)
         rows = self._rows is not None and self.strain is not None
         job = ReplayJob(token=uuid.uuid4().hex, threads=1, point_ids=np.asarray(self._point_ids[0]) if rows else None,

@@ -59,6 +59,7 @@ from livedic.stream.pipeline.sinks import (BitDepthWatch, FractureWatch, P0Watch
 from livedic.dic.strain.extensometer import AXIAL
 from livedic.stream.stages.strain import StrainConfig
 from livedic.stream.pipeline.frame_result import reference_ready
+from livedic.stream.pipeline.stage import Reference, Stage, check_stage_order
 from livedic.stream.pipeline.tracker_loop import TrackerLoop
 from livedic.stream.session.summary import format_summary
 
@@ -124,16 +125,6 @@ class FirstFrameAhead:
 
     def close(self):
         self.source.close()
-
-
-@dataclass(frozen=True)
-class Reference:
-    """The reference frame's points, set when the tracker is built on it."""
-    frame_index: int
-    points: np.ndarray
-    roi: tuple
-    step: int
-    shape: tuple
 
 
 def warm_up(tracking):
@@ -273,6 +264,9 @@ class Session:
         ``config.points``' grid and P0 (a replay of the recorded points).
     sinks : sequence of callables, optional
         More sinks, called after the built-in ones (``stream.pipeline.sinks``).
+    tracker_factory : callable, optional
+        ``tracker_factory(reference_image, points) -> tracker`` builds what tracks the frames (default
+        ``config.tracking.tracker``: a ``dic.tracking`` tracker); a replay on a cluster gives its own.
     say : callable, optional
         ``say(message)`` receives the session's messages; default: a ``livedic: `` line on stderr.
 
@@ -295,7 +289,7 @@ class Session:
         Poisson's ratio over the elastic range, with the ``axial``/``transverse`` pair, from ``start``.
     publishers : list of stream.publish.PublishStage
         The ``--publish`` outlets, opened in ``prepare`` (before any output), closed by ``close``.
-    reference : Reference or None
+    reference : stream.pipeline.stage.Reference or None
         The reference frame's points, once the tracker is built on it.
     total_frames : int or None
         Frames the session expects (``config.frames`` or the source's length).
@@ -307,8 +301,9 @@ class Session:
         Sinks switched off during the session.
     """
 
-    def __init__(self, config, *, source=None, points=None, sinks=(), say=None):
+    def __init__(self, config, *, source=None, points=None, sinks=(), say=None, tracker_factory=None):
         self.config = config
+        self._tracker_factory = tracker_factory if tracker_factory is not None else config.tracking.tracker
         self.phase = Phase.CREATED
         self._given_source = source
         self._given_points = points
@@ -449,6 +444,7 @@ class Session:
         if self.load is None:
             self._open_load()           # the simulator's own force law needs the simulator
         self._open_publishers()
+        check_stage_order(self.stages)      # a stage reading what no earlier stage made: a bug, said before outputs
         self.phase = Phase.OPENING_OUTPUTS
         self._open_outputs(scheme)
         self.phase = Phase.READY
@@ -471,14 +467,12 @@ class Session:
         self.acquisition = AcquisitionThread(self._ahead, self.queue, max_frames=config.frames, on_frame=on_frame,
                                              reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
-        # The measurement's own stages, in the tracking thread: strain out as soon as it exists (right after
-        # the strain stage), then the load stage (which may wait for a live force stream's next sample).
-        stages = [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
         # The outputs, in the output thread at their own pace: Poisson's ratio (for the view), recording,
         # view, events, progress.
         sinks = []
         if has_pair(self.strain):
             self.poisson = ContractionWatch()       # after the load stage: the force picks the elastic range
+            self.strain.contraction = self.poisson  # its ratio is summarised with the strain
             sinks.append(self.poisson)
         if recorder is not None:
             sinks.append(RecordResults(recorder, config.tracking.method,
@@ -501,7 +495,7 @@ class Session:
         # the acquisition thread starts: the next frames do not queue up behind that set-up (~70 ms at 1 MP).
         self.loop = TrackerLoop(self.queue, self._make_tracker, reference=reference_ready(self._make_tracker,
                                                                                           self._ahead.frame),
-                                stages=stages, sinks=sinks)
+                                stages=self.stages, sinks=sinks)
         self.phase = Phase.RUNNING
         if self._stop_requested:
             self.acquisition.stop()
@@ -534,7 +528,10 @@ class Session:
             except Exception:  # noqa: BLE001 - a slow flush: close() flushes again and reports
                 pass
         self._summary = self._make_summary()
-        self._summary_text = format_summary(self._summary, self.reference, self.recorder)
+        # the measurement's stages' lines first (strain, force), then the outlets' (strain out: they provide nothing)
+        reported = sorted(self.stages, key=lambda stage: not stage.provides)
+        self._summary_text = format_summary(self._summary, self.reference, self.recorder,
+                                            [line for stage in reported for line in stage.summary_lines()])
         if self.viewer is not None:
             try:
                 self.viewer.log_summary("```\n" + self._summary_text + "\n```")
@@ -612,6 +609,12 @@ class Session:
         return False
 
     # ----------------------------------------------------------------- results
+
+    @property
+    def stages(self) -> list[Stage]:
+        """The measurement's stages in the order they run (the tracking thread): strain, strain out as soon as it
+        exists, then force (a live force stream's stage may wait for its next sample). From ``prepare``."""
+        return [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
 
     @property
     def stats(self):
@@ -740,7 +743,7 @@ class Session:
         config = self.config
         wanted = config.points
         p0 = self.p0.xy if self.p0 is not None else tuple(self.points[0])
-        return {
+        metadata = {
             "command": config.command, "source_uri": config.source, "source_settings": self._settings,
             "roi": list(self._roi) if self._roi else "full image", "step": wanted.step, "grid_step": self._step,
             "region": self.placement.as_metadata() if self.placement is not None else None,
@@ -750,13 +753,13 @@ class Session:
             "queue_size": config.queue, "drop_policy": self.drop_policy, "point_ids": "P0 is point 0",
             "threads": config.threads, "reconnect": config.reconnect, "reconnect_timeout_s": config.reconnect_timeout,
             **config.strain.as_metadata(),
-            "vsg_px": self.strain.vsg_px if self.strain is not None else None,
-            "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.strain.extensometers]
-            if self.strain is not None else [],
-            "load": config.load, "load_offset_s": config.load_offset,
-            "area_mm2": self.load_stage.area_mm2 if self.load_stage is not None else config.area_mm2,
+            "vsg_px": None, "extensometers": [],            # the strain stage's (its metadata below)
+            "load": config.load, "load_offset_s": config.load_offset, "area_mm2": config.area_mm2,
             "publish": list(config.publish or ()),          # where the strain went (--publish)
         }
+        for stage in self.stages:
+            metadata.update(stage.metadata())               # a key named above keeps its place
+        return metadata
 
     def _open_outputs(self, scheme):
         from livedic.stream.view.camera_image import IMAGE_MAX_HZ
@@ -798,12 +801,15 @@ class Session:
         return Recorder(path, metadata, start_time_ns=start_time_ns, on_error=recording_stopped)
 
     def _make_tracker(self, frame):
-        """The tracker on the reference frame (the first tracked); tells the view and the recording."""
+        """The tracker on the reference frame (the first tracked), the stages set up on it; tells the view and the
+        recording."""
         config = self.config
-        tracker = config.tracking.tracker(frame.image, self.points)
+        tracker = self._tracker_factory(frame.image, self.points)
         roi_used = self._roi if self._roi is not None else (0, 0, frame.image.shape[1], frame.image.shape[0])
         self.reference = Reference(frame_index=frame.index, points=self.points, roi=tuple(int(v) for v in roi_used),
-                                   step=self._step, shape=frame.image.shape)
+                                   step=self._step, shape=frame.image.shape, timestamp_ns=frame.timestamp_ns)
+        for stage in self.stages:
+            stage.on_reference(self.reference)
         if self.p0 is None:
             return tracker                      # given points: the caller's session (a replay) says what they are
         wanted = config.points

@@ -325,10 +325,12 @@ def test_strain_goes_out_before_the_load_stage_waits_for_force(tmp_path):
         publisher = session.publishers[0]
         assert sinks == [session.strain, publisher, session.load_stage]
 
-        def watched(result, stats):               # what the frame holds when the publisher runs
+        send = publisher.on_frame
+
+        def watched(result):                      # what the frame holds when the publisher runs
             seen.append((result.extensometers is not None, result.force_N))
-            publisher(result, stats)
-        sinks[1] = watched
+            send(result)
+        publisher.on_frame = watched
         session.run()
     messages = [json.loads(d) for d in _drain(receiver)]
     receiver.close()
