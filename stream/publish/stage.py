@@ -115,12 +115,12 @@ class PublishStage(Stage):
         self.names = tuple(names)
         self.report = report
         self.name = f"publish {outlet.where}"
-        self.first_ns = None
+        self.first_ns: int | None = None
         self.sent = 0
         self.failed = 0
         self.latencies_ns = array("q")
         self.upstream_ns = array("q")
-        self._failing = None               # (first frame not sent, failures since) while sends fail
+        self._failing: int | None = None   # the first frame not sent while sends fail
 
     def on_reference(self, reference: Reference) -> None:
         """``time_s`` counts from the reference frame's timestamp."""

@@ -75,6 +75,7 @@ import uuid
 from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -274,8 +275,8 @@ class ReplayJob:
     """What every worker needs once per replay (besides the key-frame trackers): output rows and numba threads."""
     token: str
     threads: int = 1
-    point_ids: np.ndarray = None          # with ``strain``: the frame's output rows are made on the worker
-    strain: object = None                 # the session's stream.stages.strain.StrainStage (its compute)
+    point_ids: np.ndarray | None = None   # with ``strain``: the frame's output rows are made on the worker
+    strain: Any = None                    # the session's stream.stages.strain.StrainStage (its compute)
     csv_text: bool = False                # ... and sent as CSV lines (else as columns)
 
 
@@ -310,8 +311,8 @@ class FrameMeasured:
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
 
 
-_TRACKERS = {}          # per worker thread: (segment token, thread) -> its KeyFrameTracker (a working copy)
-_READERS = {}           # per worker process: recording path -> acquire.recording.source.FrameReader
+_TRACKERS: dict = {}    # per worker thread: (segment token, thread) -> its KeyFrameTracker (a working copy)
+_READERS: dict = {}     # per worker process: recording path -> acquire.recording.source.FrameReader
 
 
 @dataclass(frozen=True)
@@ -718,7 +719,7 @@ class ParallelStats:
     rows_seconds: float = 0.0             # ... and the CSV lines' (strain and formatting on the workers)
     image_bytes: int = 0
     seed_bytes: int = 0
-    shared_path: str = None               # where the workers read the frames (None: sent from the client)
+    shared_path: str | None = None        # where the workers read the frames (None: sent from the client)
     wait_seconds: float = 0.0             # the replaying process waiting for results (the rest: its own work)
     segments: int = 1                     # trackers measured against: 1 + reference moves + fractures
     resubmitted: int = 0                  # frames measured again against a new segment's tracker

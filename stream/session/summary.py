@@ -79,8 +79,8 @@ def format_summary(summary: dict[str, Any], reference: Reference | None, recorde
             lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
                          f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
     if summary.get("source_losses"):
-        losses = len(summary["source_losses"])
-        lines.append(f"  camera     lost {losses} time(s), back {summary['reconnects']} time(s); "
+        lost = len(summary["source_losses"])
+        lines.append(f"  camera     lost {lost} time(s), back {summary['reconnects']} time(s); "
                      f"{summary['outage_s']:.1f} s without frames")
     lines.append(f"  rerun      {summary['rerun']}"
                  + (f" STOPPED EARLY ({summary['rerun_error']}); see the warning above" if summary.get("rerun_error")

@@ -3,8 +3,8 @@
 ``--load URI`` opens a force source (``acquire.force``: ``csv:FILE``, ``tcp://HOST:PORT``,
 ``synthetic`` for the simulated test's own law); ``--area MM2`` (or ``--width MM --thickness
 MM``) gives the original cross-section A0 (the simulated test's own when ``--load synthetic``).
-``LoadStage`` is a session stage (``stream.pipeline.stage.Stage``) placed after the strain stage: per frame it takes the force at
-the frame's time (seconds since the first frame for files and the simulator, the arrival on the
+``LoadStage`` is a session stage (``stream.pipeline.stage.Stage``) placed after the strain stage: per frame
+it takes the force at the frame's time (seconds since the first frame for files and the simulator, the arrival on the
 monotonic clock for a stream), interpolated, never extrapolated, NaN where the source has none
 (a stalled or lost stream: never a stale value), and the engineering stress F / A0, attaches both
 to the ``FrameResult`` (``result.force_N``, ``result.stress_MPa``) for the sinks after it
@@ -61,7 +61,7 @@ class LoadStage(Stage):
         self.load = load
         self.area_mm2 = area_mm2
         self.report = report
-        self.first_ns = None
+        self.first_ns: int | None = None
         self.frames = 0
         self.frames_without_force = 0
         self.max_force_N = -math.inf

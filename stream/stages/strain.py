@@ -142,10 +142,10 @@ class StrainConfig:
     """
     window: int = DEFAULT_WINDOW
     measure: str = DEFAULT_MEASURE
-    gauge_length: float = None
-    gauge_width: float = None
+    gauge_length: float | None = None
+    gauge_width: float | None = None
     extensometers: tuple = ()
-    scale: float = None
+    scale: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.window, int) or self.window < 3 or self.window % 2 == 0:
