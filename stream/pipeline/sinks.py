@@ -4,7 +4,7 @@ A sink is a callable ``sink(result, stats)`` (a ``stream.pipeline.frame_result.F
 and the running ``SessionStats``), called for every tracked frame, in order, in
 the session's output thread, at its own pace (the tracking thread hands results
 over and goes on: ``stream.pipeline.tracker_loop``). The measurement's own stages (strain,
-strain out, force) have the same form and run in the tracking thread. Optional
+strain out, force) run in the tracking thread instead (``stream.pipeline.stage.Stage``). Optional
 attributes say how the session treats it:
 
 ``name``
@@ -17,9 +17,8 @@ attributes say how the session treats it:
     Its row in the session's stage times (default: ``name``).
 
 The Rerun view (``stream.view.logger.RerunLogger``, in a session run in a process of
-its own: ``stream.view.process.ViewProcess``) is a sink as it is. Sinks to
-come (strain, extensometers, load channels) plug in the same way:
-``Session(config, sinks=[...])``.
+its own: ``stream.view.process.ViewProcess``) is a sink as it is. More sinks plug in
+the same way: ``Session(config, sinks=[...])``.
 """
 
 import math

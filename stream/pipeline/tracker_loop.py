@@ -3,7 +3,7 @@
 One linear loop (the Rerun examples' shape) in the tracking thread: take the
 next frame, track it, run the measurement's own *stages* on it (strain and
 extensometers, strain out to the controller, force: what the result is made
-of and what must leave at once), update the statistics, and hand the result
+of and what must leave at once; ``stream.pipeline.stage.Stage``), update the statistics, and hand the result
 to the *output thread*, which runs the *sinks* (recording of results, Rerun
 view, events, progress; a replay's CSV) in order, at their own pace: the
 measurement never waits for the display or the disk. The output thread's
@@ -53,12 +53,17 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
 from livedic.stream.pipeline.frame_queue import QueueClosed
-from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
+from livedic.acquire.base import Frame
+from livedic.stream.pipeline.frame_queue import FrameQueue
+from livedic.stream.pipeline.frame_result import FrameResult, ReferenceReady, SessionStats
+from livedic.stream.pipeline.stage import Stage
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000
@@ -97,18 +102,19 @@ class OutputThread:
     last one. A required sink's error stops the sinks (``error``) and calls ``on_required_error``.
     """
 
-    def __init__(self, sinks, stats, *, on_required_error, errors):
+    def __init__(self, sinks: list[Callable], stats: SessionStats, *, on_required_error: Callable[[], None],
+                 errors: list) -> None:
         self.sinks = sinks
         self.stats = stats
         self.on_required_error = on_required_error
         self.errors = errors
-        self.error = None
-        self._pending = collections.deque()
+        self.error: BaseException | None = None
+        self._pending: collections.deque = collections.deque()
         self._changed = threading.Condition()
         self._thread = threading.Thread(target=self._run, name="livedic-output", daemon=True)
         self._thread.start()
 
-    def put(self, result):
+    def put(self, result: FrameResult) -> None:
         """Queue ``result`` for the sinks; waits while ``OUTPUT_BACKLOG_MAX`` results are waiting."""
         stats = self.stats
         with self._changed:
@@ -119,7 +125,7 @@ class OutputThread:
             stats.output_backlog_max = max(stats.output_backlog_max, len(self._pending))
             self._changed.notify_all()
 
-    def finish(self, timeout=None):
+    def finish(self, timeout: float | None = None) -> bool:
         """Let the sinks take every result queued, then end the thread; True when it ended."""
         with self._changed:
             self._pending.append(_End)
@@ -171,10 +177,10 @@ class TrackerLoop:
         The tracker already built on the first frame the queue will give, and that frame tracked
         (before acquisition started: the frames after it do not queue up behind its set-up);
         ``make_tracker`` is not called.
-    stages : sequence of callables
-        ``stage(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the tracking
-        thread right after ``track``: what the result is made of (strain, force) and what must leave at
-        once (strain out).
+    stages : sequence of stream.pipeline.stage.Stage
+        ``stage.on_frame(result: FrameResult)`` for each frame, in order, in the tracking thread right
+        after ``track``: what the result is made of (strain, force) and what must leave at once (strain
+        out). The caller checks their order (``stream.pipeline.stage.check_stage_order``).
     sinks : sequence of callables
         ``sink(result: FrameResult, stats: SessionStats)`` for each frame, in order, in the output
         thread (``stream.pipeline.sinks``): recording, view, events, progress.
@@ -186,8 +192,10 @@ class TrackerLoop:
         How often to look at ``stop_event`` while waiting for a frame.
     """
 
-    def __init__(self, queue, make_tracker, *, reference=None, stages=(), sinks=(), stop_event=None,
-                 max_frames=None, poll_s=0.05):
+    def __init__(self, queue: FrameQueue, make_tracker: Callable[[Frame], Any], *,
+                 reference: ReferenceReady | None = None, stages: Sequence[Stage] = (),
+                 sinks: Sequence[Callable] = (), stop_event: threading.Event | None = None,
+                 max_frames: int | None = None, poll_s: float = 0.05) -> None:
         self.queue = queue
         self.make_tracker = make_tracker
         self._ready = reference
@@ -196,14 +204,14 @@ class TrackerLoop:
         self.stop_event = stop_event or threading.Event()
         self.max_frames = max_frames
         self.poll_s = poll_s
-        self.tracker = None
+        self.tracker: Any = None
         self.stats = SessionStats()
-        self.sink_errors = []
-        self.reference_frame = None
-        self.ended_by = None
-        self.output = None
+        self.sink_errors: list[tuple[Any, Exception]] = []
+        self.reference_frame: Frame | None = None
+        self.ended_by: str | None = None
+        self.output: OutputThread | None = None
 
-    def run(self):
+    def run(self) -> SessionStats:
         """Run to the end (the output thread's sinks too); returns the ``SessionStats``."""
         self.output = OutputThread(self.sinks, self.stats, on_required_error=self.stop_event.set,
                                    errors=self.sink_errors)
@@ -279,7 +287,7 @@ class TrackerLoop:
             for stage in list(self.stages):
                 started = time.perf_counter_ns()
                 try:
-                    stage(result, stats)
+                    stage.on_frame(result)
                 except Exception as error:  # noqa: BLE001 - keep measuring, report later
                     if getattr(stage, "required", False):
                         raise             # the session's output itself: it cannot go on without it
@@ -318,7 +326,7 @@ class TrackerLoop:
                 stats.latency_from = "capture"
 
 
-def score_against_truth(result, stats):
+def score_against_truth(result: FrameResult, stats: SessionStats) -> None:
     """The result's error against the source's truth (the simulator's exact motion), into ``result`` and ``stats``.
 
     The first sink of the output thread (the truth is the simulator's, not part of the measurement):

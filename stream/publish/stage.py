@@ -31,8 +31,8 @@ extensometer readings out as soon as the frame's result exists:
     ``DEFAULT_LINGER_S``, 0..60) before it closes, so a polling controller reads the end;
     the session's exit waits for what is left of it (the summary is said meanwhile).
 
-``PublishStage`` is a session sink placed right after the strain stage, before the load
-stage, the recording and the view, so the values leave as early as they exist. No force
+``PublishStage`` is a session stage (``stream.pipeline.stage.Stage``) placed right after the strain stage,
+before the load stage, the recording and the view, so the values leave as early as they exist. No force
 goes out: the controller has its own load cell, and the load stage may wait (bounded) for
 a live force stream's next sample, which strain out must not. A send that fails
 (network unreachable, no route) is a warning event once, counted, and publishing goes on;
@@ -47,15 +47,19 @@ the tracker's result to the send returning (``latency_ms``): the strain-out late
 import math
 import time
 from array import array
+from collections.abc import Callable, Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 
 from livedic.stream.publish.modbus import ModbusOutlet
 from livedic.stream.publish.udp import UdpOutlet
+from livedic.stream.pipeline.frame_result import FrameResult
+from livedic.stream.pipeline.stage import Reference, Stage
 from livedic.stream.publish.values import frame_values
 
 
-def preload(targets):
+def preload(targets: Sequence[Any]) -> None:
     """Import now what opening ``targets`` needs (pymodbus and asyncio for a Modbus server).
 
     The session calls it before it reads its first frame: the imports take ~0.1-0.2 s, and
@@ -68,7 +72,7 @@ def preload(targets):
         from pymodbus.simulator import DataType, SimData, SimDevice  # noqa: F401
 
 
-def open_outlet(target, names):
+def open_outlet(target: Any, names: Sequence[str]) -> UdpOutlet | ModbusOutlet:
     """The outlet for ``target``: ``UdpOutlet`` or ``ModbusOutlet`` (ValueError, one line, when it cannot open)."""
     if target.scheme == "udp":
         return UdpOutlet(target)
@@ -77,8 +81,8 @@ def open_outlet(target, names):
 
 # ----------------------------------------------------------------------------- the session stage
 
-class PublishStage:
-    """Sends every tracked frame's extensometer strain to one outlet (a session sink; see the module notes).
+class PublishStage(Stage):
+    """Sends every tracked frame's extensometer strain to one outlet (a session stage; see the module notes).
 
     Parameters
     ----------
@@ -102,20 +106,29 @@ class PublishStage:
     """
     required = False
     stage = "publish"                  # its row in the session's stage times
+    # what it sends; it sets nothing (an outlet: the summary gives its line after the measurement's)
+    needs: ClassVar[tuple[str, ...]] = ("frame", "done_ns", "extensometers")
+    provides: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, outlet, names, report):
+    def __init__(self, outlet: Any, names: Sequence[str], report: Callable[[str, str, str], None]) -> None:
         self.outlet = outlet
         self.names = tuple(names)
         self.report = report
         self.name = f"publish {outlet.where}"
-        self.first_ns = None
+        self.first_ns: int | None = None
         self.sent = 0
         self.failed = 0
         self.latencies_ns = array("q")
         self.upstream_ns = array("q")
-        self._failing = None               # (first frame not sent, failures since) while sends fail
+        self._failing: int | None = None   # the first frame not sent while sends fail
 
-    def __call__(self, result, stats):
+    def on_reference(self, reference: Reference) -> None:
+        """``time_s`` counts from the reference frame's timestamp."""
+        if reference.timestamp_ns is not None:
+            self.first_ns = reference.timestamp_ns
+
+    def on_frame(self, result: FrameResult) -> None:
+        """Send the frame's extensometer strain (a refused send is counted, warned about once)."""
         entered = time.monotonic_ns()
         frame = result.frame
         if self.first_ns is None:
@@ -138,7 +151,7 @@ class PublishStage:
                                    f"(not sent since frame {self._failing})", "info")
             self._failing = None
 
-    def latency_ms(self, percentile, *, part="all"):
+    def latency_ms(self, percentile: float, *, part: str = "all") -> float:
         """The strain-out latency's ``percentile`` (ms), NaN before any frame was sent.
 
         ``part``: ``"all"`` (result -> sent), ``"upstream"`` (result -> this stage's start) or
@@ -151,14 +164,14 @@ class PublishStage:
                   "stage": lambda: np.array(self.latencies_ns, np.int64) - np.array(self.upstream_ns, np.int64)}
         return float(np.percentile(values[part](), percentile)) / 1e6
 
-    def finish(self):
+    def finish(self) -> None:
         """The session ended (a Modbus map says so; the last values stay)."""
         self.outlet.finish()
 
-    def close(self):
+    def close(self) -> None:
         self.outlet.close()
 
-    def summary(self):
+    def summary(self) -> dict[str, Any]:
         """This outlet's numbers for the session summary."""
         return {"uri": self.outlet.where, "sent": self.sent, "failed": self.failed,
                 "latency_p50_ms": self.latency_ms(50), "latency_p99_ms": self.latency_ms(99),
@@ -167,8 +180,13 @@ class PublishStage:
                 "upstream_p99_ms": self.latency_ms(99, part="upstream"),
                 "stage_p50_ms": self.latency_ms(50, part="stage"), "stage_p99_ms": self.latency_ms(99, part="stage")}
 
+    def summary_lines(self) -> list[str]:
+        """The summary's line for this outlet."""
+        return format_publish_summary([self.summary()])
 
-def open_publishers(targets, names, report):
+
+def open_publishers(targets: Sequence[Any], names: Sequence[str],
+                    report: Callable[[str, str, str], None]) -> list[PublishStage]:
     """A ``PublishStage`` per target, opened (sockets, servers listening); closes them all if one fails.
 
     Raises
@@ -187,7 +205,7 @@ def open_publishers(targets, names, report):
     return stages
 
 
-def format_publish_summary(publish):
+def format_publish_summary(publish: Sequence[dict] | None) -> list[str]:
     """The summary's lines for the outlets (none without ``--publish``)."""
     def num(value):
         return "n/a" if value is None or not math.isfinite(value) else f"{value:.2f}"

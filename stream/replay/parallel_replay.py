@@ -75,6 +75,7 @@ import uuid
 from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -274,8 +275,8 @@ class ReplayJob:
     """What every worker needs once per replay (besides the key-frame trackers): output rows and numba threads."""
     token: str
     threads: int = 1
-    point_ids: np.ndarray = None          # with ``strain``: the frame's output rows are made on the worker
-    strain: object = None                 # the session's stream.stages.strain.StrainStage (its compute)
+    point_ids: np.ndarray | None = None   # with ``strain``: the frame's output rows are made on the worker
+    strain: Any = None                    # the session's stream.stages.strain.StrainStage (its compute)
     csv_text: bool = False                # ... and sent as CSV lines (else as columns)
 
 
@@ -310,8 +311,8 @@ class FrameMeasured:
     rows_seconds: float = 0.0             # the time the worker spent on them (strain and formatting)
 
 
-_TRACKERS = {}          # per worker thread: (segment token, thread) -> its KeyFrameTracker (a working copy)
-_READERS = {}           # per worker process: recording path -> acquire.recording.source.FrameReader
+_TRACKERS: dict = {}    # per worker thread: (segment token, thread) -> its KeyFrameTracker (a working copy)
+_READERS: dict = {}     # per worker process: recording path -> acquire.recording.source.FrameReader
 
 
 @dataclass(frozen=True)
@@ -718,20 +719,24 @@ class ParallelStats:
     rows_seconds: float = 0.0             # ... and the CSV lines' (strain and formatting on the workers)
     image_bytes: int = 0
     seed_bytes: int = 0
-    shared_path: str = None               # where the workers read the frames (None: sent from the client)
+    shared_path: str | None = None        # where the workers read the frames (None: sent from the client)
     wait_seconds: float = 0.0             # the replaying process waiting for results (the rest: its own work)
     segments: int = 1                     # trackers measured against: 1 + reference moves + fractures
     resubmitted: int = 0                  # frames measured again against a new segment's tracker
 
 
 class ParallelSession(Session):
-    """The replay's ``Session`` with its frames measured on a Dask cluster (``ServedTracker``); same sinks."""
+    """The replay's ``Session`` with its frames measured on a Dask cluster (``ServedTracker``); same sinks.
+
+    It gives the session its tracker factory (``serve``): the tracker a sequential replay would use, built on the
+    reference, stands for the workers' copies of it.
+    """
 
     def __init__(self, config, *, client, frames_again, recorded, in_flight=None, shared_path=None, point_ids=None,
                  rows=None, stats=None, **kwargs):
         self._keys = deque()
         source = kwargs.pop("source")
-        super().__init__(config, source=KeyedFrames(source, self._keys), **kwargs)
+        super().__init__(config, source=KeyedFrames(source, self._keys), tracker_factory=self.serve, **kwargs)
         self._client = client
         self._frames_again = frames_again
         self._recorded = recorded
@@ -743,8 +748,10 @@ class ParallelSession(Session):
         self.served = None
         self.results = None
 
-    def _make_tracker(self, frame):
-        tracker = super()._make_tracker(frame)       # the KeyFrameTracker a sequential replay would use
+    def serve(self, reference_image: np.ndarray, points: np.ndarray) -> ServedTracker:
+        """The ``ServedTracker`` on the reference: the results of the cluster's copies of the tracker a sequential
+        replay would build there (``config.tracking.tracker``), in order."""
+        tracker = self.config.tracking.tracker(reference_image, points)
         threads = cluster_threads(self._client)
         rows = self._rows is not None and self.strain is not None
         job = ReplayJob(token=uuid.uuid4().hex, threads=1, point_ids=np.asarray(self._point_ids[0]) if rows else None,

@@ -1,22 +1,27 @@
 """The end-of-session text: ``format_summary`` turns ``Session.summary()`` (a dict) into a few aligned lines.
 
-``format_strain_summary`` (used by replay too), ``format_pipeline`` and ``format_point_losses`` are its parts.
+``format_pipeline`` and ``format_point_losses`` are its parts; the stages give their own lines
+(``stream.pipeline.stage.Stage.summary_lines``: strain, force, strain out). ``format_strain_summary`` (the strain
+stage's, used by replay too) is re-exported here.
 """
 
 import math
 import os
+from collections.abc import Sequence
+from typing import Any
 
 from livedic.dic.status import Status
+from livedic.stream.pipeline.stage import Reference
 from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX
-from livedic.stream.publish import format_publish_summary
-from livedic.stream.stages.contraction import format_poisson
-from livedic.stream.stages.force import format_force_summary
-from livedic.stream.stages.strain import format_length
+from livedic.stream.stages.strain import format_strain_summary
 from livedic.stream.view.process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 
+__all__ = ["format_summary", "format_pipeline", "format_point_losses", "format_strain_summary"]
 
-def format_summary(summary, reference, recorder):
-    """The end-of-run text (plain, a few aligned lines)."""
+
+def format_summary(summary: dict[str, Any], reference: Reference | None, recorder: Any,
+                   stage_lines: Sequence[str] = ()) -> str:
+    """The end-of-run text (plain, a few aligned lines); ``stage_lines``: the stages' own, after the error's."""
     def num(value, fmt):
         return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
 
@@ -64,9 +69,7 @@ def format_summary(summary, reference, recorder):
     if summary.get("error_rms_px") is not None:
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
                      f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
-    lines.extend(format_strain_summary(summary.get("strain")))
-    lines.extend(format_force_summary(summary.get("force")))
-    lines.extend(format_publish_summary(summary.get("publish")))
+    lines.extend(stage_lines)
     if recorder is not None:
         size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
         if recorder.error:
@@ -76,8 +79,8 @@ def format_summary(summary, reference, recorder):
             lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
                          f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
     if summary.get("source_losses"):
-        losses = len(summary["source_losses"])
-        lines.append(f"  camera     lost {losses} time(s), back {summary['reconnects']} time(s); "
+        lost = len(summary["source_losses"])
+        lines.append(f"  camera     lost {lost} time(s), back {summary['reconnects']} time(s); "
                      f"{summary['outage_s']:.1f} s without frames")
     lines.append(f"  rerun      {summary['rerun']}"
                  + (f" STOPPED EARLY ({summary['rerun_error']}); see the warning above" if summary.get("rerun_error")
@@ -91,7 +94,7 @@ _POINT_LOSSES = (("points_never_trackable", "never trackable"),
                  ("points_lost_later", "lost later, not ok in the last frame"))
 
 
-def format_pipeline(summary):
+def format_pipeline(summary: dict[str, Any]) -> str:
     """How the tracking thread and the output thread did: the tracker against its kernel, the outputs' lag."""
     stages = summary.get("stages") or {}
     parts = []
@@ -121,7 +124,7 @@ def format_pipeline(summary):
     return "; ".join(parts)
 
 
-def format_point_losses(summary):
+def format_point_losses(summary: dict[str, Any]) -> str:
     """"12 never trackable (8 reference subset has no texture, ...); 5 lost later (...)", or "" when none."""
     parts = []
     for key, what in _POINT_LOSSES:
@@ -130,21 +133,3 @@ def format_point_losses(summary):
             reasons = ", ".join(f"{n} {Status[name].description}" for name, n in item["by_status"].items())
             parts.append(f"{item['count']} {what} ({reasons})")
     return "; ".join(parts)
-
-
-def format_strain_summary(strain):
-    """The summary's strain lines (none without strain): window, VSG, final extensometer readings."""
-    if not strain:
-        return []
-    lines = [f"  strain     {strain['strain_measure']}, window {strain['strain_window']} points, VSG "
-             f"{strain['vsg_px']:.0f} px; {strain['strain_ms_p50']:.2f} ms/frame (p99 {strain['strain_ms_p99']:.2f})"]
-    for name, final in strain["extensometers"].items():
-        reading = (f"{100 * final['eng_strain']:.3f} % engineering, {100 * final['true_strain']:.3f} % true"
-                   if final["ok"] else "no reading in the last frame (an end lost)")
-        error = final.get("error_max_vs_truth")
-        versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
-        lines.append(f"  extensom.  {name}: L0 {format_length(final['L0_px'], final.get('L0_mm'))}, final "
-                     f"{reading}{versus}")
-    if strain.get("poisson_ratio"):
-        lines.append(f"  Poisson    {format_poisson(strain['poisson_ratio'])}")
-    return lines

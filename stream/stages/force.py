@@ -3,30 +3,34 @@
 ``--load URI`` opens a force source (``acquire.force``: ``csv:FILE``, ``tcp://HOST:PORT``,
 ``synthetic`` for the simulated test's own law); ``--area MM2`` (or ``--width MM --thickness
 MM``) gives the original cross-section A0 (the simulated test's own when ``--load synthetic``).
-``LoadStage`` is a session sink placed after the strain stage: per frame it takes the force at
-the frame's time (seconds since the first frame for files and the simulator, the arrival on the
+``LoadStage`` is a session stage (``stream.pipeline.stage.Stage``) placed after the strain stage: per frame
+it takes the force at the frame's time (seconds since the first frame for files and the simulator, the arrival on the
 monotonic clock for a stream), interpolated, never extrapolated, NaN where the source has none
 (a stalled or lost stream: never a stale value), and the engineering stress F / A0, attaches both
 to the ``FrameResult`` (``result.force_N``, ``result.stress_MPa``) for the sinks after it
 (recording, Rerun's stress-strain curve, progress line), with the true strain and true stress of
 the ``axial`` extensometer while the elongation may be uniform (``result.true_strain``,
 ``result.true_stress_MPa``; ``stream.stages.stress.UniformElongationWatch``), reports the source's
-events (connected, stalled, lost) and keeps the numbers for the summary.
+events (connected, stalled, lost) and keeps the numbers for the summary (``format_force_summary``).
 """
 
 import dataclasses
 import math
 import time
+from collections.abc import Callable
+from typing import Any, ClassVar
 
 from livedic.acquire.force import open_load
 from livedic.dic.strain.extensometer import AXIAL
+from livedic.stream.pipeline.frame_result import FrameResult
+from livedic.stream.pipeline.stage import Reference, Stage
 from livedic.stream.stages.stress import UniformElongationWatch
 
 
 MISALIGNED_FRAMES = 25    # frames without force while samples arrive before the misalignment warning (0.5 s at 50 fps)
 
 
-def open_session_load(uri, *, offset_s, camera):
+def open_session_load(uri: str, *, offset_s: float | None, camera: Any) -> Any:
     """The load source for ``uri`` (``--load``): ``synthetic`` uses the session's simulated camera.
 
     Raises ValueError (``acquire.force.LoadError``: one line) for a bad URI or file.
@@ -37,8 +41,8 @@ def open_session_load(uri, *, offset_s, camera):
     return open_load(text, offset_s=offset_s)
 
 
-class LoadStage:
-    """Force and stress per frame (a session sink; see the module notes).
+class LoadStage(Stage):
+    """Force and stress per frame (a session stage; see the module notes).
 
     Parameters
     ----------
@@ -50,12 +54,14 @@ class LoadStage:
     """
     name = "force"
     required = False
+    needs: ClassVar[tuple[str, ...]] = ("frame", "arrival_ns", "extensometers")
+    provides: ClassVar[tuple[str, ...]] = ("force_N", "stress_MPa", "true_strain", "true_stress_MPa")
 
-    def __init__(self, load, area_mm2, report):
+    def __init__(self, load: Any, area_mm2: float | None, report: Callable[[str, str, str], None]) -> None:
         self.load = load
         self.area_mm2 = area_mm2
         self.report = report
-        self.first_ns = None
+        self.first_ns: int | None = None
         self.frames = 0
         self.frames_without_force = 0
         self.max_force_N = -math.inf
@@ -68,7 +74,13 @@ class LoadStage:
         self._last_sample_s = math.nan
         self.misaligned_warned = False
 
-    def __call__(self, result, stats):
+    def on_reference(self, reference: Reference) -> None:
+        """The frames' time counts from the reference frame's (files and the simulator)."""
+        if reference.timestamp_ns is not None:
+            self.first_ns = reference.timestamp_ns
+
+    def on_frame(self, result: FrameResult) -> None:
+        """The force at the frame's time, the stress (and true strain and stress) into ``result``."""
         started = time.perf_counter()
         frame = result.frame
         if self.first_ns is None:
@@ -111,7 +123,7 @@ class LoadStage:
                                 f"for {MISALIGNED_FRAMES} frames; check the stream's ?clock=sender and --load-offset",
                         "warning")
 
-    def summary(self):
+    def summary(self) -> dict[str, Any]:
         """The force numbers for the session summary (NaN/None where missing)."""
         top = self.max_force_N if math.isfinite(self.max_force_N) else math.nan
         counts = dataclasses.asdict(self.load.warnings)
@@ -121,8 +133,16 @@ class LoadStage:
                 "frames_without_force": self.frames_without_force, "frames": self.frames,
                 "source_warnings": {name: n for name, n in counts.items() if n and name != "trimmed"}}
 
+    def summary_lines(self) -> list[str]:
+        """The summary's force line."""
+        return format_force_summary(self.summary())
 
-def axial_strain(result):
+    def metadata(self) -> dict[str, Any]:
+        """A0 as used (given, or the load source's specimen)."""
+        return {"area_mm2": self.area_mm2}
+
+
+def axial_strain(result: FrameResult) -> float:
     """The ``axial`` extensometer's engineering strain in ``result`` (NaN without one or without a reading)."""
     readings = result.extensometers
     if readings is None or AXIAL not in readings.names:
@@ -131,7 +151,7 @@ def axial_strain(result):
     return strain if ok else math.nan
 
 
-def format_force_summary(force):
+def format_force_summary(force: dict | None) -> list[str]:
     """The summary's force line (none without a load)."""
     if not force:
         return []

@@ -5,13 +5,15 @@
 ``StrainConfig.place(points, p0, roi, step, subset)`` turns it into a
 ``StrainStage`` on the reference points (the strain windows found, the
 extensometers' ends placed and checked), once, before any output opens. The
-stage is the session's first sink: per frame it computes the strain field and
+stage is the session's first stage: per frame it computes the strain field and
 the extensometer readings from the tracked displacements, attaches them to the
 ``FrameResult`` (``result.strain``, ``result.extensometers``) for the sinks after
 it (recording, Rerun view, progress line), and keeps the last readings and its
 own cost for the summary. ``livedic export`` and ``livedic replay`` rebuild the
 same stage from the recording's metadata (``StrainConfig.from_metadata``), so a
-recording's strain is computed one way everywhere.
+recording's strain is computed one way everywhere. It is a ``stream.pipeline.stage.Stage``: it reads the
+tracker's measurement (and a fracture), provides ``strain`` and ``extensometers``, and gives the summary's
+strain lines (``format_strain_summary``, with Poisson's ratio when the session fits one on its pair).
 
 Extensometers:
 
@@ -30,12 +32,16 @@ import re
 import time
 from array import array
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 
 from livedic.dic.strain.extensometer import (AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints,
                                               place_extensometers, read_extensometers, strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
+from livedic.stream.pipeline.frame_result import FrameResult
+from livedic.stream.pipeline.stage import Stage
+from livedic.stream.stages.contraction import format_poisson
 
 TRANSVERSE_FRACTION = 0.8
 # An extensometer's expected noise at placement, for the warning below: the point displacement noise of IC-GN on
@@ -136,10 +142,10 @@ class StrainConfig:
     """
     window: int = DEFAULT_WINDOW
     measure: str = DEFAULT_MEASURE
-    gauge_length: float = None
-    gauge_width: float = None
+    gauge_length: float | None = None
+    gauge_width: float | None = None
     extensometers: tuple = ()
-    scale: float = None
+    scale: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.window, int) or self.window < 3 or self.window % 2 == 0:
@@ -300,24 +306,32 @@ def _float_or_none(value):
 
 
 @dataclass
-class StrainStage:
-    """The per-frame strain and extensometer computation on one set of reference points (a session sink).
+class StrainStage(Stage):
+    """The per-frame strain and extensometer computation on one set of reference points (a session stage).
 
-    Call it with a ``FrameResult`` (as a sink) or use ``compute(u, v, ok)`` directly.
+    Give it a ``FrameResult`` (``on_frame``) or use ``compute(u, v, ok)`` directly. It is placed on the points
+    in the session's preparation (``StrainConfig.place``: an extensometer off the points fails before any
+    output opens), so it has nothing to set up on the reference.
     """
+    needs: ClassVar[tuple[str, ...]] = ("frame", "measurement", "fracture")
+    provides: ClassVar[tuple[str, ...]] = ("strain", "extensometers")
+
     config: StrainConfig
     points: np.ndarray
-    windows: object                  # dic.strain.StrainWindow
-    placed: object                   # dic.strain.extensometer.ExtensometerSet
+    windows: Any                     # dic.strain.StrainWindow
+    placed: Any                      # dic.strain.extensometer.ExtensometerSet
     name: str = "strain"
     required: bool = False
-    last_strain: object = None       # the last frame's StrainField
-    last_readings: object = None     # ... and ExtensometerReadings
+    last_strain: Any = None          # the last frame's StrainField
+    last_readings: Any = None        # ... and ExtensometerReadings
     seconds: array = field(default_factory=lambda: array("d"))
-    point_labels: np.ndarray = None  # the side of each crack each point is on (after a fracture)
-    end_labels: np.ndarray = None
+    point_labels: np.ndarray | None = None  # the side of each crack each point is on (after a fracture)
+    end_labels: np.ndarray | None = None
     truth_errors: dict = field(default_factory=dict)   # name -> max |eng strain error| against the truth
-    last_timings: dict = None        # the last frame's {"strain": ns, "extensometers": ns} (the stage times)
+    last_timings: dict | None = None  # the last frame's {"strain": ns, "extensometers": ns} (the stage times)
+    # Poisson's ratio fitted on the axial/transverse pair (stream.stages.contraction.ContractionWatch, a sink of
+    # the session's output thread), summarised with the strain
+    contraction: Any = None
 
     @property
     def extensometers(self):
@@ -364,7 +378,8 @@ class StrainStage:
         l0 = np.hypot(ends[second, 0] - ends[first, 0], ends[second, 1] - ends[first, 1])
         return length / l0 - 1.0
 
-    def __call__(self, result, stats):
+    def on_frame(self, result: FrameResult) -> None:
+        """The frame's strain field and extensometer readings into ``result`` (``strain``, ``extensometers``)."""
         started = time.perf_counter_ns()
         if result.fracture is not None:
             self.add_fracture(result.fracture)
@@ -444,3 +459,31 @@ class StrainStage:
         return {"strain_measure": self.config.measure, "strain_window": self.windows.window,
                 "vsg_px": self.vsg_px, "strain_ms_p50": self.ms_per_frame(50),
                 "strain_ms_p99": self.ms_per_frame(99), "extensometers": final}
+
+    def summary_lines(self) -> list[str]:
+        """The summary's strain lines (``format_strain_summary``), Poisson's ratio among them when fitted."""
+        return format_strain_summary({**self.summary(),
+                                      **(self.contraction.summary() if self.contraction is not None else {})})
+
+    def metadata(self) -> dict[str, Any]:
+        """The VSG and the extensometers as placed (name and ends in reference px)."""
+        return {"vsg_px": self.vsg_px,
+                "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.extensometers]}
+
+
+def format_strain_summary(strain: dict | None) -> list[str]:
+    """The summary's strain lines (none without strain): window, VSG, final extensometer readings."""
+    if not strain:
+        return []
+    lines = [f"  strain     {strain['strain_measure']}, window {strain['strain_window']} points, VSG "
+             f"{strain['vsg_px']:.0f} px; {strain['strain_ms_p50']:.2f} ms/frame (p99 {strain['strain_ms_p99']:.2f})"]
+    for name, final in strain["extensometers"].items():
+        reading = (f"{100 * final['eng_strain']:.3f} % engineering, {100 * final['true_strain']:.3f} % true"
+                   if final["ok"] else "no reading in the last frame (an end lost)")
+        error = final.get("error_max_vs_truth")
+        versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
+        lines.append(f"  extensom.  {name}: L0 {format_length(final['L0_px'], final.get('L0_mm'))}, final "
+                     f"{reading}{versus}")
+    if strain.get("poisson_ratio"):
+        lines.append(f"  Poisson    {format_poisson(strain['poisson_ratio'])}")
+    return lines

@@ -39,7 +39,7 @@ def _run(stream, frames=2 * MISALIGNED_FRAMES):
     for i in range(frames):
         result = SimpleNamespace(frame=SimpleNamespace(timestamp_ns=i * 20_000_000), arrival_ns=0,
                                  extensometers=None)
-        stage(result, None)
+        stage.on_frame(result)
     return said
 
 

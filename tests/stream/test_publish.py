@@ -325,10 +325,12 @@ def test_strain_goes_out_before_the_load_stage_waits_for_force(tmp_path):
         publisher = session.publishers[0]
         assert sinks == [session.strain, publisher, session.load_stage]
 
-        def watched(result, stats):               # what the frame holds when the publisher runs
+        send = publisher.on_frame
+
+        def watched(result):                      # what the frame holds when the publisher runs
             seen.append((result.extensometers is not None, result.force_N))
-            publisher(result, stats)
-        sinks[1] = watched
+            send(result)
+        publisher.on_frame = watched
         session.run()
     messages = [json.loads(d) for d in _drain(receiver)]
     receiver.close()
@@ -456,18 +458,19 @@ def test_modbus_answers_the_ended_state_for_the_linger_then_closes(tmp_path):
 
 _WATCH_THE_FIRST_FRAME = """
 import sys
+import livedic.stream.session.preparation as preparation_module
 import livedic.stream.session.session as session_module
 from livedic.stream.session.config import SessionConfig, ViewerConfig
 from livedic.stream.stages.strain import StrainConfig
 
 
-class Watched(session_module.FirstFrameAhead):
+class Watched(preparation_module.FirstFrameAhead):
     def __init__(self, source, uri):
         print("pymodbus.server" in sys.modules)          # imported by the time the first frame is read?
         super().__init__(source, uri)
 
 
-session_module.FirstFrameAhead = Watched
+preparation_module.FirstFrameAhead = Watched
 config = SessionConfig(source="synthetic:tensile?size=192x256&frames=2&pace=0", viewer=ViewerConfig("none"),
                        record=None, warm_up=False, strain=StrainConfig(gauge_length=100),
                        publish=("modbus://127.0.0.1:0?linger_s=0",))

@@ -39,7 +39,7 @@ def _session(path, *, force=_force, fracture_at=None, area=AREA):
     for i in range(FRAMES):
         u, v = _field(i, x, y)
         result = _frame_result(i, x, y, u, v)
-        stage(result, SessionStats())
+        stage.on_frame(result)
         f = force(i)
         result.force_N, result.stress_MPa = f, f / area if area else math.nan
         if watch is not None:
@@ -159,8 +159,8 @@ def test_the_load_stage_gives_true_values_from_the_axial_extensometer(tmp_path):
         force_stage = LoadStage(load, AREA, lambda *event: None)
         for i in range(3):
             result = _frame_result(i, x, y, *_field(i, x, y))
-            stage(result, SessionStats())
-            force_stage(result, SessionStats())
+            stage.on_frame(result)
+            force_stage.on_frame(result)
     e = EYY * 2
     assert result.force_N == pytest.approx(2000.0) and result.stress_MPa == pytest.approx(200.0)
     assert result.true_strain == pytest.approx(math.log1p(e), abs=1e-9)

@@ -48,15 +48,15 @@ class LoadStageSpy:
         from livedic.stream.stages import force as load_stage
         self.frames = []
         self.first_frame = threading.Event()
-        original = load_stage.LoadStage.__call__
+        original = load_stage.LoadStage.on_frame
         spy = self
 
-        def observed(stage, result, stats):
-            original(stage, result, stats)
+        def observed(stage, result):
+            original(stage, result)
             spy.frames.append((result.frame.index, result.arrival_ns / 1e9, result.force_N))
             spy.first_frame.set()
 
-        monkeypatch.setattr(load_stage.LoadStage, "__call__", observed)
+        monkeypatch.setattr(load_stage.LoadStage, "on_frame", observed)
 
     def table(self):
         index, arrival, force = (np.array(column) for column in zip(*self.frames))

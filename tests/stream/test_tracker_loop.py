@@ -14,10 +14,22 @@ from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.tracking import Tracker
 from livedic.stream.pipeline.acquisition import AcquisitionThread
 from livedic.stream.pipeline.frame_queue import FrameQueue
+from livedic.stream.pipeline.stage import Stage
 from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
 
 FRAMES = 12
 WAIT_S = 30.0          # generous: a wait that ends by timeout means the behaviour under test is broken
+
+
+class _Stage(Stage):
+    """A stage that runs ``handle(result)`` on each frame."""
+    name = "test stage"
+
+    def __init__(self, handle):
+        self.handle = handle
+
+    def on_frame(self, result):
+        self.handle(result)
 
 
 def _loop(frames=FRAMES, **options):
@@ -33,7 +45,7 @@ def test_sinks_run_in_their_own_thread_in_order_and_stages_in_the_tracking_threa
     threads = {"stage": set(), "sink": set()}
     seen = []
 
-    def stage(result, stats):
+    def stage(result):
         threads["stage"].add(threading.get_ident())
         result.strain = "made by the stage"          # what a stage adds reaches the sinks
 
@@ -41,7 +53,7 @@ def test_sinks_run_in_their_own_thread_in_order_and_stages_in_the_tracking_threa
         threads["sink"].add(threading.get_ident())
         seen.append((result.frame.index, result.strain))
 
-    loop, acquisition = _loop(stages=[stage], sinks=[sink])
+    loop, acquisition = _loop(stages=[_Stage(stage)], sinks=[sink])
     loop.run()
     acquisition.join(5)
     assert threads["stage"] == {threading.get_ident()}
@@ -56,7 +68,7 @@ def test_a_blocked_view_cannot_hold_the_tracker_back():
     all_tracked = threading.Event()
     got = []
 
-    def counting(result, stats):
+    def counting(result):
         if result.frames_done == FRAMES:
             all_tracked.set()
 
@@ -65,7 +77,7 @@ def test_a_blocked_view_cannot_hold_the_tracker_back():
             raise AssertionError("the tracker did not get through the frames while the view was blocked")
         got.append(result.output_backlog)
 
-    loop, acquisition = _loop(stages=[counting], sinks=[blocked_view])
+    loop, acquisition = _loop(stages=[_Stage(counting)], sinks=[blocked_view])
     stats = loop.run()
     acquisition.join(5)
     assert all_tracked.is_set() and stats.frames == FRAMES and not loop.sink_errors
@@ -98,11 +110,11 @@ def test_the_tracker_waits_for_a_view_more_than_the_backlog_behind(monkeypatch):
 def test_stage_times_name_each_tracker_stage_stage_and_sink():
     from livedic.dic.tracking import TRACKER_STAGES
 
-    class Split:
+    class Split(Stage):
         name = "strain"
         last_timings = None
 
-        def __call__(self, result, stats):
+        def on_frame(self, result):
             self.last_timings = {"strain": 1000, "extensometers": 2000}
 
     class Recording:
