@@ -195,13 +195,14 @@ def run_session(args: argparse.Namespace) -> int:
         session.run()
     print(session.summary_text(), flush=True)
     if config.summary_json:
-        write_summary_json(config.summary_json, session.summary(), session.say)
+        write_summary_json(config.summary_json, session.summary() or {}, session.say)
     error = session.source_error
     if error is not None:
         if session.acquisition.frames:
             # It had delivered: not bad input but a loss mid-session (the CLI's exit code 3).
             raise SourceLost(str(error)) from error
         raise error if isinstance(error, SourceError) else SourceError(str(error))
-    if session.stats.frames == 0 and not session.stopped_by:
+    stats = session.stats
+    if stats is not None and stats.frames == 0 and not session.stopped_by:
         raise SourceError(f"{config.source} delivered no frame")
     return 0

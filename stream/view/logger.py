@@ -645,8 +645,10 @@ class RerunLogger:
             return
         true_stress = result.true_stress_MPa
         true = None
-        text = f"{100 * strain:.3f} %   {stress:.1f} MPa   F {force / 1000.0:.3f} kN"
-        if true_stress is not None and np.isfinite(true_stress):
+        text = f"{100 * strain:.3f} %   {stress:.1f} MPa"
+        if force is not None:
+            text += f"   F {force / 1000.0:.3f} kN"
+        if true_stress is not None and np.isfinite(true_stress) and result.true_strain is not None:
             true = (100.0 * result.true_strain, true_stress)
             text += f"   true {true_stress:.1f} MPa"
         if self._broken:
