@@ -73,13 +73,11 @@ class ChildOutput:
         return next((at for at, line in list(self.stderr_lines) if text in line), None)
 
     def wait_for(self, text, timeout_s):
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if self.arrival(text) is not None:
-                return
-            assert self.process.poll() is None, f"livedic ended before saying {text!r}:\n{self.stderr()}"
-            time.sleep(0.05)
-        raise AssertionError(f"livedic did not say {text!r} within {timeout_s:g} s:\n{self.stderr()}")
+        def said():
+            assert self.process.poll() is None or self.arrival(text) is not None, \
+                f"livedic ended before saying {text!r}:\n{self.stderr()}"
+            return self.arrival(text) is not None
+        wait_until(said, timeout_s, f"livedic saying {text!r}")
 
     def finish(self, timeout_s):
         """Wait for the exit (the time limit only guards against a hang); (exit time, stdout, stderr)."""
@@ -91,12 +89,8 @@ class ChildOutput:
 
 
 def wait_for_served(fake, frames, timeout_s=60.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if (fake.served() or {}).get("frames_served", 0) >= frames:
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"the camera did not serve {frames} frames within {timeout_s:g} s")
+    wait_until(lambda: (fake.served() or {}).get("frames_served", 0) >= frames, timeout_s,
+               f"the camera serving {frames} frames")
 
 
 def served_phase(image):
