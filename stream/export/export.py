@@ -67,229 +67,37 @@ one line says so (exit 130 or 143). Existing files are not replaced unless ``--o
 ``truncated`` flag is the reader's (``RecordingInfo.truncated``), never read from
 the note's text.
 
-The helpers here (CSV formatting, atomic files, reader notes, P0 lookup) are also
-used by ``stream.replay.replay``.
+The parts live beside this module: ``columns`` (the CSV columns and files), ``notes`` (the reader's notes,
+the session metadata), ``recomputed_strain`` (strain and extensometers from the recorded displacements),
+``force`` (the machine's force and the stress-strain files), ``stop`` (Ctrl-C and SIGTERM); ``livedic
+replay`` uses the first two.
 """
 
 import csv
 import io
-import logging
-import math
 import os
-import re
-import signal
-import sys
-import threading
-from contextlib import contextmanager
 from datetime import datetime, timezone
 
 import numpy as np
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.output.files import AtomicFile, check_output_folder, json_text, write_text_atomic
+from livedic.stream.output.files import check_output_folder, json_text, write_text_atomic
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
-                                         FieldWriter, RecordedImages, quantities, remove_stale, video_name)
+from livedic.stream.export.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldWriter,
+                                                RecordedImages, quantities, remove_stale, video_name)
+from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_FILES, EXPORT_KEY, EXTENSOMETER_COLUMNS,
+                                          EXTRA_COLUMNS, LEADING_COLUMNS, P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES,
+                                          extensometer_columns, result_columns)
+from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
+from livedic.stream.export.notes import plural, reader_notes, session_or_note
+from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _strain_settings, p0_point_id,
+                                                     plot_extensometers, strain_stage)
+from livedic.stream.export.stop import _stopped_in
+# Re-exported: stream.cli's export, replay and report commands name them as export's.
+from livedic.stream.export.force import stress_from_args  # noqa: F401
+from livedic.stream.export.notes import say  # noqa: F401
+from livedic.stream.export.stop import ExportStopped, StopSignals  # noqa: F401
 
-LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
-EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
-P0_COLUMNS = ("frame", "timestamp_ns", "time_s", "x", "y", "u", "v", "zncc", "ok")
-EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
-STRAIN_COLUMNS = ("exx", "eyy", "exy")
-EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok")
-EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
-BINARY_FILES = ("extensometers.png", "stress_strain.png")
-STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
-EXPORT_KEY = "livedic.export"
-
-_READER_LOGGER = "livedic.acquire.recording.reader"
-
-
-def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, extras):
-    """The long-format columns of one frame (``LEADING_COLUMNS`` then ``extras`` in ``EXTRA_COLUMNS`` order)."""
-    columns = {"frame": int(frame_index), "timestamp_ns": int(timestamp_ns), "point_id": point_id,
-               "x": x, "y": y, "u": u, "v": v, "zncc": zncc, "ok": np.asarray(ok, dtype=bool)}
-    for name in EXTRA_COLUMNS:
-        if name in extras:
-            columns[name] = extras[name]
-    return columns
-
-
-# ----------------------------------------------------------------------------- files
-
-# The atomic writer shared by every output of livedic (kept under its old name for callers).
-StagedFile = AtomicFile
-
-
-# ----------------------------------------------------------------------------- recording helpers
-
-@contextmanager
-def reader_notes():
-    """Collect the notes ``acquire.recording.reader`` logs (truncated file ...) instead of printing them raw.
-
-    Yields a list that fills with one line per distinct note ("note: " prefix removed).
-    The lines are for people; what a program acts on is the reader's ``RecordingInfo``.
-    """
-    notes = []
-
-    class _Collect(logging.Handler):
-        def emit(self, record):
-            text = record.getMessage()
-            text = text[len("note: "):] if text.startswith("note: ") else text
-            if text not in notes:
-                notes.append(text)
-
-    logger = logging.getLogger(_READER_LOGGER)
-    handler = _Collect(level=logging.INFO)
-    previous = logger.propagate
-    logger.addHandler(handler)
-    logger.propagate = False
-    try:
-        yield notes
-    finally:
-        logger.removeHandler(handler)
-        logger.propagate = previous
-
-
-def p0_point_id(metadata):
-    """(id of the traced point P0, how it was found) from session metadata; 0 by convention."""
-    for key in ("p0_id", "p0_point_id"):
-        value = metadata.get(key)
-        if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0:
-            return int(value), f"session metadata {key}"
-    text = metadata.get("point_ids")
-    if isinstance(text, str):
-        match = re.search(r"P0 is point (\d+)", text)
-        if match:
-            return int(match.group(1)), f"session metadata point_ids ({text!r})"
-    return 0, "not in the session metadata: point 0, livedic's convention"
-
-
-def session_or_note(recording):
-    """(session metadata dict, note or "") of a ``Recording``: one without metadata gives {} and a note."""
-    from livedic.acquire.recording.errors import NoSessionMetadata
-    try:
-        return recording.session(), ""
-    except NoSessionMetadata as missing:
-        return {}, str(missing)
-
-
-def read_session_or_note(path):
-    """``session_or_note`` of the recording at ``path`` (``RecordingError`` if it is not one)."""
-    from livedic.acquire.recording.reader import Recording
-    return session_or_note(Recording(path))
-
-
-def say(message):
-    print(f"livedic: {message}", file=sys.stderr, flush=True)
-
-
-# ----------------------------------------------------------------------------- strain
-
-def reference_geometry(metadata, first, p0_id):
-    """(points (N, 2), p0 (x, y), roi, step, subset) of a recording, as the session placed its strain stage.
-
-    ``first`` is the first ``RecordedResults``: its ``x, y`` are the reference points as the
-    tracker used them (pixel centres), P0 the point ``p0_id`` (point 0 by convention). The
-    ROI is the recorded one, or the points' extent when the session had none ("full image");
-    the step the recorded grid step (None: the points' typical spacing).
-    """
-    points = np.column_stack([first.x, first.y]).astype(np.float64)
-    where = np.flatnonzero(first.point_id == p0_id)
-    p0 = tuple(points[int(where[0]) if where.size else 0])
-    roi = metadata.get("roi")
-    if isinstance(roi, (list, tuple)) and len(roi) == 4 and all(isinstance(v, (int, float)) for v in roi):
-        roi = tuple(float(v) for v in roi)
-    elif len(points):
-        lo, hi = points.min(axis=0), points.max(axis=0)
-        roi = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
-    else:
-        roi = (0.0, 0.0, 0.0, 0.0)
-    step = None
-    for key in ("grid_step", "step"):
-        value = metadata.get(key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
-            step = float(value)
-            break
-    subset = metadata.get("subset")
-    subset = int(subset) if isinstance(subset, int) and not isinstance(subset, bool) and subset > 0 else 21
-    return points, p0, roi, step, subset
-
-
-def strain_stage(metadata, first, p0_id, overrides=None):
-    """The ``stream.stages.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
-
-    Raises
-    ------
-    ValueError
-        A bad setting, or an extensometer end away from the tracked points (one line).
-    """
-    from livedic.stream.stages.strain import StrainConfig
-    config = StrainConfig.from_metadata(metadata, **(overrides or {}))
-    points, p0, roi, step, subset = reference_geometry(metadata, first, p0_id)
-    return config.place(points, p0=p0, roi=roi, step=step, subset=subset)
-
-
-def extensometer_columns(frame_index, time_s, readings):
-    """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer)."""
-    return {"frame": int(frame_index), "time_s": float(time_s),
-            "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
-            "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
-            "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
-
-
-def _csv_cell(text):
-    """``text`` as one CSV cell (quoted only where CSV needs it)."""
-    text = str(text)
-    if any(c in text for c in ',"\n\r'):
-        return '"' + text.replace('"', '""') + '"'
-    return text
-
-
-def _lost_readings(placed):
-    """Readings of ``placed`` extensometers for a frame whose points differ from the reference's: none ok."""
-    from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerStatus
-    n = len(placed.names)
-    nan = np.full(n, np.nan)
-    l0 = np.array([e.length_px for e in placed.extensometers], dtype=np.float64)
-    return ExtensometerReadings(names=placed.names, l0_px=l0, length_px=nan, eng_strain=nan.copy(),
-                                true_strain=nan.copy(),
-                                status=np.full(n, int(ExtensometerStatus.END_LOST), dtype=np.int32))
-
-
-def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=None, empty_note=""):
-    """Write ``extensometers.png`` to ``handle``: engineering strain (%) against time, one line each.
-
-    ``strains`` is (frames, extensometers), NaN where not ok: the line has a gap there
-    (points drawn too, so a reading between two gaps still shows). ``l0_px`` may be shorter than
-    ``names`` (a recording with no results places no extensometer): those have no L0 in the legend.
-    """
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(8, 4.5), dpi=100, layout="constrained")
-    axes = figure.add_subplot()
-    times = np.asarray(times, dtype=np.float64)
-    strains = np.asarray(strains, dtype=np.float64).reshape(len(times), len(names))
-    for k, name in enumerate(names):
-        if k < len(l0_px):
-            name += f" (L0 {l0_px[k]:.0f} px" + (f" = {l0_px[k] / scale:.2f} mm)" if scale else ")")
-        axes.plot(times, 100.0 * strains[:, k], marker=".", markersize=3, linewidth=1.2, label=name)
-    axes.set_xlabel("time since the reference frame (s)")
-    axes.set_ylabel("engineering strain (L - L0) / L0 (%)")
-    axes.set_title(title, fontsize=10)
-    axes.grid(True, alpha=0.3)
-    axes.axhline(0.0, color="0.5", linewidth=0.6)
-    if names:
-        gaps = "gaps: no reading (an end lost its points)" if np.isnan(strains).any() else None
-        axes.legend(loc="best", fontsize=9, title=gaps, title_fontsize=8)
-    else:
-        axes.text(0.5, 0.5, empty_note, ha="center", va="center", transform=axes.transAxes, fontsize=10)
-    if len(times) == 0 or not names:
-        axes.set_xlim(0, 1)
-    figure.savefig(handle, format="png")
-
-
-# ----------------------------------------------------------------------------- export
 
 def export_recording(path, directory, *, overwrite=False, strain=None, stress=None, fields=NO_FIELDS, stop=None,
                      progress=None):
@@ -490,8 +298,6 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
             "strain": stage.describe() if stage is not None else "", "stress": stress_summary, "fields": report}
 
 
-# ----------------------------------------------------------------------------- maps, video, VTK
-
 def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
                   title_note):
     """The second pass over the recording: ``stream.export.field_export.FieldWriter`` on every frame with results."""
@@ -564,62 +370,6 @@ def _field_notes(report):
     return notes
 
 
-# ----------------------------------------------------------------------------- stopping
-
-class ExportStopped(Exception):
-    """A stop signal ended the export; ``state`` (one line) says what the folder holds."""
-
-    def __init__(self, signal_name, signum):
-        super().__init__(signal_name)
-        self.signal_name = signal_name
-        self.signum = int(signum)
-        self.state = ""
-
-
-class StopSignals:
-    """SIGINT (Ctrl-C) and SIGTERM during ``livedic export``: the first stops the export at the next frame.
-
-    The handler only takes note; ``check`` (called once per frame) raises ``ExportStopped``, so a
-    stop never lands inside a library call that is writing a file. A second signal gives up at
-    once (``KeyboardInterrupt``). Installed only in the main thread (signals reach no other).
-    """
-
-    def __init__(self):
-        self.received = None
-        self._previous = {}
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                self._previous[signum] = signal.signal(signum, self._handle)
-        return self
-
-    def _handle(self, signum, _frame):
-        if self.received is not None:
-            raise KeyboardInterrupt
-        self.received = signal.Signals(signum)
-
-    def check(self):
-        if self.received is not None:
-            raise ExportStopped(self.received.name, self.received.value)
-
-    def __exit__(self, *exc):
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-        return False
-
-
-@contextmanager
-def _stopped_in(state):
-    """Give an ``ExportStopped`` leaving this block its ``state`` (text, or a callable for the text at that time)."""
-    try:
-        yield
-    except ExportStopped as stopped:
-        if not stopped.state:
-            stopped.state = state() if callable(state) else state
-        raise
-
-
 def _frames_delivered(recording, session):
     """How many frames the session delivered in the end, and how that is known, for ``session.json``.
 
@@ -638,188 +388,3 @@ def _frames_delivered(recording, session):
         session["source_settings"] = {**settings, "frames_delivered": count,
                                       "frames_delivered_at_start": settings["frames_delivered"]}
     return {"frames_delivered": count, "frames_delivered_from": how}
-
-
-class RecordedForce:
-    """The force recorded on ``/machine/force``, one value per tracked frame.
-
-    Attributes
-    ----------
-    forces : dict
-        Frame index -> force (N; NaN where the load had no value for that frame).
-    source : str
-        The load URI the session recorded (the last one seen; "" when none was written).
-    """
-
-    def __init__(self, forces, source=""):
-        self.forces = dict(forces)
-        self.source = str(source)
-
-    @classmethod
-    def read(cls, recording):
-        """The force samples of a ``Recording`` (an empty ``forces`` for recordings without them)."""
-        forces, source = {}, ""
-        for sample in recording.force_samples():
-            forces[int(sample.frame_index)] = float(sample.force_N)
-            source = sample.source or source
-        return cls(forces, source)
-
-    def on_frames(self, frames):
-        """Force at each of ``frames`` (indices): the recorded value, NaN for a frame without one."""
-        return np.array([self.forces.get(int(frame), math.nan) for frame in frames], dtype=np.float64)
-
-
-def _force_on_frames(load, frames, times):
-    """Force per frame: by frame index from the recording, or the load interpolated onto ``times``."""
-    if isinstance(load, RecordedForce):
-        return load.on_frames(frames)
-    return load.force_at(np.asarray(times, dtype=np.float64))
-
-
-def _force_label(stress):
-    """What the plot title calls the force: the file's name, or the recorded channel."""
-    from livedic.acquire.recording.schema import TOPIC_FORCE
-    if stress.recorded:
-        return f"recorded {TOPIC_FORCE}"
-    return os.path.basename(stress.load[len('csv:'):])
-
-
-def _open_stress_load(stress, names, recording=None):
-    """The ``LoadSource`` of ``stress``, or the ``RecordedForce`` of ``recording`` (None without ``stress``).
-
-    ValueError (one line) if there is no axial extensometer."""
-    if stress is None:
-        return None
-    from livedic.acquire.force import open_load
-    from livedic.dic.strain.extensometer import AXIAL
-    if AXIAL not in names:
-        raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
-                         f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
-                         f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
-    if stress.recorded:
-        return RecordedForce.read(recording)
-    return open_load(stress.load, offset_s=stress.offset_s)
-
-
-def stress_from_args(args):
-    """``StressOptions`` of ``livedic export`` / ``report`` and note lines for people.
-
-    With ``--load``, that load (a note when the recording also holds force samples, which it
-    replaces); without, the force recorded on ``/machine/force`` when the recording holds some
-    (A0 from the options or the session's ``area_mm2``), else None. Bad options raise before the
-    recording is read; ValueError (one line) as ``stream.stages.stress.stress_options_from_args``.
-    """
-    from livedic.acquire.recording.reader import Recording
-    from livedic.acquire.recording.schema import TOPIC_FORCE
-    from livedic.stream.stages.stress import stress_options_from_args
-    load = getattr(args, "load", None)
-    section = any(getattr(args, name, None) is not None for name in ("area", "width", "thickness"))
-    if load is not None and section:
-        stress = stress_options_from_args(args)               # bad options: one line, before anything is read
-    with reader_notes():                                      # the command's own read reports them, once
-        recording = Recording(os.fspath(args.recording))
-        recorded = RecordedForce.read(recording)
-        metadata = session_or_note(recording)[0] if recorded.forces or (load is not None and not section) else {}
-    if load is not None:
-        if not section:                                       # A0 from the session, when it recorded one
-            stress = stress_options_from_args(args, metadata=metadata)
-        notes = [f"--load {stress.load} is the force here, not the one recorded on {TOPIC_FORCE} "
-                 f"({plural(len(recorded.forces), 'frame')})"] if recorded.forces else []
-        return stress, notes
-    return stress_options_from_args(args, recorded_force=bool(recorded.forces), metadata=metadata), []
-
-
-def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
-    """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
-    from livedic.dic.strain.extensometer import AXIAL
-    from livedic.stream.stages.stress import (force_coverage_notes, plot_stress_strain, stress_strain_rows,
-                                       stress_strain_table)
-    times = np.asarray(times, dtype=np.float64)
-    force = _force_on_frames(load, frames, times)
-    table = stress_strain_table(frames, times, force, eng[:, list(names).index(AXIAL)], area_mm2)
-    staged["stress_strain.csv"].write(stress_strain_rows(table, csv_rows))
-    plot_stress_strain(staged["stress_strain.png"].handle, table, title=title)
-    return {"frames_with_force": int(np.isfinite(force).sum()), "uniform_frame_row": table.uniform_frame,
-            "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else -1,
-            "notes": force_coverage_notes(table.frame, table.time_s, table.force_N, table.eng_strain)}
-
-
-def axial_series(path, strain=None):
-    """The ``axial`` extensometer of a recording, frame by frame, recomputed as ``export_recording`` does.
-
-    Returns
-    -------
-    dict
-        ``metadata``, ``frames`` (indices), ``time_s`` (since the first frame with results),
-        ``eng_strain`` (NaN where not read), ``transverse_eng_strain`` (the ``transverse``
-        extensometer's, all NaN without one: ``has_transverse``), ``l0_px``, ``scale`` (px/mm or None), ``truncated``,
-        ``notes``, ``strain`` (the stage's one-line description).
-
-    Raises
-    ------
-    ValueError
-        Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
-    """
-    from livedic.acquire.recording.reader import Recording
-    from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
-    from livedic.stream.stages.strain import StrainConfig
-    with reader_notes() as notes:
-        recording = Recording(os.fspath(path))
-        metadata, session_note = session_or_note(recording)
-        if session_note:
-            notes.append(session_note)
-        p0_id, _ = p0_point_id(metadata)
-        config = StrainConfig.from_metadata(metadata, **(strain or {}))
-        results = recording.results()
-        first = next(results, None)
-        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-        if AXIAL not in names:
-            raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
-                             f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
-                             f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
-        column = list(names).index(AXIAL)
-        across = list(names).index(TRANSVERSE) if TRANSVERSE in names else None
-        frames, times, eng, transverse = [], [], [], []
-        t0 = None
-        for result in _chain(first, results):
-            if np.array_equal(result.point_id, first.point_id):
-                _, readings = stage.compute(result.u, result.v, result.ok)
-            else:
-                readings = _lost_readings(stage.placed)
-            t0 = int(result.timestamp_ns) if t0 is None else t0
-            frames.append(int(result.frame_index))
-            times.append((int(result.timestamp_ns) - t0) / 1e9)
-            eng.append(float(readings.eng_strain[column]))
-            transverse.append(float(readings.eng_strain[across]) if across is not None else math.nan)
-        truncated = recording.info.truncated
-    l0 = stage.extensometers[column].length_px if stage is not None else math.nan
-    return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
-            "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
-            "transverse_eng_strain": np.asarray(transverse, dtype=np.float64), "has_transverse": across is not None,
-            "l0_px": float(l0), "scale": config.scale, "truncated": truncated, "notes": list(notes),
-            "strain": stage.describe() if stage is not None else ""}
-
-
-def _chain(first, rest):
-    """``first`` (when not None) then the rest of the results."""
-    if first is None:
-        return
-    yield first
-    yield from rest
-
-
-def _strain_settings(stage, config, overrides):
-    """What the strain columns and the extensometers were computed with, for ``session.json``."""
-    settings = {"recomputed_from": "the recorded displacements", "measure": config.measure, "window": config.window,
-                "scale_px_per_mm": config.scale, "overridden": sorted(overrides or {})}
-    if stage is not None:
-        settings.update(step_px=stage.windows.step, subset_px=stage.windows.subset, vsg_px=stage.vsg_px,
-                        extensometers=[{"name": e.name, "x1": e.x1, "y1": e.y1, "x2": e.x2, "y2": e.y2,
-                                        "L0_px": e.length_px} for e in stage.extensometers])
-    return settings
-
-
-def plural(count, word):
-    """``"1 frame"``, ``"3 frames"``."""
-    return f"{count} {word}" + ("" if count == 1 else "s")

@@ -22,7 +22,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     Engineering curve, true curve up to uniform elongation, Rp0.2 and Rm marked.
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
-(``stream.export.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
+(``stream.export.recomputed_strain.axial_series``, as ``livedic export`` does), the stress ``F / A0``
 (``stream.stages.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
 engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
 0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
@@ -140,7 +140,9 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     from livedic.acquire.recording.reader import Recording
     from livedic.dic.tensile.poisson import contraction_ratios
     from livedic.dic.tensile.properties import tensile_properties
-    from livedic.stream.export.export import RecordedForce, axial_series, reader_notes
+    from livedic.stream.export.force import RecordedForce
+    from livedic.stream.export.notes import reader_notes
+    from livedic.stream.export.recomputed_strain import axial_series
     from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)

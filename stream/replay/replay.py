@@ -74,7 +74,7 @@ from livedic.stream.session.session import NoFrame, Session
 from livedic.stream.pipeline.sinks import FunctionSink
 from livedic.stream.stages.strain import StrainConfig
 
-from livedic.stream.export.export import read_session_or_note, reader_notes
+from livedic.stream.export.notes import read_session_or_note, reader_notes
 from livedic.stream.replay.agreement import ReplayReport, _Comparison
 from livedic.stream.replay.parameters import METHOD_KEYS, check_parameters, resolve_parameters
 from livedic.stream.replay.points import PointOptions, build_replay_points

@@ -25,7 +25,7 @@ import pyarrow as pa
 
 from livedic.stream.output.files import OutputError, check_output_file
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
+from livedic.stream.export.columns import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")
 FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
