@@ -83,8 +83,9 @@ import numpy as np
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.output.files import check_output_folder, json_text, write_text_atomic
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldWriter,
-                                                RecordedImages, quantities, remove_stale, video_name)
+from livedic.stream.export.field_maps import COLOUR_MAP
+from livedic.stream.export.field_options import NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, quantities, video_name
+from livedic.stream.export.field_writer import FieldWriter, RecordedImages, remove_stale
 from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_FILES, EXPORT_KEY, EXTENSOMETER_COLUMNS,
                                           EXTRA_COLUMNS, LEADING_COLUMNS, P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES,
                                           extensometer_columns, result_columns)
