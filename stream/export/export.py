@@ -73,10 +73,14 @@ the session metadata), ``recomputed_strain`` (strain and extensometers from the 
 replay`` uses the first two.
 """
 
+from __future__ import annotations
+
 import csv
 import io
 import os
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -99,9 +103,22 @@ from livedic.stream.export.force import stress_from_args  # noqa: F401
 from livedic.stream.export.notes import say  # noqa: F401
 from livedic.stream.export.stop import ExportStopped, StopSignals  # noqa: F401
 
+if TYPE_CHECKING:
+    from livedic.acquire.atomic_file import AtomicFile
+    from livedic.acquire.force import LoadSource
+    from livedic.acquire.recording.reader import Recording
+    from livedic.acquire.recording.records import RecordedEvent, RecordedResults
+    from livedic.dic.strain.extensometer import ExtensometerReadings
+    from livedic.stream.export.field_options import FieldOptions, Quantity
+    from livedic.stream.pipeline.progress import ProgressBar
+    from livedic.stream.stages.strain import StrainConfig, StrainStage
+    from livedic.stream.stages.stress import StressOptions
 
-def export_recording(path, directory, *, overwrite=False, strain=None, stress=None, fields=NO_FIELDS, stop=None,
-                     progress=None):
+
+def export_recording(path: str | os.PathLike[str], directory: str | os.PathLike[str], *, overwrite: bool = False,
+                     strain: dict[str, Any] | None = None, stress: StressOptions | None = None,
+                     fields: FieldOptions = NO_FIELDS, stop: Callable[[], None] | None = None,
+                     progress: ProgressBar | None = None) -> dict[str, Any]:
     """Write ``EXPORT_FILES`` for recording ``path`` into ``directory`` (see module notes).
 
     The CSV files, plots and ``session.json`` are written first, together (all or none); then, with
@@ -141,162 +158,261 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         bad or an extensometer lies off the points, or the recording is missing, not MCAP,
         not livedic, or corrupt (``RecordingError``).
     """
-    from livedic.acquire.recording.reader import Recording
-    from livedic.stream.stages.strain import StrainConfig
-
     path, directory = os.fspath(path), os.fspath(directory)
-    check_output_folder(directory, "-o")
     outputs = EXPORT_FILES + (STRESS_FILES if stress is not None else ())
-    targets = {name: os.path.join(directory, name) for name in outputs}
-    existing = [name for name, target in targets.items() if os.path.lexists(target)] + fields.existing(directory)
+    targets = _check_targets(directory, outputs, fields, overwrite)
     stop = stop or (lambda: None)
-    if existing and not overwrite:
-        raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
-                         f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
     with reader_notes() as notes:
-        recording = Recording(path)                             # checks the file before DIR is made
-        metadata, session_note = session_or_note(recording)
-        if session_note:
-            notes.append(session_note)
-        p0_id, p0_how = p0_point_id(metadata)
-        config = StrainConfig.from_metadata(metadata, **(strain or {}))   # bad settings: before DIR is made
-        results = recording.results()
-        first = next(results, None)
-        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-        load = _open_stress_load(stress, names, recording)      # bad load or no axial: before DIR is made
-        shown = quantities(config.scale, fields.strain_unit, config.measure,
-                           stage.vsg_px if stage is not None else None)
-        ranges = ColourRanges(shown, fields.ranges, fields.coloured)
+        source = _read_source(path, strain, stress, fields, notes)      # every check before DIR is made
         created = not os.path.isdir(directory)
         with _stopped_in(f"while writing the CSV files: nothing was written"
                          f"{f' ({directory} removed again)' if created else ''}"), \
                 atomic_files(targets, binary=BINARY_FILES) as staged:
-            fields_csv, trace = staged["fields.csv"], staged["p0_trace.csv"]
-            extensometers = staged["extensometers.csv"]
-            fields_header = None
-            trace.write(",".join(P0_COLUMNS) + "\n")
-            extensometers.write(",".join(EXTENSOMETER_COLUMNS) + "\n")
-            frames = p0_rows = points = 0
-            p0_missing = other_points = 0
-            t0 = None
-            extras_seen = None
-            times, eng, frame_numbers = [], [], []
-            for result in _chain(first, results):
-                stop()
-                if progress is not None:
-                    progress.update(frames, "frames to CSV")
-                extras = {name: getattr(result, name) for name in EXTRA_COLUMNS
-                          if getattr(result, name) is not None and len(getattr(result, name)) == len(result.u)}
-                if fields_header is None:
-                    extras_seen = [name for name in EXTRA_COLUMNS if name in extras]
-                    fields_header = list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)
-                    fields_csv.write(",".join(fields_header) + "\n")
-                    points = len(result.u)
-                n = len(result.u)
-                for name in extras_seen:          # a frame without an extra the first one had: blank cells
-                    extras.setdefault(name, np.full(n, "", dtype=object))
-                extras = {name: extras[name] for name in extras_seen}
-                columns = result_columns(result.frame_index, result.timestamp_ns, result.point_id, result.x,
-                                         result.y, result.u, result.v, result.zncc, result.ok, extras)
-                if np.array_equal(result.point_id, first.point_id):
-                    field, readings = stage.compute(result.u, result.v, result.ok)
-                    columns.update(exx=field.exx, eyy=field.eyy, exy=field.exy)
-                    ranges.add(columns, np.asarray(result.ok, dtype=bool))
-                else:                             # not the reference's points: no strain to speak of
-                    other_points += 1
-                    readings = _lost_readings(stage.placed)
-                    columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
-                fields_csv.write(csv_rows(columns, n))
-                if t0 is None:
-                    t0 = int(result.timestamp_ns)
-                time_s = (int(result.timestamp_ns) - t0) / 1e9
-                extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
-                                             len(readings.names)))
-                times.append(time_s)
-                frame_numbers.append(int(result.frame_index))
-                eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
-                where = np.flatnonzero(result.point_id == p0_id)
-                if where.size:
-                    k = int(where[0])
-                    trace.write(csv_rows({
-                        "frame": int(result.frame_index), "timestamp_ns": int(result.timestamp_ns),
-                        "time_s": time_s, "x": float(result.x[k]),
-                        "y": float(result.y[k]), "u": float(result.u[k]), "v": float(result.v[k]),
-                        "zncc": float(result.zncc[k]), "ok": bool(result.ok[k])}, 1))
-                    p0_rows += 1
-                else:
-                    p0_missing += 1
-                frames += 1
-            if fields_header is None:
-                fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
-            events = recording.events()
-            if t0 is None and events:
-                t0 = min(event.timestamp_ns for event in events)
-            buffer = io.StringIO()
-            writer = csv.writer(buffer, lineterminator="\n")
-            writer.writerow(EVENT_COLUMNS)
-            for event in events:
-                writer.writerow([scalar_text((event.timestamp_ns - (t0 or 0)) / 1e9), event.kind, event.level,
-                                 " ".join(str(event.message).splitlines()), event.timestamp_ns])
-            staged["events.csv"].write(buffer.getvalue())
-            if frames and p0_missing:
-                notes.append(f"P0 (point {p0_id}) is missing from {p0_missing} of {frames} frames' results")
-            if frames == 0:
-                notes.append(f"{path} holds no tracking results (/dic/results): fields.csv, p0_trace.csv and "
-                             f"extensometers.csv have headers only")
-            elif not names:
-                notes.append("the recording has no extensometers: extensometers.csv has the header only "
-                             "(add some with --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
-            if other_points:
-                notes.append(f"{other_points} of {frames} frames track other points than the first: no strain "
-                             f"and no extensometer readings for them")
-            if stage is not None:
-                l0 = [e.length_px for e in stage.extensometers]
-                title = (f"{os.path.basename(path)}: virtual extensometers"
-                         + (f" ({stage.config.scale:g} px/mm)" if stage.config.scale else ""))
-            else:
-                l0, title = [], f"{os.path.basename(path)}: virtual extensometers"
-            plot_extensometers(staged["extensometers.png"].handle, times, names, l0,
-                               np.array(eng).reshape(len(times), len(names)), title=title,
-                               scale=config.scale,
-                               empty_note="no tracking results" if frames == 0 else "no extensometers in this "
-                               "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+            written = _write_frame_files(staged, source, stop, progress)
+            events = source.recording.events()
+            if written.t0 is None and events:
+                written.t0 = min(event.timestamp_ns for event in events)
+            staged["events.csv"].write(_events_csv(events, written.t0))
+            notes.extend(_frame_notes(path, source, written))
+            _plot_extensometer_file(staged, path, source, written)
             stress_summary = None
-            if load is not None:
-                stress_summary = _write_stress_strain(staged, load, stress.area_mm2, frame_numbers, times,
-                                                      np.array(eng).reshape(len(times), len(names)), names,
+            if source.load is not None and stress is not None:
+                stress_summary = _write_stress_strain(staged, source.load, stress.area_mm2, written.frame_numbers,
+                                                      written.times, written.eng_strain(source.names), source.names,
                                                       title=f"{os.path.basename(path)}: stress-strain (A0 "
                                                             f"{stress.area_mm2:g} mm^2, force "
                                                             f"{_force_label(stress)})")
-            session = dict(metadata)
-            delivered = _frames_delivered(recording, session)
-            truncated = recording.info.truncated
-            session[EXPORT_KEY] = {
-                "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
-                "frames_with_results": frames, **delivered, "points": points, "events": len(events),
-                "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
-                "truncated": truncated, "notes": list(notes),
-                "strain": _strain_settings(stage, config, strain)}
-            if stress is not None:
-                session[EXPORT_KEY]["stress"] = {"load": stress.load, "load_offset_s": stress.offset_s,
-                                                 "area_mm2": stress.area_mm2, **stress_summary}
-                if isinstance(load, RecordedForce):
-                    session[EXPORT_KEY]["stress"]["recorded_source"] = load.source
+            session = _session_json(path, source, written, events, notes, strain, stress, stress_summary)
             staged["session.json"].write(json_text(session))
         report = None
-        if fields.wanted and frames:
-            report = _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite,
-                                   stop, progress, title_note=os.path.basename(path))
-            session[EXPORT_KEY]["fields"] = _fields_settings(fields, shown, ranges, report, stage)
+        if fields.wanted and written.frames:
+            report = _write_fields(path, directory, fields, source.shown, source.ranges, source.stage, source.first,
+                                   written.frames, written.t0, overwrite, stop, progress,
+                                   title_note=os.path.basename(path))
+            session[EXPORT_KEY]["fields"] = _fields_settings(fields, source.shown, source.ranges, report, source.stage)
             write_text_atomic(targets["session.json"], json_text(session))
             notes.extend(_field_notes(report))
         elif fields.wanted:
             notes.append("no tracking results: no maps, video or VTK files")
-    return {"directory": directory, "files": [targets[name] for name in outputs], "frames": frames,
-            "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
-            "truncated": truncated, "notes": list(notes), "extensometers": list(names),
+    stage = source.stage
+    return {"directory": directory, "files": [targets[name] for name in outputs], "frames": written.frames,
+            "points": written.points, "events": len(events), "p0_id": source.p0_id, "p0_rows": written.p0_rows,
+            "truncated": session[EXPORT_KEY]["truncated"], "notes": list(notes), "extensometers": list(source.names),
             "strain": stage.describe() if stage is not None else "", "stress": stress_summary, "fields": report}
+
+
+def _check_targets(directory: str, outputs: tuple[str, ...], fields: FieldOptions, overwrite: bool) -> dict[str, str]:
+    """The path of each of ``outputs`` in ``directory``; ValueError (one line) where one exists, without
+    ``overwrite``."""
+    check_output_folder(directory, "-o")
+    targets = {name: os.path.join(directory, name) for name in outputs}
+    existing = [name for name, target in targets.items() if os.path.lexists(target)] + fields.existing(directory)
+    if existing and not overwrite:
+        raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
+                         f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
+    return targets
+
+
+@dataclass
+class _Source:
+    """What the export reads of the recording before it writes anything: its metadata, first results, strain
+    stage, force and colour ranges."""
+    recording: Recording
+    metadata: dict[str, Any]
+    p0_id: int
+    p0_how: str
+    config: StrainConfig
+    first: RecordedResults | None
+    results: Iterator[RecordedResults]               # the results after ``first``
+    stage: StrainStage | None
+    names: tuple[str, ...]                           # the extensometers
+    load: LoadSource | RecordedForce | None
+    shown: dict[str, Quantity]
+    ranges: ColourRanges
+
+
+def _read_source(path: str, strain: dict[str, Any] | None, stress: StressOptions | None, fields: FieldOptions,
+                 notes: list[str]) -> _Source:
+    """Open the recording and set up what the export needs: a bad file, setting or load raises here, before
+    the output folder is made."""
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.stages.strain import StrainConfig
+
+    recording = Recording(path)
+    metadata, session_note = session_or_note(recording)
+    if session_note:
+        notes.append(session_note)
+    p0_id, p0_how = p0_point_id(metadata)
+    config = StrainConfig.from_metadata(metadata, **(strain or {}))
+    results = recording.results()
+    first = next(results, None)
+    stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+    names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+    load = _open_stress_load(stress, names, recording)      # bad load or no axial extensometer
+    shown = quantities(config.scale, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
+    ranges = ColourRanges(shown, fields.ranges, fields.coloured)
+    return _Source(recording, metadata, p0_id, p0_how, config, first, results, stage, names, load, shown, ranges)
+
+
+@dataclass
+class _Written:
+    """What the pass over the results wrote: counts, the time origin, and each frame's extensometer strain."""
+    frames: int = 0
+    points: int = 0                                  # in the first frame
+    p0_rows: int = 0
+    p0_missing: int = 0
+    other_points: int = 0                            # frames tracking other points than the first
+    t0: int | None = None                            # ns: the first frame's timestamp (time_s = 0)
+    times: list[float] = field(default_factory=list)
+    frame_numbers: list[int] = field(default_factory=list)
+    eng: list[np.ndarray] = field(default_factory=list)
+
+    def eng_strain(self, names: Sequence[str]) -> np.ndarray:
+        """(frames, extensometers) engineering strain, NaN where not read."""
+        return np.array(self.eng).reshape(len(self.times), len(names))
+
+
+def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Callable[[], None],
+                       progress: ProgressBar | None) -> _Written:
+    """``fields.csv``, ``p0_trace.csv`` and ``extensometers.csv``, one frame with results after another."""
+    fields_csv, trace = staged["fields.csv"], staged["p0_trace.csv"]
+    extensometers = staged["extensometers.csv"]
+    trace.write(",".join(P0_COLUMNS) + "\n")
+    extensometers.write(",".join(EXTENSOMETER_COLUMNS) + "\n")
+    written = _Written()
+    extras_seen: list[str] | None = None             # the extra columns of the first frame: the file's
+    for result in _chain(source.first, source.results):
+        stop()
+        if progress is not None:
+            progress.update(written.frames, "frames to CSV")
+        if extras_seen is None:
+            extras_seen = [name for name in EXTRA_COLUMNS if _has_extra(result, name)]
+            fields_csv.write(",".join(list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)) + "\n")
+            written.points = len(result.u)
+        readings = _write_fields_rows(fields_csv, result, extras_seen, source, written)
+        if written.t0 is None:
+            written.t0 = int(result.timestamp_ns)
+        time_s = (int(result.timestamp_ns) - written.t0) / 1e9
+        extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
+                                     len(readings.names)))
+        written.times.append(time_s)
+        written.frame_numbers.append(int(result.frame_index))
+        written.eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
+        _write_p0_row(trace, result, source.p0_id, time_s, written)
+        written.frames += 1
+    if extras_seen is None:
+        fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
+    return written
+
+
+def _has_extra(result: RecordedResults, name: str) -> bool:
+    """Whether ``result`` holds the extra column ``name`` (``EXTRA_COLUMNS``), one value per point."""
+    values = getattr(result, name)
+    return values is not None and len(values) == len(result.u)
+
+
+def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_seen: list[str], source: _Source,
+                       written: _Written) -> ExtensometerReadings:
+    """One frame's rows of ``fields.csv`` (its strain recomputed, its values added to the colour ranges);
+    returns the frame's extensometer readings."""
+    n = len(result.u)
+    extras = {name: getattr(result, name) for name in EXTRA_COLUMNS if _has_extra(result, name)}
+    for name in extras_seen:          # a frame without an extra the first one had: blank cells
+        extras.setdefault(name, np.full(n, "", dtype=object))
+    extras = {name: extras[name] for name in extras_seen}
+    columns = result_columns(result.frame_index, result.timestamp_ns, result.point_id, result.x,
+                             result.y, result.u, result.v, result.zncc, result.ok, extras)
+    stage = source.stage
+    assert stage is not None and source.first is not None     # a frame with results: the stage was placed on the first
+    if np.array_equal(result.point_id, source.first.point_id):
+        strain_field, readings = stage.compute(result.u, result.v, result.ok)
+        columns.update(exx=strain_field.exx, eyy=strain_field.eyy, exy=strain_field.exy)
+        source.ranges.add(columns, np.asarray(result.ok, dtype=bool))
+    else:                             # not the reference's points: no strain to speak of
+        written.other_points += 1
+        readings = _lost_readings(stage.placed)
+        columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
+    fields_csv.write(csv_rows(columns, n))
+    return readings
+
+
+def _write_p0_row(trace: AtomicFile, result: RecordedResults, p0_id: int, time_s: float, written: _Written) -> None:
+    """P0's row of ``p0_trace.csv`` for one frame (counted missing where the frame has no point ``p0_id``)."""
+    where = np.flatnonzero(result.point_id == p0_id)
+    if not where.size:
+        written.p0_missing += 1
+        return
+    k = int(where[0])
+    trace.write(csv_rows({
+        "frame": int(result.frame_index), "timestamp_ns": int(result.timestamp_ns),
+        "time_s": time_s, "x": float(result.x[k]),
+        "y": float(result.y[k]), "u": float(result.u[k]), "v": float(result.v[k]),
+        "zncc": float(result.zncc[k]), "ok": bool(result.ok[k])}, 1))
+    written.p0_rows += 1
+
+
+def _events_csv(events: Sequence[RecordedEvent], t0: int | None) -> str:
+    """The text of ``events.csv``: each event's time in s since ``t0`` (ns; 0 when None)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(EVENT_COLUMNS)
+    for event in events:
+        writer.writerow([scalar_text((event.timestamp_ns - (t0 or 0)) / 1e9), event.kind, event.level,
+                         " ".join(str(event.message).splitlines()), event.timestamp_ns])
+    return buffer.getvalue()
+
+
+def _frame_notes(path: str, source: _Source, written: _Written) -> list[str]:
+    """What people should know of the frames written: P0 missing, no results, no extensometers, other points."""
+    notes = []
+    frames = written.frames
+    if frames and written.p0_missing:
+        notes.append(f"P0 (point {source.p0_id}) is missing from {written.p0_missing} of {frames} frames' results")
+    if frames == 0:
+        notes.append(f"{path} holds no tracking results (/dic/results): fields.csv, p0_trace.csv and "
+                     f"extensometers.csv have headers only")
+    elif not source.names:
+        notes.append("the recording has no extensometers: extensometers.csv has the header only "
+                     "(add some with --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+    if written.other_points:
+        notes.append(f"{written.other_points} of {frames} frames track other points than the first: no strain "
+                     f"and no extensometer readings for them")
+    return notes
+
+
+def _plot_extensometer_file(staged: dict[str, AtomicFile], path: str, source: _Source, written: _Written) -> None:
+    """``extensometers.png``: each extensometer's strain against time (a note in the plot when there is none)."""
+    stage = source.stage
+    title = f"{os.path.basename(path)}: virtual extensometers"
+    if stage is not None:
+        l0 = [e.length_px for e in stage.extensometers]
+        title += f" ({stage.config.scale:g} px/mm)" if stage.config.scale else ""
+    else:
+        l0 = []
+    plot_extensometers(staged["extensometers.png"].handle, written.times, source.names, l0,
+                       written.eng_strain(source.names), title=title, scale=source.config.scale,
+                       empty_note="no tracking results" if written.frames == 0 else "no extensometers in this "
+                       "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+
+
+def _session_json(path: str, source: _Source, written: _Written, events: Sequence[RecordedEvent], notes: list[str],
+                  strain: dict[str, Any] | None, stress: StressOptions | None,
+                  stress_summary: dict[str, Any] | None) -> dict[str, Any]:
+    """``session.json``: the session metadata and the ``EXPORT_KEY`` entry saying how the files were made."""
+    session = dict(source.metadata)
+    delivered = _frames_delivered(source.recording, session)
+    session[EXPORT_KEY] = {
+        "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
+        "frames_with_results": written.frames, **delivered, "points": written.points, "events": len(events),
+        "p0_id": source.p0_id, "p0_id_from": source.p0_how, "time_origin_ns": written.t0,
+        "truncated": source.recording.info.truncated, "notes": list(notes),
+        "strain": _strain_settings(source.stage, source.config, strain)}
+    if stress is not None:
+        session[EXPORT_KEY]["stress"] = {"load": stress.load, "load_offset_s": stress.offset_s,
+                                         "area_mm2": stress.area_mm2, **(stress_summary or {})}
+        if isinstance(source.load, RecordedForce):
+            session[EXPORT_KEY]["stress"]["recorded_source"] = source.load.source
+    return session
 
 
 def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
@@ -325,8 +441,9 @@ def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, 
                 if not np.array_equal(result.point_id, first.point_id):
                     writer.report.other_points += 1
                     continue
-                field, _ = stage.compute(result.u, result.v, result.ok)
-                values = {"u": result.u, "v": result.v, "exx": field.exx, "eyy": field.eyy, "exy": field.exy,
+                strain_field, _ = stage.compute(result.u, result.v, result.ok)
+                values = {"u": result.u, "v": result.v, "exx": strain_field.exx, "eyy": strain_field.eyy,
+                          "exy": strain_field.exy,
                           "zncc": result.zncc, "status": result.status, "point_id": result.point_id}
                 frame = images.at(result.timestamp_ns) if writer.wants_image(position) else None
                 writer.add(position, result.frame_index, (int(result.timestamp_ns) - t0) / 1e9, values, result.ok,

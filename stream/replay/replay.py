@@ -62,14 +62,19 @@ receiving them. Reference updates and fractures are followed as sequentially (th
 after one are measured against the tracker that frame left).
 """
 
+from __future__ import annotations
+
 import os
 import time
+from dataclasses import dataclass, field
+from functools import partial
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from livedic.dic.strain.extensometer import ExtensometerOffPoints
-from livedic.stream.session.config import SessionConfig
-from livedic.stream.replay.rows import frame_rows
+from livedic.stream.session.config import SessionConfig, TrackingConfig
+from livedic.stream.replay.rows import FrameRows, frame_rows
 from livedic.stream.session.session import NoFrame, Session
 from livedic.stream.pipeline.sinks import FunctionSink
 from livedic.stream.stages.strain import StrainConfig
@@ -81,10 +86,18 @@ from livedic.stream.replay.points import PointOptions, build_replay_points
 # Re-exported: callers name them as replay's (stream.cli.replay, the tests).
 from livedic.stream.replay.agreement import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC, Agreement  # noqa: F401
 
+if TYPE_CHECKING:
+    from livedic.acquire.recording.records import RecordedResults
+    from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
+    from livedic.stream.stages.stress import StressOptions
 
-def replay(path, given=None, *, point_options=None, all_frames=False, on_result=None, progress=None,
-           threads=1, strain=None, workers=None, cluster=None, in_flight=None, shared_path=None, on_rows=None,
-           stress=None):
+
+def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
+           point_options: PointOptions | None = None, all_frames: bool = False,
+           on_result: Callable[..., None] | None = None, progress: Callable[[int], None] | None = None,
+           threads: int | None = 1, strain: dict[str, Any] | None = None, workers: int | None = None,
+           cluster: str | None = None, in_flight: int | None = None, shared_path: str | None = None,
+           on_rows: Callable[[FrameRows], None] | None = None, stress: StressOptions | None = None) -> ReplayReport:
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
 
     Parameters
@@ -139,8 +152,11 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
     path = os.fspath(path)
     point_options = point_options or PointOptions()
     point_options.check()
+    request = _Request(path, given or {}, point_options, all_frames, on_result, progress, threads, strain, on_rows,
+                       stress)
     if workers is not None or cluster is not None:
-        from livedic.stream.replay.parallel_replay import check_cluster_address, check_worker_count, check_workers, dask_client
+        from livedic.stream.replay.parallel_replay import (check_cluster_address, check_worker_count, check_workers,
+                                                           dask_client)
         if workers is not None:
             check_worker_count(workers)
         if cluster is not None:
@@ -151,13 +167,10 @@ def replay(path, given=None, *, point_options=None, all_frames=False, on_result=
             shared_path = os.path.abspath(path)
             FrameReader(shared_path)                # indexed? (one line otherwise)
         with dask_client(workers, cluster) as client:
-            worker_notes = check_workers(client)
-            return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows,
-                           stress=stress, client=client, in_flight=in_flight, shared_path=shared_path,
-                           where=f"the Dask scheduler at {cluster}" if cluster is not None
-                           else f"a local Dask cluster of {workers} worker process(es)", worker_notes=worker_notes)
-    return _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows,
-                   stress=stress)
+            where = f"the Dask scheduler at {cluster}" if cluster is not None \
+                else f"a local Dask cluster of {workers} worker process(es)"
+            return _replay(request, _OnDask(client, in_flight, shared_path, where, list(check_workers(client))))
+    return _replay(request)
 
 
 def _check_parallel_input(path, given, all_frames, threads):
@@ -174,130 +187,226 @@ def _check_parallel_input(path, given, all_frames, threads):
                          f"--workers/--cluster")
 
 
-def _replay(path, given, point_options, all_frames, on_result, progress, threads, strain, on_rows=None, *,
-            stress=None, client=None, in_flight=None, shared_path=None, where=None, worker_notes=()):
-    """``replay``: sequential (``client`` None) or on the Dask ``client``."""
-    from livedic.acquire.recording.reader import Recording
-    from livedic.acquire.recording.source import McapSource
+@dataclass
+class _Request:
+    """What ``replay`` was asked for (its parameters, ``path`` as a string, ``point_options`` checked)."""
+    path: str
+    given: dict[str, Any]
+    point_options: PointOptions
+    all_frames: bool
+    on_result: Callable[..., None] | None
+    progress: Callable[[int], None] | None
+    threads: int | None
+    strain: dict[str, Any] | None
+    on_rows: Callable[[FrameRows], None] | None
+    stress: StressOptions | None
 
+
+@dataclass
+class _OnDask:
+    """Where and how a parallel replay measures its frames (``stream.replay.parallel_replay``)."""
+    client: Any                              # a dask.distributed.Client
+    in_flight: int | None
+    shared_path: str | None
+    where: str                               # the cluster, in words, for the report
+    worker_notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class _Recorded:
+    """What the replay takes from the recording: its metadata, its results keyed by (frame index, timestamp),
+    the reference frame (by key, or by index when the first results are not the reference's) and the points of
+    the first results (None without results)."""
+    metadata: dict[str, Any]
+    results: list[RecordedResults]
+    by_key: dict[tuple[int, int], RecordedResults]
+    reference_key: tuple[int, int] | None
+    reference_index: int | None
+    xy: np.ndarray | None
+    ids: np.ndarray | None
+
+
+def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
+    """``replay``: sequential (``dask`` None) or on the Dask cluster of ``dask``."""
+    path = request.path
     with reader_notes() as notes:
-        metadata, session_note = read_session_or_note(path)
-        recording = Recording(path)
-        results = list(recording.results())
-        params, recorded_params, param_notes = resolve_parameters(
-            metadata, given or {}, results[0].method if results else "")
-        tracking = check_parameters(params, threads)
-        notes.extend(param_notes)
-        notes.extend(worker_notes)
-        if session_note:
-            notes.append(session_note)
-        changed = [(key, recorded_params.get(key), params[key]) for key in METHOD_KEYS
-                   if (given or {}).get(key) is not None and recorded_params.get(key) != params[key]]
-        report = ReplayReport(path=path, params=params, recorded_params=recorded_params, changed=changed,
-                              all_frames=all_frames, recorded_frames=len(results),
-                              recorded_version=str(metadata.get("software_version", "")), notes=notes,
-                              truncated=recording.info.truncated)
-        if not results and not all_frames:
-            raise ValueError(f"{path} holds no tracking results (/dic/results) to replay: pass --all-frames to "
-                             f"track every recorded frame from the first one")
-        recorded = {}
-        for result in results:
-            recorded.setdefault((int(result.frame_index), int(result.timestamp_ns)), result)
-        reference_key = reference_index = None
-        recorded_xy = recorded_ids = None
-        if results:
-            first = results[0]
-            recorded_xy = np.column_stack([np.asarray(first.x, dtype=np.float64),
-                                           np.asarray(first.y, dtype=np.float64)])
-            recorded_ids = np.asarray(first.point_id)
-            if int(first.reference_frame_index) == int(first.frame_index):
-                reference_key = (int(first.frame_index), int(first.timestamp_ns))
-            else:
-                reference_index = int(first.reference_frame_index)
-                notes.append(f"the first recorded results are for frame {first.frame_index}, not for the reference "
-                             f"frame {reference_index}: the replay tracks the reference frame first, as live")
-        rebuild = point_options.given or recorded_xy is None
-        if rebuild:
-            def points(image):
-                return build_replay_points(image, metadata, tracking.subset, point_options, recorded_xy)
-        else:
-            points = recorded_xy
-        # The session: the recorded frames -> a blocking queue (nothing dropped) -> tracker -> comparison,
-        # rows out, progress (each required: a failure there ends the replay with its error).
-        force = {} if stress is None else {"load": stress.load, "load_offset": stress.offset_s,
-                                           "area_mm2": stress.area_mm2}
-        config = SessionConfig(source=f"mcap:{path}", tracking=tracking, threads=threads, drop="block",
-                               warm_up=False, command="livedic replay",
-                               strain=StrainConfig.from_metadata(metadata, **(strain or {})), **force)
-        point_ids = []
-        comparison = _Comparison(report, recorded, recorded_xy)
-        sinks = [comparison]
-        if on_result is not None:
-            sinks.append(FunctionSink(lambda result, stats: on_result(result.frame, result.measurement, point_ids[0],
-                                                                      result.strain),
-                                      "output", required=True))
-        served = []                   # the parallel session (its tracker holds the worker-formatted lines)
-        if on_rows is not None:
-            def rows(result, stats):
-                frame_table = served[0].rows_of(result.frame) if served else None
-                if frame_table is None:
-                    frame_table = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
-                                             result.measurement, result.strain)
-                if stress is not None:
-                    frame_table = frame_table.with_force(result.force_N, result.stress_MPa)
-                on_rows(frame_table)
-            sinks.append(FunctionSink(rows, "output", required=True))
-        if progress is not None:
-            sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
-        frames = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
-        if client is None:
-            make_session = Session
-        else:
-            from functools import partial
-
-            from livedic.stream.replay.parallel_replay import ParallelSession
-            again = RecordedFrames(McapSource(path), recorded, reference_key, reference_index, all_frames)
-            make_session = partial(ParallelSession, client=client, frames_again=again, recorded=recorded,
-                                   in_flight=in_flight, shared_path=shared_path, point_ids=point_ids,
-                                   rows=None if on_rows is None
-                                   else "csv" if getattr(on_rows, "csv_text", False) else "columns")
+        recorded, tracking, report = _read_recording(request, notes, dask.worker_notes if dask is not None else [])
+        rebuild = request.point_options.given or recorded.xy is None
+        points = _points(request, recorded, tracking, rebuild)
+        config = _session_config(request, tracking, recorded.metadata)
+        point_ids: list[np.ndarray] = []          # filled once the session has its points
+        served: list[Any] = []                    # the parallel session (its tracker holds the worker-formatted lines)
+        comparison = _Comparison(report, recorded.by_key, recorded.xy)
+        sinks = [comparison] + _output_sinks(request, report, point_ids, served)
+        frames = _recorded_frames(path, recorded, request.all_frames)
+        make_session = _session_maker(request, recorded, dask, point_ids)
         started = time.perf_counter()
         with make_session(config, source=frames, points=points, sinks=sinks) as session:
-            if client is not None:
+            if dask is not None:
                 served.append(session)
-            try:
-                session.prepare()
-            except NoFrame:
-                what = f"reference frame {reference_key[0] if reference_key else reference_index}" if results \
-                    else "frame"
-                raise ValueError(f"{path} holds no image of the {what} (/camera/image): nothing to replay") from None
-            except ExtensometerOffPoints as error:
-                if not rebuild or strain:
-                    raise
-                raise ValueError(f"the recording's {error.name} extensometer does not fit the points asked for "
-                                 f"({error}): give --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2 to "
-                                 f"place extensometers on them") from None
-            point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded_ids)
+            _prepare(session, request, recorded, rebuild)
+            point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded.ids)
             session.start()
             session.run()
-            if client is not None:
+            if dask is not None:
                 report.parallel = session.finish_parallel()
-                report.parallel.where = where
+                report.parallel.where = dask.where
         report.strain = session.strain.summary() if session.strain is not None else None
         report.force = session.load_stage.summary() if session.load_stage is not None else None
         if session.source_error is not None:
             raise session.source_error
         report.seconds = time.perf_counter() - started
-        report.skipped_before_reference = frames.skipped_before_reference
-        report.missing_frames = len(recorded) - len(comparison.seen)
-        if report.missing_frames:
-            notes.append(f"{report.missing_frames} recorded result set(s) have no image in the file and were "
-                         f"not replayed")
-        if report.skipped_before_reference:
-            notes.append(f"{report.skipped_before_reference} frame(s) recorded before the reference frame were "
-                         f"skipped")
+        notes.extend(_frame_counts(report, frames, recorded, comparison))
     report.notes = list(notes)
     return report
+
+
+def _read_recording(request: _Request, notes: list[str],
+                    worker_notes: list[str]) -> tuple[_Recorded, TrackingConfig, ReplayReport]:
+    """The recording's results and parameters, the tracking options to replay with, and the report to fill.
+
+    ValueError (one line): bad parameters, or no results to replay without ``all_frames``.
+    """
+    from livedic.acquire.recording.reader import Recording
+
+    path, given = request.path, request.given
+    metadata, session_note = read_session_or_note(path)
+    recording = Recording(path)
+    results = list(recording.results())
+    params, recorded_params, param_notes = resolve_parameters(metadata, given, results[0].method if results else "")
+    tracking = check_parameters(params, request.threads)
+    notes.extend(param_notes)
+    notes.extend(worker_notes)
+    if session_note:
+        notes.append(session_note)
+    changed = [(key, recorded_params.get(key), params[key]) for key in METHOD_KEYS
+               if given.get(key) is not None and recorded_params.get(key) != params[key]]
+    report = ReplayReport(path=path, params=params, recorded_params=recorded_params, changed=changed,
+                          all_frames=request.all_frames, recorded_frames=len(results),
+                          recorded_version=str(metadata.get("software_version", "")), notes=notes,
+                          truncated=recording.info.truncated)
+    if not results and not request.all_frames:
+        raise ValueError(f"{path} holds no tracking results (/dic/results) to replay: pass --all-frames to "
+                         f"track every recorded frame from the first one")
+    return _recorded(metadata, results, notes), tracking, report
+
+
+def _recorded(metadata: dict[str, Any], results: list[RecordedResults], notes: list[str]) -> _Recorded:
+    """The results by key, the reference frame and the recorded points (a note when the first results are not
+    the reference frame's)."""
+    by_key: dict[tuple[int, int], RecordedResults] = {}
+    for result in results:
+        by_key.setdefault((int(result.frame_index), int(result.timestamp_ns)), result)
+    recorded = _Recorded(metadata, results, by_key, None, None, None, None)
+    if results:
+        first = results[0]
+        recorded.xy = np.column_stack([np.asarray(first.x, dtype=np.float64), np.asarray(first.y, dtype=np.float64)])
+        recorded.ids = np.asarray(first.point_id)
+        if int(first.reference_frame_index) == int(first.frame_index):
+            recorded.reference_key = (int(first.frame_index), int(first.timestamp_ns))
+        else:
+            recorded.reference_index = int(first.reference_frame_index)
+            notes.append(f"the first recorded results are for frame {first.frame_index}, not for the reference "
+                         f"frame {recorded.reference_index}: the replay tracks the reference frame first, as live")
+    return recorded
+
+
+def _points(request: _Request, recorded: _Recorded, tracking: TrackingConfig,
+            rebuild: bool) -> np.ndarray | Callable[[np.ndarray], np.ndarray] | None:
+    """The session's points: the recorded ones, or a function building them on the reference image."""
+    if not rebuild:
+        return recorded.xy
+
+    def points(image: np.ndarray) -> np.ndarray:
+        return build_replay_points(image, recorded.metadata, tracking.subset, request.point_options, recorded.xy)
+    return points
+
+
+def _session_config(request: _Request, tracking: TrackingConfig, metadata: dict[str, Any]) -> SessionConfig:
+    """The session ``livedic run`` would run on these frames: blocking queue (nothing dropped), no warm-up."""
+    stress = request.stress
+    force = {} if stress is None else {"load": stress.load, "load_offset": stress.offset_s,
+                                       "area_mm2": stress.area_mm2}
+    return SessionConfig(source=f"mcap:{request.path}", tracking=tracking, threads=request.threads, drop="block",
+                         warm_up=False, command="livedic replay",
+                         strain=StrainConfig.from_metadata(metadata, **(request.strain or {})), **force)
+
+
+def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.ndarray],
+                  served: list[Any]) -> list[FunctionSink]:
+    """The sinks after the comparison: ``on_result``, ``on_rows`` and the progress (each required: a failure
+    there ends the replay with its error)."""
+    sinks = []
+    on_result, on_rows, progress, stress = request.on_result, request.on_rows, request.progress, request.stress
+    if on_result is not None:
+        sinks.append(FunctionSink(lambda result, stats: on_result(result.frame, result.measurement, point_ids[0],
+                                                                  result.strain),
+                                  "output", required=True))
+    if on_rows is not None:
+        def rows(result: FrameResult, stats: SessionStats) -> None:
+            frame_table = served[0].rows_of(result.frame) if served else None
+            if frame_table is None:
+                frame_table = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
+                                         result.measurement, result.strain)
+            if stress is not None:
+                frame_table = frame_table.with_force(result.force_N, result.stress_MPa)
+            on_rows(frame_table)
+        sinks.append(FunctionSink(rows, "output", required=True))
+    if progress is not None:
+        sinks.append(FunctionSink(lambda result, stats: progress(report.frames), "progress", required=True))
+    return sinks
+
+
+def _recorded_frames(path: str, recorded: _Recorded, all_frames: bool) -> RecordedFrames:
+    """The frames to track, read from the recording at ``path``."""
+    from livedic.acquire.recording.source import McapSource
+    return RecordedFrames(McapSource(path), recorded.by_key, recorded.reference_key, recorded.reference_index,
+                          all_frames)
+
+
+def _session_maker(request: _Request, recorded: _Recorded, dask: _OnDask | None,
+                   point_ids: list[np.ndarray]) -> Callable[..., Session]:
+    """``Session``, or the parallel session measuring on ``dask``'s cluster."""
+    if dask is None:
+        return Session
+    from livedic.stream.replay.parallel_replay import ParallelSession
+    on_rows = request.on_rows
+    return partial(ParallelSession, client=dask.client, frames_again=_recorded_frames(request.path, recorded,
+                                                                                      request.all_frames),
+                   recorded=recorded.by_key, in_flight=dask.in_flight, shared_path=dask.shared_path,
+                   point_ids=point_ids,
+                   rows=None if on_rows is None else "csv" if getattr(on_rows, "csv_text", False) else "columns")
+
+
+def _prepare(session: Session, request: _Request, recorded: _Recorded, rebuild: bool) -> None:
+    """``session.prepare()``, its refusals worded for the replay (ValueError, one line)."""
+    try:
+        session.prepare()
+    except NoFrame:
+        reference = recorded.reference_key[0] if recorded.reference_key else recorded.reference_index
+        what = f"reference frame {reference}" if recorded.results else "frame"
+        raise ValueError(f"{request.path} holds no image of the {what} (/camera/image): nothing to replay") from None
+    except ExtensometerOffPoints as error:
+        if not rebuild or request.strain:
+            raise
+        raise ValueError(f"the recording's {error.name} extensometer does not fit the points asked for "
+                         f"({error}): give --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2 to "
+                         f"place extensometers on them") from None
+
+
+def _frame_counts(report: ReplayReport, frames: RecordedFrames, recorded: _Recorded,
+                  comparison: _Comparison) -> list[str]:
+    """The report's counts of frames not replayed, and a note for each kind."""
+    notes = []
+    report.skipped_before_reference = frames.skipped_before_reference
+    report.missing_frames = len(recorded.by_key) - len(comparison.seen)
+    if report.missing_frames:
+        notes.append(f"{report.missing_frames} recorded result set(s) have no image in the file and were "
+                     f"not replayed")
+    if report.skipped_before_reference:
+        notes.append(f"{report.skipped_before_reference} frame(s) recorded before the reference frame were "
+                     f"skipped")
+    return notes
 
 
 class RecordedFrames:
