@@ -2,9 +2,16 @@
 columns, one frame's extensometer rows, and the atomic writer every file goes through.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Mapping
+
 import numpy as np
 
 from livedic.stream.output.files import AtomicFile
+
+if TYPE_CHECKING:
+    from livedic.dic.strain.extensometer import ExtensometerReadings
 
 
 LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
@@ -19,9 +26,11 @@ STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
 EXPORT_KEY = "livedic.export"
 
 
-def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, extras):
+def result_columns(frame_index: int, timestamp_ns: int, point_id: np.ndarray, x: np.ndarray, y: np.ndarray,
+                   u: np.ndarray, v: np.ndarray, zncc: np.ndarray, ok: np.ndarray,
+                   extras: Mapping[str, np.ndarray]) -> dict[str, Any]:
     """The long-format columns of one frame (``LEADING_COLUMNS`` then ``extras`` in ``EXTRA_COLUMNS`` order)."""
-    columns = {"frame": int(frame_index), "timestamp_ns": int(timestamp_ns), "point_id": point_id,
+    columns: dict[str, Any] = {"frame": int(frame_index), "timestamp_ns": int(timestamp_ns), "point_id": point_id,
                "x": x, "y": y, "u": u, "v": v, "zncc": zncc, "ok": np.asarray(ok, dtype=bool)}
     for name in EXTRA_COLUMNS:
         if name in extras:
@@ -33,7 +42,7 @@ def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, ex
 StagedFile = AtomicFile
 
 
-def extensometer_columns(frame_index, time_s, readings):
+def extensometer_columns(frame_index: int, time_s: float, readings: ExtensometerReadings) -> dict[str, Any]:
     """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer)."""
     return {"frame": int(frame_index), "time_s": float(time_s),
             "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
@@ -41,9 +50,9 @@ def extensometer_columns(frame_index, time_s, readings):
             "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
 
 
-def _csv_cell(text):
+def _csv_cell(text: object) -> str:
     """``text`` as one CSV cell (quoted only where CSV needs it)."""
-    text = str(text)
-    if any(c in text for c in ',"\n\r'):
-        return '"' + text.replace('"', '""') + '"'
-    return text
+    cell = str(text)
+    if any(c in cell for c in ',"\n\r'):
+        return '"' + cell.replace('"', '""') + '"'
+    return cell

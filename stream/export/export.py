@@ -175,13 +175,7 @@ def export_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
             staged["events.csv"].write(_events_csv(events, written.t0))
             notes.extend(_frame_notes(path, source, written))
             _plot_extensometer_file(staged, path, source, written)
-            stress_summary = None
-            if source.load is not None and stress is not None:
-                stress_summary = _write_stress_strain(staged, source.load, stress.area_mm2, written.frame_numbers,
-                                                      written.times, written.eng_strain(source.names), source.names,
-                                                      title=f"{os.path.basename(path)}: stress-strain (A0 "
-                                                            f"{stress.area_mm2:g} mm^2, force "
-                                                            f"{_force_label(stress)})")
+            stress_summary = _stress_strain_files(staged, path, source, written, stress)
             session = _session_json(path, source, written, events, notes, strain, stress, stress_summary)
             staged["session.json"].write(json_text(session))
         report = None
@@ -247,7 +241,8 @@ def _read_source(path: str, strain: dict[str, Any] | None, stress: StressOptions
     results = recording.results()
     first = next(results, None)
     stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-    names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+    placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
+    names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
     load = _open_stress_load(stress, names, recording)      # bad load or no axial extensometer
     shown = quantities(config.scale, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
     ranges = ColourRanges(shown, fields.ranges, fields.coloured)
@@ -393,6 +388,17 @@ def _plot_extensometer_file(staged: dict[str, AtomicFile], path: str, source: _S
                        written.eng_strain(source.names), title=title, scale=source.config.scale,
                        empty_note="no tracking results" if written.frames == 0 else "no extensometers in this "
                        "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+
+
+def _stress_strain_files(staged: dict[str, AtomicFile], path: str, source: _Source, written: _Written,
+                         stress: StressOptions | None) -> dict[str, Any] | None:
+    """``STRESS_FILES`` with a force (``--load`` or the recorded one); what ``session.json`` says of them."""
+    if source.load is None or stress is None:
+        return None
+    return _write_stress_strain(staged, source.load, stress.area_mm2, written.frame_numbers, written.times,
+                                written.eng_strain(source.names), source.names,
+                                title=f"{os.path.basename(path)}: stress-strain (A0 {stress.area_mm2:g} mm^2, force "
+                                      f"{_force_label(stress)})")
 
 
 def _session_json(path: str, source: _Source, written: _Written, events: Sequence[RecordedEvent], notes: list[str],

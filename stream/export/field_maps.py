@@ -3,11 +3,17 @@ pixels each triangle covers, and the picture (image, title, colour bar) as a PNG
 notes for how a map is drawn).
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from livedic.stream.export.field_options import DEFAULT_OPACITY
+
+if TYPE_CHECKING:
+    from livedic.stream.export.field_options import Quantity
 
 
 COLOUR_MAP = "turbo"
@@ -24,7 +30,7 @@ class SurfaceMesh:
     triangles: np.ndarray        # (T, 3) int32 point indices
 
     @classmethod
-    def over(cls, x, y, step):
+    def over(cls, x: np.ndarray, y: np.ndarray, step: float) -> SurfaceMesh:
         """The mesh of the points (x, y) on a grid of ``step`` px (no triangles for fewer than 3 in a plane)."""
         import matplotlib.tri as mtri
         x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
@@ -36,7 +42,7 @@ class SurfaceMesh:
         edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=-1).max(axis=1) if len(triangles) else []
         return cls(triangles[np.asarray(edges) <= LONG_EDGE * float(step)])
 
-    def where(self, valid):
+    def where(self, valid: np.ndarray) -> np.ndarray:
         """The triangles whose three corners are ``valid`` (N,) bool."""
         return self.triangles[np.asarray(valid, dtype=bool)[self.triangles].all(axis=1)]
 
@@ -55,7 +61,8 @@ class PixelWeights:
     corner values, NaN where a corner has none.
     """
 
-    def __init__(self, shape, x, y, triangles, reference_area):
+    def __init__(self, shape: tuple[int, ...], x: np.ndarray, y: np.ndarray, triangles: np.ndarray,
+                 reference_area: np.ndarray) -> None:
         import cv2
         self.shape = tuple(shape[:2])
         area = _twice_area(x, y, triangles)
@@ -78,7 +85,7 @@ class PixelWeights:
         self.rows, self.cols, self.corners = rows, cols, which
         self.weights = np.stack([1.0 - w1 - w2, w1, w2], axis=1)
 
-    def sample(self, values):
+    def sample(self, values: np.ndarray) -> np.ndarray:
         """(H, W) float64 image of the vertex ``values`` (N,), NaN where no triangle covers a pixel."""
         out = np.full(self.shape, np.nan)
         out[self.rows, self.cols] = np.einsum("ij,ij->i", np.asarray(values, dtype=np.float64)[self.corners],
@@ -86,7 +93,8 @@ class PixelWeights:
         return out
 
 
-def overlay(gray, values, limits, opacity=DEFAULT_OPACITY):
+def overlay(gray: np.ndarray, values: np.ndarray, limits: tuple[float, float],
+            opacity: float = DEFAULT_OPACITY) -> np.ndarray:
     """(H, W, 3) BGR: ``values`` (H, W; display unit, NaN: none) coloured on ``limits`` over the ``gray`` image."""
     import cv2
     from matplotlib import colormaps
@@ -110,7 +118,7 @@ class MapLayout:
     frame (shared by its quantities).
     """
 
-    def __init__(self, image_shape, title_note=""):
+    def __init__(self, image_shape: tuple[int, ...], title_note: str = "") -> None:
         self.height, self.width = (int(n) for n in image_shape[:2])
         self.panel_height = max(self.height, MIN_PANEL_HEIGHT)      # a small image: the bar still fits beside it
         self.font_px = float(np.clip(self.height / 55.0, 11.0, 30.0))
@@ -122,11 +130,12 @@ class MapLayout:
         self.title_note = title_note
         self.margin = int(round(0.5 * self.font_px))
         self.frame_text_left = self.margin + int(round(4.5 * self.font_px))   # after the widest symbol, "e_xy"
-        self._bars = {}
-        self._headings = {}
+        self._bars: dict[tuple[str, tuple[float, float]], np.ndarray] = {}
+        self._headings: dict[str, np.ndarray] = {}
         self._frame_text = (None, None)
 
-    def picture(self, coloured, quantity, limits, frame_index, time_s):
+    def picture(self, coloured: np.ndarray, quantity: Quantity, limits: tuple[float, float], frame_index: int,
+                time_s: float) -> np.ndarray:
         """The whole picture (H, W, 3 BGR) of one map: ``coloured`` from ``overlay``."""
         picture = np.full((self.total_height, self.total_width, 3), 255, dtype=np.uint8)
         top = self.total_height - self.panel_height
@@ -200,7 +209,7 @@ def _rendered(figure):
     return cv2.cvtColor(np.asarray(canvas.buffer_rgba()), cv2.COLOR_RGBA2BGR)
 
 
-def encode_png(picture):
+def encode_png(picture: np.ndarray) -> bytes:
     import cv2
     ok, data = cv2.imencode(".png", picture, [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION])
     if not ok:

@@ -2,10 +2,13 @@
 ``FieldOptions``), the files they name, and the quantities with their units and colour ranges.
 """
 
+from __future__ import annotations
+
 import argparse
 import os
 import re
 from dataclasses import dataclass, field
+from typing import Mapping
 
 import numpy as np
 
@@ -29,19 +32,19 @@ _MAP_NAME = re.compile(r"^(u|v|exx|eyy|exy)_\d+\.png$")
 _VTU_NAME = re.compile(r"^frame_\d+\.vtu$")
 
 
-def video_name(quantity):
+def video_name(quantity: str) -> str:
     return f"overlay_{quantity}{VIDEO_SUFFIX}"
 
 
-def map_name(quantity, frame_index):
+def map_name(quantity: str, frame_index: int) -> str:
     return os.path.join(MAPS_FOLDER, quantity, f"{quantity}_{int(frame_index):06d}.png")
 
 
-def vtu_name(frame_index):
+def vtu_name(frame_index: int) -> str:
     return os.path.join(VTK_FOLDER, f"frame_{int(frame_index):06d}.vtu")
 
 
-def add_field_arguments(parser):
+def add_field_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add ``--maps --every --video --video-fps --vtk --map-range --map-opacity --strain-unit`` to ``parser``."""
     group = parser.add_argument_group("maps, video and VTK (the fields as pictures; --maps none --video none "
                                       "--no-vtk for the CSV files only)")
@@ -75,17 +78,17 @@ def add_field_arguments(parser):
 @dataclass(frozen=True)
 class FieldOptions:
     """What ``livedic export`` draws and writes of the fields (see the module notes)."""
-    maps: tuple = QUANTITIES
+    maps: tuple[str, ...] = QUANTITIES
     every: int = DEFAULT_EVERY
     video: str = DEFAULT_VIDEO          # "" for none
     video_fps: float = DEFAULT_VIDEO_FPS
     vtk: bool = True
-    ranges: dict = field(default_factory=dict)     # quantity -> (lo, hi), display unit
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)     # quantity -> (lo, hi), display unit
     strain_unit: str = DEFAULT_STRAIN_UNIT
     opacity: float = DEFAULT_OPACITY
 
     @classmethod
-    def from_args(cls, args):
+    def from_args(cls, args: argparse.Namespace) -> FieldOptions:
         """The options of parsed ``args``; ValueError (one line) for a bad one."""
         maps = _quantity_list(args.maps, "--maps")
         video = "" if str(args.video).strip().lower() == "none" else str(args.video).strip()
@@ -102,24 +105,24 @@ class FieldOptions:
                    ranges=ranges, strain_unit=args.strain_unit, opacity=float(args.map_opacity))
 
     @property
-    def wanted(self):
+    def wanted(self) -> bool:
         return bool(self.maps or self.video or self.vtk)
 
     @property
-    def coloured(self):
+    def coloured(self) -> tuple[str, ...]:
         """The quantities drawn (maps and video), in ``QUANTITIES`` order."""
         return tuple(q for q in QUANTITIES if q in self.maps or q == self.video)
 
-    def outputs(self):
+    def outputs(self) -> list[str]:
         """What this export writes into DIR besides the CSV files (top-level names)."""
         names = [MAPS_FOLDER] if self.maps else []
         names += [video_name(self.video)] if self.video else []
         names += [VTK_FOLDER, PVD_FILE] if self.vtk else []
         return names
 
-    def existing(self, directory):
+    def existing(self, directory: str) -> list[str]:
         """The outputs of this export that ``directory`` already holds (names for a message)."""
-        found = []
+        found: list[str] = []
         for quantity in self.maps:
             folder = os.path.join(directory, MAPS_FOLDER, quantity)
             if os.path.isdir(folder) and any(_MAP_NAME.match(name) for name in os.listdir(folder)):
@@ -176,11 +179,12 @@ class Quantity:
     start: float       # the automatic range starts at +-start (display unit)
 
     @property
-    def label(self):
+    def label(self) -> str:
         return f"{self.symbol} ({self.unit})"
 
 
-def quantities(scale=None, strain_unit=DEFAULT_STRAIN_UNIT, measure="engineering", vsg_px=None):
+def quantities(scale: float | None = None, strain_unit: str = DEFAULT_STRAIN_UNIT, measure: str = "engineering",
+               vsg_px: float | None = None) -> dict[str, Quantity]:
     """name -> ``Quantity``: displacements in px (mm with ``scale`` px/mm), strain in ``strain_unit``."""
     length_unit, length_factor = ("mm", 1.0 / scale) if scale else ("px", 1.0)
     strain_factor = STRAIN_UNITS[strain_unit]
@@ -188,7 +192,7 @@ def quantities(scale=None, strain_unit=DEFAULT_STRAIN_UNIT, measure="engineering
     shown = {"u": ("u", "horizontal displacement"), "v": ("v", "vertical displacement"),
              "exx": ("e_xx", f"{measure} strain along x{gauge}"), "eyy": ("e_yy", f"{measure} strain along y{gauge}"),
              "exy": ("e_xy", f"{measure} shear strain (tensor){gauge}")}
-    out = {}
+    out: dict[str, Quantity] = {}
     for name, (symbol, meaning) in shown.items():
         strain = name.startswith("e")
         factor = strain_factor if strain else length_factor
@@ -200,12 +204,13 @@ def quantities(scale=None, strain_unit=DEFAULT_STRAIN_UNIT, measure="engineering
 class ColourRanges:
     """One colour range per quantity for the whole sequence: the fixed ones, the others grown frame by frame."""
 
-    def __init__(self, shown, fixed=None, names=QUANTITIES):
+    def __init__(self, shown: Mapping[str, Quantity], fixed: Mapping[str, tuple[float, float]] | None = None,
+                 names: tuple[str, ...] = QUANTITIES) -> None:
         self.shown = shown
         self.fixed = dict(fixed or {})
         self.limits = {q: self.fixed.get(q, (-shown[q].start, shown[q].start)) for q in names}
 
-    def add(self, values, ok):
+    def add(self, values: Mapping[str, np.ndarray], ok: np.ndarray) -> None:
         """Take one frame's ``values`` (quantity -> recorded values of the points) of the ``ok`` points."""
         for name, limits in self.limits.items():
             if name not in self.fixed:

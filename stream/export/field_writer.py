@@ -2,8 +2,11 @@
 as it comes (each file whole), from the recorded images (``RecordedImages``), and reports what it wrote.
 """
 
+from __future__ import annotations
+
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
@@ -15,6 +18,10 @@ from livedic.stream.export.field_options import (_MAP_NAME, _VTU_NAME, MAPS_FOLD
                                                  VIDEO_SUFFIX, VTK_FOLDER, map_name, video_name, vtu_name)
 from livedic.stream.export.vtk import pvd_text, vtu_mesh
 
+if TYPE_CHECKING:
+    from livedic.acquire.base import Frame
+    from livedic.stream.export.field_options import FieldOptions, Quantity
+
 
 class RecordedImages:
     """The camera images of a recording, in order, looked up by the time of each frame with results.
@@ -24,12 +31,12 @@ class RecordedImages:
     frame's image is not in the file gets None.
     """
 
-    def __init__(self, path):
+    def __init__(self, path: str) -> None:
         from livedic.acquire.recording.source import McapSource
         self._frames = iter(McapSource(path))
         self._next = None
 
-    def at(self, timestamp_ns):
+    def at(self, timestamp_ns: int) -> Frame | None:
         """The ``acquire.base.Frame`` logged at ``timestamp_ns``, or None."""
         while True:
             if self._next is None:
@@ -55,7 +62,7 @@ class FieldReport:
     no_image: int = 0                 # frames with results but no camera image: no map, no video frame
     other_points: int = 0             # frames tracking other points than the reference's: left out
 
-    def written(self, options):
+    def written(self, options: FieldOptions) -> str:
         """The outputs complete so far, as words."""
         parts = []
         if options.maps:
@@ -90,7 +97,9 @@ class FieldWriter:
         Said at the right of every title (the recording, the strain measure).
     """
 
-    def __init__(self, directory, options, shown, limits, reference, step, frames, title_note=""):
+    def __init__(self, directory: str, options: FieldOptions, shown: Mapping[str, Quantity],
+                 limits: Mapping[str, tuple[float, float]], reference: tuple[np.ndarray, np.ndarray], step: float,
+                 frames: int, title_note: str = "") -> None:
         self.directory = directory
         self.options = options
         self.shown = shown
@@ -101,14 +110,14 @@ class FieldWriter:
         self.frames = int(frames)
         self.title_note = title_note
         self.report = FieldReport()
-        self._layout = None
+        self._layout: MapLayout | None = None
         self._video = None
         self._video_file = None
-        self._pvd = []
+        self._pvd: list[tuple[float, str]] = []
 
     # -- per frame
 
-    def wants_image(self, position):
+    def wants_image(self, position: int) -> bool:
         """Whether the ``position``-th frame with results (0 = reference) is drawn (maps or video)."""
         return bool(self.options.video) or bool(self._maps_of(position))
 
@@ -118,7 +127,8 @@ class FieldWriter:
             return self.options.maps
         return ()
 
-    def add(self, position, frame_index, time_s, values, ok, image=None, pixel_format=""):
+    def add(self, position: int, frame_index: int, time_s: float, values: Mapping[str, np.ndarray], ok: np.ndarray,
+            image: np.ndarray | None = None, pixel_format: str = "") -> None:
         """Write what frame ``position`` gets: ``values`` maps name -> (N,) array of every ``fields.csv`` column
         this writer uses (``u v exx eyy exy zncc`` and, when recorded, ``status``, ``point_id``); ``image`` is the
         camera image (None: none recorded, no map or video frame)."""
@@ -132,10 +142,11 @@ class FieldWriter:
             self._write_vtu(frame_index, time_s, values, ok)
         self.report.frames += 1
 
-    def _draw(self, position, frame_index, time_s, values, ok, image, pixel_format, drawn):
+    def _draw(self, position, frame_index, time_s, values, ok, image, pixel_format, drawn) -> None:
         gray = display_gray(np.asarray(image), pixel_format)     # as the live view shows it
         if self._layout is None:
             self._layout = MapLayout(gray.shape, self.title_note)
+        layout = self._layout
         u, v = np.asarray(values["u"], dtype=np.float64), np.asarray(values["v"], dtype=np.float64)
         valid = ok & np.isfinite(u) & np.isfinite(v)
         keep = valid[self.mesh.triangles].all(axis=1)
@@ -145,13 +156,13 @@ class FieldWriter:
             quantity = self.shown[name]
             shown_values = np.where(valid, quantity.factor * np.asarray(values[name], dtype=np.float64), np.nan)
             coloured = overlay(gray, weights.sample(shown_values), self.limits[name], self.options.opacity)
-            picture = self._layout.picture(coloured, quantity, self.limits[name], frame_index, time_s)
+            picture = layout.picture(coloured, quantity, self.limits[name], frame_index, time_s)
             if name in self._maps_of(position):
                 self._write_map(name, frame_index, picture)
             if name == self.options.video:
                 self._video_frame(picture)
 
-    def _write_map(self, name, frame_index, picture):
+    def _write_map(self, name, frame_index, picture) -> None:
         path = os.path.join(self.directory, map_name(name, frame_index))
         os.makedirs(os.path.dirname(path), exist_ok=True)
         with AtomicFile(path, binary=True) as out:
@@ -173,7 +184,7 @@ class FieldWriter:
         self._video.write(picture)
         self.report.video_frames += 1
 
-    def _write_vtu(self, frame_index, time_s, values, ok):
+    def _write_vtu(self, frame_index, time_s, values, ok) -> None:
         import meshio
         name = vtu_name(frame_index)
         path = os.path.join(self.directory, name)
@@ -192,7 +203,7 @@ class FieldWriter:
 
     # -- the end
 
-    def finish(self):
+    def finish(self) -> None:
         """Close the video and write the ``.pvd`` (after the last frame)."""
         if self._video is not None:
             self._video.release()
@@ -206,7 +217,7 @@ class FieldWriter:
                 out.commit()
             self.report.pvd = path
 
-    def discard(self):
+    def discard(self) -> None:
         """Give up (an error or a stop): the unfinished video is removed; finished files stay."""
         if self._video is not None:
             self._video.release()
@@ -215,7 +226,7 @@ class FieldWriter:
             self._video_file.discard()
 
 
-def remove_stale(directory, options):
+def remove_stale(directory: str, options: FieldOptions) -> None:
     """Remove the maps and ``.vtu`` files of an earlier export that this one replaces (``--overwrite``), so the
     folder holds one export's pictures only; other files are never touched."""
     folders = [(os.path.join(directory, MAPS_FOLDER, q), _MAP_NAME) for q in options.maps]

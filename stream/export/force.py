@@ -3,13 +3,24 @@
 the stress-strain files written from it (``STRESS_FILES``).
 """
 
+from __future__ import annotations
+
+import argparse
 import math
 import os
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.stream.output.csv_text import csv_rows
 from livedic.stream.export.notes import plural, reader_notes, session_or_note
+
+if TYPE_CHECKING:
+    from livedic.acquire.atomic_file import AtomicFile
+    from livedic.acquire.force import LoadSource
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.stages.stress import StressOptions
 
 
 class RecordedForce:
@@ -23,32 +34,33 @@ class RecordedForce:
         The load URI the session recorded (the last one seen; "" when none was written).
     """
 
-    def __init__(self, forces, source=""):
+    def __init__(self, forces: Mapping[int, float], source: str = "") -> None:
         self.forces = dict(forces)
         self.source = str(source)
 
     @classmethod
-    def read(cls, recording):
+    def read(cls, recording: Recording) -> RecordedForce:
         """The force samples of a ``Recording`` (an empty ``forces`` for recordings without them)."""
-        forces, source = {}, ""
+        forces: dict[int, float] = {}
+        source = ""
         for sample in recording.force_samples():
             forces[int(sample.frame_index)] = float(sample.force_N)
             source = sample.source or source
         return cls(forces, source)
 
-    def on_frames(self, frames):
+    def on_frames(self, frames: Iterable[int]) -> np.ndarray:
         """Force at each of ``frames`` (indices): the recorded value, NaN for a frame without one."""
         return np.array([self.forces.get(int(frame), math.nan) for frame in frames], dtype=np.float64)
 
 
-def _force_on_frames(load, frames, times):
+def _force_on_frames(load: LoadSource | RecordedForce, frames: Sequence[int], times: npt.ArrayLike) -> np.ndarray:
     """Force per frame: by frame index from the recording, or the load interpolated onto ``times``."""
     if isinstance(load, RecordedForce):
         return load.on_frames(frames)
     return load.force_at(np.asarray(times, dtype=np.float64))
 
 
-def _force_label(stress):
+def _force_label(stress: StressOptions) -> str:
     """What the plot title calls the force: the file's name, or the recorded channel."""
     from livedic.acquire.recording.schema import TOPIC_FORCE
     if stress.recorded:
@@ -56,7 +68,8 @@ def _force_label(stress):
     return os.path.basename(stress.load[len('csv:'):])
 
 
-def _open_stress_load(stress, names, recording=None):
+def _open_stress_load(stress: StressOptions | None, names: Sequence[str],
+                      recording: Recording) -> LoadSource | RecordedForce | None:
     """The ``LoadSource`` of ``stress``, or the ``RecordedForce`` of ``recording`` (None without ``stress``).
 
     ValueError (one line) if there is no axial extensometer."""
@@ -73,7 +86,7 @@ def _open_stress_load(stress, names, recording=None):
     return open_load(stress.load, offset_s=stress.offset_s)
 
 
-def stress_from_args(args):
+def stress_from_args(args: argparse.Namespace) -> tuple[StressOptions | None, list[str]]:
     """``StressOptions`` of ``livedic export`` / ``report`` and note lines for people.
 
     With ``--load``, that load (a note when the recording also holds force samples, which it
@@ -101,14 +114,16 @@ def stress_from_args(args):
     return stress_options_from_args(args, recorded_force=bool(recorded.forces), metadata=metadata), []
 
 
-def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
+def _write_stress_strain(staged: Mapping[str, AtomicFile], load: LoadSource | RecordedForce, area_mm2: float,
+                         frames: Sequence[int], times: Sequence[float], eng: np.ndarray, names: Sequence[str], *,
+                         title: str) -> dict[str, Any]:
     """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
     from livedic.dic.strain.extensometer import AXIAL
     from livedic.stream.stages.stress import (force_coverage_notes, plot_stress_strain, stress_strain_rows,
                                        stress_strain_table)
-    times = np.asarray(times, dtype=np.float64)
-    force = _force_on_frames(load, frames, times)
-    table = stress_strain_table(frames, times, force, eng[:, list(names).index(AXIAL)], area_mm2)
+    time_s = np.asarray(times, dtype=np.float64)
+    force = _force_on_frames(load, frames, time_s)
+    table = stress_strain_table(frames, time_s, force, eng[:, list(names).index(AXIAL)], area_mm2)
     staged["stress_strain.csv"].write(stress_strain_rows(table, csv_rows))
     plot_stress_strain(staged["stress_strain.png"].handle, table, title=title)
     return {"frames_with_force": int(np.isfinite(force).sum()), "uniform_frame_row": table.uniform_frame,

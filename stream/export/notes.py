@@ -3,25 +3,32 @@ as lines (``reader_notes``), the session metadata or a note of its absence (``se
 line on stderr (``say``), and counted words (``plural``).
 """
 
+from __future__ import annotations
+
 import logging
+import os
 import sys
 from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any, Iterator
+
+if TYPE_CHECKING:
+    from livedic.acquire.recording.reader import Recording
 
 
 _READER_LOGGER = "livedic.acquire.recording.reader"
 
 
 @contextmanager
-def reader_notes():
+def reader_notes() -> Iterator[list[str]]:
     """Collect the notes ``acquire.recording.reader`` logs (truncated file ...) instead of printing them raw.
 
     Yields a list that fills with one line per distinct note ("note: " prefix removed).
     The lines are for people; what a program acts on is the reader's ``RecordingInfo``.
     """
-    notes = []
+    notes: list[str] = []
 
     class _Collect(logging.Handler):
-        def emit(self, record):
+        def emit(self, record: logging.LogRecord) -> None:
             text = record.getMessage()
             text = text[len("note: "):] if text.startswith("note: ") else text
             if text not in notes:
@@ -39,7 +46,7 @@ def reader_notes():
         logger.propagate = previous
 
 
-def session_or_note(recording):
+def session_or_note(recording: Recording) -> tuple[dict[str, Any], str]:
     """(session metadata dict, note or "") of a ``Recording``: one without metadata gives {} and a note."""
     from livedic.acquire.recording.errors import NoSessionMetadata
     try:
@@ -48,16 +55,16 @@ def session_or_note(recording):
         return {}, str(missing)
 
 
-def read_session_or_note(path):
+def read_session_or_note(path: str | os.PathLike[str]) -> tuple[dict[str, Any], str]:
     """``session_or_note`` of the recording at ``path`` (``RecordingError`` if it is not one)."""
     from livedic.acquire.recording.reader import Recording
     return session_or_note(Recording(path))
 
 
-def say(message):
+def say(message: str) -> None:
     print(f"livedic: {message}", file=sys.stderr, flush=True)
 
 
-def plural(count, word):
+def plural(count: int, word: str) -> str:
     """``"1 frame"``, ``"3 frames"``."""
     return f"{count} {word}" + ("" if count == 1 else "s")

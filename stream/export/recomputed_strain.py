@@ -5,16 +5,25 @@ on the recorded reference points (P0 first); ``axial_series`` reads the ``axial`
 (``livedic report``), ``plot_extensometers`` draws ``extensometers.png``.
 """
 
+from __future__ import annotations
+
 import math
 import os
 import re
+from typing import IO, TYPE_CHECKING, Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from livedic.stream.export.notes import reader_notes, session_or_note
 
+if TYPE_CHECKING:
+    from livedic.acquire.recording.records import RecordedResults
+    from livedic.dic.strain.extensometer import ExtensometerReadings
+    from livedic.stream.stages.strain import StrainConfig, StrainStage
 
-def p0_point_id(metadata):
+
+def p0_point_id(metadata: Mapping[str, Any]) -> tuple[int, str]:
     """(id of the traced point P0, how it was found) from session metadata; 0 by convention."""
     for key in ("p0_id", "p0_point_id"):
         value = metadata.get(key)
@@ -28,7 +37,8 @@ def p0_point_id(metadata):
     return 0, "not in the session metadata: point 0, livedic's convention"
 
 
-def reference_geometry(metadata, first, p0_id):
+def reference_geometry(metadata: Mapping[str, Any], first: RecordedResults,
+                       p0_id: int) -> tuple[np.ndarray, tuple[float, ...], tuple[float, ...], float | None, int]:
     """(points (N, 2), p0 (x, y), roi, step, subset) of a recording, as the session placed its strain stage.
 
     ``first`` is the first ``RecordedResults``: its ``x, y`` are the reference points as the
@@ -58,7 +68,8 @@ def reference_geometry(metadata, first, p0_id):
     return points, p0, roi, step, subset
 
 
-def strain_stage(metadata, first, p0_id, overrides=None):
+def strain_stage(metadata: Mapping[str, Any], first: RecordedResults, p0_id: int,
+                 overrides: Mapping[str, Any] | None = None) -> StrainStage:
     """The ``stream.stages.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
 
     Raises
@@ -72,7 +83,7 @@ def strain_stage(metadata, first, p0_id, overrides=None):
     return config.place(points, p0=p0, roi=roi, step=step, subset=subset)
 
 
-def _lost_readings(placed):
+def _lost_readings(placed: Any) -> ExtensometerReadings:
     """Readings of ``placed`` extensometers for a frame whose points differ from the reference's: none ok."""
     from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerStatus
     n = len(placed.names)
@@ -83,7 +94,8 @@ def _lost_readings(placed):
                                 status=np.full(n, int(ExtensometerStatus.END_LOST), dtype=np.int32))
 
 
-def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=None, empty_note=""):
+def plot_extensometers(handle: IO[bytes], times: npt.ArrayLike, names: Sequence[str], l0_px: Sequence[float],
+                       strains: npt.ArrayLike, *, title: str, scale: float | None = None, empty_note: str = "") -> None:
     """Write ``extensometers.png`` to ``handle``: engineering strain (%) against time, one line each.
 
     ``strains`` is (frames, extensometers), NaN where not ok: the line has a gap there
@@ -115,7 +127,7 @@ def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=Non
     figure.savefig(handle, format="png")
 
 
-def axial_series(path, strain=None):
+def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The ``axial`` extensometer of a recording, frame by frame, recomputed as ``export_recording`` does.
 
     Returns
@@ -144,20 +156,25 @@ def axial_series(path, strain=None):
         results = recording.results()
         first = next(results, None)
         stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+        placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
+        names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
         if AXIAL not in names:
             raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
                              f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
                              f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
         column = list(names).index(AXIAL)
         across = list(names).index(TRANSVERSE) if TRANSVERSE in names else None
-        frames, times, eng, transverse = [], [], [], []
+        frames: list[int] = []
+        times: list[float] = []
+        eng: list[float] = []
+        transverse: list[float] = []
         t0 = None
         for result in _chain(first, results):
+            assert first is not None and stage is not None     # results: the stage was placed on the first
             if np.array_equal(result.point_id, first.point_id):
                 _, readings = stage.compute(result.u, result.v, result.ok)
             else:
-                readings = _lost_readings(stage.placed)
+                readings = _lost_readings(placed)
             t0 = int(result.timestamp_ns) if t0 is None else t0
             frames.append(int(result.frame_index))
             times.append((int(result.timestamp_ns) - t0) / 1e9)
@@ -172,7 +189,7 @@ def axial_series(path, strain=None):
             "strain": stage.describe() if stage is not None else ""}
 
 
-def _chain(first, rest):
+def _chain(first: RecordedResults | None, rest: Iterable[RecordedResults]) -> Iterator[RecordedResults]:
     """``first`` (when not None) then the rest of the results."""
     if first is None:
         return
@@ -180,12 +197,15 @@ def _chain(first, rest):
     yield from rest
 
 
-def _strain_settings(stage, config, overrides):
+def _strain_settings(stage: StrainStage | None, config: StrainConfig,
+                     overrides: Mapping[str, Any] | None) -> dict[str, Any]:
     """What the strain columns and the extensometers were computed with, for ``session.json``."""
-    settings = {"recomputed_from": "the recorded displacements", "measure": config.measure, "window": config.window,
-                "scale_px_per_mm": config.scale, "overridden": sorted(overrides or {})}
+    settings: dict[str, Any] = {"recomputed_from": "the recorded displacements", "measure": config.measure,
+                                "window": config.window, "scale_px_per_mm": config.scale,
+                                "overridden": sorted(overrides or {})}
     if stage is not None:
-        settings.update(step_px=stage.windows.step, subset_px=stage.windows.subset, vsg_px=stage.vsg_px,
+        windows: Any = stage.windows                  # a dic.strain.field.StrainWindows
+        settings.update(step_px=windows.step, subset_px=windows.subset, vsg_px=stage.vsg_px,
                         extensometers=[{"name": e.name, "x1": e.x1, "y1": e.y1, "x2": e.x2, "y2": e.y2,
                                         "L0_px": e.length_px} for e in stage.extensometers])
     return settings

@@ -2,13 +2,19 @@
 lists the frames.
 """
 
+from __future__ import annotations
+
 import os
 import xml.etree.ElementTree as ElementTree
+from typing import TYPE_CHECKING, Iterable, Mapping
 
 import numpy as np
 
+if TYPE_CHECKING:
+    import meshio
 
-def vtu_mesh(x, y, values, triangles):
+
+def vtu_mesh(x: np.ndarray, y: np.ndarray, values: Mapping[str, np.ndarray], triangles: np.ndarray) -> meshio.Mesh:
     """A ``meshio.Mesh`` of one frame: points at (x, y, 0), ``values`` (name -> (N,) array) as point data."""
     import meshio
     points = np.column_stack([x, y, np.zeros_like(x)]).astype(np.float64)
@@ -18,7 +24,7 @@ def vtu_mesh(x, y, values, triangles):
                        point_data=point_data)
 
 
-def pvd_text(entries):
+def pvd_text(entries: Iterable[tuple[float, str]]) -> str:
     """A ParaView collection (``.pvd``) of (time_s, relative file name) entries: a time series."""
     root = ElementTree.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
     collection = ElementTree.SubElement(root, "Collection")

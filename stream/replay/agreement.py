@@ -4,10 +4,18 @@ floating-point rounding, differs, not compared), filled frame by frame by the re
 The rounding tolerances and what each verdict means are in ``stream.replay.replay``'s notes.
 """
 
+from __future__ import annotations
+
 import enum
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from livedic.acquire.recording.records import RecordedResults
+    from livedic.dic.result import Measurement
+    from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
 
 
 # A replay on another machine agrees within these (see ``stream.replay.replay``'s notes). Rounding
@@ -35,9 +43,9 @@ class Agreement(enum.Enum):
 class ReplayReport:
     """What a replay did and how it compares with the recording."""
     path: str
-    params: dict
-    recorded_params: dict
-    changed: list                    # (name, recorded value or None, value used)
+    params: dict[str, Any]
+    recorded_params: dict[str, Any]
+    changed: list[tuple[str, Any, Any]]                   # (name, recorded value or None, value used)
     all_frames: bool = False
     frames: int = 0                  # frames tracked (the reference included)
     points: int = 0
@@ -56,25 +64,25 @@ class ReplayReport:
     nan_differs: int = 0             # point-frames where one side is NaN and the other is not
     seconds: float = 0.0
     recorded_version: str = ""
-    notes: list = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
     truncated: bool = False          # the recording ends early (crash, kill, disk full): the reader's RecordingInfo
-    strain: dict = None              # stream.stages.strain.StrainStage.summary() of the replay (final extensometers)
-    parallel: object = None          # stream.replay.parallel_replay.ParallelStats when measured on Dask (--workers, --cluster)
-    force: dict = None               # stream.stages.force.LoadStage.summary() with --load
+    strain: dict[str, Any] | None = None   # stream.stages.strain.StrainStage.summary() of the replay (extensometers)
+    parallel: Any = None             # stream.replay.parallel_replay.ParallelStats on Dask (--workers, --cluster)
+    force: dict[str, Any] | None = None    # stream.stages.force.LoadStage.summary() with --load
 
     @property
-    def exact(self):
+    def exact(self) -> bool:
         """Every recorded frame that could be replayed is bit-for-bit equal (u, v, zncc, ok)."""
         return self.same_points and self.compared_frames > 0 and self.mismatched_frames == 0 \
             and self.compared_frames == self.recorded_frames - self.missing_frames
 
     @property
-    def max_difference_px(self):
+    def max_difference_px(self) -> float:
         """The largest |difference| in u or v over the compared point-frames (both finite)."""
         return max(self.max_du, self.max_dv)
 
     @property
-    def agreement(self):
+    def agreement(self) -> Agreement:
         """``Agreement``: exact, within floating-point rounding, differs, or not compared."""
         if self.recorded_frames == 0 or not self.same_points or self.compared_frames == 0:
             return Agreement.NOT_COMPARED
@@ -87,7 +95,7 @@ class ReplayReport:
             return Agreement.WITHIN_ROUNDING
         return Agreement.DIFFERS
 
-    def verdict(self):
+    def verdict(self) -> str:
         """One line for people: equal, equal within rounding, or by how much it differs."""
         changes = ", ".join(f"{name} {'?' if old is None else old} -> {new}" for name, old, new in self.changed)
         size = f"{self.compared_frames} frames x {self.points} points"
@@ -126,23 +134,23 @@ class ReplayReport:
         return text + " with the recorded parameters"
 
 
-def _short(value):
+def _short(value: float) -> str:
     """1e-4 rather than 0.0001 or 1e-04."""
     mantissa, exponent = f"{value:.0e}".split("e")
     return f"{mantissa}e{int(exponent)}"
 
 
-def _g(value):
+def _g(value: float) -> str:
     return f"{value:.3g}"
 
 
-def _same_bits(a, b):
+def _same_bits(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     return (a.view(np.uint64) == b.view(np.uint64)) | (np.isnan(a) & np.isnan(b))
 
 
-def _compare(report, measurement, recorded):
+def _compare(report: ReplayReport, measurement: Measurement, recorded: RecordedResults) -> None:
     if len(recorded.u) != len(measurement.u) or not np.array_equal(recorded.x, measurement.x) \
             or not np.array_equal(recorded.y, measurement.y):
         report.compared_frames += 1
@@ -170,22 +178,24 @@ class _Comparison:
     name = "comparison"
     required = True
 
-    def __init__(self, report, recorded, recorded_xy):
+    def __init__(self, report: ReplayReport, recorded: dict[tuple[int, int], RecordedResults],
+                 recorded_xy: np.ndarray | None) -> None:
         self.report = report
         self.recorded = recorded
         self.recorded_xy = recorded_xy
-        self.seen = set()
+        self.seen: set[tuple[int, int]] = set()
 
-    def __call__(self, result, stats):
+    def __call__(self, result: FrameResult, stats: SessionStats) -> None:
         report = self.report
-        m = result.measurement
+        m = cast("Measurement", result.measurement)
         if result.is_reference:
             recorded_xy = self.recorded_xy
             report.points = stats.n_points
             report.same_points = recorded_xy is not None and recorded_xy.shape == (stats.n_points, 2) \
                 and np.array_equal(recorded_xy[:, 0], m.x) and np.array_equal(recorded_xy[:, 1], m.y)
         report.frames += 1
-        key = (int(result.frame.index), int(result.frame.timestamp_ns))
+        frame: Any = result.frame
+        key = (int(frame.index), int(frame.timestamp_ns))
         match = self.recorded.get(key)
         if match is not None and key not in self.seen:
             self.seen.add(key)

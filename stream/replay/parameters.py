@@ -5,7 +5,10 @@ metadata, else its results' method text), else from ``livedic run``'s default, a
 ``check_parameters`` checks them as ``livedic run`` does.
 """
 
+from __future__ import annotations
+
 import math
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -18,12 +21,12 @@ _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
 _BEFORE_KEY = {"reference_update": "never"}
 
 
-def run_defaults():
+def run_defaults() -> dict[str, Any]:
     """The ``livedic run`` defaults of the method options (and ``n_points``): ``stream.session.config``'s."""
     return dict(TrackingConfig().as_dict(), n_points=DEFAULT_POINTS)
 
 
-def _recorded_value(key, value):
+def _recorded_value(key: str, value: object) -> Any:
     """``value`` as the type of ``key``, or None when it is missing or of the wrong type."""
     if isinstance(value, bool) or value is None:
         return None
@@ -38,7 +41,8 @@ def _recorded_value(key, value):
     return value if isinstance(value, str) and value else None
 
 
-def resolve_parameters(metadata, given, method_text=""):
+def resolve_parameters(metadata: Mapping[str, Any], given: Mapping[str, Any],
+                       method_text: str = "") -> tuple[dict[str, Any], dict[str, Any], list[str]]:
     """(parameters used, recorded parameters found, notes).
 
     ``given``: the user's values (None = not given). A recorded value is taken
@@ -46,10 +50,12 @@ def resolve_parameters(metadata, given, method_text=""):
     text ("search+subpixel"), else ``livedic run``'s default (with a note).
     """
     defaults = run_defaults()
-    from_method = {}
+    from_method: dict[str, str] = {}
     if isinstance(method_text, str) and method_text.count("+") == 1:
         from_method = dict(zip(("search", "subpixel"), method_text.split("+")))
-    used, recorded, notes = {}, {}, []
+    used: dict[str, Any] = {}
+    recorded: dict[str, Any] = {}
+    notes: list[str] = []
     for key in METHOD_KEYS:
         value = _recorded_value(key, metadata.get(key))
         if value is None:
@@ -69,7 +75,7 @@ def resolve_parameters(metadata, given, method_text=""):
     return used, recorded, notes
 
 
-def check_parameters(params, threads=None):
+def check_parameters(params: Mapping[str, Any], threads: int | None = None) -> TrackingConfig:
     """ValueError (one line, as ``livedic run`` words it) for a bad method parameter or thread count.
 
     The checks are ``stream.session.config``'s (``TrackingConfig``, ``SessionConfig``): returns the ``TrackingConfig``.

@@ -68,7 +68,7 @@ import os
 import time
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, cast
 
 import numpy as np
 
@@ -87,7 +87,11 @@ from livedic.stream.replay.points import PointOptions, build_replay_points
 from livedic.stream.replay.agreement import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC, Agreement  # noqa: F401
 
 if TYPE_CHECKING:
+    from livedic.acquire.base import Frame
+    from livedic.acquire.recording.source import McapSource
     from livedic.acquire.recording.records import RecordedResults
+    from livedic.dic.result import Measurement
+    from livedic.dic.strain.field import StrainField
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
     from livedic.stream.stages.stress import StressOptions
 
@@ -95,7 +99,7 @@ if TYPE_CHECKING:
 def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
            point_options: PointOptions | None = None, all_frames: bool = False,
            on_result: Callable[..., None] | None = None, progress: Callable[[int], None] | None = None,
-           threads: int | None = 1, strain: dict[str, Any] | None = None, workers: int | None = None,
+           threads: int = 1, strain: dict[str, Any] | None = None, workers: int | None = None,
            cluster: str | None = None, in_flight: int | None = None, shared_path: str | None = None,
            on_rows: Callable[[FrameRows], None] | None = None, stress: StressOptions | None = None) -> ReplayReport:
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
@@ -173,7 +177,7 @@ def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
     return _replay(request)
 
 
-def _check_parallel_input(path, given, all_frames, threads):
+def _check_parallel_input(path: str, given: Mapping[str, Any] | None, all_frames: bool, threads: int | None) -> None:
     """What the parallel replay refuses before any cluster starts (one line, as the sequential replay words
     it, or its own): bad parameters, nothing to seed the frames from."""
     from livedic.acquire.recording.reader import Recording
@@ -196,7 +200,7 @@ class _Request:
     all_frames: bool
     on_result: Callable[..., None] | None
     progress: Callable[[int], None] | None
-    threads: int | None
+    threads: int
     strain: dict[str, Any] | None
     on_rows: Callable[[FrameRows], None] | None
     stress: StressOptions | None
@@ -245,7 +249,8 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
             if dask is not None:
                 served.append(session)
             _prepare(session, request, recorded, rebuild)
-            point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild else recorded.ids)
+            point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild or recorded.ids is None
+                             else recorded.ids)
             session.start()
             session.run()
             if dask is not None:
@@ -325,7 +330,7 @@ def _points(request: _Request, recorded: _Recorded, tracking: TrackingConfig,
 def _session_config(request: _Request, tracking: TrackingConfig, metadata: dict[str, Any]) -> SessionConfig:
     """The session ``livedic run`` would run on these frames: blocking queue (nothing dropped), no warm-up."""
     stress = request.stress
-    force = {} if stress is None else {"load": stress.load, "load_offset": stress.offset_s,
+    force: dict[str, Any] = {} if stress is None else {"load": stress.load, "load_offset": stress.offset_s,
                                        "area_mm2": stress.area_mm2}
     return SessionConfig(source=f"mcap:{request.path}", tracking=tracking, threads=request.threads, drop="block",
                          warm_up=False, command="livedic replay",
@@ -344,10 +349,11 @@ def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.nd
                                   "output", required=True))
     if on_rows is not None:
         def rows(result: FrameResult, stats: SessionStats) -> None:
-            frame_table = served[0].rows_of(result.frame) if served else None
+            frame: Any = result.frame
+            frame_table = served[0].rows_of(frame) if served else None
             if frame_table is None:
-                frame_table = frame_rows(result.frame.index, result.frame.timestamp_ns, point_ids[0],
-                                         result.measurement, result.strain)
+                frame_table = frame_rows(frame.index, frame.timestamp_ns, point_ids[0],
+                                         cast("Measurement", result.measurement), cast("StrainField", result.strain))
             if stress is not None:
                 frame_table = frame_table.with_force(result.force_N, result.stress_MPa)
             on_rows(frame_table)
@@ -418,7 +424,8 @@ class RecordedFrames:
     (index, timestamp)), in the recorded order: what the live run tracked.
     """
 
-    def __init__(self, source, recorded, reference_key, reference_index, all_frames):
+    def __init__(self, source: McapSource, recorded: Mapping[tuple[int, int], RecordedResults],
+                 reference_key: tuple[int, int] | None, reference_index: int | None, all_frames: bool) -> None:
         self.source = source
         self.recorded = recorded
         self.reference_key = reference_key
@@ -426,7 +433,7 @@ class RecordedFrames:
         self.all_frames = all_frames
         self.skipped_before_reference = 0
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         started = False
         for frame in self.source:
             key = (int(frame.index), int(frame.timestamp_ns))
@@ -441,8 +448,8 @@ class RecordedFrames:
             yield frame
 
     @property
-    def settings(self):
+    def settings(self) -> dict[str, Any]:
         return self.source.settings
 
-    def close(self):
+    def close(self) -> None:
         self.source.close()
