@@ -67,232 +67,58 @@ one line says so (exit 130 or 143). Existing files are not replaced unless ``--o
 ``truncated`` flag is the reader's (``RecordingInfo.truncated``), never read from
 the note's text.
 
-The helpers here (CSV formatting, atomic files, reader notes, P0 lookup) are also
-used by ``stream.replay.replay``.
+The parts live beside this module: ``columns`` (the CSV columns and files), ``notes`` (the reader's notes,
+the session metadata), ``recomputed_strain`` (strain and extensometers from the recorded displacements),
+``force`` (the machine's force and the stress-strain files), ``stop`` (Ctrl-C and SIGTERM); ``livedic
+replay`` uses the first two.
 """
+
+from __future__ import annotations
 
 import csv
 import io
-import logging
-import math
 import os
-import re
-import signal
-import sys
-import threading
-from contextlib import contextmanager
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
 
 import numpy as np
 
 from livedic.acquire.atomic_file import atomic_files
-from livedic.stream.output.files import AtomicFile, check_output_folder, json_text, write_text_atomic
+from livedic.stream.output.files import check_output_folder, json_text, write_text_atomic
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export.field_export import (COLOUR_MAP, NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, FieldOptions,
-                                         FieldWriter, RecordedImages, quantities, remove_stale, video_name)
+from livedic.stream.export.field_maps import COLOUR_MAP
+from livedic.stream.export.field_options import NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, quantities, video_name
+from livedic.stream.export.field_writer import FieldWriter, RecordedImages, remove_stale
+from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_FILES, EXPORT_KEY, EXTENSOMETER_COLUMNS,
+                                          EXTRA_COLUMNS, LEADING_COLUMNS, P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES,
+                                          extensometer_columns, result_columns)
+from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
+from livedic.stream.export.notes import plural, reader_notes, session_or_note
+from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _strain_settings, p0_point_id,
+                                                     plot_extensometers, strain_stage)
+from livedic.stream.export.stop import _stopped_in
+# Re-exported: stream.cli's export, replay and report commands name them as export's.
+from livedic.stream.export.force import stress_from_args  # noqa: F401
+from livedic.stream.export.notes import say  # noqa: F401
+from livedic.stream.export.stop import ExportStopped, StopSignals  # noqa: F401
 
-LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
-EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
-P0_COLUMNS = ("frame", "timestamp_ns", "time_s", "x", "y", "u", "v", "zncc", "ok")
-EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
-STRAIN_COLUMNS = ("exx", "eyy", "exy")
-EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok")
-EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
-BINARY_FILES = ("extensometers.png", "stress_strain.png")
-STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
-EXPORT_KEY = "livedic.export"
-
-_READER_LOGGER = "livedic.acquire.recording.reader"
-
-
-def result_columns(frame_index, timestamp_ns, point_id, x, y, u, v, zncc, ok, extras):
-    """The long-format columns of one frame (``LEADING_COLUMNS`` then ``extras`` in ``EXTRA_COLUMNS`` order)."""
-    columns = {"frame": int(frame_index), "timestamp_ns": int(timestamp_ns), "point_id": point_id,
-               "x": x, "y": y, "u": u, "v": v, "zncc": zncc, "ok": np.asarray(ok, dtype=bool)}
-    for name in EXTRA_COLUMNS:
-        if name in extras:
-            columns[name] = extras[name]
-    return columns
-
-
-# ----------------------------------------------------------------------------- files
-
-# The atomic writer shared by every output of livedic (kept under its old name for callers).
-StagedFile = AtomicFile
-
-
-# ----------------------------------------------------------------------------- recording helpers
-
-@contextmanager
-def reader_notes():
-    """Collect the notes ``acquire.recording.reader`` logs (truncated file ...) instead of printing them raw.
-
-    Yields a list that fills with one line per distinct note ("note: " prefix removed).
-    The lines are for people; what a program acts on is the reader's ``RecordingInfo``.
-    """
-    notes = []
-
-    class _Collect(logging.Handler):
-        def emit(self, record):
-            text = record.getMessage()
-            text = text[len("note: "):] if text.startswith("note: ") else text
-            if text not in notes:
-                notes.append(text)
-
-    logger = logging.getLogger(_READER_LOGGER)
-    handler = _Collect(level=logging.INFO)
-    previous = logger.propagate
-    logger.addHandler(handler)
-    logger.propagate = False
-    try:
-        yield notes
-    finally:
-        logger.removeHandler(handler)
-        logger.propagate = previous
-
-
-def p0_point_id(metadata):
-    """(id of the traced point P0, how it was found) from session metadata; 0 by convention."""
-    for key in ("p0_id", "p0_point_id"):
-        value = metadata.get(key)
-        if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0:
-            return int(value), f"session metadata {key}"
-    text = metadata.get("point_ids")
-    if isinstance(text, str):
-        match = re.search(r"P0 is point (\d+)", text)
-        if match:
-            return int(match.group(1)), f"session metadata point_ids ({text!r})"
-    return 0, "not in the session metadata: point 0, livedic's convention"
-
-
-def session_or_note(recording):
-    """(session metadata dict, note or "") of a ``Recording``: one without metadata gives {} and a note."""
-    from livedic.acquire.recording.errors import NoSessionMetadata
-    try:
-        return recording.session(), ""
-    except NoSessionMetadata as missing:
-        return {}, str(missing)
-
-
-def read_session_or_note(path):
-    """``session_or_note`` of the recording at ``path`` (``RecordingError`` if it is not one)."""
+if TYPE_CHECKING:
+    from livedic.acquire.atomic_file import AtomicFile
+    from livedic.acquire.force import LoadSource
     from livedic.acquire.recording.reader import Recording
-    return session_or_note(Recording(path))
+    from livedic.acquire.recording.records import RecordedEvent, RecordedResults
+    from livedic.dic.strain.extensometer import ExtensometerReadings
+    from livedic.stream.export.field_options import FieldOptions, Quantity
+    from livedic.stream.pipeline.progress import ProgressBar
+    from livedic.stream.stages.strain import StrainConfig, StrainStage
+    from livedic.stream.stages.stress import StressOptions
 
 
-def say(message):
-    print(f"livedic: {message}", file=sys.stderr, flush=True)
-
-
-# ----------------------------------------------------------------------------- strain
-
-def reference_geometry(metadata, first, p0_id):
-    """(points (N, 2), p0 (x, y), roi, step, subset) of a recording, as the session placed its strain stage.
-
-    ``first`` is the first ``RecordedResults``: its ``x, y`` are the reference points as the
-    tracker used them (pixel centres), P0 the point ``p0_id`` (point 0 by convention). The
-    ROI is the recorded one, or the points' extent when the session had none ("full image");
-    the step the recorded grid step (None: the points' typical spacing).
-    """
-    points = np.column_stack([first.x, first.y]).astype(np.float64)
-    where = np.flatnonzero(first.point_id == p0_id)
-    p0 = tuple(points[int(where[0]) if where.size else 0])
-    roi = metadata.get("roi")
-    if isinstance(roi, (list, tuple)) and len(roi) == 4 and all(isinstance(v, (int, float)) for v in roi):
-        roi = tuple(float(v) for v in roi)
-    elif len(points):
-        lo, hi = points.min(axis=0), points.max(axis=0)
-        roi = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
-    else:
-        roi = (0.0, 0.0, 0.0, 0.0)
-    step = None
-    for key in ("grid_step", "step"):
-        value = metadata.get(key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
-            step = float(value)
-            break
-    subset = metadata.get("subset")
-    subset = int(subset) if isinstance(subset, int) and not isinstance(subset, bool) and subset > 0 else 21
-    return points, p0, roi, step, subset
-
-
-def strain_stage(metadata, first, p0_id, overrides=None):
-    """The ``stream.stages.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
-
-    Raises
-    ------
-    ValueError
-        A bad setting, or an extensometer end away from the tracked points (one line).
-    """
-    from livedic.stream.stages.strain import StrainConfig
-    config = StrainConfig.from_metadata(metadata, **(overrides or {}))
-    points, p0, roi, step, subset = reference_geometry(metadata, first, p0_id)
-    return config.place(points, p0=p0, roi=roi, step=step, subset=subset)
-
-
-def extensometer_columns(frame_index, time_s, readings):
-    """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer)."""
-    return {"frame": int(frame_index), "time_s": float(time_s),
-            "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
-            "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
-            "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
-
-
-def _csv_cell(text):
-    """``text`` as one CSV cell (quoted only where CSV needs it)."""
-    text = str(text)
-    if any(c in text for c in ',"\n\r'):
-        return '"' + text.replace('"', '""') + '"'
-    return text
-
-
-def _lost_readings(placed):
-    """Readings of ``placed`` extensometers for a frame whose points differ from the reference's: none ok."""
-    from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerStatus
-    n = len(placed.names)
-    nan = np.full(n, np.nan)
-    l0 = np.array([e.length_px for e in placed.extensometers], dtype=np.float64)
-    return ExtensometerReadings(names=placed.names, l0_px=l0, length_px=nan, eng_strain=nan.copy(),
-                                true_strain=nan.copy(),
-                                status=np.full(n, int(ExtensometerStatus.END_LOST), dtype=np.int32))
-
-
-def plot_extensometers(handle, times, names, l0_px, strains, *, title, scale=None, empty_note=""):
-    """Write ``extensometers.png`` to ``handle``: engineering strain (%) against time, one line each.
-
-    ``strains`` is (frames, extensometers), NaN where not ok: the line has a gap there
-    (points drawn too, so a reading between two gaps still shows). ``l0_px`` may be shorter than
-    ``names`` (a recording with no results places no extensometer): those have no L0 in the legend.
-    """
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(8, 4.5), dpi=100, layout="constrained")
-    axes = figure.add_subplot()
-    times = np.asarray(times, dtype=np.float64)
-    strains = np.asarray(strains, dtype=np.float64).reshape(len(times), len(names))
-    for k, name in enumerate(names):
-        if k < len(l0_px):
-            name += f" (L0 {l0_px[k]:.0f} px" + (f" = {l0_px[k] / scale:.2f} mm)" if scale else ")")
-        axes.plot(times, 100.0 * strains[:, k], marker=".", markersize=3, linewidth=1.2, label=name)
-    axes.set_xlabel("time since the reference frame (s)")
-    axes.set_ylabel("engineering strain (L - L0) / L0 (%)")
-    axes.set_title(title, fontsize=10)
-    axes.grid(True, alpha=0.3)
-    axes.axhline(0.0, color="0.5", linewidth=0.6)
-    if names:
-        gaps = "gaps: no reading (an end lost its points)" if np.isnan(strains).any() else None
-        axes.legend(loc="best", fontsize=9, title=gaps, title_fontsize=8)
-    else:
-        axes.text(0.5, 0.5, empty_note, ha="center", va="center", transform=axes.transAxes, fontsize=10)
-    if len(times) == 0 or not names:
-        axes.set_xlim(0, 1)
-    figure.savefig(handle, format="png")
-
-
-# ----------------------------------------------------------------------------- export
-
-def export_recording(path, directory, *, overwrite=False, strain=None, stress=None, fields=NO_FIELDS, stop=None,
-                     progress=None):
+def export_recording(path: str | os.PathLike[str], directory: str | os.PathLike[str], *, overwrite: bool = False,
+                     strain: dict[str, Any] | None = None, stress: StressOptions | None = None,
+                     fields: FieldOptions = NO_FIELDS, stop: Callable[[], None] | None = None,
+                     progress: ProgressBar | None = None) -> dict[str, Any]:
     """Write ``EXPORT_FILES`` for recording ``path`` into ``directory`` (see module notes).
 
     The CSV files, plots and ``session.json`` are written first, together (all or none); then, with
@@ -332,165 +158,268 @@ def export_recording(path, directory, *, overwrite=False, strain=None, stress=No
         bad or an extensometer lies off the points, or the recording is missing, not MCAP,
         not livedic, or corrupt (``RecordingError``).
     """
-    from livedic.acquire.recording.reader import Recording
-    from livedic.stream.stages.strain import StrainConfig
-
     path, directory = os.fspath(path), os.fspath(directory)
-    check_output_folder(directory, "-o")
     outputs = EXPORT_FILES + (STRESS_FILES if stress is not None else ())
-    targets = {name: os.path.join(directory, name) for name in outputs}
-    existing = [name for name, target in targets.items() if os.path.lexists(target)] + fields.existing(directory)
+    targets = _check_targets(directory, outputs, fields, overwrite)
     stop = stop or (lambda: None)
-    if existing and not overwrite:
-        raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
-                         f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
     with reader_notes() as notes:
-        recording = Recording(path)                             # checks the file before DIR is made
-        metadata, session_note = session_or_note(recording)
-        if session_note:
-            notes.append(session_note)
-        p0_id, p0_how = p0_point_id(metadata)
-        config = StrainConfig.from_metadata(metadata, **(strain or {}))   # bad settings: before DIR is made
-        results = recording.results()
-        first = next(results, None)
-        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-        load = _open_stress_load(stress, names, recording)      # bad load or no axial: before DIR is made
-        shown = quantities(config.scale, fields.strain_unit, config.measure,
-                           stage.vsg_px if stage is not None else None)
-        ranges = ColourRanges(shown, fields.ranges, fields.coloured)
+        source = _read_source(path, strain, stress, fields, notes)      # every check before DIR is made
         created = not os.path.isdir(directory)
         with _stopped_in(f"while writing the CSV files: nothing was written"
                          f"{f' ({directory} removed again)' if created else ''}"), \
                 atomic_files(targets, binary=BINARY_FILES) as staged:
-            fields_csv, trace = staged["fields.csv"], staged["p0_trace.csv"]
-            extensometers = staged["extensometers.csv"]
-            fields_header = None
-            trace.write(",".join(P0_COLUMNS) + "\n")
-            extensometers.write(",".join(EXTENSOMETER_COLUMNS) + "\n")
-            frames = p0_rows = points = 0
-            p0_missing = other_points = 0
-            t0 = None
-            extras_seen = None
-            times, eng, frame_numbers = [], [], []
-            for result in _chain(first, results):
-                stop()
-                if progress is not None:
-                    progress.update(frames, "frames to CSV")
-                extras = {name: getattr(result, name) for name in EXTRA_COLUMNS
-                          if getattr(result, name) is not None and len(getattr(result, name)) == len(result.u)}
-                if fields_header is None:
-                    extras_seen = [name for name in EXTRA_COLUMNS if name in extras]
-                    fields_header = list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)
-                    fields_csv.write(",".join(fields_header) + "\n")
-                    points = len(result.u)
-                n = len(result.u)
-                for name in extras_seen:          # a frame without an extra the first one had: blank cells
-                    extras.setdefault(name, np.full(n, "", dtype=object))
-                extras = {name: extras[name] for name in extras_seen}
-                columns = result_columns(result.frame_index, result.timestamp_ns, result.point_id, result.x,
-                                         result.y, result.u, result.v, result.zncc, result.ok, extras)
-                if np.array_equal(result.point_id, first.point_id):
-                    field, readings = stage.compute(result.u, result.v, result.ok)
-                    columns.update(exx=field.exx, eyy=field.eyy, exy=field.exy)
-                    ranges.add(columns, np.asarray(result.ok, dtype=bool))
-                else:                             # not the reference's points: no strain to speak of
-                    other_points += 1
-                    readings = _lost_readings(stage.placed)
-                    columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
-                fields_csv.write(csv_rows(columns, n))
-                if t0 is None:
-                    t0 = int(result.timestamp_ns)
-                time_s = (int(result.timestamp_ns) - t0) / 1e9
-                extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
-                                             len(readings.names)))
-                times.append(time_s)
-                frame_numbers.append(int(result.frame_index))
-                eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
-                where = np.flatnonzero(result.point_id == p0_id)
-                if where.size:
-                    k = int(where[0])
-                    trace.write(csv_rows({
-                        "frame": int(result.frame_index), "timestamp_ns": int(result.timestamp_ns),
-                        "time_s": time_s, "x": float(result.x[k]),
-                        "y": float(result.y[k]), "u": float(result.u[k]), "v": float(result.v[k]),
-                        "zncc": float(result.zncc[k]), "ok": bool(result.ok[k])}, 1))
-                    p0_rows += 1
-                else:
-                    p0_missing += 1
-                frames += 1
-            if fields_header is None:
-                fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
-            events = recording.events()
-            if t0 is None and events:
-                t0 = min(event.timestamp_ns for event in events)
-            buffer = io.StringIO()
-            writer = csv.writer(buffer, lineterminator="\n")
-            writer.writerow(EVENT_COLUMNS)
-            for event in events:
-                writer.writerow([scalar_text((event.timestamp_ns - (t0 or 0)) / 1e9), event.kind, event.level,
-                                 " ".join(str(event.message).splitlines()), event.timestamp_ns])
-            staged["events.csv"].write(buffer.getvalue())
-            if frames and p0_missing:
-                notes.append(f"P0 (point {p0_id}) is missing from {p0_missing} of {frames} frames' results")
-            if frames == 0:
-                notes.append(f"{path} holds no tracking results (/dic/results): fields.csv, p0_trace.csv and "
-                             f"extensometers.csv have headers only")
-            elif not names:
-                notes.append("the recording has no extensometers: extensometers.csv has the header only "
-                             "(add some with --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
-            if other_points:
-                notes.append(f"{other_points} of {frames} frames track other points than the first: no strain "
-                             f"and no extensometer readings for them")
-            if stage is not None:
-                l0 = [e.length_px for e in stage.extensometers]
-                title = (f"{os.path.basename(path)}: virtual extensometers"
-                         + (f" ({stage.config.scale:g} px/mm)" if stage.config.scale else ""))
-            else:
-                l0, title = [], f"{os.path.basename(path)}: virtual extensometers"
-            plot_extensometers(staged["extensometers.png"].handle, times, names, l0,
-                               np.array(eng).reshape(len(times), len(names)), title=title,
-                               scale=config.scale,
-                               empty_note="no tracking results" if frames == 0 else "no extensometers in this "
-                               "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
-            stress_summary = None
-            if load is not None:
-                stress_summary = _write_stress_strain(staged, load, stress.area_mm2, frame_numbers, times,
-                                                      np.array(eng).reshape(len(times), len(names)), names,
-                                                      title=f"{os.path.basename(path)}: stress-strain (A0 "
-                                                            f"{stress.area_mm2:g} mm^2, force "
-                                                            f"{_force_label(stress)})")
-            session = dict(metadata)
-            delivered = _frames_delivered(recording, session)
-            truncated = recording.info.truncated
-            session[EXPORT_KEY] = {
-                "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
-                "frames_with_results": frames, **delivered, "points": points, "events": len(events),
-                "p0_id": p0_id, "p0_id_from": p0_how, "time_origin_ns": t0,
-                "truncated": truncated, "notes": list(notes),
-                "strain": _strain_settings(stage, config, strain)}
-            if stress is not None:
-                session[EXPORT_KEY]["stress"] = {"load": stress.load, "load_offset_s": stress.offset_s,
-                                                 "area_mm2": stress.area_mm2, **stress_summary}
-                if isinstance(load, RecordedForce):
-                    session[EXPORT_KEY]["stress"]["recorded_source"] = load.source
+            written = _write_frame_files(staged, source, stop, progress)
+            events = source.recording.events()
+            if written.t0 is None and events:
+                written.t0 = min(event.timestamp_ns for event in events)
+            staged["events.csv"].write(_events_csv(events, written.t0))
+            notes.extend(_frame_notes(path, source, written))
+            _plot_extensometer_file(staged, path, source, written)
+            stress_summary = _stress_strain_files(staged, path, source, written, stress)
+            session = _session_json(path, source, written, events, notes, strain, stress, stress_summary)
             staged["session.json"].write(json_text(session))
         report = None
-        if fields.wanted and frames:
-            report = _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite,
-                                   stop, progress, title_note=os.path.basename(path))
-            session[EXPORT_KEY]["fields"] = _fields_settings(fields, shown, ranges, report, stage)
+        if fields.wanted and written.frames:
+            report = _write_fields(path, directory, fields, source.shown, source.ranges, source.stage, source.first,
+                                   written.frames, written.t0, overwrite, stop, progress,
+                                   title_note=os.path.basename(path))
+            session[EXPORT_KEY]["fields"] = _fields_settings(fields, source.shown, source.ranges, report, source.stage)
             write_text_atomic(targets["session.json"], json_text(session))
             notes.extend(_field_notes(report))
         elif fields.wanted:
             notes.append("no tracking results: no maps, video or VTK files")
-    return {"directory": directory, "files": [targets[name] for name in outputs], "frames": frames,
-            "points": points, "events": len(events), "p0_id": p0_id, "p0_rows": p0_rows,
-            "truncated": truncated, "notes": list(notes), "extensometers": list(names),
+    stage = source.stage
+    return {"directory": directory, "files": [targets[name] for name in outputs], "frames": written.frames,
+            "points": written.points, "events": len(events), "p0_id": source.p0_id, "p0_rows": written.p0_rows,
+            "truncated": session[EXPORT_KEY]["truncated"], "notes": list(notes), "extensometers": list(source.names),
             "strain": stage.describe() if stage is not None else "", "stress": stress_summary, "fields": report}
 
 
-# ----------------------------------------------------------------------------- maps, video, VTK
+def _check_targets(directory: str, outputs: tuple[str, ...], fields: FieldOptions, overwrite: bool) -> dict[str, str]:
+    """The path of each of ``outputs`` in ``directory``; ValueError (one line) where one exists, without
+    ``overwrite``."""
+    check_output_folder(directory, "-o")
+    targets = {name: os.path.join(directory, name) for name in outputs}
+    existing = [name for name, target in targets.items() if os.path.lexists(target)] + fields.existing(directory)
+    if existing and not overwrite:
+        raise ValueError(f"{directory} already holds {', '.join(existing)}: pass --overwrite to replace "
+                         f"{'it' if len(existing) == 1 else 'them'}, or choose another folder")
+    return targets
+
+
+@dataclass
+class _Source:
+    """What the export reads of the recording before it writes anything: its metadata, first results, strain
+    stage, force and colour ranges."""
+    recording: Recording
+    metadata: dict[str, Any]
+    p0_id: int
+    p0_how: str
+    config: StrainConfig
+    first: RecordedResults | None
+    results: Iterator[RecordedResults]               # the results after ``first``
+    stage: StrainStage | None
+    names: tuple[str, ...]                           # the extensometers
+    load: LoadSource | RecordedForce | None
+    shown: dict[str, Quantity]
+    ranges: ColourRanges
+
+
+def _read_source(path: str, strain: dict[str, Any] | None, stress: StressOptions | None, fields: FieldOptions,
+                 notes: list[str]) -> _Source:
+    """Open the recording and set up what the export needs: a bad file, setting or load raises here, before
+    the output folder is made."""
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.stages.strain import StrainConfig
+
+    recording = Recording(path)
+    metadata, session_note = session_or_note(recording)
+    if session_note:
+        notes.append(session_note)
+    p0_id, p0_how = p0_point_id(metadata)
+    config = StrainConfig.from_metadata(metadata, **(strain or {}))
+    results = recording.results()
+    first = next(results, None)
+    stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+    placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
+    names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+    load = _open_stress_load(stress, names, recording)      # bad load or no axial extensometer
+    shown = quantities(config.scale, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
+    ranges = ColourRanges(shown, fields.ranges, fields.coloured)
+    return _Source(recording, metadata, p0_id, p0_how, config, first, results, stage, names, load, shown, ranges)
+
+
+@dataclass
+class _Written:
+    """What the pass over the results wrote: counts, the time origin, and each frame's extensometer strain."""
+    frames: int = 0
+    points: int = 0                                  # in the first frame
+    p0_rows: int = 0
+    p0_missing: int = 0
+    other_points: int = 0                            # frames tracking other points than the first
+    t0: int | None = None                            # ns: the first frame's timestamp (time_s = 0)
+    times: list[float] = field(default_factory=list)
+    frame_numbers: list[int] = field(default_factory=list)
+    eng: list[np.ndarray] = field(default_factory=list)
+
+    def eng_strain(self, names: Sequence[str]) -> np.ndarray:
+        """(frames, extensometers) engineering strain, NaN where not read."""
+        return np.array(self.eng).reshape(len(self.times), len(names))
+
+
+def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Callable[[], None],
+                       progress: ProgressBar | None) -> _Written:
+    """``fields.csv``, ``p0_trace.csv`` and ``extensometers.csv``, one frame with results after another."""
+    fields_csv, trace = staged["fields.csv"], staged["p0_trace.csv"]
+    extensometers = staged["extensometers.csv"]
+    trace.write(",".join(P0_COLUMNS) + "\n")
+    extensometers.write(",".join(EXTENSOMETER_COLUMNS) + "\n")
+    written = _Written()
+    extras_seen: list[str] | None = None             # the extra columns of the first frame: the file's
+    for result in _chain(source.first, source.results):
+        stop()
+        if progress is not None:
+            progress.update(written.frames, "frames to CSV")
+        if extras_seen is None:
+            extras_seen = [name for name in EXTRA_COLUMNS if _has_extra(result, name)]
+            fields_csv.write(",".join(list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)) + "\n")
+            written.points = len(result.u)
+        readings = _write_fields_rows(fields_csv, result, extras_seen, source, written)
+        if written.t0 is None:
+            written.t0 = int(result.timestamp_ns)
+        time_s = (int(result.timestamp_ns) - written.t0) / 1e9
+        extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
+                                     len(readings.names)))
+        written.times.append(time_s)
+        written.frame_numbers.append(int(result.frame_index))
+        written.eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
+        _write_p0_row(trace, result, source.p0_id, time_s, written)
+        written.frames += 1
+    if extras_seen is None:
+        fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
+    return written
+
+
+def _has_extra(result: RecordedResults, name: str) -> bool:
+    """Whether ``result`` holds the extra column ``name`` (``EXTRA_COLUMNS``), one value per point."""
+    values = getattr(result, name)
+    return values is not None and len(values) == len(result.u)
+
+
+def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_seen: list[str], source: _Source,
+                       written: _Written) -> ExtensometerReadings:
+    """One frame's rows of ``fields.csv`` (its strain recomputed, its values added to the colour ranges);
+    returns the frame's extensometer readings."""
+    n = len(result.u)
+    extras = {name: getattr(result, name) for name in EXTRA_COLUMNS if _has_extra(result, name)}
+    for name in extras_seen:          # a frame without an extra the first one had: blank cells
+        extras.setdefault(name, np.full(n, "", dtype=object))
+    extras = {name: extras[name] for name in extras_seen}
+    columns = result_columns(result.frame_index, result.timestamp_ns, result.point_id, result.x,
+                             result.y, result.u, result.v, result.zncc, result.ok, extras)
+    stage = source.stage
+    assert stage is not None and source.first is not None     # a frame with results: the stage was placed on the first
+    if np.array_equal(result.point_id, source.first.point_id):
+        strain_field, readings = stage.compute(result.u, result.v, result.ok)
+        columns.update(exx=strain_field.exx, eyy=strain_field.eyy, exy=strain_field.exy)
+        source.ranges.add(columns, np.asarray(result.ok, dtype=bool))
+    else:                             # not the reference's points: no strain to speak of
+        written.other_points += 1
+        readings = _lost_readings(stage.placed)
+        columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
+    fields_csv.write(csv_rows(columns, n))
+    return readings
+
+
+def _write_p0_row(trace: AtomicFile, result: RecordedResults, p0_id: int, time_s: float, written: _Written) -> None:
+    """P0's row of ``p0_trace.csv`` for one frame (counted missing where the frame has no point ``p0_id``)."""
+    where = np.flatnonzero(result.point_id == p0_id)
+    if not where.size:
+        written.p0_missing += 1
+        return
+    k = int(where[0])
+    trace.write(csv_rows({
+        "frame": int(result.frame_index), "timestamp_ns": int(result.timestamp_ns),
+        "time_s": time_s, "x": float(result.x[k]),
+        "y": float(result.y[k]), "u": float(result.u[k]), "v": float(result.v[k]),
+        "zncc": float(result.zncc[k]), "ok": bool(result.ok[k])}, 1))
+    written.p0_rows += 1
+
+
+def _events_csv(events: Sequence[RecordedEvent], t0: int | None) -> str:
+    """The text of ``events.csv``: each event's time in s since ``t0`` (ns; 0 when None)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(EVENT_COLUMNS)
+    for event in events:
+        writer.writerow([scalar_text((event.timestamp_ns - (t0 or 0)) / 1e9), event.kind, event.level,
+                         " ".join(str(event.message).splitlines()), event.timestamp_ns])
+    return buffer.getvalue()
+
+
+def _frame_notes(path: str, source: _Source, written: _Written) -> list[str]:
+    """What people should know of the frames written: P0 missing, no results, no extensometers, other points."""
+    notes = []
+    frames = written.frames
+    if frames and written.p0_missing:
+        notes.append(f"P0 (point {source.p0_id}) is missing from {written.p0_missing} of {frames} frames' results")
+    if frames == 0:
+        notes.append(f"{path} holds no tracking results (/dic/results): fields.csv, p0_trace.csv and "
+                     f"extensometers.csv have headers only")
+    elif not source.names:
+        notes.append("the recording has no extensometers: extensometers.csv has the header only "
+                     "(add some with --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+    if written.other_points:
+        notes.append(f"{written.other_points} of {frames} frames track other points than the first: no strain "
+                     f"and no extensometer readings for them")
+    return notes
+
+
+def _plot_extensometer_file(staged: dict[str, AtomicFile], path: str, source: _Source, written: _Written) -> None:
+    """``extensometers.png``: each extensometer's strain against time (a note in the plot when there is none)."""
+    stage = source.stage
+    title = f"{os.path.basename(path)}: virtual extensometers"
+    if stage is not None:
+        l0 = [e.length_px for e in stage.extensometers]
+        title += f" ({stage.config.scale:g} px/mm)" if stage.config.scale else ""
+    else:
+        l0 = []
+    plot_extensometers(staged["extensometers.png"].handle, written.times, source.names, l0,
+                       written.eng_strain(source.names), title=title, scale=source.config.scale,
+                       empty_note="no tracking results" if written.frames == 0 else "no extensometers in this "
+                       "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
+
+
+def _stress_strain_files(staged: dict[str, AtomicFile], path: str, source: _Source, written: _Written,
+                         stress: StressOptions | None) -> dict[str, Any] | None:
+    """``STRESS_FILES`` with a force (``--load`` or the recorded one); what ``session.json`` says of them."""
+    if source.load is None or stress is None:
+        return None
+    return _write_stress_strain(staged, source.load, stress.area_mm2, written.frame_numbers, written.times,
+                                written.eng_strain(source.names), source.names,
+                                title=f"{os.path.basename(path)}: stress-strain (A0 {stress.area_mm2:g} mm^2, force "
+                                      f"{_force_label(stress)})")
+
+
+def _session_json(path: str, source: _Source, written: _Written, events: Sequence[RecordedEvent], notes: list[str],
+                  strain: dict[str, Any] | None, stress: StressOptions | None,
+                  stress_summary: dict[str, Any] | None) -> dict[str, Any]:
+    """``session.json``: the session metadata and the ``EXPORT_KEY`` entry saying how the files were made."""
+    session = dict(source.metadata)
+    delivered = _frames_delivered(source.recording, session)
+    session[EXPORT_KEY] = {
+        "source": os.path.abspath(path), "exported_at": datetime.now(timezone.utc).isoformat(),
+        "frames_with_results": written.frames, **delivered, "points": written.points, "events": len(events),
+        "p0_id": source.p0_id, "p0_id_from": source.p0_how, "time_origin_ns": written.t0,
+        "truncated": source.recording.info.truncated, "notes": list(notes),
+        "strain": _strain_settings(source.stage, source.config, strain)}
+    if stress is not None:
+        session[EXPORT_KEY]["stress"] = {"load": stress.load, "load_offset_s": stress.offset_s,
+                                         "area_mm2": stress.area_mm2, **(stress_summary or {})}
+        if isinstance(source.load, RecordedForce):
+            session[EXPORT_KEY]["stress"]["recorded_source"] = source.load.source
+    return session
+
 
 def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
                   title_note):
@@ -518,8 +447,9 @@ def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, 
                 if not np.array_equal(result.point_id, first.point_id):
                     writer.report.other_points += 1
                     continue
-                field, _ = stage.compute(result.u, result.v, result.ok)
-                values = {"u": result.u, "v": result.v, "exx": field.exx, "eyy": field.eyy, "exy": field.exy,
+                strain_field, _ = stage.compute(result.u, result.v, result.ok)
+                values = {"u": result.u, "v": result.v, "exx": strain_field.exx, "eyy": strain_field.eyy,
+                          "exy": strain_field.exy,
                           "zncc": result.zncc, "status": result.status, "point_id": result.point_id}
                 frame = images.at(result.timestamp_ns) if writer.wants_image(position) else None
                 writer.add(position, result.frame_index, (int(result.timestamp_ns) - t0) / 1e9, values, result.ok,
@@ -564,62 +494,6 @@ def _field_notes(report):
     return notes
 
 
-# ----------------------------------------------------------------------------- stopping
-
-class ExportStopped(Exception):
-    """A stop signal ended the export; ``state`` (one line) says what the folder holds."""
-
-    def __init__(self, signal_name, signum):
-        super().__init__(signal_name)
-        self.signal_name = signal_name
-        self.signum = int(signum)
-        self.state = ""
-
-
-class StopSignals:
-    """SIGINT (Ctrl-C) and SIGTERM during ``livedic export``: the first stops the export at the next frame.
-
-    The handler only takes note; ``check`` (called once per frame) raises ``ExportStopped``, so a
-    stop never lands inside a library call that is writing a file. A second signal gives up at
-    once (``KeyboardInterrupt``). Installed only in the main thread (signals reach no other).
-    """
-
-    def __init__(self):
-        self.received = None
-        self._previous = {}
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                self._previous[signum] = signal.signal(signum, self._handle)
-        return self
-
-    def _handle(self, signum, _frame):
-        if self.received is not None:
-            raise KeyboardInterrupt
-        self.received = signal.Signals(signum)
-
-    def check(self):
-        if self.received is not None:
-            raise ExportStopped(self.received.name, self.received.value)
-
-    def __exit__(self, *exc):
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-        return False
-
-
-@contextmanager
-def _stopped_in(state):
-    """Give an ``ExportStopped`` leaving this block its ``state`` (text, or a callable for the text at that time)."""
-    try:
-        yield
-    except ExportStopped as stopped:
-        if not stopped.state:
-            stopped.state = state() if callable(state) else state
-        raise
-
-
 def _frames_delivered(recording, session):
     """How many frames the session delivered in the end, and how that is known, for ``session.json``.
 
@@ -638,188 +512,3 @@ def _frames_delivered(recording, session):
         session["source_settings"] = {**settings, "frames_delivered": count,
                                       "frames_delivered_at_start": settings["frames_delivered"]}
     return {"frames_delivered": count, "frames_delivered_from": how}
-
-
-class RecordedForce:
-    """The force recorded on ``/machine/force``, one value per tracked frame.
-
-    Attributes
-    ----------
-    forces : dict
-        Frame index -> force (N; NaN where the load had no value for that frame).
-    source : str
-        The load URI the session recorded (the last one seen; "" when none was written).
-    """
-
-    def __init__(self, forces, source=""):
-        self.forces = dict(forces)
-        self.source = str(source)
-
-    @classmethod
-    def read(cls, recording):
-        """The force samples of a ``Recording`` (an empty ``forces`` for recordings without them)."""
-        forces, source = {}, ""
-        for sample in recording.force_samples():
-            forces[int(sample.frame_index)] = float(sample.force_N)
-            source = sample.source or source
-        return cls(forces, source)
-
-    def on_frames(self, frames):
-        """Force at each of ``frames`` (indices): the recorded value, NaN for a frame without one."""
-        return np.array([self.forces.get(int(frame), math.nan) for frame in frames], dtype=np.float64)
-
-
-def _force_on_frames(load, frames, times):
-    """Force per frame: by frame index from the recording, or the load interpolated onto ``times``."""
-    if isinstance(load, RecordedForce):
-        return load.on_frames(frames)
-    return load.force_at(np.asarray(times, dtype=np.float64))
-
-
-def _force_label(stress):
-    """What the plot title calls the force: the file's name, or the recorded channel."""
-    from livedic.acquire.recording.schema import TOPIC_FORCE
-    if stress.recorded:
-        return f"recorded {TOPIC_FORCE}"
-    return os.path.basename(stress.load[len('csv:'):])
-
-
-def _open_stress_load(stress, names, recording=None):
-    """The ``LoadSource`` of ``stress``, or the ``RecordedForce`` of ``recording`` (None without ``stress``).
-
-    ValueError (one line) if there is no axial extensometer."""
-    if stress is None:
-        return None
-    from livedic.acquire.force import open_load
-    from livedic.dic.strain.extensometer import AXIAL
-    if AXIAL not in names:
-        raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
-                         f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
-                         f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
-    if stress.recorded:
-        return RecordedForce.read(recording)
-    return open_load(stress.load, offset_s=stress.offset_s)
-
-
-def stress_from_args(args):
-    """``StressOptions`` of ``livedic export`` / ``report`` and note lines for people.
-
-    With ``--load``, that load (a note when the recording also holds force samples, which it
-    replaces); without, the force recorded on ``/machine/force`` when the recording holds some
-    (A0 from the options or the session's ``area_mm2``), else None. Bad options raise before the
-    recording is read; ValueError (one line) as ``stream.stages.stress.stress_options_from_args``.
-    """
-    from livedic.acquire.recording.reader import Recording
-    from livedic.acquire.recording.schema import TOPIC_FORCE
-    from livedic.stream.stages.stress import stress_options_from_args
-    load = getattr(args, "load", None)
-    section = any(getattr(args, name, None) is not None for name in ("area", "width", "thickness"))
-    if load is not None and section:
-        stress = stress_options_from_args(args)               # bad options: one line, before anything is read
-    with reader_notes():                                      # the command's own read reports them, once
-        recording = Recording(os.fspath(args.recording))
-        recorded = RecordedForce.read(recording)
-        metadata = session_or_note(recording)[0] if recorded.forces or (load is not None and not section) else {}
-    if load is not None:
-        if not section:                                       # A0 from the session, when it recorded one
-            stress = stress_options_from_args(args, metadata=metadata)
-        notes = [f"--load {stress.load} is the force here, not the one recorded on {TOPIC_FORCE} "
-                 f"({plural(len(recorded.forces), 'frame')})"] if recorded.forces else []
-        return stress, notes
-    return stress_options_from_args(args, recorded_force=bool(recorded.forces), metadata=metadata), []
-
-
-def _write_stress_strain(staged, load, area_mm2, frames, times, eng, names, *, title):
-    """Write ``STRESS_FILES`` into ``staged``; returns what ``session.json`` says of them."""
-    from livedic.dic.strain.extensometer import AXIAL
-    from livedic.stream.stages.stress import (force_coverage_notes, plot_stress_strain, stress_strain_rows,
-                                       stress_strain_table)
-    times = np.asarray(times, dtype=np.float64)
-    force = _force_on_frames(load, frames, times)
-    table = stress_strain_table(frames, times, force, eng[:, list(names).index(AXIAL)], area_mm2)
-    staged["stress_strain.csv"].write(stress_strain_rows(table, csv_rows))
-    plot_stress_strain(staged["stress_strain.png"].handle, table, title=title)
-    return {"frames_with_force": int(np.isfinite(force).sum()), "uniform_frame_row": table.uniform_frame,
-            "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else -1,
-            "notes": force_coverage_notes(table.frame, table.time_s, table.force_N, table.eng_strain)}
-
-
-def axial_series(path, strain=None):
-    """The ``axial`` extensometer of a recording, frame by frame, recomputed as ``export_recording`` does.
-
-    Returns
-    -------
-    dict
-        ``metadata``, ``frames`` (indices), ``time_s`` (since the first frame with results),
-        ``eng_strain`` (NaN where not read), ``transverse_eng_strain`` (the ``transverse``
-        extensometer's, all NaN without one: ``has_transverse``), ``l0_px``, ``scale`` (px/mm or None), ``truncated``,
-        ``notes``, ``strain`` (the stage's one-line description).
-
-    Raises
-    ------
-    ValueError
-        Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
-    """
-    from livedic.acquire.recording.reader import Recording
-    from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
-    from livedic.stream.stages.strain import StrainConfig
-    with reader_notes() as notes:
-        recording = Recording(os.fspath(path))
-        metadata, session_note = session_or_note(recording)
-        if session_note:
-            notes.append(session_note)
-        p0_id, _ = p0_point_id(metadata)
-        config = StrainConfig.from_metadata(metadata, **(strain or {}))
-        results = recording.results()
-        first = next(results, None)
-        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-        names = stage.placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-        if AXIAL not in names:
-            raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
-                             f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
-                             f"(or --extensometer {AXIAL}=x1,y1,x2,y2)")
-        column = list(names).index(AXIAL)
-        across = list(names).index(TRANSVERSE) if TRANSVERSE in names else None
-        frames, times, eng, transverse = [], [], [], []
-        t0 = None
-        for result in _chain(first, results):
-            if np.array_equal(result.point_id, first.point_id):
-                _, readings = stage.compute(result.u, result.v, result.ok)
-            else:
-                readings = _lost_readings(stage.placed)
-            t0 = int(result.timestamp_ns) if t0 is None else t0
-            frames.append(int(result.frame_index))
-            times.append((int(result.timestamp_ns) - t0) / 1e9)
-            eng.append(float(readings.eng_strain[column]))
-            transverse.append(float(readings.eng_strain[across]) if across is not None else math.nan)
-        truncated = recording.info.truncated
-    l0 = stage.extensometers[column].length_px if stage is not None else math.nan
-    return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
-            "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
-            "transverse_eng_strain": np.asarray(transverse, dtype=np.float64), "has_transverse": across is not None,
-            "l0_px": float(l0), "scale": config.scale, "truncated": truncated, "notes": list(notes),
-            "strain": stage.describe() if stage is not None else ""}
-
-
-def _chain(first, rest):
-    """``first`` (when not None) then the rest of the results."""
-    if first is None:
-        return
-    yield first
-    yield from rest
-
-
-def _strain_settings(stage, config, overrides):
-    """What the strain columns and the extensometers were computed with, for ``session.json``."""
-    settings = {"recomputed_from": "the recorded displacements", "measure": config.measure, "window": config.window,
-                "scale_px_per_mm": config.scale, "overridden": sorted(overrides or {})}
-    if stage is not None:
-        settings.update(step_px=stage.windows.step, subset_px=stage.windows.subset, vsg_px=stage.vsg_px,
-                        extensometers=[{"name": e.name, "x1": e.x1, "y1": e.y1, "x2": e.x2, "y2": e.y2,
-                                        "L0_px": e.length_px} for e in stage.extensometers])
-    return settings
-
-
-def plural(count, word):
-    """``"1 frame"``, ``"3 frames"``."""
-    return f"{count} {word}" + ("" if count == 1 else "s")

@@ -22,19 +22,27 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     Engineering curve, true curve up to uniform elongation, Rp0.2 and Rm marked.
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
-(``stream.export.export.axial_series``, as ``livedic export`` does), the stress ``F / A0``
+(``stream.export.recomputed_strain.axial_series``, as ``livedic export`` does), the stress ``F / A0``
 (``stream.stages.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
 engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
 0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
 only all together; existing ones are kept unless ``--overwrite``.
 """
 
+from __future__ import annotations
+
 import math
 import os
 from datetime import datetime, timezone
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.output.files import check_output_folder, json_text
+
+if TYPE_CHECKING:
+    from livedic.dic.tensile.poisson import ContractionRatio
+    from livedic.dic.tensile.properties import TensileProperties
+    from livedic.stream.stages.stress import StressOptions
 
 __all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_json", "report_markdown"]
 
@@ -46,7 +54,8 @@ PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa"
                    "Ag_percent": ("Ag", "%"), "A_percent": ("A", "%")}
 
 
-def report_json(properties, specimen, source, contraction=None):
+def report_json(properties: TensileProperties, specimen: dict[str, Any], source: dict[str, Any],
+                contraction: Sequence[ContractionRatio] | None = None) -> dict[str, Any]:
     """The ``report.json`` object: the five properties (NaN as null), Poisson's ratio and the plastic contraction
     ratio (``contraction``: the pair of ``dic.tensile.poisson.ContractionRatio``; NaN with NO_PAIR when None),
     ``specimen`` and ``source``."""
@@ -71,7 +80,7 @@ def _finite_or_none(value):
     return value
 
 
-def report_markdown(report, plot_name, title):
+def report_markdown(report: Mapping[str, Any], plot_name: str, title: str) -> str:
     """``report.md`` text from the ``report_json`` object."""
     specimen, source = report["specimen"], report["source"]
     gauge = f"{specimen['gauge_length_px']:.1f} px"
@@ -105,7 +114,7 @@ def report_markdown(report, plot_name, title):
     return "\n".join(lines)
 
 
-def _force_line(source):
+def _force_line(source) -> str:
     """The report's line on where the force came from: the load and its offset, or the recorded channel."""
     counted = f"force at {source['frames_with_force']} of {source['frames']} frames"
     if "recorded_source" in source:
@@ -118,7 +127,8 @@ def _cell(text):
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def report_recording(path, directory, *, stress, strain=None, overwrite=False):
+def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[str], *, stress: StressOptions,
+                     strain: Mapping[str, Any] | None = None, overwrite: bool = False) -> dict[str, Any]:
     """Write ``REPORT_FILES`` for recording ``path`` into ``directory``; returns the ``report.json`` object.
 
     Parameters
@@ -140,7 +150,9 @@ def report_recording(path, directory, *, stress, strain=None, overwrite=False):
     from livedic.acquire.recording.reader import Recording
     from livedic.dic.tensile.poisson import contraction_ratios
     from livedic.dic.tensile.properties import tensile_properties
-    from livedic.stream.export.export import RecordedForce, axial_series, reader_notes
+    from livedic.stream.export.force import RecordedForce
+    from livedic.stream.export.notes import reader_notes
+    from livedic.stream.export.recomputed_strain import axial_series
     from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)

@@ -16,16 +16,23 @@ as it is, and a reader can take a column or a range of frames without reading th
 ``rows_output`` writes either through a ``StagedFile``: complete, or not at all.
 """
 
+from __future__ import annotations
+
 import os
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import IO, TYPE_CHECKING, Any, Iterator, TextIO
 
 import numpy as np
 import pyarrow as pa
 
 from livedic.stream.output.files import OutputError, check_output_file
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export.export import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
+from livedic.stream.export.columns import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
+
+if TYPE_CHECKING:
+    from livedic.dic.result import Measurement
+    from livedic.dic.strain.field import StrainField
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")
 FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
@@ -39,7 +46,7 @@ ROW_GROUP_ROWS = 1 << 18
 PARQUET_COMPRESSION = "zstd"
 
 
-def column_type(name) -> pa.DataType:
+def column_type(name: str) -> pa.DataType:
     """The Parquet type of replay column ``name``."""
     if name in _INTEGER_COLUMNS:
         return pa.int64()
@@ -55,10 +62,10 @@ class FrameRows:
     A frame measured on a worker for a CSV comes back with its lines only (``as_text``); else with
     its columns, whose lines ``csv_lines`` formats on first use.
     """
-    header: list
+    header: list[str]
     n: int
-    columns: dict = None
-    lines: str = None
+    columns: dict[str, Any] | None = None
+    lines: str | None = None
 
     def csv_lines(self) -> str:
         """One CSV line per point, each ending in a newline."""
@@ -70,7 +77,7 @@ class FrameRows:
         """The same rows as CSV lines only (what a worker sends back for a CSV: no columns travel)."""
         return FrameRows(list(self.header), self.n, lines=self.csv_lines())
 
-    def with_force(self, force_N, stress_MPa) -> "FrameRows":
+    def with_force(self, force_N: float | None, stress_MPa: float | None) -> FrameRows:
         """These rows with the frame's force and engineering stress (``FORCE_COLUMNS``) on every row.
 
         ``livedic replay --load``: one value per frame, repeated on its points' rows (the long format of
@@ -79,6 +86,7 @@ class FrameRows:
         values = [_known(force_N), _known(stress_MPa)]
         header = list(self.header) + list(FORCE_COLUMNS)
         if self.columns is None:
+            assert self.lines is not None             # rows are columns or lines
             cells = ",".join(scalar_text(value) for value in values)
             return FrameRows(header, self.n, lines=self.lines.replace("\n", f",{cells}\n"))
         return FrameRows(header, self.n, columns={**self.columns, **dict(zip(FORCE_COLUMNS, values))},
@@ -97,16 +105,17 @@ class FrameRows:
         return pa.RecordBatch.from_arrays(arrays, schema=_schema(self.header))
 
 
-def _known(value):
+def _known(value: float | None) -> float:
     """A per-frame number, NaN where unknown (None, NaN or infinite)."""
     return float(value) if value is not None and np.isfinite(value) else float("nan")
 
 
-def _schema(header):
+def _schema(header: list[str]) -> pa.Schema:
     return pa.schema([(name, column_type(name)) for name in header])
 
 
-def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain) -> FrameRows:
+def frame_rows(frame_index: int, timestamp_ns: int, point_ids: np.ndarray, measurement: Measurement,
+               strain: StrainField) -> FrameRows:
     """The rows of one frame of the replay output.
 
     Parameters
@@ -137,7 +146,7 @@ def frame_rows(frame_index, timestamp_ns, point_ids, measurement, strain) -> Fra
 
 # ----------------------------------------------------------------------------- writers
 
-def output_format(output) -> str:
+def output_format(output: str | None) -> str:
     """``"csv"`` or ``"parquet"``, from the suffix of ``-o`` (None or ``-``: CSV on stdout); else ``OutputError``."""
     if output in (None, "-"):
         return "csv"
@@ -148,7 +157,7 @@ def output_format(output) -> str:
     return OUTPUT_SUFFIXES[suffix]
 
 
-def check_rows_output(output, recording):
+def check_rows_output(output: str | None, recording: str) -> None:
     """Refuse an ``-o`` that would destroy the recording, has no known format or cannot be written
     (``OutputError``, one line), before anything is read."""
     if output in (None, "-"):
@@ -168,11 +177,11 @@ class CsvRows:
     """Writes the rows to a text stream: the header with the first frame, then every frame's lines."""
     csv_text = True                 # the parallel replay formats the lines on its workers
 
-    def __init__(self, out):
+    def __init__(self, out: TextIO | StagedFile) -> None:
         self.out = out
-        self.header = None
+        self.header: list[str] | None = None
 
-    def __call__(self, rows: FrameRows):
+    def __call__(self, rows: FrameRows) -> None:
         if self.header is None:
             self.header = list(rows.header)
             self.out.write(",".join(self.header) + "\n")
@@ -182,10 +191,10 @@ class CsvRows:
         """The CSV lines of ``rows``."""
         return rows.csv_lines()
 
-    def close(self):
+    def close(self) -> None:
         pass
 
-    def abandon(self):
+    def abandon(self) -> None:
         pass
 
 
@@ -193,14 +202,14 @@ class ParquetRows:
     """Writes the rows to a binary stream as a Parquet file, a row group every ``ROW_GROUP_ROWS`` rows or so."""
     csv_text = False                # the workers send the columns
 
-    def __init__(self, handle, row_group_rows=ROW_GROUP_ROWS):
+    def __init__(self, handle: IO[bytes], row_group_rows: int = ROW_GROUP_ROWS) -> None:
         self.handle = handle
         self.row_group_rows = int(row_group_rows)
-        self.writer = None
-        self.waiting = []
+        self.writer: Any = None                 # a pyarrow.parquet.ParquetWriter once the schema is known
+        self.waiting: list[pa.RecordBatch] = []
         self.waiting_rows = 0
 
-    def __call__(self, rows: FrameRows):
+    def __call__(self, rows: FrameRows) -> None:
         batch = rows.record_batch()
         if self.writer is None:
             self._open(batch.schema)
@@ -212,24 +221,24 @@ class ParquetRows:
         if self.waiting_rows >= self.row_group_rows:
             self._write_waiting()
 
-    def _open(self, schema):
+    def _open(self, schema) -> None:
         import pyarrow.parquet as pq        # here: every livedic command imports this module, few write Parquet
         self.writer = pq.ParquetWriter(self.handle, schema, compression=PARQUET_COMPRESSION)
 
-    def _write_waiting(self):
+    def _write_waiting(self) -> None:
         if self.waiting:
             table = pa.Table.from_batches(self.waiting)
             self.writer.write_table(table, row_group_size=table.num_rows)
         self.waiting, self.waiting_rows = [], 0
 
-    def close(self):
+    def close(self) -> None:
         """Write what waits and the file's footer (a file of the leading columns and no rows if no frame came)."""
         if self.writer is None:
             self._open(_schema(list(LEADING_COLUMNS) + list(STRAIN_COLUMNS)))
         self._write_waiting()
         self.writer.close()
 
-    def abandon(self):
+    def abandon(self) -> None:
         """After a failure: close without raising (the staged file is removed anyway)."""
         if self.writer is not None:
             try:
@@ -240,7 +249,7 @@ class ParquetRows:
 
 
 @contextmanager
-def rows_output(path):
+def rows_output(path: str) -> Iterator[CsvRows | ParquetRows]:
     """The writer of ``livedic replay -o path`` (``CsvRows`` or ``ParquetRows`` by ``output_format``), on a
     ``StagedFile``: renamed into place when the block ends normally, removed on an error or Ctrl-C."""
     parquet = output_format(path) == "parquet"

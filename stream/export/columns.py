@@ -1,0 +1,58 @@
+"""The columns and files of ``livedic export`` (and of ``livedic replay``'s rows): one frame's long-format
+columns, one frame's extensometer rows, and the atomic writer every file goes through.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Mapping
+
+import numpy as np
+
+from livedic.stream.output.files import AtomicFile
+
+if TYPE_CHECKING:
+    from livedic.dic.strain.extensometer import ExtensometerReadings
+
+
+LEADING_COLUMNS = ("frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok")
+EXTRA_COLUMNS = ("status", "ux", "uy", "vx", "vy", "iterations")
+P0_COLUMNS = ("frame", "timestamp_ns", "time_s", "x", "y", "u", "v", "zncc", "ok")
+EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
+STRAIN_COLUMNS = ("exx", "eyy", "exy")
+EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok")
+EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
+BINARY_FILES = ("extensometers.png", "stress_strain.png")
+STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
+EXPORT_KEY = "livedic.export"
+
+
+def result_columns(frame_index: int, timestamp_ns: int, point_id: np.ndarray, x: np.ndarray, y: np.ndarray,
+                   u: np.ndarray, v: np.ndarray, zncc: np.ndarray, ok: np.ndarray,
+                   extras: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """The long-format columns of one frame (``LEADING_COLUMNS`` then ``extras`` in ``EXTRA_COLUMNS`` order)."""
+    columns: dict[str, Any] = {"frame": int(frame_index), "timestamp_ns": int(timestamp_ns), "point_id": point_id,
+               "x": x, "y": y, "u": u, "v": v, "zncc": zncc, "ok": np.asarray(ok, dtype=bool)}
+    for name in EXTRA_COLUMNS:
+        if name in extras:
+            columns[name] = extras[name]
+    return columns
+
+
+# The atomic writer shared by every output of livedic (kept under its old name for callers).
+StagedFile = AtomicFile
+
+
+def extensometer_columns(frame_index: int, time_s: float, readings: ExtensometerReadings) -> dict[str, Any]:
+    """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer)."""
+    return {"frame": int(frame_index), "time_s": float(time_s),
+            "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
+            "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
+            "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
+
+
+def _csv_cell(text: object) -> str:
+    """``text`` as one CSV cell (quoted only where CSV needs it)."""
+    cell = str(text)
+    if any(c in cell for c in ',"\n\r'):
+        return '"' + cell.replace('"', '""') + '"'
+    return cell
