@@ -170,7 +170,7 @@ class SpecklePattern:
         self._xs, self._ys = _draw_centres(self.seed, H, W, n_image, self.density, margin)
         centres = np.stack([self._xs, self._ys], axis=1)
         centres.flags.writeable = False
-        self.centres = centres
+        self.centres: np.ndarray = centres
         self._bin_centres(reach)
         # Reference points further than this outside the image would see a depleted pattern.
         self._slack = margin - reach

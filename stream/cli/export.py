@@ -8,7 +8,10 @@ from __future__ import annotations
 import argparse
 import os
 
-from livedic.stream.export.export import ExportStopped, StopSignals, export_recording, plural, say, stress_from_args
+from livedic.stream.export.export import export_recording
+from livedic.stream.export.force import stress_from_args
+from livedic.stream.export.notes import plural, say
+from livedic.stream.export.stop import ExportStopped, StopSignals
 from livedic.stream.export.field_export import FieldOptions, add_field_arguments
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args

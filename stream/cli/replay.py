@@ -12,7 +12,7 @@ from typing import Any
 import os
 import sys
 
-from livedic.stream.export.export import say
+from livedic.stream.export.notes import say
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay.replay import PointOptions, replay
 from livedic.stream.replay.rows import CsvRows, check_rows_output, rows_output

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import argparse
 
-from livedic.stream.export.export import say, stress_from_args
+from livedic.stream.export.force import stress_from_args
+from livedic.stream.export.notes import say
 from livedic.stream.export.report import (POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
                                           report_recording)
 from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
@@ -26,7 +27,7 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
 def report_command(args: argparse.Namespace) -> int:
     """``livedic report FILE.mcap -o DIR [--load csv:FILE] [--area | --width --thickness]``; the exit code.
 
-    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.export.stress_from_args``).
+    Without ``--load`` the force recorded on ``/machine/force`` (``stream.export.force.stress_from_args``).
     """
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
     stress, stress_notes = stress_from_args(args)

@@ -99,9 +99,6 @@ from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _st
                                                      plot_extensometers, strain_stage)
 from livedic.stream.export.stop import _stopped_in
 # Re-exported: stream.cli's export, replay and report commands name them as export's.
-from livedic.stream.export.force import stress_from_args  # noqa: F401
-from livedic.stream.export.notes import say  # noqa: F401
-from livedic.stream.export.stop import ExportStopped, StopSignals  # noqa: F401
 
 if TYPE_CHECKING:
     from livedic.acquire.atomic_file import AtomicFile

@@ -34,7 +34,7 @@ class RecordedImages:
     def __init__(self, path: str) -> None:
         from livedic.acquire.recording.source import McapSource
         self._frames = iter(McapSource(path))
-        self._next = None
+        self._next: Frame | None = None
 
     def at(self, timestamp_ns: int) -> Frame | None:
         """The ``acquire.base.Frame`` logged at ``timestamp_ns``, or None."""

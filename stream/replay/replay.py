@@ -84,7 +84,6 @@ from livedic.stream.replay.agreement import ReplayReport, _Comparison
 from livedic.stream.replay.parameters import METHOD_KEYS, check_parameters, resolve_parameters
 from livedic.stream.replay.points import PointOptions, build_replay_points
 # Re-exported: callers name them as replay's (stream.cli.replay, the tests).
-from livedic.stream.replay.agreement import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC, Agreement  # noqa: F401
 
 if TYPE_CHECKING:
     from livedic.acquire.base import Frame
@@ -254,7 +253,7 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
             session.start()
             session.run()
             if dask is not None:
-                report.parallel = session.finish_parallel()
+                report.parallel = session.finish_parallel()    # type: ignore[attr-defined]  # a ParallelSession
                 report.parallel.where = dask.where
         report.strain = session.strain.summary() if session.strain is not None else None
         report.force = session.load_stage.summary() if session.load_stage is not None else None

@@ -70,6 +70,7 @@ class FrameRows:
     def csv_lines(self) -> str:
         """One CSV line per point, each ending in a newline."""
         if self.lines is None:
+            assert self.columns is not None, "a frame's rows hold their columns or their lines"
             self.lines = csv_rows(self.columns, self.n)
         return self.lines
 

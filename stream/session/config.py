@@ -21,6 +21,7 @@ The pieces:
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 import math
 import os
 from dataclasses import asdict, dataclass, field, fields
@@ -260,7 +261,7 @@ class PointsConfig:
     xy: np.ndarray | None = field(default=None, compare=False, repr=False)
     step: int | None = None
     n_points: int = DEFAULT_POINTS
-    p0: tuple | None = None
+    p0: Sequence[float] | None = None
     max_points: int = DEFAULT_MAX_POINTS
 
     def __post_init__(self):
@@ -284,7 +285,7 @@ class PointsConfig:
             raise ValueError(f"--max-points must be >= 1, got {self.max_points}")
 
     @classmethod
-    def region_from_args(cls, args: argparse.Namespace) -> dict:
+    def region_from_args(cls, args: Any) -> dict:
         """``roi``, ``mask``, ``mask_file``, ``exclude`` from ``--roi --mask --exclude`` (``add_region_arguments``).
 
         Raises

@@ -305,7 +305,7 @@ def test_overwrite_replaces_an_earlier_exports_pictures(affine, tmp_path, capsys
 
 def _stop_after(calls):
     """A ``stop`` for ``export_recording`` that raises ``ExportStopped`` (as SIGTERM) on its ``calls``-th call."""
-    from livedic.stream.export.export import ExportStopped
+    from livedic.stream.export.stop import ExportStopped
     count = [0]
 
     def stop():
@@ -321,7 +321,8 @@ def _partial_files(folder):
 
 
 def test_stopped_while_writing_the_csv_files_leaves_nothing(affine, tmp_path):
-    from livedic.stream.export.export import ExportStopped, export_recording
+    from livedic.stream.export.export import export_recording
+    from livedic.stream.export.stop import ExportStopped
     from livedic.stream.export.field_export import FieldOptions
     path, _ = affine
     out = tmp_path / "out"
@@ -334,7 +335,8 @@ def test_stopped_while_writing_the_csv_files_leaves_nothing(affine, tmp_path):
 def test_stopped_while_drawing_keeps_the_csv_files_and_whole_pictures(affine, tmp_path):
     """Stopped at the third frame of the maps: the CSV files are complete, two frames' maps and .vtu files are
     there, whole; no video and no .pvd (they would claim frames that are not there), no partial file."""
-    from livedic.stream.export.export import ExportStopped, export_recording
+    from livedic.stream.export.export import export_recording
+    from livedic.stream.export.stop import ExportStopped
     from livedic.stream.export.field_export import FieldOptions
     path, _ = affine
     out = tmp_path / "out"

@@ -356,7 +356,8 @@ def test_bad_input_is_one_line_and_exit_2(case, recording, tmp_path, capsys):
 def test_the_shipped_sample_replays_exactly_or_within_rounding_and_exports(tmp_path, capsys):
     """The sample was recorded on another machine: bit for bit is not promised here, agreement within
     floating-point rounding (ROUNDING_TOLERANCE_PX = 1e-4 px, the same points ok) is."""
-    from livedic.stream.replay.replay import ROUNDING_TOLERANCE_PX, Agreement, replay
+    from livedic.stream.replay.agreement import ROUNDING_TOLERANCE_PX, Agreement
+    from livedic.stream.replay.replay import replay
     assert ROUNDING_TOLERANCE_PX == 1e-4
     assert os.path.getsize(SAMPLE) < 5_000_000
     readme = open(os.path.join(REPO, "recordings", "README.md")).read()
@@ -436,7 +437,8 @@ def _ok_flipped(i, m):
 def test_replay_says_exact_within_rounding_or_differs(case, agreement, words, tmp_path, capsys):
     """Bit for bit, within floating-point rounding (1e-4 px, ZNCC ``ROUNDING_TOLERANCE_ZNCC``, the same points ok),
     or different: the verdict is the report's ``agreement`` (data), and the line says the same."""
-    from livedic.stream.replay.replay import ROUNDING_TOLERANCE_ZNCC, Agreement, replay
+    from livedic.stream.replay.agreement import ROUNDING_TOLERANCE_ZNCC, Agreement
+    from livedic.stream.replay.replay import replay
     change = {"same": _shifted(0.0), "rounding": _shifted(1.8e-6), "beyond": _shifted(2e-4),
               "zncc-rounding": _shifted(0.0, dzncc=0.5 * ROUNDING_TOLERANCE_ZNCC),
               "zncc": _shifted(0.0, dzncc=2 * ROUNDING_TOLERANCE_ZNCC), "ok-flip": _ok_flipped}[case]

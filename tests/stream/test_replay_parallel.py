@@ -95,7 +95,7 @@ def _replay(recording, out, *extra, capsys=None):
 def _assert_same(parallel, sequential, *, verdict=True):
     """Same header, same (frame, point) rows in the same order, ok/status equal, numbers within the replay's rounding
     tolerances (u, v and the strains 1e-4, ZNCC ``ROUNDING_TOLERANCE_ZNCC``; and the same verdict line: ``verdict``)."""
-    from livedic.stream.replay.replay import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC
+    from livedic.stream.replay.agreement import ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC
     rows, _, _ = parallel
     seq_rows, seq_verdict, _ = sequential
     assert rows[0] == seq_rows[0]
