@@ -28,12 +28,16 @@ MARKERS = {"coarse-fine": "s", "pso": "^", "wso": "v", "improved-wso": "o", "exh
            "icgn2": "*"}
 
 
+# The figures' style, applied around their drawing only (matplotlib's global settings are the process's:
+# the export's maps drawn later in the same process must not inherit them).
+_STYLE = {"figure.dpi": 110, "savefig.dpi": 110, "font.size": 9, "axes.grid": True, "grid.alpha": 0.3,
+          "legend.fontsize": 8, "axes.titlesize": 10}
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    plt.rcParams.update({"figure.dpi": 110, "savefig.dpi": 110, "font.size": 9, "axes.grid": True,
-                         "grid.alpha": 0.3, "legend.fontsize": 8, "axes.titlesize": 10})
     return plt
 
 
@@ -64,6 +68,11 @@ def _fmt(value):
 def draw_all(results, cfg, out):
     """Draw every figure whose data exists; returns {figure key: [file names]}."""
     plt = _plt()
+    with plt.rc_context(_STYLE):
+        return _draw_all(plt, results, cfg, out)
+
+
+def _draw_all(plt, results, cfg, out):
     _IMAGES["kind"] = "exact float" if cfg.bit_depth is None else f"{cfg.bit_depth}-bit"
     written = {}
 
