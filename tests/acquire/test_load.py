@@ -256,7 +256,7 @@ def test_tcp_lines_are_stamped_on_arrival_with_the_monotonic_clock():
     def script(sock, stop):
         sent["before"] = time.monotonic()
         sock.sendall(b"12.5\n")
-        time.sleep(0.1)
+        stop.wait(0.1)
         sent["second"] = time.monotonic()
         sock.sendall(b"999.0,13.5\r\n")     # time_s of the sender ignored: stamped on arrival
         sent["after"] = time.monotonic()
@@ -290,9 +290,9 @@ def test_a_stalled_stream_is_an_event_and_nan_never_a_stale_value():
         for burst in range(2):
             for _ in range(20):
                 sock.sendall(f"{time.monotonic()},{100 + burst}\n".encode())
-                time.sleep(0.01)
+                stop.wait(0.01)
             if burst == 0:
-                time.sleep(0.5)             # the stall: longer than max_gap_s
+                stop.wait(0.5)              # the stall: longer than max_gap_s
         stop.wait(5)
 
     with serving(script) as server, \
@@ -386,9 +386,9 @@ def test_force_when_known_waits_for_the_sample_after_a_live_frame():
     def script(sock, stop):
         for k in range(4):
             sock.sendall(f"{100 * k}\n".encode())
-            time.sleep(0.05 if k < 3 else 0.01)
+            stop.wait(0.05 if k < 3 else 0.01)
         frame_time["t"] = time.monotonic()              # a frame arrives here, between two lines
-        time.sleep(0.04)
+        stop.wait(0.04)
         sock.sendall(b"400\n")
         stop.wait(5)
 
@@ -448,7 +448,7 @@ def delayed_stream(start, duration_s=0.6, rate_hz=500.0):
                 k += 1
             if lines:
                 sock.sendall("".join(lines).encode())
-            time.sleep(0.002)
+            stop.wait(0.002)
         stop.wait(5)
     last_taken = start + (int(duration_s * rate_hz) - 1) / rate_hz
     return script, last_taken

@@ -156,7 +156,7 @@ def test_a_force_ramp_is_stamped_on_the_monotonic_clock_and_interpolated_onto_fr
                 break
             server.write(30, [int(round(force / scale))])
             written.append((time.monotonic(), force))         # after the write returned: it is in the register
-            time.sleep(step_s)
+            done.wait(step_s)
         done.set()
 
     writer = threading.Thread(target=ramp, daemon=True)

@@ -365,7 +365,7 @@ def test_modbus_serves_each_frame_whole_and_the_last_one_after_the_session(tmp_p
         def poll():
             while not stop.is_set():
                 reads.append(decode_registers(_read_map(client, count)))
-                time.sleep(0.002)
+                stop.wait(0.002)
         poller = threading.Thread(target=poll)
         poller.start()
         try:

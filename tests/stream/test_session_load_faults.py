@@ -124,7 +124,7 @@ class ScriptedSender:
     def _line(self, conn, garbage=False):
         now = time.monotonic()
         conn.sendall(f"{float(ramp(now, self.t0))!r}\n".encode() + (b"12 N?\n" if garbage else b""))
-        time.sleep(LINE_PERIOD_S)
+        self.done.wait(LINE_PERIOD_S)
 
     def _accept(self):
         while not self.done.is_set():
@@ -288,7 +288,7 @@ def test_a_modbus_session_survives_the_server_switched_off_and_on(tmp_path, monk
                     on = True
                 value = int(round(float(ramp(now, t0)) / 0.1))
                 server.write(50, ModbusTcpClient.convert_to_registers(value, ModbusTcpClient.DATATYPE.INT32))
-                time.sleep(0.002)
+                done.wait(0.002)
 
         writer = threading.Thread(target=plc, daemon=True)
         writer.start()
