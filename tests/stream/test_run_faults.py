@@ -144,7 +144,7 @@ def test_killed_camera_ends_the_run_with_exit_3_and_a_complete_recording(tmp_pat
     # The error line comes after the recording is closed and the summary printed; then livedic exits
     # without waiting on Aravis's teardown of the dead camera (~7 s of register-write timeouts, in a
     # background thread). What is left takes well under a second; 3 s tells it from the ~7 s wait even
-    # on a loaded machine. (How fast the loss is detected is tested in tests/acquire/test_aravis.py.)
+    # on a loaded machine. (How fast the loss is detected is tested in tests/acquire/camera/test_aravis.py.)
     after_error = exited_at - output.arrival("livedic: error:")
     assert after_error < 3.0, f"livedic exited {after_error:.1f} s after its last line: it waited for the camera"
     info = inspect_recording(str(record))

@@ -25,7 +25,7 @@ import pytest
 
 from livedic.acquire.recording.reader import read_events, read_force_samples, read_results
 from livedic.stream.cli import main
-from tests.acquire.modbus_server import ModbusTestServer
+from tests.acquire.force.modbus_server import ModbusTestServer
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 

@@ -21,7 +21,7 @@ from livedic.acquire.base import NoFirstFrame, SourceError
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 RAMP = "exposure_us=10000&gain_db=0"          # the simulator's ramp without scaling
 
 

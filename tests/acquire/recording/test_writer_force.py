@@ -16,7 +16,7 @@ from livedic.acquire.recording.reader import Recording, read_force_samples, read
 from livedic.acquire.recording.recover import recover
 from livedic.acquire.recording.writer import Recorder
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
 T0 = 1_700_000_000_000_000_000
 DT = 20_000_000

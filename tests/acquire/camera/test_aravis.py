@@ -28,7 +28,7 @@ from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit", "aravis")
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SHAPE = (256, 320)               # (H, W) served and grabbed
 ROI = (0, 0, SHAPE[1], SHAPE[0])
 MOTION8 = SpeckleMotion(SHAPE, step=(1, -1), max_displacement=6, bit_depth=8, seed=3)

@@ -20,7 +20,7 @@ from livedic.dic.strain import StrainStatus
 from livedic.acquire.recording.writer import Recorder
 from livedic.stream.stages.strain import StrainConfig
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
 T0 = 1_700_000_000_000_000_000
 DT = 20_000_000

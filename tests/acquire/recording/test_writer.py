@@ -27,7 +27,7 @@ from livedic.acquire.recording import wire
 from livedic.acquire.recording.writer import Recorder
 from tests.waiting import wait_until
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 T0 = 1_700_000_000_000_000_000
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.force import LoadError, LoadEventKind, ModbusLoad, TIME_BASE_MONOTONIC, decode_registers, open_load
-from tests.acquire.modbus_server import INPUT_MARK, ModbusTestServer
+from tests.acquire.force.modbus_server import INPUT_MARK, ModbusTestServer
 from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit")

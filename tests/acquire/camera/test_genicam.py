@@ -4,7 +4,7 @@ The Fake camera's node map is Aravis's own (GainRaw, ExposureTimeAbs, TestBoolea
 AcquisitionMode, TriggerSelector/Mode/Source/Activation, Binning*); ``extended_xml`` adds what it lacks
 (10/12-bit formats, Line1, FallingEdge, user sets). Each open of ``aravis:Fake_1`` is a new device in its
 power-on state, so what an earlier session leaves behind is tested on the GigE simulator
-(tests/acquire/test_gige_simulator.py). The in-process fake streams in trigger mode whether or not a
+(tests/acquire/camera/test_aravis_gige_simulator.py). The in-process fake streams in trigger mode whether or not a
 trigger comes, so triggers are checked here as settings read back and on the simulator as frames.
 """
 
