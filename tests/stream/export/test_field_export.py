@@ -16,7 +16,7 @@ import pytest
 
 from livedic.stream.cli import main
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
 SIZE = (200, 240)                       # image height, width
 CENTRE = (120.0, 100.0)                 # the affine fields' fixed point (x, y)

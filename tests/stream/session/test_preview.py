@@ -88,7 +88,7 @@ def test_bad_input_is_one_line_exit_2_and_no_picture(images, tmp_path, capsys, e
 
 
 def test_run_logs_the_same_set_up_to_the_view(images, tmp_path):
-    from tests.stream.test_rerun_view import _rows
+    from tests.stream.view.test_logger import _rows
     rrd = tmp_path / "v.rrd"
     assert main(["run", "--source", f"images:{images}", "--n-points", "300", "--exclude", "circle:150,200,20",
                  "--gauge-length", "200", "--viewer", "save", str(rrd), "--no-record"]) == 0

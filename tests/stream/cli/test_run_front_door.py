@@ -15,7 +15,7 @@ import pytest
 
 from livedic.stream.cli import main
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
 
 

@@ -19,7 +19,7 @@ from livedic.stream.session.session import Session, drop_policy, is_live
 from livedic.stream.stages.strain import NOISE_LIMIT, StrainConfig
 from livedic.stream.pipeline.frame_result import SessionStats
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 # 150 frames: the elastic part is the first 23 (to 0.4 % axial strain), the E fit's range about 7 of them
 TENSILE = "synthetic:tensile?frames=150&size=384x512&pace=0"
 NU_ELASTIC = 0.3

@@ -11,10 +11,10 @@ import pytest
 from livedic.stream.view import blueprint, colour_scale, entities
 from livedic.stream.view import logger as view_logger
 from livedic.stream.view.logger import RerunLogger
-from tests.stream.test_rerun_stress import AREA
-from tests.stream.test_rerun_stress import _session as _stress_session
-from tests.stream.test_rerun_strain import ROI, _points, _stage
-from tests.stream.test_rerun_view import SHAPE, _rows
+from tests.stream.view.test_logger_stress import AREA
+from tests.stream.view.test_logger_stress import _session as _stress_session
+from tests.stream.view.test_logger_strain import ROI, _points, _stage
+from tests.stream.view.test_logger import SHAPE, _rows
 
 SMALL = (entities.P0, entities.QUALITY, entities.THROUGHPUT, entities.LATENCY, entities.DROPS, entities.ERROR)
 # Reference hues for the colour words the plot names use.

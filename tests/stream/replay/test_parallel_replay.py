@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from livedic.stream.cli import main
-from tests.stream.test_replay_export import dropped  # noqa: F401 - the fixture: a recording with dropped frames
+from tests.stream.replay.test_replay import dropped  # noqa: F401 - the fixture: a recording with dropped frames
 
 pytest.importorskip("distributed")
 
@@ -82,7 +82,7 @@ def _replay(recording, out, *extra, capsys=None):
     if str(out).endswith(".parquet"):
         import pyarrow.parquet as pq
 
-        from tests.stream.test_replay_parquet import csv_like
+        from tests.stream.replay.test_rows import csv_like
         rows = csv_like(pq.read_table(out))
     else:
         with open(out, newline="") as f:
@@ -156,7 +156,7 @@ def _replay_killing_once(recording, address, tmp_path):
     from distributed import Client
     from distributed.diagnostics.plugin import WorkerPlugin
 
-    import tests.stream.test_replay_parallel as this
+    import tests.stream.replay.test_parallel_replay as this
     cloudpickle.register_pickle_by_value(this)          # the workers need not import the test module
 
     class Plugin(KillOnce, WorkerPlugin):
@@ -338,7 +338,7 @@ def test_the_shipped_sample_recorded_on_another_machine(cluster, tmp_path):
     """recordings/sample-tensile.mcap was recorded on another CPU: both replays agree with it within rounding, and
     with each other within 1e-4 px (the parallel one starts each frame from the recorded result before it, the
     sequential one from its own)."""
-    sample = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+    sample = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))),
                           "recordings", "sample-tensile.mcap")
     sequential = _replay(sample, tmp_path / "seq.csv")
     parallel = _replay(sample, tmp_path / "par.csv", "--cluster", cluster)

@@ -12,7 +12,7 @@ import pytest
 from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
 LEADING = ["frame", "timestamp_ns", "point_id", "x", "y", "u", "v", "zncc", "ok"]
 
@@ -198,7 +198,7 @@ def test_replay_of_a_truncated_recording_uses_the_recovered_frames(killed, tmp_p
 # --------------------------------------------------------------------------- export
 
 EXPORTED = ["events.csv", "extensometers.csv", "extensometers.png", "fields.csv", "p0_trace.csv", "session.json"]
-PICTURES = ["fields.pvd", "maps", "overlay_eyy.mp4", "vtk"]     # the fields as pictures: test_export_fields.py
+PICTURES = ["fields.pvd", "maps", "overlay_eyy.mp4", "vtk"]     # the fields as pictures: tests/stream/export/test_field_export.py
 
 
 def _file_bytes(folder):

@@ -14,7 +14,7 @@ import pytest
 
 from livedic.stream.cli import main
 from livedic.stream.replay.rows import FrameRows, ParquetRows, rows_output
-from tests.stream.test_replay_export import recording  # noqa: F401 - the fixture: a 12-frame session
+from tests.stream.replay.test_replay import recording  # noqa: F401 - the fixture: a 12-frame session
 
 INTEGERS = ("frame", "timestamp_ns", "point_id", "status", "iterations")
 

@@ -185,7 +185,7 @@ def test_report_recovers_the_laws_properties(test_run, tmp_path, capsys):
     assert report["specimen"]["area_mm2"] == AREA_MM2 and report["specimen"]["gauge_length_px"] == 200.0
     peak = test_run["peak"]
     rm_law = float(test_run["force"][peak] / AREA_MM2)
-    # E: the axial extensometer reads the exact strain within 50 microstrain + 0.5 % (test_export_strain);
+    # E: the axial extensometer reads the exact strain within 50 microstrain + 0.5 % (export/test_recomputed_strain.py);
     # over the fitted range (about 0.002 to 0.008) that is within 2 % of the slope.
     assert abs(report["E_GPa"]["value"] / (E_MPA / 1000.0) - 1.0) <= 0.02, report["E_GPa"]
     assert abs(report["Rm_MPa"]["value"] / rm_law - 1.0) <= 0.01, report["Rm_MPa"]
@@ -201,7 +201,7 @@ def test_report_recovers_the_laws_properties(test_run, tmp_path, capsys):
     assert "![stress-strain curve](stress_strain.png)" in text and "| Rp0.2 |" in text and "200.0 px" in text
     # Poisson's ratio: labelled with its frames and range, in the table; the plastic ratio in report.json only.
     # (This force law is not the simulator's own: its E range reaches past the images' elastic 0.4 %, so only
-    # the form is checked here; tests/stream/test_session_numbers.py checks the value on the simulator's law.)
+    # the form is checked here; tests/stream/session/test_session_numbers.py checks the value on the simulator's law.)
     nu = report["poisson_ratio"]
     assert set(nu) >= {"value", "stderr", "label", "frames", "axial_strain_range", "basis", "method", "reason"}
     assert nu["label"].startswith("Poisson's ratio (elastic") and f"| {nu['label']} |" in text

@@ -1,4 +1,4 @@
-"""stream.pipeline.frame_queue: what tests/stream/test_pipeline.py leaves out (depth, bounded drop log, block policy
+"""stream.pipeline.frame_queue: what tests/stream/pipeline/test_acquisition.py leaves out (depth, bounded drop log, block policy
 without loss, closing twice, odd sizes). Events and joins, no sleeps."""
 
 import threading

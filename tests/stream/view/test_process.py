@@ -14,11 +14,11 @@ from livedic.stream.view.camera_image import IMAGE_SKIP_MAX
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.pipeline.frame_result import SessionStats
 from livedic.stream.view.process import BEHIND, ViewProcess, ViewProcessError
-from tests.stream.test_rerun_log import _result, _scalars, _store_summary
+from tests.stream.view.test_logger_entities import _result, _scalars, _store_summary
 from tests.waiting import wait_until
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(os.path.dirname(HERE))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(HERE)))
 START = dict(image_shape=(96, 128), roi=(10, 20, 60, 40), p0_index=0, points=np.zeros((12, 2)), has_truth=True,
              title="test", source_settings={"model": "tensile"})
 
@@ -98,7 +98,7 @@ def test_the_rrd_is_complete_when_the_session_process_dies(tmp_path):
     code = f"""
 import os, sys
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {HERE!r})
-from tests.stream.test_rerun_log import _result
+from tests.stream.view.test_logger_entities import _result
 from livedic.stream.view.process import ViewProcess
 from livedic.stream.pipeline.frame_result import SessionStats
 view = ViewProcess("save", {str(path)!r}, image_max_side=64)

@@ -13,7 +13,7 @@ from livedic.stream.view.colour_scale import nice_ceil
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.stages.strain import StrainConfig
 from livedic.stream.pipeline.frame_result import SessionStats
-from tests.stream.test_rerun_view import SHAPE, _frame_result, _lut_indices, _rows
+from tests.stream.view.test_logger import SHAPE, _frame_result, _lut_indices, _rows
 
 STEP = 16
 ROI = (32, 24, 256, 192)

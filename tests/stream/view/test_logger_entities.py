@@ -14,7 +14,7 @@ from livedic.stream.view.logger import RerunLogger
 from livedic.stream.view.viewer import parse_viewer
 from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 
 
 def _result(i, n=12, shape=(96, 128)):
@@ -148,7 +148,7 @@ def test_periodic_flush_keeps_scalars_after_a_kill(tmp_path):
     code = f"""
 import os, signal, sys, time
 sys.path.insert(0, {REPO!r}); sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
-from test_rerun_log import _result
+from test_logger_entities import _result
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.pipeline.frame_result import SessionStats
 logger = RerunLogger("save", {str(path)!r}, flush_interval_s=0.2)

@@ -11,7 +11,7 @@ import pytest
 from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
 TENSILE = "synthetic:tensile?frames=12&size=384x384&pace=0"
 HEADER = ["frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok"]

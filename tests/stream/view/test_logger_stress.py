@@ -1,7 +1,7 @@
 """The live stress-strain curve (issue 13): force against time and stress against axial strain, in Rerun.
 
 Read back from the saved .rrd. The displacement field is linear (uniform strain, e_yy = 0.001 i in frame i,
-as in test_rerun_strain) and the force a ramp F = 1000 i N on A0 = 10 mm^2, so every logged value is exact:
+as in test_logger_strain) and the force a ramp F = 1000 i N on A0 = 10 mm^2, so every logged value is exact:
 stress 100 i MPa at axial strain 0.1 i %, true strain ln(1 + 0.001 i), true stress 100 i (1 + 0.001 i).
 """
 
@@ -16,8 +16,8 @@ from livedic.stream.stages.force import LoadStage, axial_strain
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.stages.stress import NECKING_DROP, UniformElongationWatch
 from livedic.stream.pipeline.frame_result import SessionStats
-from tests.stream.test_rerun_strain import EYY, FRAMES, ROI, _field, _points, _stage, _views
-from tests.stream.test_rerun_view import SHAPE, _frame_result, _rows
+from tests.stream.view.test_logger_strain import EYY, FRAMES, ROI, _field, _points, _stage, _views
+from tests.stream.view.test_logger import SHAPE, _frame_result, _rows
 
 AREA = 10.0
 

@@ -27,7 +27,7 @@ from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit")
 
-REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SHAPE = (256, 320)
 MOTION = SpeckleMotion(SHAPE, step=(1, -1), max_displacement=6, bit_depth=8, seed=3)
 SERIAL = "LDFAULT"

@@ -17,7 +17,7 @@ import pytest
 from livedic.stream.cli import main
 from livedic.stream.replay.rows import FORCE_COLUMNS
 
-SAMPLE = os.path.join(os.path.dirname(__file__), "..", "..", "recordings", "sample-tensile.mcap")
+SAMPLE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "recordings", "sample-tensile.mcap")
 RAMP_N_PER_S = 5000.0
 LAST_SAMPLE_S = 0.4
 AREA = 10.0
