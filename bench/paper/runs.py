@@ -562,7 +562,7 @@ def run_radius(cfg, log):
     px shifted by a random direction and a magnitude of 0.2..0.9 x the radius,
     points every ``cfg.radius_step`` px where the whole box fits. Success = the
     integer of the exhaustive search over the same box (computed by FFT-CC, which
-    ``tests/dic/test_search.py`` shows identical), counted over the points where
+    ``tests/dic/search/test_search.py`` shows identical), counted over the points where
     that integer is the true shift rounded (a dot-free subset of a sparse pattern
     has no right answer to find).
     """

@@ -119,7 +119,7 @@ def fig11_sentence(stage):
                  f"error| {second[0]:.5f} px and RMS SD {second[1]:.5f} px, {second[1] / max(first[1], 1e-12):.1f}x "
                  "IC-GN's SD: six more parameters per subset inflate the variance of u and a translation has no "
                  "curvature for them to fit; its gain is on fields that bend inside a subset (a neck), where "
-                 "IC-GN carries the first-order shape function's bias (tests/dic/test_icgn2.py).")
+                 "IC-GN carries the first-order shape function's bias (tests/dic/subpixel/test_icgn2.py).")
     return text.rstrip()
 
 

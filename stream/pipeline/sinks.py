@@ -181,7 +181,7 @@ def _depth(dtype):
 def bit_depth_change(reference_dtype, image_dtype, reference_name, image_name):
     """One line when an image's pixel type (numpy dtype) differs from the reference's (None when alike).
 
-    Measured on pairs of the same speckle at 8 and 16 bits (tests/stream/test_bit_depth.py): the
+    Measured on pairs of the same speckle at 8 and 16 bits (tests/stream/session/test_session_bit_depth.py): the
     displacements agree, since ZNCC does not depend on the grey-level scale and the quality gates compare
     each image with itself (texture against the reference's own percentile), so the pair is measured and
     the change is only warned about: it usually means another camera setting or a converted file.

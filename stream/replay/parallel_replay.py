@@ -46,7 +46,7 @@ windows at the crack.
 
 Equality with the sequential replay. With the recorded parameters, on the machine
 that recorded, the outputs are bit for bit the same, reference moves and fractures
-included (``tests/stream/test_replay_parallel.py``): after a move the recorded result
+included (``tests/stream/replay/test_parallel_replay.py``): after a move the recorded result
 is mapped onto the key frame, which rounds, and the sequential tracker starts each
 frame from its own result mapped the same way (``KeyFrameTracker.track``), since
 IC-GN's float32 row sums turn a start 1e-16 px away into up to ~1e-7 px. Elsewhere

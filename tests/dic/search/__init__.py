@@ -1,1 +1,1 @@
-"""Tests of each integer search of dic.search, one module each (the contract shared by all: tests/dic/test_search.py)."""
+"""Tests of dic.search: the contract shared by every integer search (test_search.py), then one module per search."""

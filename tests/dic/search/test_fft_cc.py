@@ -1,4 +1,4 @@
-"""dic.search.fft_cc: the exhaustive ZNCC map computed by FFT (equality with exhaustive: tests/dic/test_search.py)."""
+"""dic.search.fft_cc: the exhaustive ZNCC map computed by FFT (equality with exhaustive: test_search.py here)."""
 
 import numpy as np
 

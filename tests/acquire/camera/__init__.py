@@ -1,0 +1,1 @@
+"""Tests of acquire.camera (the folder mirrors the source)."""

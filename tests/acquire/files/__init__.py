@@ -1,0 +1,1 @@
+"""Tests of acquire.files (the folder mirrors the source)."""

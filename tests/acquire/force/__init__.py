@@ -1,0 +1,1 @@
+"""Tests of acquire.force (the folder mirrors the source)."""

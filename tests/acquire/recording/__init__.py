@@ -1,0 +1,1 @@
+"""Tests of acquire.recording (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of acquire.simulator (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of dic.region (the folder mirrors the source)."""

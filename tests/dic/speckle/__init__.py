@@ -1,0 +1,1 @@
+"""Tests of dic.speckle (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of dic.strain (the folder mirrors the source)."""

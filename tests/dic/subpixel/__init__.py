@@ -1,0 +1,1 @@
+"""Tests of dic.subpixel (the folder mirrors the source)."""

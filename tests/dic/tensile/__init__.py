@@ -1,0 +1,1 @@
+"""Tests of dic.tensile (the folder mirrors the source)."""

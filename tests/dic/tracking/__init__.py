@@ -1,0 +1,1 @@
+"""Tests of dic.tracking (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of stream.cli (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of stream.export (the folder mirrors the source)."""

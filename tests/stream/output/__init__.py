@@ -1,0 +1,1 @@
+"""Tests of stream.output (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of stream.pipeline (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of stream.publish (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of stream.replay (the folder mirrors the source)."""

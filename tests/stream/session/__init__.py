@@ -1,0 +1,1 @@
+"""Tests of stream.session (the folder mirrors the source)."""

@@ -1,0 +1,1 @@
+"""Tests of stream.stages (the folder mirrors the source)."""

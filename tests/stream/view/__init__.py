@@ -1,0 +1,1 @@
+"""Tests of stream.view (the folder mirrors the source)."""
