@@ -66,7 +66,7 @@ def _session(path, *, strain=True, lose=(), stage_config=None, feed_strain=True)
         ok = _isolate_top_end(stage, x, y) if i in lose else None
         result = _frame_result(i, x, y, u, v, ok=ok)
         if feed_strain:
-            stage(result, SessionStats())
+            stage.on_frame(result)
             watch(result, SessionStats())
             readings.append(result.extensometers)
         logger.log_frame(result, SessionStats())
@@ -236,7 +236,7 @@ def test_a_live_view_behind_leaves_out_the_image_never_fields_or_plots(tmp_path)
         for i in range(frames):
             u, v = _field(i, x, y)
             result = dataclasses.replace(_frame_result(i, x, y, u, v), output_backlog=2)   # always behind
-            stage(result, SessionStats())
+            stage.on_frame(result)
             logger.log_frame(result, SessionStats())
         logger.close()
         fields = sorted(_rows(path, f"/{entities.FIELD_U}", "Points2D:positions"))
@@ -265,7 +265,7 @@ def test_a_live_view_draws_the_camera_image_at_most_its_rate_and_every_frame_s_f
     for i in range(frames):
         u, v = _field(i, x, y)
         result = _frame_result(i, x, y, u, v)
-        stage(result, SessionStats())
+        stage.on_frame(result)
         logger.log_frame(result, SessionStats())
     logger.close()
     images = sorted(_rows(path, f"/{entities.CAMERA_IMAGE}", "Image:buffer"))
