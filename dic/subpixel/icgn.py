@@ -68,7 +68,7 @@ class IcgnReference:
     fx, fy : float32 (N, side*lanes)  reference gradients: the steepest-descent images are
                                 ``J = [fx, fx dx, fx dy, fy, fy dx, fy dy]``
     norm : float64 (N,)         |f - mean f|
-    hinv : float64 (N, 6, 6)    inverse of the step matrix H (module notes), order (u, ux, uy, v, vx, vy)
+    hinv : float64 (N, 6, 6)    inverse of the step matrix H (docs/guide/measure.md), order (u, ux, uy, v, vx, vy)
     hinv0 : float64 (N, 2, 2)   inverse of the (u, v) block, for translation-only steps
     sum_j : float64 (N, 6)      sum_i J_i
     sum_jf : float64 (N, 6)     sum_i J_i fhat_i
@@ -257,7 +257,7 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
         sum_jf[pa] = mom[24 + 3 * ga + ma]
     gauss_newton_matrix(mom, hess)
     if projected:
-        # H = sum J~ J~^T - (sum J fhat)(sum J fhat)^T with J~ = J - mean J (module notes)
+        # H = sum J~ J~^T - (sum J fhat)(sum J fhat)^T with J~ = J - mean J (docs/guide/measure.md, IC-GN)
         subtract_normalisation(hess, sum_j, sum_jf, n)
     if not _invert_spd(hess, hinv, low, linv):
         return _FLAT_REFERENCE, np.nan, 0.0
@@ -299,7 +299,7 @@ def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLik
     half : int
         Subset half-width M (subset side 2M + 1).
     hessian : {"projected", "opencorr"}
-        Step matrix of the iteration (module notes): the default is the exact
+        Step matrix of the iteration (docs/guide/measure.md, IC-GN): the default is the exact
         derivative of the update equation at a zero-residual solution;
         "opencorr" is OpenCorr's ``sum J J^T``. Both converge to the same point.
 

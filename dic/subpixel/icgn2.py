@@ -185,7 +185,7 @@ def _prepare2_one(half, lanes, fhat, fx, fy, projected, hinv2, sum_j2, sum_jf2, 
             mj = jj % 6
             hess[i, jj] = ci * _MONO_C[mj] * mom[gi + gj, _MONO_A[mi] + _MONO_A[mj], _MONO_B[mi] + _MONO_B[mj]]
     if projected:
-        # the two rank-one terms of the ZNSSD's normalisation (dic.subpixel.icgn module notes)
+        # the two rank-one terms of the ZNSSD's normalisation (docs/guide/measure.md, IC-GN)
         for i in range(12):
             for jj in range(12):
                 hess[i, jj] -= sum_j2[i] * sum_j2[jj] / n + sum_jf2[i] * sum_jf2[jj]
@@ -326,7 +326,7 @@ def _quadratic_sums(flat, origin, stride, height, width, x0, y0, half, p, fhat, 
     Returns False (``out`` undefined) where a sample would come closer than
     ``INTERPOLATION_MARGIN`` px to the image edge: each row's x' and y' ranges
     (ends and vertex of the row's parabola) are checked before it is sampled.
-    Rows are one run of consecutive taps, or a few (module notes).
+    Rows are one run of consecutive taps, or a few (docs/guide/performance.md, "Sub-pixel kernels").
     """
     side = 2 * half + 1
     lo_edge = float(INTERPOLATION_MARGIN)
