@@ -1,57 +1,24 @@
 """Quality gates: a point is ``ok`` only when its displacement can be trusted.
 
-A match can converge and still be wrong: a side lobe of the correlation found
-by a search that missed the true peak, a warp that fits one or two speckles in
-many ways, a subset that runs off the image. Each gate below turns such a point
-into NaN with its own ``dic.Status`` code; what passes every gate is ``ok``.
+Each gate turns a point that cannot be trusted into NaN with its own ``dic.Status`` code;
+what passes every gate is ``ok``.
 
-1. **Correlation** (``LOW_CORRELATION``): ZNCC below ``min_zncc``. The default,
-   ``MIN_ZNCC`` = 0.5, was chosen by measurement (``livedic bench validate``
-   prints it): on 8-bit pairs whose speckle spans 50 grey levels, with noise
-   sigma = 3 (livedic's simulator and an FFT-filtered random pattern, subset 21,
-   IC-GN), the lowest ZNCC of a correct point (within 0.5 px) was 0.68 (full
-   run; 0.73 in the quick one), with room left for a dimmer specimen; wrong matches found by a failed search
-   score 0.2-0.55 on the DIC Challenge images. ZNCC alone cannot separate the
-   two on poor images, so the other gates carry much of the weight.
-2. **Texture** (``POOR_TEXTURE``), from the reference subset alone
-   (``texture``): the squared gradient per pixel along the subset's weakest
-   direction (the smaller eigenvalue of its structure tensor) below
-   ``TEXTURE_FRACTION`` (5 %) of what the well-textured points of the same
-   image have (the 75th percentile): background, a hole, a paint-free patch, a
-   subset that holds only a piece of an edge; or an aperture problem: the
-   structure tensor's condition number above ``APERTURE_MAX`` (texture in one
-   direction only: a scratch, stripes), so the displacement along it is
-   unknown. Measured with ``livedic bench validate``: the 5 % rule flags no
-   point of dense speckle (livedic's simulator R = 2-5, FFT-filtered noise,
-   hard discs, DIC Challenge Sample 3 and Star 2), 0.8 % of a sparse-dot
-   pattern, and the hole and background of Sample 12 and the real dog-bone
-   (11-13 % of a grid over the whole image); a subset centred in a blank hole
-   whose only texture is an arc of the hole's edge was off by 0.7-0.9 px at
-   ZNCC 0.98 before it (aperture 14-23, weakest direction 4.6 % of typical).
-   First-order shape functions also need the subset to pin 6 parameters: when
-   the variance inflation of u or v by the 4 gradient parameters,
-   ``[H^-1]_uu / [H_uv^-1]_uu`` with ``H`` the Gauss-Newton matrix, exceeds
-   ``VIF_MAX`` (one or two speckles in the subset), IC-GN and Newton-Raphson
-   fall back to a translation-only fit for that point (its gradients are then
-   NaN). Measured on a sparse pattern of ~4 dots per 21 px subset (10,000
-   points, seeded IC-GN from 2 px off): 115 first-order results more than
-   0.1 px off; with the fallback above VIF 10 the rest of the gates leave
-   none of them ok.
-3. **Neighbours** (``OUTLIER``): the normalised median test of Westerweel &
-   Scarano (2005) on u and v over each point's neighbours
-   (``dic.neighbours``): ``|x - median| / (median |x_j - median_j| + eps)``
-   above ``OUTLIER_THRESHOLD`` (2) with ``eps`` = ``OUTLIER_EPSILON`` (0.1 px),
-   their recommended values. Needs at least ``MIN_NEIGHBOURS`` ok neighbours;
-   an isolated point is not tested.
-4. **Border**: a subset whose warped image, with the interpolation's support,
-   does not lie inside the deformed image is ``OUTSIDE_TARGET``
-   (``dic.bspline.INTERPOLATION_MARGIN``); the search box keeps the same margin,
-   so a box clipped by the image edge cannot return a side lobe at the clip.
+1. **Correlation** (``LOW_CORRELATION``): ZNCC below ``min_zncc`` (default ``MIN_ZNCC``).
+2. **Texture** (``POOR_TEXTURE``), from the reference subset alone (``texture``): the squared
+   gradient per pixel along the subset's weakest direction below ``TEXTURE_FRACTION`` of the
+   image's well-textured points (their 75th percentile), or the structure tensor's condition
+   number above ``APERTURE_MAX`` (texture in one direction only). A first-order fit whose
+   variance inflation of u or v, ``[H^-1]_uu / [H_uv^-1]_uu``, exceeds ``VIF_MAX`` falls back
+   to a translation-only fit for that point (its gradients NaN).
+3. **Neighbours** (``OUTLIER``): the normalised median test of Westerweel & Scarano (2005) on
+   u and v over each point's neighbours (``dic.neighbours``): ``|x - median| / (median |x_j -
+   median_j| + eps)`` above ``OUTLIER_THRESHOLD`` with ``eps`` = ``OUTLIER_EPSILON``. Needs at
+   least ``MIN_NEIGHBOURS`` ok neighbours; an isolated point is not tested.
+4. **Border**: a subset whose warped image, with the interpolation's support, does not lie
+   inside the deformed image is ``OUTSIDE_TARGET`` (``dic.bspline.INTERPOLATION_MARGIN``).
 
-References
-----------
-J. Westerweel and F. Scarano, "Universal outlier detection for PIV data",
-Exp. Fluids 39:1096-1100 (2005), :DOI:`10.1007/s00348-005-0016-6`.
+How each threshold was chosen and measured (``livedic bench validate`` reruns it), and the
+reference: docs/guide/quality.md ("How each gate was set").
 """
 
 from __future__ import annotations
@@ -85,7 +52,7 @@ Gradients = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 @dataclass(frozen=True)
 class Gates:
-    """Thresholds of the quality gates (module notes); the defaults are the measured ones."""
+    """Thresholds of the quality gates; the defaults are the measured ones (docs/guide/quality.md)."""
     min_zncc: float = MIN_ZNCC
     texture_fraction: float = TEXTURE_FRACTION
     aperture_max: float = APERTURE_MAX

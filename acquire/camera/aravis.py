@@ -1,65 +1,25 @@
 """GenICam cameras (GigE Vision, USB3 Vision, Aravis's Fake camera) through Aravis 0.8 and gi.
 
-URIs: ``aravis:`` opens the first camera found, ``aravis:DEVICE_ID`` a given
-one (its Aravis id as ``livedic cameras`` lists it, serial number, MAC or, for
-GigE, IP address). Options ride in a query string
-(``aravis:Fake_1?exposure_us=2000&roi=0,0,640,480&feature.GainRaw=3``) or as
-keyword arguments of :func:`open_uri`; see ``AravisCamera.OPTIONS``.
+URIs: ``aravis:`` opens the first camera found, ``aravis:DEVICE_ID`` a given one (its Aravis
+id as ``livedic cameras`` lists it, serial number, MAC or, for GigE, IP address). Options ride
+in a query string (``aravis:Fake_1?exposure_us=2000&roi=0,0,640,480&feature.GainRaw=3``) or
+as keyword arguments of :func:`open_uri`; see ``AravisCamera.OPTIONS``.
 
-Finding the camera: an id, serial or MAC is looked up by discovery (about 1 s)
-and a GigE camera is then opened by its IP address, so Aravis streams to the
-interface on the camera's subnet. (Opened by id alone, Aravis takes the first
-interface whose discovery broadcast got an answer: a camera that answers on
-several interfaces, as Aravis's simulator on 127.0.0.1 does on eth0 too, then
-streams to an address it cannot reach, and no frame ever arrives.)
+Guarantees: a GigE camera is opened by its IP address (found by discovery), so it streams to
+a reachable interface. Every open starts from a known state: an acquisition left running is
+stopped, the ``Default`` user set loaded (``user_set=``), then continuous acquisition,
+triggers off, binning 1, Mono8 and the full sensor unless asked otherwise. Every setting is
+checked against the camera's bounds, applied, then READ BACK; ``settings`` reports what the
+camera actually uses. Mono10/12/16 (unpacked or packed) arrive as uint16 with the camera's
+grey levels, ``bit_depth`` in ``settings`` and each frame's metadata. A ``Frame.image`` is a
+zero-copy view *lent* from the stream's buffer pool (``copy=True`` hands out copies);
+``trigger=software`` / ``trigger=line:N`` as in the options. No frame within ``timeout_s``
+plus 2 s raises ``NoFirstFrame``; a camera lost after delivering raises ``SourceError``
+("lost"); ``close()`` returns at once, an ``atexit`` hook closes forgotten sources.
 
-A known state: every open stops an acquisition left running (by a session that
-ended without stopping it, whose stream address the camera would keep using),
-loads the camera's ``Default`` user set when it has one (``user_set=NAME``
-another, ``user_set=none`` none), then sets what the session depends on to
-livedic's defaults unless asked otherwise: continuous acquisition, triggers off
-(``trigger=``), binning 1 (``binning=``), Mono8 (``pixel_format=``) and the full
-sensor (``roi=``). A ROI left by an earlier run is reset, and the notes say so.
-On the loopback address (a simulator) the GigE packet size defaults to 9000
-bytes: 1400-byte packets halve the frame rate of a full 2048x2048 frame there.
-Every setting is checked against the camera's bounds, applied, then READ BACK;
-``settings`` reports what the camera actually uses next to what was asked.
-``feature.NAME=VALUE`` sets any GenICam feature by its type (``acquire.camera.genicam``).
-
-Pixel formats (``acquire.camera.pixel_formats``): Mono8, and Mono10/Mono12/Mono16
-unpacked or packed (Mono10p, Mono12p, Mono10Packed, Mono12Packed), delivered as
-uint16 with the camera's grey levels; ``settings["bit_depth"]`` and each
-frame's ``metadata["bit_depth"]`` give the significant bits.
-
-Zero copy on the hot path: the stream owns a pool of numpy arrays wrapped by
-``Aravis.Buffer.new_full``, so the camera writes straight into them. A
-``Frame.image`` is a view of one such array, *lent* to the consumer: the
-buffer goes back to the camera (``push_buffer``) when the last reference to
-the image (or any view of it) is dropped. Holding frames therefore holds
-buffers; when the consumer holds nearly all of them the pool grows (up to
-``4 * n_buffers``, with a warning), then frames are copied out (counted in
-``settings["frames_copied"]``) rather than starving the camera. ``copy=True``
-always hands out copies and re-queues at once. Packed formats are unpacked
-into a new array and the buffer re-queued at once.
-
-Triggers: ``trigger=software`` fires TriggerSoftware from the reading thread
-at ``frame_rate`` (the trigger rate; the camera's own frame-rate limit is
-switched off), so a session runs paced by it; ``trigger=line:N`` waits for the
-hardware with no time limit unless ``timeout_s`` is given.
-
-No frame: a camera that never delivered a frame within ``timeout_s`` plus a
-2 s start-up allowance raises ``NoFirstFrame`` (what to check: trigger, GigE
-packet size and firewall, another program holding the camera). A camera lost
-after delivering (no complete frame for ``timeout_s``, default
-``max(0.5 s, 3 frame periods + exposure)``, or GigE control lost) raises
-``SourceError`` ("lost") naming the camera and the stream counters. Teardown
-stops acquisition, then drops the stream, then the camera, in that order (the
-process can abort at exit otherwise); an ``atexit`` hook closes sources the
-caller forgot. After a loss the GigE teardown waits on register-write
-timeouts (about 7 s in Aravis 0.8.26), so it runs in a background
-(non-daemon) thread and ``close()`` returns at once.
-
-Finding cameras and their URIs: ``aravis_discovery``; the declared settings: ``aravis_settings``.
+Why each of these, and the buffer pool: docs/guide/sources.md ("GenICam cameras: how
+``aravis:`` behaves"). Finding cameras and their URIs: ``aravis_discovery``; the declared
+settings: ``aravis_settings``.
 """
 
 from __future__ import annotations

@@ -1,38 +1,20 @@
 """Read livedic recordings (MCAP): replay frames, read results, strain, extensometers, force, events and
 metadata, recover crashes.
 
-The format lives in ``livedic.acquire.recording`` (see ``schema``); this module holds
-``Recording`` and the ``read_*`` functions; ``source`` replays frames (``McapSource``,
-``FrameReader``), ``recover`` rewrites crashed files, ``errors`` and ``records`` hold
-what they raise and return.
+This module holds ``Recording`` and the ``read_*`` functions; ``source`` replays frames
+(``McapSource``, ``FrameReader``), ``recover`` rewrites crashed files, ``errors`` and ``records``
+hold what they raise and return; the format is in ``schema``. A file with a valid summary is
+read through its index (only the chunks of the wanted topics: ``read_results`` never touches
+an image); otherwise a recovery scan reads records one by one until the data ends, and
+``RecordingInfo.truncated`` says so (not an error; one note is logged for people).
 
-Every reader takes the fastest safe path:
-
-* **Indexed.** The file ends with the MCAP magic, its footer parses, and the summary
-  (schemas, channels, chunk and metadata indexes) passes its CRC and bounds checks:
-  only the chunks holding the wanted topics are read (``read_results`` never touches
-  an image chunk; the recorder keeps image and data chunks apart).
-* **Recovery scan.** Otherwise (the recorder was killed, the disk filled up, the
-  summary is damaged) records are read one by one from the start, as mcap's
-  non-seeking reader does, until the data ends: at a partial record (where the
-  writer died), at zero bytes, at the end of the file or at the DataEnd record.
-  A truncated file is not an error: ``RecordingInfo.truncated`` says so (the
-  ``info`` of a ``Recording`` or an ``McapSource`` after a pass, or
-  ``inspect_recording``), and the reader logs one note for people (logger
-  ``livedic.acquire.recording.reader``) saying how many messages it recovered.
-
-What the reader guarantees on any file, however damaged or hostile: no record over
-1 GiB is read and no chunk is decompressed beyond the size it claims (itself at
-most 1 GiB), so garbage cannot allocate gigabytes or hang; chunk CRCs are
-verified; payloads are protobuf or JSON only, nothing from a file is ever
-unpickled or evaluated; and the only exceptions that come out are
-``RecordingError`` (a ``ValueError``) with one line naming the file and the
-problem. Its subclasses say which problem, for callers that act on it:
-``NotMcap`` (empty, not MCAP, cut inside the header), ``NotLivedic`` (an MCAP
-file from another program), ``CorruptRecording`` (a damaged record; ``recover``
-can rewrite what is readable), ``NoSessionMetadata``. ``McapSource`` raises
-``RecordingSourceError``, also an ``acquire.base.SourceError``, with the specific
-error as its ``__cause__``.
+Guarantees on any file, however damaged or hostile: bounded reads and decompression (nothing
+over 1 GiB), chunk CRCs verified, payloads decoded only as protobuf or JSON, and the only
+exception is ``RecordingError`` (a ``ValueError``, one line naming the file and the problem)
+or one of its subclasses ``NotMcap``, ``NotLivedic``, ``CorruptRecording``,
+``NoSessionMetadata``; ``McapSource`` raises ``RecordingSourceError`` (also an
+``acquire.base.SourceError``) with the specific error as its ``__cause__``. Details:
+docs/guide/recording-format.md ("Opening a recording", "What the reader guarantees").
 
 Examples
 --------

@@ -1,68 +1,26 @@
 """Record a session to MCAP: raw frames, per-frame DIC results, strain, extensometers, force, events, metadata.
 
-Layout. Image chunks (``/camera/image``, ``/camera/frame_info``) and data chunks
-(``/dic/results``, ``/dic/strain``, ``/dic/extensometers``, ``/machine/force``,
-``/livedic/events``, ``/livedic/session``) are kept apart, so an
-indexed reader fetches the results without reading any image. Frames go into the
-open image chunk; results and events are serialized at once and wait in memory, to be
-written together as one data chunk (``acquire.recording.chunked_writer.ChunkedWriter``, the
-format's writer, shared with ``recover``). A chunk is written:
+``Recorder(path, session)`` writes the livedic recording format (docs/guide/recording-format.md).
+Image chunks (``/camera/*``) and data chunks (``/dic/*``, ``/machine/force``, ``/livedic/*``)
+are kept apart, so an indexed reader fetches the results without reading any image. A chunk is
+written when it holds ``chunk_bytes``, when its oldest message is ``flush_interval_s`` old
+(checked on every write and by a background thread), and on ``flush()``/``close()``; the
+background thread also calls ``os.fsync`` every ``fsync_interval_s``, off the writer lock.
 
-* when it holds ``chunk_bytes`` (default 4 MiB: 4 frames of 1 MP mono8, 16 of
-  512x512; pending data is written when it holds as much);
-* when the oldest message not yet written, image or data, is ``flush_interval_s``
-  old (default 0.25 s): then the image chunk and the pending data are both
-  written. The write calls check this, and a background thread every
-  ``min(flush_interval_s / 2, 0.1)`` s, for when the caller has gone quiet;
-* on ``flush()`` and ``close()``. The session message gets its own chunk, first in
-  the file, as soon as it is written.
+Guarantees:
 
-Why: mcap's writer keeps an index entry (~570 bytes) per chunk in memory until the
-file is closed. Closing a chunk each time images and results alternate made ~2
-chunks per frame (100 MB an hour at 50 fps); now it is ~0.15 per frame at 512x512
-and ~0.4 at 1 MP (50 fps, 1,000 points). A chunk and its message indexes are
-written and flushed to the kernel at once, the bytes mcap's writer would write.
+* every message whose write returned more than ``flush_interval_s`` + ~0.1 s before the
+  process was killed is readable by ``acquire.recording.reader`` (counted in
+  ``frames_durable`` / ``results_durable``); results never run ahead of their frames;
+* on a full disk or any write error the recorder stops: ``error`` holds one line,
+  ``on_error(message)`` is called once, later writes return False and are counted in the
+  ``*_dropped`` counters, and nothing is raised into the caller's loop again; what was
+  written stays readable (``acquire.recording.recover`` rewrites it indexed);
+* writes are thread safe (one lock); arguments are validated before anything is written, a
+  wrong call raises ``ValueError``/``TypeError`` at once.
 
-What a write costs the other threads (the tracker needs the GIL between its
-kernels): a frame's pixels are copied once, into the open chunk, by numpy without
-the GIL, and a chunk goes to the kernel in one ``write`` without it (its CRC too),
-so a 1 MP frame holds the GIL for some tens of microseconds, and a frame's results,
-strain, extensometers and force for ~0.1 ms (``docs/guide/performance.md``, "Recording").
-The call that writes a chunk still waits for the kernel to take it (a few ms for 4 MiB,
-more when the disk is behind), in the caller's thread.
-
-A tensile test cannot be repeated, so the recorder is built to lose as little as
-possible when things go wrong:
-
-* **Process killed (SIGKILL, crash, power cut of the program).** Data handed to the
-  kernel survives the death of the process, so every message (frame, results,
-  event) whose write returned more than ``flush_interval_s`` + ~0.1 s (~0.35 s with
-  the defaults) before the kill is recoverable by ``acquire.recording.reader``; the test
-  kills a recording process and requires every message counted in ``frames_durable``
-  / ``results_durable`` to survive, no more than ``flush_interval_s`` of the writer's
-  frames ever waiting, and the background flush to write what waits when the writer
-  goes quiet. ``os.fsync`` runs every ``fsync_interval_s`` in the background
-  thread (on a duplicate descriptor, outside the lock, so the tracking loop never
-  waits for the disk); it protects against an OS crash or power loss, which SIGKILL
-  does not need. (The background thread needs the GIL: a caller that holds it for
-  seconds, e.g. in a non-``nogil`` numba kernel, delays that flush.)
-* **Disk full or any write error.** The recorder stops: ``error`` holds one line
-  saying why, ``on_error(message)`` is called once, later writes are dropped and
-  counted (``frames_dropped`` ...; ``*_written`` + ``*_dropped`` is the number of
-  calls), and nothing is ever raised into the caller's loop again. Everything in
-  chunks written before the error stays readable by ``acquire.recording.reader`` (the
-  file has no summary; readers fall back to the recovery scan and
-  ``acquire.recording.recover`` rewrites it indexed); ``frames_durable`` and
-  ``results_durable`` count it. What was still in memory is lost: the open image
-  chunk and the pending data, both younger than ``flush_interval_s``. So the
-  results on disk lag the durable frames by at most ``flush_interval_s`` worth of
-  frames (and never run ahead of them: a data chunk is written only after the
-  image chunk before it).
-
-Writes are thread safe (frames from the acquisition thread, results and events from
-the tracker, flushes from anywhere): one lock guards the writer. Arguments are
-validated before anything is written: a wrong call raises ``ValueError``/``TypeError``
-at once, which shows up on the first frame.
+Why this layout, crash safety, and what a write costs: docs/guide/recording-format.md
+("Chunks, flushing and crash safety") and docs/guide/performance.md ("Recording").
 
 Examples
 --------

@@ -1,84 +1,27 @@
 """Inverse-compositional Gauss-Newton (IC-GN) sub-pixel refinement, 1st-order shape function.
 
-IC-GN minimises the ZNSSD between the reference subset and the warped target
-subset, but linearises around the *reference*: the steepest-descent images
-``J_i = grad f(x_i) dW/dp`` and the Hessian depend only on the reference, so
-they are computed once per point and reused for every iteration and every
-later frame (Baker & Matthews 2004). Each iteration only samples the target at
-the warped positions (bicubic B-spline, coefficients prefiltered once per
-target image) and applies ``W(p) <- W(p) W(dp)^-1``. The equations follow
-OpenCorr's ``ICGN2D1`` (vincentjzy/OpenCorr ``src/oc_icgn.cpp``) and Pan, Li &
-Tong (2013):
+IC-GN minimises the ZNSSD between the reference subset and the warped target subset,
+linearised around the *reference*: the steepest-descent images and the step matrix are
+computed once per point and reused for every iteration and every later frame (Baker &
+Matthews 2004; OpenCorr's ``ICGN2D1``, Pan, Li & Tong 2013):
 
 - warp ``x' = x0 + u + (1 + ux) dx + uy dy``, ``y' = y0 + v + vx dx + (1 + vy) dy``;
-- reference gradients at integer pixels by the 4th-order difference (``dic.gradient``);
-- error ``e_i = (|f~|/|g~|) (g_i - mean g) - (f_i - mean f)``, ``dp = H^-1 sum J_i^T e_i``;
+- target sampled by bicubic B-spline; update ``W(p) <- W(p) W(dp)^-1``;
 - ZNSSD ``= sum e_i^2 / |f~|^2``, reported as ZNCC ``= 1 - ZNSSD/2``;
 - converged when ``sqrt(du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)) < 0.001``
   (M the subset half-width), at most 10 iterations by default.
 
 Live tracking uses the OpenCorr split: ``prepare_reference`` once per session,
-``prepare_target`` once per frame, ``refine_prepared`` per frame with the
-previous result as start. ``refine`` chains the three.
+``prepare_target`` once per frame, ``refine_prepared`` per frame with the previous result as
+start. ``refine`` chains the three. ``hessian="projected"`` (default) or ``"opencorr"``
+(``sum J J^T``): the same fixed point, so the same converged result. From a start more than
+a pixel off with no displacement gradients, translation-only steps come first
+(``translation_iterations``, 0 for plain IC-GN); they change the path, not the result.
+``iterations`` counts both kinds. Sums are float32 per row, float64 per subset and in all
+solves: within ~1e-7 relative of a float64 evaluation (checked in the tests).
 
-The Hessian
------------
-OpenCorr uses ``H = sum J J^T``. The iteration solves ``b(p) = sum J e(p) = 0``
-and only the matrix that scales its steps is changed here: by default
-(``hessian="projected"``) it is the exact derivative of ``b`` at a
-zero-residual solution, ``H = sum J~ J~^T - s s^T`` with ``J~ = J - mean J``
-and ``s = sum J fhat`` (``fhat`` the normalised reference subset). Both terms
-come from the ZNSSD's normalisation (mean and norm of the warped subset) and
-depend on the reference only, so the cost is unchanged. The fixed point, hence
-the converged result, is OpenCorr's; the difference is the path. ``sum J J^T``
-overestimates the curvature along the strain parameters ``ux, vy`` (there
-``mean J`` is about ``-mean f``), so OpenCorr's iteration converges only
-linearly there: on noise-free images the error shrank by ~0.8 per iteration on
-weak subsets, and from starts up to 2 px off (1024^2 speckle, subset 21,
-10,000 points) 8.8 % of the points were still moving at the cap of 10. The
-projected matrix converges quadratically (2 1st-order iterations from a good
-start). ``hessian="opencorr"`` restores the original.
-
-Translation pre-stage
----------------------
-From a start more than a pixel off (a float guess, not a search result), and
-only when the start has no displacement gradients, a few *translation-only*
-IC-GN steps come first: for a pure shift every pixel shares the same
-fractional offset, so the target subset is resampled separably (4 taps along
-x, then 4 along y, ~0.3 us a subset) with weights computed once; the 2x2
-matrix is the (u, v) block of H. They stop once a step moves the shift by less
-than ``translation_tolerance`` (0.02 px), then the 1st-order iteration runs to
-the 0.001 criterion, so the pre-stage changes the path, not the result.
-Measured on 10,000 points started up to 2 px off (1024^2 speckle, subset 21):
-2.85 translation steps + 2.0 1st-order iterations, all converged, 1.45x the
-throughput; without it 3.8 1st-order iterations and 0.06 % unconverged at the
-cap of 10.
-``translation_iterations=0`` gives plain IC-GN. ``iterations`` counts both kinds.
-
-Speed
------
-The 1st-order sampler is fused with the sums the update needs and written so
-LLVM vectorises it (8 float32 lanes, AVX2) with plain vector loads, no gathers:
-along a subset row the 16 B-spline taps of consecutive pixels are consecutive
-in memory while ``floor(x' - dx)`` and ``floor(y')`` stay constant, which for
-small displacement gradients holds for the whole row (one pass) or a few runs
-(one masked pass each). Per-point reference data are padded to whole vectors
-(``lanes``) with zeros, so no scalar remainder loop runs. Interpolation is
-float32 on float32 coefficients (positions are float64 until the fraction is
-taken); per-row sums are float32 (at most 3 terms per lane), subset sums and
-all solves float64. ``fastmath`` is limited to contraction (FMA) and
-reassociation, which lets the reductions vectorise; the result differs from a
-float64 evaluation by ~1e-7 relative in the sums (checked in the tests), far
-below the 8-bit quantisation of the images.
-
-References
-----------
-S. Baker and I. Matthews, "Lucas-Kanade 20 years on: a unifying framework",
-Int. J. Comput. Vis. 56:221-255 (2004), :DOI:`10.1023/B:VISI.0000011205.11775.fd`.
-
-B. Pan, K. Li and W. Tong, "Fast, robust and accurate digital image correlation
-calculation without redundant computations", Exp. Mech. 53:1277-1289 (2013),
-:DOI:`10.1007/s11340-013-9717-6`.
+The step matrix, the translation pre-stage, the vectorised sampler, their measurements and
+the references: docs/guide/measure.md ("IC-GN: the step matrix and the translation pre-stage").
 """
 
 from dataclasses import dataclass
@@ -125,7 +68,7 @@ class IcgnReference:
     fx, fy : float32 (N, side*lanes)  reference gradients: the steepest-descent images are
                                 ``J = [fx, fx dx, fx dy, fy, fy dx, fy dy]``
     norm : float64 (N,)         |f - mean f|
-    hinv : float64 (N, 6, 6)    inverse of the step matrix H (module notes), order (u, ux, uy, v, vx, vy)
+    hinv : float64 (N, 6, 6)    inverse of the step matrix H (docs/guide/measure.md), order (u, ux, uy, v, vx, vy)
     hinv0 : float64 (N, 2, 2)   inverse of the (u, v) block, for translation-only steps
     sum_j : float64 (N, 6)      sum_i J_i
     sum_jf : float64 (N, 6)     sum_i J_i fhat_i
@@ -314,7 +257,7 @@ def _prepare_one(reference, x, y, half, lanes, fhat, fx, fy, hinv, hinv0, sum_j,
         sum_jf[pa] = mom[24 + 3 * ga + ma]
     gauss_newton_matrix(mom, hess)
     if projected:
-        # H = sum J~ J~^T - (sum J fhat)(sum J fhat)^T with J~ = J - mean J (module notes)
+        # H = sum J~ J~^T - (sum J fhat)(sum J fhat)^T with J~ = J - mean J (docs/guide/measure.md, IC-GN)
         subtract_normalisation(hess, sum_j, sum_jf, n)
     if not _invert_spd(hess, hinv, low, linv):
         return _FLAT_REFERENCE, np.nan, 0.0
@@ -356,7 +299,7 @@ def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLik
     half : int
         Subset half-width M (subset side 2M + 1).
     hessian : {"projected", "opencorr"}
-        Step matrix of the iteration (module notes): the default is the exact
+        Step matrix of the iteration (docs/guide/measure.md, IC-GN): the default is the exact
         derivative of the update equation at a zero-residual solution;
         "opencorr" is OpenCorr's ``sum J J^T``. Both converge to the same point.
 

@@ -1,99 +1,25 @@
 """Inverse-compositional Gauss-Newton (IC-GN) with the 2nd-order shape function (12 parameters).
 
-A first-order (affine) subset cannot follow a displacement that bends inside
-it: where the strain changes fast (the flanks of a neck) IC-GN then settles on
-the affine warp that fits best, and the centre's displacement is off by about
-``(1/2) u_xx`` times the subset's second moment (Schreier & Sutton 2002): up to
-~0.1 px on the simulated tensile test at 1024 x 1024 with 21 px subsets. The
-second-order shape function of Lu & Cary (2000) adds the six curvature terms,
+Fits a displacement that bends inside the subset (a neck, a notch, a crack tip), where a
+first-order subset settles on the best affine warp and is biased. The warp (Lu & Cary 2000)
 
     u(dx, dy) = u + ux dx + uy dy + 1/2 uxx dx^2 + uxy dx dy + 1/2 uyy dy^2
 
-(the same for v), p = (u, ux, uy, uxx, uxy, uyy, v, vx, vy, vxx, vxy, vyy),
-and fits a quadratic field exactly. The iteration is OpenCorr's ``ICGN2D2``
-(vincentjzy/OpenCorr ``src/oc_icgn.cpp``) after Gao et al. (2015):
+(the same for v), p = (u, ux, uy, uxx, uxy, uyy, v, vx, vy, vxx, vxy, vyy); the iteration is
+OpenCorr's ``ICGN2D2`` (Gao et al. 2015): steepest-descent images and the 12 x 12 step matrix
+from the reference only, the target sampled by bicubic B-spline at the quadratically warped
+subset, the ZNSSD residual of ``dic.subpixel.icgn``, the update ``W(p) <- W(p) W(dp)^-1``
+composed to second order, converged when the largest displacement change over the subset is
+below 0.001 px. ``hessian`` ("projected" or "opencorr") as in ``dic.subpixel.icgn``: same
+fixed point. A start without second-order terms is first refined by first-order IC-GN;
+``iterations`` counts every step of both. ``order`` per point: 2 (default), 1 (exactly
+``dic.subpixel.icgn``) or 0 (rigid shift, ``dic.quality``'s fallback). A point whose variance
+inflation exceeds ``VIF2_MAX`` or whose 12 x 12 matrix is singular is refined to first order
+(``Icgn2Reference.max_order`` 1, curvature NaN).
 
-- steepest-descent images ``J = (fx, fx dx, fx dy, fx dx^2/2, fx dx dy, fx dy^2/2,
-  fy, ...)`` and the 12 x 12 step matrix from the reference only (once per point);
-- each iteration samples the target at the quadratically warped subset (bicubic
-  B-spline, ``dic.bspline``) and forms the same ZNSSD residual as ``dic.subpixel.icgn``;
-- the update ``W(p) <- W(p) W(dp)^-1`` uses the 6 x 6 warp matrix acting on
-  ``(dx^2, dx dy, dy^2, dx, dy, 1)``: rows 3 and 4 are the warp itself, rows 0-2
-  its squares and product truncated to second order (OpenCorr ``Deformation2D2::setWarp``),
-  so the product is the composition of the two warps to second order in (dx, dy);
-- converged when ``du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)
-  + M^4 (duxx^2/4 + duxy^2 + duyy^2/4 + ...) < 0.001^2``: the largest
-  displacement change over the subset (M the subset half-width).
-
-The step matrix is that of ``dic.subpixel.icgn`` extended to 12 parameters: by
-default the exact derivative of the update equation at a zero-residual
-solution (``hessian="projected"``, see that module), or OpenCorr's ``sum J J^T``
-(``hessian="opencorr"``); both have the same fixed point. The truncated warp
-composition changes the path, never the fixed point: an iteration stops only
-where ``sum J e = 0`` for the exactly sampled 2nd-order warp.
-
-Start
------
-As OpenCorr does (FFT-CC, then ICGN2D1, then ICGN2D2), a start without
-second-order terms (all six exactly 0: an integer search result, a guess, a
-first-order result) is first refined by first-order IC-GN
-(``dic.subpixel.icgn.refine_point``, with its translation pre-stage), and the
-2nd-order iteration starts from that result; a start with second-order terms
-(the previous frame's result in a tracker) goes straight to the 2nd-order
-iteration. ``iterations`` counts every step of both.
-
-Shape function per point (``order``): 2 (default) quadratic; 1 affine (exactly
-``dic.subpixel.icgn``); 0 rigid shift (the translation-only fallback of
-``dic.quality`` for subsets too poorly textured to pin more).
-
-Noise and the first-order fallback
-----------------------------------
-Twelve parameters need more texture than six, and image noise moves a
-quadratic fit more: the variance of u grows by ``[H^-1]_uu / [H_uv^-1]_uu``
-(the variance inflation, VIF, of the 12 x 12 matrix against its shift block).
-Measured on the paper's speckle (R = 4 px, 1000 spots per 256^2, subset 21),
-8-bit images of an affine field, 19,602 points of two patterns: VIF median
-6.2 (first order: 1.3), and the error RMS 0.012-0.013 px against IC-GN's
-0.0067 px (8-bit rounding alone); the error grows with the VIF (RMS 0.010 px
-below 5, 0.026 px at 15-20, 0.094 px above 50, where one point was 0.22 px
-off). A point whose VIF exceeds ``VIF2_MAX`` (20; 1.4 % of those points) or
-whose 12 x 12 matrix is singular is therefore refined to first order
-(``Icgn2Reference.max_order`` 1, curvature NaN); the worst error among the
-rest was 0.099 px. On exact (float) images there is no such cost: IC-GN2 fits
-a quadratic field to 0.001 px where IC-GN is off by up to 0.06 px (tests).
-Use icgn2 where the strain varies within a subset (a neck, a notch, a crack
-tip) and icgn elsewhere; a larger subset lowers both its VIF and IC-GN's bias.
-
-Speed
------
-The sampler is ``dic.subpixel.icgn``'s, generalised: along a subset row the
-tap origin is ``(floor(x' - dx), floor(y'))`` with ``x' - dx`` and ``y'`` now
-quadratic in dx; while both floors stay constant (a whole row for gentle
-warps; the range over the row is taken at its ends and the parabola's vertex)
-the 16 taps of consecutive lanes are consecutive in memory, one vector pass
-per row (8 float32 lanes, fused with the 9 per-row sums), else one masked pass
-per run. Per-row sums are float32, the subset's float64. Measured on a shared
-2-core machine: from warm starts (the previous result, as a tracker has it;
-9,801 points, 512 x 512 8-bit) 8.6 us a point in 2.8 iterations against
-IC-GN's 5.0 us in 2.3 (an iteration ~1.4x IC-GN's: the sampler plus the 12 x 12
-product and the 6 x 6 warp update); ``dic.Tracker`` on the 1 MP simulated
-tensile test (1,058 points, 300 frames) 10.3 ms a frame against 7.6 ms (medians,
-same run). From an integer start the first-order stage comes first: about
-2x IC-GN's time (``livedic bench speed``, ``livedic bench paper`` Table 1).
-
-References
-----------
-H. Lu and P. D. Cary, "Deformation measurements by digital image correlation:
-implementation of a second-order displacement gradient", Exp. Mech.
-40:393-400 (2000), :DOI:`10.1007/BF02326485`.
-
-H. W. Schreier and M. A. Sutton, "Systematic errors in digital image
-correlation due to undermatched subset shape functions", Exp. Mech.
-42:303-310 (2002), :DOI:`10.1007/BF02410987`.
-
-Y. Gao, T. Cheng, Y. Su, X. Xu, Y. Zhang and Q. Zhang, "High-efficiency and
-high-accuracy digital image correlation for three-dimensional measurement",
-Opt. Lasers Eng. 65:73-80 (2015), :DOI:`10.1016/j.optlaseng.2014.05.013`.
+Why, the noise cost, the first-order fallback, the speed and the references:
+docs/guide/measure.md ("IC-GN2: the second-order shape function") and
+docs/guide/performance.md ("Sub-pixel kernels").
 """
 
 from dataclasses import dataclass
@@ -130,7 +56,7 @@ _MONO_C = np.array([1.0, 1.0, 1.0, 0.5, 1.0, 0.5])
 # |ux|.. beyond this, or a curvature term times M beyond it, is no longer a subset warp: declared diverged.
 _MAX_GRADIENT = 1.0
 # Variance inflation of u, v by the 10 parameters beyond the shift above which a point is refined to
-# first order (module notes: 1.4 % of the points of the paper's speckle with subset 21).
+# first order (how many points that is: docs/guide/measure.md, "IC-GN2").
 VIF2_MAX = 20.0
 _NO_RUN = -(1 << 62)  # tap origin of pad lanes in split rows
 _CHUNK = 32           # points per parallel task
@@ -259,7 +185,7 @@ def _prepare2_one(half, lanes, fhat, fx, fy, projected, hinv2, sum_j2, sum_jf2, 
             mj = jj % 6
             hess[i, jj] = ci * _MONO_C[mj] * mom[gi + gj, _MONO_A[mi] + _MONO_A[mj], _MONO_B[mi] + _MONO_B[mj]]
     if projected:
-        # the two rank-one terms of the ZNSSD's normalisation (dic.subpixel.icgn module notes)
+        # the two rank-one terms of the ZNSSD's normalisation (docs/guide/measure.md, IC-GN)
         for i in range(12):
             for jj in range(12):
                 hess[i, jj] -= sum_j2[i] * sum_j2[jj] / n + sum_jf2[i] * sum_jf2[jj]
@@ -400,7 +326,7 @@ def _quadratic_sums(flat, origin, stride, height, width, x0, y0, half, p, fhat, 
     Returns False (``out`` undefined) where a sample would come closer than
     ``INTERPOLATION_MARGIN`` px to the image edge: each row's x' and y' ranges
     (ends and vertex of the row's parabola) are checked before it is sampled.
-    Rows are one run of consecutive taps, or a few (module notes).
+    Rows are one run of consecutive taps, or a few (docs/guide/performance.md, "Sub-pixel kernels").
     """
     side = 2 * half + 1
     lo_edge = float(INTERPOLATION_MARGIN)

@@ -5,59 +5,23 @@ DOI 10.7510/jgjs.issn.1001-3806.2025.03.008, section 2.6 and Fig. 6/7.
 
 Per point, starting from the integer peak (u0, v0):
 
-1. **Lattice.** Nodes ``(u0 + h i, v0 + h j)``, h = ``spacing`` = 0.2 px ("4 points
-   inserted between two integer pixels"), ``i, j`` in ``-m..m`` with
-   ``m = max(1, round(extent / h))`` (extent 1 px: 11 x 11 = 121 nodes at h = 0.2).
-   The target subset at a node is interpolated from the deformed **image
-   intensities** with Keys bicubic convolution (a = -0.5); the paper does not
-   say whether it interpolates the image or the ZNCC map -- interpolating
-   intensities is the physically meaningful reading (a ZNCC map interpolated
-   with a cubic kernel is not a correlation). The Keys weights of each phase
-   ``frac(h i)`` are computed once per call (5 phases at h = 0.2) and the
-   horizontal pass is cached per phase and point (``dic.subpixel.lattice``).
-2. **Search.** The improved WSO (``dic.search.improved_wso``, the same ask/tell
-   code as the integer search: Tent init, Eq. 9-11 velocity, K_t position update,
-   SD < ``sd_tol`` stop, "random" boundary rule) searches the node indices in
-   ``[-m, m]^2``. Its population and K default to 4 and 10, chosen by
-   measurement: within +-1 px of the integer peak the lattice landscape is a
-   single smooth bump, so every setting ends on the same node after the polish
-   (identical results) and only the cost differs -- 24 distinct nodes per point
-   at n = 4, K = 10 against 36 at n = 8 and 30 at n = 8, K = 5.
-3. **Polish and border.** The 8-neighbour hill climb then moves to a node that
-   is at least as good as its 8 neighbours. It may step past the lattice border
-   (up to ``m`` further nodes, i.e. the lattice extent doubled) so that a peak
-   on the border still gets a full 3x3 neighbourhood: the fit is always centred
-   on a local maximum, never extrapolated.
-4. **Fit.** ``fit_peak_3x3`` on the 3x3 ZNCC values around that node, at grid
-   spacing h: ``u = u0 + h (i* + dx)``, ``v = v0 + h (j* + dy)``.
+1. **Lattice.** Nodes ``(u0 + h i, v0 + h j)``, h = ``spacing`` (0.2 px), ``i, j`` in
+   ``-m..m`` with ``m = max(1, round(extent / h))``; the target subset at a node is
+   interpolated from the deformed image intensities (Keys bicubic, ``dic.subpixel.lattice``).
+2. **Search.** The improved WSO (``dic.search.improved_wso``) searches the node indices.
+3. **Polish.** An 8-neighbour hill climb moves to a local maximum, past the lattice border
+   if needed (up to ``m`` further nodes), so the fit is never extrapolated.
+4. **Fit.** ``fit_peak_3x3`` on the 3x3 ZNCC values around that node at spacing h.
 
-``spacing`` other than 0.2 reproduces the paper's Fig. 7 study (fitting distance
-0.2-2 px): the lattice keeps its +-``extent`` px reach (at least one node each
-side), so h = 1 reproduces the classic 3x3 fit (integer nodes need no
-interpolation) and h = 2 fits over +-2 px. Measured at u = 0.2 px (1000
-points, subset 21): per-point SD 0.0033, 0.0044, 0.0104, 0.032, 0.124 px at
-h = 0.2, 0.4, 0.6, 1.0, 2.0 -- the paper's Fig. 7 trend.
+Status: OK; OUTSIDE_TARGET when a node needed (or the start node) would interpolate outside
+the deformed image; FLAT_TARGET when the best node has no texture; NOT_CONVERGED when the
+climb ends on the extended border (the integer start was wrong) or the fitted quadratic has
+no maximum within one node. Input codes other than OK are copied through; u, v NaN where not
+OK. ``zncc`` is the fitted quadratic's peak value (within ~1e-4 of the exact ZNCC). Margin:
+``2 ceil(extent) + 1`` px beyond the subset at most; dic.measure reserves 3.
 
-Measured (paper simulation: 256 x 256, 1000 speckles, R = 4, 8 bit, noise
-free, subset 21, 1000 points, u = 0..1 px in 0.05 steps, two patterns): max
-|mean bias| 0.0036 px (classic fit 0.0054 px: its larger per-point errors
-largely cancel in the mean), per-point SD 0.003-0.004 px (classic 0.023-0.036 px).
-Speed on 1024 x 1024, 10,000 points, true shift within 2 px of the guess:
-~17 us of CPU per point (~24 lattice nodes), 57,000 POI/s on one thread and
-~118,000 POI/s on two (shared 2-core machine).
-
-Status: OK; OUTSIDE_TARGET when a node needed for the fit (or the start node)
-would interpolate outside the deformed image; FLAT_TARGET when the best node
-has no texture; NOT_CONVERGED when the hill climb ends on the extended border
-(peak > 2 extents away: the integer start was wrong) or the fitted quadratic
-has no maximum within one node (seen on ~1 point in 10,000: a strongly
-elongated, tilted peak where the 3x3 least-squares quadratic peaks far down
-the ridge; flagged rather than guessed). Input codes other
-than OK are copied through; u, v NaN where not OK. ``zncc`` is the fitted
-quadratic's value at its peak (within ~1e-4 of the exact interpolated ZNCC at
-the result). Margin: the +-``extent`` lattice reads ``ceil(extent) + 1`` px
-beyond the subset (2 at the default), the extended polish up to
-``2 ceil(extent) + 1``; dic.measure reserves 3.
+Settings chosen, the spacing study and the accuracy and speed measured: docs/guide/measure.md
+("The improved surface fit: settings and measurements").
 """
 
 from typing import Any

@@ -1,47 +1,23 @@
 """Forward-additive Newton-Raphson (Gauss-Newton) sub-pixel refinement.
 
-The classic DIC refinement (Bruck, McNeill, Sutton & Peters 1989; the
-Gauss-Newton Hessian of Vendroux & Knauss 1998): minimise the ZNSSD between
-the reference subset and the target subset warped by ``p``, linearising the
-*target* at the current warp, and update ``p <- p + dp``. Because the
-linearisation is about the target, the target gradients at the warped
-positions and the Hessian ``H = sum J^T J`` change with ``p`` and are
-recomputed every iteration: that is the cost IC-GN (``dic.subpixel.icgn``)
-avoids. Equations as in OpenCorr's ``NR2D1`` (vincentjzy/OpenCorr
-``src/oc_nr.cpp``):
+The classic DIC refinement (Bruck et al. 1989; Vendroux & Knauss 1998; OpenCorr's ``NR2D1``,
+vincentjzy/OpenCorr ``src/oc_nr.cpp``): minimise the ZNSSD between the reference subset and
+the target subset warped by ``p``, linearising the *target* at the current warp, and update
+``p <- p + dp``; the target gradients and the matrix are recomputed every iteration.
 
 - shape function ``order=1`` (default): p = (u, ux, uy, v, vx, vy),
   ``x' = x0 + u + (1 + ux) dx + uy dy``, ``y' = y0 + v + vx dx + (1 + vy) dy``;
   ``order=0``: p = (u, v), a rigid shift of the subset;
-- target value and gradient by bicubic B-spline interpolation (the analytic
-  derivative of the spline, ``dic.bspline``);
+- target value and gradient by bicubic B-spline interpolation (``dic.bspline``);
 - ``J_i = [gx, gx dx, gx dy, gy, gy dx, gy dy]`` (order 0: ``[gx, gy]``),
   ``H = sum J_i^T J_i``, ``b = sum J_i^T [(|g~|/|f~|)(f_i - mean f) - (g_i - mean g)]``,
   ``dp = H^-1 b``;
 - converged when ``sqrt(du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)) < 0.001``
   (M the subset half-width), at most ``max_iterations`` (20) iterations.
 
-``sum J^T J`` overestimates the curvature of the ZNSSD along ``ux, vy`` (the
-mean and norm of the target subset change with p), so this classic iteration
-converges only linearly there: 5-6 iterations from an integer start and ~1 %
-of the points of a weak 8-bit pattern still moving at 20. ``hessian="projected"``
-subtracts the two rank-one terms of the exact derivative (same fixed point,
-same cost, ~3 iterations); the default stays the classic method, the
-baseline the paper compares against. With noisy images the interpolated
-target gradients correlate with the interpolated noise, which biases FA-NR
-towards half-pixel positions (measured: 0.02 px at 0.2 px with sigma = 1 grey
-level on a dark 8-bit pattern, growing as sigma^2); IC-GN, whose gradients come
-from the reference, does not show it.
-
-References
-----------
-H. A. Bruck, S. R. McNeill, M. A. Sutton and W. H. Peters, "Digital image
-correlation using Newton-Raphson method of partial differential correction",
-Exp. Mech. 29:261-267 (1989), :DOI:`10.1007/BF02321405`.
-
-P. F. Vendroux and W. G. Knauss, "Submicron deformation field measurements:
-Part 2. Improved digital image correlation", Exp. Mech. 38:86-92 (1998),
-:DOI:`10.1007/BF02321649`.
+``hessian="projected"`` uses the exact derivative (same fixed point, fewer iterations); the
+default stays the classic ``sum J^T J``. Its convergence, its bias on noisy images and the
+references: docs/guide/measure.md ("Newton-Raphson: convergence and bias").
 """
 
 import numpy as np

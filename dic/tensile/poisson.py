@@ -4,40 +4,24 @@ Input: per frame, the engineering strain of an axial and of a transverse extenso
 where either has no reading: the frame is skipped), optionally the force (or stress: any unit,
 only shares of it are used), and the frames' numbers for the labels.
 
-Poisson's ratio (ASTM E132: fitted over the elastic range) is minus the slope of a least-squares
-line of transverse on axial strain, **with an intercept**: DIC measures both strains from one
-reference image, whose own noise (and a preload or seating before it) is a constant offset in
-every later reading of each extensometer; a line through the origin would turn that offset into
-slope, an intercept takes it out (as E132's ratio of the two strain-load slopes does). The
-elastic range is:
+Poisson's ratio (ASTM E132) is minus the slope of a least-squares line of transverse on axial
+strain, **with an intercept**, over the elastic range:
 
 * with a force: below the proportional limit, the initial linear part of force against axial
-  strain (ASTM E132's elastic range; ISO 6892-1's E range, 10 % to 40 % of Rp0.2, spans a
-  quarter of its strain, frames 5-17 of 0-44 in the simulator's default test, and gave a 5 x larger
-  standard error there: 0.011 against 0.002);
+  strain;
 * without a force, or when that gives no ratio (said in ``method``): the initial linear part of
   transverse against axial strain.
 
-The initial linear part of y against x runs from the first frame to where the curve departs from
-the line fitted so far (``linear_part``: the first frame whose next ``DEPARTURE_FRAMES`` frames all
-lie more than ``DEPARTURE_SIGMAS`` standard deviations of the prediction off that line, on one side;
-the sigma from both series' noise, the line's own uncertainty included), or, where two lines fit
-those frames significantly better than one (``bend``), to the split. No departure: every frame.
+The initial linear part (``linear_part``) runs from the first frame to where the curve departs
+from its line (``DEPARTURE_FRAMES``, ``DEPARTURE_SIGMAS``) or to a ``bend``. The noise is measured
+on the series (``series_noise``). A range spanning less than ``MIN_SPAN_NOISE`` x the axial noise,
+holding fewer than ``MIN_FRAMES`` frames, or that is no line (``LINEARITY_SIGMAS``, sign runs)
+gives NaN with a ``Reason``, never a ratio of noise over noise.
 
-The strains' noise is measured on the series itself (the median absolute third difference,
-``series_noise``). A range whose axial strain spans less than ``MIN_SPAN_NOISE`` times the axial
-noise, or that holds fewer than ``MIN_FRAMES`` frames, gives NaN with a ``Reason``: the ratio
-would be noise over noise. So does an elastic range that is no line: its scatter about the fit
-over ``LINEARITY_SIGMAS`` x the noise, or its residuals' signs in too few runs (a test with too
-few frames before yield for the departure to be seen: the fit would be the plastic slope). Least
-squares of y on x underestimates the slope by the share of x's variance that is noise (regression
-dilution): at the minimum span it is below 1 %.
-
-The plastic contraction ratio (never called Poisson's ratio: plastic flow keeps the volume, 0.5
-for metals) is the same slope over the plastic range: with a force, from the proof point (0.2 %
-plastic strain) to the end of uniform elongation (the force within 0.5 % of its maximum, as
-``stream.stages.stress`` takes it); without, the linear part of transverse against axial strain that
-follows the elastic range (a neck bends it).
+The plastic contraction ratio (never called Poisson's ratio) is the same slope over the plastic
+range: with a force, from the proof point (0.2 % plastic strain) to the end of uniform elongation
+(``stream.stages.stress``'s rule); without, the linear part that follows the elastic range.
+Why each choice: docs/guide/strain.md ("How Poisson's ratio is fitted").
 """
 
 import dataclasses

@@ -1,55 +1,29 @@
 """Incremental correlation with key frames: the reference follows the test, results stay Lagrangian.
 
-A tracker that always correlates against frame 0 fails once a subset's deformation
-outgrows its shape function or the surface changes (paint stretching, necking): the
-ZNCC falls and points are re-found again and again. ``KeyFrameTracker`` switches its
-reference to a recent frame (a *key frame*) when a criterion says so, and composes the
-displacements back to the first frame::
+``KeyFrameTracker`` switches its reference to a recent frame (a *key frame*) when
+``UpdatePolicy`` says so, and composes the displacements back to the first frame::
 
     u_0->k(X) = u_0->r(X) + u_r->k(x_r),        x_r = X + u_0->r(X)
 
-so every result is the displacement of a material point X of frame 0 (Lagrangian, as
-without updates). The subsets of the new reference are centred on the pixel nearest
-to x_r (``p_r``); the displacement at x_r itself is u_r->k(p_r) + G (x_r - p_r), with
-G the first-order displacement gradient IC-GN measured at p_r, and the gradients
-compose as deformation gradients, F_0->k = (I + G) F_0->r. A point not ok in the
-frame that becomes the reference (or not trusted there, see below) is measured there
-directly from frame 0, IC-GN started where the trusted points around it say it is
-(``dic.strain.field_fit``): placed if that confirms it, else reported ``NOT_IN_KEY_FRAME``
-until a later update confirms it.
-
-What an update costs: the new reference is prepared like a new tracker (subsets,
-gradients, Hessians of the points only): ~6 ms at 1,000 points on 1 MP here, well
-inside a 20 ms frame period. What it adds to the error: each update freezes the
-measurement noise of its key frame into every later result (a random walk, ~0.01 px
-per update with 8-bit images), which ``livedic bench fracture`` measures against the
-simulator's truth.
+so every result is the displacement of a material point X of frame 0 (Lagrangian, as without
+updates); the gradients compose as deformation gradients, F_0->k = (I + G) F_0->r.
 
 When (``UpdatePolicy``, ``--reference-update``)::
 
     never     frame 0 stays the reference (the results equal ``dic.Tracker``'s bit for bit)
     every:N   the reference moves to every N-th frame tracked
     auto      (default) the reference moves to the frame just tracked when, in it,
-              the 5th percentile of the ok points' ZNCC fell below AUTO_ZNCC (0.9), or the
-              strain since the key frame (99th percentile of the largest displacement
-              gradient) passed AUTO_STRAIN (0.05), and at least AUTO_OK (99 %) of its tracked
-              points still in view (not OUTSIDE_TARGET) are ok: a frame where the specimen broke or something passed in front of
-              it is not a reference to measure the next ones against (the move waits).
+              the 5th percentile of the ok points' ZNCC fell below AUTO_ZNCC, or the
+              strain since the key frame passed AUTO_STRAIN, and at least AUTO_OK of its
+              tracked points still in view are ok (else the move waits).
 
-What is carried into a new reference, and what is not. A key frame's errors stay in
-every later result (against the key frame the point then correlates perfectly), so a
-point's own result is carried only where it is trustworthy: ok, ZNCC at least the
-tracker's ``refind_zncc``, and no failed point within a subset's width (a subset that
-overlaps an occlusion, a flake or a crack can be ok and a few tenths of a pixel off:
-measured on an occluded frame, up to 0.9 px at ZNCC 0.63). The others are re-measured
-from frame 0 as above, and lost if that fails: a point whose key-frame subset showed
-something else would otherwise match that something in every later frame (measured:
-17 px off, ok, on a pasted patch).
+Only trustworthy results are carried into a new reference (ok, ZNCC at least the tracker's
+``refind_zncc``, no failed point within a subset's width); the others are measured there
+from frame 0 and, unless that confirms them, reported ``NOT_IN_KEY_FRAME`` until a later
+update does.
 
-Measured on the real muDIC dog-bone (18 frames to 16 % strain, 961 points): re-found
-points 4.69 % of the point-frames against frame 0 only, 1.83 % with AUTO_STRAIN 0.1,
-0.36 % with 0.05 (7 moves), 0.17 % with 0.03 (9 moves; each move freezes one frame's
-noise in, so not fewer). ``livedic bench fracture`` reruns it.
+How the composition is done, what an update costs and adds to the error, why only trusted
+points are carried, and the measurements: docs/guide/large-deformation.md ("How key frames work").
 """
 
 from __future__ import annotations

@@ -1,76 +1,28 @@
 """``livedic export``: a recording's results as CSV files anyone can open.
 
-``livedic export FILE.mcap -o DIR`` writes six files into DIR (created if missing):
+``livedic export FILE.mcap -o DIR`` writes into DIR (created if missing) ``p0_trace.csv``,
+``fields.csv`` (the columns of ``livedic replay``, then ``exx,eyy,exy``),
+``extensometers.csv``, ``extensometers.png``, ``events.csv``, ``session.json``, and, with a
+force (``--load csv:FILE`` or one recorded on ``/machine/force``), ``stress_strain.csv`` and
+``stress_strain.png``; their columns are in ``columns`` and docs/guide/export.md ("The CSV
+files"). Then the fields as pictures (``stream.export.field_export``): maps, a video, VTK.
 
-``p0_trace.csv``
-    The traced point P0 over time, one row per frame with results:
-    ``frame,timestamp_ns,time_s,x,y,u,v,zncc,ok``. ``time_s`` is seconds since the
-    first frame with results (the reference frame). P0's id is read from the session
-    metadata (``p0_id`` when present, else the ``point_ids`` note, "P0 is point 0").
-``fields.csv``
-    Every frame, every point, long format:
-    ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then the extras the recording holds
-    (``status``, ``ux``, ``uy``, ``vx``, ``vy``, ``iterations``) - the same columns as
-    ``livedic replay``, so the two files can be compared line by line - then the strain
-    ``exx,eyy,exy`` (NaN where a point has none; see below).
-``extensometers.csv``
-    ``frame,time_s,name,L0_px,L_px,eng_strain,true_strain,ok``: one row per frame and
-    virtual extensometer (``ok`` 1/0; NaN where not ok), ``time_s`` as in ``p0_trace.csv``.
-    Only the header when the recording has no extensometers (a note says so).
-``extensometers.png``
-    Engineering strain of each extensometer against time, gaps where an end was lost.
-``events.csv``
-    ``time,kind,level,message,timestamp_ns``: ``time`` in seconds on the same clock as
-    ``p0_trace.csv`` (``timestamp_ns`` is the raw frame clock).
-``stress_strain.csv`` and ``stress_strain.png`` (with ``--load csv:FILE`` and a cross-section, or
-    without ``--load`` when the recording holds the machine's force on ``/machine/force``)
-    ``frame,time_s,force_N,eng_strain,eng_stress_MPa,true_strain,true_stress_MPa``: the force
-    interpolated onto each frame's ``time_s`` (NaN where the file has none), or the force recorded
-    for that frame (NaN where none was), the ``axial`` extensometer's engineering strain, stress
-    ``F / A0``, and the true values up to uniform elongation (NaN after the frame of maximum
-    force: ``stream.stages.stress``); the plot of both curves. The recording (or the options) must have
-    an ``axial`` extensometer. The recorded force takes its cross-section from ``--area`` or
-    ``--width --thickness``, else from the session metadata's ``area_mm2``; a ``--load`` given
-    replaces the recorded force (a note says so).
-``session.json``
-    The session metadata (method, parameters, source, ROI, ...), plus a
-    ``livedic.export`` entry saying where the files came from, whether the
-    recording was complete, and how many frames the session delivered in the end
-    (``frames_delivered``, counted in the recording; ``frames_delivered_from`` says so).
+Strain and extensometers are *recomputed* from the recorded displacements with the settings
+the recording was made with (``StrainConfig.from_metadata``), by the same ``StrainStage`` as
+the live session; ``--strain-window --strain-measure --gauge-length --extensometer --scale``
+replace them.
 
-Strain and extensometers are *recomputed* from the recorded displacements with the
-settings the recording was made with (``stream.stages.strain.StrainConfig.from_metadata``: the
-strain window and measure, the extensometers as placed), on the recorded reference
-points (P0 first), one frame after another: the same ``StrainStage`` as the live
-session, so the strain of a recording is computed one way everywhere. The options
-``--strain-window --strain-measure --gauge-length --extensometer --scale`` replace the
-recorded settings (offline re-analysis; ``--gauge-length``/``--extensometer`` replace
-all the recorded extensometers).
+Guarantees: numbers at full precision (a value read back is bit-for-bit the recorded one),
+NaN as ``nan``, ``ok`` as 1/0; the CSV files are written under temporary names and renamed
+into place only when all are complete, so an error or Ctrl-C never leaves a half-written
+file; Ctrl-C or SIGTERM (``StopSignals``) stops at the next frame, keeps what is whole and
+says so (exit 130 or 143); existing files are kept unless ``--overwrite``; a truncated
+recording exports what can be recovered, flagged by ``RecordingInfo.truncated``.
 
-Numbers are written at full precision (the shortest text that reads back as the
-same float64), NaN as ``nan``, ``ok`` as 1/0: a value read back from these files is
-bit-for-bit the recorded one.
-
-Then the fields as pictures (``stream.export.field_export``, options ``--maps --every --video
---vtk --map-range ...``): ``maps/Q/Q_FRAME.png``, ``overlay_Q.mp4``, ``vtk/frame_FRAME.vtu``
-and ``fields.pvd``, in a second pass over the recording (the colour ranges, one per quantity
-for the whole test, are known only after the first), and ``session.json`` again with a
-``fields`` entry saying what was written.
-
-Every file is written under a temporary name and all six are renamed into place
-only when all are complete, so an error or Ctrl-C never leaves a half-written
-file. The pictures are each written whole as they come. Ctrl-C or SIGTERM
-(``StopSignals``) stops the export at the next frame: while the CSV files are
-written nothing is left; later the CSV files and the pictures finished stay, and
-one line says so (exit 130 or 143). Existing files are not replaced unless ``--overwrite``. A truncated recording
-(crash, kill, disk full) exports what can be recovered and says so in a note; the
-``truncated`` flag is the reader's (``RecordingInfo.truncated``), never read from
-the note's text.
-
-The parts live beside this module: ``columns`` (the CSV columns and files), ``notes`` (the reader's notes,
-the session metadata), ``recomputed_strain`` (strain and extensometers from the recorded displacements),
-``force`` (the machine's force and the stress-strain files), ``stop`` (Ctrl-C and SIGTERM); ``livedic
-replay`` uses the first two.
+The parts live beside this module: ``columns`` (the CSV columns and files), ``notes`` (the
+reader's notes, the session metadata), ``recomputed_strain``, ``force`` (the machine's force
+and the stress-strain files), ``stop`` (Ctrl-C and SIGTERM); ``livedic replay`` uses the
+first two.
 """
 
 from __future__ import annotations

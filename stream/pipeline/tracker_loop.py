@@ -1,51 +1,27 @@
 """The consumer side of a live session: queue -> tracker -> stages | output thread -> sinks.
 
-One linear loop (the Rerun examples' shape) in the tracking thread: take the
-next frame, track it, run the measurement's own *stages* on it (strain and
-extensometers, strain out to the controller, force: what the result is made
-of and what must leave at once; ``stream.pipeline.stage.Stage``), update the statistics, and hand the result
-to the *output thread*, which runs the *sinks* (recording of results, Rerun
-view, events, progress; a replay's CSV) in order, at their own pace: the
-measurement never waits for the display or the disk. The output thread's
-backlog (results waiting for it) is ``FrameResult.output_backlog`` (a view in
-the session's process leaves the camera image out while it is behind:
-``stream.view.logger``; a live session's view runs in a process of its own,
-``stream.view.process``, and paces itself on its own backlog), and past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits for it (frames
-are then dropped at the frame queue, counted, never silently).
+One linear loop in the tracking thread: take the next frame, track it, run the measurement's
+own *stages* on it (strain and extensometers, strain out, force: ``stream.pipeline.stage.Stage``),
+update the statistics, and hand the result to the *output thread*, which runs the *sinks*
+(recording of results, Rerun view, events, progress; a replay's CSV) in order, at their own
+pace: the measurement never waits for the display or the disk. Its backlog is
+``FrameResult.output_backlog``; past ``OUTPUT_BACKLOG_MAX`` results the tracking thread waits
+(frames are then dropped at the frame queue, counted, never silently).
 
-The first frame becomes the reference: the tracker is built from it
-(``make_tracker(frame)``, or before the loop: ``reference``) and it is reported
-with zero displacement. The loop ends when the queue is closed and drained (source
-finished, failed or stopped), when ``stop_event`` is set, or after
-``max_frames`` results.
+The first frame becomes the reference (``make_tracker(frame)``, or ``reference`` given before
+the loop) and is reported with zero displacement. The loop ends when the queue is closed and
+drained, when ``stop_event`` is set, or after ``max_frames`` results.
 
-Timing, all on the host's monotonic clock:
+Statistics, on the host's monotonic clock: latency (from the frame's arrival, or its capture
+when ``Frame.metadata["capture_monotonic_ns"]`` says when, the reference frame left out),
+delivery delay, processing, per-stage times (``StageTimes``), fps, ok fraction over every
+placed point and POI/s; their definitions: docs/guide/sessions.md ("What the summary's timings
+mean").
 
-* **latency** = results ready - frame arrival in the acquisition thread
-  (queue wait + tracking), per frame; when the source says when it captured the
-  frame on this clock (``Frame.metadata["capture_monotonic_ns"]``, the paced
-  simulator does) latency counts from that capture instead, so a delivery held
-  up by the tracker (numba kernels hold the GIL, and the acquisition thread
-  needs it to hand a frame over) is not hidden; that hold-up is reported as
-  ``delivery delay``. The reference frame is left out of the latency statistics
-  (it pays for building the tracker) and its setup time is reported on its own;
-* **processing** = time inside ``Tracker.track``;
-* **stage times** = per frame, each tracker stage (``tracker.last_timings``:
-  preparing the frame, the IC-GN kernel, searches, gates, reference updates),
-  each stage (``stage.last_timings`` where it splits its own time, e.g. strain
-  and extensometers) and each sink, in ``StageTimes`` (p50/p99 in the summary);
-* **fps** = frames tracked / (last result - first arrival);
-* **ok fraction** = ok points / every placed point, over all frames: a point that could never be
-  tracked (no texture in its reference subset, subset off the image) counts as not ok; the
-  summary also gives those never-trackable points and the points lost later (trackable in the
-  reference, not ok in the last frame), each by ``dic.Status``;
-* **POI/s** = points tracked per second of that same wall time.
-
-A stage or sink that raises is switched off and its error kept in
-``sink_errors`` (a broken viewer must not stop a measurement); the caller
-decides what to do. One marked ``required`` (its ``required`` attribute is
-true: a replay's CSV) ends the loop instead, its error raised by ``run`` once
-the output thread has finished what it had (see ``stream.pipeline.sinks``).
+A stage or sink that raises is switched off and its error kept in ``sink_errors`` (a broken
+viewer must not stop a measurement); one marked ``required`` (a replay's CSV) ends the loop
+instead, its error raised by ``run`` once the output thread has finished what it had (see
+``stream.pipeline.sinks``).
 """
 
 import collections

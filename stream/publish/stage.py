@@ -1,47 +1,27 @@
 """Strain out: each tracked frame's extensometer strain sent to a machine controller (``--publish URI``).
 
-A video extensometer feeds the testing machine's controller, which strain-controlled
-tests need. ``livedic run --publish URI`` (repeatable) hands every tracked frame's
-extensometer readings out as soon as the frame's result exists:
+``livedic run --publish URI`` (repeatable) hands every tracked frame's extensometer readings
+out as soon as the frame's result exists:
 
 ``udp://HOST:PORT``
-    One UDP datagram per tracked frame to HOST:PORT (127.0.0.1 when no host is given; a
-    name goes to its first IPv4 address, else IPv6), a UTF-8 JSON object::
+    One UDP datagram per tracked frame, a UTF-8 JSON object::
 
         {"frame": 41, "time_s": 0.82, "strain": {"axial": 0.00123, "transverse": -0.00037},
          "ok": true, "true_strain": {"axial": 0.00122925, "transverse": -0.00037007}}
 
-    ``strain`` holds every extensometer of the session by name (engineering strain,
-    (L - L0) / L0), ``null`` where the extensometer has no valid reading in this frame
-    (an end lost: NaN is never written); ``ok`` is true only when every extensometer has a
-    valid reading; ``time_s`` is seconds since the session's first frame (as the recording
-    and ``livedic export`` give it). ``true_strain`` (ln(L / L0)) comes along. The socket
-    never blocks the tracker: a datagram the system cannot take at once is not sent,
-    and counted.
-
+    ``null`` where an extensometer has no valid reading (NaN is never written); ``ok`` true
+    only when every extensometer has one. The socket never blocks the tracker.
 ``modbus://HOST:PORT``
-    A Modbus TCP server (pymodbus) listening on HOST:PORT (127.0.0.1 when no host is
-    given; ``0.0.0.0`` for every interface; port 0 picks a free one, said at the start)
-    serving the same values as holding registers (``REGISTER_MAP``; function 3, function 4
-    reads the same). Writes are refused. A read of one block is one frame's values, never
-    half of one frame and half of the next: the tracker thread replaces one immutable
-    snapshot, and a read copies it whole into the registers in the server's thread.
-    When the session ends the last frame's values stay, with state 2 (ended), and the
-    server keeps answering for ``linger_s`` seconds (``?linger_s=SECONDS``, default
-    ``DEFAULT_LINGER_S``, 0..60) before it closes, so a polling controller reads the end;
-    the session's exit waits for what is left of it (the summary is said meanwhile).
+    A Modbus TCP server (pymodbus) serving the same values as holding registers
+    (``REGISTER_MAP``); writes refused; a read of one block is one frame's values, never half
+    of two; after the session the last values stay, state 2, for ``linger_s``.
 
-``PublishStage`` is a session stage (``stream.pipeline.stage.Stage``) placed right after the strain stage,
-before the load stage, the recording and the view, so the values leave as early as they exist. No force
-goes out: the controller has its own load cell, and the load stage may wait (bounded) for
-a live force stream's next sample, which strain out must not. A send that fails
-(network unreachable, no route) is a warning event once, counted, and publishing goes on;
-it never costs the session or its recording. pymodbus is imported by ``preload`` before the
-session reads its first frame (~0.1-0.2 s on 2 busy cores): imported when the server opens,
-between the first frame and the start, it held back a paced source, whose frames then
-came in a burst and 2-4 were dropped by the queue. The stage keeps, per frame, the time from
-the tracker's result to the send returning (``latency_ms``): the strain-out latency
-``livedic bench live`` prints.
+``PublishStage`` is a session stage placed right after the strain stage, before the load
+stage, the recording and the view, so the values leave as early as they exist; no force goes
+out. A send that fails is a warning event once, counted, and publishing goes on; it never costs
+the session or its recording. ``preload`` imports pymodbus before the first frame;
+``latency_ms`` keeps, per frame, the time from the tracker's result to the send returning.
+The formats, the register map and why: docs/guide/strain-out.md.
 """
 
 import math

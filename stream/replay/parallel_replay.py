@@ -1,71 +1,24 @@
 """``livedic replay --workers N`` / ``--cluster ADDRESS``: the replay's frames measured in parallel on Dask.
 
-Why it can be parallel. The sequential replay tracks with a ``dic.KeyFrameTracker``:
-every frame is measured against the current key frame (frame 0 until the reference
-moves) and composed back to frame 0; what the tracker carries from frame to frame is
-only where to start (the previous frame's result, each point's last ok result) and
-the key-frame state, which changes only at a reference move or a fracture. A
-recording holds the result of every frame the live run tracked, so each frame can be
-measured on its own, on any worker, by the same ``KeyFrameTracker.track``: a copy of
-the tracker as the last move (or fracture) left it, resumed from the recorded result
-of the frame tracked just before (``dic.tracking.key_frames.KeyFrameTracker.resume``, which maps it
-onto the key frame; ``Tracker.resume`` below it). With the recorded parameters IC-GN
-then starts where the sequential replay starts it and ends where it ends. Frames
-without recorded results (``--all-frames``: frames the live run dropped) and points
-that were not ok start from the last recorded result before them: ``track``'s own
-coarse pass (the seeded integer search for doubtful points, then the wide re-find
-search around the point's last good displacement or its nearest good neighbour's)
-finds them, as it finds points after a jump live. Rebuilt points (``--roi``,
-``--step`` ...) start from the nearest recorded point.
+Each frame is measured on its own, on any worker, by the same ``KeyFrameTracker.track`` as the
+sequential replay: a copy of the tracker as the last reference move (or fracture) left it,
+resumed from the recorded result of the frame tracked just before
+(``dic.tracking.key_frames.KeyFrameTracker.resume``). A frame that moves the reference or breaks
+the specimen starts a new segment; frames measured ahead against the earlier state are
+submitted again. The client submits one task per frame (the image as recorded and its seed;
+with ``--shared-path`` only the frame's key), at most ``in_flight`` ahead of the frame being
+written, and hands the results in frame order to the replay's own
+``stream.session.session.Session`` through a ``ServedTracker``.
 
-Key frames and fractures. The workers' trackers move the reference and detect
-fractures themselves, as sequentially (same policy, same counts of frames since the
-key frame). A frame whose result moved the reference or broke the specimen starts a
-new segment: its tracker comes back with the result, goes out again as a task, and
-the frames submitted after that frame (measured ahead against the earlier state) are
-submitted again against it. Where the recording itself shows such a frame (the
-recorded reference changes after it, or more points are separated), nothing is
-submitted past it until its result is in; elsewhere (other parameters) measuring
-ahead costs at most ``in_flight`` frames per move.
+Guarantees: every frame is written once, in order (a result is checked to be that very
+frame's); a worker that dies has its tasks re-run elsewhere; the outputs (CSV rows, reference
+moves, fractures, the comparison with the recording) are the sequential replay's, bit for bit
+on the machine that recorded, within rounding elsewhere. Not restored from a recording: the
+re-find search's back-off, so a point lost for several frames may be found a frame earlier or
+later, which the comparison reports.
 
-The pipeline: the client reads the recorded frames in replay order and submits one
-task per frame (the image as recorded, uint8/uint16, plus its seed; the segment's
-tracker goes to each worker once, as a task's result that the scheduler can compute
-again if its worker dies), at most ``in_flight`` ahead of the frame being written,
-so memory stays bounded on a 20,000-frame recording. The results come back to the
-replay's own session (``stream.session.session.Session``: the same strain stage, comparison
-with the recording, reference-update and fracture events, CSV rows and progress line
-as the sequential replay) in frame order: the session's tracker (``ServedTracker``)
-hands it the next frame's result, checking that it is the result of that very frame
-(position and key), so a frame is never lost, duplicated or out of place. A worker
-that dies has its running and held tasks re-run elsewhere by the scheduler
-(``distributed`` reassigns them; ``retries=`` re-runs a task that raised). A frame's
-output rows are made on the worker (``stream.replay.rows``: for a CSV its lines, formatted
-there; for Parquet its columns), after a fracture in the client, whose strain stage splits the
-windows at the crack.
-
-Equality with the sequential replay. With the recorded parameters, on the machine
-that recorded, the outputs are bit for bit the same, reference moves and fractures
-included (``tests/stream/replay/test_parallel_replay.py``): after a move the recorded result
-is mapped onto the key frame, which rounds, and the sequential tracker starts each
-frame from its own result mapped the same way (``KeyFrameTracker.track``), since
-IC-GN's float32 row sums turn a start 1e-16 px away into up to ~1e-7 px. Elsewhere
-(the shipped sample, recorded on another CPU) the recorded starts differ from the
-sequential replay's own by rounding: within 2e-6 px of it, the same points ok. Not
-restored from a recording: the wide re-find search's back-off (``Tracker.resume``),
-which the results do not show; a point lost for several frames (an occlusion) may be
-searched for, and found, a frame earlier or later than sequentially, which the
-comparison then reports (ok differs). Changed parameters (another subset, other
-points) start from the recorded results as seeds: measured within 1e-5 px of the
-sequential replay.
-
-What travels (measured by ``livedic bench replay``, 2-core machine): the image as
-recorded (1.05 MB a frame at 1 MP 8-bit) and its seed (~110 B a point when some point
-was lost, ~57 B otherwise); a batch of no-op tasks carrying a 1 MB image cost 5-9 ms a
-task, 3 ms with 64 kB; a segment's tracker (~7.5 kB a point: the prepared reference
-subsets) once per move. ``--shared-path`` sends only the frame's key, the workers
-reading the image from the file (``acquire.recording.source.FrameReader``: one chunk through
-the index).
+How it works, what travels and how it scales (measured): docs/guide/replay.md ("Replay on
+many cores or machines (Dask)", "How the parallel replay works").
 """
 
 import copy

@@ -3,63 +3,25 @@
 ``livedic replay FILE.mcap [-o OUT.csv | -o OUT.parquet] [method options] [--all-frames]``
 
 The recorded frames are tracked again by the session ``livedic run`` runs
-(``stream.session.session.Session``: the recorded frames -> a blocking queue, nothing
-dropped -> the tracker -> the comparison with the recording, the CSV rows and
-the progress line), its ``TrackingConfig`` built from the recording's metadata
-and the options given. Every option that is not given is taken from the
-recording's session metadata (``subset``, ``search``, ``subpixel``, ``seed_radius``,
-``refind_radius``, ``refind_zncc``, ``seed``; the point grid from ``roi``, ``step``,
-``n_points_wanted``, ``p0``), so with no options the replay repeats the live run.
+(``stream.session.session.Session``), its ``TrackingConfig`` built from the recording's
+metadata and the options given: with no options the replay repeats the live run. By default
+exactly the frames with recorded results are tracked, in the recorded order, with the
+recorded points, so with the recorded parameters ``u, v, zncc, ok`` are bit for bit the
+recorded ones; ``--all-frames`` also tracks the frames the live run dropped; point options
+rebuild the points on the reference frame as ``run`` does.
 
-Which frames are tracked matters for exactness. A live run may drop frames when
-the tracker falls behind, and each frame starts from the result of the previous
-*processed* frame; so by default the replay tracks exactly the frames that have
-recorded results (``/dic/results``), in the recorded order, against the recorded
-reference frame, with the recorded points (the ``x, y`` of the results). With
-the recorded parameters its ``u, v, zncc, ok`` are then bit-for-bit the recorded
-ones. ``--all-frames`` tracks every recorded frame from the reference on, also
-those the live run dropped (the numbers then differ where frames were dropped, as
-the seeds differ). Changed parameters keep the recorded frame set unless
-``--all-frames`` is given; point options (``--roi``, ``--points``, ``--step``,
-``--n-points``, ``--p0``) rebuild the points on the reference frame as ``run`` does.
+The output (``-o``, default stdout) is one row per frame and point:
+``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for first-order
+sub-pixel methods, ``ux,uy,vx,vy,iterations``, then ``exx,eyy,exy`` recomputed on the
+replayed displacements (``stream.stages.strain``), at full precision; ``.parquet`` writes the
+same columns typed (``stream.replay.rows``), any other suffix is refused. It is written under a
+temporary name and renamed when complete: an error or Ctrl-C leaves no file. The comparison
+with the recording is ``ReplayReport.agreement`` (an ``Agreement``: ``EXACT``,
+``WITHIN_ROUNDING``, ``DIFFERS``, ``NOT_COMPARED``), said in one line on stderr.
+``--workers N`` / ``--cluster ADDRESS`` run it on Dask (``stream.replay.parallel_replay``).
 
-The output CSV (``-o``, default stdout) is in long format, one row per frame and
-point: ``frame,timestamp_ns,point_id,x,y,u,v,zncc,ok`` then ``status`` and, for
-first-order sub-pixel methods, ``ux,uy,vx,vy,iterations``, then the strain ``exx,eyy,exy``
-recomputed on the replayed displacements (``stream.stages.strain``; NaN where a point has none); numbers at full
-precision (they read back as the same float64). ``-o OUT.parquet`` writes the same columns as a Parquet
-file instead (typed: integers int64, ``ok`` bool, the rest float64 with NaN; ``stream.replay.rows``);
-any other suffix is refused. The output is written under a temporary name and renamed into place
-when the replay is complete: an error or Ctrl-C leaves no file. At the end a line on stderr says
-how the replay compares with the recording (``ReplayReport.agreement``, an
-``Agreement``):
-
-- ``EXACT``: bit for bit, ``replay matches the recording exactly: 300 frames x 1059 points``.
-  This is what a replay on the machine (and livedic version) that recorded the
-  session gives.
-- ``WITHIN_ROUNDING``: not bit for bit, but every u and v within
-  ``ROUNDING_TOLERANCE_PX`` (1e-4 px) and every ZNCC within ``ROUNDING_TOLERANCE_ZNCC`` (2e-5)
-  of the recorded ones, with the same points ok and the same NaN: ``replay agrees
-  with the recording within floating-point rounding (max 1.8e-06 px <= 1e-4 px
-  tolerance)``. The compiled kernels round differently on another CPU (vector
-  width, fused multiply-add, numba/LLVM version), so this is what another machine
-  gives.
-- ``DIFFERS``: anything more, with the sizes of the differences. A point that is
-  ok on one side and not on the other counts as a real difference, even where
-  rounding pushed its ZNCC or convergence test across a threshold: it changes
-  what the user gets (a value or a gap), so it is reported, not excused.
-- ``NOT_COMPARED``: nothing to compare (other points, no recorded results).
-
-Truncated recordings (crash, kill, disk full) are replayed on what can be recovered.
-
-In parallel (``--workers N``: a local Dask cluster of N worker processes; ``--cluster
-ADDRESS``: an existing Dask scheduler) every frame is measured on its own, started from
-the recorded result of the frame before it (``stream.replay.parallel_replay``), and the results
-come back in frame order to the same session: the CSV, the comparison and its verdict are
-the sequential replay's (bit for bit on the machine that recorded; within rounding of it
-elsewhere). ``--shared-path`` lets the workers read the frames from the file instead of
-receiving them. Reference updates and fractures are followed as sequentially (the frames
-after one are measured against the tracker that frame left).
+Which frames, the verdicts and the parallel replay: docs/guide/replay.md ("Which frames are
+replayed, and with what", "Replay on many cores or machines (Dask)").
 """
 
 from __future__ import annotations
