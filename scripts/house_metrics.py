@@ -88,6 +88,26 @@ def method_name_branches(path: Path) -> int:
     return count
 
 
+def tested_modules(root: Path) -> tuple[int, list[str]]:
+    """How many modules of dic, acquire and stream that define a function or class have a test module of their
+    name in the mirrored folder of tests/ (``tests/acquire/recording/test_writer*.py`` for
+    ``acquire/recording/writer.py``), and the paths of those that have none."""
+    found, missing = 0, []
+    for package in TYPED_PACKAGES:
+        for path in sorted((root / package).rglob("*.py")):
+            if path.name == "__init__.py":
+                continue
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            if not any(isinstance(n, (ast.FunctionDef, ast.ClassDef)) for n in tree.body):
+                continue
+            folder = root / "tests" / path.parent.relative_to(root)
+            if any(folder.glob(f"test_{path.stem.lstrip('_')}*.py")):
+                found += 1
+            else:
+                missing.append(str(path.relative_to(root)))
+    return found, missing
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parent.parent)
@@ -114,6 +134,7 @@ def main() -> None:
     test_files = list((root / "tests").rglob("*.py"))
     sleeps = sum(len(re.findall(r"\btime\.sleep\(", p.read_text(encoding="utf-8")))
                  for p in test_files)
+    mirrored, unmirrored = tested_modules(root)
     readme = root / "README.md"
     readme_lines = len(readme.read_text(encoding="utf-8").splitlines()) if readme.exists() else 0
 
@@ -127,6 +148,8 @@ def main() -> None:
          f"{sum(f.annotated for f in typed)} of {len(typed)} "
          f"({100 * sum(f.annotated for f in typed) / max(len(typed), 1):.0f} %)", "80 %"),
         ("sub-pixel method-name branches in tracking, measure, key frames", f"{branches}", "0"),
+        ("source modules with logic that have a test module of their name",
+         f"{mirrored} of {mirrored + len(unmirrored)}", "all"),
         ("README lines", f"{readme_lines}", "about 200"),
         ("time.sleep calls in the tests", f"{sleeps}", "at most 10"),
         ("test lines", f"{sum(len(p.read_text(encoding='utf-8').splitlines()) for p in test_files):,}", ""),
@@ -139,6 +162,9 @@ def main() -> None:
         print("\nfiles over", LONG_FILE, "lines:")
         for n, p in long_files:
             print(f"  {n:5d} {p}")
+        print("\nsource modules with logic and no test module of their name (tests/<same folders>/test_<name>*.py):")
+        for path in unmirrored:
+            print(f"  {path}")
         print("\nfunctions over", LONG_FUNCTION, "lines:")
         for n, p, name in long_funcs:
             print(f"  {n:5d} {p} {name}")
