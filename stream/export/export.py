@@ -46,9 +46,9 @@ from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_F
                                           EXTRA_COLUMNS, LEADING_COLUMNS, P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES,
                                           extensometer_columns, result_columns)
 from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
-from livedic.stream.export.notes import plural, reader_notes, session_or_note
-from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _strain_settings, p0_point_id,
-                                                     plot_extensometers, strain_stage)
+from livedic.stream.export.notes import plural, reader_notes
+from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _strain_settings, open_recorded_strain,
+                                                     plot_extensometers)
 from livedic.stream.export.stop import _stopped_in
 # Re-exported: stream.cli's export, replay and report commands name them as export's.
 
@@ -178,24 +178,13 @@ def _read_source(path: str, strain: dict[str, Any] | None, stress: StressOptions
                  notes: list[str]) -> _Source:
     """Open the recording and set up what the export needs: a bad file, setting or load raises here, before
     the output folder is made."""
-    from livedic.acquire.recording.reader import Recording
-    from livedic.stream.stages.strain import StrainConfig
-
-    recording = Recording(path)
-    metadata, session_note = session_or_note(recording)
-    if session_note:
-        notes.append(session_note)
-    p0_id, p0_how = p0_point_id(metadata)
-    config = StrainConfig.from_metadata(metadata, **(strain or {}))
-    results = recording.results()
-    first = next(results, None)
-    stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
-    placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
-    names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-    load = _open_stress_load(stress, names, recording)      # bad load or no axial extensometer
+    opened = open_recorded_strain(path, strain, notes)
+    config, stage = opened.config, opened.stage
+    load = _open_stress_load(stress, opened.names, opened.recording)      # bad load or no axial extensometer
     shown = quantities(config.scale, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
     ranges = ColourRanges(shown, fields.ranges, fields.coloured)
-    return _Source(recording, metadata, p0_id, p0_how, config, first, results, stage, names, load, shown, ranges)
+    return _Source(opened.recording, opened.metadata, opened.p0_id, opened.p0_how, config, opened.first,
+                   opened.results, stage, opened.names, load, shown, ranges)
 
 
 @dataclass

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from dataclasses import dataclass
 from typing import IO, TYPE_CHECKING, Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
@@ -18,6 +19,7 @@ import numpy.typing as npt
 from livedic.stream.export.notes import reader_notes, session_or_note
 
 if TYPE_CHECKING:
+    from livedic.acquire.recording.reader import Recording
     from livedic.acquire.recording.records import RecordedResults
     from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.stream.stages.strain import StrainConfig, StrainStage
@@ -127,6 +129,41 @@ def plot_extensometers(handle: IO[bytes], times: npt.ArrayLike, names: Sequence[
     figure.savefig(handle, format="png")
 
 
+@dataclass
+class RecordedStrain:
+    """A recording opened with its strain stage placed as recorded (or with the given overrides), before any
+    frame but the first is read: what ``export_recording`` and ``axial_series`` both start from."""
+    recording: Recording
+    metadata: dict[str, Any]
+    p0_id: int
+    p0_how: str
+    config: StrainConfig
+    first: RecordedResults | None
+    results: Iterator[RecordedResults]               # the results after ``first``
+    stage: StrainStage | None                         # None: no results
+    names: tuple[str, ...]                           # the extensometers
+
+
+def open_recorded_strain(path: str | os.PathLike[str], strain: Mapping[str, Any] | None,
+                         notes: list[str]) -> RecordedStrain:
+    """Open the recording at ``path``, read its first results and place the strain stage on them; a note about
+    the session metadata goes to ``notes``. ValueError (one line) for a bad file or strain setting."""
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.stages.strain import StrainConfig
+    recording = Recording(os.fspath(path))
+    metadata, session_note = session_or_note(recording)
+    if session_note:
+        notes.append(session_note)
+    p0_id, p0_how = p0_point_id(metadata)
+    config = StrainConfig.from_metadata(metadata, **(strain or {}))
+    results = recording.results()
+    first = next(results, None)
+    stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+    placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
+    names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
+    return RecordedStrain(recording, metadata, p0_id, p0_how, config, first, results, stage, names)
+
+
 def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The ``axial`` extensometer of a recording, frame by frame, recomputed as ``export_recording`` does.
 
@@ -143,21 +180,12 @@ def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None 
     ValueError
         Not a recording, a bad strain setting, or no ``axial`` extensometer (one line).
     """
-    from livedic.acquire.recording.reader import Recording
     from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
-    from livedic.stream.stages.strain import StrainConfig
     with reader_notes() as notes:
-        recording = Recording(os.fspath(path))
-        metadata, session_note = session_or_note(recording)
-        if session_note:
-            notes.append(session_note)
-        p0_id, _ = p0_point_id(metadata)
-        config = StrainConfig.from_metadata(metadata, **(strain or {}))
-        results = recording.results()
-        first = next(results, None)
-        stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+        opened = open_recorded_strain(path, strain, notes)
+        metadata, config, first, results, stage, names = (opened.metadata, opened.config, opened.first,
+                                                          opened.results, opened.stage, opened.names)
         placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
-        names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
         if AXIAL not in names:
             raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
                              f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
@@ -180,7 +208,7 @@ def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None 
             times.append((int(result.timestamp_ns) - t0) / 1e9)
             eng.append(float(readings.eng_strain[column]))
             transverse.append(float(readings.eng_strain[across]) if across is not None else math.nan)
-        truncated = recording.info.truncated
+        truncated = opened.recording.info.truncated
     l0 = stage.extensometers[column].length_px if stage is not None else math.nan
     return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
             "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
