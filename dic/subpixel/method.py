@@ -18,6 +18,8 @@ import numpy as np
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
 
+BSPLINE = "bicubic B-spline (Unser's prefilter, dic.bspline)"
+
 
 @dataclass(frozen=True)
 class SubpixelMethod:
@@ -46,6 +48,9 @@ class SubpixelMethod:
         Start terms it carries from frame to frame beyond u, v and the gradients.
     reference_options : tuple of str
         Its options that shape the prepared reference data (set once), not each refinement.
+    shape_function, interpolant, criterion : str
+        How a report names its subset shape function, the grey-level interpolation it samples the deformed
+        image with, and the similarity it optimises (the iDICs guide's analysis-parameter table).
     """
     name: str
     module: ModuleType | None
@@ -56,6 +61,9 @@ class SubpixelMethod:
     final_after_guidance: bool = False
     shape_terms: tuple[str, ...] = ()
     reference_options: tuple[str, ...] = ()
+    shape_function: str = "zero order (rigid shift)"
+    interpolant: str = "none (integer pixels)"
+    criterion: str = "ZNCC"
 
     def __reduce__(self):
         # a tracker sent to another process (replay --workers) carries its method by name, not its module
@@ -102,14 +110,23 @@ class _SecondOrderIcgn(SubpixelMethod):
 
 
 METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (
-    SubpixelMethod("none", None, 0),
-    SubpixelMethod("surface-fit", surface_fit, 1, seeded=True),
-    SubpixelMethod("gradient", gradient_method, 2),
-    SubpixelMethod("newton-raphson", newton_raphson, INTERPOLATION_MARGIN, shape_order=1),
-    SubpixelMethod("improved-surface-fit", improved_surface_fit, 3, seeded=True),
-    SubpixelMethod("icgn", icgn, INTERPOLATION_MARGIN, shape_order=1, prepared=True, final_after_guidance=True),
+    SubpixelMethod("none", None, 0, shape_function="zero order (integer shift)"),
+    SubpixelMethod("surface-fit", surface_fit, 1, seeded=True,
+                   interpolant="none: a quadratic surface fitted to the ZNCC around its integer peak"),
+    SubpixelMethod("gradient", gradient_method, 2, interpolant="none: first-order Taylor expansion of the image",
+                   criterion="SSD of the intensity-normalised subsets (linearised)"),
+    SubpixelMethod("newton-raphson", newton_raphson, INTERPOLATION_MARGIN, shape_order=1,
+                   shape_function="first order (affine, 6 parameters)", interpolant=BSPLINE,
+                   criterion="ZNSSD (equivalent to ZNCC)"),
+    SubpixelMethod("improved-surface-fit", improved_surface_fit, 3, seeded=True,
+                   interpolant="none: an improved surface fitted to the ZNCC around its integer peak"),
+    SubpixelMethod("icgn", icgn, INTERPOLATION_MARGIN, shape_order=1, prepared=True, final_after_guidance=True,
+                   shape_function="first order (affine, 6 parameters)", interpolant=BSPLINE,
+                   criterion="ZNSSD (equivalent to ZNCC)"),
     _SecondOrderIcgn("icgn2", icgn2, INTERPOLATION_MARGIN, shape_order=2, prepared=True,
-                     shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max",)),
+                     shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max",),
+                     shape_function="second order (quadratic, 12 parameters)", interpolant=BSPLINE,
+                     criterion="ZNSSD (equivalent to ZNCC)"),
 )}
 SUBPIXEL_METHODS: tuple[str, ...] = tuple(METHODS)
 

@@ -31,12 +31,15 @@ only all together; existing ones are kept unless ``--overwrite``.
 
 from __future__ import annotations
 
+import io
 import math
 import os
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from livedic.acquire.atomic_file import atomic_files
+from livedic.stream.export.report_html import report_html
+from livedic.stream.export.report_tables import Row, analysis_rows, hardware_rows, rows_json, rows_markdown
 from livedic.stream.output.files import check_output_folder, json_text
 
 if TYPE_CHECKING:
@@ -46,7 +49,7 @@ if TYPE_CHECKING:
 
 __all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_json", "report_markdown"]
 
-REPORT_FILES = ("report.md", "report.json", "stress_strain.png")
+REPORT_FILES = ("report.md", "report.json", "report.html", "stress_strain.png")
 PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent")
 POISSON_KEY = "poisson_ratio"
 CONTRACTION_KEYS = (POISSON_KEY, "plastic_contraction_ratio")   # report.json only: the plastic one is no property
@@ -55,10 +58,12 @@ PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa"
 
 
 def report_json(properties: TensileProperties, specimen: dict[str, Any], source: dict[str, Any],
-                contraction: Sequence[ContractionRatio] | None = None) -> dict[str, Any]:
+                contraction: Sequence[ContractionRatio] | None = None, *,
+                tables: Sequence[tuple[str, str, Sequence[Row]]] = ()) -> dict[str, Any]:
     """The ``report.json`` object: the five properties (NaN as null), Poisson's ratio and the plastic contraction
     ratio (``contraction``: the pair of ``dic.tensile.poisson.ContractionRatio``; NaN with NO_PAIR when None),
-    ``specimen`` and ``source``."""
+    ``specimen``, ``source`` and each of ``tables`` (key, heading, rows: ``stream.export.report_tables``) as
+    key -> {parameter: value}."""
     from livedic.dic.tensile.poisson import without_pair
     out = {}
     for key, item in properties.as_dict().items():
@@ -69,7 +74,13 @@ def report_json(properties: TensileProperties, specimen: dict[str, Any], source:
         out[key] = {name: _finite_or_none(value) for name, value in ratio.as_dict().items()}
     out["specimen"] = specimen
     out["source"] = source
+    for key, _heading, rows in tables:
+        out[key] = _finite_or_none_dict(rows_json(rows))
     return out
+
+
+def _finite_or_none_dict(values: Mapping[str, Any]) -> dict[str, Any]:
+    return {key: _finite_or_none(value) for key, value in values.items()}
 
 
 def _finite_or_none(value):
@@ -80,8 +91,10 @@ def _finite_or_none(value):
     return value
 
 
-def report_markdown(report: Mapping[str, Any], plot_name: str, title: str) -> str:
-    """``report.md`` text from the ``report_json`` object."""
+def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
+                    tables: Sequence[tuple[str, str, Sequence[Row]]] = ()) -> str:
+    """``report.md`` text from the ``report_json`` object, with ``tables`` (key, heading, rows) after the
+    specimen."""
     specimen, source = report["specimen"], report["source"]
     gauge = f"{specimen['gauge_length_px']:.1f} px"
     if specimen.get("gauge_length_mm") is not None:
@@ -89,8 +102,10 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str) -> st
     lines = [f"# Tensile test: {title}", "",
              "## Specimen", "",
              f"- cross-section A0: {specimen['area_mm2']:g} mm^2",
-             f"- gauge length L0 (virtual extensometer `axial`): {gauge}", "",
-             "## Properties (ISO 6892-1)", "",
+             f"- gauge length L0 (virtual extensometer `axial`): {gauge}", ""]
+    for _key, heading, rows in tables:
+        lines += rows_markdown(rows, heading)
+    lines += ["## Properties (ISO 6892-1)", "",
              "| property | value | unit | method | why missing |",
              "|---|---|---|---|---|"]
     for key in PROPERTY_KEYS:
@@ -185,11 +200,18 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
                                                               table.eng_strain),
               **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
-    report = report_json(properties, specimen, source, contraction)
+    session = series["metadata"]
+    tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session)),
+              ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
+    report = report_json(properties, specimen, source, contraction, tables=tables)
     title = os.path.basename(path)
+    plot = io.BytesIO()
+    plot_stress_strain(plot, table, properties=properties,
+                       title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
+    text = report_markdown(report, "stress_strain.png", title, tables=tables)
     with atomic_files(targets, binary={name for name in targets if name.endswith(".png")}) as staged:
         staged["report.json"].write(json_text(report))
-        staged["report.md"].write(report_markdown(report, "stress_strain.png", title))
-        plot_stress_strain(staged["stress_strain.png"].handle, table, properties=properties,
-                           title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
+        staged["report.md"].write(text)
+        staged["report.html"].write(report_html(text, {"stress_strain.png": plot.getvalue()}, title))
+        staged["stress_strain.png"].write(plot.getvalue())
     return report

@@ -413,6 +413,13 @@ class Preparation:
         self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
                                                subset=self.config.tracking.subset)
 
+    def _frame_size(self) -> list[int] | None:
+        """[W, H] of the first frame (the report's image size), None before it was read."""
+        if self.ahead is None:
+            return None
+        height, width = self.ahead.frame.image.shape[:2]
+        return [int(width), int(height)]
+
     def metadata(self, source_settings: dict) -> dict[str, Any]:
         """The session metadata the recording starts with (``source_settings``: the opened source's)."""
         config = self.config
@@ -420,6 +427,7 @@ class Preparation:
         p0 = self.p0.xy if self.p0 is not None else tuple(self.points[0])
         metadata = {
             "command": config.command, "source_uri": config.source, "source_settings": source_settings,
+            "frame_size": self._frame_size(),
             "roi": list(self.roi) if self.roi else "full image", "step": wanted.step, "grid_step": self.step,
             "region": self.placement.as_metadata() if self.placement is not None else None,
             "n_points_wanted": wanted.n_points, "points_file": wanted.points_file, "p0": list(p0),

@@ -177,11 +177,17 @@ def test_report_recovers_the_laws_properties(test_run, tmp_path, capsys):
     assert main(["report", test_run["recording"], "-o", str(out), "--load", f"csv:{test_run['force_csv']}",
                  "--area", str(AREA_MM2)]) == 0
     assert "report: E " in capsys.readouterr().err
-    assert sorted(os.listdir(out)) == ["report.json", "report.md", "stress_strain.png"]
+    assert sorted(os.listdir(out)) == ["report.html", "report.json", "report.md", "stress_strain.png"]
     report = _strict_json(out / "report.json")
     for key in KEYS:
         assert set(report[key]) == {"value", "method", "reason"} and report[key]["method"], key
     assert "specimen" in report and "source" in report
+    # the iDICs guide's tables, from the recording's session metadata
+    assert report["analysis"]["subset_px"] == 21 and report["analysis"]["subpixel"] == "icgn"
+    assert report["analysis"]["shape_function"].startswith("first order")
+    assert report["hardware"]["camera"].startswith("livedic simulator")
+    html = (out / "report.html").read_text()
+    assert "<table>" in html and "data:image/png;base64," in html and 'src="stress_strain.png"' not in html
     assert report["specimen"]["area_mm2"] == AREA_MM2 and report["specimen"]["gauge_length_px"] == 200.0
     peak = test_run["peak"]
     rm_law = float(test_run["force"][peak] / AREA_MM2)
@@ -387,7 +393,7 @@ def test_report_reads_the_recorded_force(test_run, force_recordings, tmp_path):
     out = tmp_path / "report"
     report = report_recording(force_recordings["with_area"], out,
                               stress=StressOptions(RECORDED_FORCE, 0.0, AREA_MM2))
-    assert sorted(os.listdir(out)) == ["report.json", "report.md", "stress_strain.png"]
+    assert sorted(os.listdir(out)) == ["report.html", "report.json", "report.md", "stress_strain.png"]
     assert report["source"]["frames_with_force"] == len(test_run["frames"]) - 1
     assert report["source"]["recorded_source"] == "synthetic:tensile"
     # the same law as test_report_recovers_the_laws_properties, one elastic frame without force: same tolerances

@@ -1,0 +1,131 @@
+"""The report's parameter tables, as the iDICs Good Practices Guide for DIC (2018, section 5) asks a DIC result to
+state them: the hardware (camera, image, rate, exposure, scale) and the analysis (software, subset, step, shape
+function, interpolant, criterion, search, pre-filter, strain method, window, VSG, strain measure, reference
+updates), read from a recording's session metadata.
+
+Each table is a list of ``Row`` (a key for ``report.json``, a label for people, the value as data and as text);
+a value the recording does not hold is ``None`` and reads "not recorded", never a guess. docs/guide/tensile-test.md
+shows the tables.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+NOT_RECORDED = "not recorded"
+
+
+@dataclass(frozen=True)
+class Row:
+    """One parameter of a report table: ``key`` in report.json, ``label`` and ``text`` in report.md."""
+    key: str
+    label: str
+    value: Any
+    text: str
+
+
+def _row(key: str, label: str, value: Any, unit: str = "", text: str | None = None) -> Row:
+    if text is None:
+        text = NOT_RECORDED if value is None else (f"{value:g}" if isinstance(value, float) else str(value))
+        if value is not None and unit:
+            text += f" {unit}"
+    return Row(key, label, value, text)
+
+
+def _size(value: Any) -> list[int] | None:
+    if isinstance(value, Sequence) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value):
+        return [int(value[0]), int(value[1])]
+    return None
+
+
+def _size_text(size: list[int] | None) -> str | None:
+    return None if size is None else f"{size[0]} x {size[1]} px"
+
+
+def camera_description(settings: Mapping[str, Any]) -> tuple[str, str | None]:
+    """(what made the images, its serial number or None) from a source's recorded settings."""
+    scheme = settings.get("source")
+    if settings.get("vendor") or scheme in ("aravis", "opencv"):
+        name = " ".join(str(settings[k]) for k in ("vendor", "model") if settings.get(k)) or str(scheme)
+        return name, (str(settings["serial"]) if settings.get("serial") else None)
+    uri = str(settings.get("uri") or "")
+    if uri.startswith("synthetic:"):
+        return f"livedic simulator ({uri.split('?')[0]}): rendered images with exact truth, no camera", None
+    return (f"images from {uri}" if uri else NOT_RECORDED), None
+
+
+def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] | None = None) -> list[Row]:
+    """The hardware table: camera and serial, sensor and image size, bit depth, frame rate, exposure, the
+    calibration and the scale on the specimen plane."""
+    settings = session.get("source_settings") or {}
+    camera, serial = camera_description(settings)
+    image = _size(session.get("frame_size")) or _size([settings.get("width"), settings.get("height")])
+    sensor = _size(settings.get("sensor_size"))
+    bit = settings.get("bit_depth", settings.get("bit"))
+    fps = settings.get("frame_rate", settings.get("fps"))
+    exposure = settings.get("exposure_us")
+    scale = session.get("scale_px_per_mm")
+    if calibration:
+        calibration_text = (f"{calibration.get('file', 'calibration')}: reprojection RMS "
+                            f"{calibration.get('rms_px', float('nan')):.3f} px over {calibration.get('n_images', '?')} "
+                            f"images, lens distortion removed before strain")
+    else:
+        calibration_text = "none: lens distortion not corrected"
+    return [
+        _row("camera", "camera", camera),
+        _row("serial", "serial number", serial, text=serial or "n/a"),
+        _row("sensor_size_px", "sensor size", sensor, text=_size_text(sensor) or NOT_RECORDED),
+        _row("image_size_px", "image size", image, text=_size_text(image) or NOT_RECORDED),
+        _row("bit_depth", "bit depth", bit, "bit"),
+        _row("frame_rate_fps", "frame rate", fps, "fps"),
+        _row("exposure_us", "exposure", exposure, "us"),
+        _row("calibration", "calibration", calibration or None, text=calibration_text),
+        _row("scale_px_per_mm", "scale on the specimen plane", scale, "px/mm",
+             text=None if scale else "none: lengths in px only"),
+    ]
+
+
+def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
+    """The analysis table: software, subset, step, shape function, interpolant, correlation criterion, search,
+    pre-filter, strain method, window, VSG, strain measure and reference updates."""
+    from livedic.dic.subpixel.method import METHODS
+    method = METHODS.get(str(session.get("subpixel")))
+    version = session.get("software_version")
+    step = session.get("grid_step") or session.get("step")
+    window = session.get("strain_window")
+    vsg = session.get("vsg_px")
+    return [
+        _row("software", "DIC software", f"livedic {version}" if version else None),
+        _row("subset_px", "subset size", session.get("subset"), "px (square)"),
+        _row("step_px", "step (grid spacing)", step, "px"),
+        _row("subpixel", "sub-pixel method", session.get("subpixel")),
+        _row("shape_function", "subset shape function", method.shape_function if method else None),
+        _row("interpolant", "grey-level interpolant", method.interpolant if method else None),
+        _row("criterion", "correlation criterion", method.criterion if method else None),
+        _row("search", "initial guess (integer search)", session.get("search")),
+        _row("prefilter", "image pre-filter", session.get("prefilter", "none")),
+        _row("strain_method", "strain calculation",
+             "pointwise least squares: a plane fitted to u and v over the window (Pan et al. 2009)"),
+        _row("strain_window_points", "strain window", window, "points a side"),
+        _row("vsg_px", "virtual strain gauge (VSG)", vsg, "px"),
+        _row("strain_measure", "strain measure", session.get("strain_measure")),
+        _row("reference_update", "reference updates", session.get("reference_update")),
+    ]
+
+
+def rows_json(rows: Sequence[Row]) -> dict[str, Any]:
+    """A table as ``report.json`` holds it: key -> value (data; None where not recorded)."""
+    return {row.key: row.value for row in rows}
+
+
+def rows_markdown(rows: Sequence[Row], heading: str) -> list[str]:
+    """A table as ``report.md`` lines: a heading and a two-column table."""
+    lines = [f"## {heading}", "", "| parameter | value |", "|---|---|"]
+    lines += [f"| {row.label} | {_cell(row.text)} |" for row in rows]
+    return lines + [""]
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")

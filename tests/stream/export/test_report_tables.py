@@ -1,0 +1,51 @@
+"""Tests of stream/export/report_tables.py: the hardware and analysis tables from a session's metadata."""
+
+from livedic.dic.subpixel.method import METHODS
+from livedic.stream.export.report_tables import (NOT_RECORDED, analysis_rows, camera_description, hardware_rows,
+                                                 rows_json, rows_markdown)
+
+ARAVIS = {"source": "aravis", "uri": "aravis:Cam1", "vendor": "Basler", "model": "acA2440-75um", "serial": "40123",
+          "sensor_size": [2448, 2048], "width": 2048, "height": 1536, "bit_depth": 12, "frame_rate": 75.0,
+          "exposure_us": 2000.0}
+
+
+def test_a_camera_is_named_with_its_vendor_model_serial_and_settings():
+    assert camera_description(ARAVIS) == ("Basler acA2440-75um", "40123")
+    table = rows_json(hardware_rows({"source_settings": ARAVIS, "frame_size": [2048, 1536], "scale_px_per_mm": 12.5}))
+    assert table["sensor_size_px"] == [2448, 2048] and table["image_size_px"] == [2048, 1536]
+    assert table["bit_depth"] == 12 and table["frame_rate_fps"] == 75.0 and table["exposure_us"] == 2000.0
+    assert table["scale_px_per_mm"] == 12.5 and table["calibration"] is None
+
+
+def test_what_was_not_recorded_says_so_and_is_null_never_a_guess():
+    rows = hardware_rows({"source_settings": {"uri": "images:/data/*.tif"}})
+    by_key = {row.key: row for row in rows}
+    assert by_key["camera"].value == "images from images:/data/*.tif"
+    for key in ("sensor_size_px", "image_size_px", "bit_depth", "frame_rate_fps", "exposure_us"):
+        assert by_key[key].value is None and by_key[key].text == NOT_RECORDED, key
+    assert by_key["scale_px_per_mm"].text.startswith("none")
+
+
+def test_the_analysis_table_describes_the_method_that_ran():
+    session = {"software_version": "0.1.0", "subset": 31, "grid_step": 9, "subpixel": "icgn2",
+               "search": "improved-wso", "strain_window": 7, "vsg_px": 85.0, "strain_measure": "green",
+               "reference_update": "auto"}
+    table = rows_json(analysis_rows(session))
+    assert table["software"] == "livedic 0.1.0" and table["subset_px"] == 31 and table["step_px"] == 9
+    assert table["shape_function"] == METHODS["icgn2"].shape_function and "second order" in table["shape_function"]
+    assert table["interpolant"] == METHODS["icgn2"].interpolant and "B-spline" in table["interpolant"]
+    assert table["vsg_px"] == 85.0 and table["strain_measure"] == "green" and table["prefilter"] == "none"
+    # an unknown method is not described by another's traits
+    assert rows_json(analysis_rows({"subpixel": "mystery"}))["shape_function"] is None
+
+
+def test_every_method_declares_its_shape_function_interpolant_and_criterion():
+    for method in METHODS.values():
+        assert method.shape_function and method.interpolant and method.criterion, method.name
+        assert ("first order" in method.shape_function) == (method.shape_order == 1), method.name
+
+
+def test_markdown_table_escapes_cells():
+    lines = rows_markdown(hardware_rows({"source_settings": {"uri": "a|b"}}), "Hardware")
+    assert lines[0] == "## Hardware" and lines[2] == "| parameter | value |"
+    assert "images from a\\|b" in "\n".join(lines)
