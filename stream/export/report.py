@@ -98,7 +98,8 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
     specimen, source = report["specimen"], report["source"]
     gauge = f"{specimen['gauge_length_px']:.1f} px"
     if specimen.get("gauge_length_mm") is not None:
-        gauge += f" = {specimen['gauge_length_mm']:.3f} mm ({specimen['scale_px_per_mm']:g} px/mm)"
+        origin = f", {specimen['scale_origin']}" if specimen.get("scale_origin") else ""
+        gauge += f" = {specimen['gauge_length_mm']:.3f} mm ({specimen['scale_px_per_mm']:g} px/mm{origin})"
     lines = [f"# Tensile test: {title}", "",
              "## Specimen", "",
              f"- cross-section A0: {specimen['area_mm2']:g} mm^2",
@@ -127,6 +128,17 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
               f"- {source['strain']}",
               f"- written {source['generated_at']} by livedic report", ""]
     return "\n".join(lines)
+
+
+def specimen_scale(given: float | None, session: Mapping[str, Any]) -> tuple[float | None, str | None]:
+    """(px/mm, where it comes from) for the specimen's lengths: the session's scale, else the simulator's own
+    (its images are rendered at a known scale), else (None, None)."""
+    if given:
+        return float(given), "the session's --scale"
+    settings = session.get("source_settings") or {}
+    if str(settings.get("uri", "")).startswith("synthetic:") and settings.get("scale"):
+        return float(settings["scale"]), "the simulator's rendering scale"
+    return None, None
 
 
 def _force_line(source) -> str:
@@ -188,9 +200,10 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     properties = tensile_properties(table.eng_strain, table.eng_stress_MPa)
     contraction = (contraction_ratios(series["eng_strain"], series["transverse_eng_strain"], force=table.force_N,
                                       frames=table.frame) if series["has_transverse"] else None)
-    scale = series["scale"]
+    scale, scale_origin = specimen_scale(series["scale"], series["metadata"])
     specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
-                "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale}
+                "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale,
+                "scale_origin": scale_origin}
     source = {"recording": os.path.abspath(path), "truncated": bool(series["truncated"]), "load": stress.load,
               "load_offset_s": stress.offset_s, "frames": int(table.frame.size),
               "frames_with_force": int(sum(math.isfinite(f) for f in table.force_N)),
@@ -201,7 +214,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
               **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
     session = series["metadata"]
-    tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session)),
+    tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=(scale, scale_origin))),
               ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
     report = report_json(properties, specimen, source, contraction, tables=tables)
     title = os.path.basename(path)

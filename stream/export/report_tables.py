@@ -56,9 +56,11 @@ def camera_description(settings: Mapping[str, Any]) -> tuple[str, str | None]:
     return (f"images from {uri}" if uri else NOT_RECORDED), None
 
 
-def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] | None = None) -> list[Row]:
+def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] | None = None,
+                  scale: tuple[float | None, str | None] | None = None) -> list[Row]:
     """The hardware table: camera and serial, sensor and image size, bit depth, frame rate, exposure, the
-    calibration and the scale on the specimen plane."""
+    calibration and the scale on the specimen plane (``scale``: (px/mm, where it comes from), default the
+    session's ``--scale``)."""
     settings = session.get("source_settings") or {}
     camera, serial = camera_description(settings)
     image = _size(session.get("frame_size")) or _size([settings.get("width"), settings.get("height")])
@@ -66,7 +68,7 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
     bit = settings.get("bit_depth", settings.get("bit"))
     fps = settings.get("frame_rate", settings.get("fps"))
     exposure = settings.get("exposure_us")
-    scale = session.get("scale_px_per_mm")
+    px_per_mm, origin = scale if scale is not None else (session.get("scale_px_per_mm"), None)
     if calibration:
         calibration_text = (f"{calibration.get('file', 'calibration')}: reprojection RMS "
                             f"{calibration.get('rms_px', float('nan')):.3f} px over {calibration.get('n_images', '?')} "
@@ -82,8 +84,9 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
         _row("frame_rate_fps", "frame rate", fps, "fps"),
         _row("exposure_us", "exposure", exposure, "us"),
         _row("calibration", "calibration", calibration or None, text=calibration_text),
-        _row("scale_px_per_mm", "scale on the specimen plane", scale, "px/mm",
-             text=None if scale else "none: lengths in px only"),
+        _row("scale_px_per_mm", "scale on the specimen plane", px_per_mm,
+             text=(f"{px_per_mm:g} px/mm" + (f" ({origin})" if origin else "")) if px_per_mm
+             else "none: lengths in px only"),
     ]
 
 

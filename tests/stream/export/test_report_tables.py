@@ -49,3 +49,13 @@ def test_markdown_table_escapes_cells():
     lines = rows_markdown(hardware_rows({"source_settings": {"uri": "a|b"}}), "Hardware")
     assert lines[0] == "## Hardware" and lines[2] == "| parameter | value |"
     assert "images from a\\|b" in "\n".join(lines)
+
+
+def test_the_scale_row_names_where_the_scale_comes_from():
+    from livedic.stream.export.report import specimen_scale
+    simulated = {"source_settings": {"uri": "synthetic:tensile?frames=9", "scale": 10.0}}
+    assert specimen_scale(None, simulated) == (10.0, "the simulator's rendering scale")
+    assert specimen_scale(12.5, simulated) == (12.5, "the session's --scale")
+    assert specimen_scale(None, {"source_settings": {"uri": "aravis:Cam1"}}) == (None, None)
+    row = {r.key: r for r in hardware_rows(simulated, scale=specimen_scale(None, simulated))}["scale_px_per_mm"]
+    assert row.value == 10.0 and row.text == "10 px/mm (the simulator's rendering scale)"
