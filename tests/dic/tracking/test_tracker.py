@@ -1,4 +1,4 @@
-"""Tracker: seeded frame-to-frame tracking against a reference, re-finding, grids."""
+"""Tracker: seeded frame-to-frame tracking against a reference, re-finding."""
 
 import time
 
@@ -8,7 +8,7 @@ import pytest
 from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.status import Status
 from livedic.dic.tracking.key_frames import KeyFrameTracker
-from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count
+from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi
 
 
 def _translate_frames(query):
@@ -20,34 +20,6 @@ def _translate_frames(query):
 def _errors(frame, m):
     tu, tv = frame.metadata["truth"](m.x, m.y)
     return np.hypot(m.u - tu, m.v - tv)
-
-
-# --------------------------------------------------------------------------- grids
-
-def test_grid_stays_in_roi_and_image_and_is_centred():
-    points = grid_in_roi((200, 300), (40, 30, 101, 80), 10, 21)
-    x, y = points[:, 0], points[:, 1]
-    assert x.min() - 10 >= 40 and x.max() + 10 <= 140 and y.min() - 10 >= 30 and y.max() + 10 <= 109
-    assert np.all(np.diff(np.unique(x)) == 10) and np.all(np.diff(np.unique(y)) == 10)
-    assert abs((x.min() - 40) - (140 - x.max())) <= 1       # centred
-    clipped = grid_in_roi((100, 100), (-50, -50, 400, 400), 20, 11)   # ROI beyond the image: clipped to it
-    assert clipped.min() >= 5 and clipped.max() <= 94
-    assert len(grid_in_roi((64, 64), None, 8, 21)) == 36      # centres 10..53 hold 6 steps of 8
-
-
-@pytest.mark.parametrize("roi, step, subset, words", [
-    ((0, 0, 10, 10), 5, 21, "cannot hold"), ((0, 0, 50, 50), 0, 21, "step"),
-    ((0, 0, 50, 50), 5, 20, "odd"), ((0, 0, -5, 50), 5, 21, "positive"), ((0, 0, 5), 5, 21, "four"),
-])
-def test_bad_grid_raises(roi, step, subset, words):
-    with pytest.raises(ValueError, match=words):
-        grid_in_roi((100, 100), roi, step, subset)
-
-
-def test_step_for_count_gives_about_the_wanted_number():
-    roi = (346, 185, 332, 655)
-    step = step_for_count(roi, 1000, 21)
-    assert 800 <= len(grid_in_roi((1024, 1024), roi, step, 21)) <= 1250
 
 
 # --------------------------------------------------------------------------- tracking
