@@ -1,10 +1,10 @@
-"""Quality gates (dic.quality) and neighbours (dic.neighbours): analytic fields and textures."""
+"""Quality gates (dic.quality): analytic fields and textures."""
 
 import numpy as np
 import pytest
 
 from livedic.dic import Status, measure
-from livedic.dic.neighbours import neighbour_graph, typical_spacing
+from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates, gate_status, median_test, texture
 from livedic.dic.speckle import SpecklePattern, render
 from livedic.dic.subpixel.icgn import prepare_reference
@@ -14,30 +14,6 @@ def _grid(step=10, n=12):
     axis = np.arange(n) * float(step)
     xs, ys = np.meshgrid(axis, axis)
     return np.column_stack([xs.ravel(), ys.ravel()])
-
-
-# --------------------------------------------------------------------------- neighbours
-
-def test_grid_neighbours_are_the_8_neighbourhood():
-    xy = _grid()
-    start, index = neighbour_graph(xy)
-    centre = 5 * 12 + 5
-    got = {tuple(xy[j]) for j in index[start[centre]:start[centre + 1]]}
-    assert got == {(50 + dx, 50 + dy) for dx in (-10, 0, 10) for dy in (-10, 0, 10) if dx or dy}
-    assert typical_spacing(xy) == pytest.approx(10.0)
-
-
-def test_points_across_a_gap_are_not_neighbours():
-    left = _grid(10, 5)
-    right = left + [200.0, 0.0]
-    start, index = neighbour_graph(np.vstack([left, right]))
-    for i in range(len(left)):
-        assert np.all(index[start[i]:start[i + 1]] < len(left))
-
-
-def test_one_point_has_no_neighbours():
-    start, index = neighbour_graph([(3.0, 4.0)])
-    assert start.tolist() == [0, 0] and index.size == 0
 
 
 # --------------------------------------------------------------------------- median test

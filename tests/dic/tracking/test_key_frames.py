@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from livedic.dic.tracking.key_frames import KeyFrameTracker
-from livedic.dic.tracking.update_policy import UpdatePolicy, _percentile_may_pass
 from livedic.dic.speckle import SpecklePattern, affine, render
 from livedic.dic.status import Status
 from livedic.dic.tracking import Tracker
@@ -119,33 +118,3 @@ def test_stop_tracking_reports_separated_points(frames):
     assert np.all(m.status[band] == Status.SEPARATED) and not m.ok[band].any()
     assert np.all(np.isnan(m.u[band]))
     assert m.ok[~band].all() and not tracker.trackable[band].any()
-
-
-def test_the_policy_skips_a_percentile_only_where_it_cannot_pass():
-    """The auto policy counts values beyond its limit before it sorts: wherever it skips np.percentile, the
-    percentile is on the safe side of the limit (ties, repeated values and limits at the values included)."""
-    rng = np.random.default_rng(2)
-    skipped = 0
-    for _ in range(3000):
-        n = int(rng.integers(1, 60))
-        values = np.round(rng.uniform(0.8, 1.0, n), int(rng.integers(1, 4)))
-        limit = float(rng.choice(values)) if rng.random() < 0.5 else float(rng.uniform(0.8, 1.0))
-        for q, below in ((5, True), (99, False), (50, True), (50, False)):
-            if not _percentile_may_pass(values, q, limit, below=below):
-                skipped += 1
-                p = np.percentile(values, q)
-                assert (p >= limit) if below else (p <= limit)
-    assert skipped > 1000
-
-
-@pytest.mark.parametrize("text, policy", [("auto", UpdatePolicy("auto")), ("never", UpdatePolicy("never")),
-                                          ("every:5", UpdatePolicy("every", 5)), ("EVERY:1", UpdatePolicy("every", 1))])
-def test_policy_parsing(text, policy):
-    assert UpdatePolicy.parse(text) == policy
-    assert UpdatePolicy.parse(str(policy)) == policy
-
-
-@pytest.mark.parametrize("text", ["sometimes", "every:0", "every:x", "every", ""])
-def test_bad_policy_is_one_line(text):
-    with pytest.raises(ValueError, match="--reference-update"):
-        UpdatePolicy.parse(text)

@@ -1,53 +1,14 @@
-"""Tracker: seeded frame-to-frame tracking against a reference, re-finding, grids."""
+"""Tracker: seeded frame-to-frame tracking against a reference (re-finding: test_refind)."""
 
 import time
 
 import numpy as np
 import pytest
 
-from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.status import Status
 from livedic.dic.tracking.key_frames import KeyFrameTracker
-from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi, step_for_count
-
-
-def _translate_frames(query):
-    source = SyntheticTranslateSource(f"synthetic:translate?pace=0&{query}")
-    with source:
-        return source, list(source)
-
-
-def _errors(frame, m):
-    tu, tv = frame.metadata["truth"](m.x, m.y)
-    return np.hypot(m.u - tu, m.v - tv)
-
-
-# --------------------------------------------------------------------------- grids
-
-def test_grid_stays_in_roi_and_image_and_is_centred():
-    points = grid_in_roi((200, 300), (40, 30, 101, 80), 10, 21)
-    x, y = points[:, 0], points[:, 1]
-    assert x.min() - 10 >= 40 and x.max() + 10 <= 140 and y.min() - 10 >= 30 and y.max() + 10 <= 109
-    assert np.all(np.diff(np.unique(x)) == 10) and np.all(np.diff(np.unique(y)) == 10)
-    assert abs((x.min() - 40) - (140 - x.max())) <= 1       # centred
-    clipped = grid_in_roi((100, 100), (-50, -50, 400, 400), 20, 11)   # ROI beyond the image: clipped to it
-    assert clipped.min() >= 5 and clipped.max() <= 94
-    assert len(grid_in_roi((64, 64), None, 8, 21)) == 36      # centres 10..53 hold 6 steps of 8
-
-
-@pytest.mark.parametrize("roi, step, subset, words", [
-    ((0, 0, 10, 10), 5, 21, "cannot hold"), ((0, 0, 50, 50), 0, 21, "step"),
-    ((0, 0, 50, 50), 5, 20, "odd"), ((0, 0, -5, 50), 5, 21, "positive"), ((0, 0, 5), 5, 21, "four"),
-])
-def test_bad_grid_raises(roi, step, subset, words):
-    with pytest.raises(ValueError, match=words):
-        grid_in_roi((100, 100), roi, step, subset)
-
-
-def test_step_for_count_gives_about_the_wanted_number():
-    roi = (346, 185, 332, 655)
-    step = step_for_count(roi, 1000, 21)
-    assert 800 <= len(grid_in_roi((1024, 1024), roi, step, 21)) <= 1250
+from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi
+from tests.dic.tracking.conftest import errors_to_truth, translate_frames
 
 
 # --------------------------------------------------------------------------- tracking
@@ -55,7 +16,7 @@ def test_step_for_count_gives_about_the_wanted_number():
 @pytest.mark.parametrize("search, subpixel", [("improved-wso", "icgn"), ("none", "icgn"),
                                               ("improved-wso", "improved-surface-fit")])
 def test_follows_a_translation_sequence(search, subpixel):
-    source, frames = _translate_frames("frames=16&size=160x160&du=0.35&dv=-0.2&noise=1")
+    source, frames = translate_frames("frames=16&size=160x160&du=0.35&dv=-0.2&noise=1")
     points = grid_in_roi(source.shape, source.suggested_roi, 16, 21)
     tracker = Tracker(frames[0].image, points, search=search, subpixel=subpixel)
     first = tracker.track(frames[0].image)
@@ -63,37 +24,20 @@ def test_follows_a_translation_sequence(search, subpixel):
     for frame in frames[1:]:
         m = tracker.track(frame.image)
         assert m.ok.all()
-        assert np.max(_errors(frame, m)) < 0.05
+        assert np.max(errors_to_truth(frame, m)) < 0.05
     assert tracker.frames_tracked == len(frames)
-
-
-def test_refinds_points_after_a_jump():
-    """A 14 px jump is far beyond the 2 px seed box: the wide search must bring the points back."""
-    source, frames = _translate_frames("frames=14&size=224x224&du=0.2&dv=0.1&jump=10:14:-6&noise=1")
-    points = grid_in_roi(source.shape, (56, 56, 112, 112), 16, 21)
-    tracker = Tracker(frames[0].image, points, seed_radius=2, refind_radius=20)
-    for frame in frames[:10]:
-        tracker.track(frame.image)
-        assert tracker.last_refind_attempts <= 2
-    m = tracker.track(frames[10].image)
-    assert tracker.last_refound.sum() >= 0.8 * len(points)
-    assert m.ok.all() and np.max(_errors(frames[10], m)) < 0.05
-    for frame in frames[11:]:
-        m = tracker.track(frame.image)
-        assert m.ok.all() and np.max(_errors(frame, m)) < 0.05
-        assert tracker.last_refind_attempts == 0      # back to cheap seeded tracking
 
 
 def test_seeded_search_runs_only_for_doubtful_points_with_icgn():
     """IC-GN from the previous result for all; the seed box only where that is doubtful (an 8.5 px jump)."""
-    source, frames = _translate_frames("frames=7&size=224x224&du=0.2&dv=0.1&jump=4:8:-3&noise=1")
+    source, frames = translate_frames("frames=7&size=224x224&du=0.2&dv=0.1&jump=4:8:-3&noise=1")
     points = grid_in_roi(source.shape, (56, 56, 112, 112), 16, 21)
     tracker = Tracker(frames[0].image, points, search="improved-wso", seed_radius=10, refind_radius=20)
     plain = Tracker(frames[0].image, points, search="none", seed_radius=10, refind_radius=20)
     surface = Tracker(frames[0].image, points, search="improved-wso", subpixel="improved-surface-fit", seed_radius=10)
     for k, frame in enumerate(frames):
         m = tracker.track(frame.image)
-        assert m.ok.all() and np.max(_errors(frame, m)) < 0.05
+        assert m.ok.all() and np.max(errors_to_truth(frame, m)) < 0.05
         assert tracker.last_refind_attempts == 0          # the seed box was enough: no wide search
         if k == 4:
             assert tracker.last_seed_searches >= 0.5 * len(points)
@@ -117,7 +61,7 @@ def _timed_track(tracker, image):
 def test_stage_timings_are_every_stage_within_the_call(kind):
     """``last_timings``: every stage of TRACKER_STAGES, ns >= 0, together at most the call's wall time; the
     stages that ran are timed (the frame prepared, the kernel; the searches on the frame that jumps)."""
-    source, frames = _translate_frames("frames=7&size=224x224&du=0.2&dv=0.1&jump=4:14:-6&noise=1")
+    source, frames = translate_frames("frames=7&size=224x224&du=0.2&dv=0.1&jump=4:14:-6&noise=1")
     points = grid_in_roi(source.shape, (56, 56, 112, 112), 16, 21)
     tracker = kind(frames[0].image, points, seed_radius=2, refind_radius=20)
     assert tuple(tracker.last_timings) == TRACKER_STAGES and not any(tracker.last_timings.values())
@@ -137,7 +81,7 @@ def test_stage_timings_are_every_stage_within_the_call(kind):
 def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
     """``kernel_job``: what the next ``track`` runs in its kernel stage; alone, it gives the tracker's own
     numbers where nothing after the kernel changed them (bit for bit)."""
-    source, frames = _translate_frames("frames=6&size=192x192&du=0.3&dv=-0.2&noise=1")
+    source, frames = translate_frames("frames=6&size=192x192&du=0.3&dv=-0.2&noise=1")
     points = grid_in_roi(source.shape, (40, 40, 112, 112), 14, 21)
     tracker = KeyFrameTracker(frames[0].image, points, reference_update="every:2")
     for frame in frames:
@@ -152,7 +96,7 @@ def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
 
 
 def test_points_without_texture_are_reported_never_searched():
-    source, frames = _translate_frames("frames=3&size=128x128&du=0.5&dv=0&noise=0")
+    source, frames = translate_frames("frames=3&size=128x128&du=0.5&dv=0&noise=0")
     reference = frames[0].image.copy()
     reference[:, :40] = 100                        # a flat band (no speckle)
     moved = frames[1].image.copy()
@@ -167,14 +111,14 @@ def test_points_without_texture_are_reported_never_searched():
 
 def test_icgn_window_grows_with_large_displacements():
     """IC-GN reads only a window of each frame; a displacement beyond its room re-prepares a bigger one."""
-    source, frames = _translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
+    source, frames = translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
     points = grid_in_roi(source.shape, (100, 100, 56, 56), 14, 21)
     tracker = Tracker(frames[0].image, points, seed_radius=3)
     start = tracker.window
     assert start[1] - start[0] < 256
     for frame in frames[1:]:
         m = tracker.track(frame.image)
-        assert m.ok.all() and np.max(_errors(frame, m)) < 0.05
+        assert m.ok.all() and np.max(errors_to_truth(frame, m)) < 0.05
     grown = tracker.window
     assert (grown[1] - grown[0]) > (start[1] - start[0])
 
@@ -231,21 +175,21 @@ def test_points_on_a_blank_background_are_never_ok_and_a_knock_is_not_trusted():
 
 def test_gates_reject_a_wrong_but_converged_point():
     """A point forced onto a wrong start (a side lobe) is flagged, not reported ok."""
-    source, frames = _translate_frames("frames=3&size=160x160&du=0.3&dv=-0.2&noise=1")
+    source, frames = translate_frames("frames=3&size=160x160&du=0.3&dv=-0.2&noise=1")
     points = grid_in_roi(source.shape, source.suggested_roi, 14, 21)
     tracker = Tracker(frames[0].image, points, search="none", subpixel="icgn", refind_fallback=None,
                       refind_radius=0)
     tracker.track(frames[1].image)
     tracker._prev["u"][5] += 7.0          # as if the previous frame had gone wrong for this point
     m = tracker.track(frames[2].image)
-    err = _errors(frames[2], m)
+    err = errors_to_truth(frames[2], m)
     assert np.all(err[m.ok] < 0.05)
 
 
 def test_zncc_stays_within_one_for_a_frame_tracked_against_itself():
     """The reference frame tracked against itself scored up to 1.0000002 (CSV showed 1.000000095): ZNCC is
     clipped to [-1, 1] where the measurement is assembled, and every point stays ok."""
-    source, frames = _translate_frames("frames=2&size=160x160&noise=1")
+    source, frames = translate_frames("frames=2&size=160x160&noise=1")
     points = grid_in_roi(source.shape, source.suggested_roi, 8, 21)
     first = Tracker(frames[0].image, points).track(frames[0].image)
     assert first.ok.all() and first.zncc.dtype == np.float64

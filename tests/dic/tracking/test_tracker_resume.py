@@ -4,7 +4,6 @@ sequence (what ``livedic replay --workers`` relies on)."""
 import numpy as np
 import pytest
 
-from livedic.dic.result import Measurement
 from livedic.dic.speckle import SpecklePattern, render
 from livedic.dic.tracking import Tracker, last_good_after
 
@@ -32,17 +31,6 @@ def test_each_frame_resumed_on_its_own_equals_the_sequence_bit_for_bit(frames):
         for name in ("u", "v", "zncc", "ux", "uy", "vx", "vy"):
             assert np.array_equal(getattr(m, name), getattr(expected[k], name), equal_nan=True), (k, name)
         assert np.array_equal(m.ok, expected[k].ok) and np.array_equal(m.status, expected[k].status)
-
-
-def test_last_good_keeps_a_lost_points_last_ok_result():
-    def result(u, ok):
-        u = np.asarray(u, dtype=np.float64)
-        return Measurement(x=np.zeros(2), y=np.zeros(2), u=u, v=-u, zncc=np.ones(2), ok=np.asarray(ok),
-                           status=np.zeros(2, dtype=np.int8))
-    good = last_good_after(None, result([1.0, 2.0], [True, False]))
-    good = last_good_after(good, result([np.nan, 3.0], [False, True]))
-    assert good["u"].tolist() == [1.0, 3.0] and good["v"].tolist() == [-1.0, -3.0]
-    assert good["ever"].tolist() == [True, True] and good["ux"].tolist() == [0.0, 0.0]
 
 
 def test_resume_refuses_another_number_of_points(frames):
