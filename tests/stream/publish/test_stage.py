@@ -9,9 +9,7 @@ double. Bad URIs and a port in use are one line, exit 2, no recording.
 import dataclasses
 import errno
 import json
-import math
 import socket
-import struct
 import subprocess
 import sys
 import threading
@@ -23,9 +21,7 @@ import pytest
 from livedic.acquire.recording.reader import Recording, read_events
 from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.stream.session.config import SessionConfig, ViewerConfig
-from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED,
-                                    FrameValues, decode_registers, encode_registers, parse_publish_uri,
-                                    parse_publish_uris, register_count)
+from livedic.stream.publish import STATE_ENDED, decode_registers, register_count
 from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import StrainConfig
 from tests.stream.publish.conftest import assert_port_free
