@@ -31,21 +31,6 @@ def test_json_has_the_contract_keys_and_null_never_nan():
     assert json.loads(odd.as_json())["strain"] == {"axial": None}
 
 
-def test_json_has_the_contract_keys_and_null_never_nan():
-    message = json.loads(_values().as_json().decode("utf-8"))
-    assert list(message)[:4] == ["frame", "time_s", "strain", "ok"]
-    assert message["frame"] == 41 and message["time_s"] == 0.82
-    assert message["strain"] == {"axial": 0.00123, "transverse": None}
-    assert message["ok"] is False                        # one extensometer without a reading
-    assert b"NaN" not in _values().as_json()
-    both = FrameValues(frame=1, time_s=0.0, names=("axial",), eng_strain=(0.5,), true_strain=(0.4,), valid=(True,))
-    message = json.loads(both.as_json())
-    assert message["ok"] is True and message["strain"] == {"axial": 0.5}
-    # A value marked valid but NaN is still null: NaN is never serialised.
-    odd = dataclasses.replace(both, eng_strain=(math.nan,))
-    assert json.loads(odd.as_json())["strain"] == {"axial": None}
-
-
 def _result(readings, index=7):
     """A FrameResult-like object: ``frame_values`` reads only its frame and extensometer readings."""
     from types import SimpleNamespace
