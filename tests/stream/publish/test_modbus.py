@@ -94,15 +94,21 @@ def test_a_session_that_ended_before_any_frame_says_ended_and_closing_frees_the_
     assert_port_free(port)
 
 
-def test_the_linger_left_is_zero_until_the_end_then_counts_down():
+def test_the_linger_left_is_zero_until_the_end_then_counts_down(monkeypatch):
+    from livedic.stream.publish import modbus
     outlet = ModbusOutlet(parse_publish_uri("modbus://127.0.0.1:0?linger_s=5"), ("axial",))
+    now = [10**12]
     try:
         assert outlet.linger_left_s() == 0.0              # not finished: a failure closes at once
+        monkeypatch.setattr(modbus.time, "monotonic_ns", lambda: now[0])
         outlet.finish()
-        assert 0.0 < outlet.linger_left_s() <= 5.0
-        outlet._ended_ns -= 10 * 10**9                      # as if the linger had passed
+        assert outlet.linger_left_s() == 5.0
+        now[0] += 2 * 10**9
+        assert outlet.linger_left_s() == pytest.approx(3.0)
+        now[0] += 10 * 10**9                              # the linger has passed: close stops at once
         assert outlet.linger_left_s() == 0.0
     finally:
+        monkeypatch.undo()
         outlet.close()
 
 
