@@ -5,6 +5,7 @@ import subprocess
 import sys
 import threading
 
+import numpy as np
 import pytest
 
 
@@ -94,3 +95,20 @@ def refused_run(tmp_path, extra, *, source="synthetic:tensile?size=192x256&frame
     assert len(errors) == 1 and "Traceback" not in done.stderr, done.stderr
     assert not record.exists()
     return errors[0]
+
+
+# An open-hole specimen: P0's choice (stream/session/p0.py) and a run on it (tests/stream/cli).
+HOLE_CENTRE, HOLE_RADIUS = (120, 100), 34
+
+
+def holed_image(shift=(0.0, 0.0), seed=4):
+    """A 200x240 speckle image with a dark, flat hole over its centre (an open-hole specimen)."""
+    from livedic.dic.speckle import SpecklePattern, render
+    pattern = SpecklePattern((200, 240), n_speckles=900, radius=3.0, seed=seed)
+    image = render(pattern, shift if any(shift) else None, bit_depth=8, noise_sigma=1.0,
+                   noise_seed=int(100 * shift[0]) + 7)
+    yy, xx = np.mgrid[:200, :240]
+    cx, cy = HOLE_CENTRE[0] + shift[0], HOLE_CENTRE[1] + shift[1]
+    hole = (xx - cx) ** 2 + (yy - cy) ** 2 <= HOLE_RADIUS ** 2
+    image[hole] = np.clip(12 + np.random.default_rng(seed).normal(0, 1, hole.sum()), 0, 255).astype(np.uint8)
+    return image

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from livedic.stream.cli import main
+from tests.stream.conftest import HOLE_CENTRE, HOLE_RADIUS, holed_image
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
@@ -191,59 +192,12 @@ def test_sigterm_while_the_simulator_renders_ends_cleanly_with_exit_0(tmp_path, 
 
 # --------------------------------------------------------------------------- P0 on the specimen
 
-HOLE_CENTRE, HOLE_RADIUS = (120, 100), 34
-
-
-def _holed(shift=(0.0, 0.0), seed=4):
-    """A 200x240 speckle image with a dark, flat hole over its centre (an open-hole specimen)."""
-    from livedic.dic.speckle import SpecklePattern, render
-    pattern = SpecklePattern((200, 240), n_speckles=900, radius=3.0, seed=seed)
-    image = render(pattern, shift if any(shift) else None, bit_depth=8, noise_sigma=1.0,
-                   noise_seed=int(100 * shift[0]) + 7)
-    yy, xx = np.mgrid[:200, :240]
-    cx, cy = HOLE_CENTRE[0] + shift[0], HOLE_CENTRE[1] + shift[1]
-    hole = (xx - cx) ** 2 + (yy - cy) ** 2 <= HOLE_RADIUS ** 2
-    image[hole] = np.clip(12 + np.random.default_rng(seed).normal(0, 1, hole.sum()), 0, 255).astype(np.uint8)
-    return image
-
-
-def test_p0_moves_off_a_hole_at_the_centre_and_a_given_p0_there_is_weak():
-    from livedic.stream.session.p0 import P0Reason, choose_p0
-    image = _holed()
-    subset = 21
-    choice = choose_p0(image, None, subset)
-    x, y = choice.xy
-    assert choice.reason is P0Reason.MOVED_OFF_WEAK_CENTRE and choice.centre == (120.0, 100.0)
-    # The whole subset (and its corners) is clear of the hole, and P0 is still near the centre.
-    clearance = np.hypot(max(abs(x - HOLE_CENTRE[0]) - subset // 2, 0), max(abs(y - HOLE_CENTRE[1]) - subset // 2, 0))
-    assert clearance > HOLE_RADIUS, choice        # the nearest pixel of P0's subset is outside the hole
-    assert np.hypot(x - 120, y - 100) < HOLE_RADIUS + 2 * subset
-    assert not choice.weak and choice.warning() is None
-    assert "is not on specimen texture" in choice.describe() and f"({x:g}, {y:g})" in choice.describe()
-    given = choose_p0(image, None, subset, p0=(121.2, 99.7))
-    assert given.reason is P0Reason.GIVEN and given.xy == (121.0, 100.0) and given.weak
-    assert given.flat_share > 0.9 and "given with --p0 is on weak texture" in given.warning()
-    elsewhere = choose_p0(image, None, subset, p0=(30, 30))
-    assert not elsewhere.weak and elsewhere.warning() is None
-
-
-def test_p0_stays_near_the_centre_on_plain_speckle_and_blank_images_say_so():
-    from livedic.dic.speckle import SpecklePattern, render
-    from livedic.stream.session.p0 import P0Reason, choose_p0
-    image = render(SpecklePattern((160, 200), n_speckles=700, radius=3.0, seed=9), bit_depth=8)
-    choice = choose_p0(image, (20, 20, 160, 120), 21)
-    assert choice.reason is P0Reason.BEST_NEAR_CENTRE and not choice.weak
-    assert np.hypot(choice.xy[0] - 100, choice.xy[1] - 80) <= 21
-    blank = choose_p0(np.full((100, 120), 80, np.uint8), None, 21)
-    assert blank.reason is P0Reason.NO_TEXTURE and blank.weak and blank.xy == blank.centre
-
-
 def test_a_run_on_a_holed_specimen_traces_p0_on_the_speckle_and_says_why(tmp_path, capsys):
     from livedic.acquire.recording.reader import read_events, read_results
     frames = tmp_path / "frames"
     frames.mkdir()
     for i in range(4):
-        assert cv2.imwrite(str(frames / f"f{i}.png"), _holed((0.4 * i, -0.3 * i)))
+        assert cv2.imwrite(str(frames / f"f{i}.png"), holed_image((0.4 * i, -0.3 * i)))
     record = tmp_path / "holed.mcap"
     summary = tmp_path / "summary.json"
     capsys.readouterr()

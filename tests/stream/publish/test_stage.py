@@ -9,9 +9,7 @@ double. Bad URIs and a port in use are one line, exit 2, no recording.
 import dataclasses
 import errno
 import json
-import math
 import socket
-import struct
 import subprocess
 import sys
 import threading
@@ -23,72 +21,13 @@ import pytest
 from livedic.acquire.recording.reader import Recording, read_events
 from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.stream.session.config import SessionConfig, ViewerConfig
-from livedic.stream.publish import (DEFAULT_LINGER_S, EXTENSOMETER_REGISTERS, HEADER_REGISTERS, STATE_ENDED,
-                                    FrameValues, decode_registers, encode_registers, parse_publish_uri,
-                                    parse_publish_uris, register_count)
+from livedic.stream.publish import STATE_ENDED, decode_registers, register_count
 from livedic.stream.session.session import Session
 from livedic.stream.stages.strain import StrainConfig
+from tests.stream.publish.conftest import assert_port_free
 
 SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
 SMALL = "synthetic:tensile?size=192x256&frames=3&fps=1000"
-
-
-# --------------------------------------------------------------------------- URIs
-
-@pytest.mark.parametrize("text, scheme, host, port", [
-    ("udp://127.0.0.1:9870", "udp", "127.0.0.1", 9870),
-    ("udp://:9870", "udp", "127.0.0.1", 9870),                    # no host: loopback, never every interface
-    ("UDP://localhost:9870", "udp", "localhost", 9870),
-    ("modbus://:5020", "modbus", "127.0.0.1", 5020),
-    ("modbus://0.0.0.0:5020", "modbus", "0.0.0.0", 5020),
-    ("modbus://[::1]:5020/", "modbus", "::1", 5020),
-    ("modbus://127.0.0.1:0", "modbus", "127.0.0.1", 0),            # any free port, said at the start
-])
-def test_publish_uris_parse(text, scheme, host, port):
-    target = parse_publish_uri(text)
-    assert (target.scheme, target.host, target.port) == (scheme, host, port)
-
-
-@pytest.mark.parametrize("text, message", [
-    ("127.0.0.1:9870", "expected udp://HOST:PORT or modbus://HOST:PORT"),
-    ("tcp://127.0.0.1:9870", "unknown scheme 'tcp'"),
-    ("udp://127.0.0.1", "a port is needed"),
-    ("udp://127.0.0.1:0", "port must be 1..65535, got 0"),
-    ("udp://127.0.0.1:70000", "Port out of range"),
-    ("udp://127.0.0.1:abc", "Port could not be cast"),
-    ("modbus://127.0.0.1:5020?register=3", "only HOST:PORT may follow modbus://"),
-    ("udp://127.0.0.1:9870/strain", "only HOST:PORT may follow udp://"),
-])
-def test_bad_publish_uris_are_one_line(text, message):
-    with pytest.raises(ValueError, match=None) as error:
-        parse_publish_uri(text)
-    assert message in str(error.value) and "\n" not in str(error.value)
-    assert str(error.value).startswith("--publish ")
-
-
-@pytest.mark.parametrize("text, linger_s", [
-    ("modbus://:5020", DEFAULT_LINGER_S),
-    ("modbus://:5020?linger_s=2.5", 2.5),
-    ("modbus://:5020/?linger_s=0", 0.0),                                   # close at once
-    ("udp://:9870", DEFAULT_LINGER_S),                                     # (unused: UDP has no end state)
-])
-def test_the_modbus_linger_is_a_uri_option(text, linger_s):
-    assert parse_publish_uri(text).linger_s == linger_s
-
-
-@pytest.mark.parametrize("text, message", [
-    ("modbus://:5020?linger_s=-1", "linger_s must be seconds in 0..60, got '-1'"),
-    ("modbus://:5020?linger_s=61", "linger_s must be seconds in 0..60"),
-    ("modbus://:5020?linger_s=nan", "linger_s must be seconds in 0..60"),
-    ("modbus://:5020?linger_s=soon", "linger_s must be seconds in 0..60, got 'soon'"),
-    ("modbus://:5020?linger=1", "only HOST:PORT may follow modbus://, and ?linger_s=SECONDS"),
-    ("modbus://:5020?linger_s=1&register=3", "only HOST:PORT may follow modbus://"),
-    ("udp://:9870?linger_s=1", "only HOST:PORT may follow udp://"),
-])
-def test_bad_linger_options_are_one_line(text, message):
-    with pytest.raises(ValueError) as error:
-        parse_publish_uri(text)
-    assert message in str(error.value) and "\n" not in str(error.value) and str(error.value).startswith("--publish ")
 
 
 def test_preload_imports_the_modbus_server_and_only_for_modbus():
@@ -101,55 +40,6 @@ def test_preload_imports_the_modbus_server_and_only_for_modbus():
         return done.stdout.strip() == "True"
     assert not imported("udp://:9870")
     assert imported("udp://:9870", "modbus://:0")
-
-
-def test_the_same_target_twice_is_refused():
-    with pytest.raises(ValueError, match="given twice"):
-        parse_publish_uris(["udp://:9870", "udp://127.0.0.1:9870"])
-    assert len(parse_publish_uris(["udp://:9870", "modbus://:9870"])) == 2
-
-
-def test_publish_needs_extensometers():
-    with pytest.raises(ValueError, match="--publish sends extensometer strain: add --gauge-length"):
-        SessionConfig(source=SOURCE, publish=("udp://:9870",))
-    assert SessionConfig(source=SOURCE, publish=["udp://:9870"], strain=StrainConfig(gauge_length=200)).publish == \
-        ("udp://:9870",)
-
-
-# --------------------------------------------------------------------------- the message and the register map
-
-def _values(valid=(True, False)):
-    return FrameValues(frame=41, time_s=0.82, names=("axial", "transverse"), eng_strain=(0.00123, math.nan),
-                       true_strain=(math.log1p(0.00123), math.nan), valid=valid)
-
-
-def test_json_has_the_contract_keys_and_null_never_nan():
-    message = json.loads(_values().as_json().decode("utf-8"))
-    assert list(message)[:4] == ["frame", "time_s", "strain", "ok"]
-    assert message["frame"] == 41 and message["time_s"] == 0.82
-    assert message["strain"] == {"axial": 0.00123, "transverse": None}
-    assert message["ok"] is False                        # one extensometer without a reading
-    assert b"NaN" not in _values().as_json()
-    both = FrameValues(frame=1, time_s=0.0, names=("axial",), eng_strain=(0.5,), true_strain=(0.4,), valid=(True,))
-    message = json.loads(both.as_json())
-    assert message["ok"] is True and message["strain"] == {"axial": 0.5}
-    # A value marked valid but NaN is still null: NaN is never serialised.
-    odd = dataclasses.replace(both, eng_strain=(math.nan,))
-    assert json.loads(odd.as_json())["strain"] == {"axial": None}
-
-
-def test_register_map_round_trip_as_the_readme_states_it():
-    registers = encode_registers(_values(), update_count=70_000)
-    assert len(registers) == register_count(2) == HEADER_REGISTERS + 2 * EXTENSOMETER_REGISTERS == 28
-    assert all(0 <= r <= 0xFFFF for r in registers)
-    back = decode_registers(registers)
-    assert back["update_count"] == 70_000 and registers[0:2] == [1, 70_000 - 65_536]    # high word first
-    assert back["frame"] == 41 and back["ok"] is False and back["state"] == 1 and back["extensometers"] == 2
-    assert back["time_s"] == np.float32(0.82) and registers[10:16] == [0] * 6           # reserved
-    assert back["eng_strain"][0] == np.float32(0.00123) and math.isnan(back["eng_strain"][1])
-    assert back["valid"] == [True, False]
-    # Big-endian bytes in big-endian words: the float's 4 bytes in order across two registers.
-    assert struct.pack(">HH", *registers[16:18]) == struct.pack(">f", 0.00123)
 
 
 # --------------------------------------------------------------------------- sessions
@@ -537,15 +427,3 @@ def test_run_publishes_from_the_command_line(tmp_path):
     assert done.returncode == 0 and not errors, done.stderr
     assert len(messages) == 3 and [m["frame"] for m in messages] == _recorded(str(record))[0]
     assert "  publish    udp://localhost:" in done.stdout and "3 frames sent" in done.stdout
-
-
-def assert_port_free(port):
-    """No server listens on ``port`` any more: a new one can bind it (SO_REUSEADDR, as servers bind: a connection
-    the closed server ended may sit in TIME_WAIT on it, which a plain bind refuses; seen once in CI)."""
-    probe = socket.socket()
-    try:
-        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        probe.bind(("127.0.0.1", port))
-        probe.listen(1)
-    finally:
-        probe.close()

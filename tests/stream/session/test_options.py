@@ -3,8 +3,6 @@
 import argparse
 from dataclasses import fields
 
-import pytest
-
 from livedic.stream.cli import build_parser
 from livedic.stream.session.config import MeasureConfig, TrackingConfig
 from livedic.stream.session.options import add_config_arguments, config_values, flag_of, option_fields
@@ -48,14 +46,3 @@ def test_a_flag_option_and_the_help_name_the_default():
     assert parser.parse_args([]).guided is True and parser.parse_args(["--no-guided"]).guided is False
     text = " ".join(parser.format_help().split())
     assert "(default 21)" in text and "(default improved-surface-fit)" in text
-
-
-@pytest.mark.parametrize("settings, words", [(dict(subset=20), "--subset must be an odd integer >= 3"),
-                                             (dict(radius=-1), "--radius must be >= 0"),
-                                             (dict(min_zncc=1.5), "--min-zncc must be between -1 and 1"),
-                                             (dict(search="magic"), "unknown search method 'magic'"),
-                                             (dict(subpixel="magic"), "unknown sub-pixel method 'magic'")])
-def test_measure_settings_are_validated_in_one_line(settings, words):
-    with pytest.raises(ValueError) as error:
-        MeasureConfig(**settings)
-    assert words in str(error.value) and "\n" not in str(error.value)

@@ -106,18 +106,6 @@ def test_given_points_that_an_exclusion_reaches_are_left_out(scene):
         place_points(image, PointsConfig(xy=given[1:2], exclude=(Circle(150, 200, 5),)), subset=SUBSET)
 
 
-@pytest.mark.parametrize("text, message", [
-    ("polygon:0,0,10,0", "expected polygon"),
-    ("circle:1,2,3", "circles are for --exclude"),
-    ("10,10,0,5", "must be positive"),
-    ("ellipse:1,2,3,4", "unknown shape"),
-])
-def test_bad_regions_are_one_line(text, message):
-    with pytest.raises(ValueError, match=message) as error:
-        parse_roi(text)
-    assert "\n" not in str(error.value)
-
-
 def test_a_region_beyond_the_image_is_refused(scene):
     image, _ = scene
     with pytest.raises(ValueError, match="extends beyond the 300x400 image"):

@@ -16,8 +16,7 @@ import pytest
 from livedic.acquire.recording.reader import read_events
 from livedic.stream.session.config import PointsConfig, SessionConfig, ViewerConfig
 from livedic.stream.session.session import Session, drop_policy, is_live
-from livedic.stream.stages.strain import NOISE_LIMIT, StrainConfig
-from livedic.stream.pipeline.frame_result import SessionStats
+from livedic.stream.stages.strain import StrainConfig
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 # 150 frames: the elastic part is the first 23 (to 0.4 % axial strain), the E fit's range about 7 of them
@@ -99,59 +98,7 @@ def test_ok_counts_every_placed_point_and_says_which_were_never_trackable():
     assert f"{never['count']} never trackable ({reasons})" in text
 
 
-def test_point_losses_count_the_never_trackable_and_the_lost_later_by_status():
-    stats = SessionStats()
-    stats.trackable_at_reference = np.array([True, True, True, False, False])
-    stats.reference_status = np.array([0, 0, 0, 2, 1])
-    stats.last_status = np.array([0, 11, 7, 2, 1])
-    losses = stats.point_losses()
-    assert losses["points_never_trackable"] == {"count": 2, "by_status": {"OUTSIDE_REFERENCE": 1,
-                                                                         "FLAT_REFERENCE": 1}}
-    assert losses["points_lost_later"] == {"count": 2, "by_status": {"LOW_CORRELATION": 1, "SEPARATED": 1}}
-
-
-# --------------------------------------------------------------------------- a short extensometer
-
-def _grid(width, step):
-    xs, ys = np.meshgrid(np.arange(300.0, 300 + width + 1, step), np.arange(100.0, 701.0, step))
-    points = np.column_stack([xs.ravel(), ys.ravel()])
-    p0 = points[np.argmin(np.hypot(points[:, 0] - (300 + width / 2), points[:, 1] - 400))]
-    return points, p0
-
-
-def test_expected_noise_falls_as_one_over_the_length_and_warns_below_class_1():
-    points, p0 = _grid(600, 10)
-    stage = StrainConfig(extensometers=[parse for parse in (
-        _ext("short", 560, 400, 600, 400), _ext("long", 400, 400, 800, 400))]).place(
-        points, p0=p0, roi=(300, 100, 600, 600), step=10, subset=21)
-    short, long_ = stage.expected_noise()
-    assert short / long_ == pytest.approx(400 / 40, rel=0.25)         # same ends' fits: 1 / L0
-    assert long_ < NOISE_LIMIT < short
-    warnings = stage.noise_warnings()
-    assert len(warnings) == 1 and warnings[0].startswith("extensometer short: L0 40 px expects ~")
-    # the length needed is that of ends sharing no point (a short one's shared points cancel in the difference)
-    from livedic.dic.strain.extensometer import strain_noise
-    apart = strain_noise(stage.placed, stage.points, 0.01, independent_ends=True)[0]
-    assert apart >= short
-    needed = 40 * apart / NOISE_LIMIT
-    assert f"it needs L0 >= {needed:.0f} px; move its ends apart" in warnings[0]
-
-
-def test_a_very_short_extensometer_is_not_told_it_needs_less_than_a_long_one():
-    """Its ends share most of their points, whose errors cancel: its own noise says little of the length needed
-    (a new user's trial read 'a 5 px one needs >= 79 px' beside 'a 244 px one needs >= 373 px')."""
-    points, p0 = _grid(600, 10)
-    stage = StrainConfig(extensometers=[_ext("tiny", 600, 400, 605, 400), _ext("long", 400, 400, 800, 400)]).place(
-        points, p0=p0, roi=(300, 100, 600, 600), step=10, subset=21)
-    tiny = next(line for line in stage.noise_warnings() if line.startswith("extensometer tiny"))
-    needed = float(tiny.split("it needs L0 >= ")[1].split(" px")[0])
-    assert needed > 300
-
-
-def _ext(name, x1, y1, x2, y2):
-    from livedic.dic.strain.extensometer import Extensometer
-    return Extensometer(name, x1, y1, x2, y2)
-
+# --------------------------------------------------------------------------- a short extensometer in a session
 
 def test_a_narrow_roi_warns_about_its_automatic_transverse_once_and_records_it(tmp_path):
     record = tmp_path / "narrow.mcap"
@@ -170,17 +117,6 @@ def test_a_narrow_roi_warns_about_its_automatic_transverse_once_and_records_it(t
     events = [e for e in read_events(str(record)) if e.kind == "extensometer_noise"]
     assert [e.message for e in events if "transverse" in e.message] == [warned[0][len("warning: "):]]
     assert all(e.level == "warning" for e in events)
-
-
-def test_an_automatic_transverse_shorter_than_a_subset_is_refused_in_one_line():
-    points, _ = _grid(40, 7)
-    edge = np.array([points[:, 0].max(), 401.0])             # P0 on the points' right edge: no room on one side
-    with pytest.raises(ValueError, match=r"^the automatic transverse extensometer would be 0 px, less than one "
-                                         r"subset \(21 px\): P0 at x 335 and the tracked points at x 300..335; .*give "
-                                         r"--gauge-length L,W$"):
-        StrainConfig(gauge_length=200).place(points, p0=edge, roi=(300, 100, 40, 600), step=7, subset=21)
-    StrainConfig(gauge_length=200, gauge_width=20).place(points, p0=edge - (20, 0), roi=(300, 100, 40, 600), step=7,
-                                                         subset=21)      # a given width is the user's
 
 
 # --------------------------------------------------------------------------- files: processing, not latency

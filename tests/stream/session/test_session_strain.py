@@ -14,7 +14,7 @@ import pytest
 from livedic.dic.strain.extensometer import ExtensometerStatus
 from livedic.stream.session.config import SessionConfig, ViewerConfig
 from livedic.stream.session.session import Session
-from livedic.stream.stages.strain import StrainConfig, parse_extensometer, parse_gauge_length
+from livedic.stream.stages.strain import StrainConfig
 from tests.stream.conftest import refused_run
 
 SOURCE = "synthetic:tensile?frames=14&size=384x512&pace=0"
@@ -96,30 +96,6 @@ def test_a_lost_end_gives_nan_with_a_reason_not_the_last_value(gauge_session):
     assert after.status[0] == ExtensometerStatus.END_LOST
     assert np.isnan(after.eng_strain[0]) and np.isnan(after.length_px[0])
     assert after.ok[1]                                     # the transverse one is unaffected
-
-
-def test_gauge_length_in_mm_with_a_scale():
-    config = StrainConfig(gauge_length=20.0, scale=10.0)
-    extensometers = config.resolve_extensometers((100.0, 200.0), (0, 0, 150, 400))
-    assert extensometers[0].length_px == pytest.approx(200.0)
-    assert extensometers[1].length_px == pytest.approx(0.8 * 150)
-
-
-def test_option_parsing():
-    assert parse_gauge_length("400") == (400.0, None)
-    assert parse_gauge_length("400,120") == (400.0, 120.0)
-    e = parse_extensometer("upper=1,2,3,4.5")
-    assert (e.name, e.x1, e.y1, e.x2, e.y2) == ("upper", 1.0, 2.0, 3.0, 4.5)
-    for bad in ("0", "-3", "a,b", "1,2,3"):
-        with pytest.raises(ValueError, match="--gauge-length"):
-            parse_gauge_length(bad)
-    for bad in ("nameonly", "x=1,2,3", "x=1,2,1,2", "bad name=1,2,3,4"):
-        with pytest.raises(ValueError, match="--extensometer"):
-            parse_extensometer(bad)
-    with pytest.raises(ValueError, match="--strain-window"):
-        StrainConfig(window=4)
-    with pytest.raises(ValueError, match="that name is --gauge-length's"):
-        StrainConfig(gauge_length=100, extensometers=(parse_extensometer("axial=1,2,3,4"),))
 
 
 @pytest.mark.parametrize("extra, message", [

@@ -1,4 +1,4 @@
-"""Rerun logging: viewer modes, entities written, P0 scalars, periodic flush survives a kill."""
+"""Rerun logging: entities written, P0 scalars, periodic flush survives a kill."""
 
 import os
 import subprocess
@@ -9,9 +9,8 @@ import pytest
 
 from livedic.acquire.base import Frame
 from livedic.dic.result import Measurement
-from livedic.stream.view import colour_scale, entities, viewer
+from livedic.stream.view import colour_scale, entities
 from livedic.stream.view.logger import RerunLogger
-from livedic.stream.view.viewer import parse_viewer
 from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
@@ -48,45 +47,6 @@ def _scalars(path, entity):
             batch = chunk.to_record_batch()
             values.extend(row[0] if len(row) == 1 else row for row in batch.column("Scalars:scalars").to_pylist())
     return values
-
-
-# --------------------------------------------------------------------------- viewer modes
-
-def test_parse_viewer_modes(monkeypatch, tmp_path):
-    default = str(tmp_path / "s.rrd")
-    assert parse_viewer(["save", "a.rrd"], default) == ("save", "a.rrd", None)
-    assert parse_viewer(["save"], default) == ("save", default, None)
-    assert parse_viewer(["none"], default) == ("none", None, None)
-    assert parse_viewer(["connect"], default) == ("connect", "rerun+http://127.0.0.1:9876/proxy", None)
-    assert parse_viewer(["connect", "rerun+http://10.0.0.2:9000/proxy"], default)[1].startswith("rerun+http://10.")
-    monkeypatch.setenv("DISPLAY", ":0")
-    assert parse_viewer(["spawn"], default) == ("spawn", None, None)
-    assert parse_viewer([], default)[0] == "spawn"
-
-
-def test_spawn_without_a_display_saves_with_a_note(monkeypatch, tmp_path):
-    monkeypatch.delenv("DISPLAY", raising=False)
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    monkeypatch.setattr(sys, "platform", "linux")
-    mode, target, note = parse_viewer(["spawn"], str(tmp_path / "s.rrd"))
-    assert (mode, target) == ("save", str(tmp_path / "s.rrd"))
-    assert "no display" in note
-    # the hint opens the file with a viewer on loopback only (plain "rerun FILE" listens on every interface)
-    assert f"rerun --bind 127.0.0.1 {target}" in note
-
-
-@pytest.mark.parametrize("words, message", [
-    (["show"], "unknown viewer mode"), (["connect", "http://x:1"], "must start with"),
-    (["save", "a.png"], ".rrd"), (["spawn", "extra"], "too many"), (["save", "a.rrd", "b.rrd"], "too many"),
-])
-def test_bad_viewer_words_raise(words, message):
-    with pytest.raises(ValueError, match=message):
-        parse_viewer(words, "x.rrd")
-
-
-def test_spawned_viewer_binds_loopback_only():
-    command = viewer._viewer_command(9876)
-    assert command[command.index("--bind") + 1] == "127.0.0.1"
 
 
 def test_none_logs_nothing_and_does_not_import_rerun_lazily():

@@ -1,0 +1,202 @@
+"""Tests of stream/session/config.py: each setting checked once when a config is built, one line naming the option."""
+
+import numpy as np
+import pytest
+
+from livedic.dic.region import Polygon, Rectangle
+from livedic.stream.cli import LivedicParser
+from livedic.stream.cli.run import add_run_arguments
+from livedic.stream.session.config import (DEFAULT_MAX_POINTS, DEFAULT_POINTS, MeasureConfig, PointsConfig,
+                                           SessionConfig, TrackingConfig, ViewerConfig, session_name, unique_path)
+from livedic.stream.stages.strain import StrainConfig
+
+
+def _one_line_error(make, words):
+    with pytest.raises(ValueError) as error:
+        make()
+    assert words in str(error.value) and "\n" not in str(error.value), str(error.value)
+
+
+# --------------------------------------------------------------------------- tracking and measure
+
+@pytest.mark.parametrize("settings, words", [
+    (dict(subset=20), "--subset must be an odd integer >= 3, got 20"),
+    (dict(subset=1), "--subset must be an odd integer >= 3, got 1"),
+    (dict(subpixel="none"), "--subpixel none gives integer displacements only"),
+    (dict(seed_radius=-1), "--seed-radius must be >= 0, got -1"),
+    (dict(refind_radius=-2), "--refind-radius must be >= 0, got -2"),
+    (dict(refind_zncc=1.01), "--refind-zncc must be between -1 and 1"),
+    (dict(min_zncc=-1.5), "--min-zncc must be between -1 and 1"),
+    (dict(reference_update="sometimes"), "--reference-update 'sometimes'"),
+])
+def test_tracking_settings_are_validated_in_one_line(settings, words):
+    _one_line_error(lambda: TrackingConfig(**settings), words)
+
+
+def test_tracking_limits_are_inclusive_and_the_update_policy_is_normalised():
+    config = TrackingConfig(subset=3, seed_radius=0, refind_radius=0, refind_zncc=-1.0, min_zncc=1.0,
+                            reference_update=" Every:5 ")
+    assert config.reference_update == "every:5"
+    assert config.method == f"{config.search}+{config.subpixel}"
+    assert TrackingConfig.keys() == tuple(config.as_dict())
+    assert TrackingConfig.keys()[:3] == ("subset", "search", "subpixel")
+
+
+def test_a_tracker_gets_the_settings_the_gate_and_the_overrides(monkeypatch):
+    import livedic.dic.tracking.key_frames as key_frames
+    made = {}
+
+    def capture(image, points, **settings):
+        made.update(settings, image=image, points=points)
+        return "tracker"
+
+    monkeypatch.setattr(key_frames, "KeyFrameTracker", capture)
+    image, points = np.zeros((8, 8), np.uint8), np.zeros((1, 2))
+    assert TrackingConfig(subset=11, min_zncc=0.5, seed=3).tracker(image, points, subset=7) == "tracker"
+    assert made["image"] is image and made["points"] is points
+    assert made["subset"] == 7 and made["seed"] == 3 and "min_zncc" not in made
+    assert made["gates"].min_zncc == 0.5
+    assert set(made) == set(TrackingConfig.keys()) - {"min_zncc"} | {"gates", "image", "points"}
+
+
+@pytest.mark.parametrize("settings, words", [(dict(subset=20), "--subset must be an odd integer >= 3"),
+                                             (dict(radius=-1), "--radius must be >= 0"),
+                                             (dict(min_zncc=1.5), "--min-zncc must be between -1 and 1"),
+                                             (dict(search="magic"), "unknown search method 'magic'"),
+                                             (dict(subpixel="magic"), "unknown sub-pixel method 'magic'")])
+def test_measure_settings_are_validated_in_one_line(settings, words):
+    with pytest.raises(ValueError) as error:
+        MeasureConfig(**settings)
+    assert words in str(error.value) and "\n" not in str(error.value)
+
+
+def test_measure_method_names_both_parts():
+    assert MeasureConfig(subpixel="none").method == f"{MeasureConfig().search} + none"
+
+
+# --------------------------------------------------------------------------- points
+
+def test_a_roi_tuple_becomes_a_rectangle_and_p0_floats():
+    points = PointsConfig(roi=(10.7, 20, 30, 40), p0=(5, 6))
+    assert points.roi == Rectangle(10, 20, 30, 40) and points.p0 == (5.0, 6.0)
+    assert points.region.outline == Rectangle(10, 20, 30, 40)
+    assert PointsConfig(roi="auto").region.outline is None and PointsConfig(roi="full").region.outline is None
+    assert (PointsConfig().n_points, PointsConfig().max_points) == (DEFAULT_POINTS, DEFAULT_MAX_POINTS)
+
+
+@pytest.mark.parametrize("settings, words", [
+    (dict(roi=(1, 2, 3)), "--roi must be 4 comma-separated numbers"),
+    (dict(roi=(1, 2, 0, 5)), "--roi width and height must be positive, got '1,2,0,5'"),
+    (dict(roi="everywhere"), "--roi 'everywhere': give X,Y,W,H, polygon:X1,Y1,..., auto or full"),
+    (dict(step=0), "--step must be a positive number of pixels, got 0"),
+    (dict(n_points=0), "--n-points must be >= 1, got 0"),
+    (dict(max_points=0), "--max-points must be >= 1, got 0"),
+])
+def test_points_settings_are_validated_in_one_line(settings, words):
+    _one_line_error(lambda: PointsConfig(**settings), words)
+
+
+def test_how_the_points_were_asked_for():
+    assert PointsConfig(points_file="p.csv", xy=np.zeros((1, 2))).how(None) == "--points p.csv"
+    assert PointsConfig(xy=np.zeros((1, 2))).how(None) == "the given points"
+    assert PointsConfig(step=7).how(7) == "--step 7"
+    assert PointsConfig(n_points=50).how(12.5) == "--n-points 50 (grid step 12.5 px)"
+    assert PointsConfig(xy=np.zeros((1, 2))).given and not PointsConfig().given
+    polygon = Polygon(((0, 0), (10, 0), (0, 10)))
+    assert PointsConfig(roi=polygon).roi is polygon
+
+
+# --------------------------------------------------------------------------- viewer and file names
+
+def test_viewer_parse_and_describe(tmp_path):
+    save = ViewerConfig.parse(["save"], str(tmp_path / "default.rrd"))
+    assert save == ViewerConfig("save", str(tmp_path / "default.rrd"), None)
+    assert save.describe() == f"save {tmp_path / 'default.rrd'}" and ViewerConfig().describe() == "none"
+    with pytest.raises(ValueError, match="unknown viewer mode"):
+        ViewerConfig.parse(["show"], "x.rrd")
+
+
+def test_unique_path_never_names_an_existing_file(tmp_path):
+    path = str(tmp_path / "run.mcap")
+    assert unique_path(path) == path
+    open(path, "w").close()
+    assert unique_path(path) == str(tmp_path / "run-2.mcap")
+    open(str(tmp_path / "run-2.mcap"), "w").close()
+    assert unique_path(path) == str(tmp_path / "run-3.mcap")
+    name = session_name()
+    assert name.startswith("session-") and len(name) == len("session-YYYYmmdd-HHMMSS")
+
+
+# --------------------------------------------------------------------------- the session
+
+@pytest.mark.parametrize("settings, words", [
+    (dict(frames=0), "--frames must be >= 1, got 0"),
+    (dict(queue=0), "--queue must be >= 1 frame, got 0"),
+    (dict(drop="random"), "unknown --drop 'random': choose one of auto, oldest, newest, block"),
+    (dict(image_max_side=15), "--image-max-side must be >= 16 pixels, got 15"),
+    (dict(record="x.mp4"), "--record file 'x.mp4' must end in .mcap"),
+    (dict(color_range=(2, -2)), "--color-range 2,-2: LO must be below HI"),
+    (dict(color_range=(0, float("inf"))), "LO must be below HI"),
+    (dict(threads=0), "--threads must be between 1 and"),
+    (dict(reconnect_timeout=5.0), "--reconnect-timeout needs --reconnect"),
+    (dict(reconnect=True, source="aravis:", reconnect_timeout=0.0), "--reconnect-timeout must be a positive number"),
+    (dict(reconnect=True), "--reconnect applies to cameras (aravis:, v4l2:); synthetic:tensile is a synthetic source"),
+    (dict(publish=("tcp://:1",)), "--publish tcp://:1: unknown scheme 'tcp'"),
+])
+def test_session_settings_are_validated_in_one_line(settings, words):
+    _one_line_error(lambda: SessionConfig(**settings), words)
+
+
+def test_session_values_are_normalised():
+    config = SessionConfig(color_range=[-1, 2], publish=["udp://:9870"], strain=StrainConfig(gauge_length=100))
+    assert config.color_range == (-1.0, 2.0) and config.publish == ("udp://:9870",)
+    assert [t.port for t in config.publish_targets] == [9870] and config.scheme == "synthetic"
+
+
+def test_publish_needs_extensometers():
+    with pytest.raises(ValueError, match="--publish sends extensometer strain: add --gauge-length"):
+        SessionConfig(source="synthetic:tensile", publish=("udp://:9870",))
+    assert SessionConfig(source="synthetic:tensile", publish=["udp://:9870"], strain=StrainConfig(gauge_length=200)).publish == \
+        ("udp://:9870",)
+
+
+def _parse(argv):
+    parser = LivedicParser(prog="livedic run")
+    add_run_arguments(parser)
+    return parser.parse_args(argv + ["--progress", "off"])
+
+
+def test_from_args_names_the_recording_and_the_view_beside_it(tmp_path):
+    stem = str(tmp_path / "session-x")
+    config = SessionConfig.from_args(_parse(["--viewer", "save", "--roi", "1,2,30,40", "--p0", "5,6"]), stem=stem)
+    assert config.record == stem + ".mcap" and not config.record_named and config.name == "session-x"
+    assert config.viewer == ViewerConfig("save", stem + ".rrd", None)
+    assert config.points.roi == Rectangle(1, 2, 30, 40) and config.points.p0 == (5.0, 6.0)
+    assert config.show_progress is False
+    open(stem + ".mcap", "w").close()                                 # never an existing file
+    assert SessionConfig.from_args(_parse([]), stem=stem).record == stem + "-2.mcap"
+    unrecorded = SessionConfig.from_args(_parse(["--no-record", "--viewer", "save"]), stem=stem)
+    assert unrecorded.record is None and unrecorded.viewer.target == stem + ".rrd"
+
+
+def test_from_args_refuses_an_existing_record_file(tmp_path):
+    existing = tmp_path / "kept.mcap"
+    existing.write_bytes(b"data")
+    _one_line_error(lambda: SessionConfig.from_args(_parse(["--record", str(existing)])),
+                    "exists: choose a new name (recordings are never overwritten)")
+    assert existing.read_bytes() == b"data"
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--area", "20"], "--area/--width/--thickness without --load"),
+    (["--load-offset", "0.5"], "--load-offset without --load"),
+    (["--load", "synthetic", "--load-offset", "nan"], "--load-offset nan: must be a finite number of seconds"),
+])
+def test_load_options_need_each_other(tmp_path, argv, words):
+    _one_line_error(lambda: SessionConfig.from_args(_parse(argv + ["--no-record"]), stem=str(tmp_path / "s")), words)
+
+
+def test_load_options_give_the_cross_section(tmp_path):
+    config = SessionConfig.from_args(_parse(["--no-record", "--load", "synthetic", "--width", "4", "--thickness",
+                                             "2.5", "--load-offset", "-0.25"]), stem=str(tmp_path / "s"))
+    assert (config.load, config.area_mm2, config.load_offset) == ("synthetic", 10.0, -0.25)
