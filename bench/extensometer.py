@@ -134,7 +134,7 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     -------
     dict
         ``settings``, ``date``, ``environment``, ``gauge_lengths`` (one entry per L0: ``l0_px``, ``l0_mm``,
-        ``met_class``, ``reason``, ``limitations``, ``steps`` with ``label`` and ``strain`` beside
+        ``met_class``, ``reason``, ``limitations``, ``steps`` with ``label``, ``strain`` and ``readings_px`` beside
         ``dic.strain.iso9513.StepClass.as_dict``), ``lost_points`` (points not ok, summed over counted frames),
         ``seconds``.
     """
@@ -181,8 +181,8 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
         verdict = classify([s.strain * length for s in steps], readings[name], length,
                            scale_px_per_mm=scale_px_per_mm)
         entry = verdict.as_dict()
-        for row, step in zip(entry["steps"], steps):
-            row.update(label=step.label, strain=step.strain)
+        for row, step, held_px in zip(entry["steps"], steps, readings[name]):
+            row.update(label=step.label, strain=step.strain, readings_px=[float(v) for v in held_px])
         results.append(entry)
         _say_table(entry, say)
     seconds = time.perf_counter() - started

@@ -99,9 +99,13 @@ def verification_markdown(section: Mapping[str, Any] | None) -> list[str]:
               "|---|---|---|---|---|---|---|"]
     for row in section["steps"]:
         lines.append(f"| {row.get('label', '')} | {row['true_px']:.4f} | {_number(row['mean_px'], '.4f')} | "
-                     f"{_number(row['bias_um'], '.2f')} | {_number(row['relative_bias'], '.3%')} | "
+                     f"{_number(row['bias_um'], '.2f')} | {_number(_percent(row['relative_bias']), '.3f')} | "
                      f"{_number(row['resolution_um'], '.2f')} | {row['best_class'] or '-'} |")
     return lines + [""]
+
+
+def _percent(fraction: float | None) -> float | None:
+    return None if fraction is None else 100.0 * fraction
 
 
 def _number(value: Any, spec: str) -> str:

@@ -29,7 +29,7 @@ def test_the_class_of_the_sessions_gauge_length_with_its_table():
     assert section["warnings"] == []
     text = "\n".join(verification_markdown(section))
     assert "## Extensometer verification (ISO 9513)" in text and "class met: **0.2** at L0 400 px = 40 mm" in text
-    assert "| 1 % | 4.0000 | 4.0040 | 0.40 | 0.100% | 0.10 | 0.2 |" in text
+    assert "| 1 % | 4.0000 | 4.0040 | 0.40 | 0.100 | 0.10 | 0.2 |" in text
     assert "2026-12-02" in text and "subset 21 px" in text
 
 
