@@ -65,13 +65,15 @@ def default_steps(strains: Sequence[float] = DEFAULT_STRAINS) -> tuple[Step, ...
     return zeros + tuple(Step(f"{100 * e:g} %", float(e), (0.0, 0.0)) for e in sorted(strains))
 
 
-def _strip(gauge_lengths, strains, subset):
-    """(image shape, centre (cx, cy), reference points) for the longest gauge length at the largest strain."""
-    from livedic.dic.strain.extensometer import END_REACH
-    longest, largest = max(gauge_lengths), max([0.0, *strains])
-    reach = 0.5 * longest + (END_REACH + 1) * STEP
-    moved = reach * (1 + largest) + max(abs(t) for pair in ZERO_TRANSLATIONS for t in pair)
+def _strip(gauge_lengths, steps, subset):
+    """(image shape, centre (cx, cy), reference points) for the longest gauge length at the largest motion:
+    the points reach one fit neighbourhood past the longest extensometer's ends; the image holds their subsets
+    and a re-find search around them."""
     from livedic.dic.search import DEFAULT_RADIUS
+    from livedic.dic.strain.extensometer import END_REACH
+    longest, largest = max(gauge_lengths), max([0.0, *(s.strain for s in steps)])
+    reach = 0.5 * longest + (END_REACH + 1) * STEP
+    moved = reach * (1 + largest) + max([0.0, *(abs(t) for s in steps for t in s.translation)])
     margin = subset // 2 + DEFAULT_RADIUS + 4
     half_height = int(math.ceil(moved + margin))
     half_width = int(math.ceil((STRIP_HALF_WIDTH * STEP) * (1 + abs(LATERAL) * largest) + margin + 3))
@@ -145,7 +147,7 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     started = time.perf_counter()
     steps = tuple(steps) if steps is not None else default_steps()
     tracking = TrackingConfig()
-    shape, centre, points = _strip(gauge_lengths, [s.strain for s in steps], tracking.subset)
+    shape, centre, points = _strip(gauge_lengths, steps, tracking.subset)
     frames = _Frames(shape, centre, bit=bit, noise=noise, seed=seed)
     names = tuple(f"{AXIAL}_{length:g}" for length in gauge_lengths)
     placed = place_extensometers([Extensometer(name, centre[0], centre[1] - 0.5 * length, centre[0],
