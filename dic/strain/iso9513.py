@@ -20,6 +20,12 @@ those readings less the true elongation. The gauge length of a virtual extensome
 software (exact in px); its error in mm is the scale's, which this module does not measure: give
 ``l0_relative_error`` when a calibration states it, otherwise the result says it was not assessed.
 
+Sources: the table's values as ISO 9513:2012 Table 2 gives them; the full text was not at hand when this was
+written, so the clause numbers are not cited, and the class 0.5 row was cross-checked against an extensometer
+maker's description of its limits (0.5 % or 1.5 um = 3 x the 0.5 um resolution, the absolute limit holding up
+to 300 um). The half-range rule for a fluctuating reading is this module's reading of the standard's rule
+for an indicator that fluctuates at rest.
+
 EN 4861:2020 describes this kind of in-situ assessment of a DIC extensometer with known displacements
 before a test; it is not a calibration under ISO 9513 (whose apparatus and procedure are physical).
 """
