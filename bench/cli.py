@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain|fracture|tracker``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain|fracture|tracker|extensometer``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -17,11 +17,11 @@ from livedic.stream.session.parsing import subpixel_method
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
-                                             "fracture, tensile, replay, tracker")
+                                             "fracture, tensile, replay, tracker, extensometer")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     for add in (_add_paper_command, _add_speed_command, _add_live_command, _add_validate_command, _add_soak_command,
                 _add_strain_command, _add_fracture_command, _add_replay_command, _add_tracker_command,
-                _add_tensile_command):
+                _add_tensile_command, _add_extensometer_command):
         add(bench_commands)
 
 
@@ -173,6 +173,63 @@ def _add_tracker_command(bench_commands):
     tracker.set_defaults(handler=_cmd_bench_tracker)
 
 
+def _add_extensometer_command(bench_commands):
+    """``livedic bench extensometer``'s options."""
+    from livedic.bench.extensometer import (BIT_DEPTHS, DEFAULT_FRAMES_PER_STEP, DEFAULT_GAUGE_LENGTHS,
+                                            DEFAULT_NOISE, DEFAULT_STRAINS, DEFAULT_SCALE_PX_PER_MM)
+    lengths = ",".join(f"{v:g}" for v in DEFAULT_GAUGE_LENGTHS)
+    strains = ",".join(f"{100 * v:g}" for v in DEFAULT_STRAINS)
+    bench = bench_commands.add_parser(
+        "extensometer", help="the virtual extensometer's ISO 9513 class from known elongations (bias, resolution)",
+        description="Renders exact known motions on a speckle strip (rigid translations for zero elongation, then "
+                    "uniform stretches), each held for several frames with independent noise, tracks them as "
+                    "livedic run does and reads an axial extensometer of each gauge length: per step the true "
+                    "elongation, mean reading, bias and resolution (half the range of the held readings), and the "
+                    "ISO 9513:2012 class met (0.2, 0.5, 1, 2). -o writes the JSON that livedic report "
+                    "--verification takes.")
+    bench.add_argument("--gauge-length", type=_positive_list, default=DEFAULT_GAUGE_LENGTHS, metavar="L[,L...]",
+                       help=f"gauge lengths, px (default {lengths})")
+    bench.add_argument("--scale", type=_scale, default=DEFAULT_SCALE_PX_PER_MM, metavar="PX_PER_MM",
+                       help=f"scale on the specimen, px/mm, for the absolute (um) limits (default "
+                            f"{DEFAULT_SCALE_PX_PER_MM:g}, the simulated test's; none: relative limits only)")
+    bench.add_argument("--steps", type=_positive_list, default=tuple(100 * v for v in DEFAULT_STRAINS),
+                       metavar="PERCENT[,...]", help=f"strain steps, %% engineering strain (default {strains}); "
+                                                    "the rigid zero steps always come first")
+    bench.add_argument("--frames-per-step", type=int, default=DEFAULT_FRAMES_PER_STEP, metavar="M",
+                       help=f"frames held at each step, each with its own noise (default {DEFAULT_FRAMES_PER_STEP})")
+    bench.add_argument("--noise", type=float, default=DEFAULT_NOISE, metavar="SIGMA",
+                       help=f"Gaussian noise SD, grey levels of an 8-bit image (scaled with --bit; default "
+                            f"{DEFAULT_NOISE:g})")
+    bench.add_argument("--bit", type=int, choices=BIT_DEPTHS, default=8, help="bit depth of the frames (default 8)")
+    bench.add_argument("-o", "--output", metavar="FILE.json", help="write the verification (for livedic report "
+                                                                   "--verification)")
+    bench.set_defaults(handler=_cmd_bench_extensometer)
+
+
+def _positive_list(text):
+    """"100,400" -> (100.0, 400.0); argparse reports a ValueError as one line."""
+    import argparse
+    import math
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of numbers") from None
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: every value must be a number > 0")
+    return values
+
+
+def _scale(text):
+    """A scale in px/mm, or ``none``."""
+    if text.strip().lower() == "none":
+        return None
+    values = _positive_list(text)
+    if len(values) != 1:
+        import argparse
+        raise argparse.ArgumentTypeError(f"{text!r}: one scale in px/mm, or none")
+    return values[0]
+
+
 def _add_tensile_command(bench_commands):
     """``livedic bench tensile``'s options."""
     tensile = bench_commands.add_parser(
@@ -296,6 +353,24 @@ def _cmd_bench_replay(args):
     run_replay_benchmark(recording=args.recording, frames=args.frames, size=args.size, points=args.points,
                          workers=workers, output=args.output, quick=args.quick,
                          log=lambda line: print(line, flush=True))
+    return 0
+
+
+def _cmd_bench_extensometer(args):
+    from livedic.bench.extensometer import default_steps, run_extensometer_bench, write_verification
+    from livedic.stream.output.files import check_output_file
+    if args.frames_per_step < 2:
+        raise UsageError("--frames-per-step must be at least 2: the resolution is read from the readings' fluctuation")
+    if not (args.noise >= 0):
+        raise UsageError(f"--noise must be >= 0 grey levels, got {args.noise:g}")
+    if args.output is not None:
+        check_output_file(args.output, "-o")
+    result = run_extensometer_bench(gauge_lengths=args.gauge_length, steps=default_steps([v / 100 for v in args.steps]),
+                                    frames_per_step=args.frames_per_step, noise=args.noise, bit=args.bit,
+                                    scale_px_per_mm=args.scale, say=lambda line: print(line, flush=True))
+    if args.output is not None:
+        write_verification(args.output, result)
+        print(f"written: {args.output}", flush=True)
     return 0
 
 

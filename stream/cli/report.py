@@ -9,6 +9,7 @@ import argparse
 
 from livedic.stream.export.force import stress_from_args
 from livedic.stream.export.notes import say
+from livedic.stream.export.report_verification import VERIFICATION_KEY, load_verification
 from livedic.stream.export.report import (POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
                                           report_recording)
 from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
@@ -22,6 +23,9 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace the files if DIR already holds them")
     add_stress_arguments(parser)
     add_strain_arguments(parser, recorded=True)
+    parser.add_argument("--verification", metavar="FILE.json",
+                        help="the extensometer's ISO 9513 verification (livedic bench extensometer -o FILE.json): "
+                             "the report states its class; without it, that the class was not verified")
 
 
 def report_command(args: argparse.Namespace) -> int:
@@ -31,11 +35,12 @@ def report_command(args: argparse.Namespace) -> int:
     """
     overrides = overrides_from_args(args)              # bad values: one line, before anything is read
     stress, stress_notes = stress_from_args(args)
+    verification = load_verification(args.verification) if args.verification is not None else None
     if stress is None:
         raise ValueError("the report needs the machine's force: --load csv:FILE with the cross-section (--area MM2, "
                          "or --width MM --thickness MM), or a recording that holds it (/machine/force)")
     report = report_recording(args.recording, args.output, stress=stress, strain=overrides,
-                              overwrite=args.overwrite)
+                              overwrite=args.overwrite, verification=verification)
     for note in stress_notes + report["source"]["notes"]:
         say(f"note: {note}")
     values = []
@@ -45,5 +50,8 @@ def report_command(args: argparse.Namespace) -> int:
         values.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
     nu = report[POISSON_KEY]["value"]
     values.append(f"Poisson's ratio (elastic) {'n/a' if nu is None else f'{nu:.3f}'}")
+    verified = report[VERIFICATION_KEY]
+    values.append(f"ISO 9513 class {verified['class'] or 'none'} (verified)" if verified["verified"]
+                  else "ISO 9513 class not verified")
     say(f"report: {', '.join(values)}; written to {args.output}/ ({', '.join(REPORT_FILES)})")
     return 0

@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.export.report_html import report_html
 from livedic.stream.export.report_tables import Row, analysis_rows, hardware_rows, rows_json, rows_markdown
+from livedic.stream.export.report_verification import VERIFICATION_KEY, verification_markdown, verification_section
 from livedic.stream.output.files import check_output_folder, json_text
 
 if TYPE_CHECKING:
@@ -106,6 +107,7 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
              f"- gauge length L0 (virtual extensometer `axial`): {gauge}", ""]
     for _key, heading, rows in tables:
         lines += rows_markdown(rows, heading)
+    lines += verification_markdown(report.get(VERIFICATION_KEY))
     lines += ["## Properties (ISO 6892-1)", "",
              "| property | value | unit | method | why missing |",
              "|---|---|---|---|---|"]
@@ -155,7 +157,8 @@ def _cell(text):
 
 
 def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[str], *, stress: StressOptions,
-                     strain: Mapping[str, Any] | None = None, overwrite: bool = False) -> dict[str, Any]:
+                     strain: Mapping[str, Any] | None = None, overwrite: bool = False,
+                     verification: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Write ``REPORT_FILES`` for recording ``path`` into ``directory``; returns the ``report.json`` object.
 
     Parameters
@@ -166,6 +169,8 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     strain : dict, optional
         Strain settings replacing the recorded ones (``stream.stages.strain.overrides_from_args``).
     overwrite : bool
+    verification : dict, optional
+        ``livedic bench extensometer -o`` (``report_verification.load_verification``): the class it states.
 
     Raises
     ------
@@ -217,6 +222,8 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=(scale, scale_origin))),
               ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
     report = report_json(properties, specimen, source, contraction, tables=tables)
+    report[VERIFICATION_KEY] = verification_section(verification, gauge_length_px=series["l0_px"],
+                                                    subset=session.get("subset"), scale_px_per_mm=scale)
     title = os.path.basename(path)
     plot = io.BytesIO()
     plot_stress_strain(plot, table, properties=properties,

@@ -467,3 +467,27 @@ def test_a_force_file_takes_the_recorded_cross_section_when_none_is_given(test_r
     assert main(["export", force_recordings["without_area"], "-o", str(missing), "--load",
                  f"csv:{test_run['force_csv']}"]) == 2
     assert "cross-section" in _one_error_line(capsys.readouterr().err) and not missing.exists()
+
+
+def test_report_states_the_extensometer_class_verified_or_not(test_run, tmp_path, capsys):
+    from livedic.dic.strain.iso9513 import classify
+    from livedic.stream.export.report_verification import VERIFICATION_KIND
+    entry = classify([0.0, 2.0], [[0.001, -0.001], [2.002, 2.004]], 200.0, scale_px_per_mm=10.0).as_dict()
+    verification = tmp_path / "verification.json"
+    verification.write_text(json.dumps({"kind": VERIFICATION_KIND, "date": "2026-12-02", "gauge_lengths": [entry],
+                                        "settings": {"subset": 21, "scale_px_per_mm": 10.0}}))
+    load = ["--load", f"csv:{test_run['force_csv']}", "--area", str(AREA_MM2)]
+    assert main(["report", test_run["recording"], "-o", str(tmp_path / "verified"), *load,
+                 "--verification", str(verification)]) == 0
+    assert "ISO 9513 class 0.2 (verified)" in capsys.readouterr().err
+    report = _strict_json(tmp_path / "verified" / "report.json")
+    assert report["extensometer_verification"]["class"] == "0.2"
+    assert "class met: **0.2** at L0 200 px" in (tmp_path / "verified" / "report.md").read_text()
+    assert main(["report", test_run["recording"], "-o", str(tmp_path / "plain"), *load]) == 0
+    assert "ISO 9513 class not verified" in capsys.readouterr().err
+    assert not _strict_json(tmp_path / "plain" / "report.json")["extensometer_verification"]["verified"]
+    verification.write_text("[]")
+    assert main(["report", test_run["recording"], "-o", str(tmp_path / "bad"), *load,
+                 "--verification", str(verification)]) == 2
+    assert "not an extensometer verification" in _one_error_line(capsys.readouterr().err)
+    assert not (tmp_path / "bad").exists()

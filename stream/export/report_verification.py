@@ -1,0 +1,112 @@
+"""The report's "extensometer verification (ISO 9513)" section, from ``livedic bench extensometer -o FILE.json``.
+
+``livedic report --verification FILE.json`` states the class the session's axial extensometer was verified to,
+with the table it was verified by (per step: true elongation, mean reading, bias, resolution, class), the date
+and the settings; a warning line when the session's gauge length, subset or scale differs from the
+verification's (the class is of the verified extensometer, not necessarily of this one). Without the file the
+section says the class was not verified and names the command. ``report.json`` holds the same under
+``extensometer_verification``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from typing import Any
+
+VERIFICATION_KEY = "extensometer_verification"
+VERIFICATION_KIND = "livedic extensometer verification"       # the mark bench.extensometer writes into its -o file
+VERIFY_COMMAND = "livedic bench extensometer --gauge-length L0_PX --scale PX_PER_MM -o verification.json"
+LENGTH_TOLERANCE_PX = 0.5        # gauge lengths closer than this are the same extensometer
+
+
+def load_verification(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a ``livedic bench extensometer -o`` file.
+
+    Raises
+    ------
+    ValueError
+        Not a file, not JSON, or not a verification: one line saying what to give.
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise ValueError(f"--verification {path} is not a file: give the JSON written by {VERIFY_COMMAND}")
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"--verification {path} cannot be read as JSON ({error}): give the file written by "
+                         f"livedic bench extensometer -o") from None
+    if (not isinstance(data, dict) or data.get("kind") != VERIFICATION_KIND
+            or not isinstance(data.get("gauge_lengths"), list) or not data["gauge_lengths"]):
+        raise ValueError(f"--verification {path} is not an extensometer verification: give the file written by "
+                         f"livedic bench extensometer -o")
+    return data
+
+
+def verification_section(verification: Mapping[str, Any] | None, *, gauge_length_px: float,
+                         subset: int | None, scale_px_per_mm: float | None) -> dict[str, Any]:
+    """The ``report.json`` section: the class of the verified gauge length nearest the session's, its table,
+    date, settings and warnings; or ``{"verified": False, ...}`` naming the command."""
+    if verification is None:
+        return {"verified": False, "class": None,
+                "statement": f"the extensometer's ISO 9513 class was not verified: run {VERIFY_COMMAND} and pass "
+                             f"--verification verification.json to livedic report"}
+    entries = verification["gauge_lengths"]
+    entry = min(entries, key=lambda e: abs(float(e["l0_px"]) - gauge_length_px))
+    settings = verification.get("settings", {})
+    warnings = []
+    if not abs(float(entry["l0_px"]) - gauge_length_px) <= LENGTH_TOLERANCE_PX:
+        verified = ", ".join(f"{float(e['l0_px']):g}" for e in entries)
+        warnings.append(f"the session's gauge length {gauge_length_px:g} px differs from every verified one "
+                        f"({verified} px): the class stated is of {float(entry['l0_px']):g} px")
+    if subset is not None and settings.get("subset") is not None and int(settings["subset"]) != int(subset):
+        warnings.append(f"the session's subset {subset} px differs from the verification's {settings['subset']} px")
+    verified_scale = settings.get("scale_px_per_mm")
+    if verified_scale is None:
+        warnings.append("verified without a scale: relative limits only, zero-elongation steps not classified")
+    elif scale_px_per_mm is not None and not math.isclose(float(verified_scale), scale_px_per_mm, rel_tol=1e-3):
+        warnings.append(f"verified at {float(verified_scale):g} px/mm, the session's scale is "
+                        f"{scale_px_per_mm:g} px/mm: the absolute (um) limits differ")
+    return {"verified": True, "class": entry["met_class"], "reason": entry.get("reason_text"),
+            "l0_px": entry["l0_px"], "l0_mm": entry.get("l0_mm"), "limitations": entry.get("limitations", []),
+            "steps": entry["steps"], "date": verification.get("date"), "settings": dict(settings),
+            "standard": verification.get("standard"), "warnings": warnings}
+
+
+def verification_markdown(section: Mapping[str, Any] | None) -> list[str]:
+    """report.md lines of the section (none for a report made before it existed)."""
+    if section is None:
+        return []
+    lines = ["## Extensometer verification (ISO 9513)", ""]
+    if not section["verified"]:
+        return lines + [f"- {section['statement']}", ""]
+    settings = section["settings"]
+    mm = f" = {section['l0_mm']:g} mm" if section.get("l0_mm") is not None else ""
+    lines += [f"- class met: **{section['class'] or 'none'}**" + ("" if section["class"] else f" ({section['reason']})")
+              + f" at L0 {section['l0_px']:g} px{mm}",
+              f"- verified {section['date']} by `livedic bench extensometer`: exact rendered known elongations "
+              f"(rigid translations, uniform stretches), {settings.get('frames_per_step')} frames per step, noise "
+              f"{settings.get('noise')} grey levels ({settings.get('bit_depth')}-bit), subset "
+              f"{settings.get('subset')} px, points every {settings.get('step_px')} px, scale "
+              f"{settings.get('scale_px_per_mm') or 'none'} px/mm; {section.get('standard') or 'ISO 9513:2012 Table 2'}; "
+              f"bias = mean reading - true, resolution = half the range of the held readings"]
+    lines += [f"- limitation: {text}" for text in section["limitations"]]
+    lines += [f"- **warning**: {text}" for text in section["warnings"]]
+    lines += ["", "| step | true elongation px | mean reading px | bias um | relative bias % | resolution um | class |",
+              "|---|---|---|---|---|---|---|"]
+    for row in section["steps"]:
+        lines.append(f"| {row.get('label', '')} | {row['true_px']:.4f} | {_number(row['mean_px'], '.4f')} | "
+                     f"{_number(row['bias_um'], '.2f')} | {_number(_percent(row['relative_bias']), '.3f')} | "
+                     f"{_number(row['resolution_um'], '.2f')} | {row['best_class'] or '-'} |")
+    return lines + [""]
+
+
+def _percent(fraction: float | None) -> float | None:
+    return None if fraction is None else 100.0 * fraction
+
+
+def _number(value: Any, spec: str) -> str:
+    return "n/a" if value is None else format(value, spec)
