@@ -8,7 +8,8 @@ where uniform work hardening starts (or where the force starts to fall when none
 How the shape is read, robust to the force noise of a class 0.5/1 load cell (~0.1-0.3 % per
 reading) and the strain noise of a DIC extensometer (1e-5..1e-4): the stress and strain are
 smoothed by a running mean over ``SMOOTH_FRAMES`` frames (one noisy reading is no yield point),
-then
+and every band below widens to ``NOISE_SIGMAS`` standard deviations of that mean when the force is
+noisier (the noise measured from the curve's second differences, ``stress_noise``); then
 
 * **upper yield point** (``UPPER_YIELD_POINT``): the smoothed force falls more than ``DROP``
   (1 %) below its running maximum while the plastic strain is still below
@@ -44,6 +45,7 @@ HARDENING_RISE = 0.005         # a rise above the plateau's lowest stress larger
 MIN_YIELD_EXTENSION = 0.005    # shortest plateau (strain) read as discontinuous yielding
 TRANSIENT_EXTENSION = 0.001    # strain after the drop at ReH ignored for ReL: the initial transient (3.10.2.2)
 HARDENING_FIT_EXTENSION = 0.01  # strain of the work-hardening range fitted for the end of Ae (Figure 7)
+NOISE_SIGMAS = 5.0             # a rise or fall is real beyond this many SDs of the smoothed stress's noise
 
 
 class CurveShape(enum.Enum):
@@ -98,6 +100,17 @@ def smooth(values: np.ndarray, frames: int = SMOOTH_FRAMES) -> np.ndarray:
     return total / count
 
 
+def stress_noise(stress: np.ndarray) -> float:
+    """Standard deviation of one stress reading's noise (MPa), from the median absolute second difference.
+
+    A second difference of independent noise has SD sqrt(6) sigma; the median ignores the few large
+    ones at the curve's kinks and drops, and the smooth curve's own curvature adds almost nothing.
+    """
+    if stress.size < 3:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(np.diff(stress, 2))) / np.sqrt(6.0))
+
+
 def analyse_yielding(strain: np.ndarray, stress: np.ndarray, E_MPa: float, toe: float) -> YieldAnalysis:
     """Shape of the curve and the frames of its yield phenomenon.
 
@@ -122,8 +135,9 @@ def analyse_yielding(strain: np.ndarray, stress: np.ndarray, E_MPa: float, toe: 
     onset_at = np.flatnonzero(plastic > YIELD_ONSET)
     if onset_at.size == 0:
         return YieldAnalysis(CurveShape.UNDETERMINED)
+    band = NOISE_SIGMAS * stress_noise(stress) / np.sqrt(SMOOTH_FRAMES)     # MPa, on the smoothed stress
     running_max = np.maximum.accumulate(s)
-    dropped = np.flatnonzero(s < (1.0 - DROP) * running_max)
+    dropped = np.flatnonzero(s < np.minimum((1.0 - DROP) * running_max, running_max - band))
     if dropped.size:
         first_drop = int(dropped[0])
         upper = int(np.argmax(stress[:first_drop + 1]))     # raw: the peak is a real, narrow feature
@@ -131,7 +145,7 @@ def analyse_yielding(strain: np.ndarray, stress: np.ndarray, E_MPa: float, toe: 
         if plastic[first_drop] < UPPER_YIELD_MAX_PLASTIC:
             after = np.flatnonzero(strain >= strain[first_drop] + TRANSIENT_EXTENSION)
             if after.size:
-                found = _plateau(strain, s, int(after[0]), min_extension=0.0)
+                found = _plateau(strain, s, int(after[0]), band, min_extension=0.0)
                 # a plateau, or work hardening right after the drop: a fall to fracture is no yield point
                 if found is not None and (found[2] or strain[found[0]] - strain[after[0]] >= MIN_YIELD_EXTENSION):
                     return YieldAnalysis(CurveShape.UPPER_YIELD_POINT, upper, float(strain[upper]), upper,
@@ -139,7 +153,7 @@ def analyse_yielding(strain: np.ndarray, stress: np.ndarray, E_MPa: float, toe: 
     onset = int(onset_at[0])
     # The running mean reaches back over the kink into the elastic line: judge the plateau past its reach.
     first = min(onset + SMOOTH_FRAMES, s.size - 1)
-    found = _plateau(strain, s, first)
+    found = _plateau(strain, s, first, band)
     if found is not None:
         highest = first + int(np.argmax(s[first:found[0] + 1]))
         # the elastic line's strain at the plateau's stress: the yield point, free of the strain's noise
@@ -148,12 +162,12 @@ def analyse_yielding(strain: np.ndarray, stress: np.ndarray, E_MPa: float, toe: 
     return YieldAnalysis(CurveShape.CONTINUOUS)
 
 
-def _plateau(strain: np.ndarray, s: np.ndarray, first: int,
+def _plateau(strain: np.ndarray, s: np.ndarray, first: int, band: float,
              min_extension: float = MIN_YIELD_EXTENSION) -> tuple[int, float, bool, int] | None:
     """The plateau from frame ``first`` on: (end frame, end strain, hardening, hardening frame), or None.
 
     The plateau holds while the smoothed stress ``s`` stays within ``HARDENING_RISE`` above and
-    ``DROP`` below its level (the median so far: a running minimum would creep down with the
+    ``DROP`` below its level (or ``band`` MPa either way, where that is wider) (the median so far: a running minimum would creep down with the
     noise and read noise as hardening); it ends where ``SMOOTH_FRAMES`` frames in a row leave
     that band, and must span ``min_extension`` of strain from ``first`` on. A rise ends it
     with work hardening, a fall without.
@@ -164,10 +178,10 @@ def _plateau(strain: np.ndarray, s: np.ndarray, first: int,
     for i in range(first + 1, s.size):
         level = float(np.median(s[first:end + 1]))
         run = s[i:i + SMOOTH_FRAMES]
-        if np.all(run > level * (1.0 + HARDENING_RISE)):
+        if np.all(run > level + max(HARDENING_RISE * level, band)):
             beyond, hardening = i, True
             break
-        if np.all(run < level * (1.0 - DROP)):
+        if np.all(run < level - max(DROP * level, band)):
             beyond = i
             break
         end = i
@@ -179,7 +193,7 @@ def _plateau(strain: np.ndarray, s: np.ndarray, first: int,
         # the force's fall into necking can start with a vertical tangent (the neck strains outside the plateau's
         # law): no line to fit; the plateau ends at its last frame within HARDENING_RISE of its level
         level = float(np.median(s[first:end + 1]))
-        held = first + np.flatnonzero(s[first:beyond] >= level * (1.0 - HARDENING_RISE))
+        held = first + np.flatnonzero(s[first:beyond] >= level - max(HARDENING_RISE * level, band))
         return int(held[-1]), float(strain[held[-1]]), False, -1
     return end, _plateau_end_strain(strain, s, first, end, beyond), True, beyond
 
