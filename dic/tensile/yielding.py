@@ -25,9 +25,13 @@ noisier (the noise measured from the curve's second differences, ``stress_noise`
 
 The plateau ends at the start of uniform work hardening, by the construction of ISO 6892-1
 Figure 7: the intersection of a horizontal line through the last local minimum of the plateau
-with a regression line through the work-hardening range right after it; where no work
+(here the median of its last third: a minimum of noisy readings lies below the plateau) with a
+regression line through the work-hardening range right after it; where no work
 hardening follows (the force falls from the plateau into necking), the plateau ends at its last
 frame whose smoothed stress is within ``HARDENING_RISE`` of the plateau's level.
+
+Clauses cited (ISO 6892-1:2019): 3.10.2 yield strength, 3.10.2.1 ReH, 3.10.2.2 ReL, 3.6.3 Ae,
+3.9.2 Fm for discontinuous yielding (Note 1: undefined without work hardening), Figures 2 and 7.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ SMOOTH_FRAMES = 5              # running mean for the shape decisions (odd)
 DROP = 0.01                    # a force decrease larger than this share is a drop (noise of class 1 is ~0.3 %)
 UPPER_YIELD_MAX_PLASTIC = 0.005  # an upper yield point lies at the very start of plastic flow
 YIELD_ONSET = 0.0005           # plastic strain that starts the yield phenomenon (5x the DIC noise of 1e-4)
-HARDENING_RISE = 0.005         # a rise above the plateau's lowest stress larger than this share is work hardening
+HARDENING_RISE = 0.005         # a rise above the plateau's level (median) larger than this share is work hardening
 MIN_YIELD_EXTENSION = 0.005    # shortest plateau (strain) read as discontinuous yielding
 TRANSIENT_EXTENSION = 0.001    # strain after the drop at ReH ignored for ReL: the initial transient (3.10.2.2)
 HARDENING_FIT_EXTENSION = 0.01  # strain of the work-hardening range fitted for the end of Ae (Figure 7)
@@ -52,7 +56,7 @@ class CurveShape(enum.Enum):
     """How the material yields (ISO 6892-1:2019 Figures 2 and 7)."""
     CONTINUOUS = "continuous yielding"
     PLATEAU = "discontinuous yielding: a yield plateau without a force drop"
-    UPPER_YIELD_POINT = "discontinuous yielding: upper yield point, force drop, then a plateau (Lueders)"
+    UPPER_YIELD_POINT = "discontinuous yielding: upper yield point and force drop, then a (Lueders) plateau"
     UNDETERMINED = "too few frames past the elastic range to tell"
 
 
