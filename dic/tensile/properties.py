@@ -312,6 +312,9 @@ def proof_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, o
     method = (f"first crossing of the curve with the elastic line offset by {offset:.1%} strain "
               f"up to {'the end of the yield plateau' if through_frame >= 0 else 'maximum force'}, "
               "linear interpolation between the bracketing frames")
+    if through_frame >= 0:
+        method += ("; on a yield plateau the line meets the plateau, so this is the plateau's stress "
+                   "(ISO 6892-1 reads ReH and ReL there; Rp0.2 is given for comparison)")
     strain, stress, frames = _valid(strain, stress)
     if not np.isfinite(E_GPa):
         return ProofStrength(_NAN, (-1, -1), method, Reason.NO_MODULUS)
