@@ -62,6 +62,11 @@ class TensileModel:
     hardening : float
         h >= 0: e_el grows linearly with the uniform plastic strain to (1 + h) x 0.004 when the neck
         starts (linear hardening; it changes the displacement, so the images). 0: perfectly plastic.
+    upper_yield : float
+        u >= 0: an upper yield point. The elastic line rises to (1 + u) x the yield strain, and the
+        elastic strain falls back to it over the first ``UPPER_YIELD_DROP`` of the uniform plastic
+        phase (the force drops when the Lueders band forms; ISO 6892-1 ReH = (1 + u) yield, ReL =
+        yield). 0: none (the default test's frames stay as they were).
     thickness_mm, scale_px_per_mm : float
         Thickness of the coupon and the camera's scale: A0 = gauge width (px) / scale x thickness.
 
@@ -79,6 +84,7 @@ class TensileModel:
     TAU_YIELD = 0.15
     TAU_NECK = 0.6
     UNLOAD = 0.2           # elastic strain lost outside the neck once it forms (fraction)
+    UPPER_YIELD_DROP = 0.02  # share of the uniform plastic phase over which the force falls from ReH to ReL
     JITTER_PX = 0.03       # grip jitter, standard deviation per frame and axis
     DRIFT_PX = (0.25, 0.15)  # (u, v) drift of both grips over the whole test
     SHEAR_PX = -0.4        # extra sideways drift of the top grip over the whole test
@@ -89,7 +95,7 @@ class TensileModel:
 
     def __init__(self, shape: tuple[int, int], frames: int, *, strain: float = 0.05, neck: float = 0.15, seed: int = 0,
                  lateral: str = "linear", view: str = "grip", fracture_frame: int | None = None,
-                 modulus_gpa: float = DEFAULT_MODULUS_GPA, hardening: float = 0.0,
+                 modulus_gpa: float = DEFAULT_MODULUS_GPA, hardening: float = 0.0, upper_yield: float = 0.0,
                  thickness_mm: float = DEFAULT_THICKNESS_MM, scale_px_per_mm: float = DEFAULT_SCALE_PX_PER_MM) -> None:
         H, W = int(shape[0]), int(shape[1])
         self.shape = (H, W)
@@ -108,8 +114,10 @@ class TensileModel:
                             ("scale_px_per_mm", scale_px_per_mm)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        if not (math.isfinite(hardening) and hardening >= 0.0):
-            raise ValueError(f"hardening must be a finite number >= 0, got {hardening!r}")
+        for name, value in (("hardening", hardening), ("upper_yield", upper_yield)):
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        self.upper_yield = float(upper_yield)
         self.modulus_gpa = float(modulus_gpa)
         self.hardening = float(hardening)
         self.thickness_mm = float(thickness_mm)
@@ -148,7 +156,7 @@ class TensileModel:
         """Strains and rigid motion of frame ``i`` (a dict of floats; ``gap`` is the crack opening, px)."""
         tau = self.tau(i)
         if tau <= self.TAU_YIELD:
-            e_el = self.YIELD_STRAIN * tau / self.TAU_YIELD
+            e_el = self.YIELD_STRAIN * (1.0 + self.upper_yield) * tau / self.TAU_YIELD
             e_pl = 0.0
             e_n = 0.0
             phase = "elastic"
@@ -158,6 +166,8 @@ class TensileModel:
             if self.hardening:
                 # Only with the option, so the default test's frames stay bit for bit as they were.
                 e_el = self.YIELD_STRAIN * (1.0 + self.hardening * progress)
+            if self.upper_yield:
+                e_el *= 1.0 + self.upper_yield * max(0.0, 1.0 - progress / self.UPPER_YIELD_DROP)
             e_pl = self.plastic_strain * (tau - self.TAU_YIELD) / (self.TAU_NECK - self.TAU_YIELD)
             e_n = 0.0
             phase = "plastic"
@@ -204,7 +214,9 @@ class TensileModel:
         ``hardening``, ``yield_MPa`` (E x 0.004), ``Rm_MPa`` (the largest engineering stress:
         yield x (1 + hardening), reached when the neck starts), ``Rp02_MPa`` (stress at 0.2 %
         uniform plastic strain; None when hardening > 0 and the uniform strain stays below 0.2 %)
-        and ``yield_strain``.
+        ``yield_strain`` and ``ReH_MPa`` (the upper yield strength, yield x (1 + upper_yield); with
+        ``upper_yield`` it can exceed ``Rm_MPa``, which stays the largest stress after work
+        hardening begins, as ISO 6892-1 3.9.2 reads Fm).
         """
         sigma_y = self.modulus_gpa * 1e3 * self.YIELD_STRAIN
         if not self.hardening:
@@ -216,6 +228,7 @@ class TensileModel:
         return {"A0_mm2": self.area_mm2, "gauge_width_px": 2.0 * self.gauge_half, "thickness_mm": self.thickness_mm,
                 "scale_px_per_mm": self.scale_px_per_mm, "E_GPa": self.modulus_gpa, "hardening": self.hardening,
                 "yield_strain": self.YIELD_STRAIN, "yield_MPa": sigma_y, "Rp02_MPa": rp02,
+                "ReH_MPa": sigma_y * (1.0 + self.upper_yield),
                 "Rm_MPa": sigma_y * (1.0 + self.hardening)}
 
     # -- 1-D profiles -----------------------------------------------------

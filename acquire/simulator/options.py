@@ -25,7 +25,8 @@ DEFAULT_SCALE_PX_PER_MM = 10.0
 _COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0}
 TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15, lateral="auto",
                         view="auto", fade=0.0, fracture=0, modulus=DEFAULT_MODULUS_GPA,
-                        thickness=DEFAULT_THICKNESS_MM, scale=DEFAULT_SCALE_PX_PER_MM, hardening=0.0)
+                        thickness=DEFAULT_THICKNESS_MM, scale=DEFAULT_SCALE_PX_PER_MM, hardening=0.0,
+                        upper_yield=0.0)
 # Laws of the lateral contraction and camera views of the tensile test (docs/guide/sources.md).
 LATERAL_LAWS = ("linear", "incompressible")
 VIEWS = ("grip", "centre")
@@ -41,7 +42,7 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 def _usage() -> str:
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
             "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
-            "&modulus=200&thickness=2&scale=10&hardening=0, "
+            "&modulus=200&thickness=2&scale=10&hardening=0&upper_yield=0, "
             "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
             "(same common options)")
 
@@ -203,4 +204,5 @@ _CONVERTERS = {
     "view": _to_choice(("auto",) + VIEWS), "fade": _to_fade, "fracture": _to_fracture,
     "modulus": partial(parse_number, low=0, low_open=True), "thickness": partial(parse_number, low=0, low_open=True),
     "scale": partial(parse_number, low=0, low_open=True), "hardening": partial(parse_number, low=0),
+    "upper_yield": partial(parse_number, low=0),
 }

@@ -187,7 +187,7 @@ class SyntheticTensileSource(_PrerenderedSource):
         ``synthetic:tensile?...``; keyword options override the URI's.
     **options
         frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, loop, strain, neck, lateral,
-        view, fade, fracture, modulus, thickness, scale, hardening.
+        view, fade, fracture, modulus, thickness, scale, hardening, upper_yield.
 
     Attributes
     ----------
@@ -212,7 +212,8 @@ class SyntheticTensileSource(_PrerenderedSource):
         self.model = TensileModel((opts["size"][1], opts["size"][0]), rendered_count(opts), strain=opts["strain"],
                                   neck=opts["neck"], seed=opts["seed"], lateral=opts["lateral"], view=opts["view"],
                                   fracture_frame=fracture, modulus_gpa=opts["modulus"], hardening=opts["hardening"],
-                                  thickness_mm=opts["thickness"], scale_px_per_mm=opts["scale"])
+                                  upper_yield=opts["upper_yield"], thickness_mm=opts["thickness"],
+                                  scale_px_per_mm=opts["scale"])
         self.fracture_frame = fracture
         super().__init__(opts, uri)
         self._rows = np.arange(self.shape[0], dtype=np.float64)

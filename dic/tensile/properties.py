@@ -42,6 +42,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from livedic.dic.tensile.yielding import SMOOTH_FRAMES, CurveShape, YieldAnalysis, analyse_yielding, smooth
+
 DEFAULT_RANGE = (0.10, 0.40)   # share of Rp0.2 (or of the maximum stress) fitted for E
 MIN_POINTS = 5                 # fewest frames in the range to fit E
 PROOF_OFFSET = 0.002           # 0.2 % strain
@@ -63,6 +65,10 @@ class Reason(enum.Enum):
     NO_FRACTURE = "the stress never falls below the fracture share of Rm after Rm"
     FORCE_MISSING_AT_MAXIMUM = ("the force is missing right next to the maximum (frames with strain but no force): "
                                 "the true maximum may lie there")
+    NO_YIELD_PHENOMENON = "continuous yielding: no yield phenomenon (ISO 6892-1 reads Rp0.2 instead)"
+    NO_WORK_HARDENING = ("discontinuous yielding with no work hardening after it: ISO 6892-1:2019 3.9.2 Note 1 "
+                         "leaves the maximum force Fm undefined, and with it Rm, Ag and Agt (ReH, ReL hold)")
+    SHAPE_UNDETERMINED = "too few frames past the elastic range to read how the material yields"
 
 
 @dataclass(frozen=True)
@@ -134,18 +140,50 @@ class ElongationAfterFracture:
 
 
 @dataclass(frozen=True)
+class YieldStrength:
+    """ReH or ReL (MPa) and the frame it was read at (-1 when NaN)."""
+    value: float
+    frame: int
+    method: str
+    reason: Reason | None = None
+
+
+@dataclass(frozen=True)
+class YieldPointExtension:
+    """Ae (%, of the extensometer gauge length), its first and last frames ((-1, -1) when NaN) and the strains
+    where it starts and ends (NaN when NaN)."""
+    value: float
+    frames: tuple
+    method: str
+    reason: Reason | None = None
+    strains: tuple = (_NAN, _NAN)
+
+
+PROPERTY_NAMES = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent", "ReH_MPa", "ReL_MPa", "Ae_percent")
+
+
+@dataclass(frozen=True)
 class TensileProperties:
-    """The properties of one test; the field names are the report's JSON keys."""
+    """The properties of one test; the field names are the report's JSON keys.
+
+    ``curve_shape`` says how the material yields (``dic.tensile.yielding.CurveShape``); ReH, ReL
+    and Ae are NaN with ``Reason.NO_YIELD_PHENOMENON`` on continuous yielding.
+    """
     E_GPa: Modulus
     Rp02_MPa: ProofStrength
     Rm_MPa: TensileStrength
     Ag_percent: UniformElongation
     A_percent: ElongationAfterFracture
+    ReH_MPa: YieldStrength = YieldStrength(_NAN, -1, "not read", Reason.SHAPE_UNDETERMINED)
+    ReL_MPa: YieldStrength = YieldStrength(_NAN, -1, "not read", Reason.SHAPE_UNDETERMINED)
+    Ae_percent: YieldPointExtension = YieldPointExtension(_NAN, (-1, -1), "not read", Reason.SHAPE_UNDETERMINED)
+    curve_shape: CurveShape = CurveShape.UNDETERMINED
 
     def as_dict(self) -> dict[str, dict[str, Any]]:
-        """``{"E_GPa": {"value": float, "method": str, "reason": str or None}, ...}`` (NaN stays NaN)."""
+        """``{"E_GPa": {"value": float, "method": str, "reason": str or None}, ...}`` (NaN stays NaN), one entry
+        per ``PROPERTY_NAMES``."""
         out: dict[str, dict[str, Any]] = {}
-        for name in ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent"):
+        for name in PROPERTY_NAMES:
             prop = getattr(self, name)
             out[name] = {"value": float(prop.value), "method": prop.method,
                          "reason": None if prop.reason is None else prop.reason.value}
@@ -245,7 +283,7 @@ def elastic_fit_frames(strain: npt.ArrayLike, stress: npt.ArrayLike, low: float,
 
 
 def proof_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, offset: float = PROOF_OFFSET, *,
-                   strain_at_zero_stress: float = 0.0) -> ProofStrength:
+                   strain_at_zero_stress: float = 0.0, through_frame: int = -1) -> ProofStrength:
     """Proof strength Rp (Rp0.2 by default) by the offset line.
 
     Parameters
@@ -258,6 +296,9 @@ def proof_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, o
         The offset, as strain (0.002 = 0.2 %).
     strain_at_zero_stress : float
         Where the elastic line crosses zero stress (``Modulus.strain_at_zero_stress``).
+    through_frame : int
+        Search at least up to this frame (index in the input): the end of a yield plateau,
+        whose first frame can hold the maximum force. -1: up to maximum force only.
 
     Returns
     -------
@@ -265,17 +306,22 @@ def proof_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, o
         The stress where the curve first crosses the line
         stress = E (strain - strain_at_zero_stress - offset), linearly interpolated between
         the last valid frame above the line and the first at or below it. Only the frames
-        up to maximum force are searched: a fall of the force at fracture is no crossing.
+        up to maximum force (or ``through_frame``) are searched: a fall of the force at
+        fracture is no crossing.
     """
     method = (f"first crossing of the curve with the elastic line offset by {offset:.1%} strain "
-              "up to maximum force, linear interpolation between the bracketing frames")
+              f"up to {'the end of the yield plateau' if through_frame >= 0 else 'maximum force'}, "
+              "linear interpolation between the bracketing frames")
+    if through_frame >= 0:
+        method += ("; on a yield plateau the line meets the plateau, so this is the plateau's stress "
+                   "(ISO 6892-1 reads ReH and ReL there; Rp0.2 is given for comparison)")
     strain, stress, frames = _valid(strain, stress)
     if not np.isfinite(E_GPa):
         return ProofStrength(_NAN, (-1, -1), method, Reason.NO_MODULUS)
     if frames.size == 0:
         return ProofStrength(_NAN, (-1, -1), method, Reason.NO_DATA)
-    loading = slice(0, int(np.argmax(stress[frames])) + 1)
-    frames = frames[loading]
+    last = max(int(np.argmax(stress[frames])), int(np.searchsorted(frames, through_frame)))
+    frames = frames[:last + 1]
     s, e = stress[frames], strain[frames]
     # stress above the offset line; > 0 on the elastic part (E * offset), falls through 0 at Rp
     above = s - E_GPa * 1000.0 * (e - strain_at_zero_stress - offset)
@@ -288,13 +334,16 @@ def proof_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GPa: float, o
     return ProofStrength(float(value), (int(frames[i]), int(frames[i + 1])), method)
 
 
-def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike) -> TensileStrength:
+def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, *, from_frame: int = 0) -> TensileStrength:
     """Tensile strength Rm: the maximum engineering stress.
 
     Parameters
     ----------
     strain, stress : array_like (n,)
         Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+    from_frame : int
+        First frame searched: the start of work hardening after discontinuous yielding, as
+        ISO 6892-1:2019 3.9.2 takes Fm after it (an upper yield point can be higher).
 
     Returns
     -------
@@ -306,7 +355,10 @@ def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike) -> TensileStr
         have its true maximum there, and the largest value seen is not Rm.
     """
     method = "maximum engineering stress (maximum force), first frame with it"
+    if from_frame > 0:
+        method += " after the start of work hardening (ISO 6892-1:2019 3.9.2: Fm follows discontinuous yielding)"
     strain, stress, frames = _valid(strain, stress)
+    frames = frames[frames >= from_frame]
     if frames.size == 0:
         return TensileStrength(_NAN, -1, _NAN, method, Reason.NO_DATA)
     frame = int(frames[np.argmax(stress[frames])])
@@ -396,10 +448,83 @@ def elongation_after_fracture(strain: npt.ArrayLike, stress: npt.ArrayLike, E_GP
     return ElongationAfterFracture(float(plastic), frame, method)
 
 
+def yield_analysis(strain: npt.ArrayLike, stress: npt.ArrayLike, E: Modulus) -> tuple[YieldAnalysis, np.ndarray]:
+    """``dic.tensile.yielding.analyse_yielding`` of the valid frames; its indices mapped to input frames.
+
+    Returns the analysis (frames as indices of the input arrays) and the valid frames.
+    """
+    strain, stress, frames = _valid(strain, stress)
+    if not np.isfinite(E.value) or frames.size == 0:
+        return YieldAnalysis(CurveShape.UNDETERMINED), frames
+    found = analyse_yielding(strain[frames], stress[frames], E.value * 1000.0, E.strain_at_zero_stress)
+
+    def frame(i: int) -> int:
+        return int(frames[i]) if i >= 0 else -1
+    mapped = YieldAnalysis(found.shape, frame(found.start), found.start_strain, frame(found.upper),
+                           frame(found.lowest_from),
+                           frame(found.end), found.end_strain, found.hardening, frame(found.hardening_from))
+    return mapped, frames
+
+
+def yield_strengths(strain: npt.ArrayLike, stress: npt.ArrayLike,
+                    found: YieldAnalysis) -> tuple[YieldStrength, YieldStrength, YieldPointExtension]:
+    """ReH, ReL and Ae of a curve with a yield phenomenon (ISO 6892-1:2019 3.10.2.1, 3.10.2.2, 3.6.3).
+
+    Parameters
+    ----------
+    strain, stress : array_like (n,)
+        Engineering strain (-) and stress (MPa) per frame; NaN frames are skipped.
+    found : YieldAnalysis
+        From ``yield_analysis`` (frames as input indices).
+
+    Returns
+    -------
+    (YieldStrength, YieldStrength, YieldPointExtension)
+        NaN with ``NO_YIELD_PHENOMENON`` on continuous yielding, ``SHAPE_UNDETERMINED`` when
+        the shape could not be read.
+    """
+    strain, stress, frames = _valid(strain, stress)
+    if found.shape in (CurveShape.CONTINUOUS, CurveShape.UNDETERMINED):
+        reason = (Reason.NO_YIELD_PHENOMENON if found.shape is CurveShape.CONTINUOUS
+                  else Reason.SHAPE_UNDETERMINED)
+        return (YieldStrength(_NAN, -1, "upper yield strength", reason),
+                YieldStrength(_NAN, -1, "lower yield strength", reason),
+                YieldPointExtension(_NAN, (-1, -1), "yield point extension", reason))
+    smoothed = np.full(stress.shape, _NAN)
+    smoothed[frames] = smooth(stress[frames])
+    # up to where Ae ends: past it the running mean takes in the first frames of hardening or of the fall
+    plateau = frames[(frames >= found.lowest_from) & (frames <= found.end) & (strain[frames] <= found.end_strain)]
+    plateau = plateau[:max(plateau.size - SMOOTH_FRAMES, 1)]
+    low = int(plateau[np.argmin(smoothed[plateau])])
+    if found.shape is CurveShape.UPPER_YIELD_POINT:
+        upper = YieldStrength(float(stress[found.upper]), found.upper,
+                              "highest stress before the first decrease in force (ISO 6892-1:2019 3.10.2.1)")
+        transient = "ignoring the initial transient (the first 0.1 % strain after the drop, 3.10.2.2)"
+    else:
+        high = int(plateau[np.argmax(smoothed[plateau])])
+        upper = YieldStrength(float(smoothed[high]), high,
+                              "no force drop at yield: the highest stress of the yield plateau (3.10.2.1: "
+                              "no decrease in force precedes it), running mean over 5 frames")
+        transient = "no upper yield point, so no transient"
+    lower = YieldStrength(float(smoothed[low]), low,
+                          f"lowest stress during plastic yielding, {transient}, running mean over 5 frames "
+                          "(ISO 6892-1:2019 3.10.2.2)")
+    if found.hardening:
+        end_rule = ("the start of uniform work hardening: a horizontal line through the plateau's last local "
+                    "minimum meets a regression line through the work-hardening range (Figure 7)")
+    else:
+        end_rule = "the end of the plateau, where the force starts to fall (no work hardening follows)"
+    method = (f"extension x 100 from the start of discontinuous yielding (ReH or the plateau's start) to {end_rule} "
+              "(ISO 6892-1:2019 3.6.3)")
+    extension = YieldPointExtension(float(100.0 * (found.end_strain - found.start_strain)), (found.start, found.end),
+                                    method, strains=(found.start_strain, found.end_strain))
+    return upper, lower, extension
+
+
 def tensile_properties(strain: npt.ArrayLike, stress: npt.ArrayLike, *, stress_range: tuple[float, float] | None = None,
                        offset: float = PROOF_OFFSET, drop: float = FRACTURE_DROP,
                        min_points: int = MIN_POINTS) -> TensileProperties:
-    """E, Rp0.2, Rm, Ag and A of one test.
+    """E, Rp0.2, Rm, Ag, A, and on a yield phenomenon ReH, ReL and Ae, of one test.
 
     Parameters
     ----------
@@ -419,17 +544,30 @@ def tensile_properties(strain: npt.ArrayLike, stress: npt.ArrayLike, *, stress_r
     Returns
     -------
     TensileProperties
+        On discontinuous yielding Rp0.2 is the offset line's crossing with the plateau, Rm the
+        maximum after the start of work hardening, and Rm, Ag, Agt are NaN with
+        ``NO_WORK_HARDENING`` when none follows (ISO 6892-1:2019 3.9.2 Note 1).
     """
     E = modulus(strain, stress, stress_range=stress_range, min_points=min_points)
-    rp = proof_strength(strain, stress, E.value, offset, strain_at_zero_stress=E.strain_at_zero_stress)
+    found, _ = yield_analysis(strain, stress, E)
+    rp = proof_strength(strain, stress, E.value, offset, strain_at_zero_stress=E.strain_at_zero_stress,
+                        through_frame=found.end)
     if stress_range is None and rp.reason is None:
         refit = modulus(strain, stress, rp02_MPa=rp.value, min_points=min_points)
         if refit.reason is None:
             E = refit
+            found, _ = yield_analysis(strain, stress, E)
             rp = proof_strength(strain, stress, E.value, offset,
-                                strain_at_zero_stress=E.strain_at_zero_stress)
-    Rm = tensile_strength(strain, stress)
+                                strain_at_zero_stress=E.strain_at_zero_stress, through_frame=found.end)
+    ReH, ReL, Ae = yield_strengths(strain, stress, found)
+    if found.shape in (CurveShape.CONTINUOUS, CurveShape.UNDETERMINED):
+        Rm = tensile_strength(strain, stress)
+    elif found.hardening:
+        Rm = tensile_strength(strain, stress, from_frame=found.hardening_from)
+    else:
+        Rm = TensileStrength(_NAN, -1, _NAN, "maximum force after the start of work hardening (ISO 6892-1:2019 "
+                             "3.9.2)", Reason.NO_WORK_HARDENING)
     Ag = uniform_elongation(Rm, E.value, strain_at_zero_stress=E.strain_at_zero_stress)
     A = elongation_after_fracture(strain, stress, E.value, drop=drop,
                                   strain_at_zero_stress=E.strain_at_zero_stress)
-    return TensileProperties(E, rp, Rm, Ag, A)
+    return TensileProperties(E, rp, Rm, Ag, A, ReH, ReL, Ae, found.shape)

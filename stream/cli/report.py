@@ -1,4 +1,5 @@
-"""``livedic report FILE.mcap -o DIR``: the tensile test report (E, Rp0.2, Rm, Ag, A; ISO 6892-1) of a recording.
+"""``livedic report FILE.mcap -o DIR``: the tensile test report of a recording (E, Rp0.2, Rm, Ag, A, ReH, ReL, Ae;
+ISO 6892-1).
 
 ``report_command`` runs it (``stream.export.report.report_recording``); ``add_report_arguments`` declares its options.
 """
@@ -7,11 +8,12 @@ from __future__ import annotations
 
 import argparse
 
+from livedic.dic.tensile.yielding import CurveShape
 from livedic.stream.export.force import stress_from_args
 from livedic.stream.export.notes import say
 from livedic.stream.export.report_verification import VERIFICATION_KEY, load_verification
-from livedic.stream.export.report import (POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
-                                          report_recording)
+from livedic.stream.export.report import (CURVE_SHAPE_KEY, POISSON_KEY, PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES,
+                                          YIELD_KEYS, report_recording)
 from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
 from livedic.stream.stages.stress import add_stress_arguments
 
@@ -44,9 +46,12 @@ def report_command(args: argparse.Namespace) -> int:
     for note in stress_notes + report["source"]["notes"]:
         say(f"note: {note}")
     values = []
+    continuous = report[CURVE_SHAPE_KEY]["value"] == CurveShape.CONTINUOUS.name.lower()
     for key in PROPERTY_KEYS:
         name, unit = PROPERTY_TITLES[key]
         value = report[key]["value"]
+        if continuous and key in YIELD_KEYS:          # no yield phenomenon: report.md says why
+            continue
         values.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
     nu = report[POISSON_KEY]["value"]
     values.append(f"Poisson's ratio (elastic) {'n/a' if nu is None else f'{nu:.3f}'}")

@@ -7,7 +7,10 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
 ``area_mm2``:
 
 ``report.json``
-    ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``: each
+    ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``, ``ReH_MPa``, ``ReL_MPa``,
+    ``Ae_percent`` (upper and lower yield strength, yield point extension: null with a reason on
+    continuous yielding); ``curve_shape`` ``{"value": "continuous" | "plateau" | "upper_yield_point"
+    | "undetermined", "label": text}``; each property
     ``{"value": number or null, "method": text, "reason": text or null}`` (``reason`` says why a
     value is null); ``poisson_ratio`` (fitted over the elastic range, ``dic.tensile.poisson``) and
     ``plastic_contraction_ratio`` (the same slope over the plastic range, never called Poisson's
@@ -19,7 +22,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     The same for people: specimen, gauge length, the properties with the method of each, Poisson's
     ratio labelled with its frames and axial strain range, and the stress-strain plot.
 ``stress_strain.png``
-    Engineering curve, true curve up to uniform elongation, Rp0.2 and Rm marked.
+    Engineering curve, true curve up to uniform elongation, Rp0.2, Rm, ReH, ReL and Ae marked.
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
 (``stream.export.recomputed_strain.axial_series``, as ``livedic export`` does), the stress ``F / A0``
@@ -48,14 +51,18 @@ if TYPE_CHECKING:
     from livedic.dic.tensile.properties import TensileProperties
     from livedic.stream.stages.stress import StressOptions
 
-__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "report_recording", "report_json", "report_markdown"]
+__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "YIELD_KEYS", "CURVE_SHAPE_KEY", "report_recording", "report_json",
+           "report_markdown"]
 
 REPORT_FILES = ("report.md", "report.json", "report.html", "stress_strain.png")
-PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent")
+PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent", "ReH_MPa", "ReL_MPa", "Ae_percent")
+YIELD_KEYS = ("ReH_MPa", "ReL_MPa", "Ae_percent")      # null on continuous yielding: no yield phenomenon
+CURVE_SHAPE_KEY = "curve_shape"
 POISSON_KEY = "poisson_ratio"
 CONTRACTION_KEYS = (POISSON_KEY, "plastic_contraction_ratio")   # report.json only: the plastic one is no property
 PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa": ("Rm", "MPa"),
-                   "Ag_percent": ("Ag", "%"), "A_percent": ("A", "%")}
+                   "Ag_percent": ("Ag", "%"), "A_percent": ("A", "%"), "ReH_MPa": ("ReH", "MPa"),
+                   "ReL_MPa": ("ReL", "MPa"), "Ae_percent": ("Ae", "%")}
 
 
 def report_json(properties: TensileProperties, specimen: dict[str, Any], source: dict[str, Any],
@@ -71,6 +78,7 @@ def report_json(properties: TensileProperties, specimen: dict[str, Any], source:
         value = item["value"]
         out[key] = {"value": value if math.isfinite(value) else None, "method": item["method"],
                     "reason": item["reason"]}
+    out[CURVE_SHAPE_KEY] = {"value": properties.curve_shape.name.lower(), "label": properties.curve_shape.value}
     for key, ratio in zip(CONTRACTION_KEYS, contraction or without_pair()):
         out[key] = {name: _finite_or_none(value) for name, value in ratio.as_dict().items()}
     out["specimen"] = specimen
@@ -109,6 +117,7 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
         lines += rows_markdown(rows, heading)
     lines += verification_markdown(report.get(VERIFICATION_KEY))
     lines += ["## Properties (ISO 6892-1)", "",
+              f"Curve shape: {report[CURVE_SHAPE_KEY]['label']}.", "",
              "| property | value | unit | method | why missing |",
              "|---|---|---|---|---|"]
     for key in PROPERTY_KEYS:

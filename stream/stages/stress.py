@@ -198,7 +198,8 @@ def plot_stress_strain(handle, table, *, title, properties=None):
 
     The engineering curve over the frames with a force and a strain up to the fall at fracture
     (``dic.tensile.properties.fracture_frame``), the true curve up to uniform elongation (its last
-    point marked Ag); with ``properties`` (``TensileProperties``) Rp0.2 and Rm are marked.
+    point marked Ag); with ``properties`` (``TensileProperties``) Rp0.2, Rm, ReH, ReL and the span
+    of Ae are marked.
     """
     from matplotlib.figure import Figure
 
@@ -224,6 +225,7 @@ def plot_stress_strain(handle, table, *, title, properties=None):
         if math.isfinite(rm.value):
             axes.plot([100.0 * rm.strain], [rm.value], marker="o", color="C3", linestyle="none",
                       label=f"Rm = {rm.value:.1f} MPa")
+        _mark_yielding(axes, table, properties)
     axes.set_xlabel("strain (%)")
     axes.set_ylabel("stress (MPa)")
     axes.set_title(title, fontsize=10)
@@ -235,6 +237,20 @@ def plot_stress_strain(handle, table, *, title, properties=None):
     else:
         axes.legend(loc="lower right", fontsize=9)
     figure.savefig(handle, format="png")
+
+
+def _mark_yielding(axes, table, properties):
+    """ReH and ReL as points, Ae as a bracket below ReL (only where they are values; frames index the table's rows)."""
+    for item, name, marker, colour in ((properties.ReH_MPa, "ReH", "^", "C2"), (properties.ReL_MPa, "ReL", "v", "C4")):
+        if math.isfinite(item.value) and item.frame >= 0:
+            axes.plot([100.0 * table.eng_strain[item.frame]], [item.value], marker=marker, color=colour,
+                      linestyle="none", label=f"{name} = {item.value:.1f} MPa")
+    ae, rel = properties.Ae_percent, properties.ReL_MPa
+    if math.isfinite(ae.value) and math.isfinite(rel.value):
+        first, last = (100.0 * strain for strain in ae.strains)
+        axes.annotate("", xy=(last, rel.value * 0.97), xytext=(first, rel.value * 0.97),
+                      arrowprops={"arrowstyle": "<->", "color": "C4", "linewidth": 0.8})
+        axes.plot([], [], color="C4", linewidth=0.8, label=f"Ae = {ae.value:.2f} % (yield point extension)")
 
 
 # ----------------------------------------------------------------------------- command-line options

@@ -140,7 +140,21 @@ def test_a_looped_source_cycles_the_force_with_its_frames():
     assert [source.force_N(i) for i in range(13)] == expected
 
 
-@pytest.mark.parametrize("option", ["modulus=0", "thickness=-1", "scale=abc", "hardening=-0.1", "modulus=nan"])
+def test_upper_yield_point_peaks_then_drops_to_the_yield_stress_and_is_off_by_default():
+    plain, zero = TensileModel(SHAPE, 301), TensileModel(SHAPE, 301, upper_yield=0.0)
+    assert [plain.stress_mpa(i) for i in range(301)] == [zero.stress_mpa(i) for i in range(301)]
+    source = SyntheticTensileSource("synthetic:tensile?frames=301&size=128x160&pace=0&upper_yield=0.1")
+    stress = np.array([source.model.stress_mpa(i) for i in range(301)])
+    peak = int(np.argmax(stress))
+    assert source.specimen["ReH_MPa"] == pytest.approx(1.1 * YIELD_MPA, rel=EXACT)
+    assert stress[peak] == pytest.approx(1.1 * YIELD_MPA, rel=0.01)                # frame 45 samples the peak
+    assert source.model.state(peak)["phase"] in ("elastic", "plastic")
+    plastic_phase = [source.model.state(i)["phase"] == "plastic" for i in range(301)]
+    np.testing.assert_allclose(stress[plastic_phase][5:], YIELD_MPA, rtol=EXACT)   # then the plateau
+
+
+@pytest.mark.parametrize("option", ["modulus=0", "thickness=-1", "scale=abc", "hardening=-0.1", "modulus=nan",
+                                    "upper_yield=-1"])
 def test_bad_force_options_are_one_line(option):
     with pytest.raises(SourceError) as error:
         SyntheticTensileSource(f"synthetic:tensile?frames=5&size=64x64&{option}")

@@ -189,7 +189,8 @@ def test_mismatched_lengths_are_refused():
 def test_as_dict_has_the_report_keys_with_value_and_method():
     strain, stress = curve(fracture=False)
     d = tensile_properties(strain, stress).as_dict()
-    assert list(d) == ["E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent"]
+    assert list(d) == ["E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent", "ReH_MPa", "ReL_MPa", "Ae_percent"]
+    assert d["ReH_MPa"]["reason"] == Reason.NO_YIELD_PHENOMENON.value     # continuous yielding: no ReH, ReL, Ae
     assert d["Rm_MPa"]["value"] == pytest.approx(RM)
     assert all(isinstance(v["method"], str) and v["method"] for v in d.values())
     assert math.isnan(d["A_percent"]["value"])
