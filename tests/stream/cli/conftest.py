@@ -4,6 +4,18 @@ import pytest
 
 from livedic.stream.cli import main
 
+@pytest.fixture(autouse=True)
+def _no_debug(monkeypatch):
+    """Errors as users see them (one line), not LIVEDIC_DEBUG's traceback, whatever the caller's environment."""
+    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
+
+
+def livedic_lines(err):
+    """The ``livedic: ...`` lines of a command's stderr (which must hold no traceback)."""
+    assert "Traceback" not in err, err
+    return [line for line in err.splitlines() if line.startswith("livedic: ")]
+
+
 SHORT_SOURCE = "synthetic:tensile?frames=4&size=192x256&pace=0"
 
 

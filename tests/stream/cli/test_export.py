@@ -7,17 +7,11 @@ import signal
 import pytest
 
 from livedic.stream.cli import main
-
-
-@pytest.fixture(autouse=True)
-def _no_debug(monkeypatch):
-    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
+from tests.stream.cli.conftest import livedic_lines
 
 
 def _lines(capsys):
-    err = capsys.readouterr().err
-    assert "Traceback" not in err, err
-    return [line for line in err.splitlines() if line.startswith("livedic: ")]
+    return livedic_lines(capsys.readouterr().err)
 
 
 def test_the_csv_files_only_and_what_was_written(short_run, tmp_path, capsys):

@@ -12,11 +12,6 @@ from livedic.stream.cli.main import (EXIT_BAD_INPUT, EXIT_SOURCE_LOST, _attach_s
                                      _say_log_lines, build_parser, main)
 
 
-@pytest.fixture(autouse=True)
-def _no_debug(monkeypatch):
-    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
-
-
 def _command_raising(error):
     """An extension adding ``livedic boom``, whose handler raises ``error``."""
     def add(commands):

@@ -10,11 +10,6 @@ from livedic.stream.cli import main
 from livedic.stream.cli.preview import first_frame
 
 
-@pytest.fixture(autouse=True)
-def _no_debug(monkeypatch):
-    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
-
-
 def test_preview_draws_the_set_up_and_says_what_it_placed(strip_images, tmp_path, capsys):
     out = tmp_path / "preview.png"
     code = main(["preview", "--source", f"images:{strip_images}", "--gauge-length", "200", "--n-points", "300",

@@ -12,16 +12,7 @@ import pytest
 
 from livedic.stream.cli import main
 from livedic.stream.cli.replay import describe_parallel
-
-
-@pytest.fixture(autouse=True)
-def _no_debug(monkeypatch):
-    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
-
-
-def _lines(err):
-    assert "Traceback" not in err, err
-    return [line for line in err.splitlines() if line.startswith("livedic: ")]
+from tests.stream.cli.conftest import livedic_lines
 
 
 def test_rows_on_stdout_and_the_verdict_on_stderr(short_run, capsys):
@@ -30,7 +21,7 @@ def test_rows_on_stdout_and_the_verdict_on_stderr(short_run, capsys):
     captured = capsys.readouterr()
     rows = list(csv.DictReader(io.StringIO(captured.out)))
     assert len(rows) == 4 * 1081 and {row["frame"] for row in rows} == {"0", "1", "2", "3"}
-    lines = _lines(captured.err)
+    lines = livedic_lines(captured.err)
     assert any(line.startswith("livedic: replayed 4 frames x 1081 points (the recorded frame set; "
                                "improved-wso+icgn) in ") for line in lines), lines
     assert "livedic: replay matches the recording exactly: 4 frames x 1081 points" in lines
@@ -45,7 +36,7 @@ def test_rows_to_a_file_are_the_rows_of_stdout(short_run, tmp_path, capsys):
     assert main(["replay", short_run, "-o", str(out), "--progress", "off"]) == 0
     captured = capsys.readouterr()
     assert captured.out == "" and out.read_text() == stdout
-    assert any(line.endswith(f"; wrote {out}") for line in _lines(captured.err))
+    assert any(line.endswith(f"; wrote {out}") for line in livedic_lines(captured.err))
 
 
 @pytest.mark.parametrize("options, words", [
@@ -58,14 +49,14 @@ def test_bad_options_are_one_line_exit_2_and_no_output(options, words, short_run
     capsys.readouterr()
     assert main(["replay", short_run, "-o", str(out), "--progress", "off", *options]) == 2
     captured = capsys.readouterr()
-    lines = _lines(captured.err)
+    lines = livedic_lines(captured.err)
     assert len(lines) == 1 and lines[0].startswith("livedic: error: ") and words in lines[0], lines
     assert captured.out == "" and not out.exists()
 
 
 def test_an_output_that_is_a_folder_is_refused_before_the_replay(short_run, tmp_path, capsys):
     assert main(["replay", short_run, "-o", str(tmp_path), "--progress", "off"]) == 2
-    lines = _lines(capsys.readouterr().err)
+    lines = livedic_lines(capsys.readouterr().err)
     assert len(lines) == 1 and str(tmp_path) in lines[0] and "folder" in lines[0]
 
 

@@ -10,18 +10,12 @@ import os
 import pytest
 
 from livedic.stream.cli import main
+from tests.stream.cli.conftest import livedic_lines
 from livedic.stream.export.report import PROPERTY_KEYS, PROPERTY_TITLES
 
 
-@pytest.fixture(autouse=True)
-def _no_debug(monkeypatch):
-    monkeypatch.delenv("LIVEDIC_DEBUG", raising=False)
-
-
 def _lines(capsys):
-    err = capsys.readouterr().err
-    assert "Traceback" not in err, err
-    return [line for line in err.splitlines() if line.startswith("livedic: ")]
+    return livedic_lines(capsys.readouterr().err)
 
 
 def test_the_report_line_says_each_property_as_report_json_has_it(short_run, tmp_path, capsys):
