@@ -31,7 +31,8 @@ def _one_line(capsys):
 
 
 @pytest.mark.parametrize("error, code, line", [
-    (ValueError("--step 0: give a positive number"), EXIT_BAD_INPUT, "livedic: error: --step 0: give a positive number"),
+    (ValueError("--step 0: give a positive number"), EXIT_BAD_INPUT,
+     "livedic: error: --step 0: give a positive number"),
     (SourceError("no camera at gige:x"), EXIT_BAD_INPUT, "livedic: error: no camera at gige:x"),
     (FileNotFoundError("missing.png"), EXIT_BAD_INPUT, "livedic: error: missing.png"),
     (SourceLost("camera lost after 12 frames"), EXIT_SOURCE_LOST, "livedic: error: camera lost after 12 frames"),
@@ -54,7 +55,8 @@ def test_a_bad_option_is_one_line_pointing_to_help(capsys):
     line = _one_line(capsys)
     assert line.startswith("livedic: error: the following arguments are required: -o/--output")
     assert line.endswith("(see livedic export --help)")
-    assert main(["nonsense"]) == EXIT_BAD_INPUT and _one_line(capsys).startswith("livedic: error: argument COMMAND: invalid choice: 'nonsense'")
+    assert main(["nonsense"]) == EXIT_BAD_INPUT
+    assert _one_line(capsys).startswith("livedic: error: argument COMMAND: invalid choice: 'nonsense'")
 
 
 def test_no_command_prints_the_help_and_help_exits_0(capsys):

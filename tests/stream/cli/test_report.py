@@ -11,7 +11,7 @@ import pytest
 
 from livedic.stream.cli import main
 from tests.stream.cli.conftest import livedic_lines
-from livedic.stream.export.report import PROPERTY_KEYS, PROPERTY_TITLES
+from livedic.stream.export.report import PROPERTY_KEYS, PROPERTY_TITLES, REPORT_FILES
 
 
 def _lines(capsys):
@@ -31,11 +31,10 @@ def test_the_report_line_says_each_property_as_report_json_has_it(short_run, tmp
         words.append(f"{name} {'n/a' if value is None else f'{value:.4g} {unit}'}")
     nu = report["poisson_ratio"]["value"]
     words.append(f"Poisson's ratio (elastic) {'n/a' if nu is None else f'{nu:.3f}'}")
-    assert lines[-1] == (f"livedic: report: {', '.join(words)}; written to {out}/ (report.md, report.json, "
-                         f"stress_strain.png)")
+    assert lines[-1] == f"livedic: report: {', '.join(words)}; written to {out}/ ({', '.join(REPORT_FILES)})"
     assert all(line.startswith("livedic: note: ") for line in lines[:-1])
     assert report["source"]["frames_with_force"] == 4 and report["Rm_MPa"]["value"] > 0
-    assert sorted(os.listdir(out)) == ["report.json", "report.md", "stress_strain.png"]
+    assert sorted(os.listdir(out)) == sorted(REPORT_FILES)
 
 
 def test_a_given_load_is_said_to_replace_the_recorded_force(short_run, tmp_path, capsys):
