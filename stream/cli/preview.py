@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from livedic.acquire.base import Frame
 
+import os
 import sys
 
 from livedic.stream.session.preview import render_preview, setup_overlay
@@ -77,6 +78,8 @@ def preview_command(args: argparse.Namespace) -> int:
     overlay = setup_overlay(frame.image, placement, stage, subset=args.subset, scale=strain.scale,
                             source=args.source, bit_depth=(frame.metadata or {}).get("bit_depth"),
                             pixel_format=frame.pixel_format)
+    # the check above accepted missing folders (create_folders=True): they are made here, once there is a picture
+    os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
     render_preview(overlay, args.output)
     for line in overlay.lines():
         print(f"livedic: {line}", file=sys.stderr)

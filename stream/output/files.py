@@ -166,7 +166,8 @@ def write_csv(path: str | os.PathLike[str] | None, columns: Mapping[str, Any]) -
 def _quoted(text):
     text = str(text)
     if any(c in text for c in ',"\n\r'):
+        # csv quotes a line break only when it is part of the line terminator, so one is given and cut off
         buffer = io.StringIO()
-        csv.writer(buffer, lineterminator="").writerow([text])
-        return buffer.getvalue()
+        csv.writer(buffer, lineterminator="\r\n").writerow([text])
+        return buffer.getvalue()[:-2]
     return text

@@ -8,6 +8,8 @@ import threading
 import numpy as np
 import pytest
 
+from tests.conftest import specimen_scene
+
 
 @pytest.fixture
 def unwritable_folder(tmp_path, monkeypatch):
@@ -112,3 +114,19 @@ def holed_image(shift=(0.0, 0.0), seed=4):
     hole = (xx - cx) ** 2 + (yy - cy) ** 2 <= HOLE_RADIUS ** 2
     image[hole] = np.clip(12 + np.random.default_rng(seed).normal(0, 1, hole.sum()), 0, 255).astype(np.uint8)
     return image
+
+
+# A strip specimen with a hole: livedic preview's set-up (tests/stream/cli, tests/stream/session).
+STRIP_HOLE = (150, 200, 20)     # x, y, r of the hole in ``strip_images``
+
+
+@pytest.fixture(scope="module")
+def strip_images(tmp_path_factory):
+    """A folder of two images (f0.png, f1.png) of a strip specimen with a hole at ``STRIP_HOLE``, stretched 0.2 %
+    between them (``tests.conftest.specimen_scene``): an ``images:`` source for the set-up tests."""
+    import cv2
+    folder = tmp_path_factory.mktemp("holed")
+    for k in range(2):
+        image, _ = specimen_scene(seed=3, hole=STRIP_HOLE, strain=0.002 * k)
+        cv2.imwrite(str(folder / f"f{k}.png"), image)
+    return folder

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from livedic.stream.cli import main
+from tests.stream.export.conftest import partial_files
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 SAMPLE = os.path.join(REPO, "recordings", "sample-tensile.mcap")
@@ -301,57 +302,8 @@ def test_overwrite_replaces_an_earlier_exports_pictures(affine, tmp_path, capsys
     assert (out / "vtk" / "notes.txt").read_text() == "mine\n"       # not ours: never touched
 
 
-# --------------------------------------------------------------------------- stopping
-
-def _stop_after(calls):
-    """A ``stop`` for ``export_recording`` that raises ``ExportStopped`` (as SIGTERM) on its ``calls``-th call."""
-    from livedic.stream.export.stop import ExportStopped
-    count = [0]
-
-    def stop():
-        count[0] += 1
-        if count[0] >= calls:
-            raise ExportStopped("SIGTERM", signal.SIGTERM)
-    return stop
-
-
-def _partial_files(folder):
-    return [os.path.join(top, name) for top, _, names in os.walk(folder) for name in names
-            if name.startswith(".livedic-")]
-
-
-def test_stopped_while_writing_the_csv_files_leaves_nothing(affine, tmp_path):
-    from livedic.stream.export.export import export_recording
-    from livedic.stream.export.stop import ExportStopped
-    from livedic.stream.export.field_export import FieldOptions
-    path, _ = affine
-    out = tmp_path / "out"
-    with pytest.raises(ExportStopped) as stopped:
-        export_recording(path, out, fields=FieldOptions(), stop=_stop_after(3))
-    assert stopped.value.state == f"while writing the CSV files: nothing was written ({out} removed again)"
-    assert not out.exists()
-
-
-def test_stopped_while_drawing_keeps_the_csv_files_and_whole_pictures(affine, tmp_path):
-    """Stopped at the third frame of the maps: the CSV files are complete, two frames' maps and .vtu files are
-    there, whole; no video and no .pvd (they would claim frames that are not there), no partial file."""
-    from livedic.stream.export.export import export_recording
-    from livedic.stream.export.stop import ExportStopped
-    from livedic.stream.export.field_export import FieldOptions
-    path, _ = affine
-    out = tmp_path / "out"
-    with pytest.raises(ExportStopped) as stopped:
-        export_recording(path, out, fields=FieldOptions(every=1), stop=_stop_after(FRAMES + 3))
-    assert stopped.value.state == (f"while drawing the maps, video and VTK (frame 3 of {FRAMES}): {out} holds the "
-                                   f"CSV files, plots and session.json, complete, and 10 maps, 2 .vtu files, each "
-                                   f"complete; not written: overlay_eyy.mp4, fields.pvd")
-    assert len(_rows(out / "p0_trace.csv")) == FRAMES
-    assert sorted(os.listdir(out / "vtk")) == ["frame_000000.vtu", "frame_000001.vtu"]
-    assert sorted(os.listdir(out / "maps" / "exy")) == ["exy_000000.png", "exy_000001.png"]
-    assert all(cv2.imread(str(out / "maps" / q / f"{q}_000001.png")) is not None for q in ("u", "v", "exx", "eyy"))
-    assert not (out / "fields.pvd").exists() and not (out / "overlay_eyy.mp4").exists()
-    assert _partial_files(out) == []
-
+# --------------------------------------------------------------------------- stopping (export_recording's own
+# stops at each stage: test_export.py)
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_a_signal_during_the_export_says_what_was_left_in_one_line(signum, code, tmp_path, signal_when):
@@ -372,7 +324,7 @@ def test_a_signal_during_the_export_says_what_was_left_in_one_line(signum, code,
                                f"video and VTK (frame ") and "not written: overlay_eyy.mp4, fields.pvd" in lines[0]
     assert len(_rows(out / "p0_trace.csv")) == 24 and len(_rows(out / "fields.csv")) == 24 * 211
     assert json.loads((out / "session.json").read_text())["livedic.export"]["frames_with_results"] == 24
-    assert _partial_files(out) == [] and not (out / "fields.pvd").exists() and not (out / "overlay_eyy.mp4").exists()
+    assert partial_files(out) == [] and not (out / "fields.pvd").exists() and not (out / "overlay_eyy.mp4").exists()
 
 
 def test_export_help_lists_the_field_options(capsys):

@@ -1,9 +1,8 @@
-"""``livedic preview``: the set-up drawn before a test, placed exactly as ``livedic run`` places it.
+"""The set-up drawn before a test (stream/session/preview.py), placed exactly as ``livedic run`` places it; the
+``livedic preview`` command itself: tests/stream/cli/test_preview.py.
 
-Images: a strip of blurred-noise texture on a smooth background with a dark hole (``tests.conftest.specimen_scene``).
+Images: ``strip_images`` (tests/stream/conftest.py), a strip of blurred-noise texture with a hole at ``STRIP_HOLE``.
 """
-
-import os
 
 import cv2
 import numpy as np
@@ -14,39 +13,13 @@ from livedic.stream.session.config import PointsConfig
 from livedic.stream.session.points import place_points
 from livedic.stream.session.preview import region_outlines, setup_overlay, shape_outline
 from livedic.dic.region import Circle
-from tests.conftest import specimen_scene
-
-HOLE = (150, 200, 20)
+from tests.stream.conftest import STRIP_HOLE as HOLE
 
 
-@pytest.fixture(scope="module")
-def images(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("holed")
-    for k in range(2):
-        image, _ = specimen_scene(seed=3, hole=HOLE, strain=0.002 * k)
-        cv2.imwrite(str(folder / f"f{k}.png"), image)
-    return folder
 
-
-def test_preview_draws_the_set_up_and_says_what_it_placed(images, tmp_path, capsys):
-    out = tmp_path / "preview.png"
-    code = main(["preview", "--source", f"images:{images}", "--gauge-length", "200", "--n-points", "300",
-                 "-o", str(out)])
-    err = capsys.readouterr().err
-    assert code == 0, err
-    picture = cv2.imread(str(out))
-    assert picture is not None and picture.shape[0] > 400 and picture.shape[1] > 600
-    assert "over the speckled specimen" in err and "extensometer axial L0 200 px" in err
-    assert "mean intensity gradient" in err and f"preview written to {out}" in err
-    # the set-up panel draws the region's outline in its colour (yellow), the extensometers in theirs
-    rgb = picture[:, :, ::-1].reshape(-1, 3).astype(int)
-    for colour in ((255, 200, 0), (0, 200, 255), (255, 90, 200)):
-        assert np.any(np.abs(rgb - colour).sum(axis=1) < 30), colour
-
-
-def test_preview_places_the_points_as_run_does(images, tmp_path):
+def test_preview_places_the_points_as_run_does(strip_images, tmp_path):
     """The preview's points are the session's: the same function, the same options, the same frame."""
-    image = cv2.imread(str(images / "f0.png"), cv2.IMREAD_GRAYSCALE)
+    image = cv2.imread(str(strip_images / "f0.png"), cv2.IMREAD_GRAYSCALE)
     wanted = PointsConfig(n_points=300, exclude=(Circle(*HOLE),))
     placement = place_points(image, wanted, subset=21)
     overlay = setup_overlay(image, placement, subset=21, source="test")
@@ -54,7 +27,7 @@ def test_preview_places_the_points_as_run_does(images, tmp_path):
     assert np.allclose(shape_outline(Circle(*HOLE))[0], (HOLE[0] + HOLE[2], HOLE[1]))
     from livedic.bench.cli import main as cli
     record = tmp_path / "r.mcap"
-    assert cli(["run", "--source", f"images:{images}", "--n-points", "300", "--exclude", "circle:150,200,20",
+    assert cli(["run", "--source", f"images:{strip_images}", "--n-points", "300", "--exclude", "circle:150,200,20",
                 "--viewer", "none", "--record", str(record)]) == 0
     from livedic.acquire.recording.reader import read_results
     first = next(iter(read_results(str(record))))
@@ -72,25 +45,10 @@ def test_region_outlines_follow_a_mask_and_its_holes():
     assert spans[0][0] <= 11 and spans[0][1] <= 11     # the hole
 
 
-@pytest.mark.parametrize("extra, message", [
-    (["-o", "preview.jpg"], "is a PNG picture"),
-    (["-o", "preview.png", "--roi", "polygon:1,2"], "expected polygon"),
-    (["-o", "preview.png", "--exclude", "blob:1,2,3"], "unknown shape"),
-    (["-o", "preview.png", "--mask", "missing.png"], "missing.png"),
-    (["-o", "preview.png", "--gauge-length", "5000"], "extensometer axial"),
-])
-def test_bad_input_is_one_line_exit_2_and_no_picture(images, tmp_path, capsys, extra, message):
-    os.chdir(tmp_path)
-    code = main(["preview", "--source", f"images:{images}", *extra])
-    err = capsys.readouterr().err
-    assert code == 2 and message in err and err.count("\n") == 1, err
-    assert not (tmp_path / "preview.png").exists() and not (tmp_path / "preview.jpg").exists()
-
-
-def test_run_logs_the_same_set_up_to_the_view(images, tmp_path):
+def test_run_logs_the_same_set_up_to_the_view(strip_images, tmp_path):
     from tests.stream.view.test_logger import _rows
     rrd = tmp_path / "v.rrd"
-    assert main(["run", "--source", f"images:{images}", "--n-points", "300", "--exclude", "circle:150,200,20",
+    assert main(["run", "--source", f"images:{strip_images}", "--n-points", "300", "--exclude", "circle:150,200,20",
                  "--gauge-length", "200", "--viewer", "save", str(rrd), "--no-record"]) == 0
     labels = _rows(rrd, "/setup/labels", "Points2D:labels")["static"] + \
         _rows(rrd, "/setup/region/label", "Points2D:labels")["static"]
@@ -104,9 +62,9 @@ def test_run_logs_the_same_set_up_to_the_view(images, tmp_path):
     assert "mean intensity gradient" in str(notes)
 
 
-def test_a_given_region_across_the_specimens_edge_is_pointed_out(images):
+def test_a_given_region_across_the_specimens_edge_is_pointed_out(strip_images):
     """The whole image as ROI: the points whose subset lies across the strip's edges or the hole's are named."""
-    image = cv2.imread(str(images / "f0.png"), cv2.IMREAD_GRAYSCALE)
+    image = cv2.imread(str(strip_images / "f0.png"), cv2.IMREAD_GRAYSCALE)
     placement = place_points(image, PointsConfig(roi="full", step=10), subset=21)
     overlay = setup_overlay(image, placement, subset=21)
     x, y = placement.points[:, 0], placement.points[:, 1]
