@@ -195,22 +195,6 @@ def test_measured_strain_peaks_at_the_neck():
     assert abs(peak - model.y_neck) <= 12
 
 
-def test_option_parsing_is_shared_by_every_source():
-    """One set of rules (acquire.options) for synthetic, mcap, v4l2 and aravis options."""
-    from livedic.acquire.options import as_bool, as_float, as_int, parse_number
-    assert as_int("seed", "18446744073709551615", low=0) == 2**64 - 1          # exact, not via float
-    assert as_int("frames", "300.0") == 300 and as_float("fps", " 50 ") == 50.0
-    assert [as_bool("pace", v) for v in ("1", "yes", "On", "0", "false", "", True)] == [True] * 3 + [False] * 3 + [True]
-    for call, words in ((lambda: as_int("frames", "2.5"), "option frames='2.5': not an integer"),
-                        (lambda: as_float("fps", "nan"), "option fps='nan': must be finite"),
-                        (lambda: as_float("fps", 0, low=0, low_open=True), "option fps=0: must be > 0"),
-                        (lambda: as_bool("pace", "maybe"), "option pace='maybe': not a boolean")):
-        with pytest.raises(SourceError, match=words):
-            call()
-    with pytest.raises(ValueError, match="expected a number"):
-        parse_number(True)
-
-
 def test_a_consumer_that_prepares_after_the_first_frame_gets_the_rest_paced_not_in_a_burst():
     """The session takes the first frame (its reference), places its points and opens its outputs, then asks
     for more: the frames come at the frame rate from then on, not all at once (a dropping queue dropped them)."""
