@@ -7,7 +7,6 @@ import pytest
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.simulator.model import TensileModel
-from livedic.acquire.simulator.options import parse_synthetic_uri
 from livedic.acquire.simulator.render import _render_rows
 from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
 from livedic.dic import measure
@@ -19,16 +18,6 @@ def _frames(source):
 
 
 # --------------------------------------------------------------------------- options
-
-def test_uri_options_are_parsed_and_keywords_override():
-    model, options = parse_synthetic_uri("synthetic:tensile?frames=30&fps=25&size=320x256&bit=12&noise=0.5&seed=3")
-    assert model == "tensile"
-    assert options == {"frames": "30", "fps": "25", "size": "320x256", "bit": "12", "noise": "0.5", "seed": "3"}
-    source = SyntheticTensileSource("synthetic:tensile?frames=30&size=320x256", frames=12, pace=False)
-    assert source.frames == 12 and source.shape == (256, 320) and source.fps == 50.0
-    assert parse_synthetic_uri("synthetic:")[0] == "tensile"
-    assert isinstance(open_synthetic("synthetic:translate?size=96x96&frames=3"), SyntheticTranslateSource)
-
 
 @pytest.mark.parametrize("uri, words", [
     ("synthetic:bend", "unknown synthetic model"),
