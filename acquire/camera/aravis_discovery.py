@@ -108,12 +108,13 @@ def address_text(get: Callable[[], Any]) -> str | None:
 
 def find_listed(cameras: Sequence[dict[str, Any]], device_id: str | None) -> dict[str, Any] | None:
     """The listed camera ``device_id`` names (its id, serial or MAC); the first one (not a fake) for None."""
-    if device_id is None:
+    if device_id is None or not device_id.strip():
         real = [c for c in cameras if c["protocol"] != "Fake"]
         return real[0] if real else (cameras[0] if cameras else None)
     wanted = device_id.strip().lower()
     for camera in cameras:
-        if wanted in {str(camera.get(key) or "").lower() for key in ("id", "serial", "physical_id")}:
+        # Blank fields name nothing: a camera without a MAC is not the one a blank id asks for.
+        if wanted in {str(camera.get(key) or "").lower() for key in ("id", "serial", "physical_id")} - {""}:
             return camera
     return None
 

@@ -1,13 +1,12 @@
-"""The force signal (acquire.force): csv files and TCP streams, interpolated onto frame times.
+"""The force signal of a TCP stream (acquire.force.tcp), interpolated onto frame times.
 
-Physics checked: linear force is interpolated exactly (1e-9 N), nothing is extrapolated past the
-last sample, a stalled stream gives NaN, and a stream delivered 37 ms late but stamped by its sender
-lines up with 50 fps frames within the force change of half a frame period.
+Physics checked: a stalled stream gives NaN, and a stream delivered 37 ms late but stamped by its sender
+lines up with 50 fps frames within the force change of half a frame period. (Interpolation, csv files,
+URIs and the simulator's force have their own modules: test_source, test_csv_file, test_open, test_simulated.)
 """
 
 import contextlib
 import math
-import socket
 import socketserver
 import threading
 import time
@@ -15,9 +14,8 @@ import time
 import numpy as np
 import pytest
 
-from livedic.acquire.force import (LoadError, LoadEventKind, TIME_BASE_MONOTONIC, TIME_BASE_SESSION, interpolate_force,
-                                   open_load)
-from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.acquire.force import LoadEventKind, open_load
+from tests.acquire.force.loads import free_port, loading, write_csv
 from tests.waiting import wait_until
 
 
@@ -61,191 +59,11 @@ def serving(*scripts):
         server.close()
 
 
-@contextlib.contextmanager
-def loading(uri, **options):
-    source = open_load(uri, **options)
-    try:
-        yield source
-    finally:
-        source.close()
-
-
 def send_then_hold(payload):
     def script(sock, stop):
         sock.sendall(payload)
         stop.wait(5)
     return script
-
-
-def free_port():
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def write_csv(path, rows, header="time_s,force_N"):
-    path.write_text(header + "\n" + "".join(",".join(str(v) for v in row) + "\n" for row in rows))
-    return path
-
-
-# --- interpolation -----------------------------------------------------------------------------
-
-def test_interpolation_is_exact_on_linear_force_and_never_extrapolates():
-    t = np.array([0.0, 0.1, 0.25, 0.4])
-    f = 3.0 + 250.0 * t
-    times = np.array([-0.01, 0.0, 0.05, 0.1, 0.17, 0.33, 0.4, 0.4000001, 1.0])
-    got = interpolate_force(t, f, times, max_gap_s=1.0)
-    inside = (times >= 0.0) & (times <= 0.4)
-    np.testing.assert_allclose(got[inside], 3.0 + 250.0 * times[inside], rtol=0, atol=1e-9)
-    assert np.isnan(got[~inside]).all()
-
-
-def test_interpolation_gives_nan_across_a_gap_wider_than_max_gap():
-    t = np.array([0.0, 0.1, 0.9, 1.0])
-    f = np.array([0.0, 1.0, 9.0, 10.0])
-    got = interpolate_force(t, f, [0.05, 0.5, 0.95], max_gap_s=0.5)
-    np.testing.assert_allclose(got[[0, 2]], [0.5, 9.5], atol=1e-12)
-    assert math.isnan(got[1])
-
-
-def test_interpolation_of_one_or_no_sample():
-    assert np.isnan(interpolate_force([], [], [0.0, 1.0], 1.0)).all()
-    np.testing.assert_array_equal(interpolate_force([2.0], [7.0], [1.0, 2.0, 3.0], 1.0), [np.nan, 7.0, np.nan])
-
-
-# --- csv: --------------------------------------------------------------------------------------
-
-def test_csv_round_trip_interpolates_linear_force_exactly(tmp_path):
-    t = np.arange(0, 41) * 0.025                       # 40 Hz machine export
-    path = write_csv(tmp_path / "force.csv", zip(t, 12.0 + 800.0 * t))
-    frames = np.arange(0, 51) * 0.02                   # 50 fps, the last frame (1.0 s) exactly on the last sample
-    with loading(f"csv:{path}") as load:
-        assert load.time_base == TIME_BASE_SESSION
-        got = load.force_at(frames)
-        np.testing.assert_allclose(got, 12.0 + 800.0 * frames, rtol=0, atol=1e-9)
-        assert math.isnan(load.force_at(1.0 + 1e-9))    # past the last sample: never extrapolated
-        assert math.isnan(load.force_at(-0.001))
-        assert load.last_sample_time_s == pytest.approx(1.0)
-        assert load.events() == [] and load.warnings.garbage_lines == 0
-
-
-def test_csv_offset_shifts_the_samples_onto_frame_time(tmp_path):
-    path = write_csv(tmp_path / "force.csv", [(0.0, 0.0), (1.0, 100.0), (2.0, 200.0)])
-    with loading(f"csv:{path}", offset_s=0.25) as load:
-        np.testing.assert_allclose(load.force_at([0.25, 0.75, 2.25]), [0.0, 50.0, 200.0], atol=1e-9)
-        assert math.isnan(load.force_at(0.2)) and math.isnan(load.force_at(2.3))
-        assert load.settings["offset_s"] == 0.25
-
-
-def test_csv_extra_columns_and_blank_lines_are_allowed(tmp_path):
-    path = tmp_path / "force.csv"
-    path.write_text("time_s,force_N,crosshead_mm\n0,1,0.0\n\n1,3,0.1\n")
-    with loading(f"csv:{path}") as load:
-        np.testing.assert_allclose(load.force_at(0.5), 2.0)
-
-
-@pytest.mark.parametrize("content, where", [
-    (None, "cannot be read"),
-    ("", "line 1"),
-    ("time,force\n0,1\n", "line 1"),
-    ("force_N,time_s\n0,1\n", "line 1"),
-    ("time_s,force_N\n", "no samples"),
-    ("time_s,force_N\n0,1\n0.1,abc\n", "line 3"),
-    ("time_s,force_N\n0,1\n0.1,nan\n", "line 3"),
-    ("time_s,force_N\n0,1\n0.1\n", "line 3"),
-    ("time_s,force_N\n0,1\n0.2,2\n0.2,3\n", "line 4"),
-    ("time_s,force_N\n0,1\n0.2,2\n0.1,3\n", "line 4"),
-])
-def test_a_bad_csv_is_one_line_naming_file_and_line(tmp_path, content, where):
-    path = tmp_path / "bad.csv"
-    if content is not None:
-        path.write_text(content)
-    with pytest.raises(LoadError) as error:
-        open_load(f"csv:{path}")
-    message = str(error.value)
-    assert "\n" not in message and str(path) in message and where in message, message
-    assert isinstance(error.value, ValueError)
-
-
-@pytest.mark.parametrize("uri, where", [
-    ("modbus://127.0.0.1:502?scale=0.1", "register= is required"),
-    ("synthetic", "pass source="),
-    ("synthetic:translate", "has no force"),
-    ("synthetic:tensile?frames=1", "frames"),
-    ("synthetic:tensile?hardening=-1", "hardening"),
-    ("udp://host:1", "unknown load"),
-    ("", "empty"),
-    ("csv:", "names no file"),
-    ("tcp://localhost", "tcp://HOST:PORT"),
-    ("tcp://localhost:99999", "tcp://HOST:PORT"),
-    ("tcp://localhost:5000?clock=camera", "clock="),
-    ("tcp://localhost:5000?rate=3", "unknown option"),
-    ("tcp://localhost:5000?max_gap_s=-1", "max_gap_s"),
-])
-def test_bad_load_uris_are_one_line(uri, where):
-    with pytest.raises(LoadError) as error:
-        open_load(uri)
-    assert "\n" not in str(error.value) and where in str(error.value), str(error.value)
-
-
-def test_frame_time_convention(tmp_path):
-    path = write_csv(tmp_path / "force.csv", [(0.0, 0.0), (1.0, 1.0)])
-    with loading(f"csv:{path}") as load:
-        assert load.frame_time_s(since_first_frame_s=0.5, arrival_ns=123) == 0.5
-        with pytest.raises(LoadError):
-            load.frame_time_s(arrival_ns=123)
-    with loading(f"tcp://127.0.0.1:{free_port()}") as load:
-        assert load.time_base == TIME_BASE_MONOTONIC
-        assert load.frame_time_s(since_first_frame_s=0.5, arrival_ns=2_500_000_000) == 2.5
-        with pytest.raises(LoadError):
-            load.frame_time_s(since_first_frame_s=0.5)
-
-
-# --- synthetic ---------------------------------------------------------------------------------
-
-def test_synthetic_load_gives_the_simulators_force_at_frame_times():
-    source = SyntheticTensileSource("synthetic:tensile?frames=40&fps=25&size=128x128&pace=0&fracture=1")
-    with loading("synthetic", source=source) as load:
-        assert load.time_base == TIME_BASE_SESSION and load.specimen == source.specimen
-        frame_times = np.arange(40) / 25.0                         # frame i at i / fps since the first frame
-        forces = np.array([source.force_N(i) for i in range(40)])
-        np.testing.assert_allclose(load.force_at(frame_times), forces, rtol=1e-12, atol=0)
-        # Between two frames: linear interpolation (the first elastic frames are a straight line).
-        np.testing.assert_allclose(load.force_at([0.01, 0.06]), [0.25 * forces[1], 0.5 * (forces[1] + forces[2])],
-                                   rtol=1e-12)
-        broken = source.fracture_frame
-        assert np.all(load.force_at(frame_times[broken:]) == 0.0) and forces[broken - 1] > 0.0
-        assert math.isnan(load.force_at(39 / 25.0 + 1e-6)) and math.isnan(load.force_at(-1e-6))
-        assert load.last_sample_time_s == pytest.approx(39 / 25.0)
-        assert load.settings["specimen"]["E_GPa"] == 200.0 and load.settings["source"] == source.uri
-
-
-def test_synthetic_load_from_the_tests_uri_matches_the_cameras_force():
-    uri = "synthetic:tensile?frames=30&size=128x128&modulus=70&hardening=0.4"
-    with loading(uri) as load:
-        camera = SyntheticTensileSource(uri)
-        np.testing.assert_array_equal(load.samples()[1], camera.forces_N())
-        np.testing.assert_allclose(load.samples()[0], np.arange(30) / 50.0, rtol=1e-15)
-        assert load.specimen["Rm_MPa"] == pytest.approx(70e3 * 0.004 * 1.4, rel=1e-12)
-
-
-def test_synthetic_load_offset_shifts_the_frames_as_a_csvs():
-    # export and report pass offset_s (--load-offset) to every load: the same meaning as for csv.
-    source = SyntheticTensileSource("synthetic:tensile?frames=10&size=64x64")
-    with loading("synthetic", source=source, offset_s=0.5) as load:
-        np.testing.assert_allclose(load.force_at(0.5 + np.arange(10) / 50.0), source.forces_N(), rtol=1e-12)
-        assert math.isnan(load.force_at(0.49)) and load.settings["offset_s"] == 0.5
-
-
-def test_synthetic_load_needs_a_simulated_tensile_camera():
-    with pytest.raises(LoadError) as error:
-        open_load("synthetic", source=SyntheticTranslateSource("synthetic:translate?frames=3&size=64x64"))
-    assert "\n" not in str(error.value) and "synthetic:tensile" in str(error.value)
-    source = SyntheticTensileSource("synthetic:tensile?frames=3&size=64x64")
-    with pytest.raises(LoadError, match="not both"):
-        open_load("synthetic:tensile", source=source)
-    with pytest.raises(LoadError, match="unknown option"):
-        open_load("synthetic", source=source, clock="sender")
 
 
 # --- tcp:// ------------------------------------------------------------------------------------

@@ -1,10 +1,9 @@
-"""Reading recordings: replay, truncated files, recover(), bad input, fuzzing."""
+"""Reading recordings: replay, truncated files, bad input, fuzzing (recover() is tests/.../test_recover.py's)."""
 
 import faulthandler
 import os
 import signal
 import struct
-import time
 
 import numpy as np
 import pytest
@@ -22,8 +21,8 @@ from livedic.acquire.recording.recover import recover
 from livedic.acquire.recording.source import McapSource
 from livedic.dic.result import Measurement
 from livedic.acquire.recording.writer import Recorder
+from tests.acquire.recording.recordings import T0, one_line_error, record
 
-T0 = 1_700_000_000_000_000_000
 
 
 @pytest.fixture(autouse=True)
@@ -32,38 +31,6 @@ def _hang_guard():
     faulthandler.dump_traceback_later(60, exit=True)
     yield
     faulthandler.cancel_dump_traceback_later()
-
-
-def _record(path, n=6, shape=(16, 24), dtype=np.uint8, dt_ns=20_000_000, chunk_bytes=1 << 20, compression=None,
-            with_strain=False):
-    from livedic.dic.strain.extensometer import ExtensometerReadings
-    from livedic.dic.strain import strain_field, strain_window
-    rng = np.random.default_rng(7)
-    windows = strain_window(np.array([[x, y] for y in range(3) for x in range(3)], float), window=3, step=1.0)
-    images = [rng.integers(0, 200, size=shape, dtype=dtype) for _ in range(n)]
-    with Recorder(path, {"source_uri": "synthetic://", "points": [[1, 2]]}, chunk_bytes=chunk_bytes,
-                  compression=compression) as rec:
-        for i, image in enumerate(images):
-            rec.write_frame(Frame(i, T0 + i * dt_ns, image, "Mono8" if dtype == np.uint8 else "Mono16"))
-            rec.write_results(i, T0 + i * dt_ns, [1, 2], [3.0, 4.0], [5.0, 6.0], [0.1 * i, 0.0], [0.0, -0.1 * i],
-                              [0.99, 0.5], [True, False])
-            if with_strain:
-                rec.write_strain(i, T0 + i * dt_ns, strain_field(windows, np.full(9, 0.1 * i), np.zeros(9),
-                                                                 np.ones(9, bool)))
-                rec.write_extensometers(i, T0 + i * dt_ns, ExtensometerReadings(
-                    ("axial", "side"), np.array([10.0, 5.0]), np.array([10.0 + i, np.nan]), np.array([0.1 * i, np.nan]),
-                    np.array([np.log1p(0.1 * i), np.nan]), np.array([0, 1], np.int32)))
-        rec.write_event("recording_stopped", "end of test")
-    return images
-
-
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    """Six small frames; 128-byte chunks make the layout of a long recording in miniature: every frame
-    in its own image chunk, the results (~100 bytes each) in a data chunk every two frames."""
-    path = tmp_path_factory.mktemp("rec") / "small.mcap"
-    images = _record(path, shape=(48, 64), chunk_bytes=128)
-    return path, images
 
 
 def _plain_mcap(path):
@@ -78,59 +45,7 @@ def _plain_mcap(path):
         writer.finish()
 
 
-def _one_line_error(call, error_type=RecordingError):
-    with pytest.raises(error_type) as caught:
-        call()
-    message = str(caught.value)
-    assert "\n" not in message and message
-    return message
-
-
-# ----------------------------------------------------------------------------- replay
-
-def test_replay_as_fast_as_possible_gives_every_frame_in_order(recording):
-    path, images = recording
-    with McapSource(path) as source:
-        assert source.settings["recorded_source_uri"] == "synthetic://"
-        frames = list(source)
-    assert [f.index for f in frames] == list(range(len(images)))
-    assert all(np.array_equal(f.image, im) for f, im in zip(frames, images))
-    assert all(isinstance(f, Frame) and f.pixel_format == "Mono8" for f in frames)
-
-
-def test_realtime_replay_follows_the_recorded_pace(tmp_path, monkeypatch):
-    import livedic.acquire.recording.source as mcap_source
-    waits = []
-    real_sleep = time.sleep
-
-    def sleep(seconds):
-        waits.append(seconds)
-        real_sleep(seconds)
-
-    monkeypatch.setattr(mcap_source.time, "sleep", sleep)
-    path = tmp_path / "paced.mcap"
-    _record(path, n=6, dt_ns=60_000_000)                   # 5 gaps of 60 ms
-    arrivals = []
-    start = time.monotonic()
-    for frame in McapSource(path, realtime=True):
-        arrivals.append((frame.index, time.monotonic() - start))
-    assert [i for i, _ in arrivals] == list(range(6))
-    assert arrivals[-1][1] >= 0.8 * 0.3                    # loose: never faster than recorded
-    assert waits
-    waits.clear()
-    assert [f.index for f in McapSource(path)] == list(range(6))
-    assert waits == []                                     # and the fast mode never waits (counted, not timed)
-
-
-def test_close_stops_iteration(recording):
-    path, _ = recording
-    source = McapSource(path)
-    seen = []
-    for frame in source:
-        seen.append(frame.index)
-        source.close()
-    assert seen == [0]
-
+# ----------------------------------------------------------------------------- reading
 
 def test_results_events_and_session(recording):
     path, _ = recording
@@ -145,7 +60,7 @@ def test_results_events_and_session(recording):
 def test_read_results_uses_the_index_and_skips_image_chunks(tmp_path):
     """Corrupt an image chunk of an indexed file: results still read (never touched), replay reports it."""
     path = tmp_path / "r.mcap"
-    _record(path, n=4, shape=(64, 64))
+    record(path, n=4, shape=(64, 64))
     data = bytearray(path.read_bytes())
     third = -1
     for _ in range(3):                                    # the third RawImage's encoding string ...
@@ -153,7 +68,7 @@ def test_read_results_uses_the_index_and_skips_image_chunks(tmp_path):
     data[third + 100] ^= 0xFF                             # ... is followed by its pixels
     path.write_bytes(bytes(data))
     assert len(read_results(path)) == 4
-    message = _one_line_error(lambda: list(McapSource(path)), RecordingSourceError)
+    message = one_line_error(lambda: list(McapSource(path)), RecordingSourceError)
     assert str(path) in message and "corrupt" in message and "CRC" in message
 
 
@@ -187,50 +102,6 @@ def test_lost_index_only_is_a_note_and_loses_nothing(tmp_path, recording, caplog
     assert "no index" in caplog.text and "record by record" in caplog.text
     info = inspect_recording(cut)
     assert not info.truncated and not info.indexed and "no index" in info.note
-
-
-def test_recover_rewrites_a_complete_indexed_file(tmp_path, recording):
-    path, images = recording
-    cut, fixed = tmp_path / "cut.mcap", tmp_path / "fixed.mcap"
-    data = path.read_bytes()
-    # 80 % into the data section (the footer's summary_start ends it), wherever the summary's size puts it
-    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 4 - 8 - 8)[0]
-    cut.write_bytes(data[:int(summary_start * 0.8)])
-    expected = [f.index for f in McapSource(cut)]
-    summary = recover(cut, fixed)
-    assert summary["truncated"] and summary["frames"] == len(expected) and summary["dst"] == str(fixed)
-    assert "truncated" in summary["note"]
-    info = inspect_recording(fixed)
-    assert info.indexed and not info.truncated and info.note == ""
-    assert [f.index for f in McapSource(fixed)] == expected
-    assert read_session(fixed) == read_session(path)
-    assert len(read_results(fixed)) == summary["results"]
-
-    before = fixed.read_bytes()
-    assert "already exists" in _one_line_error(lambda: recover(cut, fixed))
-    assert fixed.read_bytes() == before
-    assert "source itself" in _one_line_error(lambda: recover(cut, cut))
-    assert recover(cut, fixed, overwrite=True)["frames"] == len(expected)
-    assert sorted(os.listdir(tmp_path)) == ["cut.mcap", "fixed.mcap"]          # no temporary file left
-
-
-def test_recover_skips_a_corrupt_chunk_that_strict_readers_reject(tmp_path):
-    """1 KiB chunks: each 32x32 frame closes its own image chunk, the results share one data chunk.
-    Corrupting frame 1 loses frame 1 only."""
-    path, fixed = tmp_path / "bad.mcap", tmp_path / "fixed.mcap"
-    _record(path, n=5, shape=(32, 32), chunk_bytes=1024)
-    data = bytearray(path.read_bytes())
-    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 20)[0]     # the footer's first field
-    data = data[:summary_start]                          # drop the summary: force the recovery scan
-    second_image = data.find(b"mono8", data.find(b"mono8") + 1)
-    data[second_image + 100] ^= 0x55                     # inside frame 1's pixels
-    path.write_bytes(bytes(data))
-    message = _one_line_error(lambda: list(McapSource(path)), RecordingSourceError)
-    assert "corrupt" in message and "recover" in message
-    summary = recover(path, fixed)
-    assert summary["corrupt_chunks"] == 1
-    assert [f.index for f in McapSource(fixed)] == [0, 2, 3, 4]
-    assert [r.frame_index for r in read_results(fixed)] == [0, 1, 2, 3, 4]
 
 
 def test_truncation_is_a_field_of_the_reader(tmp_path, recording):
@@ -296,7 +167,7 @@ def test_a_chunk_is_never_decompressed_beyond_what_it_claims(tmp_path, compressi
         struct.pack_into("<QI", data, size_at, usize - 8 if claim is None else claim, 0)
         bad = tmp_path / f"bad-{claim}.mcap"
         bad.write_bytes(bytes(data))
-        message = _one_line_error(lambda: list(McapSource(bad)), RecordingSourceError)
+        message = one_line_error(lambda: list(McapSource(bad)), RecordingSourceError)
         assert "corrupt" in message and expected in message
         assert isinstance(pytest.raises(RecordingSourceError, lambda: list(McapSource(bad))).value.__cause__,
                           CorruptRecording)
@@ -324,11 +195,11 @@ def test_each_problem_has_its_exception_type(tmp_path, recording):
     cases = {"empty.mcap": NotMcap, "text.mcap": NotMcap, "robot.mcap": NotLivedic,
              "nosession.mcap": NoSessionMetadata}
     for name, error_type in cases.items():
-        _one_line_error(lambda: read_session(tmp_path / name), error_type)
-    assert _one_line_error(lambda: read_session(tmp_path / "nosession.mcap")).endswith(
+        one_line_error(lambda: read_session(tmp_path / name), error_type)
+    assert one_line_error(lambda: read_session(tmp_path / "nosession.mcap")).endswith(
         "has no session metadata (livedic.session)")
     assert [f.image.shape for f in McapSource(tmp_path / "nosession.mcap")] == [(4, 6)]
-    _one_line_error(lambda: list(McapSource(tmp_path / "corrupt.mcap")), RecordingSourceError)
+    one_line_error(lambda: list(McapSource(tmp_path / "corrupt.mcap")), RecordingSourceError)
     for name, error_type in {"robot.mcap": NotLivedic, "empty.mcap": NotMcap}.items():
         caught = pytest.raises(RecordingSourceError, McapSource, tmp_path / name).value
         assert isinstance(caught, SourceError) and isinstance(caught.__cause__, error_type)
@@ -357,20 +228,20 @@ def test_bad_inputs_give_one_clean_line(tmp_path, recording):
             path.write_bytes(content)
         for reader in (read_session, read_results, read_events, inspect_recording,
                        lambda p: recover(p, tmp_path / "out.mcap")):
-            message = _one_line_error(lambda: reader(path))
+            message = one_line_error(lambda: reader(path))
             assert str(path) in message and expected[name] in message, message
-        message = _one_line_error(lambda: McapSource(path), RecordingSourceError)
+        message = one_line_error(lambda: McapSource(path), RecordingSourceError)
         assert expected[name] in message
-    assert "directory" in _one_line_error(lambda: read_session(tmp_path))
+    assert "directory" in one_line_error(lambda: read_session(tmp_path))
 
 
 def test_mcap_from_another_program_is_named_as_such(tmp_path):
     path = tmp_path / "x.mcap"
     _plain_mcap(path)
-    message = _one_line_error(lambda: McapSource(path), SourceError)
+    message = one_line_error(lambda: McapSource(path), SourceError)
     assert message == f"{path} was not written by livedic (no /camera/image RawImage channel)"
     for reader in (read_session, read_results, read_events):
-        assert _one_line_error(lambda: reader(path)) == message
+        assert one_line_error(lambda: reader(path)) == message
     assert isinstance(pytest.raises(ValueError, McapSource, path).value, SourceError)
     assert inspect_recording(path).message_counts == {"/robot/pose": 3}   # still inspectable
 
@@ -384,7 +255,7 @@ def test_huge_lengths_at_every_record_start_fail_cleanly(tmp_path):
 
     from livedic.acquire.recording.container import RecordScan
     path = tmp_path / "small.mcap"
-    _record(path, n=2, shape=(4, 4), chunk_bytes=64)
+    record(path, n=2, shape=(4, 4), chunk_bytes=64)
     data = path.read_bytes()
     with open(path, "rb") as f:
         starts = [offset for offset, opcode, _ in RecordScan(f, 8, len(data))
@@ -431,7 +302,7 @@ def fuzz_bases(tmp_path_factory):
     variants = []
     for compression in (None, "lz4"):
         complete = base / f"complete-{compression}.mcap"
-        _record(complete, n=3, shape=(6, 8), chunk_bytes=256, compression=compression, with_strain=True)
+        record(complete, n=3, shape=(6, 8), chunk_bytes=256, compression=compression, with_strain=True)
         data = complete.read_bytes()
         variants += [data, data[:int(len(data) * 0.7)]]      # indexed and truncated variants
     return base, variants

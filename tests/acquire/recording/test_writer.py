@@ -16,14 +16,12 @@ import threading
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
 from livedic.acquire.base import Frame
 from livedic.acquire.recording.reader import inspect_recording, read_events, read_results, read_session
 from livedic.acquire.recording.recover import recover
 from livedic.acquire.recording.source import McapSource
 from livedic.acquire.recording import schema as rs
-from livedic.acquire.recording import wire
 from livedic.acquire.recording.writer import Recorder
 from tests.waiting import wait_until
 
@@ -260,60 +258,6 @@ def test_rerun_mcap_convert_accepts_a_recording(tmp_path):
     summary = str(RrdReader(str(out)).stream().collect().summary())
     assert "Image:buffer" in summary and "livedic.FrameResults:message" in summary
     assert "livedic.StrainField:message" in summary and "livedic.ExtensometerSample:message" in summary
-
-
-# ----------------------------------------------------------------------------- codecs
-
-@settings(max_examples=60, deadline=None)
-@given(h=st.integers(1, 9), w=st.integers(1, 9), wide=st.booleans(), ts=st.integers(0, 2**63 - 1))
-def test_raw_image_codec_matches_protobuf(h, w, wide, ts):
-    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
-    from google.protobuf.timestamp_pb2 import Timestamp
-
-    image = _frames(1, np.uint16 if wide else np.uint8, (h, w), seed=h * 10 + w)[0]
-    ours = wire.encode_raw_image(image, ts)
-    theirs = RawImage(timestamp=Timestamp(seconds=ts // 10**9, nanos=ts % 10**9), frame_id=rs.IMAGE_FRAME_ID,
-                      width=w, height=h, encoding="mono16" if wide else "mono8", step=w * image.itemsize,
-                      data=image.astype(image.dtype.newbyteorder("<")).tobytes())
-    assert ours == theirs.SerializeToString()
-    decoded, encoding, stamp, _ = wire.decode_raw_image(theirs.SerializeToString())
-    assert np.array_equal(decoded, image) and stamp == ts and encoding == theirs.encoding
-
-
-def test_raw_image_with_row_padding_decodes_as_a_view():
-    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
-
-    padded = np.arange(6 * 12, dtype=np.uint16).reshape(6, 12)
-    data = RawImage(width=10, height=6, step=24, encoding="16UC1", data=padded.tobytes()).SerializeToString()
-    image = wire.decode_raw_image(data)[0]
-    assert np.array_equal(image, padded[:, :10]) and not image.flags.writeable
-
-
-def test_results_codec_matches_protobuf_both_ways():
-    values = {k: v for k, v in _results(1).items()}
-    values["point_id"] = values.pop("point_ids").astype(np.uint32)
-    values.update(frame_index=2**40, timestamp_ns=T0, status=np.array([-3] * 17, np.int32), method="m",
-                  latency_ns=-5, dropped_frames=2**32 - 1)
-    ours = wire.encode_results(values)
-    as_lists = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in values.items()}
-    theirs = rs.FrameResults(**as_lists)
-    assert ours == theirs.SerializeToString()
-    back = wire.decode_results(theirs.SerializeToString())
-    for key, value in values.items():
-        if isinstance(value, np.ndarray):
-            assert back[key].tobytes() == value.astype(back[key].dtype).tobytes(), key
-        else:
-            assert back[key] == value, key
-
-
-@settings(max_examples=300, deadline=None)
-@given(st.binary(max_size=200))
-def test_decoders_reject_garbage_cleanly(data):
-    for decode in (wire.decode_raw_image, wire.decode_results):
-        try:
-            decode(data)
-        except wire.WireError:
-            pass
 
 
 # ----------------------------------------------------------------------------- API contract

@@ -7,7 +7,6 @@ import pytest
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.simulator.model import TensileModel
-from livedic.acquire.simulator.options import parse_synthetic_uri
 from livedic.acquire.simulator.render import _render_rows
 from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource, open_synthetic
 from livedic.dic import measure
@@ -19,16 +18,6 @@ def _frames(source):
 
 
 # --------------------------------------------------------------------------- options
-
-def test_uri_options_are_parsed_and_keywords_override():
-    model, options = parse_synthetic_uri("synthetic:tensile?frames=30&fps=25&size=320x256&bit=12&noise=0.5&seed=3")
-    assert model == "tensile"
-    assert options == {"frames": "30", "fps": "25", "size": "320x256", "bit": "12", "noise": "0.5", "seed": "3"}
-    source = SyntheticTensileSource("synthetic:tensile?frames=30&size=320x256", frames=12, pace=False)
-    assert source.frames == 12 and source.shape == (256, 320) and source.fps == 50.0
-    assert parse_synthetic_uri("synthetic:")[0] == "tensile"
-    assert isinstance(open_synthetic("synthetic:translate?size=96x96&frames=3"), SyntheticTranslateSource)
-
 
 @pytest.mark.parametrize("uri, words", [
     ("synthetic:bend", "unknown synthetic model"),
@@ -193,22 +182,6 @@ def test_measured_strain_peaks_at_the_neck():
     assert m.ok.mean() > 0.9
     peak = m.y[m.ok][np.argmax(m.vy[m.ok])]
     assert abs(peak - model.y_neck) <= 12
-
-
-def test_option_parsing_is_shared_by_every_source():
-    """One set of rules (acquire.options) for synthetic, mcap, v4l2 and aravis options."""
-    from livedic.acquire.options import as_bool, as_float, as_int, parse_number
-    assert as_int("seed", "18446744073709551615", low=0) == 2**64 - 1          # exact, not via float
-    assert as_int("frames", "300.0") == 300 and as_float("fps", " 50 ") == 50.0
-    assert [as_bool("pace", v) for v in ("1", "yes", "On", "0", "false", "", True)] == [True] * 3 + [False] * 3 + [True]
-    for call, words in ((lambda: as_int("frames", "2.5"), "option frames='2.5': not an integer"),
-                        (lambda: as_float("fps", "nan"), "option fps='nan': must be finite"),
-                        (lambda: as_float("fps", 0, low=0, low_open=True), "option fps=0: must be > 0"),
-                        (lambda: as_bool("pace", "maybe"), "option pace='maybe': not a boolean")):
-        with pytest.raises(SourceError, match=words):
-            call()
-    with pytest.raises(ValueError, match="expected a number"):
-        parse_number(True)
 
 
 def test_a_consumer_that_prepares_after_the_first_frame_gets_the_rest_paced_not_in_a_burst():

@@ -1,4 +1,4 @@
-"""Live pipeline: frame queue, acquisition thread, tracker loop, URI dispatch, ``livedic run`` end to end."""
+"""Live pipeline: frame queue, acquisition thread, tracker loop, ``livedic run`` end to end."""
 
 import itertools
 import json
@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.base import Frame, FrameSource, SourceError, SourceLost
-from livedic.acquire.sources import open_source, parse_scheme
-from livedic.acquire.simulator.sources import SyntheticTensileSource, SyntheticTranslateSource
+from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.stream.pipeline.acquisition import AcquisitionThread, QueuedFrame
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST, FrameQueue, QueueClosed
 from livedic.stream.cli import LivedicParser
@@ -423,29 +422,6 @@ def test_a_failing_sink_is_switched_off_not_fatal():
     acquisition.start()
     stats = loop.run()
     assert stats.frames == 4 and len(loop.sink_errors) == 1 and "viewer" in str(loop.sink_errors[0][1])
-
-
-# --------------------------------------------------------------------------- URI dispatch
-
-def test_open_source_dispatches_on_the_scheme(tmp_path):
-    source = open_source("synthetic:translate?frames=2&size=64x64")
-    assert isinstance(source, SyntheticTranslateSource)
-    assert isinstance(open_source("synthetic:", frames=3, size=(96, 96)), SyntheticTensileSource)
-    assert parse_scheme("recordings/x.mcap") == "mcap" and parse_scheme("VIDEO:a.mkv") == "video"
-    with pytest.raises(SourceError, match="valid sources: synthetic"):
-        open_source("webcam:0")
-    with pytest.raises(SourceError, match="no scheme"):
-        open_source("frames/*.png")
-    with pytest.raises(SourceError, match="empty"):
-        open_source("  ")
-    with pytest.raises(SourceError, match="needs a recording"):
-        open_source("mcap:")
-    with pytest.raises(SourceError, match="realtime"):
-        open_source(f"mcap:{tmp_path / 'a.mcap'}?speed=2")
-    with pytest.raises(SourceError):
-        open_source(f"mcap:{tmp_path / 'missing.mcap'}")
-    with pytest.raises(SourceError):
-        open_source(f"images:{tmp_path / 'nothing_here_*.png'}")
 
 
 # --------------------------------------------------------------------------- livedic run

@@ -309,22 +309,6 @@ def test_shared_path_workers_read_the_frames_themselves(recording, cluster, sequ
     assert f"the images read by the workers from {os.path.abspath(recording)}" in parallel[2]
 
 
-def test_frame_reader_reads_any_frame_as_the_source_gives_it(recording, tmp_path):
-    from livedic.acquire.recording.errors import RecordingError
-    from livedic.acquire.recording.source import FrameReader, McapSource
-    frames = list(McapSource(recording))
-    reader = FrameReader(recording)
-    for frame in reversed(frames):
-        assert np.array_equal(reader.image(frame.index, frame.timestamp_ns), frame.image)
-    with pytest.raises(RecordingError, match="holds no image of frame 99"):
-        reader.image(99, frames[-1].timestamp_ns + 1)
-    cut = tmp_path / "cut.mcap"
-    data = open(recording, "rb").read()
-    cut.write_bytes(data[:len(data) // 2])
-    with pytest.raises(RecordingError, match="has no index"):
-        FrameReader(cut)
-
-
 @pytest.mark.parametrize("option", [["--workers", "0"], ["--workers", "2", "--cluster", "tcp://127.0.0.1:9"]])
 def test_bad_parallel_options_one_line_exit_2(recording, tmp_path, capsys, option):
     out = tmp_path / "out.csv"
