@@ -1,4 +1,5 @@
-"""ISO 6892-1 on every curve shape: analytic curves where ReH, ReL, Ae, Rp0.2, Rm and Ag are known exactly.
+"""Tests of dic/tensile/yielding.py and the yield properties of dic/tensile/properties.py: ISO 6892-1 on
+analytic curves of each shape, where ReH, ReL, Ae, Rp0.2, Rm and Ag are known exactly.
 
 Each curve is linear elastic (E = 200 GPa) and then, as a function of the plastic strain ep:
 
