@@ -1,6 +1,6 @@
 """``livedic report``'s files for each curve shape: the new keys, the old ones unchanged, the plot's marks.
 
-The curves are the analytic ones of ``tests/dic/tensile/test_yield_shapes.py`` (no noise): the report
+The curves are the analytic ones of ``tests.dic.tensile.test_yielding.py`` (no noise): the report
 is a view of ``tensile_properties``, so what is checked here is what a reader of report.json and
 report.md gets, and that the plot draws the yield marks.
 """
@@ -14,7 +14,7 @@ import pytest
 from livedic.dic.tensile.properties import tensile_properties
 from livedic.stream.export.report import PROPERTY_KEYS, report_json, report_markdown
 from livedic.stream.stages.stress import plot_stress_strain, stress_strain_table
-from tests.dic.tensile.test_yield_shapes import continuous, perfectly_plastic, upper_yield_point
+from tests.dic.tensile.test_yielding import continuous, perfectly_plastic, upper_yield_point
 
 SPECIMEN = {"area_mm2": 20.0, "gauge_length_px": 400.0}
 SOURCE = {"recording": "r.mcap", "truncated": False, "load": "csv:f.csv", "load_offset_s": 0.0, "frames": 1,
