@@ -78,3 +78,26 @@ def lens_from_options(options: dict[str, Any]) -> Lens | None:
     """The lens the options ask for, or None for a distortion-free camera (every term 0)."""
     lens = Lens(tuple(options["size"]), *(float(options[name]) for name in LENS_OPTIONS))  # type: ignore[arg-type]
     return lens if lens.distorts else None
+
+
+def render_through_lens(pattern: Any, lens: Lens, scene_of: Any, *, bit: int = 8, noise: float = 0.0,
+                        seed: int = 0) -> np.ndarray:
+    """A speckle image as ``lens`` shows a scene, exactly: pixel x shows the pattern's reference point
+    ``scene_of(undistort(x))`` (the inverse of the scene's motion, from ideal px to reference px).
+
+    Parameters
+    ----------
+    pattern : dic.speckle.SpecklePattern
+    lens : Lens
+    scene_of : callable (xu, yu) -> (X, Y)
+        Where the material now at ideal position (xu, yu) was in the reference (float arrays).
+    bit, noise, seed
+        8 or 12 bit; Gaussian noise SD in grey levels of 8 bit (scaled for 12), its seed.
+    """
+    from livedic.acquire.simulator.options import FULL_SCALE
+    from livedic.acquire.simulator.render import paint, quantise
+    ideal = lens.ideal_pixels()
+    X, Y = scene_of(ideal[..., 0], ideal[..., 1])
+    full = float(FULL_SCALE[bit])
+    image = paint(pattern.intensity(X, Y), full).astype(np.float32)
+    return quantise(image, bit, noise * full / 255.0, seed)

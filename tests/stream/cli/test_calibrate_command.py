@@ -59,3 +59,21 @@ def test_a_calibration_file_that_does_not_parse_is_refused(tmp_path):
     bad.write_text(json.dumps({"format": "livedic-calibration", "version": 1, "image_size": [10, 10]}))
     with pytest.raises(CalibrationError, match="missing"):
         read_calibration(bad)
+
+
+def test_run_refuses_a_calibration_of_another_resolution_before_any_output(tmp_path, capsys):
+    import numpy as np
+
+    from livedic.acquire.calibration import write_calibration
+    from livedic.dic.calibration import CameraCalibration
+
+    cal = tmp_path / "cal.json"
+    K = np.array([[512.0, 0, 255.5], [0, 512.0, 255.5], [0, 0, 1]])
+    write_calibration(cal, CameraCalibration((512, 512), K, np.array([-0.12, 0, 0, 0, 0]), 0.1, (), "chessboard:9x6",
+                                             5.0))
+    record = tmp_path / "session.mcap"
+    code = main(["run", "--source", "synthetic:tensile?size=256x256&frames=3&pace=0", "--calibration", str(cal),
+                 "--viewer", "none", "--record", str(record)])
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2 and "made for 512x512" in error and "256x256" in error
+    assert not record.exists()
