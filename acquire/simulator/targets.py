@@ -40,17 +40,22 @@ class Pose:
 
 
 def board_extent(spec: TargetSpec, square_mm: float) -> tuple[float, float, float, float]:
-    """(x0, y0, x1, y1) of the printed board in the target's coordinates (mm), one square of white around."""
+    """(x0, y0, x1, y1) of the printed board in the target's coordinates (mm), one square of white around.
+
+    The coordinates are those of ``TargetSpec.object_points``: a chessboard's first inner corner is at the
+    origin, a ChArUco board's outer corner (OpenCV's convention).
+    """
     cols, rows = spec.inner_corners
-    return (-2.0 * square_mm, -2.0 * square_mm, (cols + 1) * square_mm, (rows + 1) * square_mm)
+    shift = square_mm if spec.kind == "charuco" else 0.0
+    return (-2.0 * square_mm + shift, -2.0 * square_mm + shift, (cols + 1) * square_mm + shift,
+            (rows + 1) * square_mm + shift)
 
 
 def pose_looking_at(spec: TargetSpec, square_mm: float, lens: Lens, angles_deg: tuple[float, float, float],
                     centre_frac: tuple[float, float], px_per_mm: float) -> Pose:
     """The pose putting the board's centre at ``centre_frac`` of the image, rotated by ``angles_deg``
     (about x, y, z), at the distance where the untilted board shows ``px_per_mm`` ideal px per mm."""
-    cols, rows = spec.inner_corners
-    centre = np.array([(cols - 1) * square_mm / 2.0, (rows - 1) * square_mm / 2.0, 0.0])
+    centre = spec.object_points(square_mm).mean(axis=0)
     rx, ry, rz = (math.radians(a) for a in angles_deg)
     R = (cv2.Rodrigues(np.array([rx, 0.0, 0.0]))[0] @ cv2.Rodrigues(np.array([0.0, ry, 0.0]))[0]
          @ cv2.Rodrigues(np.array([0.0, 0.0, rz]))[0])

@@ -110,3 +110,21 @@ def test_a_calibration_round_trips_through_its_dict_and_checks_the_frame_size(ch
     del broken["camera_matrix"]
     with pytest.raises(CalibrationError, match="camera_matrix"):
         CameraCalibration.from_dict(broken)
+
+
+def test_a_charuco_board_is_found_with_its_corner_ids():
+    from livedic.acquire.simulator.lens import Lens
+    from livedic.acquire.simulator.targets import calibration_views, render_target
+    lens = Lens((384, 384), k1=-0.12)
+    spec = parse_target("charuco:7x5:DICT_4X4_50")
+    image = render_target(spec, 10.0, lens, calibration_views(spec, 10.0, lens)[1], seed=3)
+    found = detect_target(image, spec, 10.0)
+    assert isinstance(found, Detection) and len(found.ids) >= 20
+    np.testing.assert_array_equal(found.object_points, spec.object_points(10.0)[found.ids])
+    # where the lens put each corner (the board's corners projected through it): RMS within 0.3 px, every one
+    # within 0.6 px (measured: RMS 0.21 px, 0.48 px at worst on this small, tilted view; a chessboard gets 0.07)
+    import cv2
+    pose = calibration_views(spec, 10.0, lens)[1]
+    expected, _ = cv2.projectPoints(found.object_points, pose.rvec, pose.tvec, lens.camera_matrix, lens.dist_coeffs)
+    miss = np.hypot(*(expected.reshape(-1, 2) - found.image_points).T)
+    assert np.sqrt(np.mean(miss ** 2)) < 0.3 and np.max(miss) < 0.6
