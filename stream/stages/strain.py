@@ -45,7 +45,8 @@ import numpy as np
 
 from livedic.dic.calibration import CameraCalibration, distort_points, undistort_points
 from livedic.dic.strain.extensometer import (AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints,
-                                              place_extensometers, read_extensometers, strain_noise)
+                                              end_displacements, place_extensometers, read_extensometers,
+                                              strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 from livedic.stream.pipeline.frame_result import FrameResult
 from livedic.stream.pipeline.stage import Stage
@@ -449,6 +450,25 @@ class StrainStage(Stage):
         ideal = self._ideal_points()
         return moved[:, 0] - ideal[:, 0], moved[:, 1] - ideal[:, 1]
 
+    @property
+    def image_ends(self) -> np.ndarray:
+        """The extensometers' reference ends (2E, 2) in image px (where to draw them on the camera's image)."""
+        ends = self.placed.ends
+        return self.config.image(ends) if len(ends) else ends
+
+    @property
+    def image_extensometers(self) -> tuple:
+        """The extensometers with their ends in image px (their ``length_px`` is then the image's, not L0)."""
+        ends = self.image_ends
+        return tuple(Extensometer(e.name, *(float(c) for c in ends[2 * k]), *(float(c) for c in ends[2 * k + 1]))
+                     for k, e in enumerate(self.extensometers))
+
+    def end_positions(self, u, v, ok) -> np.ndarray:
+        """The extensometers' ends (2E, 2) in this frame, image px (NaN where an end is lost)."""
+        iu, iv = self.ideal_displacements(u, v)
+        eu, ev = end_displacements(self.placed, self._ideal_points(), iu, iv, ok)
+        return self.config.image(self.placed.ends + np.column_stack([eu, ev]))
+
     def add_fracture(self, fracture):
         """Split the points (and the extensometer ends) by the crack of a ``dic.tensile.fracture.Fracture``."""
         def sides(where):
@@ -571,10 +591,8 @@ class StrainStage(Stage):
     def metadata(self) -> dict[str, Any]:
         """The VSG and the extensometers as placed (name and ends in reference image px: with a calibration
         their ideal ends distorted back, so ``from_metadata`` and the calibration place them again exactly)."""
-        ends = self.config.image(self.placed.ends) if len(self.placed.ends) else self.placed.ends
         return {"vsg_px": self.vsg_px,
-                "extensometers": [[e.name, *(float(c) for c in ends[2 * k]), *(float(c) for c in ends[2 * k + 1])]
-                                  for k, e in enumerate(self.extensometers)]}
+                "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.image_extensometers]}
 
 
 def format_strain_summary(strain: dict | None) -> list[str]:
