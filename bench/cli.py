@@ -21,7 +21,7 @@ def add_bench_commands(commands):
     bench_commands = bench.add_subparsers(metavar="BENCH")
     for add in (_add_paper_command, _add_speed_command, _add_live_command, _add_validate_command, _add_soak_command,
                 _add_strain_command, _add_fracture_command, _add_replay_command, _add_tracker_command,
-                _add_tensile_command, _add_extensometer_command):
+                _add_tensile_command, _add_extensometer_command, _add_calibration_command):
         add(bench_commands)
 
 
@@ -241,6 +241,32 @@ def _add_tensile_command(bench_commands):
     tensile.add_argument("--quick", action="store_true", help="512x512, 150 frames (about 15 s) instead of 1 MP")
     tensile.add_argument("-o", "--output", default="results/tensile", metavar="DIR", help="results folder")
     tensile.set_defaults(handler=_cmd_bench_tensile)
+
+
+def _add_calibration_command(bench_commands):
+    """``livedic bench calibration``'s options."""
+    calibration = bench_commands.add_parser(
+        "calibration", help="a calibration recovered from simulated targets against the known lens, and the strain "
+                            "error of a 1 % stretch with and without the correction, centre and corners",
+        description="Renders chessboard views through a known lens (f = image width, k1 ...), calibrates, prints "
+                    "the recovered parameters against the truth, then measures a uniform 1 %% stretch filmed "
+                    "through the lens and prints the strain error near the centre and the corners: uncorrected, "
+                    "with the recovered calibration, with the true lens.")
+    calibration.add_argument("--size", type=int, default=1024, metavar="PX", help="image side (default 1024)")
+    calibration.add_argument("--k1", type=float, default=-0.12, help="the lens's k1 (default -0.12)")
+    calibration.add_argument("--k2", type=float, default=0.0, help="k2 (default 0)")
+    calibration.add_argument("--views", metavar="DIR",
+                             help="also write the target images there, for livedic calibrate")
+    calibration.set_defaults(handler=_cmd_bench_calibration)
+
+
+def _cmd_bench_calibration(args):
+    from livedic.bench.calibration import run_calibration_benchmark
+    if args.size < 256:
+        raise UsageError(f"--size {args.size}: give an image side of at least 256 px")
+    run_calibration_benchmark(size=args.size, k1=args.k1, k2=args.k2, views=args.views,
+                              say=lambda line: print(line, flush=True))
+    return 0
 
 
 def build_parser():

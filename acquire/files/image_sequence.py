@@ -35,7 +35,7 @@ from livedic.acquire.base import Frame, FrameSource, SourceError
 from livedic.acquire.files.image_file import read_grey_image, read_image_header
 from livedic.acquire.options import as_bool, as_float
 
-__all__ = ["ImageSequence", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
+__all__ = ["ImageSequence", "find_images", "natural_key", "open_uri", "SCHEME", "IMAGE_EXTENSIONS"]
 
 log = logging.getLogger("livedic.acquire.images")
 
@@ -50,6 +50,11 @@ def natural_key(path: str | os.PathLike[str]) -> list[tuple[int, int, str]]:
     """Sort key where digit runs compare as numbers: frame_2 < frame_10 (case-insensitive)."""
     parts = _DIGITS.split(os.fspath(path).lower())
     return [(0, int(part), part) if part.isdigit() else (1, 0, part) for part in parts]
+
+
+def find_images(pattern: str) -> list[str]:
+    """The image files a folder (its PNG/TIFF files) or a glob names, in natural order (maybe none)."""
+    return _find(pattern)
 
 
 def _find(pattern: str) -> list[str]:

@@ -22,7 +22,12 @@ FULL_SCALE = {8: 255, 12: 4095}
 DEFAULT_MODULUS_GPA = 200.0
 DEFAULT_THICKNESS_MM = 2.0
 DEFAULT_SCALE_PX_PER_MM = 10.0
-_COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0}
+# The simulated lens (docs/guide/calibration.md): OpenCV's distortion k1, k2, p1, p2 of a pinhole camera with
+# focal length LENS_FOCAL_WIDTHS x the image width (a normal lens) and the principal point at the image centre.
+LENS_FOCAL_WIDTHS = 1.0
+LENS_OPTIONS = ("k1", "k2", "p1", "p2")
+_COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0,
+                    "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0}
 TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15, lateral="auto",
                         view="auto", fade=0.0, fracture=0, modulus=DEFAULT_MODULUS_GPA,
                         thickness=DEFAULT_THICKNESS_MM, scale=DEFAULT_SCALE_PX_PER_MM, hardening=0.0,
@@ -42,7 +47,7 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 def _usage() -> str:
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
             "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
-            "&modulus=200&thickness=2&scale=10&hardening=0&upper_yield=0, "
+            "&modulus=200&thickness=2&scale=10&hardening=0&upper_yield=0&k1=0&k2=0&p1=0&p2=0, "
             "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
             "(same common options)")
 
@@ -194,6 +199,14 @@ def _to_fracture(value):
                          ">= 2") from None
 
 
+def _to_lens_term(value, *, limit):
+    """A distortion coefficient within +-limit (beyond it the simulated lens folds the image's corners)."""
+    number = parse_number(value)
+    if abs(number) > limit:
+        raise ValueError(f"must be within -{limit:g}..{limit:g}")
+    return number
+
+
 _INT = partial(parse_number, integer=True)
 _CONVERTERS = {
     "frames": partial(_INT, low=2), "fps": partial(parse_number, low=0, low_open=True), "size": _to_size,
@@ -205,4 +218,6 @@ _CONVERTERS = {
     "modulus": partial(parse_number, low=0, low_open=True), "thickness": partial(parse_number, low=0, low_open=True),
     "scale": partial(parse_number, low=0, low_open=True), "hardening": partial(parse_number, low=0),
     "upper_yield": partial(parse_number, low=0),
+    "k1": partial(_to_lens_term, limit=0.5), "k2": partial(_to_lens_term, limit=0.5),
+    "p1": partial(_to_lens_term, limit=0.05), "p2": partial(_to_lens_term, limit=0.05),
 }

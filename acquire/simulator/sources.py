@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from livedic.acquire.base import Frame, FrameSource, SourceError
+from livedic.acquire.simulator.lens import Lens, lens_from_options
 from livedic.acquire.simulator.model import FrameTruth, TensileModel
 from livedic.acquire.simulator.options import (FULL_SCALE, convert_options, parse_synthetic_uri,
                                                rendered_count, resolve_tensile_options)
@@ -57,6 +58,7 @@ class _PrerenderedSource(FrameSource):
                 f"{uri}: {self.rendered_frames} frames of {width}x{height} at {self.bit} bit need "
                 f"{nbytes / 2**30:.1f} GiB rendered ahead (limit {MAX_RENDER_BYTES / 2**30:.0f} GiB): "
                 "lower frames= or size=, or render fewer and cycle them with loop=K")
+        self.lens: Lens | None = lens_from_options(options)
         self._images: list[np.ndarray] | None = None
         self._lock = threading.Lock()
         self._closed = False
@@ -69,8 +71,30 @@ class _PrerenderedSource(FrameSource):
         return None
 
     def truth(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        """Exact (u, v) at reference points (x, y) in frame ``frame_index`` (each model says how)."""
+        """Exact (u, v) at reference points (x, y) in frame ``frame_index``, in image pixels.
+
+        Through a lens: the point seen at x shows the scene point X = undistort(x), which moves to
+        X + U(X) and is seen at distort(X + U(X)); its image displacement is that minus x.
+        """
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        if self.lens is None:
+            return self._scene_truth(frame_index, x, y)
+        ideal = self.lens.undistort(np.stack([x, y], axis=-1))
+        U, V = self._scene_truth(frame_index, ideal[..., 0], ideal[..., 1])
+        seen = self.lens.distort(np.stack([ideal[..., 0] + U, ideal[..., 1] + V], axis=-1))
+        return seen[..., 0] - x, seen[..., 1] - y
+
+    def _scene_truth(self, frame_index: int, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact (U, V) of scene points at ideal positions (x, y) (each model says how)."""
         raise NotImplementedError
+
+    def _ideal(self, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Ideal positions of image points (themselves without a lens)."""
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        if self.lens is None:
+            return x, y
+        ideal = self.lens.undistort(np.stack([x, y], axis=-1))
+        return ideal[..., 0], ideal[..., 1]
 
     def _render(self, i: int) -> np.ndarray:
         raise NotImplementedError
@@ -175,6 +199,8 @@ class _PrerenderedSource(FrameSource):
                          else "rendered ahead, as fast as read"})
         if self.rendered_frames < self.frames:
             settings["delivery"] += f"; {self.rendered_frames} rendered frames cycled forward and back"
+        if self.lens is not None:
+            settings["lens"] = self.lens.to_dict()
         return settings
 
 
@@ -215,6 +241,9 @@ class SyntheticTensileSource(_PrerenderedSource):
                                   upper_yield=opts["upper_yield"], thickness_mm=opts["thickness"],
                                   scale_px_per_mm=opts["scale"])
         self.fracture_frame = fracture
+        if opts["fade"] > 0.0 and any(opts[name] for name in ("k1", "k2", "p1", "p2")):
+            raise SourceError(f"{uri}: fade= cannot be rendered through a lens (k1, k2, p1, p2) yet: use one or "
+                              "the other")
         super().__init__(opts, uri)
         self._rows = np.arange(self.shape[0], dtype=np.float64)
         H = self.shape[0]
@@ -236,8 +265,7 @@ class SyntheticTensileSource(_PrerenderedSource):
         y1 = int(math.floor(m.gauge_bottom))
         return (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
 
-    def truth(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        """Exact (u, v) at reference points (x, y) in frame ``frame_index``."""
+    def _scene_truth(self, frame_index: int, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.model.displacement(self._check_index(frame_index), x, y)
 
     def force_N(self, frame_index: int) -> float:  # noqa: N802 (the unit is part of the name, as in force_N columns)
@@ -256,13 +284,18 @@ class SyntheticTensileSource(_PrerenderedSource):
 
     @property
     def specimen(self) -> dict[str, Any]:
-        return self.model.specimen
+        """The model's specimen (``TensileModel.specimen``; its scale in ideal px/mm) and the lens, if any."""
+        specimen = self.model.specimen
+        if self.lens is not None:
+            specimen["lens"] = self.lens.to_dict()
+        return specimen
 
     def visible(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike, half_width: float = 0.0) -> np.ndarray:
         """Whether the square subset of half-width ``half_width`` px around each reference point (x, y) is
         fully seen in frame ``frame_index``: all specimen, on one side of the crack (once broken), inside
-        the image in the reference and in that frame (boolean array; ``TensileModel.visible``)."""
-        return self.model.visible(self._check_index(frame_index), x, y, half_width)
+        the image in the reference and in that frame (boolean array; ``TensileModel.visible``; through a
+        lens, judged at the points' ideal positions)."""
+        return self.model.visible(self._check_index(frame_index), *self._ideal(x, y), half_width)
 
     def frame_metadata(self, i: int) -> dict[str, Any]:
         meta = super().frame_metadata(i)
@@ -288,6 +321,9 @@ class SyntheticTensileSource(_PrerenderedSource):
         return np.maximum(1.0 - fade * self._fade_rates * damage, 0.0)
 
     def _render(self, i: int) -> np.ndarray:
+        if self.lens is not None:
+            return quantise(self._render_through_lens(i, self.lens), self.bit, self._noise_sigma(),
+                            self.options["seed"] * 1_000_003 + i + 1)
         full = float(self.full_scale)
         Y, alpha, beta = self.model.inverse_rows(i, self._rows)
         hw = self.model.half_width(Y)
@@ -300,6 +336,30 @@ class SyntheticTensileSource(_PrerenderedSource):
                          float(self.pattern.cutoff_px), Y, alpha, beta, left, right, row_cover,
                          full * self._background, full, PAINT_FLOOR, PAINT_GAIN, image)
         return quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
+
+
+    def _render_through_lens(self, i: int, lens: Lens) -> np.ndarray:
+        """The frame as a distorting lens shows it: every pixel's ideal position (x_u, y_u) inverted
+        through the model (``inverse_rows`` at y_u, then the row's column map at x_u) and the speckle
+        summed there exactly (``SpecklePattern.intensity``); the specimen's edges and the crack blended as
+        ``render_specimen`` does, measured in ideal pixels (equal to image pixels to within the lens's
+        local scale, 1 - 3 k1 r^2 at most)."""
+        full = float(self.full_scale)
+        ideal = lens.ideal_pixels()
+        xu, yu = ideal[..., 0], ideal[..., 1]
+        Y, alpha, beta = self.model.inverse_rows(i, yu.ravel())
+        Y, alpha, beta = Y.reshape(yu.shape), alpha.reshape(yu.shape), beta.reshape(yu.shape)
+        X = alpha + beta * xu
+        hw = self.model.half_width(Y)
+        left = (self.model.x_centre - hw - alpha) / beta
+        right = (self.model.x_centre + hw - alpha) / beta
+        cover = np.clip(np.minimum(xu - left, right - xu) + 0.5, 0.0, 1.0)
+        cover *= self.model.row_cover(i, yu.ravel()).reshape(yu.shape)
+        image = np.repeat((full * self._background)[:, None], self.shape[1], axis=1).astype(np.float64)
+        inside = cover > 0.0
+        painted = paint(self.pattern.intensity(X[inside], Y[inside]), full)
+        image[inside] += cover[inside] * (painted - image[inside])
+        return image.astype(np.float32)
 
 
 class SyntheticTranslateSource(_PrerenderedSource):
@@ -327,6 +387,13 @@ class SyntheticTranslateSource(_PrerenderedSource):
         if opts["jump"] is not None:
             extent += max(abs(opts["jump"][1]), abs(opts["jump"][2]))
         reach = 5.0 * opts["radius"]
+        lens = lens_from_options(opts)
+        if lens is not None:
+            # the lens moves the image's border by up to this much (barrel: inward, so the scene reaches further)
+            width, height = opts["size"]
+            border = np.array([[0.0, 0.0], [width - 1.0, 0.0], [0.0, height - 1.0], [width - 1.0, height - 1.0],
+                               [(width - 1) / 2.0, 0.0], [0.0, (height - 1) / 2.0]])
+            extent += float(np.max(np.abs(lens.undistort(border) - border)))
         return math.ceil(reach) + 16 + math.ceil(extent)
 
     def shift(self, frame_index: int) -> tuple[float, float]:
@@ -339,10 +406,8 @@ class SyntheticTranslateSource(_PrerenderedSource):
             v += jump[2]
         return u, v
 
-    def truth(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        j = self._check_index(frame_index)
-        x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-        u, v = self.shift(j)
+    def _scene_truth(self, frame_index: int, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        u, v = self.shift(self._check_index(frame_index))
         return np.full(x.shape, u), np.full(y.shape, v)
 
     @property
@@ -354,7 +419,13 @@ class SyntheticTranslateSource(_PrerenderedSource):
     def _render(self, i: int) -> np.ndarray:
         from livedic.dic.speckle import render
         u, v = self.shift(i)
-        intensity = render(self.pattern, (u, v) if (u or v) else None, bit_depth=None)
+        lens = self.lens
+        if lens is None:
+            intensity = render(self.pattern, (u, v) if (u or v) else None, bit_depth=None)
+        else:
+            # pixel x shows the scene point at undistort(x) - (u, v): the speckle summed there exactly
+            ideal = lens.ideal_pixels()
+            intensity = self.pattern.intensity(ideal[..., 0] - u, ideal[..., 1] - v)
         image = paint(intensity, float(self.full_scale)).astype(np.float32)
         return quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
 

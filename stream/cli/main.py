@@ -21,6 +21,7 @@ import signal
 import sys
 import threading
 
+from livedic.stream.cli.calibrate import add_calibrate_arguments, calibrate_command
 from livedic.stream.cli.export import add_export_arguments, export_command
 from livedic.stream.cli.measure import add_measure_arguments, measure_command
 from livedic.stream.cli.preview import add_preview_arguments, preview_command
@@ -171,6 +172,14 @@ def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
     measure = commands.add_parser("measure", help="displacements of points between two images")
     add_measure_arguments(measure)
     measure.set_defaults(handler=measure_command)
+
+    calibrate = commands.add_parser("calibrate", help="camera calibration (intrinsics, lens distortion, px/mm) from "
+                                                      "chessboard or ChArUco target images",
+                                    description="Find the target in each image, solve the camera (OpenCV), check "
+                                                "the reprojection error and write CAL.json, used by run and replay "
+                                                "--calibration (docs/guide/calibration.md).")
+    add_calibrate_arguments(calibrate)
+    calibrate.set_defaults(handler=calibrate_command)
 
     cameras = commands.add_parser("cameras", help="list GenICam cameras (GigE Vision, USB3 Vision) Aravis can see")
     cameras.add_argument("--fake", action="store_true", help="also list Aravis's in-process fake camera")

@@ -75,7 +75,7 @@ def preview_command(args: argparse.Namespace) -> int:
     check_point_count(len(placement.points), wanted.max_points, how=wanted.how(placement.step))
     stage = strain.place(placement.points, p0=placement.points[0], roi=placement.bounds, step=placement.step,
                          subset=args.subset)
-    overlay = setup_overlay(frame.image, placement, stage, subset=args.subset, scale=strain.scale,
+    overlay = setup_overlay(frame.image, placement, stage, subset=args.subset, scale=strain.px_per_mm,
                             source=args.source, bit_depth=(frame.metadata or {}).get("bit_depth"),
                             pixel_format=frame.pixel_format)
     # the check above accepted missing folders (create_folders=True): they are made here, once there is a picture

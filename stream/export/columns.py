@@ -20,6 +20,10 @@ P0_COLUMNS = ("frame", "timestamp_ns", "time_s", "x", "y", "u", "v", "zncc", "ok
 EVENT_COLUMNS = ("time", "kind", "level", "message", "timestamp_ns")
 STRAIN_COLUMNS = ("exx", "eyy", "exy")
 EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain", "true_strain", "ok")
+# Appended when the session has a scale (--scale, or a calibration's px/mm): lengths, and displacements on the
+# specimen plane (undistorted with a calibration), in mm.
+EXTENSOMETER_MM_COLUMNS = ("L0_mm", "L_mm")
+FIELD_MM_COLUMNS = ("u_mm", "v_mm")
 EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
 BINARY_FILES = ("extensometers.png", "stress_strain.png")
 STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
@@ -42,12 +46,17 @@ def result_columns(frame_index: int, timestamp_ns: int, point_id: np.ndarray, x:
 StagedFile = AtomicFile
 
 
-def extensometer_columns(frame_index: int, time_s: float, readings: ExtensometerReadings) -> dict[str, Any]:
-    """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer)."""
-    return {"frame": int(frame_index), "time_s": float(time_s),
-            "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
-            "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
-            "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
+def extensometer_columns(frame_index: int, time_s: float, readings: ExtensometerReadings,
+                         px_per_mm: float | None = None) -> dict[str, Any]:
+    """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer), then
+    ``EXTENSOMETER_MM_COLUMNS`` with a scale ``px_per_mm``."""
+    columns = {"frame": int(frame_index), "time_s": float(time_s),
+               "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
+               "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
+               "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
+    if px_per_mm:
+        columns.update(L0_mm=np.asarray(readings.l0_px) / px_per_mm, L_mm=np.asarray(readings.length_px) / px_per_mm)
+    return columns
 
 
 def _csv_cell(text: object) -> str:

@@ -43,8 +43,9 @@ from livedic.stream.export.field_maps import COLOUR_MAP
 from livedic.stream.export.field_options import NO_FIELDS, PVD_FILE, VIDEO_FOURCC, ColourRanges, quantities, video_name
 from livedic.stream.export.field_writer import FieldWriter, RecordedImages, remove_stale
 from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_FILES, EXPORT_KEY, EXTENSOMETER_COLUMNS,
-                                          EXTRA_COLUMNS, LEADING_COLUMNS, P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES,
-                                          extensometer_columns, result_columns)
+                                          EXTENSOMETER_MM_COLUMNS, EXTRA_COLUMNS, FIELD_MM_COLUMNS, LEADING_COLUMNS,
+                                          P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES, extensometer_columns,
+                                          result_columns)
 from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
 from livedic.stream.export.notes import plural, reader_notes
 from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _strain_settings, open_recorded_strain,
@@ -181,7 +182,7 @@ def _read_source(path: str, strain: dict[str, Any] | None, stress: StressOptions
     opened = open_recorded_strain(path, strain, notes)
     config, stage = opened.config, opened.stage
     load = _open_stress_load(stress, opened.names, opened.recording)      # bad load or no axial extensometer
-    shown = quantities(config.scale, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
+    shown = quantities(config.px_per_mm, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
     ranges = ColourRanges(shown, fields.ranges, fields.coloured)
     return _Source(opened.recording, opened.metadata, opened.p0_id, opened.p0_how, config, opened.first,
                    opened.results, stage, opened.names, load, shown, ranges)
@@ -211,7 +212,9 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
     fields_csv, trace = staged["fields.csv"], staged["p0_trace.csv"]
     extensometers = staged["extensometers.csv"]
     trace.write(",".join(P0_COLUMNS) + "\n")
-    extensometers.write(",".join(EXTENSOMETER_COLUMNS) + "\n")
+    scale = source.config.px_per_mm
+    mm_fields = FIELD_MM_COLUMNS if scale else ()
+    extensometers.write(",".join(EXTENSOMETER_COLUMNS + (EXTENSOMETER_MM_COLUMNS if scale else ())) + "\n")
     written = _Written()
     extras_seen: list[str] | None = None             # the extra columns of the first frame: the file's
     for result in _chain(source.first, source.results):
@@ -220,13 +223,14 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
             progress.update(written.frames, "frames to CSV")
         if extras_seen is None:
             extras_seen = [name for name in EXTRA_COLUMNS if _has_extra(result, name)]
-            fields_csv.write(",".join(list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS)) + "\n")
+            fields_csv.write(",".join(list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS) + list(mm_fields))
+                             + "\n")
             written.points = len(result.u)
         readings = _write_fields_rows(fields_csv, result, extras_seen, source, written)
         if written.t0 is None:
             written.t0 = int(result.timestamp_ns)
         time_s = (int(result.timestamp_ns) - written.t0) / 1e9
-        extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings),
+        extensometers.write(csv_rows(extensometer_columns(result.frame_index, time_s, readings, scale),
                                      len(readings.names)))
         written.times.append(time_s)
         written.frame_numbers.append(int(result.frame_index))
@@ -234,7 +238,7 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
         _write_p0_row(trace, result, source.p0_id, time_s, written)
         written.frames += 1
     if extras_seen is None:
-        fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS) + "\n")
+        fields_csv.write(",".join(LEADING_COLUMNS + STRAIN_COLUMNS + mm_fields) + "\n")
     return written
 
 
@@ -257,14 +261,18 @@ def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_s
                              result.y, result.u, result.v, result.zncc, result.ok, extras)
     stage = source.stage
     assert stage is not None and source.first is not None     # a frame with results: the stage was placed on the first
+    scale = source.config.px_per_mm
     if np.array_equal(result.point_id, source.first.point_id):
         strain_field, readings = stage.compute(result.u, result.v, result.ok)
         columns.update(exx=strain_field.exx, eyy=strain_field.eyy, exy=strain_field.exy)
         source.ranges.add(columns, np.asarray(result.ok, dtype=bool))
+        if scale:
+            u_ideal, v_ideal = stage.ideal_displacements(result.u, result.v)
+            columns.update(u_mm=np.asarray(u_ideal) / scale, v_mm=np.asarray(v_ideal) / scale)
     else:                             # not the reference's points: no strain to speak of
         written.other_points += 1
         readings = _lost_readings(stage.placed)
-        columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS})
+        columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS + FIELD_MM_COLUMNS})
     fields_csv.write(csv_rows(columns, n))
     return readings
 
@@ -319,11 +327,11 @@ def _plot_extensometer_file(staged: dict[str, AtomicFile], path: str, source: _S
     title = f"{os.path.basename(path)}: virtual extensometers"
     if stage is not None:
         l0 = [e.length_px for e in stage.extensometers]
-        title += f" ({stage.config.scale:g} px/mm)" if stage.config.scale else ""
+        title += f" ({stage.config.px_per_mm:g} px/mm)" if stage.config.px_per_mm else ""
     else:
         l0 = []
     plot_extensometers(staged["extensometers.png"].handle, written.times, source.names, l0,
-                       written.eng_strain(source.names), title=title, scale=source.config.scale,
+                       written.eng_strain(source.names), title=title, scale=source.config.px_per_mm,
                        empty_note="no tracking results" if written.frames == 0 else "no extensometers in this "
                        "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
 

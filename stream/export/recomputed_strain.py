@@ -213,7 +213,7 @@ def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None 
     return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
             "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
             "transverse_eng_strain": np.asarray(transverse, dtype=np.float64), "has_transverse": across is not None,
-            "l0_px": float(l0), "scale": config.scale, "truncated": truncated, "notes": list(notes),
+            "l0_px": float(l0), "scale": config.px_per_mm, "truncated": truncated, "notes": list(notes),
             "strain": stage.describe() if stage is not None else ""}
 
 
@@ -229,7 +229,7 @@ def _strain_settings(stage: StrainStage | None, config: StrainConfig,
                      overrides: Mapping[str, Any] | None) -> dict[str, Any]:
     """What the strain columns and the extensometers were computed with, for ``session.json``."""
     settings: dict[str, Any] = {"recomputed_from": "the recorded displacements", "measure": config.measure,
-                                "window": config.window, "scale_px_per_mm": config.scale,
+                                "window": config.window, "scale_px_per_mm": config.px_per_mm,
                                 "overridden": sorted(overrides or {})}
     if stage is not None:
         windows: Any = stage.windows                  # a dic.strain.field.StrainWindows

@@ -361,7 +361,7 @@ class Preparation:
         self._place_strain(first.image.shape)
         # the set-up as livedic preview draws it: its advice said now, the overlay in the view
         self.setup = setup_overlay(first.image, self.placement, self.strain, subset=config.tracking.subset,
-                                    scale=config.strain.scale, source=config.source,
+                                    scale=config.strain.px_per_mm, source=config.source,
                                     bit_depth=(first.metadata or {}).get("bit_depth"),
                                     pixel_format=first.pixel_format)
 
@@ -411,7 +411,7 @@ class Preparation:
         else:
             roi = (0, 0, shape[1], shape[0])
         self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
-                                               subset=self.config.tracking.subset)
+                                               subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
 
     def _frame_size(self) -> list[int] | None:
         """[W, H] of the first frame (the report's image size), None before it was read."""

@@ -58,7 +58,7 @@ class SetupOverlay:
         The reference frame.
     placement : stream.session.points.Placement
     extensometers : tuple of dic.strain.extensometer.Extensometer
-        As placed (reference px).
+        As placed, ends in reference image px (where they are drawn).
     scale : float or None
         px per mm (``--scale``), for the labels.
     quality : dic.region.pattern_quality.PatternQuality
@@ -77,6 +77,9 @@ class SetupOverlay:
         The frame's ("Mono8", "Mono12", "Mono16"), for display.
     extensometer_warnings : tuple of str
         The strain stage's (``StrainStage.noise_warnings``: too short for its noise).
+    l0_px : dict of str to float
+        Each extensometer's L0 as the strain stage measures it (undistorted with a calibration), for the
+        labels; an extensometer not in it is labelled with its drawn length.
     """
     image: np.ndarray = field(repr=False)
     placement: Placement
@@ -91,6 +94,7 @@ class SetupOverlay:
     source: str
     pixel_format: str = "Mono8"
     extensometer_warnings: tuple[str, ...] = ()
+    l0_px: dict[str, float] = field(default_factory=dict)
 
     REGION_COLOUR = REGION_COLOUR
     EXCLUDED_COLOUR = EXCLUDED_COLOUR
@@ -108,9 +112,10 @@ class SetupOverlay:
             self.placement.spec.outline is None else "ROI")
 
     def extensometer_label(self, extensometer: Extensometer) -> str:
-        length = f"L0 {extensometer.length_px:.0f} px"
+        l0 = self.l0_px.get(extensometer.name, extensometer.length_px)
+        length = f"L0 {l0:.0f} px"
         if self.scale:
-            length += f" ({extensometer.length_px / self.scale:.2f} mm)"
+            length += f" ({l0 / self.scale:.2f} mm)"
         return f"{extensometer.name} {length}"
 
     def lines(self) -> list[str]:
@@ -191,13 +196,15 @@ def setup_overlay(image: np.ndarray, placement: Placement, strain_stage: StrainS
             if (measured & specimen.mask).any():
                 measured = measured & specimen.mask
     quality = pattern_quality(image, subset, measured if measured.any() else None, bit_depth=bit_depth)
-    extensometers = tuple(strain_stage.extensometers) if strain_stage is not None else ()
+    extensometers = strain_stage.image_extensometers if strain_stage is not None else ()
     exclusions = [shape_outline(shape) for shape in placement.spec.exclude]
     return SetupOverlay(image=image, placement=placement, extensometers=extensometers, scale=scale,
                         quality=quality, outlines=region_outlines(placement.region), exclusions=exclusions,
                         weak=quality.weak_subsets(placement.points), straddle=straddle, subset=int(subset),
                         source=source, pixel_format=pixel_format,
-                        extensometer_warnings=tuple(strain_stage.noise_warnings()) if strain_stage is not None else ())
+                        extensometer_warnings=tuple(strain_stage.noise_warnings()) if strain_stage is not None else (),
+                        l0_px={e.name: e.length_px for e in strain_stage.extensometers} if strain_stage is not None
+                        else {})
 
 
 # ----------------------------------------------------------------------------- the PNG

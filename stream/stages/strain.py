@@ -25,19 +25,28 @@ Extensometers:
     any other, between two reference image positions in px (repeatable).
 
 Lengths are in px, or in mm with ``--scale PX_PER_MM`` (image positions stay in px).
+
+With ``--calibration CAL.json`` (``livedic calibrate``) the lens's distortion is removed first: reference
+points and their current positions (points + u, v) are undistorted to ideal pixels, and the strain
+windows' offsets, the displacements they fit and the extensometers' ends and lengths are in ideal px
+(the strain windows keep the tracked grid's neighbours). The calibration's px/mm on the specimen plane is
+the scale; ``--scale`` with a calibration that has one is refused (two scales), and gives the scale of a
+calibration without one. Extensometer ends given or recorded are image positions (what the user sees).
 """
 
 import math
 import re
 import time
 from array import array
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
 
+from livedic.dic.calibration import CameraCalibration, distort_points, undistort_points
 from livedic.dic.strain.extensometer import (AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints,
-                                              place_extensometers, read_extensometers, strain_noise)
+                                              end_displacements, place_extensometers, read_extensometers,
+                                              strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 from livedic.stream.pipeline.frame_result import FrameResult
 from livedic.stream.pipeline.stage import Stage
@@ -84,6 +93,10 @@ def add_strain_arguments(parser, *, recorded=False):
                             "(repeatable)")
     group.add_argument("--scale", type=float, metavar="PX_PER_MM",
                        help="pixels per millimetre: --gauge-length in mm, lengths also reported in mm")
+    group.add_argument("--calibration", metavar="CAL.json",
+                       help="camera calibration from livedic calibrate: points undistorted before strain and "
+                            "extensometers; its px/mm (from --plane) is the scale"
+                            + (" (default: the recorded one, if any)" if recorded else ""))
     return parser
 
 
@@ -138,7 +151,9 @@ class StrainConfig:
     extensometers : tuple of dic.strain.extensometer.Extensometer
         More, in reference px.
     scale : float or None
-        Pixels per millimetre.
+        Pixels per millimetre as given (``--scale``); ``px_per_mm`` is the one used.
+    calibration : dic.calibration.CameraCalibration or None
+        The camera's calibration: positions are undistorted before strain and extensometers.
     """
     window: int = DEFAULT_WINDOW
     measure: str = DEFAULT_MEASURE
@@ -146,6 +161,7 @@ class StrainConfig:
     gauge_width: float | None = None
     extensometers: tuple = ()
     scale: float | None = None
+    calibration: CameraCalibration | None = None
 
     def __post_init__(self):
         if not isinstance(self.window, int) or self.window < 3 or self.window % 2 == 0:
@@ -154,6 +170,9 @@ class StrainConfig:
             raise ValueError(f"--strain-measure {self.measure!r}: choose one of {', '.join(MEASURES)}")
         if self.scale is not None and not (math.isfinite(self.scale) and self.scale > 0):
             raise ValueError(f"--scale must be a positive number of pixels per mm, got {self.scale}")
+        if self.scale is not None and self.calibration is not None and self.calibration.px_per_mm is not None:
+            raise ValueError(f"--scale {self.scale:g} and --calibration, which gives {self.calibration.px_per_mm:.4f} "
+                             "px/mm on the specimen plane: give one of them")
         if self.gauge_width is not None and self.gauge_length is None:
             raise ValueError("a transverse gauge width needs --gauge-length L,W")
         object.__setattr__(self, "extensometers", tuple(self.extensometers))
@@ -173,13 +192,32 @@ class StrainConfig:
             return cls.from_metadata(recorded_metadata, **given)
         return cls(**given)
 
+    @property
+    def px_per_mm(self) -> float | None:
+        """The scale used: ``--scale``, else the calibration's on the specimen plane, else None."""
+        if self.scale is not None:
+            return self.scale
+        return None if self.calibration is None else self.calibration.px_per_mm
+
     def to_px(self, length):
-        """A length as given (mm with ``scale``, else px) in px."""
-        return length * self.scale if self.scale else length
+        """A length as given (mm with a scale, else px) in px."""
+        scale = self.px_per_mm
+        return length * scale if scale else length
 
     def in_mm(self, length_px):
-        """A length in px in mm (float), or None without ``scale``."""
-        return float(length_px) / self.scale if self.scale else None
+        """A length in px in mm (float), or None without a scale."""
+        scale = self.px_per_mm
+        return float(length_px) / scale if scale else None
+
+    def ideal(self, xy):
+        """Image positions (..., 2) as the strain uses them: undistorted with a calibration, else themselves."""
+        xy = np.asarray(xy, dtype=np.float64)
+        return xy if self.calibration is None else undistort_points(self.calibration, xy)
+
+    def image(self, xy):
+        """Ideal positions (..., 2) back to image positions (``ideal``'s inverse)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        return xy if self.calibration is None else distort_points(self.calibration, xy)
 
     def resolve_extensometers(self, p0, roi, x_range=None):
         """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others.
@@ -202,26 +240,49 @@ class StrainConfig:
             placed.append(Extensometer(TRANSVERSE, x0 - 0.5 * width, y0, x0 + 0.5 * width, y0))
         return tuple(placed) + self.extensometers
 
-    def place(self, points, *, p0, roi, step, subset):
+    def place(self, points, *, p0, roi, step, subset, image_size=None):
         """The ``StrainStage`` on the reference ``points`` (N, 2); ValueError (one line) for an end off the points.
 
         ``roi`` is (x, y, w, h) of the points' region (the transverse default width); ``step``
-        the grid step (None: the points' typical spacing).
+        the grid step (None: the points' typical spacing); ``image_size`` (W, H) of the frames, checked
+        against the calibration's. With a calibration the windows are found on the tracked grid and
+        their offsets, P0 and the extensometers' ends taken in ideal px.
         """
+        if self.calibration is not None and image_size is not None:
+            self.calibration.check_size(*image_size)
         points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         windows = strain_window(points, window=self.window, step=step, subset=subset)
-        x_range = _row_extent(points, p0, windows.step)
-        resolved = self.resolve_extensometers(p0, roi, x_range)
+        ideal = self.ideal(points)
+        if self.calibration is not None:
+            centre = np.repeat(np.arange(len(points)), np.diff(windows.start))
+            windows = replace(windows, dx=ideal[windows.index, 0] - ideal[centre, 0],
+                              dy=ideal[windows.index, 1] - ideal[centre, 1])
+            p0 = self.ideal(np.asarray(p0, dtype=np.float64))
+        x_range = _row_extent(ideal, p0, windows.step)
+        resolved = self._ideal_ends(self.resolve_extensometers(p0, roi, x_range))
         self._check_automatic_transverse(resolved, p0, x_range, subset)
+        unit = f" ({self.px_per_mm:g} px/mm)" if self.px_per_mm else ""
         try:
-            extensometers = place_extensometers(resolved, points, step=windows.step)
+            extensometers = place_extensometers(resolved, ideal, step=windows.step)
         except ExtensometerOffPoints as error:
-            unit = f" ({self.scale:g} px/mm)" if self.scale else ""
             raise ExtensometerOffPoints(f"{error}{unit}", error.name) from None
         except ValueError as error:
-            unit = f" ({self.scale:g} px/mm)" if self.scale else ""
             raise ValueError(f"{error}{unit}") from None
-        return StrainStage(self, points, windows, extensometers)
+        return StrainStage(self, points, windows, extensometers, ideal_points=ideal)
+
+    def _ideal_ends(self, extensometers):
+        """The extensometers given in image px (``--extensometer``, recorded ones) with their ends undistorted;
+        the automatic pair, built on the undistorted P0, stays as it is."""
+        if self.calibration is None:
+            return extensometers
+        given = {e.name for e in self.extensometers}
+        out = []
+        for e in extensometers:
+            if e.name in given:
+                (x1, y1), (x2, y2) = self.ideal(np.array([[e.x1, e.y1], [e.x2, e.y2]]))
+                e = Extensometer(e.name, float(x1), float(y1), float(x2), float(y2))
+            out.append(e)
+        return tuple(out)
 
     def _check_automatic_transverse(self, resolved, p0, x_range, subset):
         """ValueError (one line) when the automatic transverse is shorter than one subset: its two ends would
@@ -236,10 +297,15 @@ class StrainConfig:
                              f"give --gauge-length L,W")
 
     def as_metadata(self):
-        """The settings as a recording's session metadata keys (``from_metadata`` reads them back)."""
-        return {"strain_window": self.window, "strain_measure": self.measure, "scale_px_per_mm": self.scale,
+        """The settings as a recording's session metadata keys (``from_metadata`` reads them back).
+
+        ``scale_px_per_mm`` is the scale used (``px_per_mm``); ``calibration`` the whole CAL.json document.
+        """
+        from livedic.acquire.calibration import calibration_document
+        return {"strain_window": self.window, "strain_measure": self.measure, "scale_px_per_mm": self.px_per_mm,
                 "gauge_length": self.gauge_length, "gauge_width": self.gauge_width,
-                "extensometers_given": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.extensometers]}
+                "extensometers_given": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.extensometers],
+                "calibration": None if self.calibration is None else calibration_document(self.calibration)}
 
     @classmethod
     def from_metadata(cls, metadata, **overrides):
@@ -255,12 +321,23 @@ class StrainConfig:
         placed = metadata.get("extensometers")
         if not isinstance(placed, (list, tuple)):
             placed = metadata.get("extensometers_given") or ()
+        calibration = recorded_calibration(metadata)
         recorded = dict(window=int(get("strain_window", DEFAULT_WINDOW)),
                         measure=str(get("strain_measure", DEFAULT_MEASURE)),
                         extensometers=tuple(Extensometer(str(e[0]), *(float(v) for v in e[1:5])) for e in placed),
-                        scale=_float_or_none(metadata.get("scale_px_per_mm")))
+                        scale=_float_or_none(metadata.get("scale_px_per_mm")), calibration=calibration)
         recorded.update(overrides)
+        if recorded["calibration"] is not None and recorded["calibration"].px_per_mm is not None \
+                and "scale" not in overrides:
+            recorded["scale"] = None       # the recorded scale is the calibration's own
         return cls(**recorded)
+
+
+def recorded_calibration(metadata) -> CameraCalibration | None:
+    """The calibration a recording was made with (its session metadata's ``calibration``), or None."""
+    from livedic.acquire.calibration import calibration_from_document
+    document = metadata.get("calibration")
+    return None if document is None else calibration_from_document(document, "the recording's calibration")
 
 
 def _row_extent(points, p0, step):
@@ -284,6 +361,9 @@ def overrides_from_args(args):
         given["measure"] = args.strain_measure
     if getattr(args, "scale", None) is not None:
         given["scale"] = args.scale
+    if getattr(args, "calibration", None) is not None:
+        from livedic.acquire.calibration import read_calibration
+        given["calibration"] = read_calibration(args.calibration)
     length = parse_gauge_length(getattr(args, "gauge_length", None))
     extra = tuple(parse_extensometer(t) for t in (getattr(args, "extensometer", None) or ()))
     if length is not None or extra:
@@ -317,9 +397,10 @@ class StrainStage(Stage):
     provides: ClassVar[tuple[str, ...]] = ("strain", "extensometers")
 
     config: StrainConfig
-    points: np.ndarray
-    windows: Any                     # dic.strain.StrainWindow
-    placed: Any                      # dic.strain.extensometer.ExtensometerSet
+    points: np.ndarray               # the tracked reference points, image px
+    windows: Any                     # dic.strain.StrainWindow (offsets in ideal px with a calibration)
+    placed: Any                      # dic.strain.extensometer.ExtensometerSet (ends in ideal px with a calibration)
+    ideal_points: Any = None         # the points undistorted (``points`` without a calibration)
     name: str = "strain"
     required: bool = False
     last_strain: Any = None          # the last frame's StrainField
@@ -349,12 +430,44 @@ class StrainStage(Stage):
         The time each took is ``last_timings``.
         """
         started = time.perf_counter_ns()
+        u, v = self.ideal_displacements(u, v)
         strain = strain_field(self.windows, u, v, ok, measure=self.config.measure, labels=self.point_labels)
         middle = time.perf_counter_ns()
-        readings = read_extensometers(self.placed, self.points, u, v, ok, point_labels=self.point_labels,
+        readings = read_extensometers(self.placed, self._ideal_points(), u, v, ok, point_labels=self.point_labels,
                                       end_labels=self.end_labels)
         self.last_timings = {"strain": middle - started, "extensometers": time.perf_counter_ns() - middle}
         return strain, readings
+
+    def _ideal_points(self):
+        return self.points if self.ideal_points is None else self.ideal_points
+
+    def ideal_displacements(self, u, v):
+        """Image displacements (u, v) of the points as displacements in ideal px (themselves without a
+        calibration): undistort(points + (u, v)) - undistort(points); NaN stays NaN."""
+        if self.config.calibration is None:
+            return u, v
+        moved = self.config.ideal(self.points + np.column_stack([u, v]))
+        ideal = self._ideal_points()
+        return moved[:, 0] - ideal[:, 0], moved[:, 1] - ideal[:, 1]
+
+    @property
+    def image_ends(self) -> np.ndarray:
+        """The extensometers' reference ends (2E, 2) in image px (where to draw them on the camera's image)."""
+        ends = self.placed.ends
+        return self.config.image(ends) if len(ends) else ends
+
+    @property
+    def image_extensometers(self) -> tuple:
+        """The extensometers with their ends in image px (their ``length_px`` is then the image's, not L0)."""
+        ends = self.image_ends
+        return tuple(Extensometer(e.name, *(float(c) for c in ends[2 * k]), *(float(c) for c in ends[2 * k + 1]))
+                     for k, e in enumerate(self.extensometers))
+
+    def end_positions(self, u, v, ok) -> np.ndarray:
+        """The extensometers' ends (2E, 2) in this frame, image px (NaN where an end is lost)."""
+        iu, iv = self.ideal_displacements(u, v)
+        eu, ev = end_displacements(self.placed, self._ideal_points(), iu, iv, ok)
+        return self.config.image(self.placed.ends + np.column_stack([eu, ev]))
 
     def add_fracture(self, fracture):
         """Split the points (and the extensometer ends) by the crack of a ``dic.tensile.fracture.Fracture``."""
@@ -366,12 +479,18 @@ class StrainStage(Stage):
         ends = np.zeros(len(self.placed.ends), dtype=np.int64) if self.end_labels is None else self.end_labels
         scale = max(count, 1)
         self.point_labels = base + scale * sides(self.points)
-        self.end_labels = ends + scale * sides(self.placed.ends)
+        self.end_labels = ends + scale * sides(self.config.image(self.placed.ends))     # the crack is in image px
 
     def exact_readings(self, truth):
         """Exact engineering strain of every extensometer from a truth ``truth(x, y) -> (u, v)``."""
         ends = self.placed.ends
-        tu, tv = truth(ends[:, 0], ends[:, 1])
+        if self.config.calibration is None:
+            tu, tv = truth(ends[:, 0], ends[:, 1])
+        else:       # the truth is in image px: the ends' image positions moved, then undistorted
+            seen = self.config.image(ends)
+            su, sv = truth(seen[:, 0], seen[:, 1])
+            moved = self.config.ideal(seen + np.column_stack([su, sv]))
+            tu, tv = moved[:, 0] - ends[:, 0], moved[:, 1] - ends[:, 1]
         first, second = slice(0, None, 2), slice(1, None, 2)
         length = np.hypot(ends[second, 0] + tu[second] - ends[first, 0] - tu[first],
                           ends[second, 1] + tv[second] - ends[first, 1] - tv[first])
@@ -432,13 +551,17 @@ class StrainStage(Stage):
         return lines
 
     def _length(self, px):
-        scale = self.config.scale
+        scale = self.config.px_per_mm
         return f"{px:.0f} px" + (f" ({px / scale:.2f} mm)" if scale else "")
 
     def describe(self):
         """One line: the strain window, VSG and measure, and the extensometers."""
         text = (f"strain: {self.config.measure}, window {self.windows.window} points x step {self.windows.step:g} px "
                 f"+ subset {self.windows.subset} = VSG {self.vsg_px:.0f} px")
+        calibration = self.config.calibration
+        if calibration is not None:
+            text += (f"; lens distortion removed (calibration {calibration.target}, k1 {calibration.dist_coeffs[0]:.4g}, "
+                     f"reprojection RMS {calibration.rms_px:.3f} px)")
         if self.extensometers:
             text += "; extensometers " + ", ".join(
                 f"{e.name} L0 {format_length(e.length_px, self.config.in_mm(e.length_px))}"
@@ -466,9 +589,10 @@ class StrainStage(Stage):
                                       **(self.contraction.summary() if self.contraction is not None else {})})
 
     def metadata(self) -> dict[str, Any]:
-        """The VSG and the extensometers as placed (name and ends in reference px)."""
+        """The VSG and the extensometers as placed (name and ends in reference image px: with a calibration
+        their ideal ends distorted back, so ``from_metadata`` and the calibration place them again exactly)."""
         return {"vsg_px": self.vsg_px,
-                "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.extensometers]}
+                "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.image_extensometers]}
 
 
 def format_strain_summary(strain: dict | None) -> list[str]:

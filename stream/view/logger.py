@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from livedic.dic.strain.extensometer import AXIAL, end_displacements
+from livedic.dic.strain.extensometer import AXIAL
 from livedic.dic.tensile.properties import FRACTURE_DROP
 from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.stream.stages.force import axial_strain
@@ -47,7 +47,7 @@ if TYPE_CHECKING:
 
     from livedic.acquire.base import Frame
     from livedic.dic.result import Measurement
-    from livedic.dic.strain.extensometer import ExtensometerReadings, ExtensometerSet
+    from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.dic.tensile.poisson import ContractionRatio
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
     from livedic.stream.stages.force import LoadStage
@@ -555,11 +555,12 @@ class RerunLogger:
         """
         rr, rec, strain = self.rr, self._stream, self._strain
         assert strain is not None         # the caller draws extensometers of a strain session only
-        end_u, end_v = end_displacements(strain.placed, strain.points, m.u, m.v, m.ok)
+        ends = strain.image_ends                         # undistorted ends back on the camera's image
+        moved = strain.end_positions(m.u, m.v, m.ok)
+        end_u, end_v = moved[:, 0] - ends[:, 0], moved[:, 1] - ends[:, 1]
         known = np.isfinite(end_u) & np.isfinite(end_v)
         np.copyto(self._end_u, end_u, where=known)     # a lost end stays where it was last seen
         np.copyto(self._end_v, end_v, where=known)
-        ends = cast("ExtensometerSet", strain.placed).ends
         scale = float(self._scale)
         where = np.column_stack([(ends[:, 0] + self._end_u) / scale, (ends[:, 1] + self._end_v) / scale])
         first, second = where[0::2], where[1::2]

@@ -1,0 +1,121 @@
+"""Solving a calibration from target detections (Zhang's method, ``cv2.calibrateCamera``) and the
+specimen plane's scale from one target lying on it.
+
+``calibrate`` refuses (``CalibrationRefused``) with fewer than ``MIN_VIEWS`` images, or when the
+overall or any image's reprojection RMS exceeds the bound (default ``DEFAULT_MAX_ERROR_PX``): a
+calibration that does not fit its own images would mis-correct every measurement made with it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration, ImageFit, PlaneScale,
+                                            undistort_points)
+from livedic.dic.calibration.targets import Detection
+
+# Zhang's method needs views of the target in at least 3 different orientations.
+MIN_VIEWS = 3
+# A good corner detector reaches 0.1-0.2 px; above 0.5 px a corner or a view is wrong (blur, a mis-detected
+# board, a board that moved or is not flat).
+DEFAULT_MAX_ERROR_PX = 0.5
+# k3 is left out by default: with a handful of views of an ordinary machine-vision lens it only fits noise
+# (it trades against k1, k2); the principal point and both focal lengths are free.
+DEFAULT_FLAGS = cv2.CALIB_FIX_K3
+# A target plane tilted more than this from the camera axis foreshortens lengths noticeably (1 - cos 3 deg = 0.14 %).
+TILT_WARNING_DEG = 3.0
+
+
+class CalibrationRefused(CalibrationError):
+    """The calibration's fit is not good enough to be used; the message names the worst images."""
+
+
+def calibrate(detections: Sequence[tuple[str, Detection]], image_size: tuple[int, int], *, target: str,
+              square_mm: float, max_error_px: float = DEFAULT_MAX_ERROR_PX, flags: int = DEFAULT_FLAGS,
+              skipped: Sequence[str] = ()) -> CameraCalibration:
+    """Intrinsics and distortion from targets seen in several images (``cv2.calibrateCamera``).
+
+    Parameters
+    ----------
+    detections : sequence of (name, Detection)
+        The images in which the target was found.
+    image_size : (width, height)
+    target, square_mm
+        The target's spec text and square side, recorded in the result.
+    max_error_px : float
+        Refuse when the overall RMS or any image's RMS exceeds it.
+    flags : int
+        ``cv2.calibrateCamera`` flags (default ``CALIB_FIX_K3``).
+    skipped : sequence of str
+        Images in which no target was found (recorded in the result).
+
+    Raises
+    ------
+    CalibrationRefused
+        Fewer than ``MIN_VIEWS`` views, or an RMS above ``max_error_px``.
+    """
+    if len(detections) < MIN_VIEWS:
+        raise CalibrationRefused(f"the target was found in {len(detections)} image(s); a calibration needs at least "
+                                 f"{MIN_VIEWS} views of it at different tilts (more, 10-20, is better)")
+    objects = [d.object_points.astype(np.float32) for _, d in detections]
+    images = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for _, d in detections]
+    width, height = image_size
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(objects, images, (int(width), int(height)), None, None,
+                                                     flags=flags)
+    fits = []
+    for (name, detection), rvec, tvec in zip(detections, rvecs, tvecs):
+        projected, _ = cv2.projectPoints(detection.object_points, rvec, tvec, K, dist)
+        residual = projected.reshape(-1, 2) - detection.image_points
+        fits.append(ImageFit(name, int(residual.shape[0]), float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))))
+    worst = sorted(fits, key=lambda f: f.rms_px, reverse=True)
+    bad = [f for f in worst if f.rms_px > max_error_px]
+    if rms > max_error_px or bad:
+        names = ", ".join(f"{f.name} ({f.rms_px:.2f} px)" for f in (bad or worst)[:3])
+        raise CalibrationRefused(f"reprojection error {rms:.3f} px overall, above the bound {max_error_px:g} px in "
+                                 f"{len(bad)} of {len(fits)} image(s); worst: {names}: remove blurred views and "
+                                 "views where the board moved, bent or was mis-detected, or raise --max-error")
+    return CameraCalibration((int(width), int(height)), np.asarray(K, dtype=np.float64),
+                             np.asarray(dist, dtype=np.float64).ravel(), float(rms), tuple(fits), target,
+                             float(square_mm), int(flags), None, tuple(skipped))
+
+
+def plane_scale(calibration: CameraCalibration, name: str, detection: Detection) -> PlaneScale:
+    """The specimen plane's scale from a target lying on it (its corners undistorted first).
+
+    Fits the homography board (mm) -> ideal pixels; ``px_per_mm`` is the square root of its
+    Jacobian's determinant at the board's centre (the scale of areas), ``px_per_mm_xy`` the scale
+    along the image's axes there, and ``tilt_deg`` the plane's angle from the camera axis (the
+    homography decomposed with K: H ~ K [r1 r2 t]).
+    """
+    ideal = undistort_points(calibration, detection.image_points)
+    board = detection.object_points[:, :2]
+    H, _ = cv2.findHomography(board, ideal, 0)
+    if H is None:
+        raise CalibrationError(f"{name}: the target's corners do not fit a plane")
+    mapped = cv2.perspectiveTransform(board.reshape(-1, 1, 2), H).reshape(-1, 2)
+    rms = float(np.sqrt(np.mean(np.sum((mapped - ideal) ** 2, axis=1))))
+    centre = board.mean(axis=0)
+    J = _homography_jacobian(H, centre)
+    # Image-axis scales: the length on the board of a 1 px step along x (or y) in the image, inverted.
+    inverse = np.linalg.inv(J)
+    per_x, per_y = 1.0 / np.linalg.norm(inverse[:, 0]), 1.0 / np.linalg.norm(inverse[:, 1])
+    B = np.linalg.inv(calibration.camera_matrix) @ H
+    r1, r2 = B[:, 0] / np.linalg.norm(B[:, 0]), B[:, 1] / np.linalg.norm(B[:, 1])
+    normal = np.cross(r1, r2)
+    normal /= np.linalg.norm(normal)
+    tilt = math.degrees(math.acos(min(1.0, abs(float(normal[2])))))
+    return PlaneScale(name, float(math.sqrt(abs(np.linalg.det(J)))), (float(per_x), float(per_y)), tilt, H, rms)
+
+
+def _homography_jacobian(H: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """d(ideal px) / d(board mm) of the homography at ``point``."""
+    x, y = float(point[0]), float(point[1])
+    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+    u = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w
+    v = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w
+    return np.array([[(H[0, 0] - u * H[2, 0]) / w, (H[0, 1] - u * H[2, 1]) / w],
+                     [(H[1, 0] - v * H[2, 0]) / w, (H[1, 1] - v * H[2, 1]) / w]])
