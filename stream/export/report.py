@@ -144,6 +144,9 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
 def specimen_scale(given: float | None, session: Mapping[str, Any]) -> tuple[float | None, str | None]:
     """(px/mm, where it comes from) for the specimen's lengths: the session's scale, else the simulator's own
     (its images are rendered at a known scale), else (None, None)."""
+    calibration = session.get("calibration") or {}
+    if given and session.get("scale_px_per_mm") is None and calibration.get("px_per_mm"):
+        return float(given), "the calibration's target on the specimen plane"
     if given:
         return float(given), "the session's --scale"
     settings = session.get("source_settings") or {}
@@ -228,7 +231,8 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
               **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
     session = series["metadata"]
-    tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=(scale, scale_origin))),
+    tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=(scale, scale_origin),
+                                                                   calibration=session.get("calibration"))),
               ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
     report = report_json(properties, specimen, source, contraction, tables=tables)
     report[VERIFICATION_KEY] = verification_section(verification, gauge_length_px=series["l0_px"],

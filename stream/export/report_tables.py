@@ -56,6 +56,22 @@ def camera_description(settings: Mapping[str, Any]) -> tuple[str, str | None]:
     return (f"images from {uri}" if uri else NOT_RECORDED), None
 
 
+def calibration_description(calibration: Mapping[str, Any]) -> str:
+    """One line on a recorded calibration (CAL.json's fields): target, views, reprojection error, focal length,
+    distortion, the specimen plane's scale and tilt."""
+    matrix = calibration.get("camera_matrix") or [[float("nan")] * 3] * 2
+    k = calibration.get("dist_coeffs") or []
+    plane = calibration.get("plane") or {}
+    text = (f"{calibration.get('target', 'target')} ({calibration.get('square_mm', '?')} mm squares), "
+            f"{len(calibration.get('images') or [])} views, reprojection RMS {calibration.get('rms_px', float('nan')):.3f} "
+            f"px; fx {matrix[0][0]:.1f}, fy {matrix[1][1]:.1f} px")
+    if k:
+        text += ", k1 " + f"{k[0]:.4g}" + (f", k2 {k[1]:.4g}" if len(k) > 1 else "")
+    if plane:
+        text += f"; specimen plane tilted {plane.get('tilt_deg', float('nan')):.1f} deg"
+    return text + "; lens distortion removed before strain"
+
+
 def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] | None = None,
                   scale: tuple[float | None, str | None] | None = None) -> list[Row]:
     """The hardware table: camera and serial, sensor and image size, bit depth, frame rate, exposure, the
@@ -70,9 +86,7 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
     exposure = settings.get("exposure_us")
     px_per_mm, origin = scale if scale is not None else (session.get("scale_px_per_mm"), None)
     if calibration:
-        calibration_text = (f"{calibration.get('file', 'calibration')}: reprojection RMS "
-                            f"{calibration.get('rms_px', float('nan')):.3f} px over {calibration.get('n_images', '?')} "
-                            f"images, lens distortion removed before strain")
+        calibration_text = calibration_description(calibration)
     else:
         calibration_text = "none: lens distortion not corrected"
     return [

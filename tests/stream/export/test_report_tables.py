@@ -59,3 +59,19 @@ def test_the_scale_row_names_where_the_scale_comes_from():
     assert specimen_scale(None, {"source_settings": {"uri": "aravis:Cam1"}}) == (None, None)
     row = {r.key: r for r in hardware_rows(simulated, scale=specimen_scale(None, simulated))}["scale_px_per_mm"]
     assert row.value == 10.0 and row.text == "10 px/mm (the simulator's rendering scale)"
+
+
+def test_a_recorded_calibration_is_described_and_its_scale_named():
+    from livedic.stream.export.report import specimen_scale
+    calibration = {"target": "chessboard:9x6", "square_mm": 5.0, "images": [{}] * 8, "rms_px": 0.047,
+                   "camera_matrix": [[1023.7, 0, 511.3], [0, 1023.9, 511.6], [0, 0, 1]],
+                   "dist_coeffs": [-0.118, -0.0074, 0, 0, 0], "plane": {"tilt_deg": 1.2}, "px_per_mm": 10.0002}
+    session = {"source_settings": {"source": "aravis", "vendor": "Basler", "model": "a2A"}, "calibration": calibration,
+               "scale_px_per_mm": None}
+    scale = specimen_scale(10.0002, session)
+    assert scale == (10.0002, "the calibration's target on the specimen plane")
+    rows = {r.key: r for r in hardware_rows(session, scale=scale, calibration=calibration)}
+    assert rows["calibration"].value is calibration
+    text = rows["calibration"].text
+    assert "chessboard:9x6" in text and "8 views" in text and "0.047 px" in text and "k1 -0.118" in text
+    assert "tilted 1.2 deg" in text and text.endswith("lens distortion removed before strain")
