@@ -103,7 +103,7 @@ def _add_strain_command(bench_commands):
                        "tensile test, the real dog-bone", description="Strain error RMS on uniform strain fields "
                        "(two pattern generators, 8-bit, noise sigma 1) against the VSG, e_yy RMSE inside and outside "
                        "the neck of the simulated tensile test, extensometer errors against ISO 9513 class 0.5 "
-                       "(50 microstrain + 0.5 %% of the reading) and, with --data, the real muDIC dog-bone sequence. "
+                       "(50 microstrain + 0.5 % of the reading) and, with --data, the real muDIC dog-bone sequence. "
                        "Prints the tables and the verdict on each target; writes CSVs and strain.png.")
     strain.add_argument("--quick", action="store_true", help="smaller images, one subset, 60 frames (about a minute)")
     strain.add_argument("--data", metavar="DIR", help="folder with mudic_tensile_dogbone (e.g. ../shared/datasets); "
@@ -116,7 +116,7 @@ def _add_fracture_command(bench_commands):
     """``livedic bench fracture``'s options."""
     fracture = bench_commands.add_parser(
         "fracture", help="a tensile test to fracture: reference updates, accumulated error, fracture detection",
-        description="The simulated test to 30 %% uniform / 100 %% neck strain with fading paint and a fracture, "
+        description="The simulated test to 30 % uniform / 100 % neck strain with fading paint and a fracture, "
                     "tracked with --reference-update never and auto: visible points ok, RMSE and extensometer "
                     "error against the truth, wrong-but-ok points, the fracture frame, jumps at updates, update "
                     "time; with --data the real muDIC dog-bone's re-finds. Prints the verdict on each target; "
@@ -236,8 +236,8 @@ def _add_tensile_command(bench_commands):
         "tensile", help="E, Rp0.2, Rm, Ag, A recovered from the simulated tensile test with a known law",
         description="Runs the simulated tensile test (E 200 GPa, Rp0.2 816 MPa, Rm 1200 MPa, fracture) through "
                     "livedic run --load synthetic and livedic report, and prints each property against the law "
-                    "and against the same methods on the exact strain, with the targets (E 2 %%, Rp0.2 and Rm "
-                    "1 %%). Writes tensile.csv, the recording and the report.")
+                    "and against the same methods on the exact strain, with the targets (E 2 %, Rp0.2 and Rm "
+                    "1 %). Writes tensile.csv, the recording and the report.")
     tensile.add_argument("--quick", action="store_true", help="512x512, 150 frames (about 15 s) instead of 1 MP")
     tensile.add_argument("-o", "--output", default="results/tensile", metavar="DIR", help="results folder")
     tensile.set_defaults(handler=_cmd_bench_tensile)
@@ -247,9 +247,9 @@ def _add_calibration_command(bench_commands):
     """``livedic bench calibration``'s options."""
     calibration = bench_commands.add_parser(
         "calibration", help="a calibration recovered from simulated targets against the known lens, and the strain "
-                            "error of a 1 % stretch with and without the correction, centre and corners",
+                            "error of a 1 %% stretch with and without the correction, centre and corners",
         description="Renders chessboard views through a known lens (f = image width, k1 ...), calibrates, prints "
-                    "the recovered parameters against the truth, then measures a uniform 1 %% stretch filmed "
+                    "the recovered parameters against the truth, then measures a uniform 1 % stretch filmed "
                     "through the lens and prints the strain error near the centre and the corners: uncorrected, "
                     "with the recovered calibration, with the true lens.")
     calibration.add_argument("--size", type=int, default=1024, metavar="PX", help="image side (default 1024)")
