@@ -21,6 +21,7 @@ from __future__ import annotations
 import enum
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -169,7 +170,7 @@ def noise_floor(values: npt.ArrayLike, ok: npt.ArrayLike | None = None, *, quant
 def field_noise_floor(u: npt.ArrayLike, v: npt.ArrayLike, ok: npt.ArrayLike, *, exx: npt.ArrayLike | None = None,
                       eyy: npt.ArrayLike | None = None, exy: npt.ArrayLike | None = None,
                       strain_ok: npt.ArrayLike | None = None,
-                      extensometers: dict[str, tuple[npt.ArrayLike, npt.ArrayLike]] | None = None,
+                      extensometers: Mapping[str, tuple[npt.ArrayLike, npt.ArrayLike]] | None = None,
                       scale_px_per_mm: float | None = None) -> list[NoiseFloor]:
     """Every quantity's noise floor of one set of static frames, in the order a table shows them.
 

@@ -72,6 +72,7 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParse
                              "acquisition, recording and display, and parallel regions stall when cores are shared)")
     parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
     add_strain_arguments(parser)
+    add_config_arguments(parser, SessionConfig)         # --static-frames
     add_stress_arguments(parser)
     parser.add_argument("--publish", action="append", metavar="URI",
                         help="send each tracked frame's extensometer strain to a machine controller as soon as it "

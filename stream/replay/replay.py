@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, cast
 import numpy as np
 
 from livedic.dic.strain.extensometer import ExtensometerOffPoints
+from livedic.stream.stages.noise_floor import STATIC_FRAMES_KEY
 from livedic.stream.session.config import SessionConfig, TrackingConfig
 from livedic.stream.replay.rows import FrameRows, frame_rows
 from livedic.stream.session.session import NoFrame, Session
@@ -295,7 +296,8 @@ def _session_config(request: _Request, tracking: TrackingConfig, metadata: dict[
                                        "area_mm2": stress.area_mm2}
     return SessionConfig(source=f"mcap:{request.path}", tracking=tracking, threads=request.threads, drop="block",
                          warm_up=False, command="livedic replay",
-                         strain=StrainConfig.from_metadata(metadata, **(request.strain or {})), **force)
+                         strain=StrainConfig.from_metadata(metadata, **(request.strain or {})),
+                         static_frames=int(metadata.get(STATIC_FRAMES_KEY) or 0), **force)
 
 
 def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.ndarray],

@@ -155,6 +155,7 @@ def test_register_map_round_trip_as_the_readme_states_it():
 # --------------------------------------------------------------------------- sessions
 
 def _config(record, publish, **more):
+    more.setdefault("static_frames", 0)      # the frames counted here are the test's: no noise-floor frames before
     return SessionConfig(source=SOURCE, viewer=ViewerConfig("none"), record=record, warm_up=False,
                          strain=StrainConfig(gauge_length=200), publish=tuple(publish), **more)
 
