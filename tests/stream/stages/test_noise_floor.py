@@ -17,6 +17,7 @@ from livedic.stream.session.config import SessionConfig, ViewerConfig
 from livedic.stream.session.session import Session
 from livedic.stream.stages.noise_floor import recorded_noise_floor
 from livedic.stream.stages.strain import StrainConfig
+from livedic.stream.stages.stress import RECORDED_FORCE, StressOptions
 
 NOISE = 2.0                 # grey levels (8 bit): well above the rounding's 0.29
 STATIC = 8
@@ -27,7 +28,7 @@ SOURCE = f"synthetic:tensile?size=256x256&frames=12&pace=0&noise={NOISE}"
 def session(tmp_path_factory):
     record = str(tmp_path_factory.mktemp("noise") / "static.mcap")
     config = SessionConfig(source=SOURCE, viewer=ViewerConfig("none"), record=record, warm_up=False,
-                           strain=StrainConfig(gauge_length=12, scale=10.0), static_frames=STATIC)
+                           strain=StrainConfig(gauge_length=12, scale=10.0), static_frames=STATIC, load="synthetic")
     with Session(config) as session:
         session.prepare()
         session.start()
@@ -84,3 +85,13 @@ def test_the_recording_gives_the_same_noise_floor(session):
     recording = Recording(session.config.record)
     assert recording.session()["static_frames"] == STATIC
     assert recorded_noise_floor(recording) == session.summary()["noise_floor"]
+
+
+def test_the_report_shows_the_recorded_noise_floor(session, tmp_path):
+    from livedic.stream.export.report import report_recording
+    report = report_recording(session.config.record, tmp_path, stress=StressOptions(RECORDED_FORCE, 0.0, 20.0))
+    assert report["noise_floor"] == session.summary()["noise_floor"]
+    text = (tmp_path / "report.md").read_text()
+    assert "## Noise floor" in text and "| quantity | unit | spatial SD |" in text
+    u = _rows(report["noise_floor"])[("u", "px")]
+    assert f"| u | px | {u['spatial_sd']:.4f} | {u['temporal_sd_mean']:.4f} |" in text
