@@ -171,6 +171,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     from livedic.stream.export.force import RecordedForce
     from livedic.stream.export.notes import reader_notes
     from livedic.stream.export.recomputed_strain import axial_series
+    import numpy as np
     from livedic.stream.stages.noise_floor import recorded_noise_floor
     from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
@@ -190,8 +191,12 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
         force = open_load(stress.load, offset_s=stress.offset_s).force_at(series["time_s"])
     table = stress_strain_table(series["frames"], series["time_s"], force, series["eng_strain"], stress.area_mm2)
     properties = tensile_properties(table.eng_strain, table.eng_stress_MPa)
-    contraction = (contraction_ratios(series["eng_strain"], series["transverse_eng_strain"], force=table.force_N,
-                                      frames=table.frame) if series["has_transverse"] else None)
+    with reader_notes():
+        noise_floor = recorded_noise_floor(Recording(path))
+    test = ~np.isin(table.frame, noise_floor["frames_used"] if noise_floor else [])   # static frames: no test
+    contraction = (contraction_ratios(series["eng_strain"][test], series["transverse_eng_strain"][test],
+                                      force=table.force_N[test], frames=table.frame[test])
+                   if series["has_transverse"] else None)
     scale = series["scale"]
     specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
                 "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale}
@@ -205,8 +210,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
               **({"recorded_source": recorded.source} if stress.recorded else {}),
               "generated_at": datetime.now(timezone.utc).isoformat()}
     report = report_json(properties, specimen, source, contraction)
-    with reader_notes():
-        report["noise_floor"] = recorded_noise_floor(Recording(path))
+    report["noise_floor"] = noise_floor
     title = os.path.basename(path)
     with atomic_files(targets, binary={name for name in targets if name.endswith(".png")}) as staged:
         staged["report.json"].write(json_text(report))

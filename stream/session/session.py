@@ -283,7 +283,8 @@ class Session:
         # view, events, progress.
         sinks: list[Callable] = []
         if has_pair(self.strain):
-            self.poisson = ContractionWatch()       # after the load stage: the force picks the elastic range
+            # after the load stage: the force picks the elastic range; the static frames are no part of the test
+            self.poisson = ContractionWatch(self.preparation.static_frames)
             self.strain.contraction = self.poisson  # its ratio is summarised with the strain
             sinks.append(self.poisson)
         if recorder is not None:

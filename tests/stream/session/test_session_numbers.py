@@ -268,7 +268,7 @@ def test_a_full_disk_for_the_rerun_file_is_one_warning_the_session_goes_on(tmp_p
     assert "ERROR" not in done.stderr and "Traceback" not in done.stderr
     assert "tracked of 50 acquired" in done.stdout and "STOPPED EARLY" in done.stdout
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["frames"] + summary["dropped"] == 40 and "No space left on device" in summary["rerun_error"]
+    assert summary["frames"] + summary["dropped"] == 50 and "No space left on device" in summary["rerun_error"]
     kept = tmp_path / "kept"
     size = kept.stat().st_size
     assert 0 < size <= 2048 * 1024 and f"keeps its first {size / 1e6:.1f} MB" in warnings[0]
