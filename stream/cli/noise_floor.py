@@ -62,7 +62,7 @@ def noise_floor_command(args: argparse.Namespace) -> int:
     strain = StrainConfig(window=args.strain_window)
     if args.output is not None:
         check_output_file(args.output, "-o")
-    images = []
+    images: list[np.ndarray] = []
     for path in args.images:                      # every image read and checked before the work
         image, note = read_grey_image(path)
         if note:

@@ -220,6 +220,8 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
                 report.parallel.where = dask.where
         report.strain = session.strain.summary() if session.strain is not None else None
         report.force = session.load_stage.summary() if session.load_stage is not None else None
+        floor = session.preparation.noise_floor
+        report.noise_floor = floor.summary() if floor is not None else None
         if session.source_error is not None:
             raise session.source_error
         report.seconds = time.perf_counter() - started

@@ -14,7 +14,7 @@ results, strain and extensometer readings (the static count is in its metadata: 
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -151,7 +151,7 @@ def _number(value: float | None, digits: int) -> str:
 _DIGITS = {"px": 4, "mm": 5, "microstrain": 1}
 
 
-def noise_floor_rows(summary: dict[str, Any]) -> list[list[str]]:
+def noise_floor_rows(summary: Mapping[str, Any]) -> list[list[str]]:
     """The table's rows as text: quantity, unit, spatial SD, temporal SD mean and max, mean, points, note."""
     rows = []
     for item in summary["table"]:
@@ -167,7 +167,7 @@ NOISE_FLOOR_COLUMNS = ("quantity", "unit", "spatial SD", "temporal SD (mean)", "
                        "points", "note")
 
 
-def noise_floor_lines(summary: dict[str, Any], *, indent: str = "  ") -> list[str]:
+def noise_floor_lines(summary: Mapping[str, Any], *, indent: str = "  ") -> list[str]:
     """The summary's lines: a header saying on how many static frames, then one aligned line per quantity."""
     used = len(summary["frames_used"])
     lines = [f"{indent}{'noise':<11}floor on {used} static frame(s) after the reference"

@@ -95,3 +95,14 @@ def test_the_report_shows_the_recorded_noise_floor(session, tmp_path):
     assert "## Noise floor" in text and "| quantity | unit | spatial SD |" in text
     u = _rows(report["noise_floor"])[("u", "px")]
     assert f"| u | px | {u['spatial_sd']:.4f} | {u['temporal_sd_mean']:.4f} |" in text
+
+
+def test_a_replay_measures_the_same_noise_floor(session):
+    from livedic.stream.replay.replay import replay
+    report = replay(session.config.record)
+    assert report.noise_floor["static_frames"] == STATIC
+    live, replayed = _rows(session.summary()["noise_floor"]), _rows(report.noise_floor)
+    for key, row in live.items():
+        for column in ("spatial_sd", "temporal_sd_mean", "mean"):
+            if row[column] is not None:
+                assert replayed[key][column] == pytest.approx(row[column], rel=1e-6, abs=1e-9), (key, column)
