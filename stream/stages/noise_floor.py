@@ -1,7 +1,8 @@
 """The session's noise floor: the static frames after the reference, measured (``dic.noise_floor``).
 
-A session with ``--static-frames N`` (``stream.session.config``) takes the first N tracked frames after the
-reference while nothing moves (the simulator renders them; a camera's user holds the specimen still). The
+A session with ``--static-frames N`` (``stream.session.config``) takes the N frames after the reference (frame
+indices reference + 1 .. reference + N: a frame the queue dropped is missing, never replaced by a later,
+moving one) while nothing moves (the simulator renders them; a camera's user holds the specimen still). The
 ``NoiseFloorStage`` (a ``stream.pipeline.stage.Stage``, after the strain stage) keeps those frames' u, v, ok,
 strain and extensometer strain (``StaticFrames``) and, after the Nth, computes the noise floor of each
 quantity (``dic.noise_floor.field_noise_floor``), sets it on that frame's result (``result.noise_floor``) and
@@ -106,19 +107,23 @@ class NoiseFloorStage(Stage):
 
     def __init__(self, static_frames: int, scale_px_per_mm: float | None = None) -> None:
         self.static_frames = int(static_frames)
+        self._last = self.static_frames         # the last static frame's index (set on the reference)
         self.frames = StaticFrames(scale_px_per_mm)
         self.table: list[NoiseFloor] | None = None
 
     def on_reference(self, reference: Reference) -> None:
         self.frames = StaticFrames(self.frames.scale_px_per_mm)
         self.table = None
+        self._last = reference.frame_index + self.static_frames     # the last static frame's index
 
     def on_frame(self, result: FrameResult) -> None:
         if result.is_reference or self.table is not None:
             return
-        m = result.measurement
-        self.frames.add(result.frame.index, m.u, m.v, m.ok, result.strain, result.extensometers)
-        if len(self.frames) >= self.static_frames:
+        index = result.frame.index
+        if index <= self._last:
+            m = result.measurement
+            self.frames.add(index, m.u, m.v, m.ok, result.strain, result.extensometers)
+        if index >= self._last:                 # the last static frame, or past it (it was dropped)
             self.table = self.frames.table()
             result.noise_floor = self.table
 
@@ -198,11 +203,13 @@ def recorded_noise_floor(recording: Any, metadata: dict[str, Any] | None = None)
         return None
     scale = metadata.get("scale_px_per_mm")
     frames: dict[int, Any] = {}
+    reference = None
     for record in recording.results():
-        frames[record.frame_index] = record
-        if len(frames) > static:
+        reference = record.frame_index if reference is None else reference      # the first results: the reference
+        if record.frame_index > reference + static:
             break
-    indices = sorted(frames)[1:static + 1]          # the first is the reference
+        frames[record.frame_index] = record
+    indices = sorted(frames)[1:]
     strains = _first(recording.strain_fields(), indices, lambda s: s.frame_index)
     readings = _first(recording.extensometer_readings(), indices, lambda r: r[0])
     kept = StaticFrames(float(scale) if scale else None)

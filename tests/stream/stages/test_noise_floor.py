@@ -106,3 +106,29 @@ def test_a_replay_measures_the_same_noise_floor(session):
         for column in ("spatial_sd", "temporal_sd_mean", "mean"):
             if row[column] is not None:
                 assert replayed[key][column] == pytest.approx(row[column], rel=1e-6, abs=1e-9), (key, column)
+
+
+def test_a_dropped_static_frame_is_missing_never_replaced_by_a_moving_one():
+    from types import SimpleNamespace
+
+    from livedic.stream.pipeline.stage import Reference
+    from livedic.stream.stages.noise_floor import NoiseFloorStage
+    rng = np.random.default_rng(5)
+    stage = NoiseFloorStage(4)
+    stage.on_reference(Reference(frame_index=10, points=np.zeros((50, 2)), roi=(0, 0, 1, 1), step=1, shape=(1, 1)))
+
+    def result(index, shift=0.0):
+        u = shift + rng.normal(0.0, 0.01, 50)
+        measurement = SimpleNamespace(u=u, v=u.copy(), ok=np.ones(50, bool))
+        return SimpleNamespace(is_reference=index == 10, frame=SimpleNamespace(index=index), measurement=measurement,
+                               strain=None, extensometers=None, noise_floor=None)
+
+    # frame 13 was dropped by the queue; 15 is the test's first, already moving 5 px
+    results = [result(10), result(11), result(12), result(14), result(15, shift=5.0)]
+    for item in results:
+        stage.on_frame(item)
+    summary = stage.summary()
+    assert summary["frames_used"] == [11, 12, 14] and results[3].noise_floor is not None
+    u = _rows(summary)[("u", "px")]
+    assert u["spatial_sd"] < 0.02 and abs(u["mean"]) < 0.01
+    assert "floor on 3 static frame(s) after the reference (of 4 asked)" in "\n".join(stage.summary_lines())
