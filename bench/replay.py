@@ -143,7 +143,9 @@ def make_recording(folder, *, frames, size, points, log):
     """A ``livedic run`` recording of the simulated tensile test (run's defaults) in ``folder``."""
     from livedic.stream.cli import main
     path = os.path.join(folder, "bench-replay.mcap")
-    code = main(["run", "--source", f"synthetic:tensile?size={size}&frames={frames}&pace=0", "--record", path,
+    # --static-frames 0: the frames replayed are the test's ``frames``, no noise-floor frames before them
+    code = main(["run", "--source", f"synthetic:tensile?size={size}&frames={frames}&pace=0", "--static-frames", "0",
+                 "--record", path,
                  "--viewer", "none", "--n-points", str(points), "--progress", "off"])
     if code != 0:
         raise RuntimeError(f"livedic run could not make the bench recording (exit {code})")

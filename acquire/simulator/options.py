@@ -26,8 +26,9 @@ DEFAULT_SCALE_PX_PER_MM = 10.0
 # focal length LENS_FOCAL_WIDTHS x the image width (a normal lens) and the principal point at the image centre.
 LENS_FOCAL_WIDTHS = 1.0
 LENS_OPTIONS = ("k1", "k2", "p1", "p2")
+# static: frames after the reference with only the camera's noise (the session's --static-frames sets it).
 _COMMON_DEFAULTS = {"fps": 50.0, "bit": 8, "noise": 1.0, "seed": 0, "radius": 4.0, "pace": True, "loop": 0,
-                    "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0}
+                    "static": 0, "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0}
 TENSILE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=300, size=(1024, 1024), strain=0.05, neck=0.15, lateral="auto",
                         view="auto", fade=0.0, fracture=0, modulus=DEFAULT_MODULUS_GPA,
                         thickness=DEFAULT_THICKNESS_MM, scale=DEFAULT_SCALE_PX_PER_MM, hardening=0.0,
@@ -46,7 +47,7 @@ TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3,
 
 def _usage() -> str:
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
-            "&loop=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
+            "&loop=0&static=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
             "&modulus=200&thickness=2&scale=10&hardening=0&upper_yield=0&k1=0&k2=0&p1=0&p2=0, "
             "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
             "(same common options)")
@@ -212,6 +213,7 @@ _CONVERTERS = {
     "frames": partial(_INT, low=2), "fps": partial(parse_number, low=0, low_open=True), "size": _to_size,
     "bit": _to_bit, "noise": partial(parse_number, low=0), "seed": partial(_INT, low=0),
     "radius": partial(parse_number, low=0.5), "pace": parse_bool, "loop": partial(_INT, low=0),
+    "static": partial(_INT, low=0),
     "strain": partial(parse_number, low=0), "neck": partial(parse_number, low=0), "du": parse_number,
     "dv": parse_number, "jump": _to_jump, "lateral": _to_choice(("auto",) + LATERAL_LAWS),
     "view": _to_choice(("auto",) + VIEWS), "fade": _to_fade, "fracture": _to_fracture,

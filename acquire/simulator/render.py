@@ -139,8 +139,8 @@ def paint(intensity: np.ndarray, full: float) -> np.ndarray:
     return full * (PAINT_FLOOR + PAINT_GAIN * np.exp(-intensity))
 
 
-def quantise(image: np.ndarray, bit: int, noise_sigma: float, noise_seed: int) -> np.ndarray:
-    """Add camera noise (seeded), clip and round to Mono8 / Mono12."""
+def quantise(image: np.ndarray, bit: int, noise_sigma: float, noise_seed: int | tuple[int, ...]) -> np.ndarray:
+    """Add camera noise (seeded: ``numpy.random.default_rng(noise_seed)``), clip and round to Mono8 / Mono12."""
     full = FULL_SCALE[bit]
     out = np.empty(image.shape, dtype=np.uint8 if bit == 8 else np.uint16)
     if noise_sigma > 0.0:

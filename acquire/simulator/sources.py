@@ -2,7 +2,9 @@
 
 ``open_synthetic(uri)`` gives a ``SyntheticTensileSource`` or ``SyntheticTranslateSource``: every frame is
 rendered ahead (``prepare``), then delivered paced at ``fps``, with the exact displacement in each frame's
-``metadata["truth"]``. URIs, options, the model and the force law: docs/guide/sources.md ("The simulator").
+``metadata["truth"]``. With ``static=N`` the test's first frame (the reference) is followed by N static frames:
+the reference's image again with new camera noise, zero displacement, the reference's force; the test goes on
+after them (``model_index``). URIs, options, the model and the force law: docs/guide/sources.md ("The simulator").
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ SPECKLE_DENSITY = 1000.0 / 65536.0
 BACKGROUND_LEVEL = 0.10
 # Seeds the speckles' fading rates (independent of the pattern, the jitter and the noise).
 _FADE_SEED = 2025
+# Seeds the static frames' noise: a stream of its own, so the test's frames keep their noise with or without them.
+_STATIC_NOISE_SEED = 2026
 
 
 # --------------------------------------------------------------------------- #
@@ -38,7 +42,11 @@ _FADE_SEED = 2025
 # --------------------------------------------------------------------------- #
 
 class _PrerenderedSource(FrameSource):
-    """Renders every frame ahead (``prepare``), then delivers them paced at ``fps``."""
+    """Renders every frame ahead (``prepare``), then delivers them paced at ``fps``.
+
+    ``frames`` counts the frames delivered: the test's (``options["frames"]``) and the static ones after the
+    reference (``static``).
+    """
 
     model_name = ""
 
@@ -47,12 +55,14 @@ class _PrerenderedSource(FrameSource):
         self.uri = uri
         width, height = options["size"]
         self.shape = (height, width)
-        self.frames = options["frames"]
+        self.static = options["static"]
+        self.test_frames = options["frames"]
+        self.frames = self.test_frames + self.static
         self.rendered_frames = rendered_count(options)
         self.fps = options["fps"]
         self.bit = options["bit"]
         self.pixel_format = _PIXEL_FORMAT[self.bit]
-        nbytes = self.rendered_frames * width * height * (1 if self.bit == 8 else 2)
+        nbytes = (self.rendered_frames + self.static) * width * height * (1 if self.bit == 8 else 2)
         if nbytes > MAX_RENDER_BYTES:
             raise SourceError(
                 f"{uri}: {self.rendered_frames} frames of {width}x{height} at {self.bit} bit need "
@@ -60,6 +70,8 @@ class _PrerenderedSource(FrameSource):
                 "lower frames= or size=, or render fewer and cycle them with loop=K")
         self.lens: Lens | None = lens_from_options(options)
         self._images: list[np.ndarray] | None = None
+        self._static_images: list[np.ndarray] = []
+        self._reference_clean: np.ndarray | None = None
         self._lock = threading.Lock()
         self._closed = False
         self.render_seconds: float | None = None
@@ -96,8 +108,20 @@ class _PrerenderedSource(FrameSource):
         ideal = self.lens.undistort(np.stack([x, y], axis=-1))
         return ideal[..., 0], ideal[..., 1]
 
-    def _render(self, i: int) -> np.ndarray:
+    def _clean(self, i: int) -> np.ndarray:
+        """Test frame ``i`` before the camera's noise and quantisation (float32 grey levels)."""
         raise NotImplementedError
+
+    def _render(self, i: int) -> np.ndarray:
+        """Test frame ``i`` as the camera gives it."""
+        return quantise(self._clean(i), self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
+
+    def _render_static(self, k: int) -> np.ndarray:
+        """Static frame ``k`` (1..static): the reference with its own noise."""
+        if self._reference_clean is None:
+            self._reference_clean = self._clean(0)
+        return quantise(self._reference_clean, self.bit, self._noise_sigma(),
+                        (self.options["seed"], _STATIC_NOISE_SEED, k))
 
     @property
     def live(self) -> bool:
@@ -113,26 +137,35 @@ class _PrerenderedSource(FrameSource):
     def prepare(self, progress: Callable[[int, int], object] | None = None) -> None:
         """Render the frames into memory (idempotent); ``progress(done, total)`` after each.
 
-        ``rendered_frames`` of them: all ``frames``, or ``loop`` when cycling.
+        ``rendered_frames`` of the test (all its frames, or ``loop`` when cycling), then the ``static`` ones.
         """
         with self._lock:
             if self._images is not None:
                 return
             start = time.perf_counter()
             images = []
-            for i in range(self.rendered_frames):
+            total = self.rendered_frames + self.static
+            for i in range(total):
                 if self._closed:
                     raise SourceError(f"{self.uri}: closed while rendering")
-                images.append(self._render(i))
+                images.append(self._render(i) if i < self.rendered_frames
+                              else self._render_static(i - self.rendered_frames + 1))
                 if progress is not None:
-                    progress(i + 1, self.rendered_frames)
-            self._images = images
+                    progress(i + 1, total)
+            self._images = images[:self.rendered_frames]
+            self._static_images = images[self.rendered_frames:]
             self.render_seconds = time.perf_counter() - start
 
+    def model_index(self, i: int) -> int:
+        """The test's frame delivered as frame ``i``: 0 in the static frames (1..static), ``i - static`` after."""
+        return 0 if i <= self.static else i - self.static
+
     def rendered_index(self, i: int) -> int:
-        """The rendered frame delivered as frame ``i``: ``i``, or its place in the forward-back cycle (loop)."""
+        """The rendered test frame delivered as frame ``i``: its ``model_index``, or that index's place in the
+        forward-back cycle (loop)."""
+        i = self.model_index(i)
         k = self.rendered_frames
-        if k >= self.frames:
+        if k >= self.test_frames:
             return i
         m = i % (2 * (k - 1))
         return m if m < k else 2 * (k - 1) - m
@@ -149,14 +182,15 @@ class _PrerenderedSource(FrameSource):
     def visible(self, frame_index: int, x: npt.ArrayLike, y: npt.ArrayLike, half_width: float = 0.0) -> np.ndarray:
         """Whether the square subset of half-width ``half_width`` px around each reference point (x, y)
         lies inside the image in the reference and in frame ``frame_index`` (boolean array)."""
-        j = self._check_index(frame_index)
+        self._check_index(frame_index)
         x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
         H, W = self.shape
         d = float(half_width)
         seen = np.ones(x.shape, dtype=bool)
         for dy in (-d, d):
             for dx in (-d, d):
-                u, v = self.truth(j, x + dx, y + dy)
+                # truth maps the delivered index itself (static frames, loop): mapped twice it would be wrong
+                u, v = self.truth(frame_index, x + dx, y + dy)
                 for px, py in ((x + dx, y + dy), (x + dx + u, y + dy + v)):
                     seen &= (px >= 0.0) & (px <= W - 1.0) & (py >= 0.0) & (py <= H - 1.0)
         return seen
@@ -167,7 +201,8 @@ class _PrerenderedSource(FrameSource):
         start_ns = time.monotonic_ns()
         images = cast(list[np.ndarray], self._images)       # prepare() rendered them
         for i in range(self.frames):
-            image = images[self.rendered_index(i)]
+            image = (self._static_images[i - 1] if 1 <= i <= self.static
+                     else images[self.rendered_index(i)])
             if self._closed:
                 return
             metadata = self.frame_metadata(i)
@@ -197,7 +232,7 @@ class _PrerenderedSource(FrameSource):
                          "pixel_format": self.pixel_format, "uri": self.uri,
                          "delivery": "rendered ahead, paced at fps" if self.options["pace"]
                          else "rendered ahead, as fast as read"})
-        if self.rendered_frames < self.frames:
+        if self.rendered_frames < self.test_frames:
             settings["delivery"] += f"; {self.rendered_frames} rendered frames cycled forward and back"
         if self.lens is not None:
             settings["lens"] = self.lens.to_dict()
@@ -212,8 +247,8 @@ class SyntheticTensileSource(_PrerenderedSource):
     uri : str, optional
         ``synthetic:tensile?...``; keyword options override the URI's.
     **options
-        frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, loop, strain, neck, lateral,
-        view, fade, fracture, modulus, thickness, scale, hardening, upper_yield.
+        frames, fps, size (W, H) or "WxH", bit, noise, seed, radius, pace, loop, static, strain, neck, lateral,
+        view, fade, fracture, modulus, thickness, scale, hardening, upper_yield, k1, k2, p1, p2.
 
     Attributes
     ----------
@@ -221,7 +256,8 @@ class SyntheticTensileSource(_PrerenderedSource):
     suggested_roi : tuple of int, (x, y, w, h)
         The gauge section, inset so subsets stay on the specimen while it narrows.
     fracture_frame : int or None
-        The first frame showing the specimen broken (``fracture`` option), None without one.
+        The first delivered frame showing the specimen broken (``fracture`` option, counted in the test's
+        frames, plus the ``static`` frames before it), None without one.
     specimen : dict
         A0 (mm^2), scale, E and the exact yield, Rp0.2 and Rm (``TensileModel.specimen``).
     """
@@ -240,7 +276,7 @@ class SyntheticTensileSource(_PrerenderedSource):
                                   fracture_frame=fracture, modulus_gpa=opts["modulus"], hardening=opts["hardening"],
                                   upper_yield=opts["upper_yield"], thickness_mm=opts["thickness"],
                                   scale_px_per_mm=opts["scale"])
-        self.fracture_frame = fracture
+        self.fracture_frame = fracture + opts["static"] if fracture else None    # as delivered, after the static
         if opts["fade"] > 0.0 and any(opts[name] for name in ("k1", "k2", "p1", "p2")):
             raise SourceError(f"{uri}: fade= cannot be rendered through a lens (k1, k2, p1, p2) yet: use one or "
                               "the other")
@@ -275,12 +311,7 @@ class SyntheticTensileSource(_PrerenderedSource):
     def forces_N(self) -> np.ndarray:  # noqa: N802
         """Force (N) of every delivered frame 0 .. frames - 1 (float64 array; cycled with ``loop``)."""
         rendered = np.array([self.model.force_n(j) for j in range(self.rendered_frames)])
-        k = self.rendered_frames
-        index = np.arange(self.frames)
-        if k < self.frames:
-            cycle = index % (2 * (k - 1))
-            index = np.where(cycle < k, cycle, 2 * (k - 1) - cycle)
-        return rendered[index]
+        return rendered[[self.rendered_index(i) for i in range(self.frames)]]
 
     @property
     def specimen(self) -> dict[str, Any]:
@@ -320,10 +351,9 @@ class SyntheticTensileSource(_PrerenderedSource):
         damage = self.model.plastic_strain_yy(i, self._ys) / peak
         return np.maximum(1.0 - fade * self._fade_rates * damage, 0.0)
 
-    def _render(self, i: int) -> np.ndarray:
+    def _clean(self, i: int) -> np.ndarray:
         if self.lens is not None:
-            return quantise(self._render_through_lens(i, self.lens), self.bit, self._noise_sigma(),
-                            self.options["seed"] * 1_000_003 + i + 1)
+            return self._render_through_lens(i, self.lens)
         full = float(self.full_scale)
         Y, alpha, beta = self.model.inverse_rows(i, self._rows)
         hw = self.model.half_width(Y)
@@ -335,7 +365,7 @@ class SyntheticTensileSource(_PrerenderedSource):
         render_specimen(self._xs, self._ys, self.fade_amplitudes(i), float(self.pattern.radius),
                          float(self.pattern.cutoff_px), Y, alpha, beta, left, right, row_cover,
                          full * self._background, full, PAINT_FLOOR, PAINT_GAIN, image)
-        return quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
+        return image
 
 
     def _render_through_lens(self, i: int, lens: Lens) -> np.ndarray:
@@ -416,7 +446,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
         margin = 32
         return (margin, margin, W - 2 * margin, H - 2 * margin)
 
-    def _render(self, i: int) -> np.ndarray:
+    def _clean(self, i: int) -> np.ndarray:
         from livedic.dic.speckle import render
         u, v = self.shift(i)
         lens = self.lens
@@ -427,7 +457,7 @@ class SyntheticTranslateSource(_PrerenderedSource):
             ideal = lens.ideal_pixels()
             intensity = self.pattern.intensity(ideal[..., 0] - u, ideal[..., 1] - v)
         image = paint(intensity, float(self.full_scale)).astype(np.float32)
-        return quantise(image, self.bit, self._noise_sigma(), self.options["seed"] * 1_000_003 + i + 1)
+        return image
 
 
 def open_synthetic(uri: str, **options: Any) -> SyntheticTensileSource | SyntheticTranslateSource:

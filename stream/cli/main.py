@@ -24,6 +24,7 @@ import threading
 from livedic.stream.cli.calibrate import add_calibrate_arguments, calibrate_command
 from livedic.stream.cli.export import add_export_arguments, export_command
 from livedic.stream.cli.measure import add_measure_arguments, measure_command
+from livedic.stream.cli.noise_floor import add_noise_floor_arguments, noise_floor_command
 from livedic.stream.cli.preview import add_preview_arguments, preview_command
 from livedic.stream.cli.replay import add_replay_arguments, replay_command
 from livedic.stream.cli.report import add_report_arguments, report_command
@@ -180,6 +181,11 @@ def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
                                                 "--calibration (docs/guide/calibration.md).")
     add_calibrate_arguments(calibrate)
     calibrate.set_defaults(handler=calibrate_command)
+
+    noise = commands.add_parser("noise-floor", help="the measurement's noise floor from static images (u, v, "
+                                                    "strain: SD over points and over images)")
+    add_noise_floor_arguments(noise)
+    noise.set_defaults(handler=noise_floor_command)
 
     cameras = commands.add_parser("cameras", help="list GenICam cameras (GigE Vision, USB3 Vision) Aravis can see")
     cameras.add_argument("--fake", action="store_true", help="also list Aravis's in-process fake camera")

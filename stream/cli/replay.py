@@ -20,6 +20,7 @@ from livedic.stream.session.config import TrackingConfig
 from livedic.stream.session.options import add_config_arguments, config_values
 from livedic.stream.session.points import add_region_arguments
 from livedic.stream.session.summary import format_strain_summary
+from livedic.stream.stages.noise_floor import noise_floor_lines
 from livedic.stream.stages.force import format_force_summary
 from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
 from livedic.stream.stages.stress import add_stress_arguments, stress_options_from_args
@@ -119,6 +120,7 @@ def replay_command(args: argparse.Namespace) -> int:
     say(report.verdict())
     if report.parallel is not None:
         say(describe_parallel(report.parallel))
-    for line in format_strain_summary(report.strain) + format_force_summary(report.force):
+    floor = noise_floor_lines(report.noise_floor) if report.noise_floor is not None else []
+    for line in format_strain_summary(report.strain) + format_force_summary(report.force) + floor:
         say(line.strip())
     return 0

@@ -45,7 +45,8 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParse
                         help="frame source (default synthetic:tensile): synthetic:[tensile|translate][?opts], "
                              "aravis:[ID], v4l2:/dev/videoN, video:FILE, images:GLOB, mcap:FILE")
     parser.add_argument("--frames", type=int, metavar="N",
-                        help="stop after N frames (synthetic: also the length of the test; default 300)")
+                        help="stop after N frames (synthetic: the length of the test, taken after its "
+                             "--static-frames; default 300)")
     add_point_arguments(parser)
     add_config_arguments(parser, TrackingConfig)
     record = parser.add_mutually_exclusive_group()
@@ -72,6 +73,7 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParse
                              "acquisition, recording and display, and parallel regions stall when cores are shared)")
     parser.add_argument("--summary-json", metavar="FILE.json", help="also write the summary as JSON")
     add_strain_arguments(parser)
+    add_config_arguments(parser, SessionConfig)         # --static-frames
     add_stress_arguments(parser)
     parser.add_argument("--publish", action="append", metavar="URI",
                         help="send each tracked frame's extensometer strain to a machine controller as soon as it "

@@ -16,8 +16,9 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     ``plastic_contraction_ratio`` (the same slope over the plastic range, never called Poisson's
     ratio; in this file only), each ``{"value", "stderr", "label", "n_frames", "frames",
     "axial_strain_range", "axial_noise", "basis", "method", "reason"}`` (null with a reason without
-    the ``transverse`` extensometer); then ``specimen`` (cross-section, gauge length) and ``source``
-    (recording, load file, frames, strain settings). Strict JSON: no NaN.
+    the ``transverse`` extensometer); then ``specimen`` (cross-section, gauge length), ``source``
+    (recording, load file, frames, strain settings) and ``noise_floor`` (the static frames' table,
+    ``stream.stages.noise_floor.recorded_noise_floor``; null without static frames). Strict JSON: no NaN.
 ``report.md``
     The same for people: specimen, gauge length, the properties with the method of each, Poisson's
     ratio labelled with its frames and axial strain range, and the stress-strain plot.
@@ -128,6 +129,7 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
     nu = report[POISSON_KEY]
     value = "n/a" if nu["value"] is None else f"{nu['value']:.3f} +- {nu['stderr']:.3f}"
     lines.append(f"| {nu['label']} | {value} | - | {_cell(nu['method'])} (ASTM E132) | {_cell(nu['reason'] or '')} |")
+    lines += noise_floor_markdown(report.get("noise_floor"))
     lines += ["", "## Stress-strain curve", "", f"![stress-strain curve]({plot_name})", "",
               "Engineering stress F / A0 against the axial extensometer's engineering strain; true stress and "
               "strain only up to uniform elongation (maximum force), where the uniform-deformation formulas "
@@ -153,6 +155,22 @@ def specimen_scale(given: float | None, session: Mapping[str, Any]) -> tuple[flo
     if str(settings.get("uri", "")).startswith("synthetic:") and settings.get("scale"):
         return float(settings["scale"]), "the simulator's rendering scale"
     return None, None
+
+
+def noise_floor_markdown(floor: Mapping[str, Any] | None) -> list[str]:
+    """The report's noise-floor section (``stream.stages.noise_floor``): the table, or why there is none."""
+    from livedic.stream.stages.noise_floor import NOISE_FLOOR_COLUMNS, noise_floor_rows
+    lines = ["", "## Noise floor", ""]
+    if floor is None:
+        return lines + ["No static frames were recorded (`livedic run --static-frames N` takes them): the "
+                        "measurement's noise floor is unknown."]
+    lines += [f"On the {len(floor['frames_used'])} static frames after the reference (frames "
+              f"{', '.join(map(str, floor['frames_used']))}), strain as recorded: the spatial SD over the points of "
+              f"a frame (mean over the frames), the temporal SD of each point over the frames (mean and max over the "
+              f"points), and the mean (bias), as the iDICs Good Practices Guide defines them.", "",
+              "| " + " | ".join(NOISE_FLOOR_COLUMNS) + " |", "|" + "---|" * len(NOISE_FLOOR_COLUMNS)]
+    lines += ["| " + " | ".join(_cell(cell) for cell in row) + " |" for row in noise_floor_rows(floor)]
+    return lines
 
 
 def _force_line(source) -> str:
@@ -197,6 +215,8 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     from livedic.stream.export.force import RecordedForce
     from livedic.stream.export.notes import reader_notes
     from livedic.stream.export.recomputed_strain import axial_series
+    import numpy as np
+    from livedic.stream.stages.noise_floor import recorded_noise_floor
     from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)
@@ -215,8 +235,12 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
         force = open_load(stress.load, offset_s=stress.offset_s).force_at(series["time_s"])
     table = stress_strain_table(series["frames"], series["time_s"], force, series["eng_strain"], stress.area_mm2)
     properties = tensile_properties(table.eng_strain, table.eng_stress_MPa)
-    contraction = (contraction_ratios(series["eng_strain"], series["transverse_eng_strain"], force=table.force_N,
-                                      frames=table.frame) if series["has_transverse"] else None)
+    with reader_notes():
+        noise_floor = recorded_noise_floor(Recording(path))
+    test = ~np.isin(table.frame, noise_floor["frames_used"] if noise_floor else [])   # static frames: no test
+    contraction = (contraction_ratios(series["eng_strain"][test], series["transverse_eng_strain"][test],
+                                      force=table.force_N[test], frames=table.frame[test])
+                   if series["has_transverse"] else None)
     scale, scale_origin = specimen_scale(series["scale"], series["metadata"])
     specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
                 "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale,
@@ -237,6 +261,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     report = report_json(properties, specimen, source, contraction, tables=tables)
     report[VERIFICATION_KEY] = verification_section(verification, gauge_length_px=series["l0_px"],
                                                     subset=session.get("subset"), scale_px_per_mm=scale)
+    report["noise_floor"] = noise_floor
     title = os.path.basename(path)
     plot = io.BytesIO()
     plot_stress_strain(plot, table, properties=properties,

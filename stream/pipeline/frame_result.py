@@ -86,6 +86,7 @@ class FrameResult:
     true_stress_MPa: float | None = None
     extensometers: Any = None         # dic.extensometer.ExtensometerReadings, set by the strain stage
     poisson: Any = None               # dic.poisson.ContractionRatio: Poisson's ratio so far (stream.stages.contraction)
+    noise_floor: Any = None           # list of dic.noise_floor.NoiseFloor on the last static frame (stages.noise_floor)
     output_backlog: int = 0       # results waiting for the output thread behind this one (set as sinks get it)
 
     # The tracker's fields are set by ``TrackerLoop`` (``TRACKER_FIELDS``); the rest by the stage that ``provides``

@@ -69,6 +69,7 @@ class ReplayReport:
     strain: dict[str, Any] | None = None   # stream.stages.strain.StrainStage.summary() of the replay (extensometers)
     parallel: Any = None             # stream.replay.parallel_replay.ParallelStats on Dask (--workers, --cluster)
     force: dict[str, Any] | None = None    # stream.stages.force.LoadStage.summary() with --load
+    noise_floor: dict[str, Any] | None = None   # stream.stages.noise_floor.NoiseFloorStage.summary(): static frames
 
     @property
     def exact(self) -> bool:

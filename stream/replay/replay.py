@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, cast
 import numpy as np
 
 from livedic.dic.strain.extensometer import ExtensometerOffPoints
+from livedic.stream.stages.noise_floor import STATIC_FRAMES_KEY
 from livedic.stream.session.config import SessionConfig, TrackingConfig
 from livedic.stream.replay.rows import FrameRows, frame_rows
 from livedic.stream.session.session import NoFrame, Session
@@ -219,6 +220,8 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
                 report.parallel.where = dask.where
         report.strain = session.strain.summary() if session.strain is not None else None
         report.force = session.load_stage.summary() if session.load_stage is not None else None
+        floor = session.preparation.noise_floor
+        report.noise_floor = floor.summary() if floor is not None else None
         if session.source_error is not None:
             raise session.source_error
         report.seconds = time.perf_counter() - started
@@ -295,7 +298,8 @@ def _session_config(request: _Request, tracking: TrackingConfig, metadata: dict[
                                        "area_mm2": stress.area_mm2}
     return SessionConfig(source=f"mcap:{request.path}", tracking=tracking, threads=request.threads, drop="block",
                          warm_up=False, command="livedic replay",
-                         strain=StrainConfig.from_metadata(metadata, **(request.strain or {})), **force)
+                         strain=StrainConfig.from_metadata(metadata, **(request.strain or {})),
+                         static_frames=int(metadata.get(STATIC_FRAMES_KEY) or 0), **force)
 
 
 def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.ndarray],

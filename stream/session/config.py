@@ -58,6 +58,12 @@ CAMERA_SCHEMES = ("aravis", "v4l2")
 # --drop: "auto" picks oldest for live sources and block for files (``Session`` decides, knowing the source).
 DROP_CHOICES = ("auto", "oldest", "newest", "block")
 VIEWER_NONE = "none"
+# Static frames after the reference for the noise floor, where the session does not say (--static-frames): 10
+# give each point's temporal SD to about 1 / sqrt(2 x 9) = 24 % and the mean over points much better, in 0.2 s
+# at 50 fps (docs/guide/noise-floor.md). Sources that film (cameras) or simulate a test take them; files and
+# recordings hold what they hold: none unless asked.
+DEFAULT_STATIC_FRAMES = 10
+STATIC_FRAME_SCHEMES = ("synthetic",) + CAMERA_SCHEMES
 
 
 def _check_threads(threads):
@@ -431,6 +437,10 @@ class SessionConfig:
     publish : tuple of str
         Where each frame's extensometer strain goes out (``--publish udp://HOST:PORT`` or
         ``modbus://HOST:PORT``, ``stream.publish``); needs extensometers.
+    static_frames : int or None
+        Frames after the reference in which nothing moves, measured for the noise floor (``--static-frames``);
+        None: ``DEFAULT_STATIC_FRAMES`` for the simulator and cameras, 0 for files and recordings
+        (``static_frames_wanted``).
     """
     source: str = DEFAULT_SOURCE
     frames: int | None = None
@@ -456,11 +466,17 @@ class SessionConfig:
     load_offset: float = 0.0
     area_mm2: float | None = None
     publish: tuple = ()
+    static_frames: int | None = option(
+        None, f"frames after the reference in which nothing moves, measured for the noise floor (displacement and "
+        f"strain SDs; docs/guide/noise-floor.md): default {DEFAULT_STATIC_FRAMES} for the simulator (rendered before "
+        f"its test) and cameras (hold the specimen still), 0 for files and recordings; 0: none", metavar="N", type=int)
 
     def __post_init__(self):
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"--frames must be >= 1, got {self.frames}")
         _check_threads(self.threads)
+        if self.static_frames is not None and self.static_frames < 0:
+            raise ValueError(f"--static-frames must be >= 0 (0: no noise floor), got {self.static_frames}")
         if self.queue < 1:
             raise ValueError(f"--queue must be >= 1 frame, got {self.queue}")
         if self.drop not in DROP_CHOICES:
@@ -500,6 +516,13 @@ class SessionConfig:
         return parse_publish_uris(self.publish)
 
     @property
+    def static_frames_wanted(self) -> int:
+        """``static_frames``, or its default for this source (``DEFAULT_STATIC_FRAMES`` or 0, see the field)."""
+        if self.static_frames is not None:
+            return self.static_frames
+        return DEFAULT_STATIC_FRAMES if self.scheme in STATIC_FRAME_SCHEMES else 0
+
+    @property
     def scheme(self) -> str:
         """The source's scheme (``acquire.sources.SCHEMES``); SourceError for an unknown or malformed URI."""
         from livedic.acquire.sources import parse_scheme
@@ -537,4 +560,5 @@ class SessionConfig:
             show_progress=progress_enabled(args.progress),
             threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
             reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args),
-            publish=tuple(getattr(args, "publish", None) or ()), **_load_from_args(args))
+            publish=tuple(getattr(args, "publish", None) or ()), **_load_from_args(args),
+            **config_values(SessionConfig, args))

@@ -26,9 +26,10 @@ from livedic.dic.strain import field_fit
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST
 from livedic.stream.pipeline.progress import ProgressBar
 from livedic.stream.pipeline.stage import Stage, check_stage_order
-from livedic.stream.session.config import VIEWER_NONE
+from livedic.stream.session.config import CAMERA_SCHEMES, VIEWER_NONE
 from livedic.stream.session.points import PlacedBy, check_point_count, default_roi, place_points, read_points_csv
 from livedic.stream.session.preview import setup_overlay
+from livedic.stream.stages.noise_floor import NoiseFloorStage
 from livedic.stream.stages.strain import StrainConfig
 
 
@@ -197,8 +198,14 @@ class Preparation:
     points, p0, placement, roi, step, given_xy, setup
         The points (P0 first), where P0 is and why, how they were placed, the region asked for (None: the
         whole image), the grid step, the points given by ``--points``, the set-up overlay for the view.
-    strain, load_stage, publishers
+    strain, noise_floor, load_stage, publishers
         The stages (``stages``: in the order they run).
+    static_frames : int
+        Frames after the reference measured for the noise floor (``SessionConfig.static_frames_wanted``, or the
+        simulator's own ``static=``).
+    max_frames : int or None
+        Frames the session takes at most: ``--frames``, plus the static frames for the simulator (whose
+        ``--frames`` is the test's length).
     total_frames, render_seconds, drop_policy, source_options, view_child, record_path_was_free
     """
 
@@ -220,6 +227,9 @@ class Preparation:
         self.given_xy: Any = None
         self.setup: Any = None                 # the set-up drawn in the view (stream.session.preview.SetupOverlay)
         self.strain: Any = None
+        self.noise_floor: Any = None
+        self.static_frames = 0
+        self.max_frames: int | None = config.frames
         self.load: Any = None
         self.load_stage: Any = None
         self.publishers: list = []
@@ -234,7 +244,8 @@ class Preparation:
     def stages(self) -> list[Stage]:
         """The measurement's stages in the order they run (the tracking thread): strain, strain out as soon as it
         exists, then force (a live force stream's stage may wait for its next sample)."""
-        return [stage for stage in (self.strain, *self.publishers, self.load_stage) if stage is not None]
+        return [stage for stage in (self.strain, self.noise_floor, *self.publishers, self.load_stage)
+                if stage is not None]
 
     def run(self) -> None:
         """Check, open, read and place (see the module notes). Raises on bad input."""
@@ -254,10 +265,14 @@ class Preparation:
         self.phase = Phase.OPENING_SOURCE
         if config.scheme == "synthetic" and config.frames is not None and "frames=" not in config.source:
             self.source_options["frames"] = max(config.frames, 2)
+        self.static_frames = config.static_frames_wanted
+        if config.scheme == "synthetic" and "static=" not in config.source:
+            self.source_options["static"] = self.static_frames
         if self._given_source is not None:
             self.source = self._given_source
         else:
             self.source = sources.open_source(config.source, **self.source_options)
+        self._count_static_frames()
         self.phase = Phase.COMPILING
         if config.warm_up:
             warm_up(config.tracking)
@@ -280,6 +295,18 @@ class Preparation:
             self._open_load()           # the simulator's own force law needs the simulator
         self._open_publishers()
         check_stage_order(self.stages)  # a stage reading what no earlier stage made: a bug, said before outputs
+
+    def _count_static_frames(self):
+        """The static frames the source gives (the simulator's ``static=``) or the user holds still (said)."""
+        config = self.config
+        simulated = getattr(self.source, "static", None)
+        if isinstance(simulated, int):
+            self.static_frames = simulated
+            if config.frames is not None:
+                self.max_frames = config.frames + simulated      # --frames is the test's length
+        elif self.static_frames and config.scheme in CAMERA_SCHEMES:
+            self._say(f"hold the specimen still: taking {self.static_frames} static frames after the reference "
+                      f"for the noise floor (--static-frames 0: none)")
 
     def _preload(self):
         """Imported now (~0.5 s together), not between the first frame and the next: frames that come meanwhile
@@ -327,16 +354,20 @@ class Preparation:
         """Render the simulated test ahead, with a progress line; says how long it took."""
         source = self.source
         rendered = getattr(source, "rendered_frames", source.frames)
-        bar = ProgressBar(rendered, enabled=self.config.show_progress)
+        test_frames = getattr(source, "test_frames", source.frames)
+        static = getattr(source, "static", 0) or 0
+        bar = ProgressBar(rendered + static, enabled=self.config.show_progress)
         started = time.perf_counter()
         try:
             source.prepare(progress=lambda done, n: bar.update(done, "rendering the simulated test"))
         finally:
             bar.close()
         self.render_seconds = time.perf_counter() - started
-        cycling = f", cycled to make {source.frames}" if rendered != source.frames else ""
+        cycling = f", cycled to make {test_frames}" if rendered != test_frames else ""
+        still = f" after {static} static frames (the noise floor)" if static else ""
         pacing = f"delivery paced at {source.fps:g} fps" if source.options.get("pace", True) else "delivery unpaced"
-        self._say(f"simulator: {rendered} frames rendered ahead in {self.render_seconds:.1f} s{cycling}; {pacing}")
+        self._say(f"simulator: {rendered} frames of the test rendered ahead{still} in {self.render_seconds:.1f} s"
+                  f"{cycling}; {pacing}")
 
     def _place_points(self, first):
         """The points on the first frame (P0 first), checked: inside the image, not too many."""
@@ -412,6 +443,8 @@ class Preparation:
             roi = (0, 0, shape[1], shape[0])
         self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
                                                subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
+        if self.static_frames:
+            self.noise_floor = NoiseFloorStage(self.static_frames, self.config.strain.px_per_mm)
 
     def _frame_size(self) -> list[int] | None:
         """[W, H] of the first frame (the report's image size), None before it was read."""

@@ -276,14 +276,15 @@ class Session:
             options = self.preparation.source_options
             reconnect = Reconnect(reopen=lambda: sources.open_source(config.source, **options),
                                   retry_s=1.0, timeout_s=config.reconnect_timeout, on_event=self._source_event)
-        self.acquisition = AcquisitionThread(self.preparation.ahead, self.queue, max_frames=config.frames,
+        self.acquisition = AcquisitionThread(self.preparation.ahead, self.queue, max_frames=self.preparation.max_frames,
                                              on_frame=on_frame, reconnect=reconnect)
         self.bar = ProgressBar(self.total_frames, enabled=config.show_progress)
         # The outputs, in the output thread at their own pace: Poisson's ratio (for the view), recording,
         # view, events, progress.
         sinks: list[Callable] = []
         if has_pair(self.strain):
-            self.poisson = ContractionWatch()       # after the load stage: the force picks the elastic range
+            # after the load stage: the force picks the elastic range; the static frames are no part of the test
+            self.poisson = ContractionWatch(self.preparation.static_frames)
             self.strain.contraction = self.poisson  # its ratio is summarised with the strain
             sinks.append(self.poisson)
         if recorder is not None:
@@ -588,6 +589,7 @@ class Session:
             strain=({**self.strain.summary(), **(self.poisson.summary() if self.poisson is not None else {})}
                     if self.strain is not None else None),
             force=self.load_stage.summary() if self.load_stage is not None else None,
+            noise_floor=self.preparation.noise_floor.summary() if self.preparation.noise_floor is not None else None,
             publish=[publisher.summary() for publisher in self.publishers] or None,
             reference_update=config.tracking.reference_update,
             **(self.reference_updates.summary() if self.reference_updates is not None else {}),

@@ -8,7 +8,9 @@ engineering strains (NaN without a reading) and force (NaN without one), and fit
 apart (never called Poisson's ratio). The fit so far goes on each ``FrameResult``
 (``result.poisson``) for the live view; it is refitted every frame at first and then every
 ``n / REFIT_SHARE`` frames (a fit is O(n): about REFIT_SHARE x ln(n) fits a session). The
-summary holds both ratios as objects (``as_dict``).
+summary holds both ratios as objects (``as_dict``). The static frames after the reference (``--static-frames``,
+``stream.stages.noise_floor``) are no part of the test: left out, as ten copies of the origin would weigh the
+fit and hide where the elastic range ends.
 """
 
 from array import array
@@ -32,7 +34,8 @@ class ContractionWatch:
     name = "Poisson's ratio"
     required = False
 
-    def __init__(self):
+    def __init__(self, static_frames=0):
+        self._static_left = int(static_frames)   # frames after the reference still to leave out
         self.frames = array("q")
         self.axial = array("d")
         self.transverse = array("d")
@@ -41,6 +44,10 @@ class ContractionWatch:
         self._fitted_at = 0
 
     def __call__(self, result, stats):
+        if not result.is_reference and self._static_left > 0:
+            self._static_left -= 1
+            result.poisson = self.current
+            return
         readings = result.extensometers
         self.frames.append(int(result.frame.index))
         self.axial.append(_reading(readings, AXIAL))

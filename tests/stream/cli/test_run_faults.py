@@ -23,6 +23,7 @@ from livedic.acquire.camera.fake_gige import GigEFakeCamera
 from livedic.acquire.camera.fake_motion import SpeckleMotion
 from livedic.acquire.recording.reader import inspect_recording, read_events, read_results
 from livedic.acquire.recording.source import McapSource
+from livedic.stream.session.config import DEFAULT_STATIC_FRAMES
 from tests.waiting import wait_until
 
 pytestmark = pytest.mark.usefixtures("time_limit")
@@ -212,12 +213,13 @@ def test_disk_full_stops_the_recording_but_not_the_measurement(tmp_path):
     warnings = [line for line in err.splitlines() if "recording stopped" in line]
     assert len(warnings) == 1 and "File too large" in warnings[0] and warnings[0].startswith("livedic: warning:"), err
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["frames"] + summary["dropped"] == 90 and summary["error_rms_px"] < 0.05
+    frames = 90 + DEFAULT_STATIC_FRAMES              # the test's 90 after the simulator's static frames
+    assert summary["frames"] + summary["dropped"] == frames and summary["error_rms_px"] < 0.05
     assert os.path.getsize(record) <= limit
     info = inspect_recording(str(record))
-    assert info.truncated and 10 <= info.frames < 90, info
+    assert info.truncated and 10 <= info.frames < frames, info
     from livedic.acquire.sources import open_source
-    with open_source(uri, frames=90, pace=False) as simulator:
+    with open_source(uri, frames=90, static=DEFAULT_STATIC_FRAMES, pace=False) as simulator:
         expected = {frame.index: frame.image for frame in simulator}
     with McapSource(str(record)) as replay:
         recorded = [(frame.index, frame.image) for frame in replay]

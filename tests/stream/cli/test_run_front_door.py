@@ -148,9 +148,9 @@ def test_the_summary_is_printed_even_when_the_viewer_fails_to_close(tmp_path, ca
                  "--no-record", "--viewer", "save", str(tmp_path / "s.rrd"), "--n-points", "20", "--roi", "0,0,96,160",
                  "--summary-json", str(summary)]) == 0
     captured = capsys.readouterr()
-    assert "livedic run: synthetic:tensile" in captured.out and "frames     4 tracked" in captured.out
+    assert "livedic run: synthetic:tensile" in captured.out and "frames     14 tracked" in captured.out   # 4 after 10 static
     assert "warning: closing the Rerun stream failed: RuntimeError: Flush timed out" in captured.err
-    assert json.loads(summary.read_text())["frames"] == 4
+    assert json.loads(summary.read_text())["frames"] == 14
 
 
 # --------------------------------------------------------------------------- summary JSON
@@ -158,7 +158,8 @@ def test_the_summary_is_printed_even_when_the_viewer_fails_to_close(tmp_path, ca
 def test_the_summary_json_is_strict_json_with_null_for_missing_numbers(tmp_path):
     """One frame: no latency percentiles (NaN in Python) -> null, not NaN (which is not JSON)."""
     summary = tmp_path / "summary.json"
-    assert main(["run", "--source", "synthetic:tensile?size=96x160&pace=0", "--frames", "1", "--progress", "off",
+    assert main(["run", "--source", "synthetic:tensile?size=96x160&pace=0", "--frames", "1", "--static-frames", "0",
+                 "--progress", "off",
                  "--no-record", "--viewer", "none", "--n-points", "20", "--roi", "0,0,96,160",
                  "--summary-json", str(summary)]) == 0
     text = summary.read_text()

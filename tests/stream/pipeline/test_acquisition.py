@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pytest
 
+from livedic.stream.session.config import DEFAULT_STATIC_FRAMES
 from livedic.acquire.base import Frame, FrameSource, SourceError, SourceLost
 from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.stream.pipeline.acquisition import AcquisitionThread, QueuedFrame
@@ -446,7 +447,9 @@ def test_run_session_end_to_end(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "frames" in out and "POI/s" in out and "p99" in out and "against the truth" in out
     summary = json.loads(summary_path.read_text())
-    assert summary["acquired"] == 40 and summary["frames"] == 40 and summary["dropped"] == 0
+    # the test's 40 frames after the simulator's static ones (--static-frames' default for it)
+    frames = 40 + DEFAULT_STATIC_FRAMES
+    assert summary["acquired"] == frames and summary["frames"] == frames and summary["dropped"] == 0
     assert 40 <= summary["points"] <= 90
     assert summary["error_rms_px"] < 0.05 and summary["error_max_px"] < 0.3 and summary["ok_fraction"] > 0.97
     assert summary["fps"] > 0 and summary["latency_p50_ms"] > 0 and summary["poi_per_s"] > 0
@@ -464,7 +467,7 @@ def test_run_session_end_to_end(tmp_path, capsys):
     # The recording holds every acquired frame and one result per tracked frame, P0 first.
     from livedic.acquire.recording.reader import inspect_recording, read_events, read_results
     info = inspect_recording(str(mcap))
-    assert info.indexed and not info.truncated and info.frames == 40
+    assert info.indexed and not info.truncated and info.frames == frames
     results = read_results(str(mcap))
     assert len(results) == summary["frames"] and results[0].frame_index == 0
     assert results[-1].point_id[0] == 0 and results[-1].method == "improved-wso+icgn"

@@ -45,6 +45,7 @@ def test_preload_imports_the_modbus_server_and_only_for_modbus():
 # --------------------------------------------------------------------------- sessions
 
 def _config(record, publish, **more):
+    more.setdefault("static_frames", 0)      # the frames counted here are the test's: no noise-floor frames before
     return SessionConfig(source=SOURCE, viewer=ViewerConfig("none"), record=record, warm_up=False,
                          strain=StrainConfig(gauge_length=200), publish=tuple(publish), **more)
 
@@ -420,7 +421,8 @@ def test_a_modbus_port_in_use_is_one_line_exit_2_and_no_file(tmp_path):
 
 def test_run_publishes_from_the_command_line(tmp_path):
     receiver = _receiver()
-    done, errors, record = _run(tmp_path, "--gauge-length", "100", "--publish",
+    # the test's 3 frames only (at 1000 fps): no static frames before them
+    done, errors, record = _run(tmp_path, "--gauge-length", "100", "--static-frames", "0", "--publish",
                                 f"udp://localhost:{receiver.getsockname()[1]}")
     messages = [json.loads(d) for d in _drain(receiver)]
     receiver.close()

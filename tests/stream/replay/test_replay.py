@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from livedic.stream.session.config import DEFAULT_STATIC_FRAMES
 from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
@@ -36,9 +37,9 @@ def recording(tmp_path_factory):
 def killed(tmp_path_factory):
     """A recording by ``livedic run`` cut short as a kill during a write leaves it.
 
-    The run is paced (30 frames at 25 fps, 1.2 s), so the recorder writes its chunks as a live session
-    does: images when a chunk fills or ages, results together every ``flush_interval_s`` (0.25 s), not
-    with every frame. The file is then cut in the middle of its last image chunk: every chunk before
+    The run is paced (10 static frames and 30 of the test at 25 fps, 1.6 s), so the recorder writes its chunks
+    as a live session does: images when a chunk fills or ages, results together every ``flush_interval_s``
+    (0.25 s), not with every frame. The file is then cut in the middle of its last image chunk: every chunk before
     the cut (several data chunks among them) is whole, the results written after it are lost."""
     from mcap.reader import make_reader
 
@@ -279,7 +280,8 @@ def test_session_json_of_a_cut_recording_counts_the_frames_it_kept(killed, tmp_p
     assert main(["export", half, "-o", str(tmp_path / "out")]) == 0
     export = json.loads((tmp_path / "out" / "session.json").read_text())["livedic.export"]
     kept = sum(1 for _ in McapSource(half))
-    assert 0 < export["frames_delivered"] == kept < sum(1 for _ in McapSource(full)) == 30
+    # the test's 30 frames after the simulator's static ones
+    assert 0 < export["frames_delivered"] == kept < sum(1 for _ in McapSource(full)) == 30 + DEFAULT_STATIC_FRAMES
     assert export["frames_delivered_from"].endswith("the recording was cut short: at least this many")
 
 

@@ -35,7 +35,8 @@ def test_the_preparation_places_the_points_and_the_strain_on_the_first_frame_and
         points = preparation.points
         assert points.ndim == 2 and points.shape[1] == 2 and len(points) > 9
         assert np.allclose(points[0], preparation.p0.xy)                   # P0 is point 0
-        assert preparation.stages == [preparation.strain]                 # no --load, no --publish
+        # no --load, no --publish; the simulator's static frames' noise floor
+        assert preparation.stages == [preparation.strain, preparation.noise_floor]
         assert [e.name for e in preparation.strain.extensometers] == ["axial", "transverse"]
         metadata = preparation.metadata({"fps": 50.0})
         assert metadata["source_settings"] == {"fps": 50.0} and metadata["extensometers"][0][0] == "axial"

@@ -8,6 +8,7 @@ import json
 
 import pytest
 
+from livedic.stream.session.config import DEFAULT_STATIC_FRAMES
 from livedic.stream.cli import main
 from tests.stream.conftest import refused_run
 
@@ -26,19 +27,20 @@ def test_the_simulated_law_gives_its_yield_stress(tmp_path):
     force = run_with(tmp_path, "--load", "synthetic")
     assert force["area_mm2"] == pytest.approx(0.4 * 384 / 10 * 2)        # the simulator's own A0
     assert force["max_stress_MPa"] == pytest.approx(800.0, rel=1e-9)    # perfectly plastic at 200 GPa x 0.004
-    assert force["frames_without_force"] == 0 and force["frames"] == 40
+    assert force["frames_without_force"] == 0 and force["frames"] == 40 + DEFAULT_STATIC_FRAMES
 
 
 def test_a_force_file_is_read_at_the_frame_times(tmp_path):
     ramp = tmp_path / "force.csv"
     ramp.write_text("time_s,force_N\n" + "".join(f"{0.1 * k:.1f},{1000.0 * 0.1 * k}\n" for k in range(9)))
-    force = run_with(tmp_path, "--load", f"csv:{ramp}", "--area", "20")
+    # the frames' times are what this is about: the test's 40 frames only, no static ones before
+    force = run_with(tmp_path, "--load", f"csv:{ramp}", "--area", "20", "--static-frames", "0")
     # frames every 1/50 s: the file covers 0..0.8 s, frames 0..39 run to 0.78 s
     assert force["final_force_N"] == pytest.approx(1000.0 * 39 / 50, rel=1e-9)
     assert force["final_stress_MPa"] == pytest.approx(1000.0 * 39 / 50 / 20, rel=1e-9)
     short = tmp_path / "short.csv"
     short.write_text("time_s,force_N\n0,0\n0.4,400\n")
-    force = run_with(tmp_path, "--load", f"csv:{short}")
+    force = run_with(tmp_path, "--load", f"csv:{short}", "--static-frames", "0")
     assert force["frames_without_force"] == 19                          # after 0.4 s: NaN, never extrapolated
     assert force["final_force_N"] is None and force["max_stress_MPa"] is None
 

@@ -13,9 +13,10 @@ import pytest
 from livedic.acquire.recording.reader import read_results
 from livedic.dic.status import Status
 from livedic.stream.cli import main
+from livedic.stream.session.config import DEFAULT_STATIC_FRAMES
 
 SOURCE = "synthetic:tensile?strain=0.30&neck=1.0&fade=0.2&fracture=1&size=384x512&frames=60&pace=0"
-FRACTURE_FRAME = 54          # frames - round(0.1 frames)
+FRACTURE_FRAME = 54 + DEFAULT_STATIC_FRAMES     # the test's frames - round(0.1 frames), after the static ones
 
 
 @pytest.fixture(scope="module")

@@ -187,7 +187,7 @@ def test_a_full_disk_for_the_summary_json_is_one_warning_and_the_summary_is_prin
     warnings = [line for line in done.stderr.splitlines() if "warning" in line]
     assert len(warnings) == 1 and warnings[0].startswith("livedic: warning: the summary JSON was not written: ")
     assert "No space left on device" in warnings[0] and "Traceback" not in done.stderr
-    assert "livedic run: synthetic:tensile" in done.stdout and "frames     4 tracked" in done.stdout
+    assert "livedic run: synthetic:tensile" in done.stdout and "frames     14 tracked" in done.stdout   # 4 of the test after 10 static
     # the namespace's tmpfs is gone with it: nothing of it is left here (and nothing half-written was there)
     assert not (full / "summary.json").exists()
 
@@ -202,9 +202,9 @@ def test_a_full_disk_for_the_rerun_file_is_one_warning_the_session_goes_on(tmp_p
     assert len(warnings) == 1 and warnings[0].startswith("livedic: warning: Rerun view file stopped: cannot write ")
     assert "No space left on device" in warnings[0] and "the session goes on" in warnings[0]
     assert "ERROR" not in done.stderr and "Traceback" not in done.stderr
-    assert "tracked of 40 acquired" in done.stdout and "STOPPED EARLY" in done.stdout
+    assert "tracked of 50 acquired" in done.stdout and "STOPPED EARLY" in done.stdout
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["frames"] + summary["dropped"] == 40 and "No space left on device" in summary["rerun_error"]
+    assert summary["frames"] + summary["dropped"] == 50 and "No space left on device" in summary["rerun_error"]
     kept = tmp_path / "kept"
     size = kept.stat().st_size
     assert 0 < size <= 2048 * 1024 and f"keeps its first {size / 1e6:.1f} MB" in warnings[0]

@@ -17,6 +17,7 @@ import os
 import numpy as np
 import pytest
 
+from livedic.stream.session.config import DEFAULT_STATIC_FRAMES
 from livedic.acquire.recording.reader import read_results, read_session
 from livedic.stream.cli import main
 
@@ -62,13 +63,14 @@ def test_run(tmp_path_factory):
     frames = np.array([r.frame_index for r in results])
     time_s = np.array([(r.timestamp_ns - results[0].timestamp_ns) / 1e9 for r in results])
     x1, y1, x2, y2 = next(tuple(e) for name, *e in read_session(str(path))["extensometers"] if name == "axial")
-    source = SyntheticTensileSource(TENSILE)
+    source = SyntheticTensileSource(TENSILE, static=DEFAULT_STATIC_FRAMES)     # as run rendered it
     exact = []
     for frame in frames:
         u, v = source.truth(int(frame), np.array([x1, x2]), np.array([y1, y2]))
         exact.append(np.hypot(x2 + u[1] - x1 - u[0], y2 + v[1] - y1 - v[0]) / np.hypot(x2 - x1, y2 - y1) - 1.0)
     exact = np.array(exact)
-    loading = np.array([source.model.state(int(f))["phase"] in ("elastic", "plastic") for f in frames])
+    loading = np.array([source.model.state(source.rendered_index(int(f)))["phase"] in ("elastic", "plastic")
+                        for f in frames])
     peak = int(np.flatnonzero(loading)[-1])
     stress = _law_MPa(exact)
     after = np.arange(len(frames)) > peak
