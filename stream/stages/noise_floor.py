@@ -201,7 +201,8 @@ def recorded_noise_floor(recording: Any, metadata: dict[str, Any] | None = None)
     static = int(metadata.get(STATIC_FRAMES_KEY) or 0)
     if static <= 0:
         return None
-    scale = metadata.get("scale_px_per_mm")
+    # the session's scale: --scale, else its calibration's on the specimen plane (as StrainConfig.px_per_mm)
+    scale = metadata.get("scale_px_per_mm") or (metadata.get("calibration") or {}).get("px_per_mm")
     frames: dict[int, Any] = {}
     reference = None
     for record in recording.results():
