@@ -43,7 +43,8 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.export.report_html import report_html
-from livedic.stream.export.report_tables import Row, analysis_rows, hardware_rows, rows_json, rows_markdown
+from livedic.stream.export.report_tables import (Row, analysis_rows, hardware_rows, performance_rows, rows_json,
+                                                 rows_markdown)
 from livedic.stream.export.report_verification import VERIFICATION_KEY, verification_markdown, verification_section
 from livedic.stream.output.files import check_output_folder, json_text
 
@@ -258,9 +259,12 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=(scale, scale_origin),
                                                                    calibration=session.get("calibration"))),
               ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
+    verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
+                                    scale_px_per_mm=scale)
+    tables.append(("performance", "Measured performance (iDICs guide)",
+                   performance_rows(session, noise_floor=noise_floor, verification=verified, scale=scale)))
     report = report_json(properties, specimen, source, contraction, tables=tables)
-    report[VERIFICATION_KEY] = verification_section(verification, gauge_length_px=series["l0_px"],
-                                                    subset=session.get("subset"), scale_px_per_mm=scale)
+    report[VERIFICATION_KEY] = verified
     report["noise_floor"] = noise_floor
     title = os.path.basename(path)
     plot = io.BytesIO()

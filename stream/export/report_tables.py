@@ -146,3 +146,57 @@ def rows_markdown(rows: Sequence[Row], heading: str) -> list[str]:
 
 def _cell(text: str) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _floor_item(noise_floor: Mapping[str, Any] | None, quantity: str, unit: str) -> Mapping[str, Any] | None:
+    for item in (noise_floor or {}).get("table", ()):
+        if item.get("quantity") == quantity and item.get("unit") == unit and item.get("status") == "ok":
+            return item
+    return None
+
+
+def _sd_text(item: Mapping[str, Any] | None, digits: int, unit: str, key: str = "spatial_sd") -> str | None:
+    if item is None or item.get(key) is None:
+        return None
+    return f"{item[key]:.{digits}f} {unit}"
+
+
+def performance_rows(session: Mapping[str, Any], *, noise_floor: Mapping[str, Any] | None,
+                     verification: Mapping[str, Any] | None, scale: float | None) -> list[Row]:
+    """The measured-performance table (the iDICs guide's): spatial resolution (the subset for displacement, the
+    VSG for strain), the noise floor of the displacements and strains on the session's static frames (spatial
+    SD; ``stream.stages.noise_floor``), the axial extensometer's noise, and its ISO 9513 class as verified."""
+    subset, vsg = session.get("subset"), session.get("vsg_px")
+
+    def length(px: Any) -> str | None:
+        if px is None:
+            return None
+        return f"{px:g} px" + (f" = {px / scale:.3f} mm" if scale else "")
+
+    rows = [_row("displacement_resolution_px", "spatial resolution, displacement (subset)", subset,
+                 text=length(subset) or NOT_RECORDED),
+            _row("strain_resolution_px", "spatial resolution, strain (VSG)", vsg, text=length(vsg) or NOT_RECORDED)]
+    unmeasured = "not measured: no static frames (livedic run --static-frames N)"
+    for quantity in ("u", "v"):
+        item = _floor_item(noise_floor, quantity, "px")
+        text = _sd_text(item, 4, "px")
+        in_mm = _sd_text(_floor_item(noise_floor, quantity, "mm"), 5, "mm")
+        rows.append(_row(f"noise_{quantity}_px", f"noise floor, {quantity} (spatial SD)",
+                         None if item is None else item["spatial_sd"],
+                         text=(text + (f" = {in_mm}" if in_mm else "")) if text else unmeasured))
+    for quantity in ("exx", "eyy", "exy"):
+        item = _floor_item(noise_floor, quantity, "microstrain")
+        rows.append(_row(f"noise_{quantity}_microstrain", f"noise floor, {quantity} (spatial SD)",
+                         None if item is None else item["spatial_sd"],
+                         text=_sd_text(item, 1, "microstrain") or unmeasured))
+    axial = _floor_item(noise_floor, "axial", "microstrain")
+    rows.append(_row("noise_axial_microstrain", "noise floor, axial extensometer (temporal SD)",
+                     None if axial is None else axial["temporal_sd_mean"],
+                     text=_sd_text(axial, 1, "microstrain", "temporal_sd_mean") or unmeasured))
+    if verification and verification.get("verified"):
+        klass = verification.get("class")
+        text = (f"class {klass}" if klass else "no class met") + f" (ISO 9513, verified {verification.get('date')})"
+    else:
+        klass, text = None, "not verified (livedic bench extensometer -o FILE.json, then --verification FILE.json)"
+    rows.append(_row("extensometer_class", "axial extensometer's class", klass, text=text))
+    return rows
