@@ -75,3 +75,25 @@ def test_a_recorded_calibration_is_described_and_its_scale_named():
     text = rows["calibration"].text
     assert "chessboard:9x6" in text and "8 views" in text and "0.047 px" in text and "k1 -0.118" in text
     assert "tilted 1.2 deg" in text and text.endswith("lens distortion removed before strain")
+
+
+def test_the_performance_table_reads_the_noise_floor_and_the_verified_class():
+    from livedic.stream.export.report_tables import performance_rows
+    floor = {"table": [
+        {"quantity": "u", "unit": "px", "spatial_sd": 0.0063, "temporal_sd_mean": 0.0043, "status": "ok"},
+        {"quantity": "u", "unit": "mm", "spatial_sd": 0.00063, "temporal_sd_mean": 0.00043, "status": "ok"},
+        {"quantity": "v", "unit": "px", "spatial_sd": None, "temporal_sd_mean": None, "status": "too_few_frames"},
+        {"quantity": "eyy", "unit": "microstrain", "spatial_sd": 89.7, "temporal_sd_mean": 60.8, "status": "ok"},
+        {"quantity": "axial", "unit": "microstrain", "spatial_sd": None, "temporal_sd_mean": 12.5, "status": "ok"}]}
+    rows = {r.key: r for r in performance_rows({"subset": 21, "vsg_px": 77.0}, noise_floor=floor,
+                                               verification={"verified": True, "class": "0.5", "date": "2026-12-02T1"},
+                                               scale=10.0)}
+    assert rows["strain_resolution_px"].value == 77.0 and rows["strain_resolution_px"].text == "77 px = 7.700 mm"
+    assert rows["noise_u_px"].value == 0.0063 and rows["noise_u_px"].text == "0.0063 px = 0.00063 mm"
+    assert rows["noise_v_px"].value is None and rows["noise_v_px"].text.startswith("not measured")   # not ok: no number
+    assert rows["noise_eyy_microstrain"].text == "89.7 microstrain"
+    assert rows["noise_axial_microstrain"].value == 12.5
+    assert rows["extensometer_class"].value == "0.5" and rows["extensometer_class"].text.startswith("class 0.5")
+    unverified = {r.key: r for r in performance_rows({}, noise_floor=None, verification={"verified": False}, scale=None)}
+    assert unverified["extensometer_class"].value is None and unverified["noise_u_px"].text.startswith("not measured")
+    assert unverified["strain_resolution_px"].value is None
