@@ -25,6 +25,6 @@ def short_run(tmp_path_factory):
     synthetic``, recorded on /machine/force) and a 100 px axial extensometer: the path of the .mcap."""
     path = tmp_path_factory.mktemp("short_run") / "short.mcap"
     code = main(["run", "--source", SHORT_SOURCE, "--load", "synthetic", "--record", str(path), "--viewer", "none",
-                 "--progress", "off", "--gauge-length", "100"])
+                 "--progress", "off", "--gauge-length", "100", "--static-frames", "0"])
     assert code == 0 and path.exists()
     return str(path)

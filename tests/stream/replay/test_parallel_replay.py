@@ -27,7 +27,8 @@ def _no_debug(monkeypatch):
 
 def _record(path, *extra, source="synthetic:tensile?size=128x256&frames=12&noise=0.5&pace=0"):
     code = main(["run", "--source", source,
-                 "--record", str(path), "--viewer", "none", "--n-points", "60", "--progress", "off", *extra])
+                 "--record", str(path), "--viewer", "none", "--n-points", "60", "--progress", "off",
+                 "--static-frames", "0", *extra])
     assert code == 0 and path.exists()
     return str(path)
 

@@ -18,7 +18,8 @@ def _readings(axial, transverse, transverse_ok=True):
 
 
 def _result(index, readings, force=None):
-    return SimpleNamespace(frame=SimpleNamespace(index=index), extensometers=readings, force_N=force, poisson=None)
+    return SimpleNamespace(frame=SimpleNamespace(index=index), extensometers=readings, force_N=force, poisson=None,
+                           is_reference=index == 0)
 
 
 def test_the_pair_is_needed():
@@ -81,3 +82,12 @@ def test_the_text_of_a_ratio_and_of_none():
     assert format_poisson({"label": "Poisson's ratio", "value": None, "reason": "too few frames"}) == \
         "Poisson's ratio: n/a (too few frames)"
     assert format_poisson({"label": "L", "value": float("nan"), "reason": "r"}) == "L: n/a (r)"
+
+
+def test_the_static_frames_after_the_reference_are_left_out_of_the_fit():
+    watch = ContractionWatch(static_frames=3)
+    for k in range(6):
+        result = _result(k, _readings(0.0001 * k, -0.00003 * k), 10.0 * k)
+        watch(result, None)
+        assert result.poisson is watch.current
+    assert list(watch.frames) == [0, 4, 5]          # the reference, then the test's frames

@@ -182,7 +182,7 @@ def test_run_passes_color_range_and_refind_zncc_to_the_view(tmp_path, monkeypatc
     path = tmp_path / "view.rrd"
     assert main(["run", "--source", "synthetic:translate?size=128x128&pace=0", "--frames", "5", "--progress", "off",
                  "--no-record", "--viewer", "save", str(path), "--color-range", "-2,2",
-                 "--refind-zncc", "0.95"]) == 0
+                 "--refind-zncc", "0.95", "--static-frames", "0"]) == 0
     assert _rows(path, f"/{entities.LIMITS_U}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
     assert _rows(path, f"/{entities.LIMITS_V}", "Scalars:scalars") == {"static": [-2.0, 2.0]}
     assert len(_rows(path, f"/{entities.FIELD_U}", "Points2D:positions")) == 5
