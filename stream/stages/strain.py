@@ -450,6 +450,15 @@ class StrainStage(Stage):
         ideal = self._ideal_points()
         return moved[:, 0] - ideal[:, 0], moved[:, 1] - ideal[:, 1]
 
+    def displacements_mm(self, u, v):
+        """Image displacements (u, v) of the points as displacements on the specimen plane in mm
+        (``ideal_displacements`` / ``px_per_mm``); None without a scale."""
+        scale = self.config.px_per_mm
+        if not scale:
+            return None
+        iu, iv = self.ideal_displacements(u, v)
+        return np.asarray(iu) / scale, np.asarray(iv) / scale
+
     @property
     def image_ends(self) -> np.ndarray:
         """The extensometers' reference ends (2E, 2) in image px (where to draw them on the camera's image)."""

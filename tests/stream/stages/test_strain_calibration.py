@@ -68,3 +68,22 @@ def test_a_calibration_of_another_size_and_two_scales_are_refused(stretched):
                                               image_size=(640, 480))
     with pytest.raises(ValueError, match="give one of them"):
         StrainConfig(scale=12.0, calibration=truth)
+
+
+def test_replay_rows_give_the_undistorted_displacement_in_mm(stretched):
+    """``livedic replay``'s rows with a calibration: ``u_mm, v_mm`` are the displacements in ideal px (the lens
+    removed) over the plane's px/mm: the stretch's exact motion about the centre, (y_ideal - c) x 1 %, / 10."""
+    from livedic.stream.replay.rows import frame_rows
+    points, found, truth = stretched
+    *_, stage = _errors(points, found, truth)
+    strain, _ = stage.compute(found.u, found.v, found.ok)
+    rows = frame_rows(3, 0, np.arange(len(points)), found, strain, stage)
+    assert rows.header[-2:] == ["u_mm", "v_mm"]
+    ideal = stage.ideal_points
+    centre = (SIZE - 1) / 2.0
+    # measured: 4.8e-4 mm (0.005 px) at worst, where the image's v / 10 is 0.018 mm off
+    np.testing.assert_allclose(rows.columns["v_mm"], (ideal[:, 1] - centre) * STRETCH / 10.0, atol=1e-3)
+    np.testing.assert_allclose(rows.columns["u_mm"], 0.0, atol=1e-3)
+    assert np.max(np.abs(found.v / 10.0 - rows.columns["v_mm"])) > 2e-3
+    without = frame_rows(3, 0, np.arange(len(points)), found, strain, None)
+    assert "u_mm" not in without.header
