@@ -277,9 +277,6 @@ class SyntheticTensileSource(_PrerenderedSource):
                                   upper_yield=opts["upper_yield"], thickness_mm=opts["thickness"],
                                   scale_px_per_mm=opts["scale"])
         self.fracture_frame = fracture + opts["static"] if fracture else None    # as delivered, after the static
-        if opts["fade"] > 0.0 and any(opts[name] for name in ("k1", "k2", "p1", "p2")):
-            raise SourceError(f"{uri}: fade= cannot be rendered through a lens (k1, k2, p1, p2) yet: use one or "
-                              "the other")
         super().__init__(opts, uri)
         self._rows = np.arange(self.shape[0], dtype=np.float64)
         H = self.shape[0]
@@ -371,7 +368,8 @@ class SyntheticTensileSource(_PrerenderedSource):
     def _render_through_lens(self, i: int, lens: Lens) -> np.ndarray:
         """The frame as a distorting lens shows it: every pixel's ideal position (x_u, y_u) inverted
         through the model (``inverse_rows`` at y_u, then the row's column map at x_u) and the speckle
-        summed there exactly (``SpecklePattern.intensity``); the specimen's edges and the crack blended as
+        summed there exactly (``SpecklePattern.intensity``, each spot faded as ``fade_amplitudes`` says, as
+        the row renderer fades it); the specimen's edges and the crack blended as
         ``render_specimen`` does, measured in ideal pixels (equal to image pixels to within the lens's
         local scale, 1 - 3 k1 r^2 at most)."""
         full = float(self.full_scale)
@@ -387,7 +385,7 @@ class SyntheticTensileSource(_PrerenderedSource):
         cover *= self.model.row_cover(i, yu.ravel()).reshape(yu.shape)
         image = np.repeat((full * self._background)[:, None], self.shape[1], axis=1).astype(np.float64)
         inside = cover > 0.0
-        painted = paint(self.pattern.intensity(X[inside], Y[inside]), full)
+        painted = paint(self.pattern.intensity(X[inside], Y[inside], self.fade_amplitudes(i)), full)
         image[inside] += cover[inside] * (painted - image[inside])
         return image.astype(np.float32)
 

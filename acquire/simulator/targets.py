@@ -3,13 +3,16 @@
 ``render_target`` draws a board (a raster of ``RASTER_PX_PER_MM``) seen by the pinhole camera K at
 pose (R, t), through the lens's distortion, ``SUPERSAMPLE`` x ``SUPERSAMPLE`` samples per pixel
 averaged (an area-integrating sensor), then adds noise and rounds to 8 bits. ``calibration_views``
-gives a set of tilted views that Zhang's method needs; ``plane_view`` a fronto-parallel view at a
-known scale (px/mm), as a target laid on the specimen.
+gives a set of tilted views that Zhang's method needs; ``plane_view`` the specimen plane's pose at a
+known scale (px/mm), fronto-parallel or tilted, where a target laid on the specimen lies; ``scene_on_plane``
+puts a speckle pattern on that plane for ``lens.render_through_lens`` (one pose for both: the truth of a
+calibration's ``--plane``).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -75,9 +78,35 @@ def calibration_views(spec: TargetSpec, square_mm: float, lens: Lens) -> list[Po
     return [pose_looking_at(spec, square_mm, lens, view[:3], view[3:], px_per_mm) for view in DEFAULT_VIEWS]
 
 
-def plane_view(spec: TargetSpec, square_mm: float, lens: Lens, px_per_mm: float) -> Pose:
-    """The board lying on the specimen plane, fronto-parallel, at ``px_per_mm`` (centred)."""
-    return pose_looking_at(spec, square_mm, lens, (0.0, 0.0, 0.0), (0.5, 0.5), px_per_mm)
+def plane_view(spec: TargetSpec, square_mm: float, lens: Lens, px_per_mm: float, tilt_deg: float = 0.0) -> Pose:
+    """The board lying on the specimen plane, centred, at ``px_per_mm`` (untilted): fronto-parallel, or tilted by
+    ``tilt_deg`` about the image's x axis (lengths along y foreshortened, the scale varying along y)."""
+    return pose_looking_at(spec, square_mm, lens, (tilt_deg, 0.0, 0.0), (0.5, 0.5), px_per_mm)
+
+
+def pose_homography(lens: Lens, pose: Pose) -> np.ndarray:
+    """Board (mm) -> ideal px of the board at ``pose``: K [r1 r2 t]."""
+    R = cv2.Rodrigues(np.asarray(pose.rvec, dtype=np.float64))[0]
+    return lens.camera_matrix @ np.column_stack([R[:, 0], R[:, 1], np.asarray(pose.tvec, dtype=np.float64)])
+
+
+def scene_on_plane(homography: np.ndarray, centre_mm: tuple[float, float], pattern_centre: tuple[float, float],
+                   pattern_px_per_mm: float, motion: Callable[[np.ndarray, np.ndarray], tuple] | None = None
+                   ) -> Callable[[np.ndarray, np.ndarray], tuple]:
+    """``scene_of`` for ``render_through_lens``: a speckle pattern printed on the plane of ``homography``
+    (board mm -> ideal px), ``pattern_px_per_mm`` of its px a mm, its point ``pattern_centre`` at the board's
+    ``centre_mm``; ``motion(X, Y)``: where the material now at board point (X, Y) mm was in the reference."""
+    inverse = np.linalg.inv(homography)
+
+    def scene_of(x: np.ndarray, y: np.ndarray) -> tuple:
+        w = inverse[2, 0] * x + inverse[2, 1] * y + inverse[2, 2]
+        X = (inverse[0, 0] * x + inverse[0, 1] * y + inverse[0, 2]) / w
+        Y = (inverse[1, 0] * x + inverse[1, 1] * y + inverse[1, 2]) / w
+        if motion is not None:
+            X, Y = motion(X, Y)
+        return (pattern_centre[0] + (X - centre_mm[0]) * pattern_px_per_mm,
+                pattern_centre[1] + (Y - centre_mm[1]) * pattern_px_per_mm)
+    return scene_of
 
 
 def board_raster(spec: TargetSpec, square_mm: float, px_per_mm: float) -> np.ndarray:
@@ -103,9 +132,7 @@ def board_raster(spec: TargetSpec, square_mm: float, px_per_mm: float) -> np.nda
 def render_target(spec: TargetSpec, square_mm: float, lens: Lens, pose: Pose, *, noise: float = 1.0,
                   seed: int = 0) -> np.ndarray:
     """An 8-bit image of the board at ``pose`` through ``lens`` (``noise``: SD in grey levels)."""
-    R = cv2.Rodrigues(np.asarray(pose.rvec, dtype=np.float64))[0]
-    K = lens.camera_matrix
-    H = K @ np.column_stack([R[:, 0], R[:, 1], np.asarray(pose.tvec, dtype=np.float64)])   # board mm -> ideal px
+    H = pose_homography(lens, pose)
     ideal = lens.ideal_pixels(SUPERSAMPLE)
     board = cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), np.linalg.inv(H)).reshape(ideal.shape)
     x0, y0, _, _ = board_extent(spec, square_mm)

@@ -2,13 +2,14 @@
 plane's scale) and its solution from target images with OpenCV. Pure functions on arrays, no file I/O
 (the CAL.json file: ``livedic.acquire.calibration``; the guide: docs/guide/calibration.md)."""
 
-from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration, ImageFit, PlaneScale,
-                                            distort_points, undistort_points)
+from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration, ImageFit, PlaneFrame, PlaneScale,
+                                            distort_points, image_points, plane_points, undistort_points)
 from livedic.dic.calibration.solve import (DEFAULT_MAX_ERROR_PX, MIN_VIEWS, CalibrationRefused, calibrate,
-                                           plane_scale)
+                                           plane_from_homography, plane_scale)
 from livedic.dic.calibration.targets import (Detection, NotFound, NotFoundReason, TargetSpec, detect_target,
                                              parse_target)
 
 __all__ = ["CalibrationError", "CalibrationRefused", "CameraCalibration", "DEFAULT_MAX_ERROR_PX", "Detection",
-           "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PlaneScale", "TargetSpec", "calibrate",
-           "detect_target", "distort_points", "parse_target", "plane_scale", "undistort_points"]
+           "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PlaneFrame", "PlaneScale", "TargetSpec", "calibrate",
+           "detect_target", "distort_points", "image_points", "parse_target", "plane_from_homography", "plane_points", "plane_scale",
+           "undistort_points"]

@@ -2,7 +2,10 @@
 specimen plane's scale) and the maps between image pixels and ideal pixels.
 
 Ideal pixels are those of a distortion-free pinhole camera with the same camera matrix K: a point's
-ideal position is ``undistort_points`` of where the lens put it. Distortion is OpenCV's model
+ideal position is ``undistort_points`` of where the lens put it. With the specimen plane measured
+(``PlaneScale``), ``plane_points`` go one step further: through the plane's homography to plane
+pixels, millimetres on the plane times px/mm, in a frame matching the image's at its centre
+(``PlaneFrame``), so a tilted plane's foreshortening and perspective are removed too. Distortion is OpenCV's model
 (k1, k2, p1, p2[, k3 ...]). A calibration is plain data: ``to_dict`` / ``from_dict`` give the JSON
 body of CAL.json (``livedic.acquire.calibration`` writes and reads the file).
 """
@@ -195,6 +198,77 @@ def distort_pixels(camera_matrix: npt.ArrayLike, dist_coeffs: npt.ArrayLike, xy:
         return points.copy()
     image, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, np.asarray(dist_coeffs, dtype=np.float64))
     return image.reshape(points.shape)
+
+
+@dataclass(frozen=True)
+class PlaneFrame:
+    """Plane pixels: positions on the specimen plane (mm on the target's board) scaled by px/mm and turned to
+    match ideal pixels at the image's centre, so lengths on the plane / px_per_mm are mm and the axes are the
+    image's (the nearest rotation to the homography's Jacobian there; x along the image's x).
+
+    ``q = px_per_mm * rotation @ (p - origin_mm) + origin_px`` for a board point p (mm); ``origin_px`` is the
+    image's centre (ideal px) and ``origin_mm`` the board point seen there.
+    """
+
+    homography: np.ndarray        # board mm -> ideal px
+    px_per_mm: float
+    origin_mm: np.ndarray
+    origin_px: np.ndarray
+    rotation: np.ndarray          # 2 x 2, orthogonal
+
+    @classmethod
+    def of(cls, plane: PlaneScale, image_size: tuple[int, int]) -> PlaneFrame:
+        """The frame of ``plane`` for images of ``image_size`` (width, height)."""
+        H = np.asarray(plane.homography, dtype=np.float64)
+        origin_px = np.array([(image_size[0] - 1) / 2.0, (image_size[1] - 1) / 2.0])
+        origin_mm = _apply_homography(np.linalg.inv(H), origin_px)
+        w, _, vt = np.linalg.svd(homography_jacobian(H, origin_mm))
+        return cls(H, plane.px_per_mm, origin_mm, origin_px, w @ vt)
+
+    def to_plane(self, ideal: npt.ArrayLike) -> np.ndarray:
+        """Ideal pixels (..., 2) -> plane pixels (NaN stays NaN)."""
+        board = _apply_homography(np.linalg.inv(self.homography), ideal)
+        return self.px_per_mm * (board - self.origin_mm) @ self.rotation.T + self.origin_px
+
+    def to_ideal(self, plane_px: npt.ArrayLike) -> np.ndarray:
+        """Plane pixels (..., 2) -> ideal pixels (``to_plane``'s inverse)."""
+        board = (np.asarray(plane_px, dtype=np.float64) - self.origin_px) @ self.rotation / self.px_per_mm
+        return _apply_homography(self.homography, board + self.origin_mm)
+
+
+def plane_points(calibration: CameraCalibration, xy: npt.ArrayLike) -> np.ndarray:
+    """Image points (..., 2) where strain is measured: undistorted, and with a plane (``--plane``) mapped to
+    plane pixels (``PlaneFrame``); ideal pixels without one. NaN stays NaN."""
+    ideal = undistort_points(calibration, xy)
+    if calibration.plane is None:
+        return ideal
+    return PlaneFrame.of(calibration.plane, calibration.image_size).to_plane(ideal)
+
+
+def image_points(calibration: CameraCalibration, xy: npt.ArrayLike) -> np.ndarray:
+    """``plane_points``' inverse: where the camera sees those positions (image px)."""
+    ideal = np.asarray(xy, dtype=np.float64)
+    if calibration.plane is not None:
+        ideal = PlaneFrame.of(calibration.plane, calibration.image_size).to_ideal(ideal)
+    return distort_points(calibration, ideal)
+
+
+def homography_jacobian(H: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """d(ideal px) / d(board mm) of the homography at ``point``."""
+    x, y = float(point[0]), float(point[1])
+    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+    u = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w
+    v = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w
+    return np.array([[(H[0, 0] - u * H[2, 0]) / w, (H[0, 1] - u * H[2, 1]) / w],
+                     [(H[1, 0] - v * H[2, 0]) / w, (H[1, 1] - v * H[2, 1]) / w]])
+
+
+def _apply_homography(H: np.ndarray, xy: npt.ArrayLike) -> np.ndarray:
+    """``H`` applied to points (..., 2) (in numpy, not cv2.perspectiveTransform: NaN points stay NaN)."""
+    points = np.asarray(xy, dtype=np.float64)
+    mapped = points @ H[:2, :2].T + H[:2, 2]
+    w = points @ H[2, :2] + H[2, 2]
+    return mapped / w[..., None]
 
 
 def _matrix(value: Any, shape: tuple[int, int], name: str) -> np.ndarray:

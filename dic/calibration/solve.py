@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration, ImageFit, PlaneScale,
-                                            undistort_points)
+                                            homography_jacobian, undistort_points)
 from livedic.dic.calibration.targets import Detection
 
 # Zhang's method needs views of the target in at least 3 different orientations.
@@ -26,7 +26,8 @@ DEFAULT_MAX_ERROR_PX = 0.5
 # k3 is left out by default: with a handful of views of an ordinary machine-vision lens it only fits noise
 # (it trades against k1, k2); the principal point and both focal lengths are free.
 DEFAULT_FLAGS = cv2.CALIB_FIX_K3
-# A target plane tilted more than this from the camera axis foreshortens lengths noticeably (1 - cos 3 deg = 0.14 %).
+# A specimen plane tilted more than this from the camera axis is warned of: the homography takes lengths and strain
+# onto the plane, but a target not quite on the specimen, or out-of-plane motion, errs more the more it is tilted.
 TILT_WARNING_DEG = 3.0
 
 
@@ -98,24 +99,20 @@ def plane_scale(calibration: CameraCalibration, name: str, detection: Detection)
         raise CalibrationError(f"{name}: the target's corners do not fit a plane")
     mapped = cv2.perspectiveTransform(board.reshape(-1, 1, 2), H).reshape(-1, 2)
     rms = float(np.sqrt(np.mean(np.sum((mapped - ideal) ** 2, axis=1))))
-    centre = board.mean(axis=0)
-    J = _homography_jacobian(H, centre)
+    return plane_from_homography(name, H, board.mean(axis=0), calibration.camera_matrix, rms)
+
+
+def plane_from_homography(name: str, H: np.ndarray, centre: np.ndarray, camera_matrix: np.ndarray,
+                          rms: float = 0.0) -> PlaneScale:
+    """The ``PlaneScale`` of homography ``H`` (board mm -> ideal px): scales at the board point ``centre`` (mm),
+    tilt from the camera matrix (``plane_scale``; the simulator's truth)."""
+    J = homography_jacobian(H, centre)
     # Image-axis scales: the length on the board of a 1 px step along x (or y) in the image, inverted.
     inverse = np.linalg.inv(J)
     per_x, per_y = 1.0 / np.linalg.norm(inverse[:, 0]), 1.0 / np.linalg.norm(inverse[:, 1])
-    B = np.linalg.inv(calibration.camera_matrix) @ H
+    B = np.linalg.inv(camera_matrix) @ H
     r1, r2 = B[:, 0] / np.linalg.norm(B[:, 0]), B[:, 1] / np.linalg.norm(B[:, 1])
     normal = np.cross(r1, r2)
     normal /= np.linalg.norm(normal)
     tilt = math.degrees(math.acos(min(1.0, abs(float(normal[2])))))
     return PlaneScale(name, float(math.sqrt(abs(np.linalg.det(J)))), (float(per_x), float(per_y)), tilt, H, rms)
-
-
-def _homography_jacobian(H: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """d(ideal px) / d(board mm) of the homography at ``point``."""
-    x, y = float(point[0]), float(point[1])
-    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
-    u = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w
-    v = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w
-    return np.array([[(H[0, 0] - u * H[2, 0]) / w, (H[0, 1] - u * H[2, 1]) / w],
-                     [(H[1, 0] - v * H[2, 0]) / w, (H[1, 1] - v * H[2, 1]) / w]])

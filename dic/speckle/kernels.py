@@ -96,8 +96,9 @@ def _splat_translation(xs, ys, u, v, radius, reach, integrate, out):
 
 
 @njit(cache=True)
-def _sum_near(X, Y, gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2):
-    """Sum of exp(-d^2 / R^2) over centres within the cutoff of (X, Y)."""
+def _sum_near(X, Y, gx, gy, ga, start, ncx, ncy, x0, y0, cell, inv_r2, reach2):
+    """Sum of ga_k exp(-d^2 / R^2) over centres k within the cutoff of (X, Y) (``ga``: each spot's amplitude,
+    in the grid's order; ones: the plain sum, bit for bit)."""
     cx = int(math.floor((X - x0) / cell))
     cy = int(math.floor((Y - y0) / cell))
     c_lo = max(cx - 1, 0)
@@ -111,7 +112,7 @@ def _sum_near(X, Y, gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2):
             dy = gy[k] - Y
             d2 = dx * dx + dy * dy
             if d2 < reach2:
-                total += math.exp(-d2 * inv_r2)
+                total += ga[k] * math.exp(-d2 * inv_r2)
     return total
 
 
@@ -306,10 +307,11 @@ def _invert_1d_table(coords, A, k, phase, table, ok):
 
 
 @njit(cache=True)
-def _gather_points(X, Y, weight, gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2, out):
-    """out += weight * I(X, Y) elementwise, for X, Y of shape (H, W) (serial: for sparse points)."""
+def _gather_points(X, Y, weight, gx, gy, ga, start, ncx, ncy, x0, y0, cell, inv_r2, reach2, out):
+    """out += weight * I(X, Y) elementwise, for X, Y of shape (H, W) (serial: for sparse points); ``ga``: each
+    spot's amplitude (``_sum_near``)."""
     H, W = out.shape
     for r in range(H):
         for c in range(W):
-            out[r, c] += weight * _sum_near(X[r, c], Y[r, c], gx, gy, start, ncx, ncy, x0, y0,
+            out[r, c] += weight * _sum_near(X[r, c], Y[r, c], gx, gy, ga, start, ncx, ncy, x0, y0,
                                             cell, inv_r2, reach2)

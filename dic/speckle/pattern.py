@@ -190,6 +190,7 @@ class SpecklePattern:
         cy = np.clip(np.floor((self._ys - lo_y) / reach).astype(np.int64), 0, self._ncy - 1)
         cell_id = cy * self._ncx + cx
         by_cell = np.argsort(cell_id, kind="stable")
+        self._by_cell = by_cell
         self._gx = np.ascontiguousarray(self._xs[by_cell])
         self._gy = np.ascontiguousarray(self._ys[by_cell])
         self._start = np.zeros(self._ncx * self._ncy + 1, dtype=np.int64)
@@ -213,13 +214,15 @@ class SpecklePattern:
             raise ValueError(f"bit_depth must be 8, 12, 16 or None, got {bit_depth!r}")
         return self.fill * _FULL_SCALE[bit_depth] / self.peak
 
-    def intensity(self, X: npt.ArrayLike, Y: npt.ArrayLike) -> np.ndarray:
+    def intensity(self, X: npt.ArrayLike, Y: npt.ArrayLike, amplitudes: npt.ArrayLike | None = None) -> np.ndarray:
         """Reference intensity I(X, Y) (I0 = 1) at arbitrary points, truncated at the cutoff.
 
         Parameters
         ----------
         X, Y : array_like of float, shape (...)
             Reference coordinates (x = column, y = row), broadcastable.
+        amplitudes : array_like of float, shape (N,), optional
+            Each spot's amplitude, in ``centres`` order (a faded spot < 1); None: all 1 (the plain sum).
 
         Returns
         -------
@@ -231,7 +234,11 @@ class SpecklePattern:
         Y2 = np.ascontiguousarray(Y.reshape(1, -1))
         out = np.zeros(X2.shape)
         gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2 = self._grid_args()
-        _gather_points(X2, Y2, 1.0, gx, gy, start, ncx, ncy, x0, y0, cell, inv_r2, reach2, out)
+        if amplitudes is None:
+            by_cell = np.ones(gx.shape[0])
+        else:
+            by_cell = np.ascontiguousarray(np.asarray(amplitudes, dtype=np.float64)[self._by_cell])
+        _gather_points(X2, Y2, 1.0, gx, gy, by_cell, start, ncx, ncy, x0, y0, cell, inv_r2, reach2, out)
         return out.reshape(shape)
 
     def _grid_args(self):

@@ -85,6 +85,8 @@ def describe_calibration(calibration: CameraCalibration) -> str:
         lines.append(f"scale on the specimen plane ({plane.image}): {plane.px_per_mm:.4f} px/mm "
                      f"(x {x:.4f}, y {y:.4f}); plane tilted {plane.tilt_deg:.2f} deg from the camera axis")
         if plane.tilt_deg > TILT_WARNING_DEG:
-            lines.append(f"warning: the plane is tilted {plane.tilt_deg:.1f} deg (> {TILT_WARNING_DEG:g}): lengths "
-                         "along the tilt are foreshortened; set the camera square to the specimen")
+            lines.append(f"warning: the plane is tilted {plane.tilt_deg:.1f} deg (> {TILT_WARNING_DEG:g}): strain and "
+                         "lengths are taken on the plane through its homography, but the target must lie exactly on "
+                         "the specimen and any out-of-plane motion reads as strain; set the camera square to the "
+                         "specimen")
     return "\n".join(lines)

@@ -267,8 +267,7 @@ def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_s
         columns.update(exx=strain_field.exx, eyy=strain_field.eyy, exy=strain_field.exy)
         source.ranges.add(columns, np.asarray(result.ok, dtype=bool))
         if scale:
-            u_ideal, v_ideal = stage.ideal_displacements(result.u, result.v)
-            columns.update(u_mm=np.asarray(u_ideal) / scale, v_mm=np.asarray(v_ideal) / scale)
+            columns.update(zip(FIELD_MM_COLUMNS, stage.displacements_mm(result.u, result.v)))
     else:                             # not the reference's points: no strain to speak of
         written.other_points += 1
         readings = _lost_readings(stage.placed)

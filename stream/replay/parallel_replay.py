@@ -345,7 +345,7 @@ def measure_frame(job, segment_token, tracker, segment_start, key_start, positio
         answer.tracker = _TRACKERS.pop(cache_key)          # its state moved on: the next segment's tracker
     if job.strain is not None and not working.fractures:  # after a fracture the client's strain stage splits
         strain, _ = job.strain.compute(measurement.u, measurement.v, measurement.ok)
-        rows = frame_rows(key[0], key[1], job.point_ids, measurement, strain)
+        rows = frame_rows(key[0], key[1], job.point_ids, measurement, strain, job.strain)
         answer.rows = rows.as_text() if job.csv_text else rows
     answer.rows_seconds = time.perf_counter() - started - seconds
     return answer

@@ -201,15 +201,14 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
         points = _points(request, recorded, tracking, rebuild)
         config = _session_config(request, tracking, recorded.metadata)
         point_ids: list[np.ndarray] = []          # filled once the session has its points
-        served: list[Any] = []                    # the parallel session (its tracker holds the worker-formatted lines)
+        served: list[Any] = []                    # the session (a parallel one holds the worker-formatted rows)
         comparison = _Comparison(report, recorded.by_key, recorded.xy)
-        sinks = [comparison] + _output_sinks(request, report, point_ids, served)
+        sinks = [comparison] + _output_sinks(request, report, point_ids, served, parallel=dask is not None)
         frames = _recorded_frames(path, recorded, request.all_frames)
         make_session = _session_maker(request, recorded, dask, point_ids)
         started = time.perf_counter()
         with make_session(config, source=frames, points=points, sinks=sinks) as session:
-            if dask is not None:
-                served.append(session)
+            served.append(session)
             _prepare(session, request, recorded, rebuild)
             point_ids.append(np.arange(len(session.points), dtype=np.uint32) if rebuild or recorded.ids is None
                              else recorded.ids)
@@ -303,7 +302,7 @@ def _session_config(request: _Request, tracking: TrackingConfig, metadata: dict[
 
 
 def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.ndarray],
-                  served: list[Any]) -> list[FunctionSink]:
+                  served: list[Any], parallel: bool) -> list[FunctionSink]:
     """The sinks after the comparison: ``on_result``, ``on_rows`` and the progress (each required: a failure
     there ends the replay with its error)."""
     sinks = []
@@ -315,10 +314,12 @@ def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.nd
     if on_rows is not None:
         def rows(result: FrameResult, stats: SessionStats) -> None:
             frame: Any = result.frame
-            frame_table = served[0].rows_of(frame) if served else None
+            session = served[0]
+            frame_table = session.rows_of(frame) if parallel else None
             if frame_table is None:
                 frame_table = frame_rows(frame.index, frame.timestamp_ns, point_ids[0],
-                                         cast("Measurement", result.measurement), cast("StrainField", result.strain))
+                                         cast("Measurement", result.measurement), cast("StrainField", result.strain),
+                                         session.strain)
             if stress is not None:
                 frame_table = frame_table.with_force(result.force_N, result.stress_MPa)
             on_rows(frame_table)

@@ -28,11 +28,13 @@ import pyarrow as pa
 
 from livedic.stream.output.files import OutputError, check_output_file
 from livedic.stream.output.csv_text import csv_rows, scalar_text
-from livedic.stream.export.columns import EXTRA_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile, result_columns
+from livedic.stream.export.columns import (EXTRA_COLUMNS, FIELD_MM_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile,
+                                          result_columns)
 
 if TYPE_CHECKING:
     from livedic.dic.result import Measurement
     from livedic.dic.strain.field import StrainField
+    from livedic.stream.stages.strain import StrainStage
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")
 FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
@@ -116,7 +118,7 @@ def _schema(header: list[str]) -> pa.Schema:
 
 
 def frame_rows(frame_index: int, timestamp_ns: int, point_ids: np.ndarray, measurement: Measurement,
-               strain: StrainField) -> FrameRows:
+               strain: StrainField, stage: StrainStage | None = None) -> FrameRows:
     """The rows of one frame of the replay output.
 
     Parameters
@@ -127,11 +129,15 @@ def frame_rows(frame_index: int, timestamp_ns: int, point_ids: np.ndarray, measu
         Its ``status`` and, when it has them, ``ux, uy, vx, vy, iterations`` become columns.
     strain : dic.strain.StrainField
         ``exx, eyy, exy`` at the points (recomputed on the replayed displacements).
+    stage : stream.stages.strain.StrainStage, optional
+        The strain stage that computed ``strain``: with a scale (``--scale`` or the calibration's px/mm) the
+        displacements on the specimen plane in mm (``FIELD_MM_COLUMNS``, as ``livedic export``'s fields.csv).
 
     Returns
     -------
     FrameRows
-        Columns ``LEADING_COLUMNS``, then the extras in ``EXTRA_COLUMNS`` order, then ``STRAIN_COLUMNS``.
+        Columns ``LEADING_COLUMNS``, then the extras in ``EXTRA_COLUMNS`` order, then ``STRAIN_COLUMNS``, then
+        ``FIELD_MM_COLUMNS`` when ``stage`` has a scale.
     """
     m = measurement
     extras = {"status": np.asarray(m.status, dtype=np.int64)}
@@ -142,6 +148,10 @@ def frame_rows(frame_index: int, timestamp_ns: int, point_ids: np.ndarray, measu
     columns = result_columns(frame_index, timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc, m.ok, extras)
     columns.update(exx=strain.exx, eyy=strain.eyy, exy=strain.exy)
     header = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras] + list(STRAIN_COLUMNS)
+    in_mm = stage.displacements_mm(m.u, m.v) if stage is not None else None
+    if in_mm is not None:
+        columns.update(zip(FIELD_MM_COLUMNS, in_mm))
+        header += list(FIELD_MM_COLUMNS)
     return FrameRows(header, len(m.u), columns={name: columns[name] for name in header})
 
 

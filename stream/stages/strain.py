@@ -27,9 +27,12 @@ Extensometers:
 Lengths are in px, or in mm with ``--scale PX_PER_MM`` (image positions stay in px).
 
 With ``--calibration CAL.json`` (``livedic calibrate``) the lens's distortion is removed first: reference
-points and their current positions (points + u, v) are undistorted to ideal pixels, and the strain
-windows' offsets, the displacements they fit and the extensometers' ends and lengths are in ideal px
-(the strain windows keep the tracked grid's neighbours). The calibration's px/mm on the specimen plane is
+points and their current positions (points + u, v) are undistorted to ideal pixels, and, when the
+calibration measured the specimen plane (``--plane``), mapped through the plane's homography to plane
+pixels (mm on the plane x px/mm, axes as the image's at its centre: ``dic.calibration.PlaneFrame``), so a
+tilted plane's foreshortening is removed too; the strain windows' offsets, the displacements they fit
+and the extensometers' ends and lengths are in those ("ideal" below) px (the strain windows keep the
+tracked grid's neighbours). The calibration's px/mm on the specimen plane is
 the scale; ``--scale`` with a calibration that has one is refused (two scales), and gives the scale of a
 calibration without one. Extensometer ends given or recorded are image positions (what the user sees).
 """
@@ -43,7 +46,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from livedic.dic.calibration import CameraCalibration, distort_points, undistort_points
+from livedic.dic.calibration import CameraCalibration, image_points, plane_points
 from livedic.dic.strain.extensometer import (AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints,
                                               end_displacements, place_extensometers, read_extensometers,
                                               strain_noise)
@@ -210,14 +213,15 @@ class StrainConfig:
         return float(length_px) / scale if scale else None
 
     def ideal(self, xy):
-        """Image positions (..., 2) as the strain uses them: undistorted with a calibration, else themselves."""
+        """Image positions (..., 2) as the strain uses them: with a calibration undistorted (and on its plane,
+        in plane px), else themselves."""
         xy = np.asarray(xy, dtype=np.float64)
-        return xy if self.calibration is None else undistort_points(self.calibration, xy)
+        return xy if self.calibration is None else plane_points(self.calibration, xy)
 
     def image(self, xy):
         """Ideal positions (..., 2) back to image positions (``ideal``'s inverse)."""
         xy = np.asarray(xy, dtype=np.float64)
-        return xy if self.calibration is None else distort_points(self.calibration, xy)
+        return xy if self.calibration is None else image_points(self.calibration, xy)
 
     def resolve_extensometers(self, p0, roi, x_range=None):
         """The extensometers in reference px: the axial/transverse pair on ``p0`` (x, y), then the others.
@@ -449,6 +453,15 @@ class StrainStage(Stage):
         moved = self.config.ideal(self.points + np.column_stack([u, v]))
         ideal = self._ideal_points()
         return moved[:, 0] - ideal[:, 0], moved[:, 1] - ideal[:, 1]
+
+    def displacements_mm(self, u, v):
+        """Image displacements (u, v) of the points as displacements on the specimen plane in mm
+        (``ideal_displacements`` / ``px_per_mm``); None without a scale."""
+        scale = self.config.px_per_mm
+        if not scale:
+            return None
+        iu, iv = self.ideal_displacements(u, v)
+        return np.asarray(iu) / scale, np.asarray(iv) / scale
 
     @property
     def image_ends(self) -> np.ndarray:

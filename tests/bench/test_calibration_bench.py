@@ -1,4 +1,5 @@
-"""``livedic bench calibration`` on a small image: the correction removes the lens's strain bias at the corners."""
+"""``livedic bench calibration`` on a small image: the correction removes the lens's strain bias at the corners,
+and on a tilted plane the homography the perspective's and the foreshortened L0."""
 
 from livedic.bench.calibration import run_calibration_benchmark
 
@@ -15,3 +16,9 @@ def test_the_benchmark_shows_the_corrections_gain():
     k1_truth, k1 = numbers["parameters"]["k1"]
     assert abs(k1 - k1_truth) < 0.02
     assert any("recovered calibration" in line for line in lines)
+    # the plane tilted 8 deg (measured at 384 px): mean |eyy - 1 %| at the top and bottom 989 microstrain with
+    # one px/mm, 59 through the homography; the centre extensometer's L0 in mm -0.57 % and 0.011 % off the
+    # length on the plane
+    tilted = numbers["tilted"]
+    assert tilted["one px/mm"]["abs_eyy_far"] > 500 and tilted["plane homography"]["abs_eyy_far"] < 200
+    assert abs(tilted["one px/mm"]["l0_error_pct"]) > 0.3 and abs(tilted["plane homography"]["l0_error_pct"]) < 0.1

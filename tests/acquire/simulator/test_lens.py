@@ -46,5 +46,21 @@ def test_truth_is_the_scene_motion_seen_through_the_lens():
 def test_lens_options_are_checked():
     with pytest.raises(SourceError, match="k1"):
         open_synthetic("synthetic:tensile?k1=0.9")
-    with pytest.raises(SourceError, match="fade"):
-        open_synthetic("synthetic:tensile?size=128x128&frames=3&fade=0.5&k1=-0.1")
+
+
+def test_the_lens_path_fades_the_paint_as_the_row_renderer():
+    """``fade`` through a lens: the per-pixel path (every pixel's ideal position, the spots' sum gathered there)
+    with a distortion-free lens gives the row renderer's faded frame, to rounding; through k1 the frame is
+    rendered, and fading changes it where the coupon necked."""
+    from livedic.acquire.simulator.sources import SyntheticTensileSource
+    uri = "synthetic:tensile?size=128x192&frames=6&strain=0.3&neck=1.0&fade=0.8&noise=0&pace=0"
+    source = SyntheticTensileSource(uri)
+    last = 5
+    assert np.min(source.fade_amplitudes(last)) < 0.5                      # spots faded by more than half
+    rows = source._clean(last)
+    through = source._render_through_lens(last, Lens((128, 192)))
+    np.testing.assert_allclose(through, rows, rtol=0, atol=1e-6 * source.full_scale)   # measured: equal (float32)
+    bent = list(open_synthetic(uri + "&k1=-0.1"))
+    unfaded = list(open_synthetic(uri.replace("fade=0.8", "fade=0") + "&k1=-0.1"))
+    np.testing.assert_array_equal(bent[0].image, unfaded[0].image)           # the reference is not faded
+    assert np.mean(np.abs(bent[last].image.astype(float) - unfaded[last].image)) > 1.0

@@ -128,3 +128,32 @@ def test_a_charuco_board_is_found_with_its_corner_ids():
     expected, _ = cv2.projectPoints(found.object_points, pose.rvec, pose.tvec, lens.camera_matrix, lens.dist_coeffs)
     miss = np.hypot(*(expected.reshape(-1, 2) - found.image_points).T)
     assert np.sqrt(np.mean(miss ** 2)) < 0.3 and np.max(miss) < 0.6
+
+
+def test_plane_points_are_mm_on_a_tilted_plane_times_px_per_mm():
+    """Through a tilted, rolled plane's homography, distances between plane points are board mm x px/mm, the
+    axes are the image's at its centre, NaN stays NaN, and ``image_points`` is the inverse (no rendering)."""
+    import cv2
+
+    from livedic.acquire.simulator.lens import Lens
+    from livedic.acquire.simulator.targets import pose_looking_at, pose_homography
+    from livedic.dic.calibration import image_points, plane_from_homography, plane_points
+    lens = Lens((640, 480), k1=-0.1, p1=3e-4)
+    spec = parse_target("chessboard:9x6")
+    pose = pose_looking_at(spec, 4.0, lens, (9.0, -6.0, 20.0), (0.5, 0.5), 8.0)
+    H = pose_homography(lens, pose)
+    plane = plane_from_homography("tilted", H, spec.object_points(4.0).mean(axis=0)[:2], lens.camera_matrix)
+    calibration = CameraCalibration(lens.size, lens.camera_matrix, lens.dist_coeffs, 0.0, (), "lens", 4.0,
+                                    plane=plane)
+    board = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 18.0], [5.0, 12.0]])
+    seen = lens.distort(cv2.perspectiveTransform(board.reshape(-1, 1, 2), H).reshape(-1, 2))
+    q = plane_points(calibration, seen)
+    distances = lambda p: np.linalg.norm(p[:, None] - p[None, :], axis=-1)  # noqa: E731
+    np.testing.assert_allclose(distances(q), distances(board) * plane.px_per_mm, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(image_points(calibration, q), seen, atol=1e-8)
+    # the board's x is rolled 20 deg in the image: so are the plane px, whose x is the image's at its centre
+    direction = q[1] - q[0]
+    assert abs(np.degrees(np.arctan2(direction[1], direction[0])) - 20.0) < 2.0
+    centre = np.array([[319.5, 239.5]])
+    np.testing.assert_allclose(plane_points(calibration, lens.distort(centre)), centre, atol=1e-9)
+    assert np.isnan(plane_points(calibration, np.array([[np.nan, 1.0]]))).all()

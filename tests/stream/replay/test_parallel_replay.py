@@ -110,8 +110,9 @@ def _assert_same(parallel, sequential, *, verdict=True):
     for name in ("ok", "status"):
         column = header.index(name)
         assert np.array_equal(a[:, column], b[:, column]), name
-    for name, tolerance in (("u", ROUNDING_TOLERANCE_PX), ("v", ROUNDING_TOLERANCE_PX), ("zncc", ROUNDING_TOLERANCE_ZNCC),
-                            ("exx", 1e-4), ("eyy", 1e-4)):
+    scale = [("u_mm", 1e-4), ("v_mm", 1e-4)] if "u_mm" in header else []
+    for name, tolerance in [("u", ROUNDING_TOLERANCE_PX), ("v", ROUNDING_TOLERANCE_PX), ("zncc", ROUNDING_TOLERANCE_ZNCC),
+                            ("exx", 1e-4), ("eyy", 1e-4)] + scale:
         column = header.index(name)
         assert np.array_equal(np.isnan(a[:, column]), np.isnan(b[:, column])), name
         both = np.isfinite(a[:, column])
@@ -132,6 +133,19 @@ def test_parallel_replay_to_parquet_holds_the_sequential_rows(recording, cluster
     """For Parquet the workers send each frame's columns, not CSV lines: the same rows and verdict."""
     parallel = _replay(recording, tmp_path / "par.parquet", "--cluster", cluster)
     _assert_same(parallel, sequential)
+
+
+def test_with_a_scale_both_writers_add_the_same_mm_columns(recording, cluster, tmp_path):
+    """``--scale``: ``u_mm, v_mm`` after the strains (export's fields.csv columns), from the sequential and the
+    parallel writers alike, CSV and Parquet; without a calibration they are u, v / px_per_mm."""
+    sequential = _replay(recording, tmp_path / "seq.csv", "--scale", "8")
+    header = sequential[0][0]
+    assert header[-5:] == ["exx", "eyy", "exy", "u_mm", "v_mm"]
+    values = np.array([[float(v) for v in r] for r in sequential[0][1:]])
+    for px, mm in (("u", "u_mm"), ("v", "v_mm")):
+        np.testing.assert_allclose(values[:, header.index(mm)], values[:, header.index(px)] / 8.0, rtol=1e-12)
+    for name in ("par.csv", "par.parquet"):
+        _assert_same(_replay(recording, tmp_path / name, "--scale", "8", "--cluster", cluster), sequential)
 
 
 class KillOnce:
