@@ -14,7 +14,7 @@ import pytest
 
 from livedic.stream.cli import main
 from livedic.stream.replay.rows import FrameRows, ParquetRows, rows_output
-from tests.stream.replay.test_replay import recording  # noqa: F401 - the fixture: a 12-frame session
+from tests.stream.replay.test_replay import recording  # noqa: F401 - the fixture: a 12-frame session after 10 static frames
 
 INTEGERS = ("frame", "timestamp_ns", "point_id", "status", "iterations")
 
@@ -57,7 +57,7 @@ def test_parquet_holds_the_csvs_columns_and_values_typed(recording, tmp_path, ca
     rows = _read_csv(tmp_path / "replay.csv")
     header, cells = rows[0], rows[1:]
     table = pq.read_table(tmp_path / "replay.parquet")
-    assert table.column_names == header and table.num_rows == len(cells) == 12 * (1 + len(grid) + 1)    # P0 first
+    assert table.column_names == header and table.num_rows == len(cells) == 22 * (1 + len(grid) + 1)    # P0 first; 10 static + 12 frames
     for index, name in enumerate(header):
         column = table[name]
         texts = [row[index] for row in cells]
