@@ -12,7 +12,7 @@ that sits above them: ``livedic.bench.cli`` passes ``extensions`` to ``main``
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import argparse
 import logging
@@ -143,6 +143,22 @@ def _error_kind(error):
     return f"internal {type(error).__name__}: "
 
 
+def _add_metrology_commands(commands: Any) -> None:
+    """``calibrate`` and ``noise-floor``: what a lab measures of its set-up before it trusts a test."""
+    calibrate = commands.add_parser("calibrate", help="camera calibration (intrinsics, lens distortion, px/mm) from "
+                                                      "chessboard or ChArUco target images",
+                                    description="Find the target in each image, solve the camera (OpenCV), check "
+                                                "the reprojection error and write CAL.json, used by run, replay, export and report "
+                                                "--calibration (docs/guide/calibration.md).")
+    add_calibrate_arguments(calibrate)
+    calibrate.set_defaults(handler=calibrate_command)
+
+    noise = commands.add_parser("noise-floor", help="the measurement's noise floor from static images (u, v, "
+                                                    "strain: SD over points and over images)")
+    add_noise_floor_arguments(noise)
+    noise.set_defaults(handler=noise_floor_command)
+
+
 def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
     """The ``livedic`` parser: this layer's commands, then those ``extensions`` add.
 
@@ -174,18 +190,7 @@ def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:
     add_measure_arguments(measure)
     measure.set_defaults(handler=measure_command)
 
-    calibrate = commands.add_parser("calibrate", help="camera calibration (intrinsics, lens distortion, px/mm) from "
-                                                      "chessboard or ChArUco target images",
-                                    description="Find the target in each image, solve the camera (OpenCV), check "
-                                                "the reprojection error and write CAL.json, used by run and replay "
-                                                "--calibration (docs/guide/calibration.md).")
-    add_calibrate_arguments(calibrate)
-    calibrate.set_defaults(handler=calibrate_command)
-
-    noise = commands.add_parser("noise-floor", help="the measurement's noise floor from static images (u, v, "
-                                                    "strain: SD over points and over images)")
-    add_noise_floor_arguments(noise)
-    noise.set_defaults(handler=noise_floor_command)
+    _add_metrology_commands(commands)
 
     cameras = commands.add_parser("cameras", help="list GenICam cameras (GigE Vision, USB3 Vision) Aravis can see")
     cameras.add_argument("--fake", action="store_true", help="also list Aravis's in-process fake camera")

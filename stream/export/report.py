@@ -41,6 +41,8 @@ import os
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+import numpy as np
+
 from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.export.report_html import report_html
 from livedic.stream.export.report_tables import (Row, analysis_rows, hardware_rows, performance_rows, rows_json,
@@ -144,6 +146,17 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
     return "\n".join(lines)
 
 
+def guide_tables(session: Mapping[str, Any], *, scale: tuple[float | None, str | None],
+                 noise_floor: Mapping[str, Any] | None, verification: Mapping[str, Any]
+                 ) -> list[tuple[str, str, Sequence[Row]]]:
+    """The iDICs guide's tables of a session (key, heading, rows): hardware, analysis, measured performance."""
+    return [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=scale,
+                                                                 calibration=session.get("calibration"))),
+            ("analysis", "Analysis (iDICs guide)", analysis_rows(session)),
+            ("performance", "Measured performance (iDICs guide)",
+             performance_rows(session, noise_floor=noise_floor, verification=verification, scale=scale[0]))]
+
+
 def specimen_scale(given: float | None, session: Mapping[str, Any]) -> tuple[float | None, str | None]:
     """(px/mm, where it comes from) for the specimen's lengths: the session's scale, else the simulator's own
     (its images are rendered at a known scale), else (None, None)."""
@@ -216,9 +229,8 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     from livedic.stream.export.force import RecordedForce
     from livedic.stream.export.notes import reader_notes
     from livedic.stream.export.recomputed_strain import axial_series
-    import numpy as np
     from livedic.stream.stages.noise_floor import recorded_noise_floor
-    from livedic.stream.stages.stress import force_coverage_notes, plot_stress_strain, stress_strain_table
+    from livedic.stream.stages.stress import plot_stress_strain, stress_strain_table
 
     path, directory = os.fspath(path), os.fspath(directory)
     check_output_folder(directory, "-o")
@@ -246,23 +258,11 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
                 "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale,
                 "scale_origin": scale_origin}
-    source = {"recording": os.path.abspath(path), "truncated": bool(series["truncated"]), "load": stress.load,
-              "load_offset_s": stress.offset_s, "frames": int(table.frame.size),
-              "frames_with_force": int(sum(math.isfinite(f) for f in table.force_N)),
-              "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else None,
-              "strain": series["strain"],
-              "notes": series["notes"] + force_coverage_notes(table.frame, table.time_s, table.force_N,
-                                                              table.eng_strain),
-              **({"recorded_source": recorded.source} if stress.recorded else {}),
-              "generated_at": datetime.now(timezone.utc).isoformat()}
+    source = _source_section(path, series, stress, table, recorded.source if stress.recorded else None)
     session = series["metadata"]
-    tables = [("hardware", "Hardware (iDICs guide)", hardware_rows(session, scale=(scale, scale_origin),
-                                                                   calibration=session.get("calibration"))),
-              ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
     verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
                                     scale_px_per_mm=scale)
-    tables.append(("performance", "Measured performance (iDICs guide)",
-                   performance_rows(session, noise_floor=noise_floor, verification=verified, scale=scale)))
+    tables = guide_tables(session, scale=(scale, scale_origin), noise_floor=noise_floor, verification=verified)
     report = report_json(properties, specimen, source, contraction, tables=tables)
     report[VERIFICATION_KEY] = verified
     report["noise_floor"] = noise_floor
@@ -270,10 +270,31 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     plot = io.BytesIO()
     plot_stress_strain(plot, table, properties=properties,
                        title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
-    text = report_markdown(report, "stress_strain.png", title, tables=tables)
+    _write_report_files(targets, report, report_markdown(report, "stress_strain.png", title, tables=tables),
+                        plot.getvalue(), title)
+    return report
+
+
+def _source_section(path: str, series: Mapping[str, Any], stress: StressOptions, table: Any,
+                    recorded_source: str | None) -> dict[str, Any]:
+    """``report.json``'s ``source``: the recording, the force and how much of the test it covers, the strain."""
+    from livedic.stream.stages.stress import force_coverage_notes
+    return {"recording": os.path.abspath(path), "truncated": bool(series["truncated"]), "load": stress.load,
+            "load_offset_s": stress.offset_s, "frames": int(table.frame.size),
+            "frames_with_force": int(sum(math.isfinite(f) for f in table.force_N)),
+            "uniform_frame": int(table.frame[table.uniform_frame]) if table.uniform_frame >= 0 else None,
+            "strain": series["strain"],
+            "notes": series["notes"] + force_coverage_notes(table.frame, table.time_s, table.force_N,
+                                                            table.eng_strain),
+            **({"recorded_source": recorded_source} if stress.recorded else {}),
+            "generated_at": datetime.now(timezone.utc).isoformat()}
+
+
+def _write_report_files(targets: Mapping[str, str], report: Mapping[str, Any], text: str, plot_png: bytes,
+                        title: str) -> None:
+    """``REPORT_FILES`` written together, atomically: all of them or none."""
     with atomic_files(targets, binary={name for name in targets if name.endswith(".png")}) as staged:
         staged["report.json"].write(json_text(report))
         staged["report.md"].write(text)
-        staged["report.html"].write(report_html(text, {"stress_strain.png": plot.getvalue()}, title))
-        staged["stress_strain.png"].write(plot.getvalue())
-    return report
+        staged["report.html"].write(report_html(text, {"stress_strain.png": plot_png}, title))
+        staged["stress_strain.png"].write(plot_png)
