@@ -45,7 +45,8 @@ from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.export.report_html import report_html
 from livedic.stream.export.report_tables import (Row, analysis_rows, hardware_rows, performance_rows, rows_json,
                                                  rows_markdown)
-from livedic.stream.export.report_verification import VERIFICATION_KEY, verification_markdown, verification_section
+from livedic.stream.export.report_verification import (VERIFICATION_KEY, axial_end_fit, verification_markdown,
+                                                       verification_section)
 from livedic.stream.output.files import check_output_folder, json_text
 
 if TYPE_CHECKING:
@@ -260,7 +261,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
                                                                    calibration=session.get("calibration"))),
               ("analysis", "Analysis (iDICs guide)", analysis_rows(session))]
     verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
-                                    scale_px_per_mm=scale)
+                                    scale_px_per_mm=scale, end_fit=axial_end_fit(session))
     tables.append(("performance", "Measured performance (iDICs guide)",
                    performance_rows(session, noise_floor=noise_floor, verification=verified, scale=scale)))
     report = report_json(properties, specimen, source, contraction, tables=tables)
