@@ -9,7 +9,8 @@ increasing order. Between two steps the motion ramps over frames that move no po
 ``livedic run`` tracks (``TrackingConfig().tracker``: KeyFrameTracker, IC-GN, default subset,
 reference updates) on points every ``STEP`` px (the spacing ``livedic run`` gives the default simulated
 test's ~1,000 points), and every gauge length's axial extensometer, centred on the strip, is read by
-``dic.strain.extensometer.read_extensometers`` as the strain stage reads it. Its elongation readings
+``dic.strain.extensometer.read_extensometers`` as the strain stage reads it (its end fit: ``end_fit``,
+``livedic run``'s default for the axial unless given). Its elongation readings
 (length - L0) against the exact elongation e L0 give, per step, the bias and the resolution (half the
 range of the held readings), classified by ``dic.strain.iso9513.classify`` (ISO 9513:2012 Table 2).
 

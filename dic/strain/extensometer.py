@@ -10,8 +10,9 @@ steps (about 20; that module's notes say why a quadratic and not a plane, measur
 it, as a video extensometer's gauge-mark line across the specimen: quadratic along,
 linear across, so a rotation or a strain gradient across the width reads exactly and
 a neck's curvature along it too, while all the points across the width average the
-noise (3.7x less than the local fit on 29 points across; measured on the bench
-extensometer's 7-point strip 2.2x, docs/guide/extensometer-class.md). A band end is
+noise (by the fit weights 3.7x less than the local fit on 29 points across, 2.2x on
+the bench extensometer's 7-point strip, where 1.9x was measured: neighbouring subsets'
+errors correlate; docs/guide/extensometer-class.md). A band end is
 interpolated, never extrapolated, and read only where its local fit is possible
 too (its own points not lost). A band needs points across the extensometer: the
 transverse one, whose ends lie on the specimen's edges, keeps the local fit. Tracking each end with its own subset
