@@ -177,6 +177,8 @@ def _add_extensometer_command(bench_commands):
     """``livedic bench extensometer``'s options."""
     from livedic.bench.extensometer import (BIT_DEPTHS, DEFAULT_FRAMES_PER_STEP, DEFAULT_GAUGE_LENGTHS,
                                             DEFAULT_NOISE, DEFAULT_STRAINS, DEFAULT_SCALE_PX_PER_MM)
+    from livedic.dic.strain.extensometer import END_FITS
+    from livedic.stream.stages.strain import DEFAULT_AXIAL_END_FIT
     lengths = ",".join(f"{v:g}" for v in DEFAULT_GAUGE_LENGTHS)
     strains = ",".join(f"{100 * v:g}" for v in DEFAULT_STRAINS)
     bench = bench_commands.add_parser(
@@ -201,6 +203,10 @@ def _add_extensometer_command(bench_commands):
                        help=f"Gaussian noise SD, grey levels of an 8-bit image (scaled with --bit; default "
                             f"{DEFAULT_NOISE:g})")
     bench.add_argument("--bit", type=int, choices=BIT_DEPTHS, default=8, help="bit depth of the frames (default 8)")
+    bench.add_argument("--extensometer-ends", choices=END_FITS, default=DEFAULT_AXIAL_END_FIT,
+                       help=f"how the ends are fitted, as livedic run's option (default {DEFAULT_AXIAL_END_FIT})")
+    bench.add_argument("--seed", type=int, default=0, help="speckle pattern and noise (default 0): the class near a "
+                                                           "border varies with the noise drawn")
     bench.add_argument("-o", "--output", metavar="FILE.json", help="write the verification (for livedic report "
                                                                    "--verification)")
     bench.set_defaults(handler=_cmd_bench_extensometer)
@@ -393,7 +399,8 @@ def _cmd_bench_extensometer(args):
         check_output_file(args.output, "-o")
     result = run_extensometer_bench(gauge_lengths=args.gauge_length, steps=default_steps([v / 100 for v in args.steps]),
                                     frames_per_step=args.frames_per_step, noise=args.noise, bit=args.bit,
-                                    scale_px_per_mm=args.scale, say=lambda line: print(line, flush=True))
+                                    scale_px_per_mm=args.scale, seed=args.seed, end_fit=args.extensometer_ends,
+                                    say=lambda line: print(line, flush=True))
     if args.output is not None:
         write_verification(args.output, result)
         print(f"written: {args.output}", flush=True)

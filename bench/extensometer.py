@@ -9,7 +9,8 @@ increasing order. Between two steps the motion ramps over frames that move no po
 ``livedic run`` tracks (``TrackingConfig().tracker``: KeyFrameTracker, IC-GN, default subset,
 reference updates) on points every ``STEP`` px (the spacing ``livedic run`` gives the default simulated
 test's ~1,000 points), and every gauge length's axial extensometer, centred on the strip, is read by
-``dic.strain.extensometer.read_extensometers`` as the strain stage reads it. Its elongation readings
+``dic.strain.extensometer.read_extensometers`` as the strain stage reads it (its end fit: ``end_fit``,
+``livedic run``'s default for the axial unless given). Its elongation readings
 (length - L0) against the exact elongation e L0 give, per step, the bias and the resolution (half the
 range of the held readings), classified by ``dic.strain.iso9513.classify`` (ISO 9513:2012 Table 2).
 
@@ -129,8 +130,11 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
                            steps: Sequence[Step] | None = None, frames_per_step: int = DEFAULT_FRAMES_PER_STEP,
                            noise: float = DEFAULT_NOISE, bit: int = 8,
                            scale_px_per_mm: float | None = DEFAULT_SCALE_PX_PER_MM, seed: int = 0,
-                           say: Callable[[str], None] = print) -> dict[str, Any]:
+                           end_fit: str | None = None, say: Callable[[str], None] = print) -> dict[str, Any]:
     """Render, track and classify; print the table per gauge length; return the JSON-ready result.
+
+    ``end_fit``: how the extensometers' ends are fitted (``dic.strain.extensometer.END_FITS``; None: the axial
+    extensometer's default, ``stream.stages.strain.DEFAULT_AXIAL_END_FIT``). ``seed``: the speckle and the noise.
 
     Returns
     -------
@@ -143,7 +147,9 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     from livedic.dic.strain.extensometer import AXIAL, Extensometer, place_extensometers, read_extensometers
     from livedic.dic.strain.iso9513 import classify
     from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.stages.strain import DEFAULT_AXIAL_END_FIT
 
+    end_fit = end_fit or DEFAULT_AXIAL_END_FIT
     started = time.perf_counter()
     steps = tuple(steps) if steps is not None else default_steps()
     tracking = TrackingConfig()
@@ -151,13 +157,13 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     frames = _Frames(shape, centre, bit=bit, noise=noise, seed=seed)
     names = tuple(f"{AXIAL}_{length:g}" for length in gauge_lengths)
     placed = place_extensometers([Extensometer(name, centre[0], centre[1] - 0.5 * length, centre[0],
-                                               centre[1] + 0.5 * length)
+                                               centre[1] + 0.5 * length, end_fit)
                                   for name, length in zip(names, gauge_lengths)], points, step=STEP)
     tracker = tracking.tracker(frames.noisy(frames.exact(0.0, (0.0, 0.0))), points)
     say(f"livedic bench extensometer: {shape[1]}x{shape[0]} px strip, {len(points)} points every {STEP} px, "
         f"subset {tracking.subset}, {tracking.search}+{tracking.subpixel}, reference update "
         f"{tracking.reference_update}; {bit}-bit, noise {noise:g} grey levels (8-bit scale), {frames_per_step} "
-        f"frames per step; scale {f'{scale_px_per_mm:g} px/mm' if scale_px_per_mm else 'none (relative limits only)'}")
+        f"frames per step; {end_fit} ends; seed {seed}; scale {f'{scale_px_per_mm:g} px/mm' if scale_px_per_mm else 'none (relative limits only)'}")
     readings = {name: [] for name in names}
     lost_points = 0
     tracked = 0
@@ -196,7 +202,7 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
                          "bit_depth": bit, "scale_px_per_mm": scale_px_per_mm, "subset": tracking.subset,
                          "step_px": STEP, "search": tracking.search, "subpixel": tracking.subpixel,
                          "reference_update": tracking.reference_update, "image": [shape[1], shape[0]],
-                         "seed": seed},
+                         "seed": seed, "end_fit": end_fit},
             "date": datetime.now(timezone.utc).isoformat(),
             "environment": {"cpu_count": os.cpu_count(), "machine": platform.machine()},
             "standard": "ISO 9513:2012 Table 2; in-situ known displacements as EN 4861:2020",

@@ -47,7 +47,8 @@ from livedic.acquire.atomic_file import atomic_files
 from livedic.stream.export.report_html import report_html
 from livedic.stream.export.report_tables import (Row, analysis_rows, hardware_rows, performance_rows, rows_json,
                                                  rows_markdown)
-from livedic.stream.export.report_verification import VERIFICATION_KEY, verification_markdown, verification_section
+from livedic.stream.export.report_verification import (VERIFICATION_KEY, axial_end_fit, verification_markdown,
+                                                       verification_section)
 from livedic.stream.output.files import check_output_folder, json_text
 
 if TYPE_CHECKING:
@@ -261,7 +262,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     source = _source_section(path, series, stress, table, recorded.source if stress.recorded else None)
     session = series["metadata"]
     verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
-                                    scale_px_per_mm=scale)
+                                    scale_px_per_mm=scale, end_fit=axial_end_fit(session))
     tables = guide_tables(session, scale=(scale, scale_origin), noise_floor=noise_floor, verification=verified)
     report = report_json(properties, specimen, source, contraction, tables=tables)
     report[VERIFICATION_KEY] = verified

@@ -2,8 +2,8 @@
 
 ``livedic report --verification FILE.json`` states the class the session's axial extensometer was verified to,
 with the table it was verified by (per step: true elongation, mean reading, bias, resolution, class), the date
-and the settings; a warning line when the session's gauge length, subset or scale differs from the
-verification's (the class is of the verified extensometer, not necessarily of this one). Without the file the
+and the settings; a warning line when the session's gauge length, subset, scale or axial end fit
+(``--extensometer-ends``) differs from the verification's (the class is of the verified extensometer, not necessarily of this one). Without the file the
 section says the class was not verified and names the command. ``report.json`` holds the same under
 ``extensometer_verification``.
 """
@@ -15,6 +15,8 @@ import math
 import os
 from collections.abc import Mapping
 from typing import Any
+
+from livedic.dic.strain.extensometer import AXIAL, LOCAL
 
 VERIFICATION_KEY = "extensometer_verification"
 VERIFICATION_KIND = "livedic extensometer verification"       # the mark bench.extensometer writes into its -o file
@@ -46,10 +48,17 @@ def load_verification(path: str | os.PathLike[str]) -> dict[str, Any]:
     return data
 
 
+def axial_end_fit(session: Mapping[str, Any]) -> str:
+    """The axial extensometer's end fit recorded in a session's metadata (local before the choice existed)."""
+    return str((session.get("extensometer_end_fits") or {}).get(AXIAL, LOCAL))
+
+
 def verification_section(verification: Mapping[str, Any] | None, *, gauge_length_px: float,
-                         subset: int | None, scale_px_per_mm: float | None) -> dict[str, Any]:
+                         subset: int | None, scale_px_per_mm: float | None,
+                         end_fit: str | None = None) -> dict[str, Any]:
     """The ``report.json`` section: the class of the verified gauge length nearest the session's, its table,
-    date, settings and warnings; or ``{"verified": False, ...}`` naming the command."""
+    date, settings and warnings; or ``{"verified": False, ...}`` naming the command. ``end_fit``: the session's
+    axial end fit (a verification written before the choice existed was made with local ends)."""
     if verification is None:
         return {"verified": False, "class": None,
                 "statement": f"the extensometer's ISO 9513 class was not verified: run {VERIFY_COMMAND} and pass "
@@ -64,6 +73,10 @@ def verification_section(verification: Mapping[str, Any] | None, *, gauge_length
                         f"({verified} px): the class stated is of {float(entry['l0_px']):g} px")
     if subset is not None and settings.get("subset") is not None and int(settings["subset"]) != int(subset):
         warnings.append(f"the session's subset {subset} px differs from the verification's {settings['subset']} px")
+    verified_fit = settings.get("end_fit") or LOCAL
+    if end_fit is not None and verified_fit != end_fit:
+        warnings.append(f"the session's extensometer ends are {end_fit}, the verification's {verified_fit}: "
+                        f"their noise differs (--extensometer-ends)")
     verified_scale = settings.get("scale_px_per_mm")
     if verified_scale is None:
         warnings.append("verified without a scale: relative limits only, zero-elongation steps not classified")
@@ -90,7 +103,8 @@ def verification_markdown(section: Mapping[str, Any] | None) -> list[str]:
               f"- verified {section['date']} by `livedic bench extensometer`: exact rendered known elongations "
               f"(rigid translations, uniform stretches), {settings.get('frames_per_step')} frames per step, noise "
               f"{settings.get('noise')} grey levels ({settings.get('bit_depth')}-bit), subset "
-              f"{settings.get('subset')} px, points every {settings.get('step_px')} px, scale "
+              f"{settings.get('subset')} px, points every {settings.get('step_px')} px, "
+              f"{settings.get('end_fit') or LOCAL} ends, scale "
               f"{settings.get('scale_px_per_mm') or 'none'} px/mm; {section.get('standard') or 'ISO 9513:2012 Table 2'}; "
               f"bias = mean reading - true, resolution = half the range of the held readings"]
     lines += [f"- limitation: {text}" for text in section["limitations"]]

@@ -47,8 +47,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from livedic.dic.calibration import CameraCalibration, image_points, plane_points
-from livedic.dic.strain.extensometer import (AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints,
-                                              end_displacements, place_extensometers, read_extensometers,
+from livedic.dic.strain.extensometer import (AXIAL, BAND, END_FITS, LOCAL, TRANSVERSE, Extensometer,
+                                              ExtensometerOffPoints, end_displacements, place_extensometers,
+                                              read_extensometers,
                                               strain_noise)
 from livedic.dic.strain import DEFAULT_MEASURE, DEFAULT_WINDOW, MEASURES, strain_field, strain_window
 from livedic.stream.pipeline.frame_result import FrameResult
@@ -56,6 +57,10 @@ from livedic.stream.pipeline.stage import Stage
 from livedic.stream.stages.contraction import format_poisson
 
 TRANSVERSE_FRACTION = 0.8
+# The axial extensometer's ends: the band of points across the specimen (a gauge-mark line) averages 2-4x less
+# noise than the local fit at the same neck bias (docs/guide/extensometer-class.md, measured). The transverse's
+# ends are on the specimen's edges, where no band across exists: local.
+DEFAULT_AXIAL_END_FIT = BAND
 # An extensometer's expected noise at placement, for the warning below: the point displacement noise of IC-GN on
 # good 8-bit speckle is 0.01-0.02 px (0.006 px measured on the simulator); the low end, so that the warning is
 # never a false alarm. dic.strain.extensometer.strain_noise turns it into strain: sigma_e = 0.01 px |w2 - w1| / L0
@@ -91,6 +96,11 @@ def add_strain_arguments(parser, *, recorded=False):
     group.add_argument("--gauge-length", metavar="L[,W]",
                        help="virtual extensometers 'axial' (length L along y, centred on P0) and 'transverse' "
                             "(length W along x through P0; default 0.8 x the ROI width); px, or mm with --scale")
+    group.add_argument("--extensometer-ends", choices=END_FITS, default=None if recorded else DEFAULT_AXIAL_END_FIT,
+                       help="how the axial extensometer's ends follow the material: 'band', the points on a line "
+                            "across the specimen at each end (a gauge-mark line: less noise); 'local', a quadratic "
+                            "surface over the points around each end" + ("" if recorded
+                                                                          else f"; default {DEFAULT_AXIAL_END_FIT}"))
     group.add_argument("--extensometer", action="append", metavar="NAME=x1,y1,x2,y2",
                        help="another virtual extensometer between two reference image positions, px "
                             "(repeatable)")
@@ -151,6 +161,8 @@ class StrainConfig:
         Axial extensometer length (px, or mm with ``scale``); None: no axial/transverse pair.
     gauge_width : float or None
         Transverse extensometer length; None: 0.8 x the ROI width.
+    axial_end_fit : str
+        How the axial extensometer's ends are fitted (``dic.strain.extensometer.END_FITS``).
     extensometers : tuple of dic.strain.extensometer.Extensometer
         More, in reference px.
     scale : float or None
@@ -162,6 +174,7 @@ class StrainConfig:
     measure: str = DEFAULT_MEASURE
     gauge_length: float | None = None
     gauge_width: float | None = None
+    axial_end_fit: str = DEFAULT_AXIAL_END_FIT
     extensometers: tuple = ()
     scale: float | None = None
     calibration: CameraCalibration | None = None
@@ -178,6 +191,8 @@ class StrainConfig:
                              "px/mm on the specimen plane: give one of them")
         if self.gauge_width is not None and self.gauge_length is None:
             raise ValueError("a transverse gauge width needs --gauge-length L,W")
+        if self.axial_end_fit not in END_FITS:
+            raise ValueError(f"--extensometer-ends {self.axial_end_fit!r}: choose one of {', '.join(END_FITS)}")
         object.__setattr__(self, "extensometers", tuple(self.extensometers))
         names = [e.name for e in self.extensometers]
         reserved = [n for n in names if self.gauge_length is not None and n in (AXIAL, TRANSVERSE)]
@@ -240,7 +255,7 @@ class StrainConfig:
                 width = TRANSVERSE_FRACTION * roi[2]
                 if x_range is not None:
                     width = min(width, 2.0 * min(x0 - x_range[0], x_range[1] - x0))
-            placed.append(Extensometer(AXIAL, x0, y0 - half, x0, y0 + half))
+            placed.append(Extensometer(AXIAL, x0, y0 - half, x0, y0 + half, self.axial_end_fit))
             placed.append(Extensometer(TRANSVERSE, x0 - 0.5 * width, y0, x0 + 0.5 * width, y0))
         return tuple(placed) + self.extensometers
 
@@ -284,7 +299,7 @@ class StrainConfig:
         for e in extensometers:
             if e.name in given:
                 (x1, y1), (x2, y2) = self.ideal(np.array([[e.x1, e.y1], [e.x2, e.y2]]))
-                e = Extensometer(e.name, float(x1), float(y1), float(x2), float(y2))
+                e = Extensometer(e.name, float(x1), float(y1), float(x2), float(y2), e.end_fit)
             out.append(e)
         return tuple(out)
 
@@ -308,6 +323,7 @@ class StrainConfig:
         from livedic.acquire.calibration import calibration_document
         return {"strain_window": self.window, "strain_measure": self.measure, "scale_px_per_mm": self.px_per_mm,
                 "gauge_length": self.gauge_length, "gauge_width": self.gauge_width,
+                "axial_end_fit": self.axial_end_fit,
                 "extensometers_given": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.extensometers],
                 "calibration": None if self.calibration is None else calibration_document(self.calibration)}
 
@@ -317,7 +333,9 @@ class StrainConfig:
 
         The recorded extensometers are taken as placed (the ``extensometers`` key: name and ends in
         reference px), so a replay or an export measures between the same material points whatever
-        points it tracks; a ``gauge_length``/``extensometers`` override replaces them all.
+        points it tracks; a ``gauge_length``/``extensometers`` override replaces them all. Each keeps its recorded
+        end fit (``extensometer_end_fits``; local in recordings made before there was a choice); an
+        ``axial_end_fit`` override applies to the recorded axial one.
         """
         def get(key, default):
             value = metadata.get(key, default)
@@ -326,9 +344,14 @@ class StrainConfig:
         if not isinstance(placed, (list, tuple)):
             placed = metadata.get("extensometers_given") or ()
         calibration = recorded_calibration(metadata)
+        fits = dict(metadata.get("extensometer_end_fits") or {})
+        if "axial_end_fit" in overrides:
+            fits[AXIAL] = overrides["axial_end_fit"]
         recorded = dict(window=int(get("strain_window", DEFAULT_WINDOW)),
                         measure=str(get("strain_measure", DEFAULT_MEASURE)),
-                        extensometers=tuple(Extensometer(str(e[0]), *(float(v) for v in e[1:5])) for e in placed),
+                        axial_end_fit=str(get("axial_end_fit", DEFAULT_AXIAL_END_FIT)),
+                        extensometers=tuple(Extensometer(str(e[0]), *(float(v) for v in e[1:5]),
+                                                         str(fits.get(str(e[0]), LOCAL))) for e in placed),
                         scale=_float_or_none(metadata.get("scale_px_per_mm")), calibration=calibration)
         recorded.update(overrides)
         if recorded["calibration"] is not None and recorded["calibration"].px_per_mm is not None \
@@ -365,6 +388,8 @@ def overrides_from_args(args):
         given["measure"] = args.strain_measure
     if getattr(args, "scale", None) is not None:
         given["scale"] = args.scale
+    if getattr(args, "extensometer_ends", None) is not None:
+        given["axial_end_fit"] = args.extensometer_ends
     if getattr(args, "calibration", None) is not None:
         from livedic.acquire.calibration import read_calibration
         given["calibration"] = read_calibration(args.calibration)
@@ -473,8 +498,8 @@ class StrainStage(Stage):
     def image_extensometers(self) -> tuple:
         """The extensometers with their ends in image px (their ``length_px`` is then the image's, not L0)."""
         ends = self.image_ends
-        return tuple(Extensometer(e.name, *(float(c) for c in ends[2 * k]), *(float(c) for c in ends[2 * k + 1]))
-                     for k, e in enumerate(self.extensometers))
+        return tuple(replace(e, x1=float(ends[2 * k, 0]), y1=float(ends[2 * k, 1]), x2=float(ends[2 * k + 1, 0]),
+                             y2=float(ends[2 * k + 1, 1])) for k, e in enumerate(self.extensometers))
 
     def end_positions(self, u, v, ok) -> np.ndarray:
         """The extensometers' ends (2E, 2) in this frame, image px (NaN where an end is lost)."""
@@ -577,7 +602,7 @@ class StrainStage(Stage):
                      f"reprojection RMS {calibration.rms_px:.3f} px)")
         if self.extensometers:
             text += "; extensometers " + ", ".join(
-                f"{e.name} L0 {format_length(e.length_px, self.config.in_mm(e.length_px))}"
+                f"{e.name} L0 {format_length(e.length_px, self.config.in_mm(e.length_px))} ({e.end_fit} ends)"
                 for e in self.extensometers)
         return text
 
@@ -605,7 +630,8 @@ class StrainStage(Stage):
         """The VSG and the extensometers as placed (name and ends in reference image px: with a calibration
         their ideal ends distorted back, so ``from_metadata`` and the calibration place them again exactly)."""
         return {"vsg_px": self.vsg_px,
-                "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.image_extensometers]}
+                "extensometers": [[e.name, e.x1, e.y1, e.x2, e.y2] for e in self.image_extensometers],
+                "extensometer_end_fits": {e.name: e.end_fit for e in self.extensometers}}
 
 
 def format_strain_summary(strain: dict | None) -> list[str]:

@@ -22,6 +22,7 @@ def test_small_noise_free_run_reads_the_known_elongations(tmp_path, capsys):
     assert "L0 400 px = 40 mm: class" in printed and "target ISO 9513 class 0.5" in printed
     verification = json.loads(out.read_text())
     assert verification["kind"] == "livedic extensometer verification" and verification["lost_points"] == 0
+    assert (verification["settings"]["end_fit"], verification["settings"]["seed"]) == ("band", 0)   # run's default
     (entry,) = verification["gauge_lengths"]
     steps = entry["steps"]
     assert [s["strain"] for s in steps] == [0.0, 0.0, 0.0, 0.01]
@@ -43,3 +44,12 @@ def test_bad_options_are_one_line_and_exit_2(options, says, capsys):
     assert main(["bench", "extensometer", *options]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0], err
+
+
+def test_the_end_fit_and_seed_are_chosen_and_recorded(tmp_path, capsys):
+    out = tmp_path / "verification.json"
+    assert main(["bench", "extensometer", "--gauge-length", "400", "--steps", "1", "--frames-per-step", "2",
+                 "--noise", "0", "--extensometer-ends", "local", "--seed", "3", "-o", str(out)]) == 0
+    assert "local ends; seed 3" in capsys.readouterr().out
+    settings = json.loads(out.read_text())["settings"]
+    assert (settings["end_fit"], settings["seed"]) == ("local", 3)

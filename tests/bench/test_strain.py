@@ -89,7 +89,7 @@ def test_tensile_strain_field_and_extensometers_against_the_exact_test(quick):
     exact = np.array([float(r["exact"]) for r in axial])
     ratio = np.abs(errors) / (50e-6 + 0.005 * np.abs(exact))
     np.testing.assert_allclose(ratio, [float(r["ratio"]) for r in axial], rtol=1e-6)
-    assert ratio.max() <= 1.0                                           # 0.45 measured: ISO 9513 class 0.5
+    assert ratio.max() <= 1.0                            # 0.10 measured (band ends; 0.45 local): ISO 9513 class 0.5
     assert exact[-1] > 0.10
     verdict = [line for line in lines if "target extensometer L >= 400 px" in line]
     assert len(verdict) == 1 and verdict[0].startswith("MET")

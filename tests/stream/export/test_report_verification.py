@@ -5,8 +5,8 @@ import json
 import pytest
 
 from livedic.dic.strain.iso9513 import classify
-from livedic.stream.export.report_verification import (VERIFICATION_KIND, load_verification, verification_markdown,
-                                                       verification_section)
+from livedic.stream.export.report_verification import (VERIFICATION_KIND, axial_end_fit, load_verification,
+                                                       verification_markdown, verification_section)
 
 
 def _verification(lengths=(200.0, 400.0), scale=10.0, subset=21):
@@ -43,6 +43,21 @@ def test_a_session_unlike_the_verification_is_warned(session, warns):
     section = verification_section(_verification(), **session)
     assert any(warns in line for line in section["warnings"]), section["warnings"]
     assert warns in "\n".join(verification_markdown(section))
+
+
+def test_a_session_with_other_extensometer_ends_than_the_verification_is_warned():
+    verification = _verification()
+    verification["settings"]["end_fit"] = "band"
+    same = verification_section(verification, gauge_length_px=400.0, subset=21, scale_px_per_mm=10.0, end_fit="band")
+    assert same["warnings"] == [] and "band ends" in "\n".join(verification_markdown(same))
+    other = verification_section(verification, gauge_length_px=400.0, subset=21, scale_px_per_mm=10.0, end_fit="local")
+    assert other["warnings"] == ["the session's extensometer ends are local, the verification's band: their noise "
+                                 "differs (--extensometer-ends)"]
+    # a verification, or a recording, made before the choice existed: local ends
+    older = verification_section(_verification(), gauge_length_px=400.0, subset=21, scale_px_per_mm=10.0,
+                                 end_fit=axial_end_fit({}))
+    assert older["warnings"] == []
+    assert axial_end_fit({"extensometer_end_fits": {"axial": "band", "transverse": "local"}}) == "band"
 
 
 def test_without_verification_the_report_says_so_and_names_the_command():

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE, Extensometer, ExtensometerOffPoints
+from livedic.dic.strain.extensometer import AXIAL, BAND, LOCAL, TRANSVERSE, Extensometer, ExtensometerOffPoints
 from livedic.stream.stages.strain import (NOISE_LIMIT, StrainConfig, add_strain_arguments, format_length,
                                           format_strain_summary, parse_extensometer, parse_gauge_length)
 
@@ -117,6 +117,25 @@ def test_strain_settings_are_validated_in_one_line(settings, words):
     with pytest.raises(ValueError, match=None) as error:
         StrainConfig(**settings)
     assert words in str(error.value) and "\n" not in str(error.value)
+
+
+def test_the_end_fit_is_recorded_and_replayed_and_older_recordings_keep_the_local_fit(stage):
+    # the session's axial uses the band, its transverse the local fit; the metadata says which, per extensometer
+    assert {e.name: e.end_fit for e in stage.extensometers} == {AXIAL: BAND, TRANSVERSE: LOCAL, "upper": LOCAL}
+    recorded = {**stage.config.as_metadata(), **stage.metadata()}
+    assert recorded["extensometer_end_fits"] == {AXIAL: BAND, TRANSVERSE: LOCAL, "upper": LOCAL}
+    again = StrainConfig.from_metadata(recorded)
+    assert {e.name: e.end_fit for e in again.extensometers} == {AXIAL: BAND, TRANSVERSE: LOCAL, "upper": LOCAL}
+    # a recording made before the choice existed was measured with the local fit: replayed so
+    older = {k: v for k, v in recorded.items() if k not in ("extensometer_end_fits", "axial_end_fit")}
+    assert {e.end_fit for e in StrainConfig.from_metadata(older).extensometers} == {LOCAL}
+    # --extensometer-ends on a replay applies to the recorded axial one
+    chosen = StrainConfig.from_metadata(recorded, axial_end_fit=LOCAL)
+    assert {e.name: e.end_fit for e in chosen.extensometers}[AXIAL] == LOCAL
+    assert StrainConfig(gauge_length=100.0, axial_end_fit=LOCAL).resolve_extensometers(
+        (300.0, 300.0), (0, 0, 600, 600))[0].end_fit == LOCAL
+    with pytest.raises(ValueError, match="--extensometer-ends 'disk': choose one of local, band"):
+        StrainConfig(axial_end_fit="disk")
 
 
 def test_metadata_round_trip_and_an_older_recording_gets_the_defaults(stage):
