@@ -145,7 +145,6 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
         ``seconds``.
     """
     from livedic.dic.strain.extensometer import AXIAL, Extensometer, place_extensometers, read_extensometers
-    from livedic.dic.strain.iso9513 import classify
     from livedic.stream.session.config import TrackingConfig
     from livedic.stream.stages.strain import DEFAULT_AXIAL_END_FIT
 
@@ -184,14 +183,9 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
         for name in names:
             readings[name].append(np.asarray(held[name]))
         previous = step
-    results = []
-    for name, length in zip(names, gauge_lengths):
-        verdict = classify([s.strain * length for s in steps], readings[name], length,
-                           scale_px_per_mm=scale_px_per_mm)
-        entry = verdict.as_dict()
-        for row, step, held_px in zip(entry["steps"], steps, readings[name]):
-            row.update(label=step.label, strain=step.strain, readings_px=[float(v) for v in held_px])
-        results.append(entry)
+    results = [_classified(steps, readings[name], length, scale_px_per_mm) for name, length in
+               zip(names, gauge_lengths)]
+    for entry in results:
         _say_table(entry, say)
     seconds = time.perf_counter() - started
     say(f"{tracked} frames tracked ({len(steps)} steps x {frames_per_step} counted, the rest ramps); points not ok "
@@ -207,6 +201,16 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
             "environment": {"cpu_count": os.cpu_count(), "machine": platform.machine()},
             "standard": "ISO 9513:2012 Table 2; in-situ known displacements as EN 4861:2020",
             "gauge_lengths": results, "lost_points": lost_points, "seconds": seconds, "verdict": _verdict(results)}
+
+
+def _classified(steps: Sequence[Step], readings: Sequence[np.ndarray], length: float,
+                scale_px_per_mm: float | None) -> dict[str, Any]:
+    """One gauge length's ISO 9513 verdict (JSON-ready), each step with its label, strain and readings."""
+    from livedic.dic.strain.iso9513 import classify
+    entry = classify([s.strain * length for s in steps], readings, length, scale_px_per_mm=scale_px_per_mm).as_dict()
+    for row, step, held_px in zip(entry["steps"], steps, readings):
+        row.update(label=step.label, strain=step.strain, readings_px=[float(v) for v in held_px])
+    return entry
 
 
 def write_verification(path: str | os.PathLike[str], result: dict[str, Any]) -> None:
