@@ -32,7 +32,7 @@ import io
 import os
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -48,20 +48,18 @@ from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_F
                                           result_columns)
 from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
 from livedic.stream.export.notes import plural, reader_notes
-from livedic.stream.export.recomputed_strain import (_chain, _lost_readings, _strain_settings, open_recorded_strain,
-                                                     plot_extensometers)
+from livedic.stream.export.recomputed_strain import (RecordedStrain, _chain, _lost_readings, _strain_settings,
+                                                     open_recorded_strain, plot_extensometers)
 from livedic.stream.export.stop import _stopped_in
 # Re-exported: stream.cli's export, replay and report commands name them as export's.
 
 if TYPE_CHECKING:
     from livedic.acquire.atomic_file import AtomicFile
     from livedic.acquire.force import LoadSource
-    from livedic.acquire.recording.reader import Recording
     from livedic.acquire.recording.records import RecordedEvent, RecordedResults
     from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.stream.export.field_options import FieldOptions, Quantity
     from livedic.stream.pipeline.progress import ProgressBar
-    from livedic.stream.stages.strain import StrainConfig, StrainStage
     from livedic.stream.stages.stress import StressOptions
 
 
@@ -158,18 +156,9 @@ def _check_targets(directory: str, outputs: tuple[str, ...], fields: FieldOption
 
 
 @dataclass
-class _Source:
-    """What the export reads of the recording before it writes anything: its metadata, first results, strain
-    stage, force and colour ranges."""
-    recording: Recording
-    metadata: dict[str, Any]
-    p0_id: int
-    p0_how: str
-    config: StrainConfig
-    first: RecordedResults | None
-    results: Iterator[RecordedResults]               # the results after ``first``
-    stage: StrainStage | None
-    names: tuple[str, ...]                           # the extensometers
+class _Source(RecordedStrain):
+    """What the export reads of the recording before it writes anything: the recording with its strain stage
+    (``RecordedStrain``), and the force and colour ranges."""
     load: LoadSource | RecordedForce | None
     shown: dict[str, Quantity]
     ranges: ColourRanges
@@ -184,8 +173,7 @@ def _read_source(path: str, strain: dict[str, Any] | None, stress: StressOptions
     load = _open_stress_load(stress, opened.names, opened.recording)      # bad load or no axial extensometer
     shown = quantities(config.px_per_mm, fields.strain_unit, config.measure, stage.vsg_px if stage is not None else None)
     ranges = ColourRanges(shown, fields.ranges, fields.coloured)
-    return _Source(opened.recording, opened.metadata, opened.p0_id, opened.p0_how, config, opened.first,
-                   opened.results, stage, opened.names, load, shown, ranges)
+    return _Source(**vars(opened), load=load, shown=shown, ranges=ranges)
 
 
 @dataclass

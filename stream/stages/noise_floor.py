@@ -24,6 +24,7 @@ from livedic.dic.noise_floor import NoiseFloor, field_noise_floor
 from livedic.dic.strain.field import StrainStatus
 from livedic.stream.pipeline.frame_result import FrameResult
 from livedic.stream.pipeline.stage import Reference, Stage
+from livedic.stream.stages.strain import StrainConfig
 
 # The metadata key (recording, --summary-json) of the static frames' count, and of the table in a summary.
 STATIC_FRAMES_KEY = "static_frames"
@@ -201,8 +202,7 @@ def recorded_noise_floor(recording: Any, metadata: dict[str, Any] | None = None)
     static = int(metadata.get(STATIC_FRAMES_KEY) or 0)
     if static <= 0:
         return None
-    # the session's scale: --scale, else its calibration's on the specimen plane (as StrainConfig.px_per_mm)
-    scale = metadata.get("scale_px_per_mm") or (metadata.get("calibration") or {}).get("px_per_mm")
+    scale = StrainConfig.from_metadata(metadata).px_per_mm     # --scale, else the calibration's, as live
     frames: dict[int, Any] = {}
     reference = None
     for record in recording.results():
