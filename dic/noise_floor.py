@@ -11,9 +11,10 @@ strain) on F static frames x N points:
 
 Only ok values count (``ok``: the point's status, or NaN values); the counts say how many. Standard deviations
 use ``ddof=1``. A spatial SD needs at least two ok points in a frame, a temporal SD two ok frames of a point.
-A single-point quantity (an extensometer) has no spatial SD: NaN, its status still OK. Fewer than two static
-frames give NaN everywhere with ``NoiseFloorStatus.TOO_FEW_FRAMES``; no ok value at all gives NaN with
-``NO_OK_VALUES``. Pure numpy: no I/O.
+A single-point quantity (an extensometer) has no spatial SD: NaN, its status still OK. One static frame (a
+reference and one static image, as many data sets give) has the spatial SD and the mean but no temporal SD:
+``NoiseFloorStatus.SPATIAL_ONLY``; no static frame gives NaN everywhere with ``TOO_FEW_FRAMES``; no ok value
+at all gives NaN with ``NO_OK_VALUES``. Pure numpy: no I/O.
 """
 
 from __future__ import annotations
@@ -29,12 +30,14 @@ import numpy as np
 import numpy.typing as npt
 
 MICRO = 1e6
-MIN_STATIC_FRAMES = 2
+MIN_STATIC_FRAMES = 1            # the spatial SD and the mean
+MIN_TEMPORAL_FRAMES = 2          # the temporal SD
 
 
 class NoiseFloorStatus(enum.Enum):
     """Whether a noise floor could be measured, and why not."""
     OK = "ok"
+    SPATIAL_ONLY = "spatial_only"
     TOO_FEW_FRAMES = "too_few_frames"
     NO_OK_VALUES = "no_ok_values"
 
@@ -45,7 +48,9 @@ class NoiseFloorStatus(enum.Enum):
 
 _DESCRIPTIONS = {
     NoiseFloorStatus.OK: "measured",
-    NoiseFloorStatus.TOO_FEW_FRAMES: f"fewer than {MIN_STATIC_FRAMES} static frames",
+    NoiseFloorStatus.SPATIAL_ONLY: f"one static frame: the spatial SD and mean only (a temporal SD needs "
+                                   f"{MIN_TEMPORAL_FRAMES})",
+    NoiseFloorStatus.TOO_FEW_FRAMES: "no static frame",
     NoiseFloorStatus.NO_OK_VALUES: "no ok value in the static frames",
 }
 
@@ -164,7 +169,8 @@ def noise_floor(values: npt.ArrayLike, ok: npt.ArrayLike | None = None, *, quant
                       temporal_sd_mean=float(per_point.mean()) if per_point.size else nan,
                       temporal_sd_max=float(per_point.max()) if per_point.size else nan,
                       mean=float(np.nanmean(scaled)), frames=frames, points=int(per_point.size),
-                      values=int(good.sum()), status=NoiseFloorStatus.OK)
+                      values=int(good.sum()),
+                      status=NoiseFloorStatus.OK if frames >= MIN_TEMPORAL_FRAMES else NoiseFloorStatus.SPATIAL_ONLY)
 
 
 def field_noise_floor(u: npt.ArrayLike, v: npt.ArrayLike, ok: npt.ArrayLike, *, exx: npt.ArrayLike | None = None,

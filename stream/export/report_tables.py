@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 NOT_RECORDED = "not recorded"
+MEASURED = ("ok", "spatial_only")     # dic.noise_floor.NoiseFloorStatus values that carry numbers
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,8 @@ def _cell(text: str) -> str:
 
 def _floor_item(noise_floor: Mapping[str, Any] | None, quantity: str, unit: str) -> Mapping[str, Any] | None:
     for item in (noise_floor or {}).get("table", ()):
-        if item.get("quantity") == quantity and item.get("unit") == unit and item.get("status") == "ok":
+        # one static frame (spatial_only) still measures the spatial SD; a missing value reads as not measured
+        if item.get("quantity") == quantity and item.get("unit") == unit and item.get("status") in MEASURED:
             return item
     return None
 

@@ -46,11 +46,20 @@ def test_exact_values_with_excluded_points_and_nan():
     assert (floor.points, floor.values) == (2, 5)
 
 
-def test_one_frame_is_nan_with_its_reason():
-    floor = noise_floor(np.zeros((1, 10)), quantity="u", unit="px")
+def test_one_frame_gives_the_spatial_sd_and_says_the_temporal_one_is_missing():
+    values = np.array([[0.0, 2.0, 4.0]])
+    floor = noise_floor(values, quantity="u", unit="px")
+    assert floor.status is NoiseFloorStatus.SPATIAL_ONLY and not floor.ok
+    assert floor.spatial_sd == pytest.approx(2.0) and floor.mean == pytest.approx(2.0)
+    assert math.isnan(floor.temporal_sd_mean) and math.isnan(floor.temporal_sd_max) and floor.points == 0
+    assert floor.as_dict()["reason"].startswith("one static frame")
+
+
+def test_no_frame_is_nan_with_its_reason():
+    floor = noise_floor(np.zeros((0, 10)), quantity="u", unit="px")
     assert floor.status is NoiseFloorStatus.TOO_FEW_FRAMES and not floor.ok
     assert all(math.isnan(x) for x in (floor.spatial_sd, floor.temporal_sd_mean, floor.temporal_sd_max, floor.mean))
-    assert floor.as_dict()["reason"] == "fewer than 2 static frames"
+    assert floor.as_dict()["reason"] == "no static frame"
 
 
 def test_no_ok_value_is_nan_with_its_reason():
