@@ -121,6 +121,10 @@ class NoiseFloorStage(Stage):
         if result.is_reference or self.table is not None:
             return
         index = result.frame.index
+        if not self.frames.frame_indices and index > self._last and not result.dropped_since_last:
+            # A camera streams on while the session is prepared: its frames after the reference were never
+            # delivered (no queue dropped them), so the still specimen's window starts at the first one that was.
+            self._last = index + self.static_frames - 1
         if index <= self._last:
             m = result.measurement
             self.frames.add(index, m.u, m.v, m.ok, result.strain, result.extensometers)
@@ -204,10 +208,15 @@ def recorded_noise_floor(recording: Any, metadata: dict[str, Any] | None = None)
         return None
     scale = StrainConfig.from_metadata(metadata).px_per_mm     # --scale, else the calibration's, as live
     frames: dict[int, Any] = {}
-    reference = None
+    reference = last = None
     for record in recording.results():
-        reference = record.frame_index if reference is None else reference      # the first results: the reference
-        if record.frame_index > reference + static:
+        if reference is None:                  # the first results: the reference
+            reference, last = record.frame_index, record.frame_index + static
+            frames[record.frame_index] = record
+            continue
+        if len(frames) == 1 and record.frame_index > last and not record.dropped_frames:
+            last = record.frame_index + static - 1     # a camera's frames never delivered: as NoiseFloorStage does
+        if record.frame_index > last:
             break
         frames[record.frame_index] = record
     indices = sorted(frames)[1:]

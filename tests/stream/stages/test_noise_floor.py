@@ -121,7 +121,7 @@ def test_a_dropped_static_frame_is_missing_never_replaced_by_a_moving_one():
         u = shift + rng.normal(0.0, 0.01, 50)
         measurement = SimpleNamespace(u=u, v=u.copy(), ok=np.ones(50, bool))
         return SimpleNamespace(is_reference=index == 10, frame=SimpleNamespace(index=index), measurement=measurement,
-                               strain=None, extensometers=None, noise_floor=None)
+                               strain=None, extensometers=None, noise_floor=None, dropped_since_last=int(index == 14))
 
     # frame 13 was dropped by the queue; 15 is the test's first, already moving 5 px
     results = [result(10), result(11), result(12), result(14), result(15, shift=5.0)]
@@ -132,3 +132,21 @@ def test_a_dropped_static_frame_is_missing_never_replaced_by_a_moving_one():
     u = _rows(summary)[("u", "px")]
     assert u["spatial_sd"] < 0.02 and abs(u["mean"]) < 0.01
     assert "floor on 3 static frame(s) after the reference (of 4 asked)" in "\n".join(stage.summary_lines())
+
+
+def test_a_camera_whose_first_frames_were_never_delivered_takes_the_next_ones():
+    """A camera streams while the session is prepared: the frames after the reference (index 0) up to 24 never
+    reach the tracker, no queue dropped them; the static window starts at the first delivered frame."""
+    from types import SimpleNamespace
+
+    from livedic.stream.pipeline.stage import Reference
+    from livedic.stream.stages.noise_floor import NoiseFloorStage
+    rng = np.random.default_rng(6)
+    stage = NoiseFloorStage(3)
+    stage.on_reference(Reference(frame_index=0, points=np.zeros((40, 2)), roi=(0, 0, 1, 1), step=1, shape=(1, 1)))
+    for index in (0, 25, 26, 27, 28):
+        u = rng.normal(0.0, 0.01, 40)
+        stage.on_frame(SimpleNamespace(is_reference=index == 0, frame=SimpleNamespace(index=index), strain=None,
+                                       measurement=SimpleNamespace(u=u, v=u.copy(), ok=np.ones(40, bool)),
+                                       extensometers=None, noise_floor=None, dropped_since_last=0))
+    assert stage.summary()["frames_used"] == [25, 26, 27]
