@@ -18,9 +18,11 @@ What is computed, and how (each result carries this as its ``method`` text):
 * **Rp0.2** (MPa): the curve's first crossing of the line parallel to the elastic line,
   offset by 0.2 % strain; linear interpolation between the bracketing frames.
 * **Rm** (MPa): the maximum engineering stress (at maximum force), the first frame with it.
-* **Ag** (%): plastic extension at maximum force, (strain at Rm - Rm / E) x 100; **Agt** the
-  total, strain at Rm x 100 (both toe-corrected). The strain is that of the frame of Rm (on
-  a flat top a noisy maximum moves it; ISO's polynomial fit near the maximum is not done).
+* **Ag** (%): plastic extension at maximum force, (strain - Rm / E) x 100; **Agt** the
+  total, strain x 100 (both toe-corrected). The strain is that of the frame of Rm, or on a
+  plateau at maximum force (a flat top) the middle of the plateau, as ISO 6892-1 reads it
+  (``dic.tensile.flat_top``; ``UniformElongation.rule`` says which). ISO's polynomial fit
+  near the maximum is not done.
 * **A** (%): plastic elongation at fracture, (strain - stress / E) x 100 at the last frame
   before the stress first falls below ``FRACTURE_DROP`` (10 %) of Rm after Rm: ISO 6892-1
   defines fracture by the force drop; the elastic recovery stress / E is removed, as the
@@ -32,6 +34,10 @@ fracture is measured on the gauge marks after the test, which the plastic strain
 force drop approximates as ISO 6892-1 does with an extensometer.
 
 A property that cannot be computed is NaN with a ``Reason`` (data, not text).
+
+Clause numbers cited here (3.9.2, 3.10.2.x, 3.6.3) are from memory, not checked against the standard's
+text; Annex G (E) is confirmed for the 2016 edition (docs/guide/tensile-test.md, "Sources and clause
+numbers").
 """
 
 import enum
@@ -42,6 +48,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from livedic.dic.tensile.flat_top import AgRule, FlatTop, flat_top
 from livedic.dic.tensile.yielding import SMOOTH_FRAMES, CurveShape, YieldAnalysis, analyse_yielding, smooth
 
 DEFAULT_RANGE = (0.10, 0.40)   # share of Rp0.2 (or of the maximum stress) fitted for E
@@ -123,11 +130,14 @@ class TensileStrength:
 
 @dataclass(frozen=True)
 class UniformElongation:
-    """Ag (%, plastic) and Agt (%, total) at maximum force."""
+    """Ag (%, plastic) and Agt (%, total) at maximum force; ``rule`` says where they were read (at the frame
+    of Rm, or at the middle of a plateau at maximum force: ``top`` holds the plateau)."""
     value: float
     total: float
     method: str
     reason: Reason | None = None
+    rule: AgRule = AgRule.AT_MAXIMUM
+    top: FlatTop | None = None
 
 
 @dataclass(frozen=True)
@@ -370,7 +380,8 @@ def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, *, from_frame
     return TensileStrength(float(stress[frame]), frame, float(strain[frame]), method)
 
 
-def uniform_elongation(Rm: TensileStrength, E_GPa: float, *, strain_at_zero_stress: float = 0.0) -> UniformElongation:
+def uniform_elongation(Rm: TensileStrength, E_GPa: float, *, strain_at_zero_stress: float = 0.0,
+                       top: FlatTop | None = None) -> UniformElongation:
     """Ag and Agt: plastic and total extension at maximum force, percent.
 
     Parameters
@@ -379,22 +390,38 @@ def uniform_elongation(Rm: TensileStrength, E_GPa: float, *, strain_at_zero_stre
     E_GPa : float
     strain_at_zero_stress : float
         Toe correction (``Modulus.strain_at_zero_stress``).
+    top : FlatTop, optional
+        The curve's top (``top_of_curve``); None: read at the frame of Rm.
 
     Returns
     -------
     UniformElongation
-        Ag = (strain at Rm - Rm / E - toe) x 100 (ISO 6892-1 Ag, the plastic part) and
-        Agt = (strain at Rm - toe) x 100.
+        Ag = (strain - Rm / E - toe) x 100 (ISO 6892-1 Ag, the plastic part) and
+        Agt = (strain - toe) x 100, the strain that of Rm's frame, or the middle of the plateau
+        at maximum force when ``top`` found one (``rule``).
     """
-    method = ("plastic extension at maximum force, (strain at Rm - Rm/E) x 100, toe-corrected; "
-              "total = strain at Rm x 100")
+    rule = AgRule.AT_MAXIMUM if top is None else top.rule
+    where = rule.value if top is None else top.describe()
+    method = (f"plastic extension at maximum force, (strain - Rm/E) x 100, toe-corrected, total = strain x 100; "
+              f"read {where}")
     if Rm.reason is not None:
-        return UniformElongation(_NAN, _NAN, method, Rm.reason)
-    total = 100.0 * (Rm.strain - strain_at_zero_stress)
+        return UniformElongation(_NAN, _NAN, method, Rm.reason, rule, top)
+    strain = Rm.strain if top is None else top.strain
+    total = 100.0 * (strain - strain_at_zero_stress)
     if not np.isfinite(E_GPa):
-        return UniformElongation(_NAN, total, method, Reason.NO_MODULUS)
-    plastic = 100.0 * _plastic_strain(Rm.strain, Rm.value, E_GPa, strain_at_zero_stress)
-    return UniformElongation(float(plastic), float(total), method)
+        return UniformElongation(_NAN, total, method, Reason.NO_MODULUS, rule, top)
+    plastic = 100.0 * _plastic_strain(strain, Rm.value, E_GPa, strain_at_zero_stress)
+    return UniformElongation(float(plastic), float(total), method, rule=rule, top=top)
+
+
+def top_of_curve(strain: npt.ArrayLike, stress: npt.ArrayLike, Rm: TensileStrength, *,
+                 from_frame: int = 0) -> FlatTop | None:
+    """The curve's top as Ag reads it (``dic.tensile.flat_top.flat_top``) over the frames from ``from_frame``
+    (the start of work hardening after discontinuous yielding); None when Rm is NaN."""
+    if Rm.reason is not None:
+        return None
+    strain, stress, frames = _valid(strain, stress)
+    return flat_top(strain, stress, frames[frames >= from_frame], Rm.frame, Rm.strain)
 
 
 def fracture_frame(strain: npt.ArrayLike, stress: npt.ArrayLike, *, drop: float = FRACTURE_DROP) -> int:
@@ -560,14 +587,16 @@ def tensile_properties(strain: npt.ArrayLike, stress: npt.ArrayLike, *, stress_r
             rp = proof_strength(strain, stress, E.value, offset,
                                 strain_at_zero_stress=E.strain_at_zero_stress, through_frame=found.end)
     ReH, ReL, Ae = yield_strengths(strain, stress, found)
+    from_frame = found.hardening_from if found.hardening else 0
     if found.shape in (CurveShape.CONTINUOUS, CurveShape.UNDETERMINED):
         Rm = tensile_strength(strain, stress)
     elif found.hardening:
-        Rm = tensile_strength(strain, stress, from_frame=found.hardening_from)
+        Rm = tensile_strength(strain, stress, from_frame=from_frame)
     else:
         Rm = TensileStrength(_NAN, -1, _NAN, "maximum force after the start of work hardening (ISO 6892-1:2019 "
                              "3.9.2)", Reason.NO_WORK_HARDENING)
-    Ag = uniform_elongation(Rm, E.value, strain_at_zero_stress=E.strain_at_zero_stress)
+    Ag = uniform_elongation(Rm, E.value, strain_at_zero_stress=E.strain_at_zero_stress,
+                            top=top_of_curve(strain, stress, Rm, from_frame=from_frame))
     A = elongation_after_fracture(strain, stress, E.value, drop=drop,
                                   strain_at_zero_stress=E.strain_at_zero_stress)
     return TensileProperties(E, rp, Rm, Ag, A, ReH, ReL, Ae, found.shape)

@@ -10,7 +10,9 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     ``E_GPa``, ``Rp02_MPa``, ``Rm_MPa``, ``Ag_percent``, ``A_percent``, ``ReH_MPa``, ``ReL_MPa``,
     ``Ae_percent`` (upper and lower yield strength, yield point extension: null with a reason on
     continuous yielding); ``curve_shape`` ``{"value": "continuous" | "plateau" | "upper_yield_point"
-    | "undetermined", "label": text}``; each property
+    | "undetermined", "label": text}``; ``Ag_rule`` ``{"value": "at_maximum" | "plateau_middle", "label": text,
+    "plateau_strain": [start, end] or null, "Agt_percent": number or null}`` (where Ag and Agt were read:
+    the frame of Rm, or the middle of a plateau at maximum force, ``dic.tensile.flat_top``); each property
     ``{"value": number or null, "method": text, "reason": text or null}`` (``reason`` says why a
     value is null); ``poisson_ratio`` (fitted over the elastic range, ``dic.tensile.poisson``) and
     ``plastic_contraction_ratio`` (the same slope over the plastic range, never called Poisson's
@@ -53,16 +55,18 @@ from livedic.stream.output.files import check_output_folder, json_text
 
 if TYPE_CHECKING:
     from livedic.dic.tensile.poisson import ContractionRatio
-    from livedic.dic.tensile.properties import TensileProperties
+    from livedic.dic.tensile.properties import TensileProperties, UniformElongation
     from livedic.stream.stages.stress import StressOptions
 
-__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "YIELD_KEYS", "CURVE_SHAPE_KEY", "report_recording", "report_json",
+__all__ = ["REPORT_FILES", "PROPERTY_KEYS", "YIELD_KEYS", "CURVE_SHAPE_KEY", "AG_RULE_KEY", "report_recording",
+           "report_json",
            "report_markdown"]
 
 REPORT_FILES = ("report.md", "report.json", "report.html", "stress_strain.png")
 PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent", "ReH_MPa", "ReL_MPa", "Ae_percent")
 YIELD_KEYS = ("ReH_MPa", "ReL_MPa", "Ae_percent")      # null on continuous yielding: no yield phenomenon
 CURVE_SHAPE_KEY = "curve_shape"
+AG_RULE_KEY = "Ag_rule"          # where Ag and Agt were read: at maximum force, or the middle of a plateau there
 POISSON_KEY = "poisson_ratio"
 CONTRACTION_KEYS = (POISSON_KEY, "plastic_contraction_ratio")   # report.json only: the plastic one is no property
 PROPERTY_TITLES = {"E_GPa": ("E", "GPa"), "Rp02_MPa": ("Rp0.2", "MPa"), "Rm_MPa": ("Rm", "MPa"),
@@ -84,6 +88,7 @@ def report_json(properties: TensileProperties, specimen: dict[str, Any], source:
         out[key] = {"value": value if math.isfinite(value) else None, "method": item["method"],
                     "reason": item["reason"]}
     out[CURVE_SHAPE_KEY] = {"value": properties.curve_shape.name.lower(), "label": properties.curve_shape.value}
+    out[AG_RULE_KEY] = _ag_rule(properties.Ag_percent)
     for key, ratio in zip(CONTRACTION_KEYS, contraction or without_pair()):
         out[key] = {name: _finite_or_none(value) for name, value in ratio.as_dict().items()}
     out["specimen"] = specimen
@@ -91,6 +96,16 @@ def report_json(properties: TensileProperties, specimen: dict[str, Any], source:
     for key, _heading, rows in tables:
         out[key] = _finite_or_none_dict(rows_json(rows))
     return out
+
+
+def _ag_rule(ag: UniformElongation) -> dict[str, Any]:
+    """``{"value": "at_maximum" | "plateau_middle", "label": text, "plateau_strain": [start, end] or null,
+    "Agt_percent": number or null}``: where Ag and Agt were read, the plateau's strains when one was found."""
+    from livedic.dic.tensile.flat_top import AgRule
+    top = ag.top
+    plateau = list(top.strains) if top is not None and top.rule is AgRule.PLATEAU_MIDDLE else None
+    return {"value": ag.rule.name.lower(), "label": ag.rule.value, "plateau_strain": plateau,
+            "Agt_percent": _finite_or_none(float(ag.total))}
 
 
 def _finite_or_none_dict(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -123,6 +138,7 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
     lines += verification_markdown(report.get(VERIFICATION_KEY))
     lines += ["## Properties (ISO 6892-1)", "",
               f"Curve shape: {report[CURVE_SHAPE_KEY]['label']}.", "",
+              *_ag_rule_markdown(report.get(AG_RULE_KEY)),
              "| property | value | unit | method | why missing |",
              "|---|---|---|---|---|"]
     for key in PROPERTY_KEYS:
@@ -145,6 +161,18 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
               f"- {source['strain']}",
               f"- written {source['generated_at']} by livedic report", ""]
     return "\n".join(lines)
+
+
+def _ag_rule_markdown(rule: Mapping[str, Any] | None) -> list[str]:
+    """The line saying where Ag and Agt were read (none for a report.json written before the rule)."""
+    if rule is None:
+        return []
+    agt = "n/a" if rule["Agt_percent"] is None else f"{rule['Agt_percent']:.4g} %"
+    line = f"Ag and Agt read {rule['label']}; Agt {agt}"
+    if rule["plateau_strain"] is not None:
+        start, end = rule["plateau_strain"]
+        line += f"; plateau from {100 * start:.3f} % to {100 * end:.3f} % strain"
+    return [line + ".", ""]
 
 
 def guide_tables(session: Mapping[str, Any], *, scale: tuple[float | None, str | None],
