@@ -32,6 +32,8 @@ frame whose smoothed stress is within ``HARDENING_RISE`` of the plateau's level.
 
 Clauses cited (ISO 6892-1:2019): 3.10.2 yield strength, 3.10.2.1 ReH, 3.10.2.2 ReL, 3.6.3 Ae,
 3.9.2 Fm for discontinuous yielding (Note 1: undefined without work hardening), Figures 2 and 7.
+These numbers are cited from memory, not checked against the standard's text (none was at hand:
+docs/guide/tensile-test.md, "Sources and clause numbers").
 """
 
 from __future__ import annotations
