@@ -14,8 +14,8 @@ the measured force is noisier (``yielding.stress_noise``: 0.5 % of Rm with a cla
 strain; a narrower stretch is the rounding of an ordinary maximum, and Ag stays at the frame of Rm.
 A top that stays within the tolerance over 1 % is a plateau whatever its exact shape (a gently
 rounded one too): the force does not resolve where along it the maximum lies, so its middle is read.
-Limit: with noisier force (class 1 and worse, ~0.3 %) the widened stretch of a sharp peak on a
-slowly hardening curve can reach 1 % and be read as a plateau.
+Limit: with noisier force (class 1, ~0.3 %) the widened stretch of a sharp peak reaches 1 % and is
+read as a plateau (77 of 100 seeds on the tests' curve); its middle still lies within 0.2 %pt of the peak.
 
 Data only: a ``FlatTop`` names the rule used (``AgRule``), the plateau's frames and strains and the
 strain Ag is read at.
