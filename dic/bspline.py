@@ -30,6 +30,7 @@ M. Unser, "Splines: a perfect fit for signal and image processing", IEEE Signal
 Processing Magazine 16(6):22-38 (1999), :DOI:`10.1109/79.799930`.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -397,6 +398,33 @@ def interpolate(image_or_coeffs: np.ndarray | BSplineCoefficients, x: npt.ArrayL
 # untouched; the result depends on the code path only, never on threads.
 FASTMATH = {"contract", "reassoc"}
 _F32 = np.float32
+
+
+def _float32_dot(a, b):
+    total = _F32(0.0)
+    for i in range(a.shape[0]):
+        total += a[i] * b[i]
+    return total
+
+
+@functools.lru_cache(maxsize=None)
+def float32_lanes() -> int:
+    """float32 lanes per vector in the loops numba compiles on this CPU: 16 where LLVM uses 512-bit
+    registers (AVX-512 at full width, e.g. AMD Zen 4/5), else 8 (AVX2).
+
+    The per-point subset rows of IC-GN are padded to a multiple of it, so each row is whole
+    vector passes: with 24 lanes on a 16-lane CPU, 8 ran as scalar code. Read once per process
+    from the assembly of a probe loop compiled like the kernels (not cached: its assembly is
+    read); 8 if that cannot be read.
+    """
+    try:
+        probe = njit(fastmath=FASTMATH)(_float32_dot)
+        ones = np.ones(64, dtype=np.float32)
+        probe(ones, ones)
+        assembly = "".join(probe.inspect_asm().values())
+    except Exception:           # no assembly to read (JIT disabled): the AVX2 width, correct everywhere
+        return 8
+    return 16 if "zmm" in assembly else 8
 
 
 @njit(cache=True, fastmath=FASTMATH)

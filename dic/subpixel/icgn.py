@@ -32,7 +32,7 @@ import numpy.typing as npt
 from numba import njit, prange
 from numpy import float32 as _F32
 
-from livedic.dic.bspline import FASTMATH, PAD, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
+from livedic.dic.bspline import FASTMATH, PAD, float32_lanes, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
@@ -62,7 +62,7 @@ class IcgnReference:
     half : int                  subset half-width M; subsets have side = 2M+1 pixels
     shape : (H, W)              reference image shape
     lanes : int                 row stride of the per-point subsets: side rounded up to a
-                                multiple of 8 (whole AVX2 vectors); entries past side are 0
+                                multiple of ``float32_lanes()`` (whole vectors); entries past side are 0
     fhat : float32 (N, side*lanes)  normalised zero-mean subset (f - mean f) / |f - mean f|,
                                 row-major, pixel (dx, dy) at [(dy + M) * lanes + dx + M]
     fx, fy : float32 (N, side*lanes)  reference gradients: the steepest-descent images are
@@ -321,7 +321,7 @@ def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLik
         raise ValueError(f"hessian must be 'projected' or 'opencorr', got {hessian!r}")
     npts = xs.shape[0]
     side = 2 * half + 1
-    lanes = -(-side // 8) * 8
+    lanes = -(-side // float32_lanes()) * float32_lanes()
     n = side * lanes
     fhat = np.zeros((npts, n), dtype=np.float32)
     fx = np.zeros((npts, n), dtype=np.float32)
@@ -415,7 +415,7 @@ def _row_sums(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx
     ``stride`` apart) and its fractional offsets are ax + sx dx, ay + sy dx. Its
     value is weighted by mask[l] (0: a lane past the subset, or outside the run
     being sampled). Returns sum g, g^2, fhat g, fx g, fx g dx, fy g, fy g dx.
-    All lanes are whole AVX2 vectors: no scalar remainder.
+    All lanes are whole vectors (``float32_lanes``): no scalar remainder.
     """
     st = np.uint64(stride)
     ko = np.uint64(koff)
@@ -445,6 +445,78 @@ def _row_sums(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx
     return sg, sgg, sfg, pa, pax, pb, pbx
 
 
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _row_sums_xstep(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx, fy, koff):
+    """``_row_sums`` for a row whose tap origin steps by one column part-way along it.
+
+    Lane l's x offset from the row's left-most tap origin is ax + sx dx, in [0, 2): lanes past
+    the step (offset >= 1) take their 4 x weights one column later, so every lane reads the same
+    5 columns from flat[base + l] and the row stays one vector pass instead of a masked pass per
+    run of equal origin (docs/guide/performance.md). The 5th weight of the lanes before the step
+    is 0: the same B-spline value.
+    """
+    st = np.uint64(stride)
+    ko = np.uint64(koff)
+    one = np.uint64(1)
+    two = np.uint64(2)
+    three = np.uint64(3)
+    four = np.uint64(4)
+    sg = _F32(0.0)
+    sgg = _F32(0.0)
+    sfg = _F32(0.0)
+    pa = _F32(0.0)
+    pax = _F32(0.0)
+    pb = _F32(0.0)
+    pbx = _F32(0.0)
+    for l in range(lanes):
+        lu = np.uint64(l)
+        d = lane_dx[lu]
+        xo = ax + sx * d
+        stepped = xo >= _F32(1.0)
+        tx = xo - _F32(1.0) if stepped else xo
+        ty = ay + sy * d
+        s = _F32(1.0) - tx
+        t2 = tx * tx
+        t3 = t2 * tx
+        w0 = s * s * s * _F32(1.0 / 6.0)
+        w3 = t3 * _F32(1.0 / 6.0)
+        w1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+        w2 = _F32(1.0) - w0 - w1 - w3
+        e0 = _F32(0.0) if stepped else w0
+        e1 = w0 if stepped else w1
+        e2 = w1 if stepped else w2
+        e3 = w2 if stepped else w3
+        e4 = w3 if stepped else _F32(0.0)
+        s = _F32(1.0) - ty
+        t2 = ty * ty
+        t3 = t2 * ty
+        wy0 = s * s * s * _F32(1.0 / 6.0)
+        wy3 = t3 * _F32(1.0 / 6.0)
+        wy1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+        wy2 = _F32(1.0) - wy0 - wy1 - wy3
+        o0 = base + lu
+        o1 = o0 + st
+        o2 = o1 + st
+        o3 = o2 + st
+        c0 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+        c1 = wy0 * flat[o0 + one] + wy1 * flat[o1 + one] + wy2 * flat[o2 + one] + wy3 * flat[o3 + one]
+        c2 = wy0 * flat[o0 + two] + wy1 * flat[o1 + two] + wy2 * flat[o2 + two] + wy3 * flat[o3 + two]
+        c3 = wy0 * flat[o0 + three] + wy1 * flat[o1 + three] + wy2 * flat[o2 + three] + wy3 * flat[o3 + three]
+        c4 = wy0 * flat[o0 + four] + wy1 * flat[o1 + four] + wy2 * flat[o2 + four] + wy3 * flat[o3 + four]
+        g = (e0 * c0 + e1 * c1 + e2 * c2 + e3 * c3 + e4 * c4) * mask[lu]
+        k = ko + lu
+        sg += g
+        sgg += g * g
+        sfg += fhat[k] * g
+        a = fx[k] * g
+        b = fy[k] * g
+        pa += a
+        pax += a * d
+        pb += b
+        pbx += b * d
+    return sg, sgg, sfg, pa, pax, pb, pbx
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx, lane_mask,
                  kx, ky, run_mask, out):
@@ -453,8 +525,8 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
     One row at a time. Along a row x' = bx + dx + ux dx and y' = by + vx dx, so
     the tap origin (floor(bx + ux dx) + dx, floor(by + vx dx)) advances by one
     pixel per lane until floor(bx + ux dx) or floor(by + vx dx) steps: a row is
-    one run of consecutive memory (one vector pass), or a few (one masked pass
-    each). Rows are summed in float32 (<= 3 terms per lane), the subset in float64.
+    one run of consecutive memory (one vector pass), or two a column apart (one
+    pass of ``_row_sums_xstep``), or, rarely, more (one masked pass each). Rows are summed in float32 (<= 3 terms per lane), the subset in float64.
     The caller guarantees every sample lies in the spline domain. Lanes that
     are computed and discarded (past the subset, or outside the run of a masked
     pass) read at most 2M + 8 columns beside a real tap, which stays inside the
@@ -478,13 +550,22 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
         bx = x0 + u + uy * dy
         by = y0 + v + (1.0 + vy) * dy
         kx0 = int(np.floor(bx - ux * half))
+        kx1 = int(np.floor(bx + ux * half))
         ky0 = int(np.floor(by - vx * half))
         koff = j * lanes
-        if kx0 == int(np.floor(bx + ux * half)) and ky0 == int(np.floor(by + vx * half)):
+        if ky0 == int(np.floor(by + vx * half)) and abs(kx1 - kx0) <= 1:
+            # One vector pass: the tap origin is the same along the row, or steps once in x.
+            steps = kx0 != kx1
+            kx0 = min(kx0, kx1)
             base = np.uint64(origin + (ky0 + PAD - 1) * stride + kx0 + PAD - 1 - half)
-            rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums(
-                flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
-                fhat, fx, fy, koff)
+            if steps:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums_xstep(
+                    flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
+                    fhat, fx, fy, koff)
+            else:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums(
+                    flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
+                    fhat, fx, fy, koff)
             sg += rsg
             sgg += rsgg
             sfg += rsfg

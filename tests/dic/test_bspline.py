@@ -163,3 +163,25 @@ def test_separable_shift_sampler_matches_pointwise_interpolation(half):
     expected = interpolate(prefilter(image, dtype=np.float64), x + dx, y + dy)
     np.testing.assert_allclose(got[:, :side], expected, rtol=0, atol=2e-4 * np.abs(expected).max())
     assert np.all(got[:, side:] == 0)
+
+
+def test_float32_lanes_is_a_vector_width_and_lays_out_the_icgn_subsets():
+    """IC-GN's subset rows are whole vectors of the width the kernels are compiled for (8 AVX2, 16 AVX-512)."""
+    from livedic.dic.bspline import float32_lanes
+    from livedic.dic.subpixel.icgn import prepare_reference
+    lanes = float32_lanes()
+    assert lanes in (8, 16)
+    image = blurred_noise((64, 64), seed=3).astype(np.float32)
+    for half in (5, 10, 15):
+        prep = prepare_reference(image, np.array([32]), np.array([32]), half)
+        assert prep.lanes % lanes == 0 and 2 * half + 1 <= prep.lanes < 2 * half + 1 + lanes
+
+
+def test_float32_lanes_falls_back_to_the_avx2_width_without_assembly(monkeypatch):
+    from livedic.dic import bspline
+    monkeypatch.setattr(bspline, "njit", lambda **options: (lambda f: (_ for _ in ()).throw(RuntimeError("no JIT"))))
+    bspline.float32_lanes.cache_clear()
+    try:
+        assert bspline.float32_lanes() == 8
+    finally:
+        bspline.float32_lanes.cache_clear()

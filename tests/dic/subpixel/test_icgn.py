@@ -228,8 +228,10 @@ def test_affine_sums_kernel_matches_numpy(pattern):
     fx = prep.fx[0].reshape(side, prep.lanes)[:, :side]
     fy = prep.fy[0].reshape(side, prep.lanes)[:, :side]
     g, tmp, kx, ky, lane_dx, lane_mask, run_mask, sums = icgn.refine_point_scratch(HALF, prep.lanes)
-    # small gradients: every row one run; large ones: tap origins step inside rows
-    for p in [(1.31, 0.0004, -0.0002, -0.41, 0.0003, 0.0001), (1.37, 0.06, -0.03, -0.41, -0.05, 0.04)]:
+    # small gradients: every row one run; ux alone (a tensile test's contraction, either sign): the tap
+    # origin steps once in x along most rows (one pass, 5 columns); large ones: several runs in x and y
+    for p in [(1.31, 0.0004, -0.0002, -0.41, 0.0003, 0.0001), (1.37, 0.04, -0.003, -0.41, 0.0, 0.02),
+              (1.62, -0.045, 0.002, -0.41, 0.0, -0.01), (1.37, 0.06, -0.03, -0.41, -0.05, 0.04)]:
         icgn._affine_sums(coeffs.flat, coeffs.origin, coeffs.coefficients.shape[1], x0, y0, HALF, *p,
                           prep.fhat[0], prep.fx[0], prep.fy[0], prep.lanes, lane_dx, lane_mask, kx, ky, run_mask,
                           sums)
