@@ -331,7 +331,9 @@ def limiting_step(result: Classification) -> tuple[int, str] | None:
     if math.isfinite(um_per_px):
         bias_limit = max(bias_limit, better.bias_um / um_per_px)
         resolution_limit = max(resolution_limit, better.resolution_um / um_per_px)
-    failed = [f"{name} {value:.4g} px > {limit:.4g} px" for name, value, limit in
+    def length(px: float) -> str:
+        return f"{px:.4g} px" + (f" ({px * um_per_px:.3g} um)" if math.isfinite(um_per_px) else "")
+    failed = [f"{name} {length(value)} > {length(limit)}" for name, value, limit in
               (("|bias|", abs(step.bias_px), bias_limit), ("resolution", step.resolution_px, resolution_limit))
               if value > limit]
     return k, f"class {step.best_class}: {' and '.join(failed)} (the class {better.name} limit)"
