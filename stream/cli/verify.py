@@ -179,7 +179,7 @@ def verify_command(args: argparse.Namespace) -> int:
           f"{f'{scale:g} px/mm' if scale else 'none (relative limits only, zero steps not classified)'}")
     for line in verification_table_lines(entry):
         print(line)
-    print(f"points not ok over the images: {lost}")
+    print(f"points not ok, summed over the {len(images)} images: {lost} of {len(placement.points) * len(images)}")
     if args.output is not None:
         write_verification(args.output, _document(args, tracking, strain, placement, reference.shape, paths,
                                                   known_um, entry, lost, time.perf_counter() - started))
@@ -215,7 +215,7 @@ def _image_paths(args: argparse.Namespace) -> list[str]:
 def _read_images(reference_path: str, paths: Sequence[str]) -> tuple[np.ndarray, list[np.ndarray]]:
     """Every image read and checked against the reference's size before any work."""
     from livedic.acquire.files.image_file import read_grey_image
-    images = []
+    images: list[np.ndarray] = []
     for path in [reference_path, *paths]:
         image, note = read_grey_image(path)
         if note:

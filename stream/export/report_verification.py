@@ -145,7 +145,7 @@ def _number(value: Any, spec: str) -> str:
     return "n/a" if value is None else format(value, spec)
 
 
-def classified_entry(true_px: Sequence[float], readings_px: Sequence[Sequence[float]], l0_px: float,
+def classified_entry(true_px: Sequence[float], readings_px: Sequence[Any], l0_px: float,
                      scale_px_per_mm: float | None, *, labels: Sequence[str]) -> dict[str, Any]:
     """One gauge length's ISO 9513 verdict (``dic.strain.iso9513.classify``, JSON-ready) as a verification file
     holds it: each step with its ``label``, ``strain`` (true / L0) and ``readings_px``, and the ``limiting``
@@ -173,10 +173,11 @@ def verification_table_lines(entry: Mapping[str, Any]) -> list[str]:
     um, %) and class; the class met with the limiting step's reason, the limitations, the zero point."""
     mm = f" = {entry['l0_mm']:g} mm" if entry["l0_mm"] is not None else ""
     limit = entry.get("limiting_step")
-    why = f" (limiting step {limit['label']}: {limit['reason']})" if limit else ""
     lines = ["", f"L0 {entry['l0_px']:g} px{mm}: class {entry['met_class'] or 'none'}"
-             + (why if entry["met_class"] else f" ({entry['reason_text']}){why}")
-             + "".join(f"; {text}" for text in entry["limitations"])]
+             + ("" if entry["met_class"] else f" ({entry['reason_text']})")]
+    if limit:
+        lines.append(f"  limiting step {limit['label']}: {limit['reason']}")
+    lines += [f"  limitation: {text}" for text in entry["limitations"]]
     if entry.get("zero_point_class") and not entry.get("elongation_verified", True):
         lines.append(f"  zero point only: it meets class {entry['zero_point_class']}'s absolute limits; "
                      f"a known non-zero elongation (--elongations) is needed to verify a class")
