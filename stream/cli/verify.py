@@ -196,8 +196,8 @@ def _strain_config(args: argparse.Namespace) -> Any:
     if args.calibration is not None:
         from livedic.acquire.calibration import read_calibration
         calibration = read_calibration(args.calibration)
-    config = StrainConfig(scale=args.scale, calibration=calibration, axial_end_fit=args.extensometer_ends)
-    scale = config.px_per_mm          # StrainConfig's gauge length is in mm when there is a scale
+    # StrainConfig's gauge length is in mm when there is a scale (it refuses --scale beside a calibration's own)
+    scale = args.scale if args.scale is not None else (calibration.px_per_mm if calibration is not None else None)
     return StrainConfig(scale=args.scale, calibration=calibration, axial_end_fit=args.extensometer_ends,
                         gauge_length=args.gauge_length / scale if scale else args.gauge_length)
 
