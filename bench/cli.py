@@ -389,7 +389,8 @@ def _cmd_bench_replay(args):
 
 
 def _cmd_bench_extensometer(args):
-    from livedic.bench.extensometer import default_steps, run_extensometer_bench, write_verification
+    from livedic.bench.extensometer import default_steps, run_extensometer_bench
+    from livedic.stream.export.report_verification import write_verification
     from livedic.stream.output.files import check_output_file
     if args.frames_per_step < 2:
         raise UsageError("--frames-per-step must be at least 2: the resolution is read from the readings' fluctuation")

@@ -185,8 +185,10 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
         previous = step
     results = [_classified(steps, readings[name], length, scale_px_per_mm) for name, length in
                zip(names, gauge_lengths)]
+    from livedic.stream.export.report_verification import verification_table_lines
     for entry in results:
-        _say_table(entry, say)
+        for line in verification_table_lines(entry):
+            say(line)
     seconds = time.perf_counter() - started
     say(f"{tracked} frames tracked ({len(steps)} steps x {frames_per_step} counted, the rest ramps); points not ok "
         f"in counted frames: {lost_points}; {seconds:.0f} s")
@@ -206,44 +208,9 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
 def _classified(steps: Sequence[Step], readings: Sequence[np.ndarray], length: float,
                 scale_px_per_mm: float | None) -> dict[str, Any]:
     """One gauge length's ISO 9513 verdict (JSON-ready), each step with its label, strain and readings."""
-    from livedic.dic.strain.iso9513 import classify
-    entry = classify([s.strain * length for s in steps], readings, length, scale_px_per_mm=scale_px_per_mm).as_dict()
-    for row, step, held_px in zip(entry["steps"], steps, readings):
-        row.update(label=step.label, strain=step.strain, readings_px=[float(v) for v in held_px])
-    return entry
-
-
-def write_verification(path: str | os.PathLike[str], result: dict[str, Any]) -> None:
-    """Write ``result`` (``run_extensometer_bench``'s) as strict JSON, atomically: what ``livedic report
-    --verification`` reads."""
-    from livedic.stream.export.report_verification import VERIFICATION_KIND
-    from livedic.stream.output.files import json_text, write_text_atomic
-    write_text_atomic(path, json_text({"kind": VERIFICATION_KIND, **result}))
-
-
-def _fmt(value, spec):
-    if value is None:
-        return "n/a".rjust(int(spec.split(".")[0]))
-    return format(value, spec)
-
-
-def _say_table(entry, say):
-    """One gauge length's table: per step the true elongation, mean reading, bias, resolution, class."""
-    mm = f" = {entry['l0_mm']:g} mm" if entry["l0_mm"] is not None else ""
-    say("")
-    say(f"L0 {entry['l0_px']:g} px{mm}: class {entry['met_class'] or 'none'}"
-        + ("" if entry["met_class"] else f" ({entry['reason_text']})")
-        + "".join(f"; {text}" for text in entry["limitations"]))
-    say(f"  {'step':>18s} {'true px':>9s} {'mean px':>10s} {'bias px':>9s} {'bias um':>8s} {'rel bias %':>10s} "
-        f"{'res px':>8s} {'res um':>7s} {'rel res %':>9s} {'class':>5s}")
-    for row in entry["steps"]:
-        rel_bias = None if row["relative_bias"] is None else 100 * row["relative_bias"]
-        rel_res = (None if row["relative_resolution"] is None or row["true_px"] == 0
-                   else 100 * row["relative_resolution"])
-        say(f"  {row['label']:>18s} {row['true_px']:9.4f} {_fmt(row['mean_px'], '10.4f')} "
-            f"{_fmt(row['bias_px'], '9.4f')} {_fmt(row['bias_um'], '8.2f')} {_fmt(rel_bias, '10.3f')} "
-            f"{_fmt(row['resolution_px'], '8.4f')} {_fmt(row['resolution_um'], '7.2f')} {_fmt(rel_res, '9.3f')} "
-            f"{row['best_class'] or '-':>5s}")
+    from livedic.stream.export.report_verification import classified_entry
+    return classified_entry([s.strain * length for s in steps], readings, length, scale_px_per_mm,
+                            labels=[s.label for s in steps])
 
 
 TARGET_L0_PX = 400.0

@@ -26,6 +26,14 @@ maker's description of its limits (0.5 % or 1.5 um = 3 x the 0.5 um resolution, 
 to 300 um). The half-range rule for a fluctuating reading is this module's reading of the standard's rule
 for an indicator that fluctuates at rest.
 
+What zero steps alone verify: every class's absolute limits (um) are the greater ones only up to a
+true elongation of bias_um / bias_relative = 300 um (resolution: 200 um), the same for all four classes;
+above it the relative (%) limits hold, and an error that grows with the elongation (a wrong scale, lens
+distortion, out-of-plane motion) shows only there. Static frames and rigid translations verify the zero
+point (its bias and resolution against the absolute limits) and nothing of that growth, so a
+classification without a non-zero step claims no class (``StepReason.NO_ELONGATION``) and states the
+best class the zero point meets (``Classification.zero_point_class``).
+
 EN 4861:2020 describes this kind of in-situ assessment of a DIC extensometer with known displacements
 before a test; it is not a calibration under ISO 9513 (whose apparatus and procedure are physical).
 """
@@ -41,7 +49,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = ["ClassLimits", "CLASSES", "CLASS_NAMES", "StepReason", "Limitation", "StepClass", "Classification",
-           "classify_step", "classify", "class_for_gauge_length_error"]
+           "classify_step", "classify", "class_for_gauge_length_error", "limiting_step"]
 
 UM_PER_MM = 1000.0
 
@@ -88,6 +96,8 @@ class StepReason(enum.Enum):
     TOO_FEW_READINGS = f"fewer than {MIN_READINGS} readings: no resolution from fluctuation"
     ZERO_NEEDS_SCALE = "zero elongation has only absolute (um) limits, and no scale (px/mm) was given"
     GAUGE_LENGTH_OUTSIDE = "the gauge length's error is beyond class 2"
+    NO_ELONGATION = ("no known non-zero elongation: only the zero point (bias and resolution against the absolute "
+                     "um limits) was verified, not the relative limits that hold above 300 um; no class is claimed")
 
 
 class Limitation(enum.Enum):
@@ -134,8 +144,10 @@ class StepClass:
 class Classification:
     """An extensometer's verification over all its steps: the class every classified step meets.
 
-    ``met_class`` is None when any step has lost readings, too few readings or meets no class, or no step
-    could be classified; ``reason`` then says why. ``limitations`` say what the class does not cover.
+    ``met_class`` is None when any step has lost readings, too few readings or meets no class, no step
+    could be classified, or no step has a non-zero elongation; ``reason`` then says why. ``zero_point_class``
+    is the class the zero-elongation steps meet (None: no classified zero step). ``limitations`` say what the
+    class does not cover.
     """
     l0_px: float
     l0_mm: float | None
@@ -144,11 +156,18 @@ class Classification:
     met_class: str | None
     reason: StepReason
     limitations: tuple[Limitation, ...] = field(default=())
+    zero_point_class: str | None = None
+
+    @property
+    def elongation_verified(self) -> bool:
+        """Whether any step had a known non-zero elongation (without one no class is claimed)."""
+        return any(step.true_px != 0 for step in self.steps)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready."""
         return {"l0_px": self.l0_px, "l0_mm": self.l0_mm, "scale_px_per_mm": self.scale_px_per_mm,
                 "met_class": self.met_class, "reason": self.reason.name, "reason_text": self.reason.value,
+                "zero_point_class": self.zero_point_class, "elongation_verified": self.elongation_verified,
                 "limitations": [item.value for item in self.limitations],
                 "steps": [step.as_dict() for step in self.steps]}
 
@@ -281,6 +300,40 @@ def classify(true_px: npt.ArrayLike, readings_px: Sequence[npt.ArrayLike], l0_px
         if l0_relative_error is not None:
             gauge = class_for_gauge_length_error(l0_relative_error)
             met, reason = ((None, StepReason.GAUGE_LENGTH_OUTSIDE) if gauge is None else (_worst([met, gauge]), reason))
+    zeros = [s.best_class for s in steps if s.true_px == 0 and s.best_class is not None]
+    zero_point = _worst(zeros) if zeros and len(zeros) == sum(s.true_px == 0 for s in steps) else None
+    if met is not None and not any(s.true_px != 0 for s in steps):
+        met, reason = None, StepReason.NO_ELONGATION
     l0_mm = l0_px / scale_px_per_mm if scale_px_per_mm else None
     return Classification(l0_px=float(l0_px), l0_mm=l0_mm, scale_px_per_mm=scale_px_per_mm, steps=steps,
-                          met_class=met, reason=reason, limitations=tuple(limitations))
+                          met_class=met, reason=reason, limitations=tuple(limitations), zero_point_class=zero_point)
+
+
+def limiting_step(result: Classification) -> tuple[int, str] | None:
+    """The step that sets the overall class and why: ``(index, text)``; None without steps.
+
+    The first blocking step (lost or too few readings, beyond class 2), else the step of the worst class,
+    with the limit of the next better class that its bias or resolution exceeds.
+    """
+    for k, step in enumerate(result.steps):
+        if step.reason not in (StepReason.CLASSIFIED, StepReason.ZERO_NEEDS_SCALE):
+            return k, step.reason.value
+    classified = [(CLASS_NAMES.index(s.best_class), k) for k, s in enumerate(result.steps) if s.best_class]
+    if not classified:
+        return None
+    rank, k = max(classified)
+    if rank == 0:
+        return k, f"meets class {CLASS_NAMES[0]}, the best"
+    step, better = result.steps[k], CLASSES[rank - 1]
+    um_per_px = _um_per_px(result.scale_px_per_mm)
+    bias_limit = better.bias_relative * abs(step.true_px)
+    resolution_limit = better.resolution_relative * abs(step.mean_px)
+    if math.isfinite(um_per_px):
+        bias_limit = max(bias_limit, better.bias_um / um_per_px)
+        resolution_limit = max(resolution_limit, better.resolution_um / um_per_px)
+    def length(px: float) -> str:
+        return f"{px:.4g} px" + (f" ({px * um_per_px:.3g} um)" if math.isfinite(um_per_px) else "")
+    failed = [f"{name} {length(value)} > {length(limit)}" for name, value, limit in
+              (("|bias|", abs(step.bias_px), bias_limit), ("resolution", step.resolution_px, resolution_limit))
+              if value > limit]
+    return k, f"class {step.best_class}: {' and '.join(failed)} (the class {better.name} limit)"

@@ -29,6 +29,7 @@ from livedic.stream.cli.preview import add_preview_arguments, preview_command
 from livedic.stream.cli.replay import add_replay_arguments, replay_command
 from livedic.stream.cli.report import add_report_arguments, report_command
 from livedic.stream.cli.run import add_run_arguments, run_session
+from livedic.stream.cli.verify import add_verify_arguments, verify_command
 from livedic.stream.session.parsing import UsageError
 
 EXIT_BAD_INPUT = 2
@@ -144,7 +145,7 @@ def _error_kind(error):
 
 
 def _add_metrology_commands(commands: Any) -> None:
-    """``calibrate`` and ``noise-floor``: what a lab measures of its set-up before it trusts a test."""
+    """``calibrate``, ``noise-floor`` and ``verify``: what a lab measures of its set-up before it trusts a test."""
     calibrate = commands.add_parser("calibrate", help="camera calibration (intrinsics, lens distortion, px/mm) from "
                                                       "chessboard or ChArUco target images",
                                     description="Find the target in each image, solve the camera (OpenCV), check "
@@ -157,6 +158,16 @@ def _add_metrology_commands(commands: Any) -> None:
                                                     "strain: SD over points and over images)")
     add_noise_floor_arguments(noise)
     noise.set_defaults(handler=noise_floor_command)
+
+    verify = commands.add_parser("verify", help="the axial extensometer's ISO 9513 class from your own frames of "
+                                                "known elongation (static, rigid motions, known grip moves)",
+                                 description="Track the images against the reference as livedic run does, read the "
+                                             "axial extensometer at each, and classify its bias and resolution per "
+                                             "known elongation by ISO 9513:2012 Table 2 (in situ, as EN 4861:2020); "
+                                             "-o writes the file livedic report --verification reads "
+                                             "(docs/guide/extensometer-class.md).")
+    add_verify_arguments(verify)
+    verify.set_defaults(handler=verify_command)
 
 
 def build_parser(extensions: Sequence[Callable] = ()) -> LivedicParser:

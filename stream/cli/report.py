@@ -26,7 +26,8 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
     add_stress_arguments(parser)
     add_strain_arguments(parser, recorded=True)
     parser.add_argument("--verification", metavar="FILE.json",
-                        help="the extensometer's ISO 9513 verification (livedic bench extensometer -o FILE.json): "
+                        help="the extensometer's ISO 9513 verification (livedic verify -o FILE.json on your own frames, or "
+                             "livedic bench extensometer -o FILE.json): "
                              "the report states its class; without it, that the class was not verified")
 
 

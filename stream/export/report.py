@@ -243,7 +243,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
         Strain settings replacing the recorded ones (``stream.stages.strain.overrides_from_args``).
     overwrite : bool
     verification : dict, optional
-        ``livedic bench extensometer -o`` (``report_verification.load_verification``): the class it states.
+        ``livedic verify -o`` or ``livedic bench extensometer -o`` (``report_verification.load_verification``): the class it states.
 
     Raises
     ------

@@ -197,8 +197,12 @@ def performance_rows(session: Mapping[str, Any], *, noise_floor: Mapping[str, An
                      text=_sd_text(axial, 1, "microstrain", "temporal_sd_mean") or unmeasured))
     if verification and verification.get("verified"):
         klass = verification.get("class")
-        text = (f"class {klass}" if klass else "no class met") + f" (ISO 9513, verified {str(verification.get('date'))[:10]})"
+        zero = verification.get("zero_point_class")
+        met = (f"class {klass}" if klass else
+               f"no class: zero point only, meets class {zero}'s absolute limits" if zero else "no class met")
+        text = met + f" (ISO 9513, verified {str(verification.get('date'))[:10]})"
     else:
-        klass, text = None, "not verified (livedic bench extensometer -o FILE.json, then --verification FILE.json)"
+        klass, text = None, ("not verified (livedic verify or livedic bench extensometer -o FILE.json, then "
+                             "--verification FILE.json)")
     rows.append(_row("extensometer_class", "axial extensometer's class", klass, text=text))
     return rows

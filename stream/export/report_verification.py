@@ -13,19 +13,25 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from livedic.dic.strain.extensometer import AXIAL, LOCAL
 
+__all__ = ["load_verification", "verification_section", "verification_markdown", "classified_entry",
+           "verification_table_lines", "write_verification", "axial_end_fit"]
+
 VERIFICATION_KEY = "extensometer_verification"
 VERIFICATION_KIND = "livedic extensometer verification"       # the mark bench.extensometer writes into its -o file
-VERIFY_COMMAND = "livedic bench extensometer --gauge-length L0_PX --scale PX_PER_MM -o verification.json"
+VERIFY_COMMAND = ("livedic verify REFERENCE IMAGES... --gauge-length L0_PX --scale PX_PER_MM -o verification.json (your "
+                  "own frames) or livedic bench extensometer --gauge-length L0_PX --scale PX_PER_MM -o "
+                  "verification.json (rendered frames)")
+USER_FRAMES = "user frames"      # settings["source"] of a verification on a user's own images (livedic verify)
 LENGTH_TOLERANCE_PX = 0.5        # gauge lengths closer than this are the same extensometer
 
 
 def load_verification(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read a ``livedic bench extensometer -o`` file.
+    """Read a ``livedic bench extensometer -o`` or ``livedic verify -o`` file.
 
     Raises
     ------
@@ -40,11 +46,11 @@ def load_verification(path: str | os.PathLike[str]) -> dict[str, Any]:
             data = json.load(handle)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ValueError(f"--verification {path} cannot be read as JSON ({error}): give the file written by "
-                         f"livedic bench extensometer -o") from None
+                         f"livedic verify -o or livedic bench extensometer -o") from None
     if (not isinstance(data, dict) or data.get("kind") != VERIFICATION_KIND
             or not isinstance(data.get("gauge_lengths"), list) or not data["gauge_lengths"]):
         raise ValueError(f"--verification {path} is not an extensometer verification: give the file written by "
-                         f"livedic bench extensometer -o")
+                         f"livedic verify -o or livedic bench extensometer -o")
     return data
 
 
@@ -85,6 +91,7 @@ def verification_section(verification: Mapping[str, Any] | None, *, gauge_length
                         f"{scale_px_per_mm:g} px/mm: the absolute (um) limits differ")
     return {"verified": True, "class": entry["met_class"], "reason": entry.get("reason_text"),
             "l0_px": entry["l0_px"], "l0_mm": entry.get("l0_mm"), "limitations": entry.get("limitations", []),
+            "zero_point_class": entry.get("zero_point_class"),
             "steps": entry["steps"], "date": verification.get("date"), "settings": dict(settings),
             "standard": verification.get("standard"), "warnings": warnings}
 
@@ -99,14 +106,14 @@ def verification_markdown(section: Mapping[str, Any] | None) -> list[str]:
     settings = section["settings"]
     mm = f" = {section['l0_mm']:g} mm" if section.get("l0_mm") is not None else ""
     lines += [f"- class met: **{section['class'] or 'none'}**" + ("" if section["class"] else f" ({section['reason']})")
-              + f" at L0 {section['l0_px']:g} px{mm}",
-              f"- verified {section['date']} by `livedic bench extensometer`: exact rendered known elongations "
-              f"(rigid translations, uniform stretches), {settings.get('frames_per_step')} frames per step, noise "
-              f"{settings.get('noise')} grey levels ({settings.get('bit_depth')}-bit), subset "
-              f"{settings.get('subset')} px, points every {settings.get('step_px')} px, "
+              + f" at L0 {section['l0_px']:g} px{mm}", f"- verified {section['date']} by {_how_verified(settings)}, "
+              f"subset {settings.get('subset')} px, points every {settings.get('step_px')} px, "
               f"{settings.get('end_fit') or LOCAL} ends, scale "
               f"{settings.get('scale_px_per_mm') or 'none'} px/mm; {section.get('standard') or 'ISO 9513:2012 Table 2'}; "
               f"bias = mean reading - true, resolution = half the range of the held readings"]
+    if section.get("zero_point_class"):
+        lines.append(f"- the zero point (static frames, rigid motions) meets class {section['zero_point_class']}'s "
+                     f"absolute limits")
     lines += [f"- limitation: {text}" for text in section["limitations"]]
     lines += [f"- **warning**: {text}" for text in section["warnings"]]
     lines += ["", "| step | true elongation px | mean reading px | bias um | relative bias % | resolution um | class |",
@@ -118,9 +125,74 @@ def verification_markdown(section: Mapping[str, Any] | None) -> list[str]:
     return lines + [""]
 
 
+def _how_verified(settings: Mapping[str, Any]) -> str:
+    """Who made the verification's frames: the user's own images (``livedic verify``) or the bench's renders."""
+    if settings.get("source") == USER_FRAMES:
+        known = (f"known elongations from {settings['elongations_file']}" if settings.get("elongations_file")
+                 else "all of known zero elongation (static frames, rigid motions)")
+        return (f"`livedic verify` on the user's own images ({len(settings.get('images') or [])} against the "
+                f"reference {settings.get('reference')}; {known})")
+    return (f"`livedic bench extensometer`: exact rendered known elongations (rigid translations, uniform stretches), "
+            f"{settings.get('frames_per_step')} frames per step, noise {settings.get('noise')} grey levels "
+            f"({settings.get('bit_depth')}-bit)")
+
+
 def _percent(fraction: float | None) -> float | None:
     return None if fraction is None else 100.0 * fraction
 
 
 def _number(value: Any, spec: str) -> str:
     return "n/a" if value is None else format(value, spec)
+
+
+def classified_entry(true_px: Sequence[float], readings_px: Sequence[Any], l0_px: float,
+                     scale_px_per_mm: float | None, *, labels: Sequence[str]) -> dict[str, Any]:
+    """One gauge length's ISO 9513 verdict (``dic.strain.iso9513.classify``, JSON-ready) as a verification file
+    holds it: each step with its ``label``, ``strain`` (true / L0) and ``readings_px``, and the ``limiting``
+    step's index and reason."""
+    from livedic.dic.strain.iso9513 import classify, limiting_step
+    result = classify(true_px, readings_px, l0_px, scale_px_per_mm=scale_px_per_mm)
+    entry = result.as_dict()
+    for row, label, true, held_px in zip(entry["steps"], labels, true_px, readings_px):
+        row.update(label=label, strain=float(true) / l0_px, readings_px=[float(v) for v in held_px])
+    limit = limiting_step(result)
+    entry["limiting_step"] = None if limit is None else {"index": limit[0], "label": labels[limit[0]],
+                                                         "reason": limit[1]}
+    return entry
+
+
+def write_verification(path: str | os.PathLike[str], result: Mapping[str, Any]) -> None:
+    """Write ``result`` (``settings``, ``gauge_lengths``, ...) as strict JSON, atomically, marked as a
+    verification: what ``livedic report --verification`` reads."""
+    from livedic.stream.output.files import json_text, write_text_atomic
+    write_text_atomic(path, json_text({"kind": VERIFICATION_KIND, **result}))
+
+
+def verification_table_lines(entry: Mapping[str, Any]) -> list[str]:
+    """One gauge length's table as printed: per step the known elongation, mean reading, bias, resolution (px,
+    um, %) and class; the class met with the limiting step's reason, the limitations, the zero point."""
+    mm = f" = {entry['l0_mm']:g} mm" if entry["l0_mm"] is not None else ""
+    limit = entry.get("limiting_step")
+    lines = ["", f"L0 {entry['l0_px']:g} px{mm}: class {entry['met_class'] or 'none'}"
+             + ("" if entry["met_class"] else f" ({entry['reason_text']})")]
+    if limit:
+        lines.append(f"  limiting step {limit['label']}: {limit['reason']}")
+    lines += [f"  limitation: {text}" for text in entry["limitations"]]
+    if entry.get("zero_point_class") and not entry.get("elongation_verified", True):
+        lines.append(f"  zero point only: it meets class {entry['zero_point_class']}'s absolute limits; "
+                     f"a known non-zero elongation (--elongations) is needed to verify a class")
+    lines.append(f"  {'step':>18s} {'true px':>9s} {'mean px':>10s} {'bias px':>9s} {'bias um':>8s} "
+                 f"{'rel bias %':>10s} {'res px':>8s} {'res um':>7s} {'rel res %':>9s} {'class':>5s}")
+    for row in entry["steps"]:
+        rel_bias = None if row["relative_bias"] is None else 100 * row["relative_bias"]
+        rel_res = (None if row["relative_resolution"] is None or row["true_px"] == 0
+                   else 100 * row["relative_resolution"])
+        lines.append(f"  {row['label']:>18s} {row['true_px']:9.4f} {_width(row['mean_px'], '10.4f')} "
+                     f"{_width(row['bias_px'], '9.4f')} {_width(row['bias_um'], '8.2f')} {_width(rel_bias, '10.3f')} "
+                     f"{_width(row['resolution_px'], '8.4f')} {_width(row['resolution_um'], '7.2f')} "
+                     f"{_width(rel_res, '9.3f')} {row['best_class'] or '-':>5s}")
+    return lines
+
+
+def _width(value: Any, spec: str) -> str:
+    return "n/a".rjust(int(spec.split(".")[0])) if value is None else format(value, spec)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from livedic.dic.strain.iso9513 import (CLASS_NAMES, CLASSES, Limitation, StepReason, class_for_gauge_length_error,
-                                        classify, classify_step)
+                                        classify, classify_step, limiting_step)
 
 SCALE = 10.0            # px/mm: 1 px = 100 um
 UM = SCALE / 1000.0     # px per um
@@ -88,6 +88,28 @@ def test_without_scale_relative_only_and_zero_not_classified():
 def test_only_zero_steps_without_scale_cannot_be_classified():
     result = classify([0.0, 0.0], [held(0.0, 0.001), held(0.0, 0.001)], 400.0)
     assert result.met_class is None and result.reason is StepReason.ZERO_NEEDS_SCALE
+
+
+def test_only_zero_steps_claim_no_class_but_state_the_zero_point():
+    # 0.4 um bias, 0.3 um resolution at zero: inside class 0.5's absolute limits (1.5, 0.5 um), not 0.2's (0.6, 0.2)
+    result = classify([0.0, 0.0], [held(0.4 * UM, 0.3 * UM), held(-0.2 * UM, 0.1 * UM)], 400.0, scale_px_per_mm=SCALE)
+    assert [s.best_class for s in result.steps] == ["0.5", "0.2"]
+    assert result.met_class is None and result.reason is StepReason.NO_ELONGATION
+    assert result.zero_point_class == "0.5" and not result.elongation_verified
+    assert result.as_dict()["zero_point_class"] == "0.5" and result.as_dict()["elongation_verified"] is False
+    # one known elongation verifies the class; the zero point is still stated
+    both = classify([0.0, 40.0], [held(0.4 * UM, 0.3 * UM), held(40.0, 0.0)], 400.0, scale_px_per_mm=SCALE)
+    assert both.met_class == "0.5" and both.zero_point_class == "0.5" and both.elongation_verified
+
+
+def test_the_limiting_step_names_the_limit_it_exceeds():
+    # step 1: 4 px true, bias 0.012 px = 0.3 %: class 0.5; class 0.2 allows 0.008 px (0.2 %) of bias
+    result = classify([0.0, 4.0], [held(0.0, 0.001), held(4.012, 0.001)], 400.0)
+    index, text = limiting_step(result)
+    assert index == 1 and result.met_class == "0.5"
+    assert "|bias| 0.012 px > 0.008 px (the class 0.2 limit)" in text and "resolution" not in text
+    lost = classify([4.0, 8.0], [held(4.0, 0.0), [8.0, math.nan]], 400.0, scale_px_per_mm=SCALE)
+    assert limiting_step(lost) == (1, StepReason.READINGS_LOST.value)
 
 
 def test_lost_or_single_readings_block_the_class():

@@ -97,3 +97,7 @@ def test_the_performance_table_reads_the_noise_floor_and_the_verified_class():
     unverified = {r.key: r for r in performance_rows({}, noise_floor=None, verification={"verified": False}, scale=None)}
     assert unverified["extensometer_class"].value is None and unverified["noise_u_px"].text.startswith("not measured")
     assert unverified["strain_resolution_px"].value is None
+    zero_only = {r.key: r for r in performance_rows({}, noise_floor=None, scale=10.0, verification={
+        "verified": True, "class": None, "zero_point_class": "0.5", "date": "2026-12-02T1"})}
+    assert zero_only["extensometer_class"].value is None       # static and rigid frames only: no class claimed
+    assert zero_only["extensometer_class"].text.startswith("no class: zero point only, meets class 0.5's")
