@@ -17,6 +17,7 @@ TARGET_ERROR_RMS_PX = 0.012
 TARGET_MAX_FPS = {None: 200.0, 2000: 100.0}     # unpaced, everything on: points (None: the main job's) -> fps
 # The stage rows of the per-frame table, in pipeline order: (stage name in the summary, label, thread).
 STAGE_ROWS = (
+    ("prepare ahead", "prefiltering the new frame ahead", "acquisition"),
     ("prepare", "preparing the new frame", "tracking"),
     ("kernel", "IC-GN kernel, all points", "tracking"),
     ("seeded_search", "seeded search (doubtful points)", "tracking"),
@@ -78,6 +79,7 @@ def run_main_job_case(*, size, frames, fps, paced=True, n_points=None, workdir, 
         receiver.stop()
     if session is not None:
         row["render_s"] = session.render_seconds
+        row["frames_offered"] += session.preparation.static_frames   # the noise floor's, before the test's
         if session.summary() is not None:
             row["summary"] = json.loads(json_text(session.summary()))
     if echo is not None:
