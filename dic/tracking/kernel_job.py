@@ -4,6 +4,7 @@ makes it, so that a caller may run it elsewhere (another thread, another process
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -12,6 +13,13 @@ from livedic.dic.result import SubpixelResult
 
 from livedic.dic.subpixel.icgn import prepare_target
 from livedic.dic.subpixel.method import SubpixelMethod
+
+
+class WindowCoefficients(NamedTuple):
+    """A frame's B-spline coefficients on an IC-GN ``window`` (y0, y1, x0, x1), made before ``track`` needs them
+    (``Tracker.coefficients_ahead``): valid for any tracker whose window is the same, whatever its reference."""
+    window: tuple[int, int, int, int]
+    coefficients: BSplineCoefficients
 
 
 def window_coefficients(image: np.ndarray, window: tuple[int, int, int, int],

@@ -42,7 +42,8 @@ from livedic.dic.measure import measure
 from livedic.dic.tracking.results import _SHAPE
 from livedic.dic.tracking.tracker import ICGN_MAX_ITERATIONS, StageTimes, Tracker
 from livedic.dic.tracking.update_policy import ReferenceUpdate, UpdatePolicy
-from livedic.dic.tracking.kernel_job import KernelJob
+from livedic.dic.bspline import BSplineCoefficients
+from livedic.dic.tracking.kernel_job import KernelJob, WindowCoefficients
 
 
 class KeyFrameTracker:
@@ -138,10 +139,16 @@ class KeyFrameTracker:
         """``Tracker.kernel_job`` of the current key frame's tracker (displacements from the key frame)."""
         return self._inner.kernel_job()
 
-    def track(self, image: np.ndarray) -> Measurement:
-        """Displacement of every material point from the first frame to ``image`` (a ``Measurement``)."""
+    def coefficients_ahead(self, image: np.ndarray, out: BSplineCoefficients | None = None
+                           ) -> WindowCoefficients | None:
+        """``Tracker.coefficients_ahead`` on the current key frame's window (any thread)."""
+        return self._inner.coefficients_ahead(image, out)
+
+    def track(self, image: np.ndarray, *, ahead: WindowCoefficients | None = None) -> Measurement:
+        """Displacement of every material point from the first frame to ``image`` (a ``Measurement``);
+        ``ahead``: ``image``'s coefficients from ``coefficients_ahead``."""
         tracker = self._inner
-        inner = tracker.track(image)
+        inner = tracker.track(image, ahead=ahead)
         times = StageTimes()
         times.ns.update(tracker.last_timings)
         with times.stage("reference_update"):

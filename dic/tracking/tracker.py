@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from livedic.dic import quality
-from livedic.dic.bspline import INTERPOLATION_MARGIN
+from livedic.dic.bspline import INTERPOLATION_MARGIN, BSplineCoefficients
 from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.measure import measure
 from livedic.dic.neighbours import neighbour_graph
@@ -21,7 +21,7 @@ from livedic.dic.subpixel.icgn import prepare_reference
 from livedic.dic.subpixel.icgn2 import SECOND_ORDER
 from livedic.dic.subpixel.method import subpixel_method
 from livedic.dic.validation import as_image, as_points, check_radius, check_subset, checked_image
-from livedic.dic.tracking.kernel_job import KernelJob, window_coefficients
+from livedic.dic.tracking.kernel_job import KernelJob, WindowCoefficients, window_coefficients
 from livedic.dic.tracking.refind import RefindSteps
 from livedic.dic.tracking.results import _SHAPE, _Curved, _gradients_of, _median_test_inputs, _same_bits, _take
 
@@ -301,6 +301,20 @@ class Tracker(RefindSteps):
         """The first-order IC-GN reference data (a second-order method's extend them)."""
         return self.method.first_order_data(self._prep)
 
+    def coefficients_ahead(self, image: np.ndarray, out: BSplineCoefficients | None = None
+                           ) -> WindowCoefficients | None:
+        """``image``'s IC-GN coefficients on the window as it stands, for ``track(image, ahead=...)``.
+
+        Safe to call from another thread while ``track`` runs on an earlier frame: a live session
+        prefilters each new frame in its acquisition thread, so the tracking thread only refines.
+        ``track`` computes them again if its window has grown meanwhile. None for methods without
+        a window. ``out``: a buffer of an earlier frame's to overwrite.
+        """
+        window = self._window
+        if window is None:
+            return None
+        return WindowCoefficients(window, window_coefficients(checked_image(image, "frame"), window, out))
+
     @property
     def window(self) -> tuple[int, int, int, int] | None:
         """(y0, y1, x0, x1): the part of each frame IC-GN reads, or None (other methods read all)."""
@@ -435,13 +449,15 @@ class Tracker(RefindSteps):
             return _Curved(**fields, **{name: getattr(result, name) for name in SECOND_ORDER})
         return Measurement(**fields)
 
-    def track(self, image: np.ndarray) -> Measurement:
+    def track(self, image: np.ndarray, *, ahead: WindowCoefficients | None = None) -> Measurement:
         """Displacement of every point from the reference to ``image``.
 
         Parameters
         ----------
         image : ndarray, shape (H, W)
             The new frame, same size as the reference.
+        ahead : WindowCoefficients, optional
+            ``image``'s coefficients from ``coefficients_ahead`` (used where the window is still theirs).
 
         Returns
         -------
@@ -461,7 +477,7 @@ class Tracker(RefindSteps):
             raise ValueError(f"frame is {target.raw.shape[1]}x{target.raw.shape[0]} but the reference is "
                              f"{self.reference.shape[1]}x{self.reference.shape[0]}: frames must keep the size")
         self._target = target
-        self._coeffs = None
+        self._coeffs = ahead
         idx, start_u, start_v = self._frame_start()
         if idx.size:
             with times.stage("prepare"):
@@ -632,11 +648,11 @@ class Tracker(RefindSteps):
 
     def _target_coefficients(self):
         """B-spline coefficients of the current frame on the IC-GN window (computed once per window)."""
-        if self._coeffs is None or self._coeffs[0] != self._window:
+        if self._coeffs is None or self._coeffs.window != self._window:
             # the previous frame's buffer is reused (no fresh pages to fault in every frame)
             self._spare = window_coefficients(self._target.raw, self._window, out=self._spare)
-            self._coeffs = (self._window, self._spare)
-        return self._coeffs[1]
+            self._coeffs = WindowCoefficients(self._window, self._spare)
+        return self._coeffs.coefficients
 
     def _empty_result(self):
         n = self.n_points

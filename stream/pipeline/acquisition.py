@@ -58,9 +58,10 @@ class Reconnect:
 
 @dataclass(frozen=True)
 class QueuedFrame:
-    """A frame and when the acquisition thread received it (``time.monotonic_ns``)."""
+    """A frame, when the acquisition thread received it (``time.monotonic_ns``) and what ``prepare`` made of it."""
     frame: Frame
     arrival_ns: int
+    ahead: Any = None
 
 
 class AcquisitionThread(threading.Thread):
@@ -74,6 +75,10 @@ class AcquisitionThread(threading.Thread):
         Receives ``QueuedFrame`` items; closed when the thread ends.
     max_frames : int, optional
         Stop after this many frames.
+    prepare : callable, optional
+        ``prepare(frame)`` called in this thread before each put, its return value queued with the frame
+        (``QueuedFrame.ahead``: the tracker's prefiltered frame, made while it tracks the frame before); an
+        exception there stops acquisition and is kept in ``error``.
     on_frame : callable, optional
         ``on_frame(queued_frame)`` called in this thread after each put (e.g. to record
         every frame, dropped or not: the tracker already has it while it is written); an
@@ -108,12 +113,13 @@ class AcquisitionThread(threading.Thread):
 
     def __init__(self, source: FrameSource, queue: FrameQueue, *, max_frames: int | None = None,
                  on_frame: Callable[[QueuedFrame], None] | None = None, reconnect: Reconnect | None = None,
-                 name: str = "livedic-acquisition") -> None:
+                 prepare: Callable[[Frame], Any] | None = None, name: str = "livedic-acquisition") -> None:
         super().__init__(name=name, daemon=True)
         self.source: FrameSource | None = source
         self.queue = queue
         self.max_frames = max_frames
         self.on_frame = on_frame
+        self.prepare = prepare
         self.error: BaseException | None = None
         self.frames = 0
         self.first_index: int | None = None
@@ -185,7 +191,7 @@ class AcquisitionThread(threading.Thread):
             if self._stop_requested.is_set():
                 return "stopped"
             frame = self._continue_session(frame, arrival_ns)
-            item = QueuedFrame(frame, arrival_ns)
+            item = QueuedFrame(frame, arrival_ns, None if self.prepare is None else self.prepare(frame))
             try:
                 self.queue.put(item)
                 closed = False

@@ -33,6 +33,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
 
+import numba
 import numpy as np
 
 from livedic.stream.pipeline.frame_queue import QueueClosed
@@ -186,6 +187,27 @@ class TrackerLoop:
         self.reference_frame: Frame | None = None
         self.ended_by: str | None = None
         self.output: OutputThread | None = None
+        self._spare_coefficients: list[Any] = []     # buffers of tracked frames' coefficients, for the next
+        self._numba_threads = numba.get_num_threads()
+
+    def coefficients_ahead(self, frame: Frame) -> Any:
+        """``frame``'s IC-GN coefficients (``dic.tracking.Tracker.coefficients_ahead``), made in the calling
+        thread: the acquisition thread's ``prepare``, so that the tracking thread only refines (a live
+        session's prefilter is ~a third of the tracker's time: docs/guide/performance.md). None before the
+        tracker exists and for methods without a window."""
+        tracker = self.tracker
+        if tracker is None:
+            ready = self._ready
+            tracker = ready.tracker if ready is not None else None
+        make = getattr(tracker, "coefficients_ahead", None)
+        if make is None:
+            return None
+        if numba.get_num_threads() != self._numba_threads:
+            numba.set_num_threads(self._numba_threads)    # per thread in numba: this one's as the session's
+        started = time.perf_counter_ns()
+        ahead = make(frame.image, self._spare_coefficients.pop() if self._spare_coefficients else None)
+        self.stats.stages.add("prepare ahead", time.perf_counter_ns() - started)
+        return ahead
 
     def run(self) -> SessionStats:
         """Run to the end (the output thread's sinks too); returns the ``SessionStats``."""
@@ -235,6 +257,9 @@ class TrackerLoop:
             if ready is not None:
                 measurement = ready.measurement
                 t0 -= ready.setup_ns
+            elif item.ahead is not None:
+                measurement = self.tracker.track(frame.image, ahead=item.ahead)
+                self._spare_coefficients.append(item.ahead.coefficients)
             else:
                 measurement = self.tracker.track(frame.image)
             done = time.monotonic_ns()

@@ -309,6 +309,8 @@ class Session:
         self.loop = TrackerLoop(self.queue, self._make_tracker, reference=reference_ready(self._make_tracker,
                                                                                           self.preparation.ahead.frame),
                                 stages=self.stages, sinks=sinks)
+        # Each new frame is prefiltered in the acquisition thread while the tracker refines the one before.
+        self.acquisition.prepare = self.loop.coefficients_ahead
         self.phase = Phase.RUNNING
         if self._stop_requested:
             self.acquisition.stop()

@@ -95,6 +95,29 @@ def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
     assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").kernel_job() is None
 
 
+def test_coefficients_made_ahead_give_the_same_result_bit_for_bit():
+    """``track(image, ahead=coefficients_ahead(image))`` (the live session's prefilter in the acquisition thread,
+    one frame ahead of the tracker) is ``track(image)``, bit for bit; coefficients made on a window the tracker
+    has grown since are made again, not misread."""
+    source, frames = translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
+    points = grid_in_roi(source.shape, (100, 100, 56, 56), 14, 21)
+    plain = KeyFrameTracker(frames[0].image, points, reference_update="every:4")
+    ahead = KeyFrameTracker(frames[0].image, points, reference_update="every:4")
+    made = ahead.coefficients_ahead(frames[1].image)
+    stale = 0
+    for i, frame in enumerate(frames[1:], 1):
+        current = made
+        if i + 1 < len(frames):        # the next frame's, made before this one is tracked (another buffer)
+            made = ahead.coefficients_ahead(frames[i + 1].image, None if i == 1 else previous.coefficients)
+        want, got = plain.track(frame.image), ahead.track(frame.image, ahead=current)
+        for name in ("u", "v", "ux", "vy", "zncc", "status"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        stale += current.window != ahead.window
+        previous = current
+    assert stale >= 1                   # the window grew at least once between a frame's coefficients and its track
+    assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").coefficients_ahead(frames[1].image) is None
+
+
 def test_points_without_texture_are_reported_never_searched():
     source, frames = translate_frames("frames=3&size=128x128&du=0.5&dv=0&noise=0")
     reference = frames[0].image.copy()

@@ -595,3 +595,21 @@ def test_a_stop_signal_ends_cleanly_and_finalises_the_recording(tmp_path, stop_s
     info = inspect_recording(str(mcap))
     assert info.indexed and not info.truncated and 10 <= info.frames < 400
     assert 1 <= len(read_results(str(mcap))) <= info.frames
+
+
+def test_prepare_runs_in_the_acquisition_thread_before_the_put_and_its_failure_stops_acquisition():
+    queue = FrameQueue(8)
+    threads = set()
+
+    def prepare(frame):
+        threads.add(threading.get_ident())
+        if frame.index == 3:
+            raise ValueError("no coefficients")
+        return frame.index * 10
+
+    thread = AcquisitionThread(ListSource(6), queue, prepare=prepare)
+    thread.start()
+    thread.join(5)
+    assert threads == {thread.ident}
+    assert [queue.get().ahead for _ in range(3)] == [0, 10, 20]
+    assert isinstance(thread.error, SourceError) and "no coefficients" in str(thread.error) and thread.frames == 3

@@ -10,10 +10,12 @@ import threading
 import numpy as np
 import pytest
 
+from livedic.acquire.base import FrameSource
 from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.tracking import Tracker
 from livedic.stream.pipeline.acquisition import AcquisitionThread
-from livedic.stream.pipeline.frame_queue import FrameQueue
+from livedic.stream.pipeline.frame_queue import BLOCK, FrameQueue
+from livedic.stream.pipeline.frame_result import reference_ready
 from livedic.stream.pipeline.stage import Stage
 from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
 
@@ -167,3 +169,51 @@ def test_an_optional_sink_that_fails_is_switched_off_and_the_others_go_on():
     assert stats.frames == FRAMES and seen == list(range(FRAMES))
     assert len(loop.sink_errors) == 1 and "viewer" in str(loop.sink_errors[0][1])
     assert np.isfinite(stats.latency_ms(50))
+
+
+class _Frames(FrameSource):
+    def __init__(self, frames):
+        self.frames = frames
+
+    def __iter__(self):
+        return iter(self.frames)
+
+
+def test_frames_are_prefiltered_in_the_acquisition_thread_one_ahead_of_the_tracker_with_the_same_results():
+    """The session's ``prepare``: each frame's coefficients made in the acquisition thread (a few buffers, reused),
+    the results those of plain ``track``, the time under the stage "prepare ahead"."""
+    source = SyntheticTranslateSource(f"synthetic:translate?frames={FRAMES}&size=96x96&du=0.3&dv=0.2&pace=0")
+    with source:
+        frames = list(source)
+
+    def make_tracker(frame):
+        return Tracker(frame.image, [(40.0, 40.0), (56.0, 56.0)])
+
+    queue = FrameQueue(1, BLOCK)            # the acquisition at most a frame or two ahead: buffers come back
+    loop = TrackerLoop(queue, make_tracker, reference=reference_ready(make_tracker, frames[0]),
+                       sinks=[lambda result, stats: results.append(result.measurement)])
+    acquisition = AcquisitionThread(_Frames(frames), queue)
+    made_in, buffers, results = set(), set(), []
+
+    def prepare(frame):
+        made_in.add(threading.get_ident())
+        ahead = loop.coefficients_ahead(frame)
+        buffers.add(id(ahead.coefficients.flat))
+        return ahead
+
+    acquisition.prepare = prepare
+    acquisition.start()
+    stats = loop.run()
+    acquisition.join(WAIT_S)
+    assert made_in == {acquisition.ident} and len(results) == FRAMES
+    assert len(buffers) <= 4 and stats.stages.summary()["prepare ahead"]["frames"] == FRAMES
+    plain = make_tracker(frames[0])
+    for frame, got in zip(frames, results):
+        want = plain.track(frame.image)
+        np.testing.assert_array_equal(got.u, want.u)
+        np.testing.assert_array_equal(got.v, want.v)
+
+
+def test_no_coefficients_ahead_before_the_tracker_exists():
+    loop = TrackerLoop(FrameQueue(2), lambda frame: None)
+    assert loop.coefficients_ahead(None) is None
