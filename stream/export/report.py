@@ -11,7 +11,7 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     ``Ae_percent`` (upper and lower yield strength, yield point extension: null with a reason on
     continuous yielding); ``curve_shape`` ``{"value": "continuous" | "plateau" | "upper_yield_point"
     | "undetermined", "label": text}``; ``Ag_rule`` ``{"value": "at_maximum" | "plateau_middle", "label": text,
-    "plateau_strain": [start, end] or null, "Agt_percent": number or null}`` (where Ag and Agt were read:
+    "plateau_strain": [start, end] or null, "Ag_percent", "Agt_percent": number or null}`` (where Ag and Agt were read:
     the frame of Rm, or the middle of a plateau at maximum force, ``dic.tensile.flat_top``); each property
     ``{"value": number or null, "method": text, "reason": text or null}`` (``reason`` says why a
     value is null); ``poisson_ratio`` (fitted over the elastic range, ``dic.tensile.poisson``) and
@@ -105,7 +105,7 @@ def _ag_rule(ag: UniformElongation) -> dict[str, Any]:
     top = ag.top
     plateau = list(top.strains) if top is not None and top.rule is AgRule.PLATEAU_MIDDLE else None
     return {"value": ag.rule.name.lower(), "label": ag.rule.value, "plateau_strain": plateau,
-            "Agt_percent": _finite_or_none(float(ag.total))}
+            "Ag_percent": _finite_or_none(float(ag.value)), "Agt_percent": _finite_or_none(float(ag.total))}
 
 
 def _finite_or_none_dict(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -167,6 +167,8 @@ def _ag_rule_markdown(rule: Mapping[str, Any] | None) -> list[str]:
     """The line saying where Ag and Agt were read (none for a report.json written before the rule)."""
     if rule is None:
         return []
+    if rule.get("Ag_percent", 0.0) is None and rule["Agt_percent"] is None:
+        return ["Ag and Agt not read: the maximum force is undefined (Rm n/a, its reason in the table).", ""]
     agt = "n/a" if rule["Agt_percent"] is None else f"{rule['Agt_percent']:.4g} %"
     line = f"Ag and Agt read {rule['label']}; Agt {agt}"
     if rule["plateau_strain"] is not None:

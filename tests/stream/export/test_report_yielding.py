@@ -49,6 +49,7 @@ def test_perfectly_plastic_report_says_why_rm_and_ag_are_missing():
     assert report["Ae_percent"]["value"] == pytest.approx(5.0, abs=0.1)
     text = report_markdown(report, "plot.png", "r.mcap")
     assert "| Rm | n/a | MPa |" in text and "leaves the maximum force Fm undefined" in text
+    assert "Ag and Agt not read: the maximum force is undefined" in text and "Ag and Agt read" not in text
 
 
 def test_continuous_report_keeps_the_old_readings_and_says_there_is_no_yield_point():
