@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|soak|strain|fracture|tracker|extensometer``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|accuracy|soak|strain|fracture|tracker|extensometer``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -17,11 +17,11 @@ from livedic.stream.session.parsing import subpixel_method
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
-                                             "fracture, tensile, replay, tracker, extensometer")
+                                             "fracture, tensile, replay, tracker, extensometer, accuracy")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     for add in (_add_paper_command, _add_speed_command, _add_live_command, _add_validate_command, _add_soak_command,
                 _add_strain_command, _add_fracture_command, _add_replay_command, _add_tracker_command,
-                _add_tensile_command, _add_extensometer_command, _add_calibration_command):
+                _add_tensile_command, _add_extensometer_command, _add_calibration_command, _add_accuracy_command):
         add(bench_commands)
 
 
@@ -76,6 +76,22 @@ def _add_validate_command(bench_commands):
                                "(e.g. ../shared/datasets); without it only the synthetic cases run")
     validate.add_argument("--quick", action="store_true", help="fewer shifts, points and searches (minutes)")
     validate.set_defaults(handler=_cmd_bench_validate)
+
+
+def _add_accuracy_command(bench_commands):
+    """``livedic bench accuracy``'s options."""
+    accuracy = bench_commands.add_parser(
+        "accuracy", help="spatial resolution, noise and their product on the DIC Challenge 2.0 Stars; Sample 3's bias",
+        description="On DIC Challenge 2.0 Stars 1 and 2: the period at which the v amplitude error on the centre "
+                    "row reaches 10 % (spatial resolution), the noise (SD of v - truth where the period is large), "
+                    "their product (metrological efficiency indicator) and the first-order noise prediction, for "
+                    "subsets 15/21/31 and icgn/icgn2. On DIC Challenge 1.0 Sample 3: the mean bias and SD of u and v "
+                    "per shift (subset 21, grid 10, icgn) against the 0.001 px target (exit code 1 above it).")
+    accuracy.add_argument("--data", required=True, metavar="DIR",
+                          help="folder with dicc2_star and dicc1_sample3_translation (e.g. ../shared/datasets)")
+    accuracy.add_argument("--quick", action="store_true", help="subset 21 and icgn only, every 2 px (about a minute)")
+    accuracy.add_argument("-o", "--output", metavar="OUT.json", help="also write the tables as JSON")
+    accuracy.set_defaults(handler=_cmd_bench_accuracy)
 
 
 def _add_soak_command(bench_commands):
@@ -338,6 +354,22 @@ def _cmd_bench_validate(args):
     if args.data is not None and not os.path.isdir(args.data):
         raise UsageError(f"--data {args.data} is not a folder: give the folder holding the DIC Challenge sets")
     return run_validate_benchmark(data=args.data, quick=args.quick, log=lambda line: print(line, flush=True))
+
+
+def _cmd_bench_accuracy(args):
+    from livedic.bench.accuracy import check_data, run_accuracy_benchmark
+    from livedic.stream.output.files import check_output_file
+    if not os.path.isdir(args.data):
+        raise UsageError(f"--data {args.data} is not a folder: give the folder holding the DIC Challenge sets "
+                         "(e.g. ../shared/datasets)")
+    try:
+        check_data(args.data)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.output is not None:
+        check_output_file(args.output, "-o")
+    return run_accuracy_benchmark(data=args.data, quick=args.quick, output=args.output,
+                                  log=lambda line: print(line, flush=True))
 
 
 def _cmd_bench_soak(args):

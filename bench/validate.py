@@ -45,6 +45,38 @@ def _grid(lo, hi, step):
     return np.column_stack([a.ravel() for a in np.meshgrid(axis, axis)])
 
 
+# The DIC Challenge 2.0 Star pairs in --data's dicc2_star: name -> (sub-folder, file tag).
+STARS = {"Star 1": ("star1_noisefree", "NoiseFree"), "Star 2": ("star2_noisy", "Noisy")}
+
+
+def read_star_pair(data: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The reference and deformed image of Star ``name`` ("Star 1" or "Star 2") under ``data``."""
+    from livedic.acquire.files.image_file import read_grey_image
+
+    sub, tag = STARS[name]
+    folder = os.path.join(data, "dicc2_star", sub)
+    return tuple(read_grey_image(os.path.join(folder, f"DIC_Challenge_Wave_{kind}_{tag}.tif"))[0]
+                 for kind in ("Reference", "Deformed"))
+
+
+def sample3_frames(data: str) -> tuple[np.ndarray, list[tuple[str, tuple[float, float]]]]:
+    """DIC Challenge 1.0 Sample 3 under ``data``: the reference image and each frame's (path, (u, v) truth).
+
+    Frame k (Sample3-00k) is the pattern shifted by 0.1 k px in x and in y (the set's ground_truth.csv).
+    """
+    from livedic.acquire.files.image_file import read_grey_image
+
+    folder = os.path.join(data, "dicc1_sample3_translation", "images")
+    reference = read_grey_image(os.path.join(folder, "Sample3 Reference.tif"))[0]
+    frames = sorted(glob.glob(os.path.join(folder, "Sample3-0*.tif")))
+    return reference, [(path, (round(0.1 * k, 10), round(0.1 * k, 10))) for k, path in enumerate(frames)]
+
+
+def sample3_grid() -> np.ndarray:
+    """Every grid point at step 10 px of the 512 x 512 Sample 3 images, (N, 2) as (x, y)."""
+    return _grid(10, 501, 10)
+
+
 def _methods(quick):
     from livedic.dic.measure import SEARCH_METHODS
     searches = [s for s in SEARCH_METHODS if s != "none"]
@@ -110,15 +142,13 @@ def _sample3(table, data, methods):
     from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
-    folder = os.path.join(data, "dicc1_sample3_translation", "images")
-    reference = read_grey_image(os.path.join(folder, "Sample3 Reference.tif"))[0]
-    frames = sorted(glob.glob(os.path.join(folder, "Sample3-0*.tif")))
-    points = _grid(10, 501, 10)
+    reference, frames = sample3_frames(data)
+    points = sample3_grid()
     for label, options in methods:
         errors, oks = [], []
-        for k, path in enumerate(frames):
+        for path, (true_u, true_v) in frames:
             m = measure(reference, read_grey_image(path)[0], points, **options)
-            errors.append(np.hypot(m.u - 0.1 * k, m.v - 0.1 * k))
+            errors.append(np.hypot(m.u - true_u, m.v - true_v))
             oks.append(m.ok)
         table.add(f"Sample 3, {len(frames)} frames, every point (grid 10)", label, np.concatenate(errors),
                   np.concatenate(oks))
@@ -144,14 +174,10 @@ def _sample12(table, data, methods):
 
 
 def _stars(table, data, methods):
-    from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
-    folder = os.path.join(data, "dicc2_star")
-    pairs = {"Star 1": ("star1_noisefree", "NoiseFree"), "Star 2": ("star2_noisy", "Noisy")}
-    for name, (sub, tag) in pairs.items():
-        ref = read_grey_image(os.path.join(folder, sub, f"DIC_Challenge_Wave_Reference_{tag}.tif"))[0]
-        dfm = read_grey_image(os.path.join(folder, sub, f"DIC_Challenge_Wave_Deformed_{tag}.tif"))[0]
+    for name in STARS:
+        ref, dfm = read_star_pair(data, name)
         height, width = ref.shape
         centre = np.column_stack([np.arange(15, width - 15, 5.0), np.full(len(range(15, width - 15, 5)), 250.0)])
         every = np.column_stack([a.ravel() for a in np.meshgrid(np.arange(10, width - 10, 5.0),
