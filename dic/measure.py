@@ -8,6 +8,7 @@ from numpy.typing import ArrayLike
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
+from livedic.dic.image_filter import DEFAULT_PREFILTER, Prefilter
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
@@ -27,7 +28,8 @@ SEARCH_METHODS = _INTEGER_SEARCHES + (NO_SEARCH,)
 def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, subset: int = DEFAULT_SUBSET,
             search: str = DEFAULT_SEARCH, subpixel: str = "improved-surface-fit", radius: int = DEFAULT_RADIUS,
             guess: ArrayLike | None = None, seed: int = 0, search_options: dict | None = None,
-            subpixel_options: dict | None = None, guided: bool = True, gates: Gates | None = Gates()) -> Measurement:
+            subpixel_options: dict | None = None, guided: bool = True, gates: Gates | None = Gates(),
+            prefilter: str | Prefilter = DEFAULT_PREFILTER) -> Measurement:
     """Displacement of each point from ``reference`` to ``deformed``.
 
     Parameters
@@ -61,6 +63,9 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     gates : dic.quality.Gates or None
         Quality gates (``dic.quality``): a point is ok only if it passes them.
         None returns the solver's own status (for callers that gate themselves).
+    prefilter : str or dic.image_filter.Prefilter
+        Image pre-filter applied to both images before anything reads them: ``"none"`` (default) or
+        ``"gaussian:SIGMA"`` (``dic.image_filter``).
 
     Returns
     -------
@@ -77,8 +82,8 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     Raises
     ------
     ValueError
-        Images of different size or not 2-D, bad subset, radius, points, guess
-        or method name; the message says what to change.
+        Images of different size or not 2-D, bad subset, radius, points, guess,
+        method name or pre-filter; the message says what to change.
 
     Examples
     --------
@@ -93,8 +98,9 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     method = subpixel_method(subpixel)
     if gates is not None and not isinstance(gates, Gates):
         raise ValueError(f"gates must be a dic.quality.Gates or None, got {gates!r}")
-    reference = as_image(reference, "reference")
-    deformed = as_image(deformed, "deformed")
+    filtering = Prefilter.parse(prefilter)
+    reference = filtering.apply(as_image(reference, "reference"))
+    deformed = filtering.apply(as_image(deformed, "deformed"))
     check_same_shape(reference, deformed)
     half = check_subset(subset, reference.shape)
     radius = check_radius(radius)

@@ -114,7 +114,7 @@ def flat_top(strain: np.ndarray, stress: np.ndarray, frames: np.ndarray, rm_fram
     last = peak + int(after[0]) - 1 if after.size else s.size - 1
     extent = e[first:last + 1]
     start, end = float(extent.min()), float(extent.max())
-    found = dict(frames=(int(frames[first]), int(frames[last])), strains=(start, end), tolerance_MPa=float(tolerance))
+    span = (int(frames[first]), int(frames[last]))
     if end - start < MIN_FLAT_TOP_EXTENSION:
-        return FlatTop(AgRule.AT_MAXIMUM, float(rm_strain), **found)
-    return FlatTop(AgRule.PLATEAU_MIDDLE, 0.5 * (start + end), **found)
+        return FlatTop(AgRule.AT_MAXIMUM, float(rm_strain), span, (start, end), float(tolerance))
+    return FlatTop(AgRule.PLATEAU_MIDDLE, 0.5 * (start + end), span, (start, end), float(tolerance))

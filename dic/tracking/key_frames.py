@@ -35,6 +35,7 @@ import numpy as np
 
 from livedic.dic.strain import field_fit
 from livedic.dic.tensile.fracture import detect_fracture
+from livedic.dic.image_filter import DEFAULT_PREFILTER, Prefilter
 from livedic.dic.neighbours import typical_spacing
 from livedic.dic.result import Measurement
 from livedic.dic.status import Status
@@ -57,6 +58,9 @@ class KeyFrameTracker:
         (x, y) positions in it (snapped to pixel centres, as ``Tracker`` does).
     reference_update : str or UpdatePolicy
         ``"auto"`` (default), ``"never"`` or ``"every:N"``.
+    prefilter : str or dic.image_filter.Prefilter
+        Image pre-filter (``Tracker``'s): applied here once to the first frame and to every frame tracked, so
+        the key frames, the inner trackers and the re-measurements from the first frame all see filtered images.
     **tracker_options
         Passed to every ``Tracker`` (subset, search, subpixel, radii, gates ...).
 
@@ -80,11 +84,13 @@ class KeyFrameTracker:
     """
 
     def __init__(self, reference_image: np.ndarray, points: np.ndarray, *, reference_update: str = "auto",
-                 detect_fractures: bool = True, **tracker_options: Any):
+                 detect_fractures: bool = True, prefilter: str | Prefilter = DEFAULT_PREFILTER,
+                 **tracker_options: Any):
         self.policy = UpdatePolicy.parse(reference_update)
         self.detect_fractures = bool(detect_fractures)
-        self._options = tracker_options
-        self._inner = Tracker(reference_image, points, **tracker_options)
+        self.prefilter = Prefilter.parse(prefilter)
+        self._options = tracker_options            # the inner trackers get filtered images: no pre-filter of theirs
+        self._inner = Tracker(self.prefilter.apply(reference_image), points, **tracker_options)
         self._first = self._inner.reference            # points lost at a key frame are re-measured from it
         self.x, self.y = self._inner.x.copy(), self._inner.y.copy()
         n = self.x.size
@@ -141,16 +147,21 @@ class KeyFrameTracker:
 
     def coefficients_ahead(self, image: np.ndarray, out: BSplineCoefficients | None = None
                            ) -> WindowCoefficients | None:
-        """``Tracker.coefficients_ahead`` on the current key frame's window (any thread)."""
-        return self._inner.coefficients_ahead(image, out)
+        """``Tracker.coefficients_ahead`` on the current key frame's window (any thread), of the image
+        pre-filtered as ``track`` filters it."""
+        return self._inner.coefficients_ahead(self.prefilter.apply(image), out)
 
     def track(self, image: np.ndarray, *, ahead: WindowCoefficients | None = None) -> Measurement:
         """Displacement of every material point from the first frame to ``image`` (a ``Measurement``);
         ``ahead``: ``image``'s coefficients from ``coefficients_ahead``."""
         tracker = self._inner
-        inner = tracker.track(image, ahead=ahead)
         times = StageTimes()
+        with times.stage("prepare"):
+            image = self.prefilter.apply(image)
+        filtering = times.ns["prepare"]
+        inner = tracker.track(image, ahead=ahead)
         times.ns.update(tracker.last_timings)
+        times.ns["prepare"] += filtering
         with times.stage("reference_update"):
             self.frames_tracked += 1
             self._since_key += 1

@@ -10,6 +10,7 @@ import numpy as np
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN, BSplineCoefficients
 from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
+from livedic.dic.image_filter import DEFAULT_PREFILTER, Prefilter
 from livedic.dic.measure import measure
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
@@ -41,7 +42,8 @@ _WINDOW_ALLOWANCE = 48
 _FILTER_GUARD = 12
 
 # The stages of ``track`` that ``last_timings`` times (``StageTimes``), in the order a frame passes them:
-# prepare = the new frame made ready to sample (grey float32, the B-spline prefilter of the IC-GN window);
+# prepare = the new frame made ready to sample (the image pre-filter if any, grey float32, the B-spline prefilter
+# of the IC-GN window);
 # kernel = the sub-pixel method on every trackable point from its start (for methods that always search,
 # the seeded search too); seeded_search = the on-demand seeded search of the doubtful points and their
 # re-refinement; refind = the re-finding of weak points (from neighbours, from seeds, the wide search);
@@ -139,6 +141,9 @@ class Tracker(RefindSteps):
         a point is ok only if it passes them (``POOR_TEXTURE`` points are never
         tracked; ``OUTLIER`` points are re-found first, and flagged if they
         still disagree with their neighbours).
+    prefilter : str or dic.image_filter.Prefilter
+        Image pre-filter applied to the reference and, once, to every frame ``track`` is given, before
+        anything reads them: ``"none"`` (default) or ``"gaussian:SIGMA"`` (``dic.image_filter``).
 
     Attributes
     ----------
@@ -180,7 +185,7 @@ class Tracker(RefindSteps):
                  refind_gradient: float = 0.1, refind_search: str | None = None,
                  refind_fallback: str | None = "exhaustive", seed: int = 0, search_options: dict | None = None,
                  seed_search_options: dict | None = None, subpixel_options: dict | None = None,
-                 gates: Gates = Gates()):
+                 gates: Gates = Gates(), prefilter: str | Prefilter = DEFAULT_PREFILTER):
         self.searching = search_method(search)
         self.method = subpixel_method(subpixel)
         if refind_search is None:
@@ -188,7 +193,8 @@ class Tracker(RefindSteps):
         if refind_search not in _INTEGER_SEARCHES:
             raise ValueError(f"re-find search must be one of {', '.join(_INTEGER_SEARCHES)}, "
                              f"got {refind_search!r}")
-        self.reference = as_image(reference_image, "reference")
+        self.prefilter = Prefilter.parse(prefilter)
+        self.reference = as_image(self.prefilter.apply(checked_image(reference_image, "reference")), "reference")
         self.half = check_subset(subset, self.reference.shape)
         self.subset = int(subset)
         self.seed_radius = check_radius(seed_radius)
@@ -313,7 +319,8 @@ class Tracker(RefindSteps):
         window = self._window
         if window is None:
             return None
-        return WindowCoefficients(window, window_coefficients(checked_image(image, "frame"), window, out))
+        image = self.prefilter.apply(checked_image(image, "frame"))     # as ``track`` filters it
+        return WindowCoefficients(window, window_coefficients(image, window, out))
 
     @property
     def window(self) -> tuple[int, int, int, int] | None:
@@ -472,7 +479,7 @@ class Tracker(RefindSteps):
         """
         times = StageTimes()
         with times.stage("prepare"):
-            target = _Frame(checked_image(image, "frame"))
+            target = _Frame(self.prefilter.apply(checked_image(image, "frame")))
         if target.raw.shape != self.reference.shape:
             raise ValueError(f"frame is {target.raw.shape[1]}x{target.raw.shape[0]} but the reference is "
                              f"{self.reference.shape[1]}x{self.reference.shape[0]}: frames must keep the size")

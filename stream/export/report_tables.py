@@ -123,7 +123,7 @@ def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
         _row("interpolant", "grey-level interpolant", method.interpolant if method else None),
         _row("criterion", "correlation criterion", method.criterion if method else None),
         _row("search", "initial guess (integer search)", session.get("search")),
-        _row("prefilter", "image pre-filter", session.get("prefilter", "none")),
+        _prefilter_row(session.get("prefilter", "none")),   # recorded before the option existed: none applied
         _row("strain_method", "strain calculation",
              "pointwise least squares: a plane fitted to u and v over the window (Pan et al. 2009)"),
         _row("strain_window_points", "strain window", window, "points a side"),
@@ -131,6 +131,16 @@ def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
         _row("strain_measure", "strain measure", session.get("strain_measure")),
         _row("reference_update", "reference updates", session.get("reference_update")),
     ]
+
+
+def _prefilter_row(recorded: Any) -> Row:
+    """The pre-filter as recorded (``--prefilter``'s text), described (``dic.image_filter.Prefilter.describe``)."""
+    from livedic.dic.image_filter import Prefilter
+    try:
+        text = Prefilter.parse(recorded).describe()
+    except ValueError:
+        text = str(recorded)        # a value this version does not know: shown as recorded, not reinterpreted
+    return _row("prefilter", "image pre-filter", recorded, text=text)
 
 
 def rows_json(rows: Sequence[Row]) -> dict[str, Any]:

@@ -36,8 +36,9 @@ from livedic.dic.quality import MIN_ZNCC
 from livedic.dic.region import Polygon, Rectangle, Region
 from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
 from livedic.dic.tracking.tracker import REFIND_ZNCC
-from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_search, check_subpixel, parse_color_range,
-                                           search_method, subpixel_method,
+from livedic.dic.image_filter import DEFAULT_PREFILTER, MAX_SIGMA
+from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_prefilter, check_search, check_subpixel,
+                                           parse_color_range, prefilter_text, search_method, subpixel_method,
                                            parse_exclusion, parse_p0, parse_roi, read_mask)
 from livedic.stream.pipeline.progress import progress_enabled
 from livedic.stream.session.options import add_config_arguments, config_values, option
@@ -79,6 +80,17 @@ def _option(name):
 # ----------------------------------------------------------------------------- tracking
 
 SUBSET_HELP = "odd subset side, pixels (default {default})"
+
+
+def _prefilter_option():
+    """``--prefilter``, declared here once for ``run``/``replay`` (``TrackingConfig``) and ``measure`` (``MeasureConfig``)."""
+    return option(DEFAULT_PREFILTER, f"image pre-filter applied to the reference and every frame before correlation: "
+                                     f"none or gaussian:SIGMA, a Gaussian low-pass of SIGMA px (0 < SIGMA <= "
+                                     f"{MAX_SIGMA:g}; 0.4-0.8 px cuts the interpolation bias, Pan et al. 2013; "
+                                     f"docs/guide/measure.md) (default {{default}})",
+                  brief="image pre-filter: none or gaussian:SIGMA", metavar="FILTER", type=prefilter_text)
+
+
 # The sub-pixel methods a tracking session takes (not "none": a live session needs sub-pixel values).
 _SUBPIXEL_REFINING = tuple(name for name, method in SUBPIXEL.items() if method.refines)
 
@@ -94,6 +106,9 @@ class TrackingConfig:
         Integer search seeded by the previous frame (``dic.SEARCH_METHODS``).
     subpixel : str
         Sub-pixel method (``dic.SUBPIXEL_METHODS`` but ``none``: a live session needs sub-pixel values).
+    prefilter : str
+        Image pre-filter of the reference and every frame (``dic.image_filter``): ``none`` or ``gaussian:SIGMA``,
+        kept in its canonical text.
     seed_radius, refind_radius : int
         Search radius around the previous result, and for re-finding lost points, pixels (>= 0).
     refind_zncc : float
@@ -114,6 +129,7 @@ class TrackingConfig:
     subpixel: str = option("icgn", f"sub-pixel method: {', '.join(_SUBPIXEL_REFINING)} (default {{default}})",
                            brief=f"sub-pixel method: {', '.join(_SUBPIXEL_REFINING)}", metavar="NAME",
                            type=subpixel_method)
+    prefilter: str = _prefilter_option()
     seed_radius: int = option(2, "search radius around the previous result, pixels (default {default}: covers "
                                  "1.5 px of motion between two frames; faster motion is caught by the re-find search)",
                               brief="search radius around the previous result, px", metavar="R")
@@ -139,6 +155,7 @@ class TrackingConfig:
         if not SUBPIXEL[self.subpixel].refines:
             raise ValueError(f"--subpixel {self.subpixel} gives integer displacements only: choose a sub-pixel method "
                              f"(e.g. icgn)")
+        object.__setattr__(self, "prefilter", check_prefilter(self.prefilter))
         for name in ("seed_radius", "refind_radius"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{_option(name)} must be >= 0, got {getattr(self, name)}")
@@ -183,6 +200,8 @@ class MeasureConfig:
         Odd subset side, pixels (>= 3).
     search, subpixel : str
         Integer search and sub-pixel method (``dic.SEARCH_METHODS``, ``dic.SUBPIXEL_METHODS``).
+    prefilter : str
+        Image pre-filter of both images (``dic.image_filter``): ``none`` or ``gaussian:SIGMA``.
     radius : int
         Search radius, pixels (>= 0).
     seed : int
@@ -197,6 +216,7 @@ class MeasureConfig:
                          metavar="NAME", type=search_method)
     subpixel: str = option("improved-surface-fit", f"sub-pixel method: {', '.join(SUBPIXEL)} (default {{default}})",
                            metavar="NAME", type=subpixel_method)
+    prefilter: str = _prefilter_option()
     radius: int = option(DEFAULT_RADIUS, "search radius, pixels (default {default})", metavar="R")
     seed: int = option(0, "seed of the stochastic searches (default {default})")
     min_zncc: float = option(MIN_ZNCC, "a point is ok only if its ZNCC is at least Z (default {default}, measured: no "
@@ -211,6 +231,7 @@ class MeasureConfig:
             raise ValueError(f"--subset must be an odd integer >= 3, got {self.subset}")
         check_search(self.search)
         check_subpixel(self.subpixel)
+        object.__setattr__(self, "prefilter", check_prefilter(self.prefilter))
         if self.radius < 0:
             raise ValueError(f"--radius must be >= 0, got {self.radius}")
         if not -1.0 <= self.min_zncc <= 1.0:

@@ -14,6 +14,7 @@ from typing import TypeVar
 import numpy as np
 
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
+from livedic.dic.image_filter import Prefilter
 from livedic.dic.region import Circle, Polygon, Rectangle, Shape, parse_shape
 
 T = TypeVar("T")
@@ -39,6 +40,11 @@ def check_subpixel(name: str) -> str:
     return name
 
 
+def check_prefilter(text: object) -> str:
+    """``--prefilter``'s canonical text ("none", "gaussian:0.6"), or ValueError (one line; ``dic.image_filter``)."""
+    return str(Prefilter.parse(text))   # type: ignore[arg-type]
+
+
 def argument_type(check: Callable[[str], T]) -> Callable[[str], T]:
     """An argparse ``type=`` from a check: its ValueError message becomes argparse's error as is.
 
@@ -56,6 +62,7 @@ def argument_type(check: Callable[[str], T]) -> Callable[[str], T]:
 
 search_method = argument_type(check_search)
 subpixel_method = argument_type(check_subpixel)
+prefilter_text = argument_type(check_prefilter)
 
 
 def parse_numbers(text: object, count: int, what: str, example: str) -> list[float]:

@@ -95,14 +95,15 @@ def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
     assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").kernel_job() is None
 
 
-def test_coefficients_made_ahead_give_the_same_result_bit_for_bit():
+@pytest.mark.parametrize("prefilter", ["none", "gaussian:0.6"])
+def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter):
     """``track(image, ahead=coefficients_ahead(image))`` (the live session's prefilter in the acquisition thread,
     one frame ahead of the tracker) is ``track(image)``, bit for bit; coefficients made on a window the tracker
     has grown since are made again, not misread."""
     source, frames = translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
     points = grid_in_roi(source.shape, (100, 100, 56, 56), 14, 21)
-    plain = KeyFrameTracker(frames[0].image, points, reference_update="every:4")
-    ahead = KeyFrameTracker(frames[0].image, points, reference_update="every:4")
+    plain = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter)
+    ahead = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter)
     made = ahead.coefficients_ahead(frames[1].image)
     stale = 0
     for i, frame in enumerate(frames[1:], 1):

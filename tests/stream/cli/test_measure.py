@@ -46,6 +46,22 @@ def test_grid_measurement_to_stdout(image_pair, capsys, depth):
         assert abs(float(row["u"]) - SHIFT[0]) < 0.02 and abs(float(row["v"]) - SHIFT[1]) < 0.02
 
 
+def test_the_prefilter_option_filters_both_images_as_dic_measure_does(image_pair, capsys):
+    """``--prefilter`` reaches ``dic.measure``: the CSV is its result with the filter, and the shift still right."""
+    from livedic.acquire.files.image_file import read_grey_image
+    from livedic.dic import measure
+    code = main(["measure", image_pair["ref", 8], image_pair["def", 8], "--grid", "30", "--subpixel", "icgn",
+                 "--radius", "4", "--prefilter", "gaussian:0.8"])
+    rows = _rows(capsys.readouterr().out)
+    assert code == 0 and all(row["ok"] == "1" for row in rows)
+    points = [(float(row["x"]), float(row["y"])) for row in rows]
+    images = [read_grey_image(image_pair[name, 8])[0] for name in ("ref", "def")]
+    expected = measure(*images, points, subpixel="icgn", radius=4, prefilter="gaussian:0.8")
+    unfiltered = measure(*images, points, subpixel="icgn", radius=4)
+    assert [float(row["u"]) for row in rows] == expected.u.tolist() != unfiltered.u.tolist()
+    assert all(abs(float(row["u"]) - SHIFT[0]) < 0.02 and abs(float(row["v"]) - SHIFT[1]) < 0.02 for row in rows)
+
+
 def test_points_file_and_output_file(image_pair, tmp_path):
     points = tmp_path / "points.csv"
     points.write_text("x,y\n60,60\n70.4,50\n2,2\n")
@@ -67,6 +83,8 @@ def test_points_file_and_output_file(image_pair, tmp_path):
     (["--grid", "20", "--subset", "301"], "larger than the image"),
     (["--grid", "20", "--search", "nope"], "unknown search method"),
     (["--grid", "20", "--subpixel", "nope"], "unknown sub-pixel method"),
+    (["--grid", "20", "--prefilter", "gaussian:0"], "SIGMA must be > 0 and <= 2 px"),
+    (["--grid", "20", "--prefilter", "blur"], "unknown pre-filter 'blur'"),
 ])
 def test_bad_options_give_one_line_and_exit_2(image_pair, capsys, extra, message):
     code = main(["measure", image_pair["ref", 8], image_pair["def", 8], *extra])

@@ -53,6 +53,18 @@ def test_the_noise_floor_of_static_images_is_the_noise_through_the_subset(static
         assert rows[(name, "microstrain")]["status"] == "ok"
 
 
+def test_the_prefilter_is_applied_and_said(static_images, tmp_path, capsys):
+    paths, _ = static_images
+    floors = {}
+    for prefilter in ("none", "gaussian:0.80"):
+        out = tmp_path / f"{prefilter}.json"
+        assert main(["noise-floor", *paths[:3], "--grid", "16", "--prefilter", prefilter, "-o", str(out)]) == 0
+        floors[prefilter] = json.loads(out.read_text())
+    assert ", pre-filter gaussian:0.8; " in capsys.readouterr().out
+    assert [floors[key]["prefilter"] for key in floors] == ["none", "gaussian:0.8"]
+    assert floors["none"]["table"][0]["spatial_sd"] != floors["gaussian:0.80"]["table"][0]["spatial_sd"]
+
+
 def test_bad_input_is_one_line_exit_2_and_nothing_written(static_images, tmp_path, capsys):
     paths, _ = static_images
     out = tmp_path / "floor.json"

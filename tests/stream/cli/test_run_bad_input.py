@@ -21,6 +21,8 @@ SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
     (["--frames", "0"], "--frames must be >= 1"),
     (["--search", "foo"], "unknown search method"),
     (["--subpixel", "bar"], "unknown sub-pixel method"),
+    (["--prefilter", "gaussian:5"], "pre-filter 'gaussian:5': SIGMA must be > 0 and <= 2 px"),
+    (["--prefilter", "median:3"], "unknown pre-filter 'median:3'"),
     (["--source", "synthetic:nope"], "unknown synthetic model"),
     (["--source", "bogus://x"], "unknown source scheme"),
     (["--source", "synthetic:tensile?fps=abc"], "option fps"),

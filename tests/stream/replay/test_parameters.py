@@ -6,7 +6,8 @@ from livedic.stream.replay.parameters import METHOD_KEYS, check_parameters, reso
 from livedic.stream.session.config import DEFAULT_POINTS, TrackingConfig
 
 RECORDED = {"subset": 31, "search": "fft-cc", "subpixel": "icgn", "seed_radius": 3, "refind_radius": 12,
-            "refind_zncc": 0.7, "min_zncc": 0.6, "seed": 5, "reference_update": "never"}
+            "refind_zncc": 0.7, "min_zncc": 0.6, "seed": 5, "reference_update": "never",
+            "prefilter": "gaussian:0.6"}
 
 
 def test_run_defaults_are_the_tracking_configs_and_the_default_point_count():
@@ -28,13 +29,14 @@ def test_search_and_subpixel_come_from_the_method_text_when_the_metadata_lacks_t
     assert recorded["subpixel"] == "newton-raphson"
 
 
-def test_missing_values_take_run_defaults_with_a_note_each_but_reference_update_takes_never():
+def test_missing_values_take_run_defaults_with_a_note_each_but_reference_update_and_prefilter_as_before():
     used, recorded, notes = resolve_parameters({}, {}, method_text="not a method text")
     defaults = run_defaults()
     assert recorded == {}
     assert used["reference_update"] == "never"          # recordings from before the option never moved it
-    assert all(used[key] == defaults[key] for key in METHOD_KEYS if key != "reference_update")
-    assert len(notes) == len(METHOD_KEYS) - 1
+    assert used["prefilter"] == "none"                  # ... nor filtered their images, whatever the default now
+    assert all(used[key] == defaults[key] for key in METHOD_KEYS if key not in ("reference_update", "prefilter"))
+    assert len(notes) == len(METHOD_KEYS) - 2
     assert "the recording does not say which subset it used: using livedic run's default 21" in notes
 
 
