@@ -192,7 +192,8 @@ def _add_tracker_command(bench_commands):
 def _add_extensometer_command(bench_commands):
     """``livedic bench extensometer``'s options."""
     from livedic.bench.extensometer import (BIT_DEPTHS, DEFAULT_FRAMES_PER_STEP, DEFAULT_GAUGE_LENGTHS,
-                                            DEFAULT_NOISE, DEFAULT_STRAINS, DEFAULT_SCALE_PX_PER_MM)
+                                            DEFAULT_NOISE, DEFAULT_STRAINS, DEFAULT_SCALE_PX_PER_MM,
+                                            default_test_width)
     from livedic.dic.strain.extensometer import END_FITS
     from livedic.stream.stages.strain import DEFAULT_AXIAL_END_FIT
     lengths = ",".join(f"{v:g}" for v in DEFAULT_GAUGE_LENGTHS)
@@ -221,6 +222,10 @@ def _add_extensometer_command(bench_commands):
     bench.add_argument("--bit", type=int, choices=BIT_DEPTHS, default=8, help="bit depth of the frames (default 8)")
     bench.add_argument("--extensometer-ends", choices=END_FITS, default=DEFAULT_AXIAL_END_FIT,
                        help=f"how the ends are fitted, as livedic run's option (default {DEFAULT_AXIAL_END_FIT})")
+    bench.add_argument("--width", type=_positive_number, default=None, metavar="PX",
+                       help="the specimen's width, px: points fill it across, and the axial extensometer's band "
+                            "ends are fitted over them (default: the default simulated test's gauge width, "
+                            f"{default_test_width():g} px)")
     bench.add_argument("--seed", type=int, default=0, help="speckle pattern and noise (default 0): the class near a "
                                                            "border varies with the noise drawn")
     bench.add_argument("-o", "--output", metavar="FILE.json", help="write the verification (for livedic report "
@@ -241,15 +246,20 @@ def _positive_list(text):
     return values
 
 
+def _positive_number(text):
+    """One number > 0 (argparse reports the error as one line)."""
+    values = _positive_list(text)
+    if len(values) != 1:
+        import argparse
+        raise argparse.ArgumentTypeError(f"{text!r}: one number > 0")
+    return values[0]
+
+
 def _scale(text):
     """A scale in px/mm, or ``none``."""
     if text.strip().lower() == "none":
         return None
-    values = _positive_list(text)
-    if len(values) != 1:
-        import argparse
-        raise argparse.ArgumentTypeError(f"{text!r}: one scale in px/mm, or none")
-    return values[0]
+    return _positive_number(text)
 
 
 def _add_tensile_command(bench_commands):
@@ -433,7 +443,7 @@ def _cmd_bench_extensometer(args):
     result = run_extensometer_bench(gauge_lengths=args.gauge_length, steps=default_steps([v / 100 for v in args.steps]),
                                     frames_per_step=args.frames_per_step, noise=args.noise, bit=args.bit,
                                     scale_px_per_mm=args.scale, seed=args.seed, end_fit=args.extensometer_ends,
-                                    say=lambda line: print(line, flush=True))
+                                    width=args.width, say=lambda line: print(line, flush=True))
     if args.output is not None:
         write_verification(args.output, result)
         print(f"written: {args.output}", flush=True)

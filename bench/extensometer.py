@@ -45,11 +45,18 @@ DEFAULT_NOISE = 1.0           # grey levels of an 8-bit image (scaled to the bit
 BIT_DEPTHS = (8, 12)
 LATERAL = -0.3                # lateral strain per axial strain (elastic Poisson's ratio)
 STEP = 14                     # point spacing, px (what livedic run gives the default test's ~1,000 points)
-STRIP_HALF_WIDTH = 3          # point columns either side of the centre: the ends' fits need points around them
 MAX_RAMP_PX = 1.0             # largest motion of any point between two ramp frames
 SPECKLE_DENSITY = 1000 / 256 ** 2
 SPECKLE_RADIUS = 3.0
 FILL = (20.0, 220.0)          # 8-bit grey range of the exact pattern (as bench strain)
+
+
+def default_test_width() -> float:
+    """The default simulated test's gauge width, px (``acquire.simulator``): the band of points an axial
+    extensometer's band ends are fitted over in the main job, so the default strip is as wide."""
+    from livedic.acquire.simulator.model import TensileModel
+    from livedic.acquire.simulator.options import TENSILE_DEFAULTS
+    return 2.0 * TensileModel(TENSILE_DEFAULTS["size"], 2).gauge_half
 
 
 @dataclass(frozen=True)
@@ -66,10 +73,10 @@ def default_steps(strains: Sequence[float] = DEFAULT_STRAINS) -> tuple[Step, ...
     return zeros + tuple(Step(f"{100 * e:g} %", float(e), (0.0, 0.0)) for e in sorted(strains))
 
 
-def _strip(gauge_lengths, steps, subset):
+def _strip(gauge_lengths, steps, subset, width):
     """(image shape, centre (cx, cy), reference points) for the longest gauge length at the largest motion:
-    the points reach one fit neighbourhood past the longest extensometer's ends; the image holds their subsets
-    and a re-find search around them."""
+    the points reach one fit neighbourhood past the longest extensometer's ends and fill ``width`` px across
+    (their subsets inside it, as on a specimen); the image holds their subsets and a re-find search around them."""
     from livedic.dic.search import DEFAULT_RADIUS
     from livedic.dic.strain.extensometer import END_REACH
     longest, largest = max(gauge_lengths), max([0.0, *(s.strain for s in steps)])
@@ -77,11 +84,12 @@ def _strip(gauge_lengths, steps, subset):
     moved = reach * (1 + largest) + max([0.0, *(abs(t) for s in steps for t in s.translation)])
     margin = subset // 2 + DEFAULT_RADIUS + 4
     half_height = int(math.ceil(moved + margin))
-    half_width = int(math.ceil((STRIP_HALF_WIDTH * STEP) * (1 + abs(LATERAL) * largest) + margin + 3))
+    columns = max(1, int((0.5 * width - subset // 2) // STEP))     # point columns either side of the centre
+    half_width = int(math.ceil((columns * STEP) * (1 + abs(LATERAL) * largest) + margin + 3))
     shape = (2 * half_height + 1, 2 * half_width + 1)
     centre = (float(half_width), float(half_height))
     rows = np.arange(-math.floor(reach / STEP), math.floor(reach / STEP) + 1) * STEP + centre[1]
-    cols = np.arange(-STRIP_HALF_WIDTH, STRIP_HALF_WIDTH + 1) * STEP + centre[0]
+    cols = np.arange(-columns, columns + 1) * STEP + centre[0]
     xx, yy = np.meshgrid(cols, rows)
     return shape, centre, np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64)
 
@@ -130,8 +138,11 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
                            steps: Sequence[Step] | None = None, frames_per_step: int = DEFAULT_FRAMES_PER_STEP,
                            noise: float = DEFAULT_NOISE, bit: int = 8,
                            scale_px_per_mm: float | None = DEFAULT_SCALE_PX_PER_MM, seed: int = 0,
-                           end_fit: str | None = None, say: Callable[[str], None] = print) -> dict[str, Any]:
+                           end_fit: str | None = None, width: float | None = None,
+                           say: Callable[[str], None] = print) -> dict[str, Any]:
     """Render, track and classify; print the table per gauge length; return the JSON-ready result.
+
+    ``width``: the specimen's width, px, the points fill across (None: ``default_test_width``, the main job's).
 
     ``end_fit``: how the extensometers' ends are fitted (``dic.strain.extensometer.END_FITS``; None: the axial
     extensometer's default, ``stream.stages.strain.DEFAULT_AXIAL_END_FIT``). ``seed``: the speckle and the noise.
@@ -152,14 +163,16 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     started = time.perf_counter()
     steps = tuple(steps) if steps is not None else default_steps()
     tracking = TrackingConfig()
-    shape, centre, points = _strip(gauge_lengths, steps, tracking.subset)
+    width = default_test_width() if width is None else float(width)
+    shape, centre, points = _strip(gauge_lengths, steps, tracking.subset, width)
     frames = _Frames(shape, centre, bit=bit, noise=noise, seed=seed)
     names = tuple(f"{AXIAL}_{length:g}" for length in gauge_lengths)
     placed = place_extensometers([Extensometer(name, centre[0], centre[1] - 0.5 * length, centre[0],
                                                centre[1] + 0.5 * length, end_fit)
                                   for name, length in zip(names, gauge_lengths)], points, step=STEP)
     tracker = tracking.tracker(frames.noisy(frames.exact(0.0, (0.0, 0.0))), points)
-    say(f"livedic bench extensometer: {shape[1]}x{shape[0]} px strip, {len(points)} points every {STEP} px, "
+    say(f"livedic bench extensometer: {shape[1]}x{shape[0]} px strip ({width:g} px specimen width), "
+        f"{len(points)} points every {STEP} px, "
         f"subset {tracking.subset}, {tracking.search}+{tracking.subpixel}, reference update "
         f"{tracking.reference_update}; {bit}-bit, noise {noise:g} grey levels (8-bit scale), {frames_per_step} "
         f"frames per step; {end_fit} ends; seed {seed}; scale {f'{scale_px_per_mm:g} px/mm' if scale_px_per_mm else 'none (relative limits only)'}")
@@ -196,7 +209,7 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     return {"settings": {"gauge_lengths_px": list(gauge_lengths), "steps": [s.label for s in steps],
                          "strains": [s.strain for s in steps], "frames_per_step": frames_per_step, "noise": noise,
                          "bit_depth": bit, "scale_px_per_mm": scale_px_per_mm, "subset": tracking.subset,
-                         "step_px": STEP, "search": tracking.search, "subpixel": tracking.subpixel,
+                         "step_px": STEP, "specimen_width_px": width, "search": tracking.search, "subpixel": tracking.subpixel,
                          "reference_update": tracking.reference_update, "image": [shape[1], shape[0]],
                          "seed": seed, "end_fit": end_fit},
             "date": datetime.now(timezone.utc).isoformat(),
