@@ -228,6 +228,9 @@ def _add_extensometer_command(bench_commands):
                             f"{default_test_width():g} px)")
     bench.add_argument("--seed", type=int, default=0, help="speckle pattern and noise (default 0): the class near a "
                                                            "border varies with the noise drawn")
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.options import add_config_arguments
+    add_config_arguments(bench, TrackingConfig, names=("subpixel",))
     bench.add_argument("-o", "--output", metavar="FILE.json", help="write the verification (for livedic report "
                                                                    "--verification)")
     bench.set_defaults(handler=_cmd_bench_extensometer)
@@ -443,7 +446,7 @@ def _cmd_bench_extensometer(args):
     result = run_extensometer_bench(gauge_lengths=args.gauge_length, steps=default_steps([v / 100 for v in args.steps]),
                                     frames_per_step=args.frames_per_step, noise=args.noise, bit=args.bit,
                                     scale_px_per_mm=args.scale, seed=args.seed, end_fit=args.extensometer_ends,
-                                    width=args.width, say=lambda line: print(line, flush=True))
+                                    width=args.width, subpixel=args.subpixel, say=lambda line: print(line, flush=True))
     if args.output is not None:
         write_verification(args.output, result)
         print(f"written: {args.output}", flush=True)

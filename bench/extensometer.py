@@ -138,11 +138,12 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
                            steps: Sequence[Step] | None = None, frames_per_step: int = DEFAULT_FRAMES_PER_STEP,
                            noise: float = DEFAULT_NOISE, bit: int = 8,
                            scale_px_per_mm: float | None = DEFAULT_SCALE_PX_PER_MM, seed: int = 0,
-                           end_fit: str | None = None, width: float | None = None,
+                           end_fit: str | None = None, width: float | None = None, subpixel: str | None = None,
                            say: Callable[[str], None] = print) -> dict[str, Any]:
     """Render, track and classify; print the table per gauge length; return the JSON-ready result.
 
     ``width``: the specimen's width, px, the points fill across (None: ``default_test_width``, the main job's).
+    ``subpixel``: the tracker's sub-pixel method (None: ``TrackingConfig``'s default, ``livedic run``'s).
 
     ``end_fit``: how the extensometers' ends are fitted (``dic.strain.extensometer.END_FITS``; None: the axial
     extensometer's default, ``stream.stages.strain.DEFAULT_AXIAL_END_FIT``). ``seed``: the speckle and the noise.
@@ -162,7 +163,7 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     end_fit = end_fit or DEFAULT_AXIAL_END_FIT
     started = time.perf_counter()
     steps = tuple(steps) if steps is not None else default_steps()
-    tracking = TrackingConfig()
+    tracking = TrackingConfig() if subpixel is None else TrackingConfig(subpixel=subpixel)
     width = default_test_width() if width is None else float(width)
     shape, centre, points = _strip(gauge_lengths, steps, tracking.subset, width)
     frames = _Frames(shape, centre, bit=bit, noise=noise, seed=seed)

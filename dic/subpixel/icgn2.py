@@ -17,11 +17,19 @@ fixed point. A start without second-order terms is first refined by first-order 
 inflation exceeds ``VIF2_MAX`` or whose 12 x 12 matrix is singular is refined to first order
 (``Icgn2Reference.max_order`` 1, curvature NaN).
 
+Model selection per point: the six fitted curvature terms are tested against their own noise, the
+Wald statistic ``c^T [H^-1]_cc^-1 c / s^2`` (``s^2`` the residual variance); below
+``curvature_threshold`` (default ``curvature_threshold_bic``, the Bayesian information criterion)
+the curvature is not told from noise and the point reports its first-order IC-GN result (icgn's,
+about half the noise), curvature NaN. The first-order stage then runs for every start (with a
+threshold of 0, only for a start without curvature, as before).
+
 Why, the noise cost, the first-order fallback, the speed and the references:
 docs/guide/measure.md ("IC-GN2: the second-order shape function") and
 docs/guide/performance.md ("Sub-pixel kernels").
 """
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -58,6 +66,9 @@ _MAX_GRADIENT = 1.0
 # Variance inflation of u, v by the 10 parameters beyond the shift above which a point is refined to
 # first order (how many points that is: docs/guide/measure.md, "IC-GN2").
 VIF2_MAX = 20.0
+# A point whose curvature terms' Wald statistic is below ``len(SECOND_ORDER) * ln(n)`` (n pixels in the subset: the
+# Bayesian information criterion's penalty for the six added parameters) reports its first-order result (module
+# notes; why this criterion, measured: docs/guide/measure.md, "IC-GN2").
 _NO_RUN = -(1 << 62)  # tap origin of pad lanes in split rows
 _CHUNK = 32           # points per parallel task
 
@@ -73,12 +84,17 @@ class Icgn2Reference:
     sum_j2 : float64 (N, 12)     sum_i J_i
     sum_jf2 : float64 (N, 12)    sum_i J_i fhat_i
     max_order : int8 (N,)        2, or 1 where the 12 x 12 matrix is singular (refined to first order)
+    curvature_info : float64 (N, 6, 6)  ``[H^-1]_cc^-1``, the inverse of the curvature block (``SECOND_ORDER``) of
+                                 ``hinv2``: the curvature terms' Wald statistic (0 where ``max_order`` < 2)
+    curvature_threshold : float  the first-order result is reported where that statistic is below it (0: never)
     """
     first: IcgnReference
     hinv2: np.ndarray
     sum_j2: np.ndarray
     sum_jf2: np.ndarray
     max_order: np.ndarray
+    curvature_info: np.ndarray
+    curvature_threshold: float
 
     @property
     def xs(self) -> np.ndarray:
@@ -207,7 +223,13 @@ def _prepare2_batch(half, lanes, fhat, fx, fy, status, projected, hinv2, sum_j2,
                 max_order[i] = 2
 
 
-def prepare_from(first: IcgnReference, *, vif_max: float = VIF2_MAX) -> Icgn2Reference:
+def curvature_threshold_bic(half: int) -> float:
+    """The Bayesian information criterion's threshold on the curvature's Wald statistic: 6 ln n, n = (2 half + 1)^2."""
+    return len(SECOND_ORDER) * math.log((2 * half + 1) ** 2)
+
+
+def prepare_from(first: IcgnReference, *, vif_max: float = VIF2_MAX,
+                 curvature_threshold: float | None = None) -> Icgn2Reference:
     """Extend first-order reference data (``dic.subpixel.icgn.prepare_reference``) to 12 parameters.
 
     Parameters
@@ -217,6 +239,12 @@ def prepare_from(first: IcgnReference, *, vif_max: float = VIF2_MAX) -> Icgn2Ref
         A point whose variance inflation of u or v by the 10 parameters beyond
         the shift, ``[H^-1]_uu / [H_uv^-1]_uu`` of the 12 x 12 matrix, exceeds
         this is refined to first order (``max_order`` 1; module notes).
+    curvature_threshold : float or None
+        A point whose six curvature terms' Wald statistic (their fitted values
+        against their own noise, chi-square with 6 degrees of freedom where the
+        field is first order) is below this reports its first-order result,
+        curvature NaN (module notes); 0 never does (every point at order 2);
+        None: ``curvature_threshold_bic`` (36.5 for a 21 px subset).
 
     Returns
     -------
@@ -225,6 +253,11 @@ def prepare_from(first: IcgnReference, *, vif_max: float = VIF2_MAX) -> Icgn2Ref
     """
     if isinstance(vif_max, bool) or not isinstance(vif_max, (int, float, np.floating)) or not vif_max >= 1.0:
         raise ValueError(f"vif_max must be a number >= 1, got {vif_max!r}")
+    if curvature_threshold is None:
+        curvature_threshold = curvature_threshold_bic(first.half)
+    if isinstance(curvature_threshold, bool) or not isinstance(curvature_threshold, (int, float, np.floating)) \
+            or not 0.0 <= curvature_threshold < np.inf:
+        raise ValueError(f"curvature_threshold must be a finite number >= 0, got {curvature_threshold!r}")
     if not isinstance(first, IcgnReference):
         raise ValueError("first must come from dic.subpixel.icgn.prepare_reference (an IcgnReference)")
     npts = first.xs.shape[0]
@@ -237,21 +270,32 @@ def prepare_from(first: IcgnReference, *, vif_max: float = VIF2_MAX) -> Icgn2Ref
     with np.errstate(divide="ignore", invalid="ignore"):
         vif = np.maximum(hinv2[:, 0, 0] / first.hinv0[:, 0, 0], hinv2[:, 6, 6] / first.hinv0[:, 1, 1])
     max_order[(max_order == 2) & ~(vif <= vif_max)] = 1
-    return Icgn2Reference(first, hinv2, sum_j2, sum_jf2, max_order)
+    return Icgn2Reference(first, hinv2, sum_j2, sum_jf2, max_order, _curvature_info(hinv2, max_order == 2),
+                          float(curvature_threshold))
+
+
+def _curvature_info(hinv2: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """``[H^-1]_cc^-1`` per point (N, 6, 6) where ``second``, else 0: the curvature terms' information matrix."""
+    info = np.zeros((hinv2.shape[0], 6, 6))
+    block = hinv2[np.ix_(np.flatnonzero(second), _SECOND_INDEX, _SECOND_INDEX)]
+    info[second] = np.linalg.inv(block)
+    return info
 
 
 def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLike, half: int, *,
-                      hessian: str = "projected", vif_max: float = VIF2_MAX) -> Icgn2Reference:
+                      hessian: str = "projected", vif_max: float = VIF2_MAX,
+                      curvature_threshold: float | None = None) -> Icgn2Reference:
     """Per-point reference data for 2nd-order IC-GN (once per session).
 
     ``dic.subpixel.icgn.prepare_reference`` (same arguments, same ``status``)
-    followed by ``prepare_from`` (``vif_max``).
+    followed by ``prepare_from`` (``vif_max``, ``curvature_threshold``).
 
     Returns
     -------
     Icgn2Reference
     """
-    return prepare_from(_prepare_first(reference, xs, ys, half, hessian=hessian), vif_max=vif_max)
+    return prepare_from(_prepare_first(reference, xs, ys, half, hessian=hessian), vif_max=vif_max,
+                        curvature_threshold=curvature_threshold)
 
 
 # ---------------------------------------------------------------------------
@@ -559,15 +603,38 @@ def refine_point_scratch2(half, lanes):
 
 
 @njit(cache=True)
+def _curvature_statistic(p, zncc, norm, n, curvature_info):
+    """Wald statistic of the six curvature terms of p: ``c^T [H^-1]_cc^-1 c / s^2`` (chi-square, 6 degrees).
+
+    ``s^2`` is the residual variance in grey levels, ``|f - mean f|^2 2 (1 - zncc) / (n - 14)`` (12
+    parameters and the ZNSSD's offset and scale); ``curvature_info`` is ``[H^-1]_cc^-1``
+    (``Icgn2Reference.curvature_info``), so ``s^2 [H^-1]_cc`` is the curvature terms' covariance.
+    """
+    s2 = norm * norm * 2.0 * (1.0 - zncc) / (n - 14)
+    q = 0.0
+    for a in range(6):
+        ca = p[_SECOND_INDEX[a]]
+        for b in range(6):
+            q += ca * curvature_info[a, b] * p[_SECOND_INDEX[b]]
+    if not s2 > 0.0:
+        return np.inf
+    return q / s2
+
+
+@njit(cache=True)
 def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
                   sum_f, hinv2, sum_j2, sum_jf2, p, order, max_iterations, tolerance, translation_iterations,
-                  translation_tolerance, scratch2):
+                  translation_tolerance, scratch2, curvature_info, curvature_threshold):
     """Refine p (12,) in place (``PARAMETERS`` order); return (status, zncc, iterations).
 
     order 0: shift, order 1: affine (``dic.subpixel.icgn.refine_point`` on the
-    first-order parameters, curvature left 0); order 2: a start without
-    curvature is refined to first order first (module notes), then the
-    2nd-order iteration runs to ``tolerance``.
+    first-order parameters, curvature left 0); order 2: the first-order stage
+    runs (module notes: always where ``curvature_threshold`` > 0, else only for
+    a start without curvature), then the 2nd-order iteration runs to
+    ``tolerance``, from the first-order result where the start has no
+    curvature. Where the curvature's Wald statistic (``_curvature_statistic``)
+    is below ``curvature_threshold``, p holds the first-order result and NaN
+    curvature (the first-order model selected).
     """
     scratch, p6, sums, r, dp, comp = scratch2
     g, tmp, kx, ky, lane_dx, lane_mask, run_mask, _ = scratch
@@ -580,17 +647,22 @@ def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, f
     for m in range(6):
         if p[_SECOND_INDEX[m]] != 0.0:
             flat_start = False
-    if order < 2 or flat_start:
+    first_ok = False
+    first_zncc = np.nan
+    if order < 2 or flat_start or curvature_threshold > 0.0:
         for m in range(6):
             p6[m] = p[_FIRST_INDEX[m]]
         st, zncc, iterations = refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm,
                                             hinv, hinv0, sum_j, sum_jf, sum_f, p6, min(order, 1), max_iterations,
                                             tolerance, translation_iterations, translation_tolerance, scratch)
-        for m in range(6):
-            p[_FIRST_INDEX[m]] = p6[m]
-            p[_SECOND_INDEX[m]] = 0.0
-        if order < 2 or st != _OK:
-            return st, zncc, iterations
+        first_ok = st == _OK
+        first_zncc = zncc
+        if order < 2 or flat_start:
+            for m in range(6):
+                p[_FIRST_INDEX[m]] = p6[m]
+                p[_SECOND_INDEX[m]] = 0.0
+            if order < 2 or st != _OK:
+                return st, zncc, iterations
     half2 = float(half * half)
     half4 = half2 * half2
     tol2 = tolerance * tolerance
@@ -629,6 +701,11 @@ def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, f
                 + half4 * (0.25 * (dp[3] * dp[3] + dp[5] * dp[5] + dp[9] * dp[9] + dp[11] * dp[11])
                            + dp[4] * dp[4] + dp[10] * dp[10]))
         if step < tol2:
+            if first_ok and _curvature_statistic(p, zncc, norm, n, curvature_info) < curvature_threshold:
+                for m in range(6):      # the curvature is not told from noise: the first-order result, less noisy
+                    p[_FIRST_INDEX[m]] = p6[m]
+                    p[_SECOND_INDEX[m]] = np.nan
+                return _OK, first_zncc, iterations
             return _OK, zncc, iterations
     return _NOT_CONVERGED, zncc, iterations
 
@@ -636,7 +713,7 @@ def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, f
 @njit(cache=True, parallel=True, nogil=True)
 def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
                  sum_jf, sum_f, hinv2, sum_j2, sum_jf2, points, params, status, order, max_iterations, tolerance,
-                 translation_iterations, translation_tolerance, out_zncc, out_iter):
+                 translation_iterations, translation_tolerance, out_zncc, out_iter, curvature_info, curvature_threshold):
     """Refine the prepared points ``points`` (M,) whose ``status`` is OK; row j of params (M, 12) in/out."""
     npts = points.shape[0]
     n_chunks = (npts + _CHUNK - 1) // _CHUNK
@@ -658,7 +735,8 @@ def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat,
             st, zn, it = refine_point2(flat, origin, stride, height, width, xs[i], ys[i], half, fhat[i], fx[i],
                                        fy[i], norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], hinv2[i],
                                        sum_j2[i], sum_jf2[i], params[j], order[j], max_iterations, tolerance,
-                                       translation_iterations, translation_tolerance, scratch2)
+                                       translation_iterations, translation_tolerance, scratch2, curvature_info[i],
+                                       curvature_threshold)
             status[j] = st
             out_iter[j] = it
             if st == _OK:
@@ -742,7 +820,8 @@ def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients
                  first.xs, first.ys, first.half, first.lanes, first.fhat, first.fx, first.fy, first.norm, first.hinv,
                  first.hinv0, first.sum_j, first.sum_jf, first.sum_f, ref_prep.hinv2, ref_prep.sum_j2,
                  ref_prep.sum_jf2, points, params, st, orders, int(max_iterations), float(tolerance),
-                 int(translation_iterations), float(translation_tolerance), out_zncc, out_iter)
+                 int(translation_iterations), float(translation_tolerance), out_zncc, out_iter,
+                 ref_prep.curvature_info, ref_prep.curvature_threshold)
     ok = st == Status.OK
     params[~ok] = np.nan
     params[np.ix_(orders == 0, [1, 2, 7, 8])] = np.nan
@@ -771,7 +850,7 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     half : int
         Subset half-width M.
     **options
-        ``hessian``, ``vif_max`` (of ``prepare_reference``); ``order``, ``max_iterations``,
+        ``hessian``, ``vif_max``, ``curvature_threshold`` (of ``prepare_reference``); ``order``, ``max_iterations``,
         ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
         start values ``ux0 ... vyy0`` (of ``refine_prepared``).
 
@@ -795,10 +874,11 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     options = dict(options)
     hessian = options.pop("hessian", "projected")
     vif_max = options.pop("vif_max", VIF2_MAX)
-    prep = prepare_reference(reference, xs, ys, half, hessian=hessian, vif_max=vif_max)
+    threshold = options.pop("curvature_threshold", None)
+    prep = prepare_reference(reference, xs, ys, half, hessian=hessian, vif_max=vif_max, curvature_threshold=threshold)
     return refine_prepared(prep, prepare_target(deformed), u0, v0, status=status, **options)
 
 
-__all__ = ["Icgn2Reference", "Icgn2Result", "PARAMETERS", "SECOND_ORDER", "VIF2_MAX", "prepare_reference",
+__all__ = ["Icgn2Reference", "Icgn2Result", "PARAMETERS", "SECOND_ORDER", "VIF2_MAX", "curvature_threshold_bic", "prepare_reference",
            "prepare_from", "prepare_target", "refine_prepared", "refine", "refine_point2", "refine_point_scratch2",
            "compose_inverse"]

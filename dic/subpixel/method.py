@@ -102,8 +102,8 @@ class SubpixelMethod:
 class _SecondOrderIcgn(SubpixelMethod):
     """icgn2: its 12-parameter reference data extend the first-order ones (``icgn2.prepare_from``)."""
 
-    def reference_data(self, first, *, vif_max=icgn2.VIF2_MAX):
-        return icgn2.prepare_from(first, vif_max=vif_max)
+    def reference_data(self, first, *, vif_max=icgn2.VIF2_MAX, curvature_threshold=None):
+        return icgn2.prepare_from(first, vif_max=vif_max, curvature_threshold=curvature_threshold)
 
     def first_order_data(self, prepared):
         return prepared.first
@@ -124,7 +124,7 @@ METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (
                    shape_function="first order (affine, 6 parameters)", interpolant=BSPLINE,
                    criterion="ZNSSD (equivalent to ZNCC)"),
     _SecondOrderIcgn("icgn2", icgn2, INTERPOLATION_MARGIN, shape_order=2, prepared=True,
-                     shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max",),
+                     shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max", "curvature_threshold"),
                      shape_function="second order (quadratic, 12 parameters)", interpolant=BSPLINE,
                      criterion="ZNSSD (equivalent to ZNCC)"),
 )}

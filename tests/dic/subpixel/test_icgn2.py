@@ -78,7 +78,8 @@ def test_quadratic_field_recovered_exactly_where_first_order_is_biased(pattern, 
                                    affine(1.3, -0.7, ux=0.004, uy=0.002, vx=-0.003, vy=0.006, centre=(80.0, 80.0))])
 def test_translation_and_affine_fields_equal_icgn(pattern, grid, field):
     """Exact images of shifts and an affine field: icgn2 agrees with icgn within 0.001 px (measured: 0.0007)
-    and with the truth within 0.002 px (0.0007), gradients within 5e-4 (6e-5), curvature < 1e-4 /px (3e-5)."""
+    and with the truth within 0.002 px (0.0007), gradients within 5e-4 (6e-5), curvature < 1e-4 /px (3e-5)
+    where it is reported (where the curvature test keeps order 2)."""
     xs, ys = grid
     ref = render(pattern, bit_depth=None)
     dfm = render(pattern, field, bit_depth=None)
@@ -95,11 +96,12 @@ def test_translation_and_affine_fields_equal_icgn(pattern, grid, field):
         assert np.nanmax(np.abs(getattr(second, name) - getattr(first, name))) < 5e-4
     curvature = np.stack([getattr(second, name) for name in icgn2.SECOND_ORDER])
     finite = np.isfinite(curvature)
-    assert finite.any() and np.max(np.abs(curvature[finite])) < 1e-4
+    assert not finite.any() or np.max(np.abs(curvature[finite])) < 1e-4
 
 
 def test_first_order_fallback_is_icgn_exactly(pattern, grid):
-    """Points above ``VIF2_MAX`` (and every point with order=1) give icgn's result bit for bit, curvature NaN."""
+    """Points above ``VIF2_MAX`` (and every point with order=1) give icgn's result bit for bit, curvature NaN
+    (the curvature test off, so that every other point reports order 2)."""
     xs, ys = grid
     ref = render(pattern)
     dfm = render(pattern, _quadratic)
@@ -107,7 +109,7 @@ def test_first_order_fallback_is_icgn_exactly(pattern, grid):
     prep1 = icgn.prepare_reference(ref, xs, ys, HALF)
     coeffs = icgn.prepare_target(dfm)
     first = icgn.refine_prepared(prep1, coeffs, np.round(tu), np.round(tv))
-    prep = icgn2.prepare_from(prep1, vif_max=5.0)          # a low threshold: a share of points falls back
+    prep = icgn2.prepare_from(prep1, vif_max=5.0, curvature_threshold=0.0)   # a low VIF threshold: some fall back
     vif = np.maximum(prep.hinv2[:, 0, 0] / prep1.hinv0[:, 0, 0], prep.hinv2[:, 6, 6] / prep1.hinv0[:, 1, 1])
     np.testing.assert_array_equal(prep.max_order == 1, vif > 5.0)
     assert 0 < np.sum(prep.max_order == 1) < xs.size
@@ -158,12 +160,13 @@ def test_statuses(pattern):
     r = icgn2.refine(flat, flat_target, np.array([20, 125, 75]), np.array([80, 80, 80]), np.zeros(3), np.zeros(3),
                      _ok(3), HALF, uxx0=np.full(3, 1e-6))
     assert list(r.status) == [Status.FLAT_REFERENCE, Status.FLAT_TARGET, Status.OK]
-    # from 0.7 px off with curvature given (no first-order stage), one iteration cannot reach 0.001
+    # from 0.7 px off with curvature given (no first-order stage without the curvature test), one iteration cannot
+    # reach 0.001
     g = np.arange(30, 131, 25)
     gx, gy = np.meshgrid(g, g)
     n = gx.size
     capped = icgn2.refine(ref, render(pattern, (0.7, 0.0)), gx.ravel(), gy.ravel(), np.zeros(n), np.zeros(n),
-                          _ok(n), HALF, max_iterations=1, uxx0=np.full(n, 1e-6))
+                          _ok(n), HALF, max_iterations=1, uxx0=np.full(n, 1e-6), curvature_threshold=0.0)
     assert np.all(capped.status == Status.NOT_CONVERGED)
     assert np.isnan(capped.u).all()
 
@@ -290,15 +293,16 @@ def test_reference_preparation_matches_numpy(pattern):
 
 
 def test_prepared_path_on_a_selection_and_warm_starts(pattern, grid):
-    """``points=`` refines only those points, as ``refine``; a start with curvature (the tracker's) skips the
-    first-order stage and converges in fewer iterations to the same result (within 2e-4 px)."""
+    """``points=`` refines only those points, as ``refine``; without the curvature test a start with curvature
+    (the tracker's) skips the first-order stage and converges in fewer iterations to the same result (within
+    2e-4 px)."""
     xs, ys = grid
     ref = render(pattern)
     dfm = render(pattern, _quadratic)
     tu, tv = _quadratic(xs.astype(float), ys.astype(float))
-    prep = icgn2.prepare_reference(ref, xs, ys, HALF)
+    prep = icgn2.prepare_reference(ref, xs, ys, HALF, curvature_threshold=0.0)
     coeffs = icgn2.prepare_target(dfm)
-    whole = icgn2.refine(ref, dfm, xs, ys, np.round(tu), np.round(tv), _ok(xs.size), HALF)
+    whole = icgn2.refine(ref, dfm, xs, ys, np.round(tu), np.round(tv), _ok(xs.size), HALF, curvature_threshold=0.0)
     pick = np.array([3, 50, 7])
     part = icgn2.refine_prepared(prep, coeffs, np.round(tu[pick]), np.round(tv[pick]), points=pick)
     np.testing.assert_array_equal(part.u, whole.u[pick])
@@ -329,6 +333,9 @@ def test_bad_arguments_raise(pattern):
         icgn2.refine_prepared(prep, coeffs, [0.0, 1.0], [0.0, 1.0])
     with pytest.raises(ValueError, match="vif_max"):
         icgn2.prepare_from(prep.first, vif_max=0.5)
+    for bad in (-1.0, np.inf, True):
+        with pytest.raises(ValueError, match="curvature_threshold"):
+            icgn2.prepare_from(prep.first, curvature_threshold=bad)
 
 
 def test_measure_with_icgn2_guided_and_plain(pattern):
@@ -387,8 +394,82 @@ def test_tracker_follows_a_neck_with_less_bias_than_icgn():
         errors[subpixel] = np.hypot(result.u - tu, result.v - tv)
         if subpixel == "icgn2":
             assert set(tracker.last_second_order) == set(icgn2.SECOND_ORDER)
-            assert np.isfinite(tracker.last_second_order["vyy"][result.ok]).mean() > 0.9
+            # the neck's flanks keep order 2 (their curvature is told from noise); most points elsewhere do not
+            second = np.isfinite(tracker.last_second_order["vyy"])
+            assert second[result.ok & flank].mean() > 0.9 and second[result.ok & ~flank].mean() < 0.5
     rms = {name: np.sqrt(np.nanmean(e[flank] ** 2)) for name, e in errors.items()}
     assert rms["icgn2"] < 0.5 * rms["icgn"], rms
     assert rms["icgn"] > 0.04, rms
     assert np.sqrt(np.nanmean(errors["icgn2"][~flank] ** 2)) < 0.03
+
+
+def _noisy(image, rng, sigma=1.0):
+    """An 8-bit camera frame of ``image`` (grey levels 0..1 scaled to 20..220) with Gaussian noise ``sigma``."""
+    return np.clip(np.floor(20.0 + 200.0 * image + rng.normal(0.0, sigma, image.shape) + 0.5), 0, 255)
+
+
+def _dense_grid():
+    g = np.arange(24, 137, 4)
+    xs, ys = np.meshgrid(g, g)
+    return xs.ravel().astype(np.int64), ys.ravel().astype(np.int64)
+
+
+def test_curvature_test_gives_icgn_noise_on_a_uniform_strain(pattern):
+    """A uniform 0.2 % strain, noise sigma 1 on 8-bit reference and target, 841 points, two image pairs.
+
+    The fitted curvature is noise: its Wald statistic stays below the threshold (``curvature_threshold_bic``)
+    at all but a few points (measured 0.7-1.2 %), which report their first-order result: icgn's, bit for bit.
+    The error SD is then near icgn's (measured 1.11x), against 2.1x with every point at order 2.
+    """
+    rng = np.random.default_rng(5)
+    xs, ys = _dense_grid()
+    field = affine(0.3, -0.2, ux=-0.0006, vy=0.002, centre=(CENTRE, CENTRE))
+    tu, tv = field(xs.astype(float), ys.astype(float))
+    clean_ref, clean_dfm = render(pattern, bit_depth=None), render(pattern, field, bit_depth=None)
+    errors = {"icgn": [], "selected": [], "order 2": []}
+    shares = []
+    for _ in range(2):
+        ref, dfm = _noisy(clean_ref, rng), _noisy(clean_dfm, rng)
+        start = (np.round(tu), np.round(tv))
+        first = icgn.refine(ref, dfm, xs, ys, *start, _ok(xs.size), HALF)
+        selected = icgn2.refine(ref, dfm, xs, ys, *start, _ok(xs.size), HALF)
+        every = icgn2.refine(ref, dfm, xs, ys, *start, _ok(xs.size), HALF, curvature_threshold=0.0)
+        assert np.all(selected.status == Status.OK)
+        low = np.isnan(selected.uxx)
+        np.testing.assert_array_equal(selected.u[low], first.u[low])
+        np.testing.assert_array_equal(selected.vy[low], first.vy[low])
+        shares.append(np.mean(~low))
+        for name, r in (("icgn", first), ("selected", selected), ("order 2", every)):
+            errors[name].append(np.concatenate([r.u - tu, r.v - tv]))
+    sd = {name: np.std(np.concatenate(e)) for name, e in errors.items()}
+
+    assert max(shares) < 0.03, shares
+    assert sd["selected"] < 1.2 * sd["icgn"], sd
+    assert sd["order 2"] > 1.6 * sd["icgn"], sd
+
+
+def test_curvature_test_keeps_a_known_quadratic_field_at_order_2(pattern):
+    """A quadratic field (uxx = vyy = 0.002 /px about the centre), noise sigma 1, 841 points: icgn is biased
+    by ~0.036 px; the curvature is told from noise at >= 90 % of the points, which keep order 2, and icgn2's
+    mean error stays below 0.005 px with its SD within 1.2x order 2's."""
+    rng = np.random.default_rng(6)
+    xs, ys = _dense_grid()
+
+    def field(X, Y):
+        dx, dy = X - CENTRE, Y - CENTRE
+        return 0.3 + 0.002 * dx + 0.001 * dx * dx, -0.2 + 0.002 * dy + 0.001 * dy * dy
+
+    tu, tv = field(xs.astype(float), ys.astype(float))
+    ref, dfm = _noisy(render(pattern, bit_depth=None), rng), _noisy(render(pattern, field, bit_depth=None), rng)
+    start = (np.round(tu), np.round(tv))
+    first = icgn.refine(ref, dfm, xs, ys, *start, _ok(xs.size), HALF)
+    selected = icgn2.refine(ref, dfm, xs, ys, *start, _ok(xs.size), HALF)
+    every = icgn2.refine(ref, dfm, xs, ys, *start, _ok(xs.size), HALF, curvature_threshold=0.0)
+    assert np.mean(first.u - tu) > 0.025 and np.mean(first.v - tv) > 0.025
+    ok = selected.status == Status.OK
+    assert ok.mean() > 0.99
+    assert np.isfinite(selected.uxx[ok]).mean() > 0.9
+    assert abs(np.mean(selected.u[ok] - tu[ok])) < 0.005 and abs(np.mean(selected.v[ok] - tv[ok])) < 0.005
+    error = np.concatenate([selected.u - tu, selected.v - tv])[np.concatenate([ok, ok])]
+    every_error = np.concatenate([every.u - tu, every.v - tv])
+    assert np.std(error) < 1.2 * np.nanstd(every_error)
