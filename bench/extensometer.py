@@ -142,9 +142,8 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
                            say: Callable[[str], None] = print) -> dict[str, Any]:
     """Render, track and classify; print the table per gauge length; return the JSON-ready result.
 
-    ``width``: the specimen's width, px, the points fill across (None: ``default_test_width``, the main job's).
+    ``width``: the specimen's width, px, the points fill across (None: ``default_test_width``, the main job's);
     ``subpixel``: the tracker's sub-pixel method (None: ``TrackingConfig``'s default, ``livedic run``'s).
-
     ``end_fit``: how the extensometers' ends are fitted (``dic.strain.extensometer.END_FITS``; None: the axial
     extensometer's default, ``stream.stages.strain.DEFAULT_AXIAL_END_FIT``). ``seed``: the speckle and the noise.
 
