@@ -134,6 +134,14 @@ def _ramp(previous, step, points, centre):
     return states
 
 
+def _axial_extensometers(names, gauge_lengths, centre, points, end_fit):
+    """The axial extensometers of the gauge lengths, centred on the strip, placed on its points."""
+    from livedic.dic.strain.extensometer import Extensometer, place_extensometers
+    return place_extensometers([Extensometer(name, centre[0], centre[1] - 0.5 * length, centre[0],
+                                             centre[1] + 0.5 * length, end_fit)
+                                for name, length in zip(names, gauge_lengths)], points, step=STEP)
+
+
 def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LENGTHS,
                            steps: Sequence[Step] | None = None, frames_per_step: int = DEFAULT_FRAMES_PER_STEP,
                            noise: float = DEFAULT_NOISE, bit: int = 8,
@@ -155,7 +163,7 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
         ``dic.strain.iso9513.StepClass.as_dict``), ``lost_points`` (points not ok, summed over counted frames),
         ``seconds``.
     """
-    from livedic.dic.strain.extensometer import AXIAL, Extensometer, place_extensometers, read_extensometers
+    from livedic.dic.strain.extensometer import AXIAL, read_extensometers
     from livedic.stream.session.config import TrackingConfig
     from livedic.stream.stages.strain import DEFAULT_AXIAL_END_FIT
 
@@ -167,15 +175,13 @@ def run_extensometer_bench(*, gauge_lengths: Sequence[float] = DEFAULT_GAUGE_LEN
     shape, centre, points = _strip(gauge_lengths, steps, tracking.subset, width)
     frames = _Frames(shape, centre, bit=bit, noise=noise, seed=seed)
     names = tuple(f"{AXIAL}_{length:g}" for length in gauge_lengths)
-    placed = place_extensometers([Extensometer(name, centre[0], centre[1] - 0.5 * length, centre[0],
-                                               centre[1] + 0.5 * length, end_fit)
-                                  for name, length in zip(names, gauge_lengths)], points, step=STEP)
+    placed = _axial_extensometers(names, gauge_lengths, centre, points, end_fit)
     tracker = tracking.tracker(frames.noisy(frames.exact(0.0, (0.0, 0.0))), points)
-    say(f"livedic bench extensometer: {shape[1]}x{shape[0]} px strip ({width:g} px specimen width), "
-        f"{len(points)} points every {STEP} px, "
-        f"subset {tracking.subset}, {tracking.search}+{tracking.subpixel}, reference update "
+    scale = f"{scale_px_per_mm:g} px/mm" if scale_px_per_mm else "none (relative limits only)"
+    say(f"livedic bench extensometer: {shape[1]}x{shape[0]} px strip ({width:g} px specimen width), {len(points)} "
+        f"points every {STEP} px, subset {tracking.subset}, {tracking.search}+{tracking.subpixel}, reference update "
         f"{tracking.reference_update}; {bit}-bit, noise {noise:g} grey levels (8-bit scale), {frames_per_step} "
-        f"frames per step; {end_fit} ends; seed {seed}; scale {f'{scale_px_per_mm:g} px/mm' if scale_px_per_mm else 'none (relative limits only)'}")
+        f"frames per step; {end_fit} ends; seed {seed}; scale {scale}")
     readings = {name: [] for name in names}
     lost_points = 0
     tracked = 0

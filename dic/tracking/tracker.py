@@ -509,19 +509,7 @@ class Tracker(RefindSteps):
             self.last_seed_searches = int(idx.size) if self.searching.searches and not on_demand else 0
         if result is None:
             result = self._empty_result()
-        weak = None
-        if on_demand:
-            with times.stage("gates"):
-                weak = self._weak(result)
-                doubtful = np.flatnonzero(weak)
-            if doubtful.size:
-                weak = None                     # the seeded search changes the result: to be judged again
-                self.last_seed_searches = int(doubtful.size)
-                with times.stage("seeded_search"):
-                    again = self._measure(target, doubtful, start_u[doubtful], start_v[doubtful], self.search,
-                                          self.seed_radius, {k: g[doubtful] for k, g in grads.items()},
-                                          self.seed_search_options)
-                    self._keep_better(result, doubtful, again)
+        weak = self._search_doubtful(target, result, start_u, start_v, grads, times) if on_demand else None
         # Re-find the points that failed, lost correlation or disagree with their neighbours; not those
         # at the image's edge, whose material is leaving the view (_at_the_edge).
         with times.stage("gates"):
@@ -545,6 +533,22 @@ class Tracker(RefindSteps):
             self.last_second_order = {name: getattr(result, name) for name in SECOND_ORDER}
             result = _take(result, slice(None), Measurement)
         return result
+
+    def _search_doubtful(self, target, result, start_u, start_v, grads, times):
+        """The on-demand seeded search of the points IC-GN from its start left doubtful (``result`` updated);
+        returns the weak mask when nothing was searched (else None: the result is to be judged again)."""
+        with times.stage("gates"):
+            weak = self._weak(result)
+            doubtful = np.flatnonzero(weak)
+        if not doubtful.size:
+            return weak
+        self.last_seed_searches = int(doubtful.size)
+        with times.stage("seeded_search"):
+            again = self._measure(target, doubtful, start_u[doubtful], start_v[doubtful], self.search,
+                                  self.seed_radius, {k: g[doubtful] for k, g in grads.items()},
+                                  self.seed_search_options)
+            self._keep_better(result, doubtful, again)
+        return None
 
     def resume(self, previous: Measurement | None, *, last_good: dict[str, np.ndarray] | None = None) -> None:
         """Start the next ``track`` from a known earlier result, as if the frames before had been tracked here.

@@ -222,6 +222,14 @@ class TrackerLoop:
         self.stats.dropped = self.queue.dropped
         return self.stats
 
+    def _track(self, item):
+        """``item``'s frame tracked, with the coefficients its acquisition made ahead (their buffer then reused)."""
+        if item.ahead is None:
+            return self.tracker.track(item.frame.image)
+        measurement = self.tracker.track(item.frame.image, ahead=item.ahead)
+        self._spare_coefficients.append(item.ahead.coefficients)
+        return measurement
+
     def _track_all(self):
         last_dropped = 0
         stages = self.stats.stages
@@ -257,11 +265,8 @@ class TrackerLoop:
             if ready is not None:
                 measurement = ready.measurement
                 t0 -= ready.setup_ns
-            elif item.ahead is not None:
-                measurement = self.tracker.track(frame.image, ahead=item.ahead)
-                self._spare_coefficients.append(item.ahead.coefficients)
             else:
-                measurement = self.tracker.track(frame.image)
+                measurement = self._track(item)
             done = time.monotonic_ns()
             if is_reference:
                 stats.setup_ns = done - t0
