@@ -815,7 +815,8 @@ def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients
     st = start_status(first.status[points], status, npts)
     out_zncc = np.empty(npts)
     out_iter = np.empty(npts, dtype=np.int64)
-    _icgn2_batch(target_coeffs.flat, target_coeffs.origin, target_coeffs.coefficients.shape[1], *first.shape,
+    # (mypy reads numba's Dispatcher.__call__ stub, which takes fewer arguments than this kernel's)
+    _icgn2_batch(target_coeffs.flat, target_coeffs.origin, target_coeffs.coefficients.shape[1], *first.shape,  # type: ignore[call-arg]
                  first.xs, first.ys, first.half, first.lanes, first.fhat, first.fx, first.fy, first.norm, first.hinv,
                  first.hinv0, first.sum_j, first.sum_jf, first.sum_f, ref_prep.hinv2, ref_prep.sum_j2,
                  ref_prep.sum_jf2, points, params, st, orders, int(max_iterations), float(tolerance),
