@@ -375,37 +375,35 @@ def _sums_shift(g, fhat, fx, fy):
 
 
 @njit(cache=True, fastmath=FASTMATH, inline="always")
-def _cubic_weights(t):
-    """The 4 cubic B-spline weights of the taps at -1, 0, 1, 2 for a fractional offset t in [0, 1) (float32)."""
-    s = _F32(1.0) - t
-    t2 = t * t
-    t3 = t2 * t
-    w0 = s * s * s * _F32(1.0 / 6.0)
-    w3 = t3 * _F32(1.0 / 6.0)
-    w1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
-    return w0, w1, _F32(1.0) - w0 - w1 - w3, w3
-
-
-@njit(cache=True, fastmath=FASTMATH, inline="always")
-def _column(flat, o0, stride, wy0, wy1, wy2, wy3):
-    """One column of 4 coefficients from flat[o0] (rows ``stride`` apart, uint64 indices) weighted in y."""
-    o1 = o0 + stride
-    o2 = o1 + stride
-    return wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o2 + stride]
-
-
-@njit(cache=True, fastmath=FASTMATH, inline="always")
 def bspline_tap(flat, origin, stride, tx, ty):
     """Cubic B-spline value from the 4 x 4 coefficients starting at flat[origin] (rows ``stride`` apart)
     at fractional offsets (tx, ty) in [0, 1) (float32): the inner step of every IC-GN row sum, inlined
     into the lane loops so they stay whole vector passes."""
-    wx0, wx1, wx2, wx3 = _cubic_weights(tx)
-    wy0, wy1, wy2, wy3 = _cubic_weights(ty)
+    s = _F32(1.0) - tx
+    t2 = tx * tx
+    t3 = t2 * tx
+    wx0 = s * s * s * _F32(1.0 / 6.0)
+    wx3 = t3 * _F32(1.0 / 6.0)
+    wx1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+    wx2 = _F32(1.0) - wx0 - wx1 - wx3
+    s = _F32(1.0) - ty
+    t2 = ty * ty
+    t3 = t2 * ty
+    wy0 = s * s * s * _F32(1.0 / 6.0)
+    wy3 = t3 * _F32(1.0 / 6.0)
+    wy1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+    wy2 = _F32(1.0) - wy0 - wy1 - wy3
     one = np.uint64(1)
-    c0 = _column(flat, origin, stride, wy0, wy1, wy2, wy3)
-    c1 = _column(flat, origin + one, stride, wy0, wy1, wy2, wy3)
-    c2 = _column(flat, origin + np.uint64(2), stride, wy0, wy1, wy2, wy3)
-    c3 = _column(flat, origin + np.uint64(3), stride, wy0, wy1, wy2, wy3)
+    o0 = origin
+    o1 = o0 + stride
+    o2 = o1 + stride
+    o3 = o2 + stride
+    c0 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+    c1 = wy0 * flat[o0 + one] + wy1 * flat[o1 + one] + wy2 * flat[o2 + one] + wy3 * flat[o3 + one]
+    two = np.uint64(2)
+    c2 = wy0 * flat[o0 + two] + wy1 * flat[o1 + two] + wy2 * flat[o2 + two] + wy3 * flat[o3 + two]
+    three = np.uint64(3)
+    c3 = wy0 * flat[o0 + three] + wy1 * flat[o1 + three] + wy2 * flat[o2 + three] + wy3 * flat[o3 + three]
     return wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3
 
 
@@ -451,13 +449,18 @@ def _row_sums(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx
 def _row_sums_xstep(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx, fy, koff):
     """``_row_sums`` for a row whose tap origin steps by one column part-way along it.
 
-    Lane l's x offset from the row's left-most tap origin is ax + sx dx, in [0, 2): every lane
-    reads the same 5 columns from flat[base + l] and weighs the first 4 (before the step) or the
-    last 4 (offset >= 1, at offset - 1): the same B-spline value, and the row stays one vector pass
-    instead of a masked pass per run of equal origin (docs/guide/performance.md).
+    Lane l's x offset from the row's left-most tap origin is ax + sx dx, in [0, 2): lanes past
+    the step (offset >= 1) take their 4 x weights one column later, so every lane reads the same
+    5 columns from flat[base + l] and the row stays one vector pass instead of a masked pass per
+    run of equal origin (docs/guide/performance.md). The 5th weight of the lanes before the step
+    is 0: the same B-spline value.
     """
     st = np.uint64(stride)
     ko = np.uint64(koff)
+    one = np.uint64(1)
+    two = np.uint64(2)
+    three = np.uint64(3)
+    four = np.uint64(4)
     sg = _F32(0.0)
     sgg = _F32(0.0)
     sfg = _F32(0.0)
@@ -470,18 +473,37 @@ def _row_sums_xstep(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fh
         d = lane_dx[lu]
         xo = ax + sx * d
         stepped = xo >= _F32(1.0)
-        w0, w1, w2, w3 = _cubic_weights(xo - _F32(1.0) if stepped else xo)
-        wy0, wy1, wy2, wy3 = _cubic_weights(ay + sy * d)
-        o = base + lu
-        c0 = _column(flat, o, st, wy0, wy1, wy2, wy3)
-        c1 = _column(flat, o + np.uint64(1), st, wy0, wy1, wy2, wy3)
-        c2 = _column(flat, o + np.uint64(2), st, wy0, wy1, wy2, wy3)
-        c3 = _column(flat, o + np.uint64(3), st, wy0, wy1, wy2, wy3)
-        c4 = _column(flat, o + np.uint64(4), st, wy0, wy1, wy2, wy3)
-        if stepped:
-            g = (w0 * c1 + w1 * c2 + w2 * c3 + w3 * c4) * mask[lu]
-        else:
-            g = (w0 * c0 + w1 * c1 + w2 * c2 + w3 * c3) * mask[lu]
+        tx = xo - _F32(1.0) if stepped else xo
+        ty = ay + sy * d
+        s = _F32(1.0) - tx
+        t2 = tx * tx
+        t3 = t2 * tx
+        w0 = s * s * s * _F32(1.0 / 6.0)
+        w3 = t3 * _F32(1.0 / 6.0)
+        w1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+        w2 = _F32(1.0) - w0 - w1 - w3
+        e0 = _F32(0.0) if stepped else w0
+        e1 = w0 if stepped else w1
+        e2 = w1 if stepped else w2
+        e3 = w2 if stepped else w3
+        e4 = w3 if stepped else _F32(0.0)
+        s = _F32(1.0) - ty
+        t2 = ty * ty
+        t3 = t2 * ty
+        wy0 = s * s * s * _F32(1.0 / 6.0)
+        wy3 = t3 * _F32(1.0 / 6.0)
+        wy1 = _F32(2.0 / 3.0) - t2 + _F32(0.5) * t3
+        wy2 = _F32(1.0) - wy0 - wy1 - wy3
+        o0 = base + lu
+        o1 = o0 + st
+        o2 = o1 + st
+        o3 = o2 + st
+        c0 = wy0 * flat[o0] + wy1 * flat[o1] + wy2 * flat[o2] + wy3 * flat[o3]
+        c1 = wy0 * flat[o0 + one] + wy1 * flat[o1 + one] + wy2 * flat[o2 + one] + wy3 * flat[o3 + one]
+        c2 = wy0 * flat[o0 + two] + wy1 * flat[o1 + two] + wy2 * flat[o2 + two] + wy3 * flat[o3 + two]
+        c3 = wy0 * flat[o0 + three] + wy1 * flat[o1 + three] + wy2 * flat[o2 + three] + wy3 * flat[o3 + three]
+        c4 = wy0 * flat[o0 + four] + wy1 * flat[o1 + four] + wy2 * flat[o2 + four] + wy3 * flat[o3 + four]
+        g = (e0 * c0 + e1 * c1 + e2 * c2 + e3 * c3 + e4 * c4) * mask[lu]
         k = ko + lu
         sg += g
         sgg += g * g
