@@ -309,9 +309,8 @@ class Session:
         self.loop = TrackerLoop(self.queue, self._make_tracker, reference=reference_ready(self._make_tracker,
                                                                                           self.preparation.ahead.frame),
                                 stages=self.stages, sinks=sinks)
-        # Not wired yet: prefiltering each frame in the acquisition thread (TrackerLoop.coefficients_ahead, tested
-        # bit for bit alone) made the full suite's parallel replays differ from the live recording in the last
-        # bits (3.6e-7 px) while the sequential replay matched it; until that is understood the tracker prefilters.
+        # Each new frame is prefiltered in the acquisition thread while the tracker refines the one before.
+        self.acquisition.prepare = self.loop.coefficients_ahead
         self.phase = Phase.RUNNING
         if self._stop_requested:
             self.acquisition.stop()
