@@ -173,6 +173,29 @@ def read_grey_image(path: str | os.PathLike[str]) -> tuple[np.ndarray, str | Non
     return np.ascontiguousarray(image), note
 
 
+def read_same_size_images(paths: list[str], what: str = "images") -> tuple[list[np.ndarray], list[str]]:
+    """Every image of ``paths`` read (``read_grey_image``) and checked against the first one's size, before any
+    work is done on them; returns the images and the notes of those that needed converting.
+
+    Raises
+    ------
+    ValueError
+        One line: a file ``read_grey_image`` refuses, or an image of another size than the first
+        ("... : ``what`` must have the same size").
+    """
+    images: list[np.ndarray] = []
+    notes: list[str] = []
+    for path in paths:
+        image, note = read_grey_image(path)
+        if note:
+            notes.append(note)
+        if images and image.shape != images[0].shape:
+            raise ValueError(f"{path} is {image.shape[1]}x{image.shape[0]} but the reference {paths[0]} is "
+                             f"{images[0].shape[1]}x{images[0].shape[0]}: {what} must have the same size")
+        images.append(image)
+    return images, notes
+
+
 def _read_file(name: str) -> bytes:
     """The file's bytes; the one-line ValueError of ``read_grey_image`` when it cannot be read or is empty."""
     try:

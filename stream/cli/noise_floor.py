@@ -46,7 +46,7 @@ def noise_floor_command(args: argparse.Namespace) -> int:
     """``livedic noise-floor`` with parsed ``args``; returns the exit code (bad input: ``UsageError``)."""
     import numpy as np
 
-    from livedic.acquire.files.image_file import read_grey_image
+    from livedic.acquire.files.image_file import read_same_size_images
     from livedic.dic.quality import Gates
     from livedic.stream.cli.measure import _measure_points, _measure_strain
     from livedic.stream.output.files import check_output_file, json_text, write_text_atomic
@@ -62,15 +62,9 @@ def noise_floor_command(args: argparse.Namespace) -> int:
     strain = StrainConfig(window=args.strain_window)
     if args.output is not None:
         check_output_file(args.output, "-o")
-    images: list[np.ndarray] = []
-    for path in args.images:                      # every image read and checked before the work
-        image, note = read_grey_image(path)
-        if note:
-            print(f"livedic: note: {note}", file=sys.stderr)
-        if images and image.shape != images[0].shape:
-            raise UsageError(f"{path} is {image.shape[1]}x{image.shape[0]} but the reference {args.images[0]} is "
-                             f"{images[0].shape[1]}x{images[0].shape[0]}: static images must have the same size")
-        images.append(image)
+    images, notes = read_same_size_images(args.images, "static images")    # every image checked before the work
+    for note in notes:
+        print(f"livedic: note: {note}", file=sys.stderr)
     points, _, left_out = _measure_points(args, images[0])
     if left_out:
         print(f"livedic: {left_out}", file=sys.stderr)

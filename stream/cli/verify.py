@@ -214,16 +214,10 @@ def _image_paths(args: argparse.Namespace) -> list[str]:
 
 def _read_images(reference_path: str, paths: Sequence[str]) -> tuple[np.ndarray, list[np.ndarray]]:
     """Every image read and checked against the reference's size before any work."""
-    from livedic.acquire.files.image_file import read_grey_image
-    images: list[np.ndarray] = []
-    for path in [reference_path, *paths]:
-        image, note = read_grey_image(path)
-        if note:
-            print(f"livedic: note: {note}", file=sys.stderr)
-        if images and image.shape != images[0].shape:
-            raise UsageError(f"{path} is {image.shape[1]}x{image.shape[0]} but the reference {reference_path} is "
-                             f"{images[0].shape[1]}x{images[0].shape[0]}: all images must have the same size")
-        images.append(image)
+    from livedic.acquire.files.image_file import read_same_size_images
+    images, notes = read_same_size_images([reference_path, *paths], "all images")
+    for note in notes:
+        print(f"livedic: note: {note}", file=sys.stderr)
     return images[0], images[1:]
 
 

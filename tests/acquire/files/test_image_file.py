@@ -187,3 +187,16 @@ def test_image_header_agrees_with_the_decoded_image(tmp_path):
     (tmp_path / "empty.png").write_bytes(b"")
     with pytest.raises(ValueError, match="empty.png: empty file"):
         read_image_header(tmp_path / "empty.png")
+
+
+def test_read_same_size_images_reads_all_and_refuses_another_size_in_one_line(tmp_path):
+    import cv2
+    from livedic.acquire.files.image_file import read_same_size_images
+    paths = []
+    for name, shape in (("a.png", (6, 5)), ("b.png", (6, 5)), ("c.png", (4, 5))):
+        paths.append(str(tmp_path / name))
+        cv2.imwrite(paths[-1], np.full(shape, 9, np.uint8))
+    images, notes = read_same_size_images(paths[:2])
+    assert [image.shape for image in images] == [(6, 5), (6, 5)] and notes == []
+    with pytest.raises(ValueError, match=r"c.png is 5x4 but the reference .*a.png is 5x6: static images must"):
+        read_same_size_images(paths, "static images")
