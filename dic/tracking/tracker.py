@@ -317,7 +317,7 @@ class Tracker(RefindSteps):
         a window. ``out``: a buffer of an earlier frame's to overwrite.
         """
         window = self._window
-        if window is None:
+        if window is None or not self.trackable.any():      # nothing to refine: ``track`` makes none either
             return None
         image = self.prefilter.apply(checked_image(image, "frame"))     # as ``track`` filters it
         return WindowCoefficients(window, window_coefficients(image, window, out))

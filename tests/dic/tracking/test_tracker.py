@@ -117,6 +117,8 @@ def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter):
         previous = current
     assert stale >= 1                   # the window grew at least once between a frame's coefficients and its track
     assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").coefficients_ahead(frames[1].image) is None
+    blank = np.full_like(frames[0].image, 100)           # no texture: no point to refine, no coefficients made
+    assert Tracker(blank, points).coefficients_ahead(blank) is None
 
 
 def test_points_without_texture_are_reported_never_searched():
