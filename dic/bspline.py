@@ -591,6 +591,47 @@ def sample_shift(flat, origin, stride, x, y, half, tmp, out, out_stride):
         out[ku] = b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + s2] + b3 * tmp[ku + s3]
 
 
+@njit(cache=True, fastmath=FASTMATH)
+def sample_shift5(flat, origin, stride, x, y, half, tmp, out, out_stride):
+    """``sample_shift`` of quintic coefficients: 6 x-taps per pixel of side + 5 rows, then 6 y-taps.
+
+    tmp : float32 ((side + 5) * out_stride,) scratch, zero beyond ``side`` in each row.
+    """
+    side = 2 * half + 1
+    xp = x - half + PAD
+    yp = y - half + PAD
+    ix = int(np.floor(xp))
+    iy = int(np.floor(yp))
+    wx0, wx1, wx2, wx3, wx4, wx5 = weights5(xp - ix)
+    wy0, wy1, wy2, wy3, wy4, wy5 = weights5(yp - iy)
+    a0 = _F32(wx0)
+    a1 = _F32(wx1)
+    a2 = _F32(wx2)
+    a3 = _F32(wx3)
+    a4 = _F32(wx4)
+    a5 = _F32(wx5)
+    one = np.uint64(1)
+    for r in range(side + 5):
+        base = np.uint64(origin + (iy - 2 + r) * stride + ix - 2)
+        tu = np.uint64(r * out_stride)
+        for i in range(side):       # LLVM vectorises it with a scalar remainder
+            o = base + np.uint64(i)
+            tmp[tu + np.uint64(i)] = (a0 * flat[o] + a1 * flat[o + one] + a2 * flat[o + np.uint64(2)]
+                                      + a3 * flat[o + np.uint64(3)] + a4 * flat[o + np.uint64(4)]
+                                      + a5 * flat[o + np.uint64(5)])
+    b0 = _F32(wy0)
+    b1 = _F32(wy1)
+    b2 = _F32(wy2)
+    b3 = _F32(wy3)
+    b4 = _F32(wy4)
+    b5 = _F32(wy5)
+    s1 = np.uint64(out_stride)
+    for k in range(side * out_stride):
+        ku = np.uint64(k)
+        out[ku] = (b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + 2 * s1] + b3 * tmp[ku + 3 * s1]
+                   + b4 * tmp[ku + 4 * s1] + b5 * tmp[ku + 5 * s1])
+
+
 @njit(cache=True)
 def warped_subset_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
     """True if the warped subset (an affine image of a square: check its corners) keeps

@@ -602,6 +602,10 @@ def refine_point_scratch2(half, lanes):
             (np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 12))))
 
 
+# The 2nd-order sampler (``_quadratic_sums``) is written for the cubic B-spline; quintic targets are refused.
+_CUBIC = 3
+
+
 @njit(cache=True)
 def _curvature_statistic(p, zncc, norm, n, curvature_info):
     """Wald statistic of the six curvature terms of p: ``c^T [H^-1]_cc^-1 c / s^2`` (chi-square, 6 degrees).
@@ -654,7 +658,8 @@ def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, f
             p6[m] = p[_FIRST_INDEX[m]]
         st, zncc, iterations = refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm,
                                             hinv, hinv0, sum_j, sum_jf, sum_f, p6, min(order, 1), max_iterations,
-                                            tolerance, translation_iterations, translation_tolerance, scratch)
+                                            tolerance, translation_iterations, translation_tolerance, scratch,
+                                            _CUBIC)
         first_ok = st == _OK
         first_zncc = zncc
         if order < 2 or flat_start:
@@ -802,6 +807,8 @@ def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients
         raise ValueError("ref_prep must come from dic.subpixel.icgn2.prepare_reference (an Icgn2Reference)")
     first = ref_prep.first
     points = checked_points(first, target_coeffs, points)
+    if target_coeffs.degree != _CUBIC:
+        raise ValueError("icgn2 samples the cubic B-spline only: use --interpolation bspline3, or --subpixel icgn")
     npts = points.shape[0]
     orders, _ = point_orders(order, npts, max_order=2)
     orders = np.minimum(orders, ref_prep.max_order[points])
