@@ -806,9 +806,7 @@ def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients
     if not isinstance(ref_prep, Icgn2Reference):
         raise ValueError("ref_prep must come from dic.subpixel.icgn2.prepare_reference (an Icgn2Reference)")
     first = ref_prep.first
-    points = checked_points(first, target_coeffs, points)
-    if target_coeffs.degree != _CUBIC:
-        raise ValueError("icgn2 samples the cubic B-spline only: use --interpolation bspline3, or --subpixel icgn")
+    points = checked_points(first, target_coeffs, points, degrees=(_CUBIC,))
     npts = points.shape[0]
     orders, _ = point_orders(order, npts, max_order=2)
     orders = np.minimum(orders, ref_prep.max_order[points])
