@@ -6,7 +6,8 @@ computed once per point and reused for every iteration and every later frame (Ba
 Matthews 2004; OpenCorr's ``ICGN2D1``, Pan, Li & Tong 2013):
 
 - warp ``x' = x0 + u + (1 + ux) dx + uy dy``, ``y' = y0 + v + vx dx + (1 + vy) dy``;
-- target sampled by bicubic B-spline; update ``W(p) <- W(p) W(dp)^-1``;
+- target sampled by the B-spline of its coefficients (``prepare_target(degree=3)``, bicubic, or 5,
+  biquintic); update ``W(p) <- W(p) W(dp)^-1``;
 - ZNSSD ``= sum e_i^2 / |f~|^2``, reported as ZNCC ``= 1 - ZNSSD/2``;
 - converged when ``sqrt(du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)) < 0.001``
   (M the subset half-width), at most 10 iterations by default.
