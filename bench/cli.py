@@ -91,6 +91,9 @@ def _add_accuracy_command(bench_commands):
                           help="folder with dicc2_star and dicc1_sample3_translation (e.g. ../shared/datasets)")
     accuracy.add_argument("--quick", action="store_true", help="subset 21 and icgn only, every 2 px (about a minute)")
     accuracy.add_argument("-o", "--output", metavar="OUT.json", help="also write the tables as JSON")
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.options import add_config_arguments
+    add_config_arguments(accuracy, TrackingConfig, names=("interpolation",))
     accuracy.set_defaults(handler=_cmd_bench_accuracy)
 
 
@@ -186,6 +189,9 @@ def _add_tracker_command(bench_commands):
                          help="check the results against a --save file bit for bit (exit code 1 if any differs)")
     tracker.add_argument("--stacks", metavar="PROFILE.txt",
                          help="only summarise a py-spy raw profile: where the samples inside the tracker end")
+    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.options import add_config_arguments
+    add_config_arguments(tracker, TrackingConfig, names=("interpolation",))
     tracker.set_defaults(handler=_cmd_bench_tracker)
 
 
@@ -359,7 +365,8 @@ def _cmd_bench_tracker(args):
     if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
         raise UsageError(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS}, got {args.threads}")
     return run_tracker_benchmark(frames=args.frames, size=args.size, n_points=args.points, threads=args.threads,
-                                 save=args.save, compare=args.compare, say=lambda line: print(line, flush=True))
+                                 save=args.save, compare=args.compare, say=lambda line: print(line, flush=True),
+                                 interpolation=args.interpolation)
 
 
 def _cmd_bench_validate(args):
@@ -382,7 +389,7 @@ def _cmd_bench_accuracy(args):
     if args.output is not None:
         check_output_file(args.output, "-o")
     return run_accuracy_benchmark(data=args.data, quick=args.quick, output=args.output,
-                                  log=lambda line: print(line, flush=True))
+                                  log=lambda line: print(line, flush=True), interpolation=args.interpolation)
 
 
 def _cmd_bench_soak(args):

@@ -45,10 +45,11 @@ def main_job(size=MAIN_JOB_SIZE, frames=300, n_points=None):
     return images, placement.points
 
 
-def main_job_tracker(reference, points):
-    """The ``KeyFrameTracker`` the main job's session builds on ``reference`` (``TrackingConfig``'s defaults)."""
+def main_job_tracker(reference, points, **settings):
+    """The ``KeyFrameTracker`` the main job's session builds on ``reference`` (``TrackingConfig``'s defaults, but
+    ``settings``)."""
     from livedic.stream.session.config import TrackingConfig
-    return TrackingConfig().tracker(reference, points)
+    return TrackingConfig(**settings).tracker(reference, points)
 
 
 def measure_cost(tracker, images):
@@ -141,17 +142,19 @@ def stack_summary(path, say=print, most=12):
 
 
 def run_tracker_benchmark(*, frames=300, size=MAIN_JOB_SIZE, n_points=None, threads=1, save=None, compare=None,
-                          say=print):
-    """``livedic bench tracker``; returns the exit code (1: ``compare`` found a difference)."""
+                          say=print, interpolation="bspline3"):
+    """``livedic bench tracker``; returns the exit code (1: ``compare`` found a difference). ``interpolation``:
+    ``TrackingConfig``'s (``--interpolation``)."""
     import numba
     numba.set_num_threads(threads)
     started = time.perf_counter()
     images, points = main_job(size, frames, n_points)
-    warm = main_job_tracker(images[0], points)
+    warm = main_job_tracker(images[0], points, interpolation=interpolation)
     for image in images[1:4]:          # loads (or compiles) the numba kernels before the timed run
         warm.track(image)
-    tracker = main_job_tracker(images[0], points)
-    say(f"{len(images)} frames of {size}x{size} rendered, {tracker.n_points} points, {threads} numba thread(s) "
+    tracker = main_job_tracker(images[0], points, interpolation=interpolation)
+    say(f"{len(images)} frames of {size}x{size} rendered, {tracker.n_points} points, {threads} numba thread(s), "
+        f"interpolation {interpolation} "
         f"({time.perf_counter() - started:.1f} s)")
     rows, results = measure_cost(tracker, images)
     report(rows, say)

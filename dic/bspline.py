@@ -24,6 +24,12 @@ The flat coefficient buffer carries ``SLACK`` zero rows before and after the
 padded coefficients, so vector lanes that run past a subset row (or that are
 computed and then discarded) never read outside it.
 
+``prefilter(..., degree=5)`` gives the quintic B-spline instead (Unser 1999: two poles, each a causal
+and an anti-causal pass per axis, gain 120; 36 taps a value, 2 px left and 3 px right of floor(x)). It
+reproduces polynomials up to degree 5 and cuts the interpolation bias of sub-pixel shifts about an
+order of magnitude (Ncorr's biquintic choice). The coefficients record their ``degree``, and every
+evaluation here (and IC-GN's samplers) honours it.
+
 References
 ----------
 M. Unser, "Splines: a perfect fit for signal and image processing", IEEE Signal
@@ -39,15 +45,27 @@ from numba import njit, prange
 
 POLE = np.sqrt(3.0) - 2.0  # z of the cubic B-spline prefilter
 GAIN = 6.0                 # (1 - z)(1 - 1/z)
-PAD = 3                    # mirrored coefficient pixels on each side (2 needed by the taps, 1 spare)
+# The quintic's two poles (Unser 1999, table I), filtered in turn; each pass's gain (1 - z)(1 - 1/z), 120 in all.
+QUINTIC_POLES = (-0.430575347099973, -0.0430962882032647)
+DEGREES = (3, 5)           # the B-spline degrees ``prefilter`` makes
+# mirrored coefficient pixels on each side: the cubic's taps need 2 (1 spare), the quintic's 3 (right of floor(x))
+PAD = 3
 SLACK = 2                  # zero rows before and after the padded coefficients in the flat buffer
-# A warped subset must keep this many pixels from the image edge: the taps reach 1 px left and
-# 2 px right of a sample, and the mirror boundary condition of the prefilter still weighs
-# 0.27^k on coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
+# A warped subset must keep this many pixels from the image edge: the cubic's taps reach 1 px left and
+# 2 px right of a sample (the quintic's 2 and 3: still real pixels), and the mirror boundary condition of
+# the prefilter still weighs 0.27^k (quintic: 0.43^k) on coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
 # and integer searches keep the same margin so they never return a peak there.
 INTERPOLATION_MARGIN = 3
-# |z|**k < 1e-17 beyond this many terms: the causal initial sum is exact in float64.
-_HORIZON = int(np.ceil(np.log(1e-17) / np.log(abs(POLE))))
+
+
+def _horizon(z: float) -> int:
+    """|z|**k < 1e-17 beyond this many terms: the causal initial sum is exact in float64."""
+    return int(np.ceil(np.log(1e-17) / np.log(abs(z))))
+
+
+# (z, gain, horizon) of each pass, per degree
+_POLES = {3: np.array([[POLE, GAIN, _horizon(POLE)]]),
+          5: np.array([[z, (1.0 - z) * (1.0 - 1.0 / z), _horizon(z)] for z in QUINTIC_POLES])}
 
 
 @dataclass(frozen=True)
@@ -65,11 +83,14 @@ class BSplineCoefficients:
         after, raveled: what the vectorised kernels index.
     origin : int
         Index in ``flat`` of ``coefficients[0, 0]``.
+    degree : {3, 5}
+        Of the B-spline: cubic (4 x 4 taps) or quintic (6 x 6).
     """
     coefficients: np.ndarray
     shape: tuple
     flat: np.ndarray
     origin: int
+    degree: int = 3
 
 
 # ---------------------------------------------------------------------------
@@ -77,12 +98,12 @@ class BSplineCoefficients:
 
 
 @njit(cache=True, inline="always")
-def _causal_init(line, n, z):
-    """c+[0] for mirror boundaries: the truncated sum, or the exact periodic one for short lines."""
-    if n > _HORIZON:
+def _causal_init(line, n, z, horizon):
+    """c+[0] for mirror boundaries: the truncated sum (``horizon`` terms), or the exact periodic one for short lines."""
+    if n > horizon:
         zk = 1.0
         acc = 0.0
-        for k in range(_HORIZON):
+        for k in range(horizon):
             acc += zk * line[k]
             zk *= z
         return acc
@@ -98,23 +119,23 @@ def _causal_init(line, n, z):
 
 
 @njit(cache=True)
-def _filter_lines(src, dst, buf):
-    """Prefilter the lines stored as the columns of ``src`` (n, nb) into ``dst`` (n, nb; may be ``src``).
+def _filter_lines(src, dst, buf, z, gain, horizon):
+    """One pole's causal and anti-causal passes (pole ``z``, gain ``gain``) over the lines stored as the
+    columns of ``src`` (n, nb), into ``dst`` (n, nb; may be ``src``).
 
     The ``nb`` lines advance together, so the recursions' chains of dependent multiply-adds overlap
     (one line alone waits on each step's latency). ``buf`` (n, nb) float64 holds the causal pass;
     ``src`` is read before ``dst`` is written. A line of one sample is copied as it is.
     """
-    z = POLE
     n, nb = src.shape
     if n == 1:
         for k in range(nb):
             dst[0, k] = src[0, k]
         return
     acc = np.zeros(nb)
-    if n > _HORIZON:
+    if n > horizon:
         zk = 1.0
-        for r in range(_HORIZON):
+        for r in range(horizon):
             for k in range(nb):
                 acc[k] += zk * src[r, k]
             zk *= z
@@ -123,7 +144,7 @@ def _filter_lines(src, dst, buf):
         for k in range(nb):
             for r in range(n):
                 line[r] = src[r, k]
-            acc[k] = _causal_init(line, n, z)
+            acc[k] = _causal_init(line, n, z, horizon)
     # causal pass: c+[k] = s[k] + z c+[k-1]
     for k in range(nb):
         buf[0, k] = acc[k]
@@ -134,11 +155,11 @@ def _filter_lines(src, dst, buf):
     scale = z / (z * z - 1.0)
     for k in range(nb):
         acc[k] = scale * (buf[n - 1, k] + z * buf[n - 2, k])
-        dst[n - 1, k] = GAIN * acc[k]
+        dst[n - 1, k] = gain * acc[k]
     for r in range(n - 2, -1, -1):
         for k in range(nb):
             acc[k] = z * (acc[k] - buf[r, k])
-            dst[r, k] = GAIN * acc[k]
+            dst[r, k] = gain * acc[k]
 
 
 # Lines filtered together (``_filter_lines``): enough independent chains to hide the latency, and a
@@ -148,38 +169,56 @@ _COLUMN_BLOCK = 64
 
 
 @njit(cache=True, parallel=True, nogil=True)
-def _filter_rows(src, out):
-    """Prefilter each row of ``src`` (H, W) into the interior of padded ``out``, ``_ROW_BLOCK`` rows per task."""
+def _filter_rows(src, out, poles):
+    """Prefilter each row of ``src`` (H, W) into the interior of padded ``out``, ``_ROW_BLOCK`` rows per task;
+    ``poles`` (k, 3): (z, gain, horizon) of each pass, the later ones in place on the block."""
     height, width = src.shape
     n_blocks = (height + _ROW_BLOCK - 1) // _ROW_BLOCK
     for b in prange(n_blocks):
         r0 = b * _ROW_BLOCK
         r1 = min(r0 + _ROW_BLOCK, height)
         buf = np.empty((width, r1 - r0))
-        _filter_lines(src[r0:r1].T, out[r0 + PAD:r1 + PAD, PAD:PAD + width].T, buf)
+        dst = out[r0 + PAD:r1 + PAD, PAD:PAD + width].T
+        _filter_lines(src[r0:r1].T, dst, buf, poles[0, 0], poles[0, 1], int(poles[0, 2]))
+        for p in range(1, poles.shape[0]):
+            _filter_lines(dst, dst, buf, poles[p, 0], poles[p, 1], int(poles[p, 2]))
 
 
 @njit(cache=True, parallel=True, nogil=True)
-def _filter_columns(out, height, width):
-    """Prefilter the columns of the interior of padded ``out`` in place, ``_COLUMN_BLOCK`` columns per task."""
+def _filter_columns(out, height, width, poles):
+    """Prefilter the columns of the interior of padded ``out`` in place, ``_COLUMN_BLOCK`` columns per task,
+    one pass per row of ``poles`` (as ``_filter_rows``)."""
     n_blocks = (width + _COLUMN_BLOCK - 1) // _COLUMN_BLOCK
     for b in prange(n_blocks):
         c0 = b * _COLUMN_BLOCK
         c1 = min(c0 + _COLUMN_BLOCK, width)
         lines = out[PAD:PAD + height, c0 + PAD:c1 + PAD]
-        _filter_lines(lines, lines, np.empty((height, c1 - c0)))
+        buf = np.empty((height, c1 - c0))
+        for p in range(poles.shape[0]):
+            _filter_lines(lines, lines, buf, poles[p, 0], poles[p, 1], int(poles[p, 2]))
+
+
+@njit(cache=True)
+def _mirror(i, n):
+    """Index in [0, n) of sample ``i`` of the whole-sample symmetric extension (period 2n - 2) of n samples."""
+    if n == 1:
+        return 0
+    period = 2 * n - 2
+    i = i % period
+    return period - i if i >= n else i
 
 
 @njit(cache=True)
 def _mirror_pad(out, height, width):
-    """Fill the PAD border of ``out`` with the whole-sample mirror of the interior."""
+    """Fill the PAD border of ``out`` with the whole-sample mirror of the interior (periodically, for lines
+    shorter than the padding)."""
     for r in range(PAD, PAD + height):
         for k in range(1, PAD + 1):
-            out[r, PAD - k] = out[r, PAD + min(k, width - 1)]
-            out[r, PAD + width - 1 + k] = out[r, PAD + max(width - 1 - k, 0)]
+            out[r, PAD - k] = out[r, PAD + _mirror(-k, width)]
+            out[r, PAD + width - 1 + k] = out[r, PAD + _mirror(width - 1 + k, width)]
     for k in range(1, PAD + 1):
-        src_top = PAD + min(k, height - 1)
-        src_bottom = PAD + max(height - 1 - k, 0)
+        src_top = PAD + _mirror(-k, height)
+        src_bottom = PAD + _mirror(height - 1 + k, height)
         for c in range(out.shape[1]):
             out[PAD - k, c] = out[src_top, c]
             out[PAD + height - 1 + k, c] = out[src_bottom, c]
@@ -189,8 +228,15 @@ def _mirror_pad(out, height, width):
 _READ_AS_IS = tuple(np.dtype(t) for t in (np.uint8, np.uint16, np.float32, np.float64))
 
 
+def check_degree(degree: object) -> int:
+    """``degree`` as an int if it is one of ``DEGREES``; ValueError (one line) otherwise."""
+    if isinstance(degree, bool) or degree not in DEGREES:
+        raise ValueError(f"B-spline degree must be one of {', '.join(map(str, DEGREES))}, got {degree!r}")
+    return int(degree)
+
+
 def prefilter(image: np.ndarray, dtype: npt.DTypeLike = np.float32, *,
-              out: BSplineCoefficients | None = None) -> BSplineCoefficients:
+              out: BSplineCoefficients | None = None, degree: int = 3) -> BSplineCoefficients:
     """B-spline coefficients of ``image``.
 
     Parameters
@@ -203,7 +249,9 @@ def prefilter(image: np.ndarray, dtype: npt.DTypeLike = np.float32, *,
     out : BSplineCoefficients, optional
         Coefficients of an earlier image of the same shape and ``dtype``: overwritten and returned
         (frame after frame in the same memory; a new buffer of a megabyte or more is often fresh
-        pages from the system, each faulted in on first touch).
+        pages from the system, each faulted in on first touch); of the same ``degree`` too.
+    degree : {3, 5}
+        Cubic (default) or quintic B-spline.
 
     Returns
     -------
@@ -223,20 +271,22 @@ def prefilter(image: np.ndarray, dtype: npt.DTypeLike = np.float32, *,
     dtype = np.dtype(dtype)
     if dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
         raise ValueError(f"coefficients are stored as float32 or float64, got {dtype}")
+    degree = check_degree(degree)
     height, width = image.shape
     # read as they are (the kernels take them to float64 as they read): no converted copy of the image
     src = image if image.dtype in _READ_AS_IS else np.ascontiguousarray(image, dtype=np.float64)
-    if out is not None and tuple(out.shape) == (height, width) and out.coefficients.dtype == dtype:
+    if (out is not None and tuple(out.shape) == (height, width) and out.coefficients.dtype == dtype
+            and out.degree == degree):
         coefficients = out.coefficients              # its SLACK rows are zero already
     else:
         buffer = np.empty((height + 2 * PAD + 2 * SLACK, width + 2 * PAD), dtype=dtype)
         buffer[:SLACK] = 0.0
         buffer[-SLACK:] = 0.0
         out = BSplineCoefficients(buffer[SLACK:-SLACK], (height, width), buffer.reshape(-1),
-                                  SLACK * buffer.shape[1])
+                                  SLACK * buffer.shape[1], degree)
         coefficients = out.coefficients
-    _filter_rows(src, coefficients)
-    _filter_columns(coefficients, height, width)
+    _filter_rows(src, coefficients, _POLES[degree])
+    _filter_columns(coefficients, height, width, _POLES[degree])
     _mirror_pad(coefficients, height, width)
     return out
 
@@ -267,6 +317,35 @@ def derivative_weights(t):
     d1 = 1.5 * t * t - 2.0 * t
     d2 = -d0 - d1 - d3
     return d0, d1, d2, d3
+
+
+@njit(cache=True, inline="always")
+def weights5(t):
+    """Quintic B-spline weights of taps -2, -1, 0, 1, 2, 3 for a fraction t in [0, 1)."""
+    s = 1.0 - t
+    t2 = t * t
+    s2 = s * s
+    w0 = s2 * s2 * s * (1.0 / 120.0)
+    w5 = t2 * t2 * t * (1.0 / 120.0)
+    w1 = (26.0 + t * (-50.0 + t * (20.0 + t * (20.0 + t * (-20.0 + 5.0 * t))))) * (1.0 / 120.0)
+    w2 = (66.0 + t2 * (-60.0 + t * (0.0 + t * (30.0 - 10.0 * t)))) * (1.0 / 120.0)
+    w3 = (26.0 + t * (50.0 + t * (20.0 + t * (-20.0 + t * (-20.0 + 10.0 * t))))) * (1.0 / 120.0)
+    w4 = 1.0 - w0 - w1 - w2 - w3 - w5
+    return w0, w1, w2, w3, w4, w5
+
+
+@njit(cache=True, inline="always")
+def derivative_weights5(t):
+    """d/dt of ``weights5(t)``."""
+    s = 1.0 - t
+    s2 = s * s
+    d0 = -5.0 * s2 * s2 * (1.0 / 120.0)
+    d5 = 5.0 * t * t * t * t * (1.0 / 120.0)
+    d1 = (-50.0 + t * (40.0 + t * (60.0 + t * (-80.0 + 25.0 * t)))) * (1.0 / 120.0)
+    d2 = t * (-120.0 + t * t * (120.0 - 50.0 * t)) * (1.0 / 120.0)
+    d3 = (50.0 + t * (40.0 + t * (-60.0 + t * (-80.0 + 50.0 * t)))) * (1.0 / 120.0)
+    d4 = -d0 - d1 - d2 - d3 - d5
+    return d0, d1, d2, d3, d4, d5
 
 
 @njit(cache=True)
@@ -338,8 +417,36 @@ def value_gradient_at(coeffs, x, y):
     return val, gx, gy
 
 
+@njit(cache=True)
+def value_gradient_at5(coeffs, x, y):
+    """(value, d/dx, d/dy) of the quintic spline at image point (x, y); the caller guarantees ``inside``."""
+    xp = x + PAD
+    yp = y + PAD
+    ix = int(xp)
+    iy = int(yp)
+    wx = weights5(xp - ix)
+    wy = weights5(yp - iy)
+    dx = derivative_weights5(xp - ix)
+    dy = derivative_weights5(yp - iy)
+    val = 0.0
+    gx = 0.0
+    gy = 0.0
+    for m in range(6):
+        row = iy - 2 + m
+        r = 0.0
+        rd = 0.0
+        for k in range(6):
+            c = coeffs[row, ix - 2 + k]
+            r += wx[k] * c
+            rd += dx[k] * c
+        val += wy[m] * r
+        gx += wy[m] * rd
+        gy += dy[m] * r
+    return val, gx, gy
+
+
 @njit(cache=True, parallel=True, nogil=True)
-def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, out_v, out_gx, out_gy):
+def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, degree, out_v, out_gx, out_gy):
     for i in prange(xs.shape[0]):
         x = xs[i]
         y = ys[i]
@@ -347,6 +454,8 @@ def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, out_v, out_
             out_v[i] = np.nan
             out_gx[i] = np.nan
             out_gy[i] = np.nan
+        elif degree == 5:
+            out_v[i], out_gx[i], out_gy[i] = value_gradient_at5(coeffs, x, y)
         elif want_gradient:
             out_v[i], out_gx[i], out_gy[i] = value_gradient_at(coeffs, x, y)
         else:
@@ -354,17 +463,20 @@ def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, out_v, out_
 
 
 def interpolate(image_or_coeffs: np.ndarray | BSplineCoefficients, x: npt.ArrayLike, y: npt.ArrayLike, *,
-                gradient: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bicubic B-spline value (and gradient) at arbitrary points.
+                gradient: bool = False, degree: int = 3) -> np.ndarray | tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """B-spline value (and gradient) at arbitrary points, of the coefficients' degree.
 
     Parameters
     ----------
     image_or_coeffs : ndarray, shape (H, W), or BSplineCoefficients
-        An image (prefiltered here, float64) or coefficients from ``prefilter``.
+        An image (prefiltered here, float64, to ``degree``) or coefficients from ``prefilter``
+        (evaluated at their own degree).
     x, y : array_like, same shape
         Image coordinates: x along columns, y along rows, pixel centres at integers.
     gradient : bool
         Also return the analytic derivatives d/dx and d/dy.
+    degree : {3, 5}
+        Of the spline made from an image (ignored for coefficients).
 
     Returns
     -------
@@ -374,7 +486,7 @@ def interpolate(image_or_coeffs: np.ndarray | BSplineCoefficients, x: npt.ArrayL
         Only with ``gradient=True``.
     """
     if not isinstance(image_or_coeffs, BSplineCoefficients):
-        image_or_coeffs = prefilter(image_or_coeffs, dtype=np.float64)
+        image_or_coeffs = prefilter(image_or_coeffs, dtype=np.float64, degree=degree)
     x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
     shape = x.shape
     xs = np.ascontiguousarray(x.ravel())
@@ -384,7 +496,8 @@ def interpolate(image_or_coeffs: np.ndarray | BSplineCoefficients, x: npt.ArrayL
     out_gy = np.empty(xs.shape[0])
     height, width = image_or_coeffs.shape
     # NaN coordinates fail every comparison in ``inside`` and come back NaN.
-    _interpolate_batch(image_or_coeffs.coefficients, height, width, xs, ys, gradient, out_v, out_gx, out_gy)
+    _interpolate_batch(image_or_coeffs.coefficients, height, width, xs, ys, gradient, image_or_coeffs.degree,
+                       out_v, out_gx, out_gy)
     if gradient:
         return out_v.reshape(shape), out_gx.reshape(shape), out_gy.reshape(shape)
     return out_v.reshape(shape)
@@ -476,6 +589,47 @@ def sample_shift(flat, origin, stride, x, y, half, tmp, out, out_stride):
     for k in range(side * out_stride):
         ku = np.uint64(k)
         out[ku] = b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + s2] + b3 * tmp[ku + s3]
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def sample_shift5(flat, origin, stride, x, y, half, tmp, out, out_stride):
+    """``sample_shift`` of quintic coefficients: 6 x-taps per pixel of side + 5 rows, then 6 y-taps.
+
+    tmp : float32 ((side + 5) * out_stride,) scratch, zero beyond ``side`` in each row.
+    """
+    side = 2 * half + 1
+    xp = x - half + PAD
+    yp = y - half + PAD
+    ix = int(np.floor(xp))
+    iy = int(np.floor(yp))
+    wx0, wx1, wx2, wx3, wx4, wx5 = weights5(xp - ix)
+    wy0, wy1, wy2, wy3, wy4, wy5 = weights5(yp - iy)
+    a0 = _F32(wx0)
+    a1 = _F32(wx1)
+    a2 = _F32(wx2)
+    a3 = _F32(wx3)
+    a4 = _F32(wx4)
+    a5 = _F32(wx5)
+    one = np.uint64(1)
+    for r in range(side + 5):
+        base = np.uint64(origin + (iy - 2 + r) * stride + ix - 2)
+        tu = np.uint64(r * out_stride)
+        for i in range(side):       # LLVM vectorises it with a scalar remainder
+            o = base + np.uint64(i)
+            tmp[tu + np.uint64(i)] = (a0 * flat[o] + a1 * flat[o + one] + a2 * flat[o + np.uint64(2)]
+                                      + a3 * flat[o + np.uint64(3)] + a4 * flat[o + np.uint64(4)]
+                                      + a5 * flat[o + np.uint64(5)])
+    b0 = _F32(wy0)
+    b1 = _F32(wy1)
+    b2 = _F32(wy2)
+    b3 = _F32(wy3)
+    b4 = _F32(wy4)
+    b5 = _F32(wy5)
+    s1 = np.uint64(out_stride)
+    for k in range(side * out_stride):
+        ku = np.uint64(k)
+        out[ku] = (b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + 2 * s1] + b3 * tmp[ku + 3 * s1]
+                   + b4 * tmp[ku + 4 * s1] + b5 * tmp[ku + 5 * s1])
 
 
 @njit(cache=True)

@@ -9,6 +9,7 @@ from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN
 from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.image_filter import DEFAULT_PREFILTER, Prefilter
+from livedic.dic.interpolation import DEFAULT_INTERPOLATION, Interpolation
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
 from livedic.dic.reliability_guided import ICGN_OPTIONS, guided_icgn
@@ -29,7 +30,8 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
             search: str = DEFAULT_SEARCH, subpixel: str = "improved-surface-fit", radius: int = DEFAULT_RADIUS,
             guess: ArrayLike | None = None, seed: int = 0, search_options: dict | None = None,
             subpixel_options: dict | None = None, guided: bool = True, gates: Gates | None = Gates(),
-            prefilter: str | Prefilter = DEFAULT_PREFILTER) -> Measurement:
+            prefilter: str | Prefilter = DEFAULT_PREFILTER,
+            interpolation: str | Interpolation = DEFAULT_INTERPOLATION) -> Measurement:
     """Displacement of each point from ``reference`` to ``deformed``.
 
     Parameters
@@ -66,6 +68,9 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     prefilter : str or dic.image_filter.Prefilter
         Image pre-filter applied to both images before anything reads them: ``"none"`` (default) or
         ``"gaussian:SIGMA"`` (``dic.image_filter``).
+    interpolation : str or dic.interpolation.Interpolation
+        The B-spline IC-GN samples the deformed image with: ``"bspline3"`` (default) or ``"bspline5"``
+        (``icgn`` only; ``dic.interpolation``).
 
     Returns
     -------
@@ -83,7 +88,7 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     ------
     ValueError
         Images of different size or not 2-D, bad subset, radius, points, guess,
-        method name or pre-filter; the message says what to change.
+        method name, pre-filter or interpolation; the message says what to change.
 
     Examples
     --------
@@ -98,6 +103,7 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     method = subpixel_method(subpixel)
     if gates is not None and not isinstance(gates, Gates):
         raise ValueError(f"gates must be a dic.quality.Gates or None, got {gates!r}")
+    degree = method.checked_interpolation(interpolation).degree
     filtering = Prefilter.parse(prefilter)
     reference = filtering.apply(as_image(reference, "reference"))
     deformed = filtering.apply(as_image(deformed, "deformed"))
@@ -119,11 +125,11 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     if guided:
         poor = texture.poor(thresholds)
         raw = _guided(reference, deformed, prep, searching, method, radius, seed, search_options, subpixel_options,
-                      icgn_options, thresholds, texture, poor, translation_only, graph)
+                      icgn_options, thresholds, texture, poor, translation_only, graph, degree=degree)
     else:
         start = as_guess(guess, xs.shape[0])
         raw = _solve(reference, deformed, prep, start, searching, method, radius, seed, search_options,
-                     subpixel_options, icgn_options, translation_only)
+                     subpixel_options, icgn_options, translation_only, degree=degree)
     status = raw.status
     if gates is not None:
         gradients = None if raw.ux is None else (raw.ux, raw.uy, raw.vx, raw.vy)
@@ -149,8 +155,9 @@ def _finish(xs, ys, raw, status, translation_only):
 
 
 def _solve(reference, deformed, prep, start, search: SearchMethod, method: SubpixelMethod, radius, seed, search_options,
-           subpixel_options, icgn_options, translation_only):
-    """Search around ``start`` (unless ``search`` does not search), then the sub-pixel method; no gates."""
+           subpixel_options, icgn_options, translation_only, *, degree=3):
+    """Search around ``start`` (unless ``search`` does not search), then the sub-pixel method; no gates.
+    ``degree``: of the B-spline prepared methods sample the deformed image with."""
     first = method.first_order_data(prep)
     xs, ys, half = first.xs, first.ys, first.half
     margin = method.margin
@@ -172,11 +179,11 @@ def _solve(reference, deformed, prep, start, search: SearchMethod, method: Subpi
         zncc = found.zncc
         evaluations = found.evaluations
     return _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, not search.searches, method, seed,
-                   subpixel_options, icgn_options, translation_only)
+                   subpixel_options, icgn_options, translation_only, degree=degree)
 
 
 def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_guess, method: SubpixelMethod, seed,
-            subpixel_options, icgn_options, translation_only, gradients=None):
+            subpixel_options, icgn_options, translation_only, gradients=None, degree=3):
     """The sub-pixel stage from integer (or float) starts; first-order methods fit a translation where told."""
     first = method.first_order_data(prep)
     xs, ys, half = first.xs, first.ys, first.half
@@ -203,7 +210,8 @@ def _refine(reference, deformed, prep, u0, v0, status, zncc, evaluations, from_g
         if split:
             # per-point shape function
             options["order"] = np.where(translation_only, 0, options.get("order", method.shape_order))
-        refined = method.refine_prepared(prep, icgn.prepare_target(deformed), u0, v0, status=status, **options)
+        refined = method.refine_prepared(prep, icgn.prepare_target(deformed, degree=degree), u0, v0, status=status,
+                                         **options)
     elif split:
         refined = _refine_by_order(method.module, reference, deformed, xs, ys, u0, v0, status, half, options,
                                    translation_only)
@@ -242,11 +250,11 @@ _START_GRADIENTS = ("ux0", "uy0", "vx0", "vy0")
 
 
 def _guided(reference, deformed, prep, search: SearchMethod, method: SubpixelMethod, radius, seed, search_options, subpixel_options,
-            icgn_options, gates, texture, poor, translation_only, graph):
+            icgn_options, gates, texture, poor, translation_only, graph, *, degree=3):
     """Reliability-guided measurement (``dic.reliability_guided``), then the chosen sub-pixel method."""
     first = method.first_order_data(prep)
     xs, ys, half = first.xs, first.ys, first.half
-    coeffs = icgn.prepare_target(deformed)
+    coeffs = icgn.prepare_target(deformed, degree=degree)
     options = dict(icgn_options)
     # the propagation is first-order IC-GN (icgn2 refines every point from its result below)
     order = np.where(texture.translation_only(gates), 0, np.minimum(options.pop("order", 1), 1))
@@ -280,7 +288,7 @@ def _guided(reference, deformed, prep, search: SearchMethod, method: SubpixelMet
         gradients = {name: np.where(ok, params[:, c], 0.0) for name, c in (("ux", 1), ("uy", 2), ("vx", 4), ("vy", 5))}
     return _refine(reference, deformed, prep, u0, v0, status.copy(), np.where(ok, zncc, np.nan), evaluations,
                    method.module is None, method, seed, subpixel_options, icgn_options, translation_only,
-                   gradients=gradients)
+                   gradients=gradients, degree=degree)
 
 
 def _start_status(shape, xs, ys, u0, v0, half, margin):

@@ -120,7 +120,7 @@ def _carry(params, j, k, xs, ys, order_k, out):
 @njit(cache=True, parallel=True, nogil=True)
 def _propagate(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
                sum_jf, sum_f, order, start, index, part, n_parts, params, status, zncc, iterations, state, tries,
-               accept, max_tries, max_iterations, tolerance, translation_iterations, translation_tolerance):
+               accept, max_tries, max_iterations, tolerance, translation_iterations, translation_tolerance, degree):
     """Propagate from every solved point (state 1) into pending ones (state 0); returns points solved.
 
     state: 0 pending, 1 solved, 2 given up. ``tries`` counts the failed
@@ -150,7 +150,7 @@ def _propagate(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, f
                 st, zn, it = refine_point(flat, origin, stride, height, width, xs[k], ys[k], half, fhat[k], fx[k],
                                           fy[k], norm[k], hinv[k], hinv0[k], sum_j[k], sum_jf[k], sum_f[k], p,
                                           order[k], max_iterations, tolerance, translation_iterations,
-                                          translation_tolerance, scratch)
+                                          translation_tolerance, scratch, degree)
                 iterations[k] += it
                 if st == OK and zn >= accept:
                     for c in range(6):
@@ -170,14 +170,15 @@ def _propagate(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, f
 @njit(cache=True, parallel=True, nogil=True)
 def _solve(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
            sum_f, order, idx, starts, out_status, out_zncc, out_iterations, max_iterations, tolerance,
-           translation_iterations, translation_tolerance):
+           translation_iterations, translation_tolerance, degree):
     """IC-GN for the points ``idx`` from ``starts`` (len(idx), 6), refined in place, in parallel."""
     for t in prange(idx.shape[0]):
         k = idx[t]
         scratch = refine_point_scratch(half, lanes)
         st, zn, it = refine_point(flat, origin, stride, height, width, xs[k], ys[k], half, fhat[k], fx[k], fy[k],
                                   norm[k], hinv[k], hinv0[k], sum_j[k], sum_jf[k], sum_f[k], starts[t], order[k],
-                                  max_iterations, tolerance, translation_iterations, translation_tolerance, scratch)
+                                  max_iterations, tolerance, translation_iterations, translation_tolerance, scratch,
+                                  degree)
         out_status[t] = st
         out_zncc[t] = zn
         out_iterations[t] = it
@@ -207,9 +208,10 @@ class _Problem:
                 p.fy, p.norm, p.hinv, p.hinv0, p.sum_j, p.sum_jf, p.sum_f, self.order)
 
     def _option_args(self):
+        """The iteration options, then the B-spline degree of the target coefficients (the kernels' last arguments)."""
         o = self.options
         return (int(o["max_iterations"]), float(o["tolerance"]), int(o["translation_iterations"]),
-                float(o["translation_tolerance"]))
+                float(o["translation_tolerance"]), int(self.coeffs.degree))
 
     def solve(self, idx, starts):
         """IC-GN for points ``idx`` from ``starts`` (len(idx), 6); returns the accepted mask (results stored)."""

@@ -6,7 +6,8 @@ computed once per point and reused for every iteration and every later frame (Ba
 Matthews 2004; OpenCorr's ``ICGN2D1``, Pan, Li & Tong 2013):
 
 - warp ``x' = x0 + u + (1 + ux) dx + uy dy``, ``y' = y0 + v + vx dx + (1 + vy) dy``;
-- target sampled by bicubic B-spline; update ``W(p) <- W(p) W(dp)^-1``;
+- target sampled by the B-spline of its coefficients (``prepare_target(degree=3)``, bicubic, or 5,
+  biquintic); update ``W(p) <- W(p) W(dp)^-1``;
 - ZNSSD ``= sum e_i^2 / |f~|^2``, reported as ZNCC ``= 1 - ZNSSD/2``;
 - converged when ``sqrt(du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)) < 0.001``
   (M the subset half-width), at most 10 iterations by default.
@@ -32,7 +33,8 @@ import numpy.typing as npt
 from numba import njit, prange
 from numpy import float32 as _F32
 
-from livedic.dic.bspline import FASTMATH, PAD, float32_lanes, BSplineCoefficients, prefilter, sample_shift, warped_subset_inside
+from livedic.dic.bspline import (FASTMATH, PAD, float32_lanes, BSplineCoefficients, check_degree, prefilter, sample_shift,
+                                 sample_shift5, warped_subset_inside)
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
@@ -339,8 +341,10 @@ def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLik
                          sum_j, sum_jf, sum_f, status, hessian)
 
 
-def prepare_target(deformed: np.ndarray, *, out: BSplineCoefficients | None = None) -> BSplineCoefficients:
-    """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32.
+def prepare_target(deformed: np.ndarray, *, out: BSplineCoefficients | None = None,
+                   degree: int = 3) -> BSplineCoefficients:
+    """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32, of
+    ``degree`` 3 (cubic) or 5 (quintic); IC-GN samples the target with the spline they record.
 
     The grey levels are those of ``dic.validation.as_image`` (float32); 8- and 16-bit frames, whose
     values float32 holds exactly, are read as they are (no float32 copy of the frame is made).
@@ -349,7 +353,7 @@ def prepare_target(deformed: np.ndarray, *, out: BSplineCoefficients | None = No
     image = checked_image(deformed, "deformed")
     if image.dtype not in _EXACT_IN_FLOAT32:
         image = as_image(image, "deformed")
-    return prefilter(image, dtype=np.float32, out=out)
+    return prefilter(image, dtype=np.float32, out=out, degree=check_degree(degree))
 
 
 # ---------------------------------------------------------------------------
@@ -405,6 +409,94 @@ def bspline_tap(flat, origin, stride, tx, ty):
     three = np.uint64(3)
     c3 = wy0 * flat[o0 + three] + wy1 * flat[o1 + three] + wy2 * flat[o2 + three] + wy3 * flat[o3 + three]
     return wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _quintic_weights(t):
+    """The 6 quintic B-spline weights of the taps at -2 .. 3 for a fractional offset t in [0, 1) (float32)."""
+    s = _F32(1.0) - t
+    t2 = t * t
+    s2 = s * s
+    c = _F32(1.0 / 120.0)
+    w0 = s2 * s2 * s * c
+    w5 = t2 * t2 * t * c
+    w1 = (_F32(26.0) + t * (_F32(-50.0) + t * (_F32(20.0) + t * (_F32(20.0) + t * (_F32(-20.0) + _F32(5.0) * t))))) * c
+    w2 = (_F32(66.0) + t2 * (_F32(-60.0) + t2 * (_F32(30.0) - _F32(10.0) * t))) * c
+    w3 = (_F32(26.0) + t * (_F32(50.0) + t * (_F32(20.0) + t * (_F32(-20.0) + t * (_F32(-20.0) + _F32(10.0) * t))))) * c
+    return w0, w1, w2, w3, _F32(1.0) - w0 - w1 - w2 - w3 - w5, w5
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _column6(flat, o0, stride, wy):
+    """One column of 6 coefficients from flat[o0] (rows ``stride`` apart, uint64 indices) weighted in y by ``wy``."""
+    o1 = o0 + stride
+    o2 = o1 + stride
+    o3 = o2 + stride
+    o4 = o3 + stride
+    return (wy[0] * flat[o0] + wy[1] * flat[o1] + wy[2] * flat[o2] + wy[3] * flat[o3] + wy[4] * flat[o4]
+            + wy[5] * flat[o4 + stride])
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _quintic_row(flat, o, stride, wx, wy):
+    """sum_k wx[k] * (column k of 6 from flat[o + k], weighted by wy): 6 x 6 taps."""
+    one = np.uint64(1)
+    return (wx[0] * _column6(flat, o, stride, wy) + wx[1] * _column6(flat, o + one, stride, wy)
+            + wx[2] * _column6(flat, o + np.uint64(2), stride, wy) + wx[3] * _column6(flat, o + np.uint64(3), stride, wy)
+            + wx[4] * _column6(flat, o + np.uint64(4), stride, wy) + wx[5] * _column6(flat, o + np.uint64(5), stride, wy))
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _row_sums5(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx, fy, koff, xstep):
+    """``_row_sums`` (or, with ``xstep``, ``_row_sums_xstep``: 7 columns) of quintic coefficients.
+
+    Lane l's 36 taps start at flat[base + l] (its tap origin 2 px left and up of floor(x'), floor(y')).
+    ``xstep`` is the same for every lane: the branch on it is hoisted out of the loop, which stays one
+    vector pass.
+    """
+    st = np.uint64(stride)
+    ko = np.uint64(koff)
+    one = np.uint64(1)
+    sg = _F32(0.0)
+    sgg = _F32(0.0)
+    sfg = _F32(0.0)
+    pa = _F32(0.0)
+    pax = _F32(0.0)
+    pb = _F32(0.0)
+    pbx = _F32(0.0)
+    for l in range(lanes):
+        lu = np.uint64(l)
+        d = lane_dx[lu]
+        xo = ax + sx * d
+        wy = _quintic_weights(ay + sy * d)
+        o = base + lu
+        if xstep:   # as ``_row_sums_xstep``: every lane reads the same 7 columns, weighs the first or last 6
+            stepped = xo >= _F32(1.0)
+            w0, w1, w2, w3, w4, w5 = _quintic_weights(xo - _F32(1.0) if stepped else xo)
+            c0 = _column6(flat, o, st, wy)
+            c1 = _column6(flat, o + one, st, wy)
+            c2 = _column6(flat, o + np.uint64(2), st, wy)
+            c3 = _column6(flat, o + np.uint64(3), st, wy)
+            c4 = _column6(flat, o + np.uint64(4), st, wy)
+            c5 = _column6(flat, o + np.uint64(5), st, wy)
+            c6 = _column6(flat, o + np.uint64(6), st, wy)
+            if stepped:
+                g = (w0 * c1 + w1 * c2 + w2 * c3 + w3 * c4 + w4 * c5 + w5 * c6) * mask[lu]
+            else:
+                g = (w0 * c0 + w1 * c1 + w2 * c2 + w3 * c3 + w4 * c4 + w5 * c5) * mask[lu]
+        else:
+            g = _quintic_row(flat, o, st, _quintic_weights(xo), wy) * mask[lu]
+        k = ko + lu
+        sg += g
+        sgg += g * g
+        sfg += fhat[k] * g
+        a = fx[k] * g
+        b = fy[k] * g
+        pa += a
+        pax += a * d
+        pb += b
+        pbx += b * d
+    return sg, sgg, sfg, pa, pax, pb, pbx
 
 
 @njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -519,8 +611,11 @@ def _row_sums_xstep(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fh
 
 @njit(cache=True, fastmath=FASTMATH)
 def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx, lane_mask,
-                 kx, ky, run_mask, out):
+                 kx, ky, run_mask, degree, out):
     """out (9,) <- sums over the subset warped by p: g, g^2, fhat g, fx g, fx g dx, fx g dy, fy g, fy g dx, fy g dy.
+
+    ``degree`` 3 (cubic: ``_row_sums``, ``_row_sums_xstep``) or 5 (quintic: ``_row_sums5``); it is chosen
+    per row, outside the lane loops, which stay whole vector passes.
 
     One row at a time. Along a row x' = bx + dx + ux dx and y' = by + vx dx, so
     the tap origin (floor(bx + ux dx) + dx, floor(by + vx dx)) advances by one
@@ -529,13 +624,15 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
     pass of ``_row_sums_xstep``), or, rarely, more (one masked pass each). Rows are summed in float32 (<= 3 terms per lane), the subset in float64.
     The caller guarantees every sample lies in the spline domain. Lanes that
     are computed and discarded (past the subset, or outside the run of a masked
-    pass) read at most 2M + 8 columns beside a real tap, which stays inside the
+    pass) read at most 2M + 10 columns beside a real tap, which stays inside the
     coefficient buffer thanks to its SLACK rows (the subset side is <= the image
     width). ``flat`` is that buffer, padded coefficient [0, 0] at ``origin``.
     """
     side = 2 * half + 1
     sx = _F32(ux)
     sy = _F32(vx)
+    quintic = degree == 5
+    reach = 2 if quintic else 1     # taps left of / above floor(x'), floor(y')
     sg = 0.0
     sgg = 0.0
     sfg = 0.0
@@ -557,8 +654,12 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
             # One vector pass: the tap origin is the same along the row, or steps once in x.
             steps = kx0 != kx1
             kx0 = min(kx0, kx1)
-            base = np.uint64(origin + (ky0 + PAD - 1) * stride + kx0 + PAD - 1 - half)
-            if steps:
+            base = np.uint64(origin + (ky0 + PAD - reach) * stride + kx0 + PAD - reach - half)
+            if quintic:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums5(
+                    flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
+                    fhat, fx, fy, koff, steps)
+            elif steps:
                 rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums_xstep(
                     flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
                     fhat, fx, fy, koff)
@@ -587,12 +688,17 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
         while l < side:
             kxa = kx[l]
             kya = ky[l]
-            base = np.uint64(origin + (kya + PAD - 1) * stride + kxa + PAD - 1 - half)
+            base = np.uint64(origin + (kya + PAD - reach) * stride + kxa + PAD - reach - half)
             for m in range(lanes):
                 run_mask[m] = 1.0 if (kx[m] == kxa and ky[m] == kya) else 0.0
-            rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums(
-                flat, base, stride, _F32(bx - kxa), sx, _F32(by - kya), sy, lanes, lane_dx, run_mask,
-                fhat, fx, fy, koff)
+            if quintic:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums5(
+                    flat, base, stride, _F32(bx - kxa), sx, _F32(by - kya), sy, lanes, lane_dx, run_mask,
+                    fhat, fx, fy, koff, False)
+            else:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums(
+                    flat, base, stride, _F32(bx - kxa), sx, _F32(by - kya), sy, lanes, lane_dx, run_mask,
+                    fhat, fx, fy, koff)
             sg += rsg
             sgg += rsgg
             sfg += rsfg
@@ -617,8 +723,11 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
 
 @njit(cache=True)
 def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
-                 sum_f, p, order, max_iterations, tolerance, translation_iterations, translation_tolerance, scratch):
+                 sum_f, p, order, max_iterations, tolerance, translation_iterations, translation_tolerance, scratch,
+                 degree):
     """Refine p = [u, ux, uy, v, vx, vy] (6,) in place; return (status, zncc, iterations).
+
+    ``degree``: of the target's B-spline coefficients (``BSplineCoefficients.degree``), 3 or 5.
 
     The per-point kernel of ``refine_prepared``, for kernels that refine one point at a time
     (``dic.reliability_guided``); ``scratch`` from ``refine_point_scratch``, one per task.
@@ -645,7 +754,10 @@ def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy
     for _ in range(steps):
         if not warped_subset_inside(height, width, x0, y0, half, u, 0.0, 0.0, v, 0.0, 0.0):
             return _OUTSIDE_TARGET, zncc, iterations
-        sample_shift(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
+        if degree == 5:
+            sample_shift5(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
+        else:
+            sample_shift(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
         sg, sgg, sfg, a0, b0 = _sums_shift(g, fhat, fx, fy)
         mean = sg / n
         var = sgg - sg * mean
@@ -679,7 +791,7 @@ def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy
         if not warped_subset_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
             return _OUTSIDE_TARGET, zncc, iterations
         _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx, lane_mask,
-                     kx, ky, run_mask, sums)
+                     kx, ky, run_mask, degree, sums)
         mean = sums[0] / n
         var = sums[1] - sums[0] * mean
         if var <= _FLAT * n * (1.0 + mean * mean):
@@ -739,7 +851,7 @@ def refine_point_scratch(half, lanes):
     """Per-task scratch arrays for ``refine_point``."""
     side = 2 * half + 1
     g = np.zeros(side * lanes, dtype=np.float32)
-    tmp = np.zeros((side + 3) * lanes, dtype=np.float32)
+    tmp = np.zeros((side + 5) * lanes, dtype=np.float32)     # side + 3 rows for the cubic, + 5 for the quintic
     kx = np.empty(lanes, dtype=np.int64)
     ky = np.empty(lanes, dtype=np.int64)
     lane_dx = np.empty(lanes, dtype=np.float32)
@@ -756,7 +868,7 @@ def refine_point_scratch(half, lanes):
 @njit(cache=True, parallel=True, nogil=True)
 def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
                 sum_jf, sum_f, points, params, status, order, max_iterations, tolerance, translation_iterations,
-                translation_tolerance, out_zncc, out_iter):
+                translation_tolerance, degree, out_zncc, out_iter):
     """Refine the prepared points ``points`` (M,) whose ``status`` is OK.
 
     Row j of params (M, 6) in/out, status (M,) in/out, order (M,) and the outputs
@@ -782,7 +894,7 @@ def _icgn_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, 
             st, zn, it = refine_point(flat, origin, stride, height, width, xs[i], ys[i], half, fhat[i], fx[i], fy[i],
                                       norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], params[j], order[j],
                                       max_iterations, tolerance, translation_iterations, translation_tolerance,
-                                      scratch)
+                                      scratch, degree)
             status[j] = st
             out_iter[j] = it
             if st == _OK:
@@ -868,7 +980,7 @@ def refine_prepared(ref_prep: IcgnReference, target_coeffs: BSplineCoefficients,
                 ref_prep.xs, ref_prep.ys, ref_prep.half, ref_prep.lanes, ref_prep.fhat, ref_prep.fx, ref_prep.fy,
                 ref_prep.norm, ref_prep.hinv, ref_prep.hinv0, ref_prep.sum_j, ref_prep.sum_jf, ref_prep.sum_f,
                 points, params, st, orders, int(max_iterations), float(tolerance), int(translation_iterations),
-                float(translation_tolerance), out_zncc, out_iter)
+                float(translation_tolerance), target_coeffs.degree, out_zncc, out_iter)
     ok = st == Status.OK
     params[~ok] = np.nan
     grads = {}
@@ -900,7 +1012,7 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     half : int
         Subset half-width M.
     **options
-        ``hessian`` (of ``prepare_reference``); ``order``, ``max_iterations``,
+        ``degree`` (of ``prepare_target``: 3 or 5); ``hessian`` (of ``prepare_reference``); ``order``, ``max_iterations``,
         ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
         start gradients ``ux0, uy0, vx0, vy0`` (of ``refine_prepared``).
 
@@ -923,6 +1035,7 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     check_same_shape(reference, deformed)
     options = dict(options)
     hessian = options.pop("hessian", "projected")
+    degree = options.pop("degree", 3)
     prep = prepare_reference(reference, xs, ys, half, hessian=hessian)
-    coeffs = prepare_target(deformed)
+    coeffs = prepare_target(deformed, degree=degree)
     return refine_prepared(prep, coeffs, u0, v0, status=status, **options)

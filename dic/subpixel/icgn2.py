@@ -602,6 +602,10 @@ def refine_point_scratch2(half, lanes):
             (np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 12))))
 
 
+# The 2nd-order sampler (``_quadratic_sums``) is written for the cubic B-spline; other targets are refused.
+_CUBIC = 3
+
+
 @njit(cache=True)
 def _curvature_statistic(p, zncc, norm, n, curvature_info):
     """Wald statistic of the six curvature terms of p: ``c^T [H^-1]_cc^-1 c / s^2`` (chi-square, 6 degrees).
@@ -624,8 +628,9 @@ def _curvature_statistic(p, zncc, norm, n, curvature_info):
 @njit(cache=True)
 def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
                   sum_f, hinv2, sum_j2, sum_jf2, p, order, max_iterations, tolerance, translation_iterations,
-                  translation_tolerance, scratch2, curvature_info, curvature_threshold):
-    """Refine p (12,) in place (``PARAMETERS`` order); return (status, zncc, iterations).
+                  translation_tolerance, scratch2, curvature_info, curvature_threshold, degree):
+    """Refine p (12,) in place (``PARAMETERS`` order); return (status, zncc, iterations). ``degree``: the
+    target's B-spline (only 3 reaches here: ``refine_prepared`` refuses others), for the first-order steps.
 
     order 0: shift, order 1: affine (``dic.subpixel.icgn.refine_point`` on the
     first-order parameters, curvature left 0); order 2: the first-order stage
@@ -654,7 +659,8 @@ def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, f
             p6[m] = p[_FIRST_INDEX[m]]
         st, zncc, iterations = refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm,
                                             hinv, hinv0, sum_j, sum_jf, sum_f, p6, min(order, 1), max_iterations,
-                                            tolerance, translation_iterations, translation_tolerance, scratch)
+                                            tolerance, translation_iterations, translation_tolerance, scratch,
+                                            degree)
         first_ok = st == _OK
         first_zncc = zncc
         if order < 2 or flat_start:
@@ -713,7 +719,8 @@ def refine_point2(flat, origin, stride, height, width, x0, y0, half, fhat, fx, f
 @njit(cache=True, parallel=True, nogil=True)
 def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat, fx, fy, norm, hinv, hinv0, sum_j,
                  sum_jf, sum_f, hinv2, sum_j2, sum_jf2, points, params, status, order, max_iterations, tolerance,
-                 translation_iterations, translation_tolerance, out_zncc, out_iter, curvature_info, curvature_threshold):
+                 translation_iterations, translation_tolerance, out_zncc, out_iter, curvature_info, curvature_threshold,
+                 degree):
     """Refine the prepared points ``points`` (M,) whose ``status`` is OK; row j of params (M, 12) in/out."""
     npts = points.shape[0]
     n_chunks = (npts + _CHUNK - 1) // _CHUNK
@@ -736,7 +743,7 @@ def _icgn2_batch(flat, origin, stride, height, width, xs, ys, half, lanes, fhat,
                                        fy[i], norm[i], hinv[i], hinv0[i], sum_j[i], sum_jf[i], sum_f[i], hinv2[i],
                                        sum_j2[i], sum_jf2[i], params[j], order[j], max_iterations, tolerance,
                                        translation_iterations, translation_tolerance, scratch2, curvature_info[i],
-                                       curvature_threshold)
+                                       curvature_threshold, degree)
             status[j] = st
             out_iter[j] = it
             if st == _OK:
@@ -801,7 +808,7 @@ def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients
     if not isinstance(ref_prep, Icgn2Reference):
         raise ValueError("ref_prep must come from dic.subpixel.icgn2.prepare_reference (an Icgn2Reference)")
     first = ref_prep.first
-    points = checked_points(first, target_coeffs, points)
+    points = checked_points(first, target_coeffs, points, degrees=(_CUBIC,))
     npts = points.shape[0]
     orders, _ = point_orders(order, npts, max_order=2)
     orders = np.minimum(orders, ref_prep.max_order[points])
@@ -821,7 +828,7 @@ def refine_prepared(ref_prep: Icgn2Reference, target_coeffs: BSplineCoefficients
                  first.hinv0, first.sum_j, first.sum_jf, first.sum_f, ref_prep.hinv2, ref_prep.sum_j2,
                  ref_prep.sum_jf2, points, params, st, orders, int(max_iterations), float(tolerance),
                  int(translation_iterations), float(translation_tolerance), out_zncc, out_iter,
-                 ref_prep.curvature_info, ref_prep.curvature_threshold)
+                 ref_prep.curvature_info, ref_prep.curvature_threshold, target_coeffs.degree)
     ok = st == Status.OK
     params[~ok] = np.nan
     params[np.ix_(orders == 0, [1, 2, 7, 8])] = np.nan

@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from livedic.dic.bspline import INTERPOLATION_MARGIN
+from livedic.dic.interpolation import BSPLINE3, BSPLINE5, DEFAULT_INTERPOLATION, Interpolation
 from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
 
-BSPLINE = "bicubic B-spline (Unser's prefilter, dic.bspline)"
+BSPLINE = Interpolation(BSPLINE3).describe()
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,11 @@ class SubpixelMethod:
         Its options that shape the prepared reference data (set once), not each refinement.
     shape_function, interpolant, criterion : str
         How a report names its subset shape function, the grey-level interpolation it samples the deformed
-        image with, and the similarity it optimises (the iDICs guide's analysis-parameter table).
+        image with (by default: ``interpolant_for`` names the one chosen), and the similarity it optimises
+        (the iDICs guide's analysis-parameter table).
+    interpolations : tuple of str
+        The B-spline interpolants (``dic.interpolation``) it can sample the deformed image with; empty for
+        methods that interpolate no B-spline (the default name is accepted by every method: it changes nothing).
     """
     name: str
     module: ModuleType | None
@@ -64,6 +69,7 @@ class SubpixelMethod:
     shape_function: str = "zero order (rigid shift)"
     interpolant: str = "none (integer pixels)"
     criterion: str = "ZNCC"
+    interpolations: tuple[str, ...] = ()
 
     def __reduce__(self):
         # a tracker sent to another process (replay --workers) carries its method by name, not its module
@@ -79,6 +85,22 @@ class SubpixelMethod:
         """It estimates displacement gradients (and fits a shift where the texture cannot pin an affine warp);
         the others work around an integer peak, so a float start is rounded for them."""
         return self.shape_order >= 1
+
+    def checked_interpolation(self, interpolation: str | Interpolation | None) -> Interpolation:
+        """``interpolation`` parsed; ValueError (one line) when it is not the default and this method cannot
+        sample with it."""
+        chosen = Interpolation.parse(interpolation)
+        if chosen.name != DEFAULT_INTERPOLATION and chosen.name not in self.interpolations:
+            able = ", ".join(name for name, method in METHODS.items() if chosen.name in method.interpolations)
+            raise ValueError(f"--interpolation {chosen} is not available with --subpixel {self.name}: "
+                             f"use it with {able}, or --interpolation {DEFAULT_INTERPOLATION}")
+        return chosen
+
+    def interpolant_for(self, interpolation: str | Interpolation | None) -> str:
+        """How a report names the interpolant this method sampled with, ``interpolation`` chosen."""
+        if not self.interpolations:
+            return self.interpolant
+        return Interpolation.parse(interpolation).describe()
 
     def pop_reference_options(self, options: dict[str, Any]) -> dict[str, Any]:
         """The options of ``options`` that shape the reference data (``reference_options``), taken out of it."""
@@ -117,16 +139,16 @@ METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (
                    criterion="SSD of the intensity-normalised subsets (linearised)"),
     SubpixelMethod("newton-raphson", newton_raphson, INTERPOLATION_MARGIN, shape_order=1,
                    shape_function="first order (affine, 6 parameters)", interpolant=BSPLINE,
-                   criterion="ZNSSD (equivalent to ZNCC)"),
+                   criterion="ZNSSD (equivalent to ZNCC)", interpolations=(BSPLINE3,)),
     SubpixelMethod("improved-surface-fit", improved_surface_fit, 3, seeded=True,
                    interpolant="none: an improved surface fitted to the ZNCC around its integer peak"),
     SubpixelMethod("icgn", icgn, INTERPOLATION_MARGIN, shape_order=1, prepared=True, final_after_guidance=True,
                    shape_function="first order (affine, 6 parameters)", interpolant=BSPLINE,
-                   criterion="ZNSSD (equivalent to ZNCC)"),
+                   criterion="ZNSSD (equivalent to ZNCC)", interpolations=(BSPLINE3, BSPLINE5)),
     _SecondOrderIcgn("icgn2", icgn2, INTERPOLATION_MARGIN, shape_order=2, prepared=True,
                      shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max", "curvature_threshold"),
                      shape_function="second order (quadratic, 12 parameters)", interpolant=BSPLINE,
-                     criterion="ZNSSD (equivalent to ZNCC)"),
+                     criterion="ZNSSD (equivalent to ZNCC)", interpolations=(BSPLINE3,)),
 )}
 SUBPIXEL_METHODS: tuple[str, ...] = tuple(METHODS)
 

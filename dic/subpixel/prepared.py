@@ -28,11 +28,12 @@ _ORDER_WORDS = ("0 (shift)", "1 (affine)", "2 (quadratic)")
 
 
 def checked_points(ref_prep: PreparedPoints, target_coeffs: BSplineCoefficients,
-                   points: npt.ArrayLike | None) -> np.ndarray:
+                   points: npt.ArrayLike | None, *, degrees: tuple[int, ...] = (3, 5)) -> np.ndarray:
     """The indices of the prepared points to refine (int64), after checking the target's coefficients.
 
     ``ref_prep`` is an ``IcgnReference`` (the first-order data of any IC-GN order); ValueError (one
-    line) for coefficients not from ``prepare_target``, of another size, or bad indices.
+    line) for coefficients not from ``prepare_target``, of another size, of a B-spline degree the
+    method cannot sample (not in ``degrees``), or bad indices.
     """
     if not isinstance(target_coeffs, BSplineCoefficients):
         raise ValueError("target_coeffs must come from prepare_target (a BSplineCoefficients)")
@@ -41,6 +42,9 @@ def checked_points(ref_prep: PreparedPoints, target_coeffs: BSplineCoefficients,
                          f"{ref_prep.shape[1]}x{ref_prep.shape[0]}: both images must have the same size")
     if target_coeffs.coefficients.dtype != np.float32:
         raise ValueError("IC-GN samples float32 coefficients: use prepare_target (or prefilter(..., np.float32))")
+    if target_coeffs.degree not in degrees:
+        raise ValueError(f"this method samples the cubic B-spline only, the target's is of degree "
+                         f"{target_coeffs.degree}: use --interpolation bspline3, or --subpixel icgn")
     n_prepared = ref_prep.xs.shape[0]
     points = np.arange(n_prepared) if points is None else np.asarray(points)
     if points.ndim != 1 or not (points.size == 0 or np.issubdtype(points.dtype, np.integer)) or \

@@ -23,11 +23,11 @@ class WindowCoefficients(NamedTuple):
 
 
 def window_coefficients(image: np.ndarray, window: tuple[int, int, int, int],
-                        out: BSplineCoefficients | None = None) -> BSplineCoefficients:
-    """IC-GN's B-spline coefficients (``prepare_target``) of ``image``'s rows y0:y1, columns x0:x1 (``window``);
-    ``out``: an earlier frame's, overwritten where the window's size is theirs."""
+                        out: BSplineCoefficients | None = None, degree: int = 3) -> BSplineCoefficients:
+    """IC-GN's B-spline coefficients (``prepare_target``, of ``degree`` 3 or 5) of ``image``'s rows y0:y1,
+    columns x0:x1 (``window``); ``out``: an earlier frame's, overwritten where the window's size is theirs."""
     y0, y1, x0, x1 = window
-    return prepare_target(image[y0:y1, x0:x1], out=out)
+    return prepare_target(image[y0:y1, x0:x1], out=out, degree=degree)
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,8 @@ class KernelJob:
     ``run(coefficients)`` refines the prepared points ``points`` from (``u0``, ``v0``) and the start
     shape terms ``shape`` (``ux, uy, vx, vy`` and, for icgn2, its second-order terms) with ``order``
     and ``options`` (``refine_prepared``'s), on ``coefficients(frame)``: the frame's ``window``
-    (y0, y1, x0, x1), to which the prepared data's positions are relative.
+    (y0, y1, x0, x1), to which the prepared data's positions are relative; ``degree``: of the B-spline
+    the frame is sampled with (the tracker's ``interpolation``).
     """
     method: SubpixelMethod
     prep: object
@@ -49,10 +50,11 @@ class KernelJob:
     order: object
     options: dict
     status: np.ndarray | None = None
+    degree: int = 3
 
     def coefficients(self, image: np.ndarray, out: BSplineCoefficients | None = None) -> BSplineCoefficients:
         """``image``'s coefficients on the window (``window_coefficients``; ``out`` an earlier frame's)."""
-        return window_coefficients(image, self.window, out)
+        return window_coefficients(image, self.window, out, self.degree)
 
     def run(self, coefficients: BSplineCoefficients) -> SubpixelResult:
         """The method's sub-pixel result (``SubpixelResult``; icgn2's ``Icgn2Result``) per point of ``points``."""

@@ -41,7 +41,7 @@ from livedic.dic.result import Measurement
 from livedic.dic.status import Status
 from livedic.dic.measure import measure
 from livedic.dic.tracking.results import _SHAPE
-from livedic.dic.tracking.tracker import ICGN_MAX_ITERATIONS, StageTimes, Tracker
+from livedic.dic.tracking.tracker import _FILTER_GUARD, ICGN_MAX_ITERATIONS, StageTimes, Tracker
 from livedic.dic.tracking.update_policy import ReferenceUpdate, UpdatePolicy
 from livedic.dic.bspline import BSplineCoefficients
 from livedic.dic.tracking.kernel_job import KernelJob, WindowCoefficients
@@ -332,8 +332,10 @@ class KeyFrameTracker:
         start_grad = np.where(np.isfinite(grad[guessed]), grad[guessed], 0.0)
         subpixel = self._inner.method.name if self._inner.method.prepared else "icgn"
         first, now, at, shift = _crops(self._first, image, points[idx[guessed]],
-                                       np.column_stack([u[guessed], v[guessed]]), self._inner.subset)
+                                       np.column_stack([u[guessed], v[guessed]]), self._inner.subset,
+                                       self._inner.interpolation.degree)
         m = measure(first, now, at, subset=self._inner.subset, search="none", subpixel=subpixel,
+                    interpolation=self._inner.interpolation,
                     guess=np.column_stack([u[guessed] - shift[0], v[guessed] - shift[1]]), gates=None,
                     subpixel_options={"ux0": start_grad[:, 0], "uy0": start_grad[:, 1], "vx0": start_grad[:, 2],
                                       "vy0": start_grad[:, 3], "max_iterations": ICGN_MAX_ITERATIONS})
@@ -494,14 +496,14 @@ def _same_crack(new, old, distance):
     return offset <= distance and parallel
 
 
-def _crops(first, image, points, displacement, subset):
+def _crops(first, image, points, displacement, subset, degree):
     """Same-size crops of ``first`` around ``points`` and of ``image`` around ``points + displacement``.
 
     Returns (first crop, image crop, points in the first crop, (dx, dy)): a displacement measured
     between the crops plus (dx, dy) is the displacement between the full images. IC-GN's prefilter
     then runs on the few points' neighbourhood, not on the whole frame.
     """
-    margin = subset + 16                       # subset, interpolation margin and prefilter guard
+    margin = subset + 4 + _FILTER_GUARD[degree]    # subset, interpolation margin and prefilter guard
     lo = np.floor(points.min(axis=0)) - margin
     hi = np.ceil(points.max(axis=0)) + margin
     moved = points + displacement

@@ -11,6 +11,7 @@ from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN, BSplineCoefficients
 from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
 from livedic.dic.image_filter import DEFAULT_PREFILTER, Prefilter
+from livedic.dic.interpolation import DEFAULT_INTERPOLATION, Interpolation
 from livedic.dic.measure import measure
 from livedic.dic.neighbours import neighbour_graph
 from livedic.dic.quality import Gates
@@ -37,9 +38,10 @@ REFIND_ZNCC = 0.8
 # Seeded-search options for the swarm methods (see Tracker).
 SEED_SWARM = {"population": 6, "iterations": 8}
 # IC-GN reads each frame on a window around the points: displacement room it starts with (px) and the
-# extra border that keeps the B-spline prefilter's edge effects (pole 2 - sqrt(3): 0.27^12 < 1e-6) away.
+# extra border that keeps the B-spline prefilter's edge effects away, per degree (cubic pole 2 - sqrt(3):
+# 0.27^12 < 1e-6; the quintic's larger pole 0.43 needs 19 px for the same).
 _WINDOW_ALLOWANCE = 48
-_FILTER_GUARD = 12
+_FILTER_GUARD = {3: 12, 5: 19}
 
 # The stages of ``track`` that ``last_timings`` times (``StageTimes``), in the order a frame passes them:
 # prepare = the new frame made ready to sample (the image pre-filter if any, grey float32, the B-spline prefilter
@@ -144,6 +146,9 @@ class Tracker(RefindSteps):
     prefilter : str or dic.image_filter.Prefilter
         Image pre-filter applied to the reference and, once, to every frame ``track`` is given, before
         anything reads them: ``"none"`` (default) or ``"gaussian:SIGMA"`` (``dic.image_filter``).
+    interpolation : str or dic.interpolation.Interpolation
+        The B-spline IC-GN samples each frame with: ``"bspline3"`` (default) or ``"bspline5"`` (``icgn``
+        only; ``dic.interpolation``).
 
     Attributes
     ----------
@@ -185,9 +190,11 @@ class Tracker(RefindSteps):
                  refind_gradient: float = 0.1, refind_search: str | None = None,
                  refind_fallback: str | None = "exhaustive", seed: int = 0, search_options: dict | None = None,
                  seed_search_options: dict | None = None, subpixel_options: dict | None = None,
-                 gates: Gates = Gates(), prefilter: str | Prefilter = DEFAULT_PREFILTER):
+                 gates: Gates = Gates(), prefilter: str | Prefilter = DEFAULT_PREFILTER,
+                 interpolation: str | Interpolation = DEFAULT_INTERPOLATION):
         self.searching = search_method(search)
         self.method = subpixel_method(subpixel)
+        self.interpolation = self.method.checked_interpolation(interpolation)
         if refind_search is None:
             refind_search = search if self.searching.searches else DEFAULT_SEARCH
         if refind_search not in _INTEGER_SEARCHES:
@@ -282,7 +289,7 @@ class Tracker(RefindSteps):
         this window only, not on the whole image.
         """
         height, width = self.reference.shape
-        reach = self.half + INTERPOLATION_MARGIN + _FILTER_GUARD + int(allowance)
+        reach = self.half + INTERPOLATION_MARGIN + _FILTER_GUARD[self.interpolation.degree] + int(allowance)
         x0 = max(int(self._xs.min()) - reach, 0)
         y0 = max(int(self._ys.min()) - reach, 0)
         x1 = min(int(self._xs.max()) + reach + 1, width)
@@ -320,7 +327,7 @@ class Tracker(RefindSteps):
         if window is None or not self.trackable.any():      # nothing to refine: ``track`` makes none either
             return None
         image = self.prefilter.apply(checked_image(image, "frame"))     # as ``track`` filters it
-        return WindowCoefficients(window, window_coefficients(image, window, out))
+        return WindowCoefficients(window, window_coefficients(image, window, out, self.interpolation.degree))
 
     @property
     def window(self) -> tuple[int, int, int, int] | None:
@@ -399,7 +406,8 @@ class Tracker(RefindSteps):
         guess = np.column_stack([start_u, start_v])
         return measure(self.reference, target.grey, points, subset=self.subset, search=search,
                        subpixel=self.subpixel, radius=radius, guess=guess, seed=self.seed,
-                       search_options=options, subpixel_options=self.subpixel_options or None, gates=None)
+                       search_options=options, subpixel_options=self.subpixel_options or None, gates=None,
+                       interpolation=self.interpolation)
 
     def _measure_icgn(self, target, idx, start_u, start_v, search, radius, grads, options):
         """IC-GN on the prepared reference for the points ``idx`` only (after the seeded search, if any)."""
@@ -429,7 +437,8 @@ class Tracker(RefindSteps):
         order = options.pop("order", self._order)
         if np.ndim(order) > 0:
             order = np.asarray(order)[idx]
-        return KernelJob(self.method, self._prep, self._window, idx, u0, v0, grads, order, options, status)
+        return KernelJob(self.method, self._prep, self._window, idx, u0, v0, grads, order, options, status,
+                         self.interpolation.degree)
 
     def kernel_job(self) -> KernelJob | None:
         """The kernel stage of the next ``track`` on its own: a ``KernelJob``, or None (no IC-GN, no point).
@@ -661,7 +670,8 @@ class Tracker(RefindSteps):
         """B-spline coefficients of the current frame on the IC-GN window (computed once per window)."""
         if self._coeffs is None or self._coeffs.window != self._window:
             # the previous frame's buffer is reused (no fresh pages to fault in every frame)
-            self._spare = window_coefficients(self._target.raw, self._window, out=self._spare)
+            self._spare = window_coefficients(self._target.raw, self._window, out=self._spare,
+                                              degree=self.interpolation.degree)
             self._coeffs = WindowCoefficients(self._window, self._spare)
         return self._coeffs.coefficients
 

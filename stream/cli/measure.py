@@ -88,7 +88,7 @@ def measure_command(args: argparse.Namespace) -> int:
     result = measure_with_progress(reference, deformed, points, subset=config.subset, search=config.search,
                                    subpixel=config.subpixel, radius=config.radius, seed=config.seed,
                                    progress=progress, guided=config.guided, gates=Gates(min_zncc=config.min_zncc),
-                                   prefilter=config.prefilter)
+                                   prefilter=config.prefilter, interpolation=config.interpolation)
     columns = {"x": result.x, "y": result.y, "u": result.u, "v": result.v,
                "zncc": result.zncc, "ok": result.ok, "status": result.status.astype(np.int64)}
     for name in ("ux", "uy", "vx", "vy", "iterations", "evaluations"):

@@ -74,17 +74,19 @@ def noise_floor_command(args: argparse.Namespace) -> int:
     for k, image in enumerate(images[1:], start=1):
         result = measure(images[0], image, points, subset=config.subset, search=config.search,
                          subpixel=config.subpixel, radius=config.radius, seed=config.seed, guided=config.guided,
-                         gates=Gates(min_zncc=config.min_zncc), prefilter=config.prefilter)
+                         gates=Gates(min_zncc=config.min_zncc), prefilter=config.prefilter,
+                         interpolation=config.interpolation)
         field, described = _measure_strain(result, strain, step=args.grid, subset=config.subset)
         kept.add(k, result.u, result.v, result.ok, field)
     summary = noise_floor_summary(len(images) - 1, kept.frame_indices, kept.table())
     print(f"livedic noise-floor: {len(images) - 1} static image(s) against {args.images[0]}; {len(points)} points, "
-          f"grid {args.grid} px, subset {config.subset} px, {config.method}, pre-filter {config.prefilter}; "
+          f"grid {args.grid} px, subset {config.subset} px, {config.method}, pre-filter {config.prefilter}, "
+          f"interpolation {config.interpolation}; "
           f"{described}")
     print("\n".join(noise_floor_lines(summary)))
     if args.output is not None:
         summary.update(images=list(args.images), grid_step=args.grid, subset=config.subset, method=config.method,
-                       prefilter=config.prefilter, strain_window=strain.window, scale_px_per_mm=args.scale)
+                       prefilter=config.prefilter, interpolation=config.interpolation, strain_window=strain.window, scale_px_per_mm=args.scale)
         write_text_atomic(args.output, json_text(summary))
         print(f"livedic: written to {args.output}", file=sys.stderr)
     return 0

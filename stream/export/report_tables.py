@@ -106,7 +106,8 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
 
 
 def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
-    """The analysis table: software, subset, step, shape function, interpolant, correlation criterion, search,
+    """The analysis table: software, subset, step, shape function, interpolant (of the recorded
+    ``--interpolation``), correlation criterion, search,
     pre-filter, strain method, window, VSG, strain measure and reference updates."""
     from livedic.dic.subpixel.method import METHODS
     method = METHODS.get(str(session.get("subpixel")))
@@ -120,7 +121,7 @@ def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
         _row("step_px", "step (grid spacing)", step, "px"),
         _row("subpixel", "sub-pixel method", session.get("subpixel")),
         _row("shape_function", "subset shape function", method.shape_function if method else None),
-        _row("interpolant", "grey-level interpolant", method.interpolant if method else None),
+        _interpolant_row(method, session.get("interpolation", "bspline3")),     # recorded before it existed: cubic
         _row("criterion", "correlation criterion", method.criterion if method else None),
         _row("search", "initial guess (integer search)", session.get("search")),
         _prefilter_row(session.get("prefilter", "none")),   # recorded before the option existed: none applied
@@ -131,6 +132,17 @@ def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
         _row("strain_measure", "strain measure", session.get("strain_measure")),
         _row("reference_update", "reference updates", session.get("reference_update")),
     ]
+
+
+def _interpolant_row(method: Any, recorded: Any) -> Row:
+    """The interpolant the method sampled with (``SubpixelMethod.interpolant_for`` the recorded ``--interpolation``)."""
+    if method is None:
+        return _row("interpolant", "grey-level interpolant", None)
+    try:
+        text = method.interpolant_for(recorded)
+    except ValueError:
+        text = f"{method.interpolant} ({recorded}?)"   # a value this version does not know: not reinterpreted
+    return _row("interpolant", "grey-level interpolant", text)
 
 
 def _prefilter_row(recorded: Any) -> Row:

@@ -18,7 +18,7 @@ from livedic.stream.session.config import DEFAULT_POINTS, SessionConfig, Trackin
 METHOD_KEYS = TrackingConfig.keys()
 _INT_KEYS = ("subset", "seed_radius", "refind_radius", "seed")
 # What a recording made before a parameter existed did (replayed that way, not with today's default).
-_BEFORE_KEY = {"reference_update": "never", "prefilter": "none"}
+_BEFORE_KEY = {"reference_update": "never", "prefilter": "none", "interpolation": "bspline3"}
 
 
 def run_defaults() -> dict[str, Any]:

@@ -37,8 +37,10 @@ from livedic.dic.region import Polygon, Rectangle, Region
 from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
 from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.dic.image_filter import DEFAULT_PREFILTER, MAX_SIGMA
-from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_prefilter, check_search, check_subpixel,
-                                           parse_color_range, prefilter_text, search_method, subpixel_method,
+from livedic.dic.interpolation import DEFAULT_INTERPOLATION, INTERPOLATIONS
+from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_interpolation, check_prefilter, check_search,
+                                           check_subpixel, interpolation_name, parse_color_range, prefilter_text,
+                                           search_method, subpixel_method,
                                            parse_exclusion, parse_p0, parse_roi, read_mask)
 from livedic.stream.pipeline.progress import progress_enabled
 from livedic.stream.session.options import add_config_arguments, config_values, option
@@ -91,6 +93,21 @@ def _prefilter_option():
                   brief="image pre-filter: none or gaussian:SIGMA", metavar="FILTER", type=prefilter_text)
 
 
+def _interpolation_option():
+    """``--interpolation``, declared here once for ``run``/``replay`` (``TrackingConfig``) and ``measure``
+    (``MeasureConfig``)."""
+    return option(DEFAULT_INTERPOLATION, f"grey-level interpolant IC-GN samples each frame with: "
+                                         f"{' or '.join(INTERPOLATIONS)} (bicubic or biquintic B-spline; bspline5 "
+                                         f"cuts the sub-pixel interpolation bias ~10x for ~2x the kernel time, icgn "
+                                         f"only; docs/guide/measure.md) (default {{default}})",
+                  brief=f"interpolant: {' or '.join(INTERPOLATIONS)}", metavar="NAME", type=interpolation_name)
+
+
+def _checked_interpolation(name: str, subpixel: str) -> str:
+    """``--interpolation``'s canonical name, checked against the sub-pixel method (ValueError, one line)."""
+    return str(SUBPIXEL[subpixel].checked_interpolation(check_interpolation(name)))
+
+
 # The sub-pixel methods a tracking session takes (not "none": a live session needs sub-pixel values).
 _SUBPIXEL_REFINING = tuple(name for name, method in SUBPIXEL.items() if method.refines)
 
@@ -109,6 +126,8 @@ class TrackingConfig:
     prefilter : str
         Image pre-filter of the reference and every frame (``dic.image_filter``): ``none`` or ``gaussian:SIGMA``,
         kept in its canonical text.
+    interpolation : str
+        The B-spline IC-GN samples each frame with (``dic.interpolation``): ``bspline3`` or ``bspline5``.
     seed_radius, refind_radius : int
         Search radius around the previous result, and for re-finding lost points, pixels (>= 0).
     refind_zncc : float
@@ -130,6 +149,7 @@ class TrackingConfig:
                            brief=f"sub-pixel method: {', '.join(_SUBPIXEL_REFINING)}", metavar="NAME",
                            type=subpixel_method)
     prefilter: str = _prefilter_option()
+    interpolation: str = _interpolation_option()
     seed_radius: int = option(2, "search radius around the previous result, pixels (default {default}: covers "
                                  "1.5 px of motion between two frames; faster motion is caught by the re-find search)",
                               brief="search radius around the previous result, px", metavar="R")
@@ -156,6 +176,7 @@ class TrackingConfig:
             raise ValueError(f"--subpixel {self.subpixel} gives integer displacements only: choose a sub-pixel method "
                              f"(e.g. icgn)")
         object.__setattr__(self, "prefilter", check_prefilter(self.prefilter))
+        object.__setattr__(self, "interpolation", _checked_interpolation(self.interpolation, self.subpixel))
         for name in ("seed_radius", "refind_radius"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{_option(name)} must be >= 0, got {getattr(self, name)}")
@@ -202,6 +223,8 @@ class MeasureConfig:
         Integer search and sub-pixel method (``dic.SEARCH_METHODS``, ``dic.SUBPIXEL_METHODS``).
     prefilter : str
         Image pre-filter of both images (``dic.image_filter``): ``none`` or ``gaussian:SIGMA``.
+    interpolation : str
+        The B-spline IC-GN samples the deformed image with (``dic.interpolation``): ``bspline3`` or ``bspline5``.
     radius : int
         Search radius, pixels (>= 0).
     seed : int
@@ -217,6 +240,7 @@ class MeasureConfig:
     subpixel: str = option("improved-surface-fit", f"sub-pixel method: {', '.join(SUBPIXEL)} (default {{default}})",
                            metavar="NAME", type=subpixel_method)
     prefilter: str = _prefilter_option()
+    interpolation: str = _interpolation_option()
     radius: int = option(DEFAULT_RADIUS, "search radius, pixels (default {default})", metavar="R")
     seed: int = option(0, "seed of the stochastic searches (default {default})")
     min_zncc: float = option(MIN_ZNCC, "a point is ok only if its ZNCC is at least Z (default {default}, measured: no "
@@ -232,6 +256,7 @@ class MeasureConfig:
         check_search(self.search)
         check_subpixel(self.subpixel)
         object.__setattr__(self, "prefilter", check_prefilter(self.prefilter))
+        object.__setattr__(self, "interpolation", _checked_interpolation(self.interpolation, self.subpixel))
         if self.radius < 0:
             raise ValueError(f"--radius must be >= 0, got {self.radius}")
         if not -1.0 <= self.min_zncc <= 1.0:

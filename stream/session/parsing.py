@@ -15,6 +15,7 @@ import numpy as np
 
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.dic.image_filter import Prefilter
+from livedic.dic.interpolation import Interpolation
 from livedic.dic.region import Circle, Polygon, Rectangle, Shape, parse_shape
 
 T = TypeVar("T")
@@ -45,6 +46,11 @@ def check_prefilter(text: object) -> str:
     return str(Prefilter.parse(text))   # type: ignore[arg-type]
 
 
+def check_interpolation(text: object) -> str:
+    """``--interpolation``'s canonical name ("bspline3", "bspline5"), or ValueError (one line; ``dic.interpolation``)."""
+    return str(Interpolation.parse(text))   # type: ignore[arg-type]
+
+
 def argument_type(check: Callable[[str], T]) -> Callable[[str], T]:
     """An argparse ``type=`` from a check: its ValueError message becomes argparse's error as is.
 
@@ -63,6 +69,7 @@ def argument_type(check: Callable[[str], T]) -> Callable[[str], T]:
 search_method = argument_type(check_search)
 subpixel_method = argument_type(check_subpixel)
 prefilter_text = argument_type(check_prefilter)
+interpolation_name = argument_type(check_interpolation)
 
 
 def parse_numbers(text: object, count: int, what: str, example: str) -> list[float]:

@@ -141,3 +141,9 @@ def test_cli_missing_data_folder_is_one_line_exit_2(tmp_path, capsys):
     assert main(["bench", "accuracy", "--data", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "dicc2_star" in err[0]
+
+
+def test_cli_bad_interpolation_is_one_line_exit_2(tmp_path, capsys):
+    assert main(["bench", "accuracy", "--data", str(tmp_path), "--interpolation", "bspline4"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown interpolation 'bspline4'" in err[0]

@@ -41,3 +41,11 @@ def test_bad_arguments_are_one_line_exit_2(capsys, tmp_path):
     assert main(["bench", "tracker", "--frames", "2"]) == 2
     assert main(["bench", "tracker", "--stacks", str(tmp_path / "missing.txt")]) == 2
     assert capsys.readouterr().err.count("\n") == 2
+
+
+def test_interpolation_option_tracks_with_the_quintic_and_refuses_a_bad_name(capsys):
+    assert main(["bench", "tracker", "--size", "256", "--frames", "6", "--interpolation", "bspline5"]) == 0
+    assert "interpolation bspline5" in capsys.readouterr().out
+    assert main(["bench", "tracker", "--frames", "6", "--interpolation", "cubic"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown interpolation 'cubic'" in err

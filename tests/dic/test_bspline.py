@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from livedic.dic.bspline import _HORIZON, GAIN, PAD, POLE, BSplineCoefficients, interpolate, prefilter, sample_shift
+from livedic.dic.bspline import _horizon, GAIN, PAD, POLE, BSplineCoefficients, interpolate, prefilter, sample_shift
 from livedic.dic.subpixel.icgn import prepare_target
 from tests.conftest import blurred_noise
 
@@ -71,9 +71,9 @@ def _filtered_line(line):
     z, n = POLE, len(line)
     if n == 1:
         return list(line)
-    if n > _HORIZON:
+    if n > _horizon(POLE):
         acc, zk = 0.0, 1.0
-        for k in range(_HORIZON):
+        for k in range(_horizon(POLE)):
             acc += zk * line[k]
             zk *= z
     else:
@@ -185,3 +185,84 @@ def test_float32_lanes_falls_back_to_the_avx2_width_without_assembly(monkeypatch
         assert bspline.float32_lanes() == 8
     finally:
         bspline.float32_lanes.cache_clear()
+
+
+# ---------------------------------------------------------------------------
+# quintic B-spline (degree=5)
+
+
+def _quintic(x, y):
+    return _cubic(x, y) + 2e-6 * (x - 30.3) ** 4 - 1e-7 * (y - 31.1) ** 5 + 3e-7 * x * x * y * y * 1e-1
+
+
+@pytest.mark.parametrize("dtype, tol", [(np.float64, 1e-9), (np.float32, 3e-5)])
+def test_quintic_reproduces_samples_at_integer_positions(dtype, tol):
+    image = blurred_noise((37, 53), seed=2).astype(np.float64)
+    coeffs = prefilter(image, dtype=dtype, degree=5)
+    assert coeffs.degree == 5
+    rows, cols = np.mgrid[0:37, 0:53]
+    values = interpolate(coeffs, cols, rows)
+    assert np.max(np.abs(values - image)) <= tol * np.max(np.abs(image))
+
+
+def test_quintic_reproduces_polynomials_up_to_degree_5_and_their_gradient():
+    rows, cols = np.mgrid[0:72, 0:72].astype(np.float64)
+    image = _quintic(cols, rows)
+    coeffs = prefilter(image, dtype=np.float64, degree=5)
+    rng = np.random.default_rng(0)
+    # away from the mirror boundary (its effect decays as 0.43^distance)
+    x = rng.uniform(30, 41, 400)
+    y = rng.uniform(30, 41, 400)
+    values, gx, gy = interpolate(coeffs, x, y, gradient=True)
+    h = 1e-5
+    np.testing.assert_allclose(values, _quintic(x, y), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(gx, (_quintic(x + h, y) - _quintic(x - h, y)) / (2 * h), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(gy, (_quintic(x, y + h) - _quintic(x, y - h)) / (2 * h), rtol=0, atol=1e-6)
+
+
+def test_quartic_is_reproduced_by_the_quintic_not_by_the_cubic():
+    rows, cols = np.mgrid[0:64, 0:64].astype(np.float64)
+    image = 1e-3 * (cols - 30.3) ** 4
+    x = np.array([31.5, 32.25, 30.7])
+    y = np.array([30.0, 30.0, 33.4])
+    truth = 1e-3 * (x - 30.3) ** 4
+    assert np.max(np.abs(interpolate(image, x, y, degree=5) - truth)) < 1e-9
+    assert np.max(np.abs(interpolate(image, x, y, degree=3) - truth)) > 1e-5
+
+
+def test_quintic_matches_scipy_spline_with_mirror_boundaries():
+    ndimage = pytest.importorskip("scipy.ndimage")
+    image = blurred_noise((30, 41), seed=5).astype(np.float64)
+    coeffs = prefilter(image, dtype=np.float64, degree=5)
+    interior = coeffs.coefficients[PAD:-PAD, PAD:-PAD]
+    np.testing.assert_allclose(interior, ndimage.spline_filter(image, order=5, mode="mirror"), atol=1e-9)
+    rng = np.random.default_rng(1)
+    # the whole domain, the borders included (taps reach 3 px right of floor(x): the padding)
+    x = np.concatenate([rng.uniform(0, 40, 300), [0.0, 40.0, 39.99, 0.3]])
+    y = np.concatenate([rng.uniform(0, 29, 300), [0.0, 29.0, 28.7, 28.99]])
+    expected = ndimage.map_coordinates(image, [y, x], order=5, mode="mirror")
+    np.testing.assert_allclose(interpolate(coeffs, x, y), expected, atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (2, 40), (33, 70)])
+def test_quintic_prefilter_round_trips_small_and_odd_shapes(shape):
+    """Lines shorter than the poles' horizons (exact periodic initial sums) as well as long ones."""
+    ndimage = pytest.importorskip("scipy.ndimage")
+    image = blurred_noise(shape, seed=3).astype(np.float64)
+    coeffs = prefilter(image, dtype=np.float64, degree=5)
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    np.testing.assert_allclose(interpolate(coeffs, cols, rows), image, atol=1e-9)
+    if min(shape) > 8:      # scipy's initial sums of very short lines are rounded to float32
+        np.testing.assert_allclose(coeffs.coefficients[PAD:-PAD, PAD:-PAD],
+                                   ndimage.spline_filter(image, order=5, mode="mirror"), atol=1e-9)
+
+
+def test_prefilter_degree_is_checked_and_a_buffer_of_another_degree_is_not_reused():
+    image = blurred_noise((20, 24), seed=1)
+    cubic = prefilter(image)
+    quintic = prefilter(image, out=cubic, degree=5)
+    assert quintic is not cubic and quintic.degree == 5 and cubic.degree == 3
+    assert prefilter(image, out=quintic, degree=5) is quintic
+    for bad in (4, "5", True, 3.5):
+        with pytest.raises(ValueError, match="degree must be one of 3, 5"):
+            prefilter(image, degree=bad)

@@ -336,6 +336,8 @@ def test_bad_arguments_raise(pattern):
     for bad in (-1.0, np.inf, True):
         with pytest.raises(ValueError, match="curvature_threshold"):
             icgn2.prepare_from(prep.first, curvature_threshold=bad)
+    with pytest.raises(ValueError, match="cubic B-spline only"):
+        icgn2.refine_prepared(prep, icgn.prepare_target(ref, degree=5), [0.0], [0.0])
 
 
 def test_measure_with_icgn2_guided_and_plain(pattern):

@@ -95,16 +95,20 @@ def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
     assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").kernel_job() is None
 
 
-@pytest.mark.parametrize("prefilter", ["none", "gaussian:0.6"])
-def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter):
+@pytest.mark.parametrize("prefilter, interpolation", [("none", "bspline3"), ("gaussian:0.6", "bspline3"),
+                                                       ("none", "bspline5")])
+def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter, interpolation):
     """``track(image, ahead=coefficients_ahead(image))`` (the live session's prefilter in the acquisition thread,
     one frame ahead of the tracker) is ``track(image)``, bit for bit; coefficients made on a window the tracker
     has grown since are made again, not misread."""
     source, frames = translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
     points = grid_in_roi(source.shape, (100, 100, 56, 56), 14, 21)
-    plain = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter)
-    ahead = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter)
+    plain = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter,
+                            interpolation=interpolation)
+    ahead = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter,
+                            interpolation=interpolation)
     made = ahead.coefficients_ahead(frames[1].image)
+    assert made.coefficients.degree == int(interpolation[-1])
     stale = 0
     for i, frame in enumerate(frames[1:], 1):
         current = made
@@ -220,3 +224,19 @@ def test_zncc_stays_within_one_for_a_frame_tracked_against_itself():
     first = Tracker(frames[0].image, points).track(frames[0].image)
     assert first.ok.all() and first.zncc.dtype == np.float64
     assert np.all(first.zncc <= 1.0) and np.all(first.zncc > 0.999)
+
+
+def test_quintic_interpolation_tracks_and_refuses_methods_without_it():
+    """``interpolation="bspline5"``: the kernel job and the window coefficients are quintic, the sequence is
+    followed; icgn2 and the surface fits refuse it in one line."""
+    source, frames = translate_frames("frames=6&size=160x160&du=0.35&dv=-0.2&noise=0")
+    points = grid_in_roi(source.shape, source.suggested_roi, 16, 21)
+    tracker = Tracker(frames[0].image, points, interpolation="bspline5")
+    assert str(tracker.interpolation) == "bspline5"
+    for frame in frames[1:]:
+        m = tracker.track(frame.image)
+        assert m.ok.all() and np.max(errors_to_truth(frame, m)) < 0.05
+    assert tracker.kernel_job().degree == 5
+    for subpixel in ("icgn2", "improved-surface-fit"):
+        with pytest.raises(ValueError, match="--interpolation bspline5 is not available"):
+            Tracker(frames[0].image, points, subpixel=subpixel, interpolation="bspline5")

@@ -62,6 +62,21 @@ def test_the_prefilter_option_filters_both_images_as_dic_measure_does(image_pair
     assert all(abs(float(row["u"]) - SHIFT[0]) < 0.02 and abs(float(row["v"]) - SHIFT[1]) < 0.02 for row in rows)
 
 
+def test_the_interpolation_option_reaches_dic_measure(image_pair, capsys):
+    """``--interpolation bspline5``: the CSV is ``dic.measure``'s quintic result, not the cubic one."""
+    from livedic.acquire.files.image_file import read_grey_image
+    from livedic.dic import measure
+    code = main(["measure", image_pair["ref", 8], image_pair["def", 8], "--grid", "30", "--subpixel", "icgn",
+                 "--radius", "4", "--interpolation", "BSpline5"])
+    rows = _rows(capsys.readouterr().out)
+    assert code == 0 and all(row["ok"] == "1" for row in rows)
+    points = [(float(row["x"]), float(row["y"])) for row in rows]
+    images = [read_grey_image(image_pair[name, 8])[0] for name in ("ref", "def")]
+    expected = measure(*images, points, subpixel="icgn", radius=4, interpolation="bspline5")
+    cubic = measure(*images, points, subpixel="icgn", radius=4)
+    assert [float(row["u"]) for row in rows] == expected.u.tolist() != cubic.u.tolist()
+
+
 def test_points_file_and_output_file(image_pair, tmp_path):
     points = tmp_path / "points.csv"
     points.write_text("x,y\n60,60\n70.4,50\n2,2\n")
@@ -85,6 +100,9 @@ def test_points_file_and_output_file(image_pair, tmp_path):
     (["--grid", "20", "--subpixel", "nope"], "unknown sub-pixel method"),
     (["--grid", "20", "--prefilter", "gaussian:0"], "SIGMA must be > 0 and <= 2 px"),
     (["--grid", "20", "--prefilter", "blur"], "unknown pre-filter 'blur'"),
+    (["--grid", "20", "--interpolation", "spline"], "unknown interpolation 'spline'"),
+    (["--grid", "20", "--interpolation", "bspline5"], "--interpolation bspline5 is not available with --subpixel "
+                                                      "improved-surface-fit: use it with icgn"),
 ])
 def test_bad_options_give_one_line_and_exit_2(image_pair, capsys, extra, message):
     code = main(["measure", image_pair["ref", 8], image_pair["def", 8], *extra])

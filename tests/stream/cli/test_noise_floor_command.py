@@ -60,8 +60,9 @@ def test_the_prefilter_is_applied_and_said(static_images, tmp_path, capsys):
         out = tmp_path / f"{prefilter}.json"
         assert main(["noise-floor", *paths[:3], "--grid", "16", "--prefilter", prefilter, "-o", str(out)]) == 0
         floors[prefilter] = json.loads(out.read_text())
-    assert ", pre-filter gaussian:0.8; " in capsys.readouterr().out
+    assert ", pre-filter gaussian:0.8, interpolation bspline3; " in capsys.readouterr().out
     assert [floors[key]["prefilter"] for key in floors] == ["none", "gaussian:0.8"]
+    assert all(floors[key]["interpolation"] == "bspline3" for key in floors)
     assert floors["none"]["table"][0]["spatial_sd"] != floors["gaussian:0.80"]["table"][0]["spatial_sd"]
 
 

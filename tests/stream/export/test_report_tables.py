@@ -35,6 +35,13 @@ def test_the_analysis_table_describes_the_method_that_ran():
     assert table["shape_function"] == METHODS["icgn2"].shape_function and "second order" in table["shape_function"]
     assert table["interpolant"] == METHODS["icgn2"].interpolant and "B-spline" in table["interpolant"]
     assert table["vsg_px"] == 85.0 and table["strain_measure"] == "green" and table["prefilter"] == "none"
+    # the interpolant of the recorded --interpolation; recordings without it sampled the cubic
+    quintic = rows_json(analysis_rows(dict(session, subpixel="icgn", interpolation="bspline5")))
+    assert "biquintic B-spline" in quintic["interpolant"]
+    assert "bicubic B-spline" in rows_json(analysis_rows(dict(session, subpixel="icgn")))["interpolant"]
+    assert "bspline9" in rows_json(analysis_rows(dict(session, subpixel="icgn", interpolation="bspline9")))["interpolant"]
+    surface = rows_json(analysis_rows(dict(session, subpixel="improved-surface-fit")))
+    assert surface["interpolant"] == METHODS["improved-surface-fit"].interpolant
     # an unknown method is not described by another's traits
     assert rows_json(analysis_rows({"subpixel": "mystery"}))["shape_function"] is None
 

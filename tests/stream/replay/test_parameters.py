@@ -7,7 +7,7 @@ from livedic.stream.session.config import DEFAULT_POINTS, TrackingConfig
 
 RECORDED = {"subset": 31, "search": "fft-cc", "subpixel": "icgn", "seed_radius": 3, "refind_radius": 12,
             "refind_zncc": 0.7, "min_zncc": 0.6, "seed": 5, "reference_update": "never",
-            "prefilter": "gaussian:0.6"}
+            "prefilter": "gaussian:0.6", "interpolation": "bspline5"}
 
 
 def test_run_defaults_are_the_tracking_configs_and_the_default_point_count():
@@ -35,8 +35,10 @@ def test_missing_values_take_run_defaults_with_a_note_each_but_reference_update_
     assert recorded == {}
     assert used["reference_update"] == "never"          # recordings from before the option never moved it
     assert used["prefilter"] == "none"                  # ... nor filtered their images, whatever the default now
-    assert all(used[key] == defaults[key] for key in METHOD_KEYS if key not in ("reference_update", "prefilter"))
-    assert len(notes) == len(METHOD_KEYS) - 2
+    assert used["interpolation"] == "bspline3"          # ... and sampled with the cubic B-spline
+    before = ("reference_update", "prefilter", "interpolation")
+    assert all(used[key] == defaults[key] for key in METHOD_KEYS if key not in before)
+    assert len(notes) == len(METHOD_KEYS) - len(before)
     assert "the recording does not say which subset it used: using livedic run's default 21" in notes
 
 

@@ -19,6 +19,15 @@ def _one_line_error(make, words):
 
 # --------------------------------------------------------------------------- tracking and measure
 
+
+@pytest.mark.parametrize("config", [TrackingConfig, MeasureConfig])
+def test_interpolation_is_canonical_and_checked_against_the_method(config):
+    assert config(subpixel="icgn", interpolation="BSPLINE5").interpolation == "bspline5"
+    assert config().interpolation == "bspline3"
+    _one_line_error(lambda: config(subpixel="icgn2", interpolation="bspline5"),
+                    "--interpolation bspline5 is not available with --subpixel icgn2: use it with icgn")
+    _one_line_error(lambda: config(interpolation="bspline2"), "unknown interpolation 'bspline2'")
+
 @pytest.mark.parametrize("settings, words", [
     (dict(subset=20), "--subset must be an odd integer >= 3, got 20"),
     (dict(subset=1), "--subset must be an odd integer >= 3, got 1"),

@@ -8,9 +8,16 @@ import pytest
 
 from livedic.dic import SEARCH_METHODS, SUBPIXEL_METHODS
 from livedic.dic.region import Circle, Polygon, Rectangle
-from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, UsageError, argument_type, check_search,
+from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, UsageError, argument_type, check_interpolation,
+                                            check_search,
                                             check_subpixel, parse_color_range, parse_exclusion, parse_numbers,
                                             parse_p0, parse_roi, read_mask, search_method)
+
+
+def test_interpolation_names_are_checked_and_canonical():
+    assert check_interpolation(" BSpline5") == "bspline5" and check_interpolation("bspline3") == "bspline3"
+    with pytest.raises(ValueError, match="^unknown interpolation 'cubic': choose one of bspline3, bspline5$"):
+        check_interpolation("cubic")
 
 
 def test_method_names_are_checked():
