@@ -6,10 +6,11 @@ from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration,
                                             distort_points, image_points, plane_points, undistort_points)
 from livedic.dic.calibration.solve import (DEFAULT_MAX_ERROR_PX, MIN_VIEWS, CalibrationRefused, calibrate,
                                            plane_from_homography, plane_scale)
+from livedic.dic.calibration.stereo import PairFit, StereoCalibration
 from livedic.dic.calibration.targets import (Detection, NotFound, NotFoundReason, TargetSpec, detect_target,
                                              parse_target)
 
 __all__ = ["CalibrationError", "CalibrationRefused", "CameraCalibration", "DEFAULT_MAX_ERROR_PX", "Detection",
-           "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PlaneFrame", "PlaneScale", "TargetSpec", "calibrate",
+           "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PairFit", "PlaneFrame", "PlaneScale", "StereoCalibration", "TargetSpec", "calibrate",
            "detect_target", "distort_points", "image_points", "parse_target", "plane_from_homography", "plane_points", "plane_scale",
            "undistort_points"]
