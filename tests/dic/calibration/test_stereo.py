@@ -13,7 +13,7 @@ def _rig(angle_deg: float = 20.0, baseline_mm: float = 120.0) -> StereoCalibrati
     left = CameraCalibration((1024, 768), K, np.zeros(5), 0.05, (), "chessboard:9x6", 5.0)
     right = CameraCalibration((1024, 768), K * [[1.01], [1.01], [1.0]], np.zeros(5), 0.05, (), "chessboard:9x6", 5.0)
     # the right camera sits baseline_mm to the left camera's right, turned towards the specimen about y
-    rotation, _ = cv2.Rodrigues(np.array([0.0, -np.radians(angle_deg), 0.0]))
+    rotation, _ = cv2.Rodrigues(np.array([0.0, np.radians(angle_deg), 0.0]))
     centre_right = np.array([baseline_mm, 0.0, 0.0])
     return StereoCalibration(left, right, rotation, -rotation @ centre_right, 0.07,
                              (PairFit("l0.png", "r0.png", 54, 0.05, 0.06),))
