@@ -17,9 +17,12 @@ from livedic.dic.subpixel.method import SubpixelMethod
 
 class WindowCoefficients(NamedTuple):
     """A frame's B-spline coefficients on an IC-GN ``window`` (y0, y1, x0, x1), made before ``track`` needs them
-    (``Tracker.coefficients_ahead``): valid for any tracker whose window is the same, whatever its reference."""
+    (``Tracker.coefficients_ahead``): valid for any tracker whose window is the same, whatever its reference.
+    ``filtered``: the whole frame after the tracker's image pre-filter (``dic.image_filter``), so ``track`` does
+    not filter it again; None without a pre-filter."""
     window: tuple[int, int, int, int]
     coefficients: BSplineCoefficients
+    filtered: np.ndarray | None = None
 
 
 def window_coefficients(image: np.ndarray, window: tuple[int, int, int, int],

@@ -149,7 +149,11 @@ class KeyFrameTracker:
                            ) -> WindowCoefficients | None:
         """``Tracker.coefficients_ahead`` on the current key frame's window (any thread), of the image
         pre-filtered as ``track`` filters it."""
-        return self._inner.coefficients_ahead(self.prefilter.apply(image), out)
+        if not self.prefilter.active:
+            return self._inner.coefficients_ahead(image, out)
+        filtered = self.prefilter.apply(image)
+        ahead = self._inner.coefficients_ahead(filtered, out)
+        return None if ahead is None else ahead._replace(filtered=filtered)
 
     def track(self, image: np.ndarray, *, ahead: WindowCoefficients | None = None) -> Measurement:
         """Displacement of every material point from the first frame to ``image`` (a ``Measurement``);
@@ -157,7 +161,7 @@ class KeyFrameTracker:
         tracker = self._inner
         times = StageTimes()
         with times.stage("prepare"):
-            image = self.prefilter.apply(image)
+            image = ahead.filtered if ahead is not None and ahead.filtered is not None else self.prefilter.apply(image)
         filtering = times.ns["prepare"]
         inner = tracker.track(image, ahead=ahead)
         times.ns.update(tracker.last_timings)

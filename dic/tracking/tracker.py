@@ -326,8 +326,16 @@ class Tracker(RefindSteps):
         window = self._window
         if window is None or not self.trackable.any():      # nothing to refine: ``track`` makes none either
             return None
-        image = self.prefilter.apply(checked_image(image, "frame"))     # as ``track`` filters it
-        return WindowCoefficients(window, window_coefficients(image, window, out, self.interpolation.degree))
+        filtered = self.prefilter.apply(checked_image(image, "frame"))     # as ``track`` filters it
+        return WindowCoefficients(window, window_coefficients(filtered, window, out, self.interpolation.degree),
+                                  filtered if self.prefilter.active else None)
+
+    def _filtered(self, image: np.ndarray, ahead: WindowCoefficients | None) -> np.ndarray:
+        """``image`` after the pre-filter: the one ``coefficients_ahead`` made when it came with ``ahead``."""
+        checked = checked_image(image, "frame")
+        if ahead is not None and ahead.filtered is not None and ahead.filtered.shape == checked.shape:
+            return ahead.filtered
+        return self.prefilter.apply(checked)
 
     @property
     def window(self) -> tuple[int, int, int, int] | None:
@@ -488,7 +496,7 @@ class Tracker(RefindSteps):
         """
         times = StageTimes()
         with times.stage("prepare"):
-            target = _Frame(self.prefilter.apply(checked_image(image, "frame")))
+            target = _Frame(self._filtered(image, ahead))
         if target.raw.shape != self.reference.shape:
             raise ValueError(f"frame is {target.raw.shape[1]}x{target.raw.shape[0]} but the reference is "
                              f"{self.reference.shape[1]}x{self.reference.shape[0]}: frames must keep the size")

@@ -5,6 +5,7 @@ import time
 import numpy as np
 import pytest
 
+from livedic.dic.image_filter import Prefilter
 from livedic.dic.status import Status
 from livedic.dic.tracking.key_frames import KeyFrameTracker
 from livedic.dic.tracking import TRACKER_STAGES, Tracker, grid_in_roi
@@ -97,10 +98,16 @@ def test_kernel_job_is_the_kernel_stage_on_the_same_points_and_start():
 
 @pytest.mark.parametrize("prefilter, interpolation", [("none", "bspline3"), ("gaussian:0.6", "bspline3"),
                                                        ("none", "bspline5")])
-def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter, interpolation):
+def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter, interpolation, monkeypatch):
     """``track(image, ahead=coefficients_ahead(image))`` (the live session's prefilter in the acquisition thread,
     one frame ahead of the tracker) is ``track(image)``, bit for bit; coefficients made on a window the tracker
-    has grown since are made again, not misread."""
+    has grown since are made again, not misread; a frame is pre-filtered once (ahead), not again in ``track``."""
+    filtered_in_track = []
+    apply = Prefilter.apply
+
+    def counted(self, image):
+        filtered_in_track.append(self.active)
+        return apply(self, image)
     source, frames = translate_frames("frames=12&size=256x256&du=4&dv=-3&noise=0.5")
     points = grid_in_roi(source.shape, (100, 100, 56, 56), 14, 21)
     plain = KeyFrameTracker(frames[0].image, points, reference_update="every:4", prefilter=prefilter,
@@ -114,12 +121,17 @@ def test_coefficients_made_ahead_give_the_same_result_bit_for_bit(prefilter, int
         current = made
         if i + 1 < len(frames):        # the next frame's, made before this one is tracked (another buffer)
             made = ahead.coefficients_ahead(frames[i + 1].image, None if i == 1 else previous.coefficients)
-        want, got = plain.track(frame.image), ahead.track(frame.image, ahead=current)
+        want = plain.track(frame.image)
+        monkeypatch.setattr(Prefilter, "apply", counted)
+        got = ahead.track(frame.image, ahead=current)
+        monkeypatch.setattr(Prefilter, "apply", apply)
         for name in ("u", "v", "ux", "vy", "zncc", "status"):
             np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
         stale += current.window != ahead.window
         previous = current
     assert stale >= 1                   # the window grew at least once between a frame's coefficients and its track
+    assert not any(filtered_in_track)   # no frame given with its coefficients was filtered again
+    assert (made.filtered is not None) == (prefilter != "none")
     assert Tracker(frames[0].image, points, subpixel="improved-surface-fit").coefficients_ahead(frames[1].image) is None
     blank = np.full_like(frames[0].image, 100)           # no texture: no point to refine, no coefficients made
     assert Tracker(blank, points).coefficients_ahead(blank) is None
