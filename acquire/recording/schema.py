@@ -20,6 +20,11 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
 TOPIC_IMAGE = "/camera/image"
 TOPIC_FRAME_INFO = "/camera/frame_info"
+# A stereo session's second camera; the first (left) keeps /camera/image, so a 2D reader sees the left view.
+TOPIC_RIGHT_IMAGE = "/camera/right/image"
+TOPIC_RIGHT_FRAME_INFO = "/camera/right/frame_info"
+VIEWS = ("left", "right")
+VIEW_TOPICS = {"left": (TOPIC_IMAGE, TOPIC_FRAME_INFO), "right": (TOPIC_RIGHT_IMAGE, TOPIC_RIGHT_FRAME_INFO)}
 TOPIC_RESULTS = "/dic/results"
 TOPIC_STRAIN = "/dic/strain"
 TOPIC_EXTENSOMETERS = "/dic/extensometers"

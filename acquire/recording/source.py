@@ -9,7 +9,7 @@ import os
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 import numpy as np
 from mcap.opcode import Opcode
@@ -39,7 +39,8 @@ def _as_source_errors() -> Iterator[None]:
 
 
 class McapSource(FrameSource):
-    """Frames from a livedic recording's ``/camera/image`` channel.
+    """Frames from a livedic recording's ``/camera/image`` channel (a stereo recording's right view:
+    ``/camera/right/image``).
 
     Parameters
     ----------
@@ -47,6 +48,8 @@ class McapSource(FrameSource):
     realtime : bool
         Sleep so that frames come at the recorded pace (log time deltas); otherwise
         as fast as possible.
+    view : {"left", "right"}
+        Which camera of a stereo recording (a 2D recording has the left only).
 
     Frames have the recorded index (MCAP sequence, or ``/camera/frame_info``),
     timestamp (the message log time), pixel format and metadata. Images are
@@ -61,11 +64,20 @@ class McapSource(FrameSource):
         iteration, at a corrupt record (frames before it have been delivered).
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, realtime: bool = False) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, realtime: bool = False,
+                 view: Literal["left", "right"] = "left") -> None:
+        if view not in rs.VIEW_TOPICS:
+            raise ValueError(f"view must be one of {', '.join(rs.VIEWS)}, got {view!r}")
         with _as_source_errors():
             self._recording = Recording(path)
         self.path = self._recording.path
-        self.uri = f"mcap:{self.path}"
+        self.view = view
+        self._topics = rs.VIEW_TOPICS[view]
+        if view != "left" and not any(channel.topic == self._topics[0]
+                                      for channel in self._recording.channels.values()):
+            raise RecordingSourceError(f"{self._recording.name} has no {view} view ({self._topics[0]}): "
+                                       "it is not a stereo recording")
+        self.uri = f"mcap:{self.path}" + ("" if view == "left" else f"?view={view}")
         self.realtime = bool(realtime)
         self._closed = False
         try:
@@ -100,11 +112,12 @@ class McapSource(FrameSource):
         recording = self._recording
         pending_info = None
         first: tuple[float, int] | None = None
-        for channel, message in recording.messages({rs.TOPIC_IMAGE, rs.TOPIC_FRAME_INFO}):
+        image_topic, info_topic = self._topics
+        for channel, message in recording.messages({image_topic, info_topic}):
             if self._closed:
                 return
             schema = recording.schema_name(channel)
-            if channel.topic == rs.TOPIC_FRAME_INFO:
+            if channel.topic == info_topic:
                 if schema == rs.FRAME_INFO_SCHEMA:
                     pending_info = self._frame_info(message)
                 continue

@@ -135,7 +135,7 @@ class Recorder:
                  chunk_bytes: int = DEFAULT_CHUNK_BYTES, compression: str | None = None,
                  flush_interval_s: float = 0.25, fsync_interval_s: float | None = 1.0,
                  on_error: Callable[[str], object] | None = None, overwrite: bool = False,
-                 start_time_ns: int | None = None) -> None:
+                 start_time_ns: int | None = None, stereo: bool = False) -> None:
         if not isinstance(session_metadata, Mapping):
             raise TypeError(f"session_metadata must be a dict, got {type(session_metadata).__name__}")
         if not isinstance(chunk_bytes, (int, np.integer)) or chunk_bytes <= 0:
@@ -147,8 +147,10 @@ class Recorder:
         if fsync_interval_s is not None and fsync_interval_s <= 0:
             raise ValueError(f"fsync_interval_s must be > 0 or None, got {fsync_interval_s!r}")
         self.path = os.fspath(path)
+        self.stereo = bool(stereo)
         self.error: str | None = None
         self.frames_written = self.results_written = self.events_written = 0
+        self.right_frames_written = self.right_frames_dropped = 0
         self.frames_dropped = self.results_dropped = self.events_dropped = 0
         self.strain_written = self.extensometers_written = self.force_written = 0
         self.strain_dropped = self.extensometers_dropped = self.force_dropped = 0
@@ -196,8 +198,9 @@ class Recorder:
             self._cw = ChunkedWriter(self._file, chunk_bytes=chunk_bytes, compression=compression,
                                       library=library_name(), flush_interval_s=self._flush_interval_s)
             channel = self._channel
-            self._ch_image = channel(rs.TOPIC_IMAGE, rs.RAW_IMAGE_SCHEMA)
-            self._ch_info = channel(rs.TOPIC_FRAME_INFO, rs.FRAME_INFO_SCHEMA)
+            self._view_channels = {view: (channel(image, rs.RAW_IMAGE_SCHEMA), channel(info, rs.FRAME_INFO_SCHEMA))
+                                   for view, (image, info) in rs.VIEW_TOPICS.items()
+                                   if view == "left" or self.stereo}
             self._ch_results = channel(rs.TOPIC_RESULTS, rs.FRAME_RESULTS_SCHEMA)
             self._ch_events = channel(rs.TOPIC_EVENTS, rs.EVENT_SCHEMA)
             self._ch_strain = channel(rs.TOPIC_STRAIN, rs.STRAIN_FIELD_SCHEMA)
@@ -246,13 +249,15 @@ class Recorder:
     def closed(self) -> bool:
         return self._closed
 
-    def write_frame(self, frame: Frame) -> bool:
-        """Record ``frame`` (an ``acquire.base.Frame``) on ``/camera/image``.
+    def write_frame(self, frame: Frame, view: Literal["left", "right"] = "left") -> bool:
+        """Record ``frame`` (an ``acquire.base.Frame``) on ``/camera/image`` (``view`` "right": a stereo
+        recorder's ``/camera/right/image``).
 
         The image becomes a ``foxglove.RawImage`` (mono8 for uint8, mono16 for uint16)
         with log time ``frame.timestamp_ns`` and MCAP sequence ``frame.index mod 2**32``.
         A ``/camera/frame_info`` message goes with it when the frame has metadata, a pixel
-        format other than Mono8/Mono16 (e.g. Mono12), or an index >= 2**32.
+        format other than Mono8/Mono16 (e.g. Mono12), or an index >= 2**32. The right view's
+        frames count in ``right_frames_written`` / ``right_frames_dropped``, not in ``frames_*``.
 
         Returns
         -------
@@ -260,8 +265,12 @@ class Recorder:
             True if accepted (counted in ``*_written``), False if dropped (counted in
             ``*_dropped``) because recording has stopped, or stopped on this write.
         """
-        if self._refused("frames"):
+        if view not in self._view_channels:
+            raise ValueError(f"view must be one of {sorted(self._view_channels)} for this recorder, got {view!r}"
+                             + ("" if self.stereo else " (a right view needs Recorder(..., stereo=True))"))
+        if self._refused("frames" if view == "left" else "right_frames"):
             return False
+        channel_image, channel_info = self._view_channels[view]
         image = frame.image
         encoding = wire.image_encoding(image)
         timestamp_ns = _log_time(frame.timestamp_ns, "frame.timestamp_ns")
@@ -280,12 +289,13 @@ class Recorder:
             now = time.time_ns()
             sequence = index & 0xFFFFFFFF
             if info is not None:
-                self._cw.add("image", self._ch_info, timestamp_ns, info, publish_time=now, sequence=sequence)
-            self._cw.add("image", self._ch_image, timestamp_ns, payload, publish_time=now,
-                         sequence=sequence, count_as="frame")
-            self._last_frame = (timestamp_ns, time.monotonic_ns())
+                self._cw.add("image", channel_info, timestamp_ns, info, publish_time=now, sequence=sequence)
+            self._cw.add("image", channel_image, timestamp_ns, payload, publish_time=now,
+                         sequence=sequence, count_as="frame" if view == "left" else "right_frame")
+            if view == "left":
+                self._last_frame = (timestamp_ns, time.monotonic_ns())
 
-        return self._write("frames", "write_frame", timestamp_ns, add)
+        return self._write("frames" if view == "left" else "right_frames", "write_frame", timestamp_ns, add)
 
     def write_results(self, frame_index: int, timestamp_ns: int, point_ids: npt.ArrayLike, x: npt.ArrayLike,
                       y: npt.ArrayLike, u: npt.ArrayLike, v: npt.ArrayLike, zncc: npt.ArrayLike, ok: npt.ArrayLike,

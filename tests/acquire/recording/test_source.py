@@ -84,6 +84,33 @@ def test_not_a_recording_is_a_source_error_of_one_line(tmp_path):
     assert isinstance(pytest.raises(RecordingSourceError, McapSource, path).value, SourceError)
 
 
+def test_a_stereo_recording_gives_each_view_its_own_frames_and_a_2d_reader_the_left(tmp_path, recording):
+    """Both cameras' frames interleaved in one file come back per view, bit for bit and in order (the right
+    view's 16-bit frames with their own pixel format and metadata); a 2D reader sees the left view; asking a 2D
+    recording for its right view is one line; a 2D recorder refuses a right frame."""
+    path = tmp_path / "stereo.mcap"
+    rng = np.random.default_rng(3)
+    left = [rng.integers(0, 255, (5, 6), dtype=np.uint8) for _ in range(4)]
+    right = [rng.integers(0, 4095, (5, 6), dtype=np.uint16) for _ in range(4)]
+    with Recorder(path, {"source_uri": "stereo:a,b"}, stereo=True) as rec:
+        for k in range(4):
+            assert rec.write_frame(Frame(k, T0 + 10 * k, left[k], "Mono8"))
+            assert rec.write_frame(Frame(k, T0 + 10 * k + 1, right[k], "Mono12", metadata={"view": "right"}),
+                                   view="right")
+        assert (rec.frames_written, rec.right_frames_written) == (4, 4)
+    got_left, got_right = list(McapSource(path)), list(McapSource(path, view="right"))
+    assert [f.index for f in got_left] == [f.index for f in got_right] == [0, 1, 2, 3]
+    assert all(np.array_equal(f.image, im) for f, im in zip(got_left, left))
+    assert all(np.array_equal(f.image, im) and f.pixel_format == "Mono12" and f.metadata == {"view": "right"}
+               for f, im in zip(got_right, right))
+    assert [f.timestamp_ns for f in got_right] == [T0 + 10 * k + 1 for k in range(4)]
+    assert McapSource(path, view="right").uri == f"mcap:{path}?view=right"
+    message = one_line_error(lambda: McapSource(recording[0], view="right"), RecordingSourceError)
+    assert "no right view (/camera/right/image)" in message
+    with Recorder(tmp_path / "mono.mcap", {}) as rec, pytest.raises(ValueError, match="stereo=True"):
+        rec.write_frame(Frame(0, T0, left[0], "Mono8"), view="right")
+
+
 # ----------------------------------------------------------------------------- FrameReader
 
 def test_frame_reader_reads_any_frame_as_the_source_gives_it(recording, tmp_path):
