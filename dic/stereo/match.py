@@ -178,7 +178,8 @@ def view_homography(calibration: StereoCalibration, point_mm: np.ndarray) -> np.
     normal /= np.linalg.norm(normal)
     distance = np.asarray(point_mm, dtype=np.float64).reshape(-1, 3) @ normal
     K_left_inverse = np.linalg.inv(calibration.left.camera_matrix)
-    plane = calibration.rotation[None] + (calibration.translation_mm[:, None] * normal[None, :])[None] / distance[:, None, None]
+    shift = np.outer(calibration.translation_mm, normal)
+    plane = calibration.rotation[None] + shift[None] / distance[:, None, None]
     return calibration.right.camera_matrix[None] @ plane @ K_left_inverse[None]
 
 

@@ -38,7 +38,8 @@ def facing_pose(stereo: StereoRig, angle_deg: float = 25.0, tilt_deg: float = 0.
 
 def moved(pose: Pose, rotation_vector=(0.0, 0.0, 0.0), translation_mm=(0.0, 0.0, 0.0)) -> Pose:
     """The plane turned by ``rotation_vector`` about its own axes (at its centre), then shifted (camera frame)."""
-    R = cv2.Rodrigues(np.asarray(pose.rvec, dtype=np.float64))[0] @ cv2.Rodrigues(np.asarray(rotation_vector, dtype=np.float64))[0]
+    turn = cv2.Rodrigues(np.asarray(rotation_vector, dtype=np.float64))[0]
+    R = cv2.Rodrigues(np.asarray(pose.rvec, dtype=np.float64))[0] @ turn
     return Pose(cv2.Rodrigues(R)[0].ravel(), np.asarray(pose.tvec, dtype=np.float64) + translation_mm)
 
 
