@@ -28,7 +28,7 @@ from livedic.dic.stereo.triangulate import DEFAULT_MAX_EPIPOLAR_PX, Triangulatio
 
 
 @dataclass(frozen=True)
-class StereoFrame:
+class StereoPoints:
     """3D points of one frame and their displacements from the reference.
 
     Attributes
@@ -83,9 +83,9 @@ def follow(centres_now: npt.ArrayLike, offsets: npt.ArrayLike, ux: npt.ArrayLike
                                                vx * offset[:, 0] + vy * offset[:, 1]])
 
 
-def stereo_frame(calibration: StereoCalibration, reference: StereoMatch, left_xy: npt.ArrayLike,
+def stereo_points(calibration: StereoCalibration, reference: StereoMatch, left_xy: npt.ArrayLike,
                  left_ok: npt.ArrayLike, right_xy: npt.ArrayLike, right_ok: npt.ArrayLike, *,
-                 max_epipolar_px: float = DEFAULT_MAX_EPIPOLAR_PX) -> StereoFrame:
+                 max_epipolar_px: float = DEFAULT_MAX_EPIPOLAR_PX) -> StereoPoints:
     """Triangulate one frame's tracked positions and take the displacements from the reference (module notes).
 
     Parameters
@@ -102,7 +102,7 @@ def stereo_frame(calibration: StereoCalibration, reference: StereoMatch, left_xy
 
     Returns
     -------
-    StereoFrame
+    StereoPoints
     """
     n = len(reference.status)
     left_ok = np.asarray(left_ok, dtype=bool).reshape(-1)
@@ -118,7 +118,7 @@ def stereo_frame(calibration: StereoCalibration, reference: StereoMatch, left_xy
     status = np.where(reference.ok, status, reference.status).astype(np.int8)
     ok = status == StereoStatus.OK
     xyz = np.where(ok[:, None], triangulation.xyz, np.nan)
-    return StereoFrame(xyz=xyz, displacement=xyz - reference.xyz, status=status, triangulation=triangulation)
+    return StereoPoints(xyz=xyz, displacement=xyz - reference.xyz, status=status, triangulation=triangulation)
 
 
 @dataclass(frozen=True)

@@ -126,7 +126,7 @@ def surface_strain(surface: SurfaceWindow, reference_xyz: npt.ArrayLike, current
     reference_xyz, current_xyz : array_like, shape (N, 3)
         The points in the reference and in this frame (mm); NaN where not measured.
     ok : array_like of bool, shape (N,)
-        Which current points are valid (``StereoFrame.ok``).
+        Which current points are valid (``StereoPoints.ok``).
     measure : str
         One of ``dic.strain.MEASURES``.
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from livedic.dic.measure import measure
-from livedic.dic.stereo import (StereoStatus, follow, match_stereo, right_track_points, stereo_frame,
+from livedic.dic.stereo import (StereoStatus, follow, match_stereo, right_track_points, stereo_points,
                                 surface_strain, surface_window, working_distance)
 from livedic.dic.strain import strain_field, strain_window
 from tests.conftest import blurred_noise
@@ -93,7 +93,7 @@ def test_a_3d_motion_that_fools_2d_is_measured_in_3d(reference):
     tracked_right = measure(right, right_now, centres, subpixel="icgn")
     right_xy = follow(np.column_stack([tracked_right.x + tracked_right.u, tracked_right.y + tracked_right.v]),
                       offsets, tracked_right.ux, tracked_right.uy, tracked_right.vx, tracked_right.vy)
-    frame = stereo_frame(calibration, match, np.column_stack([tracked_left.x + tracked_left.u,
+    frame = stereo_points(calibration, match, np.column_stack([tracked_left.x + tracked_left.u,
                                                               tracked_left.y + tracked_left.v]),
                          tracked_left.ok, right_xy, tracked_right.ok)
     assert np.mean(frame.ok) > 0.98

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from livedic.dic.stereo import (StereoMatch, StereoStatus, extensometer_3d, project, specimen_frame, stereo_frame,
+from livedic.dic.stereo import (StereoMatch, StereoStatus, extensometer_3d, project, specimen_frame, stereo_points,
                                 surface_strain, surface_window, triangulate)
 from livedic.dic.strain import StrainStatus, strain_field, strain_window
 from tests.dic.stereo.rig import DISTANCE_MM, board_of_left, facing_pose, grid, moved, rig, world
@@ -32,7 +32,7 @@ def frame_of(stereo, reference, current_xyz, noise_px=0.0, seed=0):
     rng = np.random.default_rng(seed)
     left, right = left + rng.normal(0, noise_px, left.shape), right + rng.normal(0, noise_px, right.shape)
     ok = np.ones(len(left), dtype=bool)
-    return left, stereo_frame(calibration, reference, left, ok, right, ok)
+    return left, stereo_points(calibration, reference, left, ok, right, ok)
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +110,7 @@ def test_flags_pass_through_the_frame_and_the_strain(scene):
     right[centre + 2, 1] += 3.0                       # a track that slipped off the epipolar line
     corner = np.linalg.norm(points - points[0], axis=1) <= 2 * STEP * 1.5
     right_ok[corner & (np.arange(len(points)) != 0)] = False
-    frame = stereo_frame(calibration, reference, left, left_ok, right, right_ok)
+    frame = stereo_points(calibration, reference, left, left_ok, right, right_ok)
     assert frame.status[centre] == StereoStatus.LEFT_NOT_OK
     assert frame.status[centre + 1] == StereoStatus.RIGHT_NOT_OK
     assert frame.status[centre + 2] == StereoStatus.EPIPOLAR
@@ -141,6 +141,6 @@ def test_bad_inputs_are_refused(scene):
     with pytest.raises(ValueError, match="surface window holds"):
         surface_strain(window, reference.xyz[:-1], reference.xyz[:-1], reference.ok[:-1])
     with pytest.raises(ValueError, match="reference holds"):
-        stereo_frame(stereo.calibration(), reference, reference.left, reference.ok[:-1], reference.right, reference.ok)
+        stereo_points(stereo.calibration(), reference, reference.left, reference.ok[:-1], reference.right, reference.ok)
     with pytest.raises(ValueError, match="point indices"):
         extensometer_3d(reference.xyz, reference.xyz, [[0, len(points)]])
