@@ -1,6 +1,6 @@
 """Stereo DIC, the measurement: left -> right matching on the reference pair (match), triangulation to 3D
 (triangulate), per-frame 3D points and displacements U, V, W and 3D extensometers (frame), strain in the
-specimen's tangent plane (surface_strain). Pure functions on arrays; the guide: docs/guide/stereo.md."""
+specimen's tangent plane (surface_strain), each pair tracked and triangulated (tracker). Pure functions on arrays; the guide: docs/guide/stereo.md."""
 
 from livedic.dic.stereo.frame import (Extensometer3D, SpecimenFrame, StereoPoints, extensometer_3d, follow,
                                       right_track_points, specimen_frame, stereo_points, tangent_basis)
