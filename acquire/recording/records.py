@@ -34,7 +34,8 @@ class RecordedResults:
     record: ``x, y, u, v, zncc, ok`` and ``status, ux, uy, vx, vy, iterations``
     (None when they were not recorded). Arrays have shape (N,): ``point_id`` uint32,
     ``ok`` bool, ``status``/``iterations`` int32/uint32, the rest float64. They may
-    be read-only views into the file data.
+    be read-only views into the file data. ``stereo``: a stereo session's 3D arrays by name
+    (``schema.STEREO_ARRAYS``: X, Y, Z, U, V, W in mm, the 3D status, the right image positions), empty in 2D.
     """
     frame_index: int
     timestamp_ns: int
@@ -46,6 +47,7 @@ class RecordedResults:
     reference_frame_index: int = 0
     dropped_frames: int = 0
     publish_time_ns: int = 0            # host clock when the recorder wrote it
+    stereo: Mapping[str, np.ndarray] = field(default_factory=dict)   # a stereo frame's ``rs.STEREO_ARRAYS``
 
     x = _measured("x")
     y = _measured("y")
@@ -68,7 +70,8 @@ def recorded_results(values: Mapping[str, Any], publish_time_ns: int) -> Recorde
         measurement=Measurement(**{name: values[name] for name in _MEASURED}), method=values["method"],
         processing_ns=values["processing_ns"], latency_ns=values["latency_ns"],
         reference_frame_index=values["reference_frame_index"], dropped_frames=values["dropped_frames"],
-        publish_time_ns=publish_time_ns)
+        publish_time_ns=publish_time_ns,
+        stereo={name: values[name] for name in rs.STEREO_ARRAYS if values.get(name) is not None})
 
 
 @dataclass(frozen=True)

@@ -81,9 +81,20 @@ FRAME_RESULTS_FIELDS = (
     ("latency_ns", 18, _F.TYPE_INT64, False, "frame arrival to results ready, host clock (ns)"),
     ("reference_frame_index", 19, _F.TYPE_UINT64, False, "frame used as reference (0 unless updated)"),
     ("dropped_frames", 20, _F.TYPE_UINT32, False, "frames dropped (not tracked) since the previous result"),
+    # stereo sessions only (``x``..``v`` above are then the left view's)
+    ("x_mm", 21, _F.TYPE_DOUBLE, True, "X of the point now (mm, left camera frame; stereo); NaN where not ok in 3D"),
+    ("y_mm", 22, _F.TYPE_DOUBLE, True, "Y of the point now (mm; stereo)"),
+    ("z_mm", 23, _F.TYPE_DOUBLE, True, "Z of the point now (mm, depth along the left camera's axis; stereo)"),
+    ("u_mm", 24, _F.TYPE_DOUBLE, True, "U = X - X at the reference pair (mm; stereo)"),
+    ("v_mm", 25, _F.TYPE_DOUBLE, True, "V = Y - Y at the reference pair (mm; stereo)"),
+    ("w_mm", 26, _F.TYPE_DOUBLE, True, "W = Z - Z at the reference pair (mm; stereo)"),
+    ("stereo_status", 27, _F.TYPE_SFIXED32, True, "dic.stereo.StereoStatus code per point (0: ok in 3D; stereo)"),
+    ("right_x", 28, _F.TYPE_DOUBLE, True, "where the point is in the right image now, column (px; stereo)"),
+    ("right_y", 29, _F.TYPE_DOUBLE, True, "where the point is in the right image now, row (px; stereo)"),
 )
 REQUIRED_ARRAYS = ("point_id", "x", "y", "u", "v", "zncc", "ok")
-OPTIONAL_ARRAYS = ("ux", "uy", "vx", "vy", "status", "iterations")
+STEREO_ARRAYS = ("x_mm", "y_mm", "z_mm", "u_mm", "v_mm", "w_mm", "stereo_status", "right_x", "right_y")
+OPTIONAL_ARRAYS = ("ux", "uy", "vx", "vy", "status", "iterations") + STEREO_ARRAYS
 RESULT_SCALARS = ("method", "processing_ns", "latency_ns", "reference_frame_index", "dropped_frames")
 
 # StrainField: one message per frame with strain, arrays in the order of /dic/results' points.

@@ -234,7 +234,7 @@ _ARRAY_DTYPES: dict[int, np.dtype] = {_F.TYPE_DOUBLE: np.dtype("<f8"), _F.TYPE_F
 _ELEMENT_WIRE = {_F.TYPE_DOUBLE: _WIRE_I64, _F.TYPE_FIXED32: _WIRE_I32, _F.TYPE_SFIXED32: _WIRE_I32,
                  _F.TYPE_BOOL: _WIRE_VARINT}
 RESULT_DTYPES = {"point_id": np.dtype(np.uint32), "ok": np.dtype(bool), "status": np.dtype(np.int32),
-                 "iterations": np.dtype(np.uint32)}   # every other array is float64
+                 "iterations": np.dtype(np.uint32), "stereo_status": np.dtype(np.int32)}   # every other array is float64
 
 
 def encode_results(values: Mapping[str, Any]) -> bytes:

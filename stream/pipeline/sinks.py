@@ -23,9 +23,22 @@ the same way: ``Session(config, sinks=[...])``.
 
 import math
 
+from typing import Any
+
 import numpy as np
 
 from livedic.dic.status import Status
+
+
+def stereo_arrays(measurement: Any) -> dict[str, np.ndarray]:
+    """A stereo measurement's 3D arrays as ``Recorder.write_results`` takes them (``STEREO_ARRAYS``); {} in 2D."""
+    points = getattr(measurement, "points", None)
+    if points is None:
+        return {}
+    xyz, uvw, right = points.xyz, points.displacement, measurement.right_xy
+    return {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2], "u_mm": uvw[:, 0], "v_mm": uvw[:, 1],
+            "w_mm": uvw[:, 2], "stereo_status": points.status.astype(np.int32), "right_x": right[:, 0],
+            "right_y": right[:, 1]}
 
 
 class RecordResults:
@@ -65,7 +78,7 @@ class RecordResults:
             m.zncc, m.ok, ux=m.ux, uy=m.uy, vx=m.vx, vy=m.vy, status=m.status.astype(np.int32),
             iterations=m.iterations, method=self.method, processing_ns=result.processing_ns,
             latency_ns=result.latency_ns, reference_frame_index=self.reference_frame_index,
-            dropped_frames=result.dropped_since_last)
+            dropped_frames=result.dropped_since_last, **stereo_arrays(m))
         if result.strain is not None:
             self.recorder.write_strain(frame.index, frame.timestamp_ns, result.strain, window=self.strain_window)
         if result.extensometers is not None and len(result.extensometers.names):
