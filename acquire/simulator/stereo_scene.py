@@ -173,15 +173,20 @@ class StereoScene:
         lens = self.lens(view)
         s = self.supersample
         material = self._material(view, frame, lens.ideal_pixels(s))
-        full = float(self.full_scale)
-        samples = np.full(material.shape[:2], full * BACKGROUND_LEVEL)
+        samples = np.full(material.shape[:2], self.full_scale * BACKGROUND_LEVEL)
         on = np.isfinite(material[..., 0])
-        scale = self.pattern_px_per_mm
-        px = (material[on, 0] + 0.5 * self.coupon.width_mm) * scale - 0.5
-        py = (material[on, 1] + 0.5 * self.coupon.length_mm) * scale - 0.5
-        samples[on] = paint(self.pattern.intensity(px, py), full)
+        samples[on] = self.grey_at(material[on])
         width, height = lens.size
         return samples.reshape(height, s, width, s).mean(axis=(1, 3)).astype(np.float32)
+
+    def grey_at(self, material_xy: npt.ArrayLike) -> np.ndarray:
+        """The paint's grey level (float, before noise) at material points (N, 2) mm on the coupon."""
+        material = np.asarray(material_xy, dtype=np.float64).reshape(-1, 2)
+        scale = self.pattern_px_per_mm
+        # pattern px: pixel centres at integers, the coupon's corner (-width / 2, -length / 2) at (-0.5, -0.5)
+        px = (material[:, 0] + 0.5 * self.coupon.width_mm) * scale - 0.5
+        py = (material[:, 1] + 0.5 * self.coupon.length_mm) * scale - 0.5
+        return paint(self.pattern.intensity(px, py), float(self.full_scale))
 
     def noise_seed(self, view: View, frame: int, static: int = 0) -> tuple[int, ...]:
         """The camera noise's seed of ``view``'s test frame ``frame`` (``static`` k >= 1: its k-th static frame)."""
