@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import urllib.parse
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from functools import partial
 from typing import Any
 
@@ -50,7 +50,7 @@ STEREO_FACINGS = ("middle", "left")
 STEREO_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(1024, 1024), k1=-0.05, view="left", strain=0.01,
                        neck=0.02, w0=0.0, rotx=0.0, roty=0.0, distance=300.0, angle=25.0, focal=8000.0,
                        thickness=DEFAULT_THICKNESS_MM, facing="middle", supersample=1)
-_MODEL_DEFAULTS = {"tensile": TENSILE_DEFAULTS, "translate": TRANSLATE_DEFAULTS, "stereo": STEREO_DEFAULTS}
+_MODEL_DEFAULTS: dict[str, dict[str, Any]] = {"tensile": TENSILE_DEFAULTS, "translate": TRANSLATE_DEFAULTS, "stereo": STEREO_DEFAULTS}
 
 
 # --------------------------------------------------------------------------- #
@@ -265,7 +265,7 @@ def _to_neck(value):
 
 # Options of one model whose name another model uses for something else (the stereo test's ``view``, ``strain``,
 # ``neck``) or that only it has.
-_MODEL_CONVERTERS = {
+_MODEL_CONVERTERS: dict[str, dict[str, Callable[[Any], Any]]] = {
     "stereo": {
         "view": _to_choice(STEREO_VIEWS), "facing": _to_choice(STEREO_FACINGS),
         "strain": partial(_to_range, low=-0.5, high=1.0), "neck": _to_neck,

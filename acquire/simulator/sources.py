@@ -458,13 +458,9 @@ class SyntheticTranslateSource(_PrerenderedSource):
         return image
 
 
-def open_synthetic(uri: str, **options: Any) -> _PrerenderedSource:
-    """The source named by ``uri``: ``synthetic:``, ``synthetic:tensile?...``, ``synthetic:translate?...`` or
-    ``synthetic:stereo?view=left|right&...`` (one camera of the stereo test, acquire/simulator/stereo_source.py)."""
+def open_synthetic(uri: str, **options: Any) -> SyntheticTensileSource | SyntheticTranslateSource:
+    """The source named by ``uri``: ``synthetic:``, ``synthetic:tensile?...`` or ``synthetic:translate?...``."""
     model, _ = parse_synthetic_uri(uri)
-    if model == "stereo":
-        from livedic.acquire.simulator.stereo_source import SyntheticStereoViewSource   # it imports this module
-        return SyntheticStereoViewSource(uri, **options)
     if model == "translate":
         return SyntheticTranslateSource(uri, **options)
     return SyntheticTensileSource(uri, **options)
