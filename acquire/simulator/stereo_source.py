@@ -34,8 +34,7 @@ def scene_from_options(options: dict[str, Any]) -> StereoScene:
     width, height = options["size"]
     lens = Lens((width, height), options["k1"], options["k2"], options["p1"], options["p2"],
                 focal_px=options["focal"])
-    rig = StereoRig.symmetric(lens, Lens(lens.size, lens.k1, lens.k2, lens.p1, lens.p2, focal_px=lens.focal_px),
-                              distance_mm=options["distance"], angle_deg=options["angle"])
+    rig = StereoRig.symmetric(lens, lens, distance_mm=options["distance"], angle_deg=options["angle"])
     motion = CouponMotion(rendered_count(options), strain=options["strain"], neck=options["neck"],
                           w0_mm=options["w0"], rot_x_deg=options["rotx"], rot_y_deg=options["roty"])
     return StereoScene(rig, Coupon(thickness_mm=options["thickness"]), motion, distance_mm=options["distance"],

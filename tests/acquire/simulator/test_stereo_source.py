@@ -96,3 +96,11 @@ def test_livedic_run_refuses_a_bad_stereo_option_in_one_line_with_exit_2():
     errors = [line for line in done.stderr.splitlines() if line.startswith("livedic: error")]
     assert done.returncode == 2, done.stderr
     assert len(errors) == 1 and "view='top'" in errors[0] and "Traceback" not in done.stderr
+
+
+def test_twelve_bit_frames_are_the_eight_bit_ones_on_the_finer_scale():
+    eight = open_source(f"synthetic:stereo?{OPTIONS}", noise=0, frames=2)
+    twelve = open_source(f"synthetic:stereo?{OPTIONS}", noise=0, frames=2, bit=12)
+    a, b = next(iter(eight)), next(iter(twelve))
+    assert b.image.dtype == np.uint16 and b.pixel_format == "Mono12" and b.image.max() <= 4095
+    np.testing.assert_allclose(b.image / 4095.0, a.image / 255.0, atol=0.6 / 255.0)
