@@ -80,7 +80,8 @@ class SyntheticStereoViewSource(_PrerenderedSource):
         return self.scene.image_displacement(self.view, self._check_index(frame_index), x, y)
 
     def truth3d(self, frame_index: int, material_xy: npt.ArrayLike) -> CouponTruth:
-        """The 3D truth of material points (N, 2) mm in delivered frame ``frame_index`` (``StereoScene.truth``)."""
+        """The 3D truth of material points (N, 2) mm in delivered frame ``frame_index`` (``StereoScene.truth`` of the
+        rendered frame it shows: its ``frame`` is that one)."""
         return self.scene.truth(self._check_index(frame_index), material_xy)
 
     def _clean(self, i: int) -> np.ndarray:

@@ -104,3 +104,15 @@ def test_twelve_bit_frames_are_the_eight_bit_ones_on_the_finer_scale():
     a, b = next(iter(eight)), next(iter(twelve))
     assert b.image.dtype == np.uint16 and b.pixel_format == "Mono12" and b.image.max() <= 4095
     np.testing.assert_allclose(b.image / 4095.0, a.image / 255.0, atol=0.6 / 255.0)
+
+
+def test_a_looped_test_maps_delivered_frames_to_the_rendered_ones_in_2d_and_3d():
+    source = open_source(f"synthetic:stereo?{OPTIONS}", frames=7, loop=3)
+    assert source.scene.motion.frames == 3
+    material = np.array([[2.0, -3.0]])
+    # delivered 0 1 2 3 4 5 6 show rendered 0 1 2 1 0 1 2: the schedule spans the 3 rendered frames
+    for delivered, rendered in ((2, 2), (3, 1), (4, 0), (6, 2)):
+        np.testing.assert_array_equal(source.truth3d(delivered, material).position_mm,
+                                      source.scene.positions(rendered, material))
+    x, y = source.scene.project(0, material)[0].T
+    np.testing.assert_array_equal(source.truth(3, x, y), source.scene.image_displacement("left", 1, x, y))
