@@ -38,6 +38,8 @@ def material_seen(ideal, fx, fy, cx, cy, origin, M, e, e_n, half_thickness, half
     H, W = out.shape[0], out.shape[1]
     s = NECK_WIDTH_MM
     w_uniform = half_thickness * NU_UNIFORM * e
+    recess = half_thickness * NU_NECK * e_n         # the neck's extra depth at its centre
+    widest = 1.0 - NU_UNIFORM * e                   # the largest lateral stretch (outside the neck)
     for r in prange(H):
         for c in range(W):
             rx = (ideal[r, c, 0] - cx) / fx
@@ -50,6 +52,10 @@ def material_seen(ideal, fx, fy, cx, cy, origin, M, e, e_n, half_thickness, half
             if abs(dz) < 1e-12:
                 continue
             lam = (w_uniform - origin[2]) / dz          # the plane z = t/2 nu e
+            # The surface lies within `recess` behind that plane and |X0| >= |x| / (1 - nu e): a ray whose x there is
+            # further out than the coupon's edge plus what the recess can shift it misses (half the image: background).
+            if abs(origin[0] + lam * dx) - recess * abs(dx / dz) > half_width * widest:
+                continue
             Y0 = (origin[1] + lam * dy) / (1.0 + e)
             converged = False
             for _ in range(NEWTON_STEPS):

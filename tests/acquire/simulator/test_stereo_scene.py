@@ -51,6 +51,19 @@ def test_projections_are_opencvs_of_the_3d_truth_and_cast_back_onto_the_same_mat
         assert np.max(distance) < 1e-6
 
 
+@pytest.mark.parametrize("strain, neck", [(-0.3, 0.0), (0.05, 0.6)])
+def test_the_coupons_edges_are_where_their_material_projects_in_compression_and_in_a_deep_neck(strain, neck):
+    scene = small_scene(CouponMotion(2, strain=strain, neck=neck, w0_mm=-1.0, rot_y_deg=8.0))
+    half = 0.5 * scene.coupon.width_mm
+    Y0 = np.linspace(-8.0, 8.0, 9)
+    for view, index in (("left", 0), ("right", 1)):
+        for side in (-1.0, 1.0):
+            inside = np.column_stack([np.full(Y0.shape, side * (half - 1e-6)), Y0])
+            outside = np.column_stack([np.full(Y0.shape, side * (half + 1e-6)), Y0])
+            np.testing.assert_allclose(scene.material_at(view, 1, scene.project(1, inside)[index]), inside, atol=1e-8)
+            assert np.all(np.isnan(scene.material_at(view, 1, scene.project(1, outside)[index])))
+
+
 def test_off_the_coupon_a_pixel_shows_no_material_and_the_background():
     scene = small_scene(CouponMotion(2))
     corner = scene.material_at("left", 0, np.array([[2.0, 2.0]]))
