@@ -4,6 +4,7 @@ Valid forms (backends are imported only when their scheme is used, so a
 missing optional dependency such as Aravis only matters to its own URIs)::
 
     synthetic:[tensile|translate][?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0...]
+    synthetic:stereo?view=left|right[&w0=0.5&rotx=1...]       one camera of the simulated stereo test
     aravis:[DEVICE_ID][?exposure_us=2000&frame_rate=50&...]   GenICam camera through Aravis
     v4l2:[/dev/videoN|N][?width=..&height=..&fourcc=GREY&frame_rate=..]
     video:FILE                                                 a video file (FFV1 .mkv is lossless)
@@ -23,7 +24,7 @@ from livedic.acquire.base import FrameSource, SourceError
 
 SCHEMES = ("synthetic", "aravis", "v4l2", "video", "images", "mcap")
 
-USAGE = ("valid sources: synthetic:[tensile|translate][?frames=N&fps=F&size=WxH&bit=8|12&noise=S&seed=K], "
+USAGE = ("valid sources: synthetic:[tensile|translate|stereo][?frames=N&fps=F&size=WxH&bit=8|12&noise=S&seed=K], "
          "aravis:[DEVICE_ID][?options], v4l2:/dev/videoN[?options], video:FILE, images:GLOB_OR_FOLDER[?frame_rate=F], "
          "mcap:FILE.mcap[?realtime=1]")
 
@@ -66,8 +67,8 @@ def open_source(uri: str, **options: Any) -> FrameSource:
     scheme = parse_scheme(uri)
     uri = uri.strip()
     if scheme == "synthetic":
-        from livedic.acquire.simulator.sources import open_synthetic
-        return open_synthetic(uri, **options)
+        from livedic.acquire.simulator.open import open_simulator
+        return open_simulator(uri, **options)
     if scheme == "aravis":
         from livedic.acquire.camera.aravis import open_uri as open_aravis
         return open_aravis(uri, **options)

@@ -1,6 +1,8 @@
-"""The simulator's URIs: ``synthetic:tensile?...`` and ``synthetic:translate?...`` parsed into typed options.
+"""The simulator's URIs: ``synthetic:tensile?...``, ``synthetic:translate?...`` and ``synthetic:stereo?...`` parsed
+into typed options.
 
-Every option, its default and its check is declared here once (``TENSILE_DEFAULTS``, ``TRANSLATE_DEFAULTS``);
+Every option, its default and its check is declared here once (``TENSILE_DEFAULTS``, ``TRANSLATE_DEFAULTS``,
+``STEREO_DEFAULTS``);
 a bad value is one ``SourceError`` line naming the option. The options' meaning: docs/guide/sources.md.
 """
 
@@ -8,14 +10,14 @@ from __future__ import annotations
 
 import math
 import urllib.parse
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from functools import partial
 from typing import Any
 
 from livedic.acquire.base import SourceError
 from livedic.acquire.options import parse_bool, parse_number
 
-MODELS = ("tensile", "translate")
+MODELS = ("tensile", "translate", "stereo")
 FULL_SCALE = {8: 255, 12: 4095}
 
 # The force law's defaults (docs/guide/sources.md, Force): a steel-like modulus, a 2 mm sheet, 10 px per mm.
@@ -39,6 +41,16 @@ VIEWS = ("grip", "centre")
 # Up to these (the default test's), ``lateral=auto`` and ``view=auto`` keep the small-strain model.
 SMALL_STRAIN_LIMITS = {"strain": 0.05, "neck": 0.15}
 TRANSLATE_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(512, 512), du=0.3, dv=-0.2, jump=None)
+# The stereo coupon (docs/guide/sources.md, "The stereo test"): one camera of a rig `angle` degrees apart, both
+# `distance` mm from the coupon, focal length `focal` px (a 50 mm lens on a 1 MP camera), mild barrel distortion;
+# `strain`, `neck` (extra strain at the neck's centre), `w0` (mm, + away from the cameras), `rotx`, `roty`
+# (degrees) reached at the last frame; `facing`: the coupon's normal bisects the cameras or faces the left one.
+STEREO_VIEWS = ("left", "right")
+STEREO_FACINGS = ("middle", "left")
+STEREO_DEFAULTS = dict(_COMMON_DEFAULTS, frames=100, size=(1024, 1024), k1=-0.05, view="left", strain=0.01,
+                       neck=0.02, w0=0.0, rotx=0.0, roty=0.0, distance=300.0, angle=25.0, focal=8000.0,
+                       thickness=DEFAULT_THICKNESS_MM, facing="middle", supersample=1)
+_MODEL_DEFAULTS: dict[str, dict[str, Any]] = {"tensile": TENSILE_DEFAULTS, "translate": TRANSLATE_DEFAULTS, "stereo": STEREO_DEFAULTS}
 
 
 # --------------------------------------------------------------------------- #
@@ -49,7 +61,9 @@ def _usage() -> str:
     return ("synthetic:tensile?frames=300&fps=50&size=1024x1024&bit=8&noise=1.0&seed=0&radius=4&pace=1"
             "&loop=0&static=0&strain=0.05&neck=0.15&lateral=auto&view=auto&fade=0&fracture=0"
             "&modulus=200&thickness=2&scale=10&hardening=0&upper_yield=0&k1=0&k2=0&p1=0&p2=0, "
-            "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0 "
+            "or synthetic:translate?frames=100&du=0.3&dv=-0.2&jump=40:6:0, "
+            "or synthetic:stereo?view=left|right&frames=100&strain=0.01&neck=0.02&w0=0&rotx=0&roty=0"
+            "&distance=300&angle=25&focal=8000&facing=middle&supersample=1 "
             "(same common options)")
 
 
@@ -77,7 +91,7 @@ def parse_synthetic_uri(uri: str) -> tuple[str, dict[str, str]]:
 
 def convert_options(model: str, raw: Mapping[str, Any]) -> dict[str, Any]:
     """Typed options for ``model`` from text or Python values; SourceError names the bad one."""
-    defaults = TENSILE_DEFAULTS if model == "tensile" else TRANSLATE_DEFAULTS
+    defaults = _MODEL_DEFAULTS[model]
     unknown = sorted(set(raw) - set(defaults))
     if unknown:
         raise SourceError(f"unknown option(s) {', '.join(unknown)} for synthetic:{model}: valid options are "
@@ -87,7 +101,8 @@ def convert_options(model: str, raw: Mapping[str, Any]) -> dict[str, Any]:
         if value is None:
             continue
         try:
-            out[key] = _CONVERTERS[key](value)
+            converter = _MODEL_CONVERTERS.get(model, {}).get(key) or _CONVERTERS[key]
+            out[key] = converter(value)
         except (TypeError, ValueError) as error:
             raise SourceError(f"synthetic:{model} option {key}={value!r}: {error}") from None
     if out["loop"] == 1:
@@ -222,4 +237,41 @@ _CONVERTERS = {
     "upper_yield": partial(parse_number, low=0),
     "k1": partial(_to_lens_term, limit=0.5), "k2": partial(_to_lens_term, limit=0.5),
     "p1": partial(_to_lens_term, limit=0.05), "p2": partial(_to_lens_term, limit=0.05),
+}
+
+
+def _to_range(value, *, low, high):
+    """A number strictly between ``low`` and ``high``."""
+    number = parse_number(value)
+    if not low < number < high:
+        raise ValueError(f"must be between {low:g} and {high:g}")
+    return number
+
+
+def _to_supersample(value):
+    """Samples per pixel along each axis: 1 (the pixel's centre) to 4."""
+    number = parse_number(value, integer=True)
+    if not 1 <= number <= 4:
+        raise ValueError("must be 1 (the pixel's centre) to 4 (4 x 4 samples averaged)")
+    return number
+
+
+def _to_neck(value):
+    number = parse_number(value, low=0)
+    if number >= 1.0:
+        raise ValueError("must be in [0, 1): the extra axial strain at the neck's centre in the last frame")
+    return number
+
+
+# Options of one model whose name another model uses for something else (the stereo test's ``view``, ``strain``,
+# ``neck``) or that only it has.
+_MODEL_CONVERTERS: dict[str, dict[str, Callable[[Any], Any]]] = {
+    "stereo": {
+        "view": _to_choice(STEREO_VIEWS), "facing": _to_choice(STEREO_FACINGS),
+        "strain": partial(_to_range, low=-0.5, high=1.0), "neck": _to_neck,
+        "w0": partial(_to_range, low=-50.0, high=50.0), "rotx": partial(_to_range, low=-30.0, high=30.0),
+        "roty": partial(_to_range, low=-30.0, high=30.0), "distance": partial(_to_range, low=20.0, high=1e5),
+        "angle": partial(_to_range, low=0.0, high=90.0), "focal": partial(parse_number, low=0, low_open=True),
+        "supersample": _to_supersample,
+    },
 }
