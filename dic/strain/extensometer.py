@@ -104,7 +104,8 @@ class Extensometer:
 class ExtensometerReadings:
     """One frame's readings of every extensometer (arrays in the order of the definitions).
 
-    ``length_px``, ``eng_strain``, ``true_strain`` are NaN where ``status`` is not OK.
+    ``length_px``, ``eng_strain``, ``true_strain`` are NaN where ``status`` is not OK. A stereo session measures
+    lengths in space: ``l0_mm`` and ``length_mm`` (mm) are set and the image lengths are NaN.
     """
     names: tuple
     l0_px: np.ndarray
@@ -112,6 +113,8 @@ class ExtensometerReadings:
     eng_strain: np.ndarray
     true_strain: np.ndarray
     status: np.ndarray
+    l0_mm: np.ndarray | None = None
+    length_mm: np.ndarray | None = None
 
     @property
     def ok(self) -> np.ndarray:
