@@ -383,7 +383,9 @@ class Recording:
             yield RecordedExtensometerSample(
                 frame_index=sample.frame_index, timestamp_ns=sample.timestamp_ns, name=sample.name,
                 l0_px=sample.l0_px, l_px=sample.l_px, eng_strain=sample.eng_strain, true_strain=sample.true_strain,
-                ok=sample.ok, status=sample.status)
+                ok=sample.ok, status=sample.status,
+                # L0 is never 0 for a real extensometer: 0 (proto3's "not set") means a 2D recording
+                l0_mm=sample.l0_mm if sample.l0_mm else None, l_mm=sample.l_mm if sample.l0_mm else None)
 
     def extensometer_readings(self) -> Iterator[tuple[int, int, ExtensometerReadings]]:
         """Yield ``(frame_index, timestamp_ns, dic.strain.extensometer.ExtensometerReadings)`` per recorded frame.

@@ -106,7 +106,8 @@ class RecordedExtensometerSample:
     """One extensometer's reading in one frame, as recorded on ``/dic/extensometers``.
 
     ``l_px``, ``eng_strain`` and ``true_strain`` are NaN where ``ok`` is False;
-    ``status`` is a ``dic.strain.extensometer.ExtensometerStatus`` code.
+    ``status`` is a ``dic.strain.extensometer.ExtensometerStatus`` code. ``l0_mm`` and ``l_mm``: a stereo
+    session's lengths in space (mm), None in 2D recordings.
     """
     frame_index: int
     timestamp_ns: int
@@ -117,6 +118,8 @@ class RecordedExtensometerSample:
     true_strain: float
     ok: bool
     status: int
+    l0_mm: float | None = None
+    l_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -158,7 +161,16 @@ def frame_readings(samples: Sequence[RecordedExtensometerSample]) -> Extensomete
                                 length_px=np.array([s.l_px for s in samples], dtype=np.float64),
                                 eng_strain=np.array([s.eng_strain for s in samples], dtype=np.float64),
                                 true_strain=np.array([s.true_strain for s in samples], dtype=np.float64),
-                                status=np.array([s.status for s in samples], dtype=np.int32))
+                                status=np.array([s.status for s in samples], dtype=np.int32),
+                                **_lengths_in_space(samples))
+
+
+def _lengths_in_space(samples: Sequence[RecordedExtensometerSample]) -> dict[str, np.ndarray]:
+    """``l0_mm`` / ``length_mm`` of a stereo frame's samples; {} in 2D."""
+    if not samples or any(s.l0_mm is None for s in samples):
+        return {}
+    return {"l0_mm": np.array([s.l0_mm for s in samples], dtype=np.float64),
+            "length_mm": np.array([s.l_mm for s in samples], dtype=np.float64)}
 
 
 @dataclass(frozen=True)

@@ -127,6 +127,8 @@ EXTENSOMETER_SAMPLE_FIELDS = (
     ("true_strain", 7, _F.TYPE_DOUBLE, False, "true strain ln(L / L0); NaN where not ok"),
     ("ok", 8, _F.TYPE_BOOL, False, "true where both ends were measured"),
     ("status", 9, _F.TYPE_INT32, False, "dic.strain.extensometer.ExtensometerStatus code (0: measured)"),
+    ("l0_mm", 10, _F.TYPE_DOUBLE, False, "reference length L0 in space (mm; stereo sessions, 0 in 2D)"),
+    ("l_mm", 11, _F.TYPE_DOUBLE, False, "current length in space (mm; stereo sessions); NaN where not ok"),
 )
 
 # ForceSample: the testing machine's force on one tracked frame (Foxglove plots

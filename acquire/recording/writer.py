@@ -460,11 +460,19 @@ class Recorder:
             if array.size != len(names):
                 raise ValueError(f"write_extensometers: {name} has {array.size} entries for {len(names)} names")
             columns[name] = _convert(array, name, "write_extensometers", {"status": np.dtype(np.int32)})
+        in_space = {}
+        if readings.l0_mm is not None:         # a stereo session's lengths in space
+            for name, field_name in (("l0_mm", "l0_mm"), ("length_mm", "l_mm")):
+                array = _as_1d(getattr(readings, name), name, "write_extensometers")
+                if array.size != len(names):
+                    raise ValueError(f"write_extensometers: {name} has {array.size} entries for {len(names)} names")
+                in_space[field_name] = array.astype(np.float64, copy=False)
         ok = columns["status"] == 0
         payloads = [rs.ExtensometerSample(
             frame_index=frame_index, timestamp_ns=timestamp_ns, name=name, l0_px=columns["l0_px"][i],
             l_px=columns["length_px"][i], eng_strain=columns["eng_strain"][i],
-            true_strain=columns["true_strain"][i], ok=bool(ok[i]), status=int(columns["status"][i])
+            true_strain=columns["true_strain"][i], ok=bool(ok[i]), status=int(columns["status"][i]),
+            **{field_name: float(values[i]) for field_name, values in in_space.items()}
         ).SerializeToString() for i, name in enumerate(names)]
 
         def add() -> None:

@@ -109,6 +109,25 @@ def test_extensometer_round_trip_is_exact_and_one_message_each(recorded):
     assert abs(transverse[3].eng_strain - 3e-3) < 1e-12 and abs(transverse[3].true_strain - np.log1p(3e-3)) < 1e-12
 
 
+def test_a_stereo_sessions_lengths_in_space_round_trip_and_2d_ones_have_none(recorded, tmp_path):
+    """l0_mm / length_mm (stereo: lengths in space, image lengths NaN) come back exactly, a lost end's NaN too;
+    a 2D recording's samples have none."""
+    from livedic.dic.strain.extensometer import ExtensometerReadings
+    path = tmp_path / "stereo.mcap"
+    nan = np.full(2, np.nan)
+    readings = ExtensometerReadings(("axial", "transverse"), nan, nan, np.array([0.01, np.nan]),
+                                    np.array([np.log1p(0.01), np.nan]),
+                                    np.array([0, int(ExtensometerStatus.END_LOST)], dtype=np.int32),
+                                    l0_mm=np.array([30.0, 12.5]), length_mm=np.array([30.3, np.nan]))
+    with Recorder(path, {"source_uri": "stereo:a,b"}, stereo=True) as rec:
+        assert rec.write_extensometers(0, T0, readings)
+    ((_, _, got),) = list(Recording(path).extensometer_readings())
+    assert np.array_equal(got.l0_mm, [30.0, 12.5]) and got.length_mm[0] == 30.3 and np.isnan(got.length_mm[1])
+    assert np.isnan(got.l0_px).all() and got.eng_strain[0] == 0.01
+    assert all(s.l0_mm is None and s.l_mm is None for s in read_extensometer_samples(recorded[0]))
+    assert next(iter(Recording(recorded[0]).extensometer_readings()))[2].l0_mm is None
+
+
 def test_protobuf_decodes_the_new_channels_from_the_stored_schema(recorded):
     """Foxglove, rerun and mcap-protobuf-support read them without livedic."""
     from mcap.reader import make_reader
