@@ -38,12 +38,15 @@ class Frame:
     pixel_format : str     "Mono8", "Mono10", "Mono12" or "Mono16" (10 to 16 bits are stored in uint16,
                            least significant bit first: a 12-bit image holds 0..4095)
     metadata : dict        per-frame extras, e.g. "truth_u"/"truth_v" for synthetic sources
+    right : Frame or None  a stereo pair travels as its left frame with the right camera's frame of the same
+                           trigger here (``acquire.stereo``); None for one camera
     """
     index: int
     timestamp_ns: int
     image: np.ndarray
     pixel_format: str
     metadata: dict = field(default_factory=dict)
+    right: "Frame | None" = None
 
 
 _Source = TypeVar("_Source", bound="FrameSource")

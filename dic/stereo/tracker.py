@@ -74,10 +74,51 @@ class StereoTracker:
         self.left = make_tracker(left_reference, match.left)
         self.right = make_tracker(right_reference, centres[self.matched])
         self.frames_tracked = 0
+        self.last_points: StereoPoints | None = None
 
     @property
     def n_points(self) -> int:
         return len(self.match.status)
+
+    # what a session reads of its tracker after each frame: the left view's 2D fields, both views' work together
+    @property
+    def trackable(self) -> np.ndarray:
+        """The left view's trackable points (N,): the 2D fields a StereoMeasurement carries are the left view's."""
+        return self.left.trackable
+
+    @property
+    def last_refind_attempts(self) -> int:
+        return int(getattr(self.left, "last_refind_attempts", 0)) + int(getattr(self.right, "last_refind_attempts", 0))
+
+    @property
+    def last_refound(self) -> np.ndarray:
+        """Points re-found by a search in either view this frame (N,)."""
+        refound = np.zeros(self.n_points, dtype=bool)
+        left = getattr(self.left, "last_refound", None)
+        right = getattr(self.right, "last_refound", None)
+        if left is not None:
+            refound |= np.asarray(left, dtype=bool)
+        if right is not None:
+            refound[self.matched] |= np.asarray(right, dtype=bool)
+        return refound
+
+    @property
+    def last_update(self) -> Any:
+        """A move of the left view's reference this frame, else the right's, else None."""
+        left = getattr(self.left, "last_update", None)
+        return left if left is not None else getattr(self.right, "last_update", None)
+
+    @property
+    def last_fracture(self) -> Any:
+        return getattr(self.left, "last_fracture", None)
+
+    @property
+    def last_timings(self) -> dict[str, int] | None:
+        """Both views' stage times (ns) summed: the pair's cost per stage."""
+        left, right = getattr(self.left, "last_timings", None), getattr(self.right, "last_timings", None)
+        if left is None or right is None:
+            return None
+        return {name: left.get(name, 0) + right.get(name, 0) for name in {*left, *right}}
 
     def track(self, left_image: np.ndarray, right_image: np.ndarray) -> StereoMeasurement:
         """Both views tracked from their references and triangulated: a ``StereoMeasurement``."""
@@ -94,5 +135,6 @@ class StereoTracker:
         points = stereo_points(self.calibration, self.match, left_xy, left.ok, right_xy, right_ok,
                                max_epipolar_px=self.max_epipolar_px)
         self.frames_tracked += 1
+        self.last_points = points
         fields = {name: getattr(left, name) for name in Measurement.__dataclass_fields__}
         return StereoMeasurement(**fields, right_xy=right_xy, right_ok=right_ok, points=points)

@@ -227,9 +227,17 @@ class ReferenceReady:
     setup_ns: int                 # building the tracker and tracking the reference
 
 
+def track_frame(tracker: Any, frame: Frame, ahead: Any = None) -> Measurement:
+    """``frame`` tracked: one camera's image (with its coefficients made ``ahead``), or a stereo pair's two images
+    (``frame.right``: a ``dic.stereo.StereoTracker``)."""
+    if frame.right is not None:
+        return tracker.track(frame.image, frame.right.image)
+    return tracker.track(frame.image) if ahead is None else tracker.track(frame.image, ahead=ahead)
+
+
 def reference_ready(make_tracker: Callable[[Frame], Any], frame: Frame) -> ReferenceReady:
     """Build the tracker on ``frame`` and track it: a ``ReferenceReady``."""
     started = time.monotonic_ns()
     tracker = make_tracker(frame)
-    measurement = tracker.track(frame.image)
+    measurement = track_frame(tracker, frame)
     return ReferenceReady(tracker, measurement, time.monotonic_ns() - started)

@@ -39,7 +39,7 @@ import numpy as np
 from livedic.stream.pipeline.frame_queue import QueueClosed
 from livedic.acquire.base import Frame
 from livedic.stream.pipeline.frame_queue import FrameQueue
-from livedic.stream.pipeline.frame_result import FrameResult, ReferenceReady, SessionStats
+from livedic.stream.pipeline.frame_result import FrameResult, ReferenceReady, SessionStats, track_frame
 from livedic.stream.pipeline.stage import Stage
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
@@ -224,10 +224,9 @@ class TrackerLoop:
 
     def _track(self, item):
         """``item``'s frame tracked, with the coefficients its acquisition made ahead (their buffer then reused)."""
-        if item.ahead is None:
-            return self.tracker.track(item.frame.image)
-        measurement = self.tracker.track(item.frame.image, ahead=item.ahead)
-        self._spare_coefficients.append(item.ahead.coefficients)
+        measurement = track_frame(self.tracker, item.frame, item.ahead)
+        if item.ahead is not None:
+            self._spare_coefficients.append(item.ahead.coefficients)
         return measurement
 
     def _track_all(self):
@@ -259,7 +258,8 @@ class TrackerLoop:
                 self.tracker = ready.tracker if ready is not None else self.make_tracker(frame)
                 # A copy: a camera frame's image is a buffer lent by the camera's pool, and the
                 # reference is kept for the whole session.
-                self.reference_frame = replace(frame, image=frame.image.copy())
+                self.reference_frame = replace(frame, image=frame.image.copy(), right=None if frame.right is None
+                                               else replace(frame.right, image=frame.right.image.copy()))
                 stats.n_points = self.tracker.n_points
             tracked = time.monotonic_ns()
             if ready is not None:

@@ -23,6 +23,8 @@ from livedic.acquire import sources
 from livedic.acquire.base import SourceError
 from livedic.dic import DEFAULT_SUBSET, bspline
 from livedic.dic.strain import field_fit
+from livedic.stream.session.stereo import stereo_calibration
+from livedic.stream.stages.stereo_strain import StereoStrainStage, stereo_strain_config
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST
 from livedic.stream.pipeline.progress import ProgressBar
 from livedic.stream.pipeline.stage import Stage, check_stage_order
@@ -239,6 +241,8 @@ class Preparation:
         self.source_options: dict[str, Any] = {}
         self.view_child: Any = None            # the view's process, started before the outputs open
         self.record_path_was_free = False
+        self.stereo: Any = None                # a stereo source's rig: StereoCalibration (None: one camera)
+        self.stereo_calibration_from: str | None = None
 
     @property
     def stages(self) -> list[Stage]:
@@ -272,6 +276,9 @@ class Preparation:
             self.source = self._given_source
         else:
             self.source = sources.open_source(config.source, **self.source_options)
+        if getattr(self.source, "stereo", False):
+            self.stereo, self.stereo_calibration_from = stereo_calibration(config.strain.calibration,
+                                                                           dict(self.source.settings or {}))
         self._count_static_frames()
         self.phase = Phase.COMPILING
         if config.warm_up:
@@ -441,6 +448,13 @@ class Preparation:
             roi = (lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
         else:
             roi = (0, 0, shape[1], shape[0])
+        if self.stereo is not None:        # strain on the surface and extensometers in space (placed as in 2D)
+            strain = stereo_strain_config(self.config.strain, self.stereo)
+            self.strain = StereoStrainStage.of(strain.place(used, p0=used[0], roi=roi, step=self.step,
+                                                            subset=self.config.tracking.subset))
+            if self.static_frames:
+                self._say(f"the noise floor of {self.static_frames} static frames is not measured in stereo yet")
+            return
         self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
                                                subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
         if self.static_frames:
@@ -473,6 +487,9 @@ class Preparation:
             "load": config.load, "load_offset_s": config.load_offset, "area_mm2": config.area_mm2,
             "publish": list(config.publish or ()),          # where the strain went (--publish)
         }
+        if self.stereo is not None:
+            metadata["stereo"] = {"calibration": self.stereo.to_dict(), "calibration_from": self.stereo_calibration_from}
+            metadata["calibration"] = None                  # the 2D one's key: the rig's is above
         for stage in self.stages:
             metadata.update(stage.metadata())               # a key named above keeps its place
         return metadata

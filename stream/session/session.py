@@ -58,6 +58,7 @@ from livedic.stream.session.points import PlacedBy
 # the preparation's names, imported from here by the callers of the session
 from livedic.stream.session.preparation import (FIRST_FRAME_NOTE_S, FirstFrameAhead, NoFrame, Phase, Preparation,
                                                 check_viewer_reachable, drop_policy, is_live, warm_up)
+from livedic.stream.session.stereo import last_frame_numbers, make_stereo_tracker, match_summary, stereo_lines
 from livedic.stream.session.summary import format_summary
 from livedic.stream.stages.contraction import ContractionWatch, has_pair
 
@@ -200,6 +201,7 @@ class Session:
         self._previous_switch_interval: float | None = None
         self._summary: dict | None = None
         self._summary_text: str | None = None
+        self._stereo: dict | None = None        # a stereo session's rig and reference match, for the summary
 
     # what the preparation opened, read and placed (stream.session.preparation.Preparation)
     source = _prepared("source", "The opened frame source (the session closes it).")
@@ -270,6 +272,8 @@ class Session:
             def on_frame(item):          # in the acquisition thread: every frame, tracked or dropped
                 started = time.perf_counter_ns()
                 recorder.write_frame(for_recording(item.frame))
+                if item.frame.right is not None:
+                    recorder.write_frame(for_recording(item.frame.right), view="right")
                 self.loop.stats.stages.add("record frame", time.perf_counter_ns() - started)
         reconnect = None
         if config.reconnect:
@@ -487,14 +491,20 @@ class Session:
                 self.viewer.event(message, level="error")
 
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        return Recorder(path, metadata, start_time_ns=start_time_ns, on_error=recording_stopped)
+        return Recorder(path, metadata, start_time_ns=start_time_ns, on_error=recording_stopped,
+                        stereo=self.preparation.stereo is not None)
 
     def _make_tracker(self, frame: Frame) -> Any:
         """The tracker on the reference frame (the first tracked), the stages set up on it; tells the view and the
         recording."""
         config = self.config
-        tracker = self._tracker_factory(frame.image, self.points)
         prepared = self.preparation
+        if prepared.stereo is not None:
+            tracker, seconds = make_stereo_tracker(prepared.stereo, frame, self.points, config.tracking)
+            self._stereo = {"match": match_summary(tracker, seconds), "calibration_from": prepared.stereo_calibration_from}
+            self.event("note", stereo_lines(self._stereo)[1].strip(), tell=True)
+        else:
+            tracker = self._tracker_factory(frame.image, self.points)
         roi_used = prepared.roi if prepared.roi is not None else (0, 0, frame.image.shape[1], frame.image.shape[0])
         self.reference = Reference(frame_index=frame.index, points=self.points, roi=tuple(int(v) for v in roi_used),
                                    step=prepared.step, shape=frame.image.shape, timestamp_ns=frame.timestamp_ns)
@@ -596,6 +606,10 @@ class Session:
             reference_update=config.tracking.reference_update,
             **(self.reference_updates.summary() if self.reference_updates is not None else {}),
             **(self.fractures.summary() if self.fractures is not None else {}))
+        if self._stereo is not None:
+            last = getattr(self.loop.tracker, "last_points", None)
+            summary["stereo"] = {**self._stereo, "last": last_frame_numbers(last) if last is not None else None,
+                                 "pairing": (self._settings.get("pairing") if self._settings else None)}
         return summary
 
     def _close_quietly(self, close, what):

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from livedic.dic.status import Status
+from livedic.stream.session.stereo import stereo_lines
 from livedic.stream.pipeline.stage import Reference
 from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX
 from livedic.stream.stages.strain import format_strain_summary
@@ -68,7 +69,10 @@ def format_summary(summary: dict[str, Any], reference: Reference | None, recorde
                      f"longer tracked, the rest tracked on")
     if summary.get("error_rms_px") is not None:
         lines.append(f"  error      RMS {num(summary['error_rms_px'], '.4f')} px, max "
-                     f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points)")
+                     f"{num(summary['error_max_px'], '.4f')} px against the truth (ok points"
+                     + (", left view" if summary.get("stereo") else "") + ")")
+    if summary.get("stereo"):
+        lines.extend(stereo_lines(summary["stereo"]))
     lines.extend(stage_lines)
     if recorder is not None:
         size = os.path.getsize(recorder.path) if os.path.exists(recorder.path) else 0
@@ -76,7 +80,9 @@ def format_summary(summary: dict[str, Any], reference: Reference | None, recorde
             lines.append(f"  recording  {recorder.path} STOPPED EARLY: {recorder.frames_durable} frames kept "
                          f"({size / 1e6:.0f} MB); see the warning above")
         else:
-            lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames, "
+            right = getattr(recorder, "right_frames_written", 0)
+            right = f" + {right} right" if right else ""
+            lines.append(f"  recording  {recorder.path} ({recorder.frames_written} frames{right}, "
                          f"{recorder.results_written} results, {size / 1e6:.0f} MB)")
     if summary.get("source_losses"):
         lost = len(summary["source_losses"])

@@ -638,15 +638,18 @@ def format_strain_summary(strain: dict | None) -> list[str]:
     """The summary's strain lines (none without strain): window, VSG, final extensometer readings."""
     if not strain:
         return []
+    surface = f" (VSG {strain['vsg_mm']:.2f} mm on the specimen's surface)" if strain.get("vsg_mm") else ""
     lines = [f"  strain     {strain['strain_measure']}, window {strain['strain_window']} points, VSG "
-             f"{strain['vsg_px']:.0f} px; {strain['strain_ms_p50']:.2f} ms/frame (p99 {strain['strain_ms_p99']:.2f})"]
+             f"{strain['vsg_px']:.0f} px{surface}; {strain['strain_ms_p50']:.2f} ms/frame "
+             f"(p99 {strain['strain_ms_p99']:.2f})"]
     for name, final in strain["extensometers"].items():
         reading = (f"{100 * final['eng_strain']:.3f} % engineering, {100 * final['true_strain']:.3f} % true"
                    if final["ok"] else "no reading in the last frame (an end lost)")
         error = final.get("error_max_vs_truth")
         versus = f"; max error vs truth {1e6 * error:.0f} microstrain" if error is not None else ""
-        lines.append(f"  extensom.  {name}: L0 {format_length(final['L0_px'], final.get('L0_mm'))}, final "
-                     f"{reading}{versus}")
+        length = (f"{final['L0_mm']:.3f} mm in space" if strain.get("in_space")
+                  else format_length(final['L0_px'], final.get('L0_mm')))
+        lines.append(f"  extensom.  {name}: L0 {length}, final {reading}{versus}")
     if strain.get("poisson_ratio"):
         lines.append(f"  Poisson    {format_poisson(strain['poisson_ratio'])}")
     return lines
