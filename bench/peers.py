@@ -19,8 +19,10 @@ livedic rows are measured either way.
 
 * ``fft-filtered noise`` (``bench.patterns.fft_blurred``): band-limited, the shift applied as a Fourier phase
   ramp, exact for any sub-pixel value;
-* ``gaussian dots`` (``bench.patterns.sparse_dots``, denser): isotropic Gaussian dots sampled at their shifted
-  centres, exact (the quick run leaves it out);
+* ``gaussian dots`` (``bench.patterns.sparse_dots``, 12 per 21 x 21 px): isotropic Gaussian dots sampled at
+  their shifted centres, exact; where dots overlap the generator saturates (250 grey levels), so the sampled
+  image is not band-limited: a pattern-induced error of about 0.003 px that no interpolant or pre-filter
+  removes (an overexposed speckle; the quick run leaves it out);
 
 each linearly scaled so the reference spans ``GREY_RANGE`` (a dark floor of 20 grey levels, as a camera's
 offset, so no pixel clips at 0), then quantised to 8 bit, or to 12 bit (x 4095/255, in a 16-bit container),
@@ -32,7 +34,8 @@ each image. Shifts ``SHIFTS`` (u, v px; quick: ``QUICK_SHIFTS``), ``IMAGE_SIZE``
 RMSE of u - truth and of v - truth and ``rmse = sqrt((RMSE_u^2 + RMSE_v^2) / 2)``, the ok count; livedic's
 ``rmse`` over the best peer's (the smallest ``rmse`` among the peers that ran) is the ratio; a setting meets
 the target when its ratio is at most ``TARGET_RATIO`` in every case. Exit code 1 when peers ran and no
-setting meets it, else 0.
+setting meets it, else 0. Each case also shows the first-order noise prediction (``predicted_rmse``): the
+RMSE an unbiased IC-GN reaches on that pattern, subset and noise, the floor no setting goes below.
 """
 
 from __future__ import annotations
@@ -109,6 +112,7 @@ class CaseResult:
     case: Case
     livedic: list[Score] = field(default_factory=list)
     peers: list[Score] = field(default_factory=list)
+    predicted_rmse: float = math.nan
 
     def best_peer(self) -> Score | None:
         measured = [s for s in self.peers if s.status is PeerStatus.MEASURED and math.isfinite(s.rmse)]
@@ -183,6 +187,27 @@ def score(code: str, errors_u: Sequence[np.ndarray], errors_v: Sequence[np.ndarr
     rmse_u, rmse_v = float(np.sqrt(np.mean(du ** 2))), float(np.sqrt(np.mean(dv ** 2)))
     return Score(code, PeerStatus.MEASURED, int(du.size), points, rmse_u, rmse_v,
                  float(np.sqrt(0.5 * (rmse_u ** 2 + rmse_v ** 2))), seconds=seconds)
+
+
+def predicted_rmse(case: Case, noise_sigma_8bit: float = NOISE_SIGMA_8BIT) -> float:
+    """The first-order noise prediction of the case's RMSE (``bench.accuracy.predicted_noise``), px.
+
+    ``sqrt(2 sigma^2 [H^-1])`` for u (on the transposed image) and v at every grid point of every shift's
+    noise-free reference, first-order shape function, combined as ``rmse``; sigma includes the rounding
+    (1/12 level^2 at the case's depth). What an unbiased IC-GN reaches on this subset and noise: the floor
+    the RMSE of every code approaches when the interpolation bias is gone.
+    """
+    from livedic.bench.accuracy import predicted_noise
+
+    points = grid(case.size).astype(int)
+    scale = (2 ** case.bits - 1) / 255.0
+    sigma = math.sqrt(noise_sigma_8bit ** 2 + 1.0 / 12.0 / scale ** 2)
+    squares = []
+    for index, shift in enumerate(case.shifts):
+        reference, _ = render_clean(case.generator, case.size, shift, seed=index)
+        for image, xs, ys in ((reference, points[:, 0], points[:, 1]), (reference.T, points[:, 1], points[:, 0])):
+            squares.append(predicted_noise(image, xs, ys, SUBSET, 1, sigma) ** 2)
+    return float(np.sqrt(np.mean(np.concatenate(squares))))
 
 
 # ----------------------------------------------------------------------------- the codes
@@ -319,7 +344,7 @@ def run_case(case: Case, *, settings=SETTINGS, sundic_python: str | None = None,
     """Every livedic setting and every peer on ``case``."""
     points = grid(case.size)
     pairs = [(render_pair(case, shift, index, noise_sigma_8bit), shift) for index, shift in enumerate(case.shifts)]
-    result = CaseResult(case)
+    result = CaseResult(case, predicted_rmse=predicted_rmse(case, noise_sigma_8bit))
     result.livedic = [_measure_livedic(pairs, points, interpolation, prefilter)
                       for interpolation, prefilter in settings]
     with tempfile.TemporaryDirectory(prefix="livedic-peers-") as work:
@@ -346,7 +371,8 @@ def _row(result: CaseResult, score_: Score, is_livedic: bool) -> str:
 def report_case(result: CaseResult, log: Callable[[str], None]) -> None:
     """The case's table."""
     case = result.case
-    log(f"{case.name}: {len(case.shifts)} shift(s), {case.size}x{case.size} px")
+    log(f"{case.name}: {len(case.shifts)} shift(s), {case.size}x{case.size} px; first-order noise prediction "
+        f"(an unbiased IC-GN's RMSE) {_number(result.predicted_rmse, 0)} px")
     log(f"  {'code':34s} {'ok':>11s} {'RMSE u':>8s} {'RMSE v':>8s} {'RMSE':>8s} {'/ best':>7s}")
     for s in result.livedic:
         log(_row(result, s, True))
@@ -411,7 +437,7 @@ def _report(results, worst, quick, sundic_python, opencorr_bin):
             "noise_sigma_8bit": NOISE_SIGMA_8BIT, "target_ratio": TARGET_RATIO, "python": sys.version.split()[0],
             "peers": {"sundic_python": sundic_python, "opencorr_bin": opencorr_bin},
             "cases": [{"generator": r.case.generator, "bits": r.case.bits, "size": r.case.size,
-                       "shifts": [list(s) for s in r.case.shifts],
+                       "shifts": [list(s) for s in r.case.shifts], "predicted_rmse": r.predicted_rmse,
                        "livedic": [plain(s, r) for s in r.livedic], "peers": [plain(s) for s in r.peers]}
                       for r in results],
             "worst_ratio": worst}

@@ -128,3 +128,10 @@ def test_cli_unwritable_output_is_one_line_exit_2(tmp_path, capsys):
     assert main(["bench", "peers", "--quick", "-o", os.path.join(str(tmp_path), "absent", "out.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "-o" in err[0]
+
+
+def test_the_noise_prediction_matches_livedic_on_a_noisy_case():
+    """The case's first-order prediction is what livedic's IC-GN reads with noise sigma 2 (within the scatter of
+    a few hundred points)."""
+    result = run_case(Case("fft-filtered noise", 8, (SHIFT, (0.6, 0.1)), 160), settings=(("bspline5", "gaussian:0.6"),))
+    assert result.livedic[0].rmse == pytest.approx(result.predicted_rmse, rel=0.15)
