@@ -339,7 +339,7 @@ def _write_image(path: str, image: np.ndarray) -> str:
     return path
 
 
-def run_case(case: Case, *, settings=SETTINGS, sundic_python: str | None = None, opencorr_bin: str | None = None,
+def run_case(case: Case, *, settings: Sequence[tuple[str, str]] = SETTINGS, sundic_python: str | None = None, opencorr_bin: str | None = None,
              noise_sigma_8bit: float = NOISE_SIGMA_8BIT) -> CaseResult:
     """Every livedic setting and every peer on ``case``."""
     points = grid(case.size)
