@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|accuracy|soak|strain|fracture|tracker|extensometer``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|accuracy|peers|soak|strain|fracture|tracker|extensometer``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -17,11 +17,11 @@ from livedic.stream.session.parsing import subpixel_method
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
-                                             "fracture, tensile, replay, tracker, extensometer, accuracy")
+                                             "fracture, tensile, replay, tracker, extensometer, accuracy, peers")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     for add in (_add_paper_command, _add_speed_command, _add_live_command, _add_validate_command, _add_soak_command,
                 _add_strain_command, _add_fracture_command, _add_replay_command, _add_tracker_command,
-                _add_tensile_command, _add_extensometer_command, _add_calibration_command, _add_accuracy_command):
+                _add_tensile_command, _add_extensometer_command, _add_calibration_command, _add_accuracy_command, _add_peers_command):
         add(bench_commands)
 
 
@@ -95,6 +95,26 @@ def _add_accuracy_command(bench_commands):
     from livedic.stream.session.options import add_config_arguments
     add_config_arguments(accuracy, TrackingConfig, names=("interpolation",))
     accuracy.set_defaults(handler=_cmd_bench_accuracy)
+
+
+def _add_peers_command(bench_commands):
+    """``livedic bench peers``'s options."""
+    peers = bench_commands.add_parser(
+        "peers", help="RMSE against open DIC codes (SUN-DIC, OpenCorr) on other generators' 8- and 12-bit shifts",
+        description="Rigid sub-pixel shifts rendered by pattern generators other than livedic's simulator, 8 and "
+                    "12 bit, noise sigma 2 grey levels, exact truth: the RMSE of u and v over every ok point for "
+                    "livedic's icgn with bspline3/bspline5 and no or a Gaussian pre-filter, and for the peers given "
+                    "(run here on the same images), with livedic's ratio to the best peer against the 0.9x target "
+                    "(exit code 1 when peers ran and no setting meets it).")
+    peers.add_argument("--quick", action="store_true", help="one generator, one shift, 256x256 (about a minute)")
+    peers.add_argument("-o", "--output", metavar="OUT.json", help="also write the tables as JSON")
+    peers.add_argument("--sundic-python", metavar="PATH",
+                       help="the python of a separate environment with SUN-DIC installed (pip install sun-dic); "
+                            "without it SUN-DIC is reported not installed")
+    peers.add_argument("--opencorr-bin", metavar="PATH",
+                       help="OpenCorr's FFT-CC + IC-GN driver built as docs/guide/measure.md says; without it "
+                            "OpenCorr is reported not installed")
+    peers.set_defaults(handler=_cmd_bench_peers)
 
 
 def _add_soak_command(bench_commands):
@@ -390,6 +410,22 @@ def _cmd_bench_accuracy(args):
         check_output_file(args.output, "-o")
     return run_accuracy_benchmark(data=args.data, quick=args.quick, output=args.output,
                                   log=lambda line: print(line, flush=True), interpolation=args.interpolation)
+
+
+def _cmd_bench_peers(args):
+    from livedic.bench.peers import check_peer_location, check_sundic_python, run_peers_benchmark
+    from livedic.stream.output.files import check_output_file
+    try:
+        if args.sundic_python is not None:
+            check_sundic_python(args.sundic_python)
+        if args.opencorr_bin is not None:
+            check_peer_location("--opencorr-bin", args.opencorr_bin)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.output is not None:
+        check_output_file(args.output, "-o")
+    return run_peers_benchmark(quick=args.quick, output=args.output, sundic_python=args.sundic_python,
+                               opencorr_bin=args.opencorr_bin, log=lambda line: print(line, flush=True))
 
 
 def _cmd_bench_soak(args):
