@@ -10,8 +10,9 @@ Contract
   tolerance) is dropped, counted by view and ``DropReason``; the next frames pair as before. A camera that missed a
   trigger (ids in step but a period apart) shows as timestamps apart: the earlier frame is dropped and the views
   are paired again by timestamp; two frames of one trigger whose times disagree are both dropped, one pair.
-* The first pair is found on one clock (``clock=``; the id offset most of each view's first frames agree on): ``host`` (default: when this computer received the frame,
-  ``metadata["system_timestamp_ns"]`` where the source gives it, else ``Frame.timestamp_ns``) or ``camera``
+* The first pair is found on one clock (``clock=``; the id offset most of each view's first frames agree on):
+  ``host`` (default: when this computer received the frame, ``metadata["system_timestamp_ns"]`` where the source
+  gives it, else ``Frame.timestamp_ns``) or ``camera``
   (``Frame.timestamp_ns``: only for cameras whose clocks are synchronised, IEEE 1588 PTP). From then on each frame's
   own ``Frame.timestamp_ns`` (the camera's clock: exact, no transfer jitter) is compared, the offset between the two
   cameras' clocks measured on the pairing clock at every pair (``_Skew``).
@@ -49,7 +50,7 @@ _ALIGN_FRAMES = 5           # frames of each view that vote for the first pair
 
 
 class DropReason(enum.Enum):
-    """Why a frame was dropped instead of paired (each dropped frame is one pair that could not be formed)."""
+    """Why a frame was dropped instead of paired (``PairingCounts`` counts the frames and the pairs lost)."""
     PARTNER_LOST = "partner_lost"              # the other view's ids skip this frame's: lost upstream there
     NO_PARTNER_IN_TIME = "no_partner_in_time"  # before the views are in step (the start, after a missed trigger):
                                                # no frame of the other view within the tolerance
@@ -240,64 +241,88 @@ def pair_frames(left: Iterable[Frame], right: Iterable[Frame], *, tolerance_ns: 
     """
     if clock not in CLOCKS:
         raise SourceError(f"stereo option clock={clock!r}: write clock=host or clock=camera")
-    counts = counts if counts is not None else PairingCounts()
     views = {"left": _View("left", left, uris[0]), "right": _View("right", right, uris[1])}
     if tolerance_ns is None:
         if period_ns is None:
             period_ns = _measured_period_ns(views["left"], views["right"], clock)
         tolerance_ns = int(DEFAULT_TOLERANCE_PERIODS * (period_ns or 0))
-    counts.tolerance_ns = tolerance_ns
-    skew_of = _Skew(clock)
-    id_offset: int | None = None       # right index - left index while the views' ids are in step
-    first_index: int | None = None
+    return _Pairing(views, clock, tolerance_ns, counts if counts is not None else PairingCounts()).pairs()
 
-    def drop(side: str, reason: DropReason, pair: bool = True) -> None:
-        views[side].take()
-        counts.dropped[(side, reason)] += 1
-        counts.pairs_dropped += pair
 
-    while True:
-        a, b = views["left"].peek(), views["right"].peek()
-        if a is None or b is None:
-            ended = views["left" if a is None else "right"]
-            if ended.error is not None:
-                raise ended.error
-            counts.ended_by = ended.name
-            return
-        if skew_of.offset_ns is None:
-            alignment = _first_alignment(views["left"], views["right"], clock, tolerance_ns)
-            if alignment is None:
-                drop("left" if skew_of(a, b) > 0 else "right", DropReason.NO_PARTNER_IN_TIME)
+class _Pairing:
+    """The state of ``pair_frames``: each step pairs the views' next frames or drops one (or both) of them."""
+
+    def __init__(self, views: dict[str, _View], clock: str, tolerance_ns: int, counts: PairingCounts) -> None:
+        self.views, self.clock, self.tolerance_ns, self.counts = views, clock, tolerance_ns, counts
+        counts.tolerance_ns = tolerance_ns
+        self.skew = _Skew(clock)
+        self.id_offset: int | None = None      # right index - left index while the views' ids are in step
+        self.first_index: int | None = None
+
+    def pairs(self) -> Iterator[StereoFrame]:
+        left, right = self.views["left"], self.views["right"]
+        while True:
+            a, b = left.peek(), right.peek()
+            if a is None or b is None:
+                self._end(left if a is None else right)
+                return
+            if self.skew.offset_ns is None and not self._aligned(a, b):
                 continue
-            id_offset, skew_of.offset_ns = alignment
-        if id_offset is not None and a.index + id_offset != b.index:
-            # One view's ids skip the other's frame: that frame's partner was lost upstream (or, before the first
-            # pair, the other view had not started).
-            drop("left" if a.index + id_offset < b.index else "right",
-                 DropReason.PARTNER_LOST if counts.pairs else DropReason.NO_PARTNER_IN_TIME)
-            continue
-        skew = skew_of(a, b)
-        if abs(skew) > tolerance_ns:
-            earlier, later = ("left", "right") if skew > 0 else ("right", "left")
-            if id_offset is None:
-                drop(earlier, DropReason.NO_PARTNER_IN_TIME)
-            elif _missed_a_trigger(views[earlier], views[later], skew_of, tolerance_ns):
-                drop(earlier, DropReason.TIMESTAMPS_APART)
-            else:
-                drop("left", DropReason.TIMESTAMPS_APART, pair=False)   # one trigger, its timing not to be trusted
-                drop("right", DropReason.TIMESTAMPS_APART)
-            id_offset = None           # ids no longer vouch for the pairing: the next pair is found by time
-            continue
-        id_offset = b.index - a.index
-        views["left"].take()
-        views["right"].take()
-        skew_of.paired(a, b)
-        first_index = a.index if first_index is None else first_index
-        counts.pairs += 1
-        counts.max_abs_skew_ns = max(counts.max_abs_skew_ns, abs(skew))
-        pair = StereoFrame(index=a.index - first_index, left=a, right=b, skew_ns=skew)
-        a = b = None                   # hold no frame (a camera's lent buffer) while the consumer has the pair
-        yield pair
+            if self.id_offset is not None and a.index + self.id_offset != b.index:
+                # One view's ids skip the other's frame: its partner was lost upstream (before the first pair: the
+                # other view had not started).
+                self._drop("left" if a.index + self.id_offset < b.index else "right",
+                           DropReason.PARTNER_LOST if self.counts.pairs else DropReason.NO_PARTNER_IN_TIME)
+                continue
+            skew = self.skew(a, b)
+            if abs(skew) > self.tolerance_ns:
+                self._drop_apart(skew)
+                continue
+            pair = self._pair(a, b, skew)
+            a = b = None               # hold no frame (a camera's lent buffer) while the consumer has the pair
+            yield pair
+
+    def _end(self, view: _View) -> None:
+        if view.error is not None:
+            raise view.error
+        self.counts.ended_by = view.name
+
+    def _aligned(self, a: Frame, b: Frame) -> bool:
+        """Find the first pair's ids and the cameras' clock offset; else drop the earlier frame (False)."""
+        alignment = _first_alignment(self.views["left"], self.views["right"], self.clock, self.tolerance_ns)
+        if alignment is None:
+            self._drop("left" if self.skew(a, b) > 0 else "right", DropReason.NO_PARTNER_IN_TIME)
+            return False
+        self.id_offset, self.skew.offset_ns = alignment
+        return True
+
+    def _drop_apart(self, skew: int) -> None:
+        """Two frames too far apart in time: the earlier has no partner, or (ids in step) a camera missed a
+        trigger, or the two are one trigger's whose times cannot be trusted."""
+        earlier, later = ("left", "right") if skew > 0 else ("right", "left")
+        if self.id_offset is None:
+            self._drop(earlier, DropReason.NO_PARTNER_IN_TIME)
+        elif _missed_a_trigger(self.views[earlier], self.views[later], self.skew, self.tolerance_ns):
+            self._drop(earlier, DropReason.TIMESTAMPS_APART)
+        else:
+            self._drop("left", DropReason.TIMESTAMPS_APART, pair=False)
+            self._drop("right", DropReason.TIMESTAMPS_APART)
+        self.id_offset = None          # ids no longer vouch for the pairing: the next pair is found by time
+
+    def _drop(self, side: str, reason: DropReason, pair: bool = True) -> None:
+        self.views[side].take()
+        self.counts.dropped[(side, reason)] += 1
+        self.counts.pairs_dropped += pair
+
+    def _pair(self, a: Frame, b: Frame, skew: int) -> StereoFrame:
+        self.id_offset = b.index - a.index
+        self.views["left"].take()
+        self.views["right"].take()
+        self.skew.paired(a, b)
+        self.first_index = a.index if self.first_index is None else self.first_index
+        self.counts.pairs += 1
+        self.counts.max_abs_skew_ns = max(self.counts.max_abs_skew_ns, abs(skew))
+        return StereoFrame(index=a.index - self.first_index, left=a, right=b, skew_ns=skew)
 
 
 class _TriggerClock(threading.Thread):

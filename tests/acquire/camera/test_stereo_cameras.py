@@ -150,3 +150,18 @@ def test_a_camera_handed_over_to_the_pair_exposes_once_per_trigger_fired():
                 assert frame.index == fired - 1
             assert camera.settings["software_triggers"] == 3
         assert fake.served()["frames_served"] == 3
+
+
+def test_a_camera_lost_mid_pair_ends_it_with_one_error_naming_that_view(scene):
+    # Both fakes free-run at RATE on the wall clock's ticks; the right one, a GigE simulator, is then killed.
+    with GigEFakeCamera(SpeckleMotion(SIZE)) as fake:
+        right = f"{fake.uri}?frame_rate={RATE}&copy=1"
+        with open_stereo_source(f"stereo:{view_uri(0, 'free')},{right}") as pair_source:
+            pairs = iter(pair_source)
+            assert len(list(islice(pairs, 3))) == 3
+            fake.kill()
+            with pytest.raises(SourceError) as lost:
+                for _ in islice(pairs, 10 * RATE):
+                    pass
+    message = str(lost.value)
+    assert message.startswith(f"right view ({right}): camera ") and " lost: " in message and "\n" not in message
