@@ -191,6 +191,7 @@ class AravisCamera(FrameSource):
         self._trigger_period_s = None
         self._next_trigger_t = 0.0
         self._triggers_fired = 0
+        self._trigger_fired_by_caller = False    # hand_over_software_trigger: a stereo pair fires both cameras
         self._label = device_id or "(first camera)"
         self._info: dict[str, Any] = {}
         self._applied: dict[str, Any] = {}
@@ -445,6 +446,33 @@ class AravisCamera(FrameSource):
     def __iter__(self):
         return _FrameIterator(self)
 
+    def start_acquisition(self) -> None:
+        """Start streaming now (iterating starts it too): a caller firing triggers needs the camera armed first."""
+        self._start()
+
+    def hand_over_software_trigger(self) -> float:
+        """With ``trigger=software``: stop firing while waiting for frames, the caller fires (``fire_software_trigger``).
+
+        Two cameras of a stereo pair must expose on the same trigger: one clock fires both. Returns the trigger
+        rate asked (``frame_rate``), which the caller fires at and ``settings`` keep reporting.
+        """
+        if not self._software_trigger or self._trigger_period_s is None:
+            raise SourceError(f"camera {self._label}: only a trigger=software camera hands over its trigger")
+        self._trigger_fired_by_caller = True
+        return 1.0 / self._trigger_period_s
+
+    def fire_software_trigger(self) -> None:
+        """Fire TriggerSoftware once (acquisition started first); SourceError naming the camera on failure.
+
+        Not under the stream lock: a consumer waiting for a frame holds it for up to a pop slice.
+        """
+        camera = self._camera
+        if self._closing or self._closed or camera is None:
+            return
+        self._start()
+        self._call("software trigger", camera.software_trigger)
+        self._triggers_fired += 1
+
     def _start(self) -> None:
         with self._lock:
             if not self._started and self._camera is not None and not self._closed:
@@ -485,7 +513,7 @@ class AravisCamera(FrameSource):
                 if len(self._pool) - self._n_leased < _MIN_FREE_BUFFERS:
                     self._grow_pool()  # the consumer holds (almost) every buffer
                 wait_us = _POP_SLICE_US
-                if self._trigger_period_s is not None:
+                if self._trigger_period_s is not None and not self._trigger_fired_by_caller:
                     try:
                         wait_us = min(wait_us, max(1000, int(1e6 * self._fire_trigger(time.monotonic()))))
                     except SourceError as trigger_error:

@@ -84,7 +84,10 @@ class InProcessFakeCamera:
     """While active, ``aravis:Fake_1`` serves ``image_fn(k)`` (Aravis's in-process Fake device).
 
     Sensor 2048x2048 (ROI default 512x512), Mono8 and Mono16 (more with
-    ``genicam=`` a file holding :func:`extended_genicam_xml`). Each time an
+    ``genicam=`` a file holding :func:`extended_genicam_xml`). With ``tick_hz``, a camera in trigger mode
+    exposes at ``tick_hz`` on the wall clock's multiples of its period (Aravis's in-process fake ignores
+    TriggerSoftware; its GigE fake obeys it) and ``image_fn`` gets the tick number: every open of the device
+    sees the same scene at the same tick, as cameras on one hardware trigger line do (a stereo pair). Each time an
     ``AravisCamera`` opens the device it is a new device in its power-on state and
     a fresh :class:`FillPattern` is attached (``k`` restarts at 0), kept alive by
     that source until it is closed.
@@ -98,10 +101,11 @@ class InProcessFakeCamera:
     """
 
     def __init__(self, image_fn: Callable[[int], Any] | None = None, *, device_id: str = "Fake_1",
-                 genicam: str | os.PathLike[str] | None = None) -> None:
+                 genicam: str | os.PathLike[str] | None = None, tick_hz: float | None = None) -> None:
         self.image_fn = image_fn if image_fn is not None else SpeckleMotion()
         self.device_id = device_id
         self.genicam = genicam
+        self.tick_hz = tick_hz
         self.patterns: list[FillPattern] = []  # one FillPattern per open, newest last
 
     @property
@@ -109,8 +113,11 @@ class InProcessFakeCamera:
         return f"{SCHEME}:{self.device_id}"
 
     def _attach(self, camera: Any) -> FillPattern:
-        pattern = FillPattern(self.image_fn)
-        pattern.install(camera.get_device().get_fake_camera())
+        fake = camera.get_device().get_fake_camera()
+        pattern = FillPattern(self.image_fn, tick_s=None if self.tick_hz is None else 1.0 / self.tick_hz)
+        if self.tick_hz is not None:
+            fake.set_trigger_frequency(float(self.tick_hz))
+        pattern.install(fake)
         self.patterns.append(pattern)
         return pattern
 

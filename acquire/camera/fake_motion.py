@@ -163,6 +163,10 @@ def _libaravis():
         lib.arv_fake_camera_set_fill_pattern.restype = None
         lib.arv_buffer_get_data.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_size_t)]
         lib.arv_buffer_get_data.restype = ctypes.c_void_p
+        lib.arv_buffer_get_timestamp.argtypes = [ctypes.c_void_p]
+        lib.arv_buffer_get_timestamp.restype = ctypes.c_uint64
+        lib.arv_buffer_set_timestamp.argtypes = [ctypes.c_void_p, ctypes.c_uint64]
+        lib.arv_buffer_set_timestamp.restype = None
         for name in ("arv_buffer_get_image_width", "arv_buffer_get_image_height",
                      "arv_buffer_get_image_x", "arv_buffer_get_image_y"):
             getattr(lib, name).argtypes = [ctypes.c_void_p]
@@ -190,12 +194,17 @@ def _gobject_address(obj):
 class FillPattern:
     """Serves ``image_fn(k)`` into an ``ArvFakeCamera``'s buffers through a ctypes callback.
 
+    ``k`` counts the frames served, or with ``tick_s`` is the number of the clock tick the frame was taken at
+    (the frame's timestamp becomes that tick's time): Aravis's fake exposes on the wall clock's multiples of its
+    frame period, so fakes with one period show one scene state per tick, as cameras on one trigger line do.
     Keep this object referenced until the camera that uses it is destroyed:
     the C side holds a bare pointer to the callback.
     """
 
-    def __init__(self, image_fn: Callable[[int], Any]) -> None:
+    def __init__(self, image_fn: Callable[[int], Any], *, tick_s: float | None = None) -> None:
         self.image_fn = image_fn
+        self.tick_s = tick_s
+        self._tick_ns = None if tick_s is None else round(tick_s * 1e9)
         self.frames_served = 0
         self.errors = 0
         self.last_error: str | None = None
@@ -205,12 +214,20 @@ class FillPattern:
         """Attach to a gi ``Aravis.FakeCamera``."""
         _libaravis().arv_fake_camera_set_fill_pattern(_gobject_address(fake_camera), self._callback, None)
 
+    def _stamp_tick(self, buffer: int, tick_ns: int) -> int:
+        """The tick this frame was taken at; its timestamp set to the tick's time, as a camera stamps the exposure
+        (Aravis stamps the fill, a little after the tick; the system timestamp keeps that arrival time)."""
+        lib = _LIB
+        tick = lib.arv_buffer_get_timestamp(buffer) // tick_ns      # filled after its tick, within a period
+        lib.arv_buffer_set_timestamp(buffer, tick * tick_ns)
+        return tick
+
     def _fill(self, buffer, _data, _exposure_us, _gain, pixel_format) -> None:
         # Runs in an Aravis thread: an exception must not cross into C.
         try:
-            k = self.frames_served
-            self.frames_served += 1
             lib = _LIB
+            k = self.frames_served if self._tick_ns is None else self._stamp_tick(buffer, self._tick_ns)
+            self.frames_served += 1
             width = lib.arv_buffer_get_image_width(buffer)
             height = lib.arv_buffer_get_image_height(buffer)
             x0 = lib.arv_buffer_get_image_x(buffer)

@@ -269,6 +269,11 @@ def _cmd_cameras(args):
     for camera in cameras:
         print(f"{camera['uri']:40s} {camera['vendor'] or '':16s} {camera['model'] or '':20s} "
               f"{camera['serial'] or '':14s} {camera['protocol']:11s} {camera.get('address') or ''}")
+    if len(cameras) >= 2:
+        left, right = (camera["uri"] for camera in cameras[:2])
+        print(f"livedic: a stereo pair of two of them: --source 'stereo:{left},{right}' (on one hardware trigger: "
+              "?trigger=line:N on both; fired together by livedic: ?trigger=software&frame_rate=F on both)",
+              file=sys.stderr)
     return 0
 
 

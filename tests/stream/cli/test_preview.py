@@ -42,6 +42,26 @@ def test_bad_input_is_one_line_exit_2_and_no_picture(strip_images, tmp_path, cap
     assert not (tmp_path / "preview.png").exists() and not (tmp_path / "preview.jpg").exists()
 
 
+def test_a_stereo_pair_is_drawn_left_view_above_right_view(tmp_path, capsys):
+    out = tmp_path / "pair.png"
+    pair = "stereo:synthetic:translate?size=160x128,synthetic:tensile?size=160x128"
+    assert main(["preview", "--source", pair, "--n-points", "50", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "livedic: left view: 49 points" in err and "livedic: right view: 49 points" in err      # placed once
+    assert f"preview written to {out}" in err and not [p for p in tmp_path.iterdir() if p.name != "pair.png"]
+    picture = cv2.imread(str(out), cv2.IMREAD_GRAYSCALE)
+    main(["preview", "--source", "synthetic:translate?size=160x128", "--n-points", "50", "-o", str(tmp_path / "one.png")])
+    one = cv2.imread(str(tmp_path / "one.png"), cv2.IMREAD_GRAYSCALE)
+    assert picture.shape[1] == one.shape[1] and picture.shape[0] > 1.8 * one.shape[0]    # two rows, one per view
+
+
+def test_a_bad_stereo_source_is_one_line_exit_2_and_no_picture(tmp_path, capsys):
+    code = main(["preview", "--source", "stereo:synthetic:translate", "-o", str(tmp_path / "p.png")])
+    err = capsys.readouterr().err
+    assert code == 2 and "a stereo pair takes two" in err and err.count("\n") == 1, err
+    assert not list(tmp_path.iterdir())
+
+
 def test_the_picture_goes_into_missing_folders(strip_images, tmp_path, capsys):
     out = tmp_path / "new" / "deeper" / "p.png"
     assert main(["preview", "--source", f"images:{strip_images}", "--n-points", "50", "-o", str(out)]) == 0
