@@ -14,8 +14,9 @@ missing optional dependency such as Aravis only matters to its own URIs)::
 
 A bare path ending in ``.mcap`` is read as ``mcap:PATH``. Keyword options
 override those in the query string. Malformed or unknown URIs raise
-``SourceError`` listing these forms. ``stereo:`` yields pairs of frames (``acquire.stereo``): ``open_source``
-refuses it (its callers take one view), ``open_stereo_source`` opens it.
+``SourceError`` listing these forms. ``stereo:`` yields pairs of frames (``acquire.stereo``):
+``open_stereo_source`` opens it as ``StereoFrame`` pairs, ``open_source`` as ``PairedFrames`` (each pair its
+left frame with the right one in ``Frame.right``: what a session takes).
 """
 
 from __future__ import annotations
@@ -89,10 +90,9 @@ def open_source(uri: str, **options: Any) -> FrameSource:
     if scheme == "images":
         from livedic.acquire.files.image_sequence import open_uri as open_images
         return open_images(uri, **options)
-    if scheme == STEREO_SCHEME:
-        pair_options(parse_stereo_uri(uri)[2])        # a malformed stereo URI is named first
-        raise SourceError(f"{uri} gives pairs of frames from two cameras: stereo measurement is not wired into "
-                          "this command yet; check the pair with 'livedic preview --source stereo:...'")
+    if scheme == STEREO_SCHEME:            # each pair as its left frame with the right one attached
+        from livedic.acquire.stereo import PairedFrames
+        return PairedFrames(open_stereo_source(uri, **options))
     return _open_mcap(uri, options)
 
 

@@ -36,7 +36,7 @@ from typing import Any, Literal
 
 from livedic.acquire.base import Frame, FrameSource, NoFirstFrame, SourceError, SourceLost
 
-__all__ = ["StereoFrame", "StereoSource", "DropReason", "PairingCounts", "pair_frames", "CLOCKS",
+__all__ = ["PairedFrames", "StereoFrame", "StereoSource", "DropReason", "PairingCounts", "pair_frames", "CLOCKS",
            "DEFAULT_TOLERANCE_PERIODS", "VIEWS"]
 
 VIEWS = ("left", "right")
@@ -442,3 +442,45 @@ class StereoSource:
     def __exit__(self, *exc: object) -> Literal[False]:
         self.close()
         return False
+
+
+class PairedFrames(FrameSource):
+    """A ``StereoSource`` as a ``FrameSource``: each pair as its left ``Frame`` with the right one in ``Frame.right``.
+
+    What a live session takes (``open_source("stereo:...")``): the queue, drops, recording and the camera view
+    handle the pair as one frame of the left view; the tracker reads both. The frame's index is the pair's,
+    its timestamp the left one's, ``metadata["stereo_skew_ns"]`` the pairing error. ``stereo`` marks it.
+    """
+
+    stereo = True
+
+    def __init__(self, pairs: StereoSource) -> None:
+        self.pairs = pairs
+        self.uri = pairs.uri
+
+    @property
+    def live(self) -> bool:
+        return self.pairs.live
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        return self.pairs.settings
+
+    def __iter__(self) -> Iterator[Frame]:
+        for pair in self.pairs:
+            left = pair.left
+            metadata = dict(left.metadata) if isinstance(left.metadata, dict) else {}
+            metadata["stereo_skew_ns"] = pair.skew_ns
+            yield Frame(pair.index, left.timestamp_ns, left.image, left.pixel_format, metadata, right=pair.right)
+
+    def discard_buffered(self) -> int:
+        """Both views' frames sent while the session was prepared (cameras), dropped; how many."""
+        dropped = 0
+        for view in (self.pairs.left, self.pairs.right):
+            discard = getattr(view, "discard_buffered", None)
+            if discard is not None:
+                dropped += int(discard() or 0)
+        return dropped
+
+    def close(self) -> None:
+        self.pairs.close()

@@ -6,7 +6,8 @@ import pytest
 
 from livedic.acquire.base import Frame, NoFirstFrame, SourceError, SourceLost
 from livedic.acquire.sources import SCHEMES, open_source, open_stereo_source, parse_scheme, parse_stereo_uri
-from livedic.acquire.stereo import DEFAULT_TOLERANCE_PERIODS, DropReason, PairingCounts, StereoSource, pair_frames
+from livedic.acquire.stereo import (DEFAULT_TOLERANCE_PERIODS, DropReason, PairedFrames, PairingCounts, StereoSource,
+                                    pair_frames)
 
 PERIOD_NS = 20_000_000            # 50 fps
 
@@ -167,9 +168,19 @@ def test_a_bad_stereo_uri_is_one_line_naming_the_problem(uri, message):
     assert "\n" not in str(raised.value)
 
 
-def test_single_source_commands_refuse_a_pair_honestly():
-    with pytest.raises(SourceError, match="stereo measurement is not wired into this command yet"):
-        open_source("stereo:synthetic:translate,synthetic:tensile")
+def test_open_source_gives_each_pair_as_its_left_frame_with_the_right_attached():
+    """What a session takes: the pair's index, the left frame's image and timestamp, the right frame in
+    ``Frame.right``, the pairing error in the metadata; the pairing counters in the settings."""
+    uri = "stereo:synthetic:translate?frames=4&size=64x64&pace=0,synthetic:translate?frames=4&size=64x64&pace=0&seed=2"
+    with open_source(uri) as paired, open_stereo_source(uri) as pairs:
+        assert isinstance(paired, PairedFrames) and paired.stereo and not paired.live
+        frames, expected = list(paired), list(pairs)
+    assert [f.index for f in frames] == [p.index for p in expected] == [0, 1, 2, 3]
+    for frame, pair in zip(frames, expected):
+        assert np.array_equal(frame.image, pair.left.image) and np.array_equal(frame.right.image, pair.right.image)
+        assert frame.timestamp_ns == pair.left.timestamp_ns and frame.metadata["stereo_skew_ns"] == pair.skew_ns
+        assert not np.array_equal(frame.image, frame.right.image)       # two views, not one twice
+    assert paired.settings["pairing"]["pairs"] == 4
     with pytest.raises(SourceError, match="is not a stereo pair"):
         open_stereo_source("synthetic:translate")
 

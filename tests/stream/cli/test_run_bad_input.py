@@ -32,7 +32,7 @@ SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
     (["--source", "mcap:/nonexistent.mcap"], "does not exist"),
     (["--source", "stereo:synthetic:tensile"], "one source given, a stereo pair takes two"),
     (["--source", "stereo:synthetic:tensile,synthetic:tensile?seed=2,clock=sun"], "clock=sun: write clock=host"),
-    (["--source", "stereo:synthetic:tensile,synthetic:tensile?seed=2"], "stereo measurement is not wired into"),
+    (["--source", "stereo:synthetic:tensile,synthetic:tensile?seed=2"], "a stereo source needs the rig's calibration"),
     (["--points", "/nonexistent.csv"], "does not exist"),
     (["--color-range", "2,-2"], "--color-range 2,-2: LO must be below HI"),
     (["--color-range", "-1,-1"], "--color-range -1,-1: LO must be below HI"),
