@@ -47,6 +47,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from livedic.bench.validate import STARS, read_star_pair, sample3_frames, sample3_grid
+from livedic.dic.image_filter import DEFAULT_PREFILTER
+from livedic.dic.interpolation import DEFAULT_INTERPOLATION
 
 AMPLITUDE = 0.5            # px, the Stars' v on the centre row
 CENTRE_ROW = 250           # the Stars' centre row (0-based), where v = +A
@@ -281,10 +283,11 @@ def _noise_grid(subset: int, height: int) -> np.ndarray:
     return np.column_stack([a.ravel() for a in np.meshgrid(xs, ys)])
 
 
-def _read_line(images, subset, subpixel, step, interpolation) -> _LineReading:
+def _read_line(images, subset, subpixel, step, interpolation, prefilter) -> _LineReading:
     from livedic.dic import measure
 
-    m = measure(*images, _centre_line(step, subset), subset=subset, subpixel=subpixel, interpolation=interpolation)
+    m = measure(*images, _centre_line(step, subset), subset=subset, subpixel=subpixel, interpolation=interpolation,
+                prefilter=prefilter)
     periods = star_period(m.x)
     crossing = resolution_period(periods, running_mean(amplitude_error(m.v), max(1, SMOOTH_POINTS // step)))
     region = periods >= NOISE_MIN_PERIOD
@@ -292,13 +295,15 @@ def _read_line(images, subset, subpixel, step, interpolation) -> _LineReading:
                         m.x[region], m.y[region])
 
 
-def _star_case(images, subset, subpixel, step, sigma, interpolation) -> StarCase:
+def _star_case(images, subset, subpixel, step, sigma, interpolation, prefilter) -> StarCase:
     """Measure one subset x method on both Stars (module notes)."""
     from livedic.dic import measure
 
-    clean, noisy = (_read_line(images[name], subset, subpixel, step, interpolation) for name in ("Star 1", "Star 2"))
+    clean, noisy = (_read_line(images[name], subset, subpixel, step, interpolation, prefilter)
+                    for name in ("Star 1", "Star 2"))
     grid = _noise_grid(subset, images["Star 1"][0].shape[0])
-    grid_v = [measure(*images[name], grid, subset=subset, subpixel=subpixel, interpolation=interpolation).v
+    grid_v = [measure(*images[name], grid, subset=subset, subpixel=subpixel, interpolation=interpolation,
+                      prefilter=prefilter).v
               for name in ("Star 1", "Star 2")]
     per_point = predicted_noise(images["Star 1"][0], noisy.xs, noisy.ys, subset, 2 if subpixel == "icgn2" else 1,
                                 sigma)
@@ -330,8 +335,10 @@ def _star_row(case: StarCase) -> str:
 
 
 def run_stars(data: str, subsets: Sequence[int], subpixels: Sequence[str], step: int,
-              log: Callable[[str], None], interpolation: str = "bspline3") -> list[StarCase]:
-    """Every subset x method case on the Stars (module notes), printed as a table; returns the cases."""
+              log: Callable[[str], None], interpolation: str = DEFAULT_INTERPOLATION,
+              prefilter: str = DEFAULT_PREFILTER) -> list[StarCase]:
+    """Every subset x method case on the Stars (module notes), printed as a table; returns the cases. The
+    predicted noise is the unfiltered images' (the first-order formula knows no pre-filter)."""
     images = {name: read_star_pair(data, name) for name in STARS}
     # Star 2 is Star 1 plus noise: their difference is the noise of one image
     sigma = noise_sd(images["Star 2"][0].astype(float) - images["Star 1"][0].astype(float))
@@ -340,7 +347,7 @@ def run_stars(data: str, subsets: Sequence[int], subpixels: Sequence[str], step:
     cases = []
     for subset in subsets:
         for subpixel in subpixels:
-            case = _star_case(images, subset, subpixel, step, sigma, interpolation)
+            case = _star_case(images, subset, subpixel, step, sigma, interpolation, prefilter)
             log(_star_row(case))
             cases.append(case)
     return cases
@@ -348,8 +355,10 @@ def run_stars(data: str, subsets: Sequence[int], subpixels: Sequence[str], step:
 
 # ----------------------------------------------------------------------------- Sample 3
 
-def run_sample3(data: str, log: Callable[[str], None], interpolation: str = "bspline3") -> list[ShiftBias]:
-    """Sample 3's bias table (subset 21, grid 10, icgn, ``interpolation``), printed; returns one row per shift."""
+def run_sample3(data: str, log: Callable[[str], None], interpolation: str = DEFAULT_INTERPOLATION,
+                prefilter: str = DEFAULT_PREFILTER) -> list[ShiftBias]:
+    """Sample 3's bias table (subset 21, grid 10, icgn, ``interpolation``, ``prefilter``), printed; returns one row
+    per shift."""
     from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
@@ -362,7 +371,7 @@ def run_sample3(data: str, log: Callable[[str], None], interpolation: str = "bsp
     rows = []
     for path, (true_u, true_v) in frames:
         m = measure(reference, read_grey_image(path)[0], points, subset=SAMPLE3_SUBSET, subpixel=SAMPLE3_SUBPIXEL,
-                    interpolation=interpolation)
+                    interpolation=interpolation, prefilter=prefilter)
         row = shift_bias(m.u, m.v, m.ok, true_u, true_v)
         log(f"{f'{true_u:.1f},{true_v:.1f}':>13s} {f'{row.ok}/{row.points}':>9s} {row.bias_u:+10.4f} "
             f"{row.bias_v:+10.4f} {row.sd_u:8.4f} {row.sd_v:8.4f}")
@@ -381,32 +390,33 @@ def check_data(data: str) -> None:
 
 
 def run_accuracy_benchmark(*, data: str, quick: bool = False, output: str | None = None,
-                           log: Callable[[str], None] = print, interpolation: str = "bspline3") -> int:
+                           log: Callable[[str], None] = print, interpolation: str = DEFAULT_INTERPOLATION,
+                           prefilter: str = DEFAULT_PREFILTER) -> int:
     """Both parts (module notes): print the tables, write ``output`` (JSON) if given; 0 on PASS, 1 on FAIL.
-    ``interpolation`` (``--interpolation``): the methods that cannot sample with it are left out."""
+    ``interpolation`` (``--interpolation``): the methods that cannot sample with it are left out; ``prefilter``
+    (``--prefilter``) filters every image read."""
     import platform
 
     from livedic.dic.subpixel.method import subpixel_method
 
     check_data(data)
     subsets, subpixels = ((SAMPLE3_SUBSET,), ("icgn",)) if quick else (SUBSETS, SUBPIXELS)
-    subpixels = tuple(name for name in subpixels if interpolation == "bspline3"
-                      or interpolation in subpixel_method(name).interpolations)
+    subpixels = tuple(name for name in subpixels if interpolation in subpixel_method(name).interpolations)
     step = 2 * LINE_STEP if quick else LINE_STEP
     started = time.perf_counter()
-    log(f"livedic bench accuracy: {os.cpu_count()} CPU cores, {platform.machine()}, interpolation {interpolation}"
-        + (" (quick)" if quick else ""))
+    log(f"livedic bench accuracy: {os.cpu_count()} CPU cores, {platform.machine()}, interpolation {interpolation}, "
+        f"prefilter {prefilter}" + (" (quick)" if quick else ""))
     log("")
     log(f"DIC Challenge 2.0 Stars: v on the centre row every {step} px. resolution: period where |A - v|/A "
         f"reaches {100 * LIMIT:g} % on Star 1 (noise-free; {SMOOTH_POINTS} px running mean), 'on Star 2' the same "
         f"on the noisy pair; noise: SD(v - truth) on Star 2's row where p >= {NOISE_MIN_PERIOD:g} px; noise 2-D: "
         f"SD(v Star 2 - v Star 1) on a {GRID_STEP_2D} px grid there; predicted: sqrt(2 sigma^2 [H^-1]_vv); "
         "MEI = resolution x noise; Star 1 SD: SD(v - truth) on Star 1's row there (pattern-induced)")
-    stars = run_stars(data, subsets, subpixels, step, log, interpolation)
+    stars = run_stars(data, subsets, subpixels, step, log, interpolation, prefilter)
     log("")
     log(f"DIC Challenge 1.0 Sample 3: every grid point (step 10), subset {SAMPLE3_SUBSET}, {SAMPLE3_SUBPIXEL}; "
         "bias = mean of (measured - truth) over the ok points")
-    shifts = run_sample3(data, log, interpolation)
+    shifts = run_sample3(data, log, interpolation, prefilter)
     worst = worst_bias(shifts)
     passed = math.isfinite(worst) and worst <= BIAS_TARGET
     log("")
@@ -417,7 +427,7 @@ def run_accuracy_benchmark(*, data: str, quick: bool = False, output: str | None
     if output is not None:
         from livedic.stream.output.files import json_text, write_text_atomic
         write_text_atomic(output, json_text(dict(_report(stars, shifts, worst, passed, quick, step),
-                                                 interpolation=interpolation)))
+                                                 interpolation=interpolation, prefilter=prefilter)))
         log(f"written: {output}")
     return 0 if passed else 1
 

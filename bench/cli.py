@@ -93,7 +93,7 @@ def _add_accuracy_command(bench_commands):
     accuracy.add_argument("-o", "--output", metavar="OUT.json", help="also write the tables as JSON")
     from livedic.stream.session.config import TrackingConfig
     from livedic.stream.session.options import add_config_arguments
-    add_config_arguments(accuracy, TrackingConfig, names=("interpolation",))
+    add_config_arguments(accuracy, TrackingConfig, names=("interpolation", "prefilter"))
     accuracy.set_defaults(handler=_cmd_bench_accuracy)
 
 
@@ -389,7 +389,8 @@ def _cmd_bench_accuracy(args):
     if args.output is not None:
         check_output_file(args.output, "-o")
     return run_accuracy_benchmark(data=args.data, quick=args.quick, output=args.output,
-                                  log=lambda line: print(line, flush=True), interpolation=args.interpolation)
+                                  log=lambda line: print(line, flush=True), interpolation=args.interpolation,
+                                  prefilter=args.prefilter)
 
 
 def _cmd_bench_soak(args):
