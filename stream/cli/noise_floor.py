@@ -33,8 +33,11 @@ def add_noise_floor_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"points on a grid every STEP pixels (default {DEFAULT_GRID_STEP})")
     add_region_arguments(parser, points=False)
     add_config_arguments(parser, MeasureConfig)
-    # the sub-pixel method a session tracks with: the noise floor of what livedic run measures
-    parser.set_defaults(subpixel=TrackingConfig().subpixel, points=None)
+    # the sub-pixel method, interpolant and pre-filter a session tracks with: the noise floor of what livedic run
+    # measures (not measure's offline defaults)
+    live = TrackingConfig()
+    parser.set_defaults(subpixel=live.subpixel, interpolation=live.interpolation, prefilter=live.prefilter,
+                        points=None)
     parser.add_argument("--strain-window", type=int, default=DEFAULT_WINDOW, metavar="N",
                         help=f"odd number of grid points a side of the strain window (default {DEFAULT_WINDOW}, "
                              "as livedic run)")
