@@ -86,8 +86,8 @@ SUBSET_HELP = "odd subset side, pixels (default {default})"
 
 # ``measure``'s defaults (offline: no frame rate to keep): the biquintic B-spline wherever the sub-pixel method
 # samples it (icgn) and, with it, the Gaussian pre-filter chosen with it on DIC Challenge 1.0 Sample 3 and the
-# Stars (bias 0.0034 -> 0.0009 px, SD +1 %, MEI unchanged: docs/guide/measure.md, "The defaults"). ``run`` and
-# ``replay`` keep the library's (bspline3, none): the quintic doubles IC-GN's kernel, more than the live budget.
+# Stars (docs/guide/measure.md, "The defaults"). ``run`` and ``replay`` keep the library's (bspline3, none): the
+# quintic doubles IC-GN's kernel, which the live rate cannot spare.
 OFFLINE_INTERPOLATION = BSPLINE5
 OFFLINE_PREFILTER = "gaussian:0.55"
 _MEASURE_INTERPOLATION = (f"{OFFLINE_INTERPOLATION} with the methods that sample it (icgn), else "
@@ -247,10 +247,10 @@ class MeasureConfig:
         Integer search and sub-pixel method (``dic.SEARCH_METHODS``, ``dic.SUBPIXEL_METHODS``).
     prefilter : str
         Image pre-filter of both images (``dic.image_filter``): ``none`` or ``gaussian:SIGMA``; None (not given):
-        ``measure_defaults``'.
+        see ``measure_defaults``.
     interpolation : str
         The B-spline IC-GN samples the deformed image with (``dic.interpolation``): ``bspline3`` or ``bspline5``;
-        None (not given): ``measure_defaults``'.
+        None (not given): see ``measure_defaults``.
     radius : int
         Search radius, pixels (>= 0).
     seed : int
