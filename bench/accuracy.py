@@ -227,6 +227,13 @@ def worst_bias(rows: Sequence[ShiftBias]) -> float:
     return max(values) if values and all(math.isfinite(v) for v in values) else math.nan
 
 
+def sampling(subpixel: str, interpolation: str | None, prefilter: str | None) -> tuple[str, str]:
+    """(interpolation, prefilter) a case runs with: as given, else what ``livedic measure`` defaults to for
+    ``subpixel`` (``stream.session.config.measure_defaults``)."""
+    from livedic.stream.session.config import measure_defaults
+    return measure_defaults(subpixel, interpolation, prefilter)
+
+
 # ----------------------------------------------------------------------------- the Stars
 
 @dataclass(frozen=True)
@@ -238,6 +245,7 @@ class StarCase:
     ``noise_px``: SD of v - truth on Star 2's centre row (large periods); ``noise_2d_px``: SD of
     v(Star 2) - v(Star 1) on the 2-D grid there; ``pattern_sd_px``: SD of v - truth on Star 1's row
     (no image noise: the pattern-induced scatter). ``mei_px2`` = ``resolution_px`` x ``noise_px``.
+    ``interpolation``, ``prefilter``: what the case sampled with (``dic.interpolation``, ``dic.image_filter``).
     """
     subset: int
     subpixel: str
@@ -254,6 +262,8 @@ class StarCase:
     mei_px2: float
     predicted_noise_px: float
     noise_sigma_grey: float
+    interpolation: str
+    prefilter: str
 
 
 @dataclass(frozen=True)
@@ -281,10 +291,11 @@ def _noise_grid(subset: int, height: int) -> np.ndarray:
     return np.column_stack([a.ravel() for a in np.meshgrid(xs, ys)])
 
 
-def _read_line(images, subset, subpixel, step, interpolation) -> _LineReading:
+def _read_line(images, subset, subpixel, step, interpolation: str, prefilter: str) -> _LineReading:
     from livedic.dic import measure
 
-    m = measure(*images, _centre_line(step, subset), subset=subset, subpixel=subpixel, interpolation=interpolation)
+    m = measure(*images, _centre_line(step, subset), subset=subset, subpixel=subpixel, interpolation=interpolation,
+                prefilter=prefilter)
     periods = star_period(m.x)
     crossing = resolution_period(periods, running_mean(amplitude_error(m.v), max(1, SMOOTH_POINTS // step)))
     region = periods >= NOISE_MIN_PERIOD
@@ -292,13 +303,17 @@ def _read_line(images, subset, subpixel, step, interpolation) -> _LineReading:
                         m.x[region], m.y[region])
 
 
-def _star_case(images, subset, subpixel, step, sigma, interpolation) -> StarCase:
-    """Measure one subset x method on both Stars (module notes)."""
+def _star_case(images, subset, subpixel, step, sigma, interpolation: str | None, prefilter: str | None) -> StarCase:
+    """Measure one subset x method on both Stars (module notes); None: ``measure``'s default for the method."""
     from livedic.dic import measure
 
-    clean, noisy = (_read_line(images[name], subset, subpixel, step, interpolation) for name in ("Star 1", "Star 2"))
+    interpolation, prefilter = sampling(subpixel, interpolation, prefilter)
+
+    clean, noisy = (_read_line(images[name], subset, subpixel, step, interpolation, prefilter)
+                    for name in ("Star 1", "Star 2"))
     grid = _noise_grid(subset, images["Star 1"][0].shape[0])
-    grid_v = [measure(*images[name], grid, subset=subset, subpixel=subpixel, interpolation=interpolation).v
+    grid_v = [measure(*images[name], grid, subset=subset, subpixel=subpixel, interpolation=interpolation,
+                      prefilter=prefilter).v
               for name in ("Star 1", "Star 2")]
     per_point = predicted_noise(images["Star 1"][0], noisy.xs, noisy.ys, subset, 2 if subpixel == "icgn2" else 1,
                                 sigma)
@@ -306,12 +321,12 @@ def _star_case(images, subset, subpixel, step, sigma, interpolation) -> StarCase
                     noisy.crossing.period, noisy.crossing.status, noisy.residual_sd,
                     noise_sd(grid_v[1] - grid_v[0]), clean.residual_sd,
                     efficiency_indicator(clean.crossing.period, noisy.residual_sd),
-                    float(np.sqrt(np.mean(per_point ** 2))), sigma)
+                    float(np.sqrt(np.mean(per_point ** 2))), sigma, interpolation, prefilter)
 
 
 def _star_header(log):
     header = (f"{'subset':>6s} {'method':7s} {'ok 1 / 2':>11s} {'resolution':>10s} {'on Star 2':>10s} "
-              f"{'noise':>7s} {'noise 2-D':>9s} {'predicted':>9s} {'MEI px^2':>8s} {'Star 1 SD':>9s}")
+              f"{'noise':>7s} {'noise 2-D':>9s} {'predicted':>9s} {'MEI px^2':>8s} {'Star 1 SD':>9s}  sampled with")
     log(header)
     log("-" * len(header))
 
@@ -326,12 +341,14 @@ def _star_row(case: StarCase) -> str:
             f"{_period_text(case.resolution_px, case.resolution_status)} "
             f"{_period_text(case.resolution_noisy_px, case.resolution_noisy_status)} {number(case.noise_px)} "
             f"{number(case.noise_2d_px, 9)} {number(case.predicted_noise_px, 9)} {number(case.mei_px2, 8)} "
-            f"{number(case.pattern_sd_px, 9)}")
+            f"{number(case.pattern_sd_px, 9)}  {case.interpolation}, {case.prefilter}")
 
 
 def run_stars(data: str, subsets: Sequence[int], subpixels: Sequence[str], step: int,
-              log: Callable[[str], None], interpolation: str = "bspline3") -> list[StarCase]:
-    """Every subset x method case on the Stars (module notes), printed as a table; returns the cases."""
+              log: Callable[[str], None], interpolation: str | None = None,
+              prefilter: str | None = None) -> list[StarCase]:
+    """Every subset x method case on the Stars (module notes), printed as a table; returns the cases. The
+    predicted noise is the unfiltered images' (the first-order formula knows no pre-filter)."""
     images = {name: read_star_pair(data, name) for name in STARS}
     # Star 2 is Star 1 plus noise: their difference is the noise of one image
     sigma = noise_sd(images["Star 2"][0].astype(float) - images["Star 1"][0].astype(float))
@@ -340,7 +357,7 @@ def run_stars(data: str, subsets: Sequence[int], subpixels: Sequence[str], step:
     cases = []
     for subset in subsets:
         for subpixel in subpixels:
-            case = _star_case(images, subset, subpixel, step, sigma, interpolation)
+            case = _star_case(images, subset, subpixel, step, sigma, interpolation, prefilter)
             log(_star_row(case))
             cases.append(case)
     return cases
@@ -348,11 +365,15 @@ def run_stars(data: str, subsets: Sequence[int], subpixels: Sequence[str], step:
 
 # ----------------------------------------------------------------------------- Sample 3
 
-def run_sample3(data: str, log: Callable[[str], None], interpolation: str = "bspline3") -> list[ShiftBias]:
-    """Sample 3's bias table (subset 21, grid 10, icgn, ``interpolation``), printed; returns one row per shift."""
+def run_sample3(data: str, log: Callable[[str], None], interpolation: str | None = None,
+                prefilter: str | None = None) -> list[ShiftBias]:
+    """Sample 3's bias table (subset 21, grid 10, icgn, ``interpolation``, ``prefilter``; None: ``measure``'s
+    defaults), printed; returns one row per shift."""
     from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
 
+    interpolation, prefilter = sampling(SAMPLE3_SUBPIXEL, interpolation, prefilter)
+    log(f"interpolation {interpolation}, pre-filter {prefilter}")
     reference, frames = sample3_frames(data)
     points = sample3_grid()
     header = (f"{'shift u,v px':>13s} {'ok':>9s} {'bias u px':>10s} {'bias v px':>10s} {'SD u px':>8s} "
@@ -362,7 +383,7 @@ def run_sample3(data: str, log: Callable[[str], None], interpolation: str = "bsp
     rows = []
     for path, (true_u, true_v) in frames:
         m = measure(reference, read_grey_image(path)[0], points, subset=SAMPLE3_SUBSET, subpixel=SAMPLE3_SUBPIXEL,
-                    interpolation=interpolation)
+                    interpolation=interpolation, prefilter=prefilter)
         row = shift_bias(m.u, m.v, m.ok, true_u, true_v)
         log(f"{f'{true_u:.1f},{true_v:.1f}':>13s} {f'{row.ok}/{row.points}':>9s} {row.bias_u:+10.4f} "
             f"{row.bias_v:+10.4f} {row.sd_u:8.4f} {row.sd_v:8.4f}")
@@ -381,32 +402,37 @@ def check_data(data: str) -> None:
 
 
 def run_accuracy_benchmark(*, data: str, quick: bool = False, output: str | None = None,
-                           log: Callable[[str], None] = print, interpolation: str = "bspline3") -> int:
+                           log: Callable[[str], None] = print, interpolation: str | None = None,
+                           prefilter: str | None = None) -> int:
     """Both parts (module notes): print the tables, write ``output`` (JSON) if given; 0 on PASS, 1 on FAIL.
-    ``interpolation`` (``--interpolation``): the methods that cannot sample with it are left out."""
+    ``interpolation`` (``--interpolation``): the methods that cannot sample with it are left out; ``prefilter``
+    (``--prefilter``) filters every image read; None: each method with ``livedic measure``'s default
+    (``sampling``)."""
     import platform
 
     from livedic.dic.subpixel.method import subpixel_method
 
     check_data(data)
     subsets, subpixels = ((SAMPLE3_SUBSET,), ("icgn",)) if quick else (SUBSETS, SUBPIXELS)
-    subpixels = tuple(name for name in subpixels if interpolation == "bspline3"
-                      or interpolation in subpixel_method(name).interpolations)
+    subpixels = tuple(name for name in subpixels
+                      if interpolation is None or interpolation in subpixel_method(name).interpolations)
     step = 2 * LINE_STEP if quick else LINE_STEP
     started = time.perf_counter()
-    log(f"livedic bench accuracy: {os.cpu_count()} CPU cores, {platform.machine()}, interpolation {interpolation}"
-        + (" (quick)" if quick else ""))
+    chosen = (lambda value: "measure's default" if value is None else value)
+    log(f"livedic bench accuracy: {os.cpu_count()} CPU cores, {platform.machine()}, interpolation "
+        f"{chosen(interpolation)}, pre-filter {chosen(prefilter)}" + (" (quick)" if quick else ""))
     log("")
     log(f"DIC Challenge 2.0 Stars: v on the centre row every {step} px. resolution: period where |A - v|/A "
         f"reaches {100 * LIMIT:g} % on Star 1 (noise-free; {SMOOTH_POINTS} px running mean), 'on Star 2' the same "
         f"on the noisy pair; noise: SD(v - truth) on Star 2's row where p >= {NOISE_MIN_PERIOD:g} px; noise 2-D: "
         f"SD(v Star 2 - v Star 1) on a {GRID_STEP_2D} px grid there; predicted: sqrt(2 sigma^2 [H^-1]_vv); "
-        "MEI = resolution x noise; Star 1 SD: SD(v - truth) on Star 1's row there (pattern-induced)")
-    stars = run_stars(data, subsets, subpixels, step, log, interpolation)
+        "MEI = resolution x noise; Star 1 SD: SD(v - truth) on Star 1's row there (pattern-induced); sampled with: "
+        "interpolation, pre-filter")
+    stars = run_stars(data, subsets, subpixels, step, log, interpolation, prefilter)
     log("")
     log(f"DIC Challenge 1.0 Sample 3: every grid point (step 10), subset {SAMPLE3_SUBSET}, {SAMPLE3_SUBPIXEL}; "
         "bias = mean of (measured - truth) over the ok points")
-    shifts = run_sample3(data, log, interpolation)
+    shifts = run_sample3(data, log, interpolation, prefilter)
     worst = worst_bias(shifts)
     passed = math.isfinite(worst) and worst <= BIAS_TARGET
     log("")
@@ -416,22 +442,23 @@ def run_accuracy_benchmark(*, data: str, quick: bool = False, output: str | None
     log(f"{time.perf_counter() - started:.0f} s")
     if output is not None:
         from livedic.stream.output.files import json_text, write_text_atomic
-        write_text_atomic(output, json_text(dict(_report(stars, shifts, worst, passed, quick, step),
-                                                 interpolation=interpolation)))
+        write_text_atomic(output, json_text(_report(stars, shifts, worst, passed, quick, step, interpolation,
+                                                    prefilter)))
         log(f"written: {output}")
     return 0 if passed else 1
 
 
-def _report(stars, shifts, worst, passed, quick, step):
+def _report(stars, shifts, worst, passed, quick, step, interpolation, prefilter):
     def plain(case):
         entry = asdict(case)
         entry["resolution_status"] = case.resolution_status.value
         entry["resolution_noisy_status"] = case.resolution_noisy_status.value
         return entry
-    return {"kind": "livedic bench accuracy", "quick": quick,
+    return {"kind": "livedic bench accuracy", "quick": quick, "interpolation": interpolation, "prefilter": prefilter,
             "stars": {"amplitude_px": AMPLITUDE, "centre_row": CENTRE_ROW, "limit": LIMIT, "line_step_px": step,
                       "smooth_points": SMOOTH_POINTS, "noise_min_period_px": NOISE_MIN_PERIOD,
                       "cases": [plain(case) for case in stars]},
             "sample3": {"subset": SAMPLE3_SUBSET, "subpixel": SAMPLE3_SUBPIXEL, "grid_px": 10,
+                        **dict(zip(("interpolation", "prefilter"), sampling(SAMPLE3_SUBPIXEL, interpolation, prefilter))),
                         "target_px": BIAS_TARGET, "worst_bias_px": worst, "passed": passed,
                         "shifts": [asdict(row) for row in shifts]}}

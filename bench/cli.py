@@ -91,9 +91,9 @@ def _add_accuracy_command(bench_commands):
                           help="folder with dicc2_star and dicc1_sample3_translation (e.g. ../shared/datasets)")
     accuracy.add_argument("--quick", action="store_true", help="subset 21 and icgn only, every 2 px (about a minute)")
     accuracy.add_argument("-o", "--output", metavar="OUT.json", help="also write the tables as JSON")
-    from livedic.stream.session.config import TrackingConfig
+    from livedic.stream.session.config import MeasureConfig
     from livedic.stream.session.options import add_config_arguments
-    add_config_arguments(accuracy, TrackingConfig, names=("interpolation",))
+    add_config_arguments(accuracy, MeasureConfig, names=("interpolation", "prefilter"))   # measure's defaults
     accuracy.set_defaults(handler=_cmd_bench_accuracy)
 
 
@@ -409,7 +409,8 @@ def _cmd_bench_accuracy(args):
     if args.output is not None:
         check_output_file(args.output, "-o")
     return run_accuracy_benchmark(data=args.data, quick=args.quick, output=args.output,
-                                  log=lambda line: print(line, flush=True), interpolation=args.interpolation)
+                                  log=lambda line: print(line, flush=True), interpolation=args.interpolation,
+                                  prefilter=args.prefilter)
 
 
 def _cmd_bench_peers(args):

@@ -7,7 +7,7 @@ every row. It also prints how many points were measured (ok) and their RMS
 error, so a method cannot pass by flagging everything.
 
 Cases (each with the defaults, ``--search`` each of the integer searches, and
-``--subpixel icgn``):
+``--subpixel icgn``, with the interpolant and pre-filter ``livedic measure`` gives them by default):
 
 * **synthetic**, made here: shifts up to 30 px at radius 32 on four pattern
   generators, three of them not livedic's simulator (``bench.patterns``:
@@ -84,7 +84,15 @@ def _methods(quick):
         searches = ["improved-wso", "pso"]
     rows = [("defaults (improved-wso + improved-surface-fit)", dict())]
     rows += [(f"--search {s} --subpixel icgn", dict(search=s, subpixel="icgn")) for s in searches]
-    return rows
+    return [(label, _as_measure_runs(options)) for label, options in rows]
+
+
+def _as_measure_runs(options):
+    """``options`` with the interpolant and pre-filter ``livedic measure`` adds to them by default, so that each
+    row is what its command line measures."""
+    from livedic.stream.session.config import MeasureConfig
+    config = MeasureConfig(**options)
+    return dict(options, interpolation=config.interpolation, prefilter=config.prefilter)
 
 
 class _Table:

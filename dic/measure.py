@@ -30,8 +30,8 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
             search: str = DEFAULT_SEARCH, subpixel: str = "improved-surface-fit", radius: int = DEFAULT_RADIUS,
             guess: ArrayLike | None = None, seed: int = 0, search_options: dict | None = None,
             subpixel_options: dict | None = None, guided: bool = True, gates: Gates | None = Gates(),
-            prefilter: str | Prefilter = DEFAULT_PREFILTER,
-            interpolation: str | Interpolation = DEFAULT_INTERPOLATION) -> Measurement:
+            prefilter: str | Prefilter | None = DEFAULT_PREFILTER,
+            interpolation: str | Interpolation | None = DEFAULT_INTERPOLATION) -> Measurement:
     """Displacement of each point from ``reference`` to ``deformed``.
 
     Parameters
@@ -65,11 +65,11 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
     gates : dic.quality.Gates or None
         Quality gates (``dic.quality``): a point is ok only if it passes them.
         None returns the solver's own status (for callers that gate themselves).
-    prefilter : str or dic.image_filter.Prefilter
-        Image pre-filter applied to both images before anything reads them: ``"none"`` (default) or
+    prefilter : str or dic.image_filter.Prefilter or None
+        Image pre-filter applied to both images before anything reads them: ``"none"`` (default; None too) or
         ``"gaussian:SIGMA"`` (``dic.image_filter``).
-    interpolation : str or dic.interpolation.Interpolation
-        The B-spline IC-GN samples the deformed image with: ``"bspline3"`` (default) or ``"bspline5"``
+    interpolation : str or dic.interpolation.Interpolation or None
+        The B-spline IC-GN samples the deformed image with: ``"bspline3"`` (default; None too) or ``"bspline5"``
         (``icgn`` only; ``dic.interpolation``).
 
     Returns

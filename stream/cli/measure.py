@@ -104,7 +104,8 @@ def measure_command(args: argparse.Namespace) -> int:
     write_csv(args.output, columns)
     n_ok = int(result.ok.sum())
     if to_file:
-        print(f"livedic: {n_ok}/{result.ok.size} points measured, written to {args.output}", file=sys.stderr)
+        print(f"livedic: {n_ok}/{result.ok.size} points measured ({config.described()}), written to {args.output}",
+              file=sys.stderr)
     return 0
 
 

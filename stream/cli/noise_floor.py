@@ -1,7 +1,7 @@
 """``livedic noise-floor IMAGES...``: the noise floor of static images a user brings (the first is the reference).
 
 Each later image is measured against the first on a grid (``dic.measure``, as ``livedic measure`` does, with
-the sub-pixel method a session tracks with), the strain computed on the same window a session uses
+the sub-pixel method, interpolant and pre-filter a session tracks with: ``livedic run``'s defaults), the strain computed on the same window a session uses
 (``--strain-window``), and the table of ``dic.noise_floor`` printed: the spatial SD over the points, the
 temporal SD of each point over the images, the mean (bias), for u, v (px, and mm with ``--scale``) and exx,
 eyy, exy (microstrain), as ``livedic run`` prints it for its static frames. ``-o FILE.json`` also writes it.
@@ -16,7 +16,7 @@ import argparse
 import sys
 
 from livedic.stream.session.config import MeasureConfig, TrackingConfig
-from livedic.stream.session.options import add_config_arguments, config_values
+from livedic.stream.session.options import add_config_arguments, config_values, option_fields
 from livedic.stream.session.parsing import UsageError
 from livedic.stream.session.points import add_region_arguments
 
@@ -32,8 +32,13 @@ def add_noise_floor_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--grid", type=int, default=DEFAULT_GRID_STEP, metavar="STEP",
                         help=f"points on a grid every STEP pixels (default {DEFAULT_GRID_STEP})")
     add_region_arguments(parser, points=False)
-    add_config_arguments(parser, MeasureConfig)
-    # the sub-pixel method a session tracks with: the noise floor of what livedic run measures
+    # the interpolant and pre-filter a session samples with (their defaults and help are run's, not measure's
+    # offline ones): the noise floor of what livedic run measures
+    sampling = ("prefilter", "interpolation")
+    add_config_arguments(parser, MeasureConfig, names=tuple(f.name for f in option_fields(MeasureConfig)
+                                                            if f.name not in sampling))
+    add_config_arguments(parser, TrackingConfig, names=sampling)
+    # and the sub-pixel method it tracks with
     parser.set_defaults(subpixel=TrackingConfig().subpixel, points=None)
     parser.add_argument("--strain-window", type=int, default=DEFAULT_WINDOW, metavar="N",
                         help=f"odd number of grid points a side of the strain window (default {DEFAULT_WINDOW}, "

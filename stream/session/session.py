@@ -577,6 +577,7 @@ class Session:
             summary.update(latency_p50_ms=None, latency_p99_ms=None, latency_max_ms=None, latency_from=None)
         summary.update(
             source=config.source, live=live, method=config.tracking.method, acquired=acquisition.frames,
+            prefilter=config.tracking.prefilter, interpolation=config.tracking.interpolation,
             lost_upstream=lost_upstream(acquisition), skipped_before_start=acquisition.skipped_before_start,
             stopped_by=self.stopped_by,
             source_losses=list(acquisition.losses), reconnects=acquisition.reconnects,

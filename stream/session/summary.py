@@ -20,13 +20,20 @@ from livedic.stream.view.process import BACKLOG_MAX as VIEW_BACKLOG_MAX
 __all__ = ["format_summary", "format_pipeline", "format_point_losses", "format_strain_summary"]
 
 
+def _sampling(summary: dict[str, Any]) -> str:
+    """``"; interpolation bspline3, pre-filter none"``: how the frames were sampled (empty if not recorded)."""
+    if "interpolation" not in summary:
+        return ""
+    return f"; interpolation {summary['interpolation']}, pre-filter {summary['prefilter']}"
+
+
 def format_summary(summary: dict[str, Any], reference: Reference | None, recorder: Any,
                    stage_lines: Sequence[str] = ()) -> str:
     """The end-of-run text (plain, a few aligned lines); ``stage_lines``: the stages' own, after the error's."""
     def num(value, fmt):
         return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
 
-    lines = [f"livedic run: {summary['source']}  ({summary['method']})"]
+    lines = [f"livedic run: {summary['source']}  ({summary['method']}{_sampling(summary)})"]
     lines.append(f"  frames     {summary['frames']} tracked of {summary['acquired']} acquired; "
                  f"{summary['dropped']} dropped by the queue, {summary['lost_upstream']} lost upstream"
                  + (f" ({summary['skipped_before_start']} more sent by the camera while the session was prepared, "

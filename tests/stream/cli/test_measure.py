@@ -10,6 +10,7 @@ import pytest
 
 from livedic.dic.speckle import SpecklePattern, render
 from livedic.stream.cli import main
+from livedic.stream.session.config import MeasureConfig
 
 SHIFT = (1.4, 0.7)
 
@@ -56,14 +57,16 @@ def test_the_prefilter_option_filters_both_images_as_dic_measure_does(image_pair
     assert code == 0 and all(row["ok"] == "1" for row in rows)
     points = [(float(row["x"]), float(row["y"])) for row in rows]
     images = [read_grey_image(image_pair[name, 8])[0] for name in ("ref", "def")]
-    expected = measure(*images, points, subpixel="icgn", radius=4, prefilter="gaussian:0.8")
-    unfiltered = measure(*images, points, subpixel="icgn", radius=4)
+    sampled = MeasureConfig(subpixel="icgn").interpolation               # measure's default with icgn
+    expected = measure(*images, points, subpixel="icgn", radius=4, prefilter="gaussian:0.8", interpolation=sampled)
+    unfiltered = measure(*images, points, subpixel="icgn", radius=4, interpolation=sampled)
     assert [float(row["u"]) for row in rows] == expected.u.tolist() != unfiltered.u.tolist()
     assert all(abs(float(row["u"]) - SHIFT[0]) < 0.02 and abs(float(row["v"]) - SHIFT[1]) < 0.02 for row in rows)
 
 
 def test_the_interpolation_option_reaches_dic_measure(image_pair, capsys):
-    """``--interpolation bspline5``: the CSV is ``dic.measure``'s quintic result, not the cubic one."""
+    """``--interpolation bspline5``: the CSV is ``dic.measure``'s quintic result (with measure's pre-filter for it),
+    not the cubic one."""
     from livedic.acquire.files.image_file import read_grey_image
     from livedic.dic import measure
     code = main(["measure", image_pair["ref", 8], image_pair["def", 8], "--grid", "30", "--subpixel", "icgn",
@@ -72,8 +75,9 @@ def test_the_interpolation_option_reaches_dic_measure(image_pair, capsys):
     assert code == 0 and all(row["ok"] == "1" for row in rows)
     points = [(float(row["x"]), float(row["y"])) for row in rows]
     images = [read_grey_image(image_pair[name, 8])[0] for name in ("ref", "def")]
-    expected = measure(*images, points, subpixel="icgn", radius=4, interpolation="bspline5")
-    cubic = measure(*images, points, subpixel="icgn", radius=4)
+    filtering = MeasureConfig(subpixel="icgn", interpolation="bspline5").prefilter
+    expected = measure(*images, points, subpixel="icgn", radius=4, interpolation="bspline5", prefilter=filtering)
+    cubic = measure(*images, points, subpixel="icgn", radius=4, prefilter=filtering)
     assert [float(row["u"]) for row in rows] == expected.u.tolist() != cubic.u.tolist()
 
 

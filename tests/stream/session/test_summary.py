@@ -37,6 +37,12 @@ def test_the_headline_lines():
     assert "  error" not in text and "  recording" not in text
 
 
+def test_the_headline_names_the_interpolant_and_the_prefilter_the_session_sampled_with():
+    """``run`` and ``measure`` default differently (docs/guide/measure.md): the summary says which ``run`` used."""
+    text = format_summary(_summary(interpolation="bspline3", prefilter="none"), None, None)
+    assert text.splitlines()[0] == "livedic run: synthetic:tensile  (ncc+icgn; interpolation bspline3, pre-filter none)"
+
+
 def test_unknown_numbers_are_na_and_a_file_has_processing_not_latency():
     text = format_summary(_summary(fps=float("nan"), poi_per_s=None, live=False), None, None)
     assert "  rate       n/a fps, n/a POI/s achieved (a file: frames taken as fast as tracked)" in text
