@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from livedic.dic.calibration import (CalibrationRefused, Detection, TargetPair, calibrate_stereo, match_pair,
+from livedic.dic.calibration import (CalibrationRefused, Detection, calibrate_stereo, detect_target, match_pair,
                                      parse_target)
 from livedic.dic.calibration.camera import undistort_pixels
 
@@ -128,3 +128,36 @@ def test_too_few_pairs_are_refused(stereo_pairs):
     few = [pairs[0], pairs[1], replace(pairs[2], right_found=None)]
     with pytest.raises(CalibrationRefused, match="both views of 2 of 3"):
         calibrate_stereo(few, rig.left.size, rig.right.size, spec=spec, square_mm=square)
+
+
+def test_a_charuco_board_half_out_of_one_view_is_matched_corner_by_corner():
+    """Rendered: the board slid until part of it leaves the right image; the corners kept are those both views saw,
+    each where the rig projects that corner in both images."""
+    import cv2
+
+    from livedic.acquire.simulator.lens import Lens
+    from livedic.acquire.simulator.stereo_rig import StereoRig
+    from livedic.acquire.simulator.targets import Pose, render_target_pair, stereo_calibration_views
+
+    rig = StereoRig.symmetric(Lens((480, 360), k1=-0.05), Lens((480, 360), k1=-0.05), distance_mm=250.0,
+                              angle_deg=25.0)
+    spec = parse_target("charuco:7x5")
+    pose = stereo_calibration_views(spec, 12.0, rig)[0]
+    # slide the board 45 mm along the left camera's -x: the left camera still sees it whole, the right one (turned
+    # towards +x) only in part
+    slid = Pose(pose.rvec, pose.tvec + np.array([-45.0, 0.0, 0.0]))
+    left_image, right_image = render_target_pair(spec, 12.0, rig, slid, seed=5)
+    left, right = detect_target(left_image, spec, 12.0), detect_target(right_image, spec, 12.0)
+    assert isinstance(left, Detection) and isinstance(right, Detection)
+    truth = rig.calibration()
+    matched = match_pair(left, right, spec, 12.0, truth.left, truth.right)
+    assert matched is not None
+    in_left, in_right = matched
+    assert left.ids.size == 24 and 6 <= in_left.ids.size < 24
+    np.testing.assert_array_equal(in_left.ids, np.intersect1d(left.ids, right.ids))
+    for found, lens, seen in ((in_left, rig.left, slid), (in_right, rig.right, rig.right_pose(slid))):
+        projected, _ = cv2.projectPoints(found.object_points, seen.rvec, seen.tvec, lens.camera_matrix,
+                                         lens.dist_coeffs)
+        # ChArUco corners this small are found to ~0.2 px (0.5 at most); a corner matched to the wrong id would be a
+        # square (~20 px) away
+        assert np.max(np.hypot(*(projected.reshape(-1, 2) - found.image_points).T)) < 1.0
