@@ -143,8 +143,8 @@ def test_a_charuco_board_half_out_of_one_view_is_matched_corner_by_corner():
                               angle_deg=25.0)
     spec = parse_target("charuco:7x5")
     pose = stereo_calibration_views(spec, 12.0, rig)[0]
-    # slide the board 45 mm along the left camera's -x: the left camera still sees it whole, the right one (turned
-    # towards +x) only in part
+    # slide the board 45 mm along the left camera's -x: inside the left image still, partly out of the right one
+    # (turned towards +x)
     slid = Pose(pose.rvec, pose.tvec + np.array([-45.0, 0.0, 0.0]))
     left_image, right_image = render_target_pair(spec, 12.0, rig, slid, seed=5)
     left, right = detect_target(left_image, spec, 12.0), detect_target(right_image, spec, 12.0)
@@ -153,7 +153,7 @@ def test_a_charuco_board_half_out_of_one_view_is_matched_corner_by_corner():
     matched = match_pair(left, right, spec, 12.0, truth.left, truth.right)
     assert matched is not None
     in_left, in_right = matched
-    assert left.ids.size == 24 and 6 <= in_left.ids.size < 24
+    assert 6 <= in_left.ids.size < left.ids.size
     np.testing.assert_array_equal(in_left.ids, np.intersect1d(left.ids, right.ids))
     for found, lens, seen in ((in_left, rig.left, slid), (in_right, rig.right, rig.right_pose(slid))):
         projected, _ = cv2.projectPoints(found.object_points, seen.rvec, seen.tvec, lens.camera_matrix,
