@@ -6,7 +6,9 @@ averaged (an area-integrating sensor), then adds noise and rounds to 8 bits. ``c
 gives a set of tilted views that Zhang's method needs; ``plane_view`` the specimen plane's pose at a
 known scale (px/mm), fronto-parallel or tilted, where a target laid on the specimen lies; ``scene_on_plane``
 puts a speckle pattern on that plane for ``lens.render_through_lens`` (one pose for both: the truth of a
-calibration's ``--plane``).
+calibration's ``--plane``). For a ``StereoRig``: ``stereo_calibration_views`` gives tilted poses around the point
+both cameras aim at, each seen whole by both (``stereo_square_mm``: a board that fits), and ``render_target_pair``
+renders one pose in both cameras (the truth of a stereo calibration).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -32,6 +35,21 @@ DEFAULT_VIEWS = ((0.0, 0.0, 0.0, 0.5, 0.5), (25.0, 15.0, 5.0, 0.33, 0.33), (-25.
                  (-30.0, 0.0, -25.0, 0.5, 0.64), (0.0, 30.0, 15.0, 0.36, 0.5), (0.0, -30.0, -35.0, 0.64, 0.5))
 # The board's width in the image as a fraction of the image's width, for the calibration views.
 VIEW_FILL = 0.55
+# Stereo views: (tilt about x, tilt about y, roll about z) in degrees, the board turned from facing the bisector of
+# the two cameras' axes, and the direction (x, y) in which its centre is moved from the point both cameras aim at:
+# as far as the board stays whole in both images, so the views reach the images' corners and edges, where the
+# distortion is largest. Tilts of 20-25 degrees on top of half the rig's angle keep both views within the ~45
+# degrees a corner detector resolves.
+STEREO_VIEWS = ((0.0, 0.0, 0.0, 0.0, 0.0), (25.0, 0.0, 10.0, -1.0, -1.0), (-25.0, 0.0, -10.0, 1.0, -1.0),
+                (0.0, 25.0, 5.0, -1.0, 1.0), (0.0, -25.0, -5.0, 1.0, 1.0), (20.0, 20.0, 30.0, 0.0, -1.0),
+                (-20.0, -20.0, -30.0, 0.0, 1.0), (20.0, -20.0, 20.0, -1.0, 0.0), (-20.0, 20.0, -20.0, 1.0, 0.0),
+                (-20.0, 0.0, 0.0, -1.0, -1.0), (20.0, 0.0, 0.0, 1.0, 1.0), (0.0, 20.0, 0.0, 1.0, -1.0),
+                (0.0, -20.0, 0.0, -1.0, 1.0))
+# The board's width as a fraction of the left image's width at the aim point (``stereo_square_mm``): smaller than
+# VIEW_FILL, as the board must stay whole in both views, tilted and moved.
+STEREO_VIEW_FILL = 0.35
+# The offsets tried, as fractions of the field of view at the aim point, largest first.
+_STEREO_OFFSETS = np.linspace(0.5, 0.0, 26)
 
 
 @dataclass(frozen=True)
@@ -40,6 +58,20 @@ class Pose:
 
     rvec: np.ndarray
     tvec: np.ndarray
+
+
+class StereoRig(Protocol):
+    """What the stereo views need of ``stereo_rig.StereoRig`` (which imports ``Pose`` from here)."""
+
+    @property
+    def left(self) -> Lens: ...
+    @property
+    def right(self) -> Lens: ...
+    @property
+    def rotation(self) -> np.ndarray: ...
+    @property
+    def translation_mm(self) -> np.ndarray: ...
+    def right_pose(self, pose: Pose) -> Pose: ...
 
 
 def board_extent(spec: TargetSpec, square_mm: float) -> tuple[float, float, float, float]:
@@ -138,7 +170,9 @@ def render_target(spec: TargetSpec, square_mm: float, lens: Lens, pose: Pose, *,
     x0, y0, _, _ = board_extent(spec, square_mm)
     # Raster fine enough for the nearest point of the board (the largest scale), as the sensor samples it.
     scale = float(np.max(np.abs(np.linalg.svd(H[:2, :2] / H[2, 2], compute_uv=False))))
-    px_per_mm = RASTER_PX_PER_MM_SAMPLES * SUPERSAMPLE * max(scale, 1.0)
+    # A whole number of raster pixels per square: the board is drawn exactly, and OpenCV's ChArUco drawing (which
+    # fails on some sizes otherwise: 473 x 379 px with a margin of 47) has no rounding to do.
+    px_per_mm = math.ceil(RASTER_PX_PER_MM_SAMPLES * SUPERSAMPLE * max(scale, 1.0) * square_mm) / square_mm
     raster = board_raster(spec, square_mm, px_per_mm)
     map_x = ((board[..., 0] - x0) * px_per_mm - 0.5).astype(np.float32)
     map_y = ((board[..., 1] - y0) * px_per_mm - 0.5).astype(np.float32)
@@ -148,3 +182,91 @@ def render_target(spec: TargetSpec, square_mm: float, lens: Lens, pose: Pose, *,
     image = samples.reshape(height, SUPERSAMPLE, width, SUPERSAMPLE).mean(axis=(1, 3)) * 255.0
     image += np.random.default_rng(seed).normal(0.0, noise, image.shape)
     return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
+def rig_aim_mm(rig: StereoRig) -> np.ndarray:
+    """The point (mm, left camera frame) nearest both cameras' optical axes: where a convergent rig looks.
+
+    Raises
+    ------
+    ValueError
+        The axes are (nearly) parallel: such a rig has no point it aims at.
+    """
+    centre_right = -rig.rotation.T @ rig.translation_mm
+    axis_left, axis_right = np.array([0.0, 0.0, 1.0]), rig.rotation.T @ np.array([0.0, 0.0, 1.0])
+    # closest points of the two lines s * axis_left and centre_right + t * axis_right
+    a = np.column_stack([axis_left, -axis_right])
+    if np.linalg.norm(np.cross(axis_left, axis_right)) < math.sin(math.radians(1.0)):
+        raise ValueError("the rig's optical axes are parallel: its cameras aim at no common point")
+    s, t = np.linalg.lstsq(a, centre_right, rcond=None)[0]
+    return (s * axis_left + centre_right + t * axis_right) / 2.0
+
+
+def stereo_square_mm(spec: TargetSpec, rig: StereoRig, fill: float = STEREO_VIEW_FILL) -> float:
+    """The square side (mm) of a board ``spec`` spanning ``fill`` of the left image's width at the rig's aim point
+    (a lab chooses its target to match the field of view in the same way)."""
+    x0, _, x1, _ = board_extent(spec, 1.0)
+    field_mm = rig.left.size[0] * float(rig_aim_mm(rig)[2]) / rig.left.camera_matrix[0, 0]
+    return fill * field_mm / (x1 - x0)
+
+
+def stereo_calibration_views(spec: TargetSpec, square_mm: float, rig: StereoRig) -> list[Pose]:
+    """Board -> left camera poses of ``STEREO_VIEWS`` around the rig's aim point (``rig_aim_mm``), each board moved
+    in its direction as far as it stays whole in both images (to 0.02 of the field of view).
+
+    Raises
+    ------
+    ValueError
+        A view's board is not whole in both images (a board too large for the field: see ``stereo_square_mm``).
+    """
+    aim = rig_aim_mm(rig)
+    bisector = np.array([0.0, 0.0, 1.0]) + rig.rotation.T @ np.array([0.0, 0.0, 1.0])
+    bisector /= np.linalg.norm(bisector)
+    # the board's normal turned from the left camera's axis onto the bisector, about their common perpendicular
+    turn = np.cross([0.0, 0.0, 1.0], bisector)
+    size = float(np.linalg.norm(turn))
+    facing = cv2.Rodrigues(turn / max(size, 1e-12) * math.atan2(size, float(bisector[2])))[0]
+    field = np.array(rig.left.size, dtype=np.float64) * aim[2] / rig.left.camera_matrix[0, 0]
+    centre = spec.object_points(square_mm).mean(axis=0)
+    poses = []
+    for index, (tx, ty, rz, dx, dy) in enumerate(STEREO_VIEWS):
+        R = (facing @ cv2.Rodrigues(np.array([math.radians(tx), 0.0, 0.0]))[0]
+             @ cv2.Rodrigues(np.array([0.0, math.radians(ty), 0.0]))[0]
+             @ cv2.Rodrigues(np.array([0.0, 0.0, math.radians(rz)]))[0])
+        for offset in _STEREO_OFFSETS:
+            middle = aim + offset * (facing[:, 0] * dx * field[0] + facing[:, 1] * dy * field[1])
+            pose = Pose(cv2.Rodrigues(R)[0].ravel(), middle - R @ centre)
+            if (board_in_view(spec, square_mm, rig.left, pose)
+                    and board_in_view(spec, square_mm, rig.right, rig.right_pose(pose))):
+                break
+        else:
+            raise ValueError(f"stereo view {index}: the board of {square_mm:g} mm squares is not whole in both "
+                             f"cameras: use smaller squares (stereo_square_mm: {stereo_square_mm(spec, rig):.3g} mm)")
+        poses.append(pose)
+    return poses
+
+
+def board_in_view(spec: TargetSpec, square_mm: float, lens: Lens, pose: Pose, margin_px: float = 4.0) -> bool:
+    """Whether the whole printed board (``board_extent``) lies in front of the camera and ``margin_px`` inside its
+    image (its outline sampled along each edge, through the lens)."""
+    x0, y0, x1, y1 = board_extent(spec, square_mm)
+    steps = np.linspace(0.0, 1.0, 21)
+    outline = np.concatenate([np.c_[x0 + (x1 - x0) * steps, np.full(21, y0)],
+                              np.c_[x0 + (x1 - x0) * steps, np.full(21, y1)],
+                              np.c_[np.full(21, x0), y0 + (y1 - y0) * steps],
+                              np.c_[np.full(21, x1), y0 + (y1 - y0) * steps]])
+    R = cv2.Rodrigues(np.asarray(pose.rvec, dtype=np.float64))[0]
+    camera = np.c_[outline, np.zeros(len(outline))] @ R.T + np.asarray(pose.tvec, dtype=np.float64)
+    if np.any(camera[:, 2] <= 0.0):
+        return False
+    seen = lens.distort((camera[:, :2] / camera[:, 2:]) @ lens.camera_matrix[:2, :2].T + lens.camera_matrix[:2, 2])
+    width, height = lens.size
+    return bool(np.all((seen >= margin_px) & (seen <= np.array([width - 1 - margin_px, height - 1 - margin_px]))))
+
+
+def render_target_pair(spec: TargetSpec, square_mm: float, rig: StereoRig, pose: Pose, *, noise: float = 1.0,
+                       seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The board at ``pose`` (board -> left camera) as the rig's left and right cameras see it (8 bit each, with
+    independent noise)."""
+    return (render_target(spec, square_mm, rig.left, pose, noise=noise, seed=2 * seed),
+            render_target(spec, square_mm, rig.right, rig.right_pose(pose), noise=noise, seed=2 * seed + 1))

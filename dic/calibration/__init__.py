@@ -7,10 +7,12 @@ from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration,
 from livedic.dic.calibration.solve import (DEFAULT_MAX_ERROR_PX, MIN_VIEWS, CalibrationRefused, calibrate,
                                            plane_from_homography, plane_scale)
 from livedic.dic.calibration.stereo import PairFit, StereoCalibration
+from livedic.dic.calibration.stereo_solve import DEFAULT_STEREO_FLAGS, TargetPair, calibrate_stereo, match_pair
 from livedic.dic.calibration.targets import (Detection, NotFound, NotFoundReason, TargetSpec, detect_target,
                                              parse_target)
 
-__all__ = ["CalibrationError", "CalibrationRefused", "CameraCalibration", "DEFAULT_MAX_ERROR_PX", "Detection",
-           "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PairFit", "PlaneFrame", "PlaneScale", "StereoCalibration", "TargetSpec", "calibrate",
-           "detect_target", "distort_points", "image_points", "parse_target", "plane_from_homography", "plane_points", "plane_scale",
-           "undistort_points"]
+__all__ = ["CalibrationError", "CalibrationRefused", "CameraCalibration", "DEFAULT_MAX_ERROR_PX", "DEFAULT_STEREO_FLAGS",
+           "Detection", "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PairFit", "PlaneFrame", "PlaneScale",
+           "StereoCalibration", "TargetPair", "TargetSpec", "calibrate", "calibrate_stereo", "detect_target",
+           "distort_points", "image_points", "match_pair", "parse_target", "plane_from_homography", "plane_points",
+           "plane_scale", "undistort_points"]

@@ -147,10 +147,12 @@ def _error_kind(error):
 def _add_metrology_commands(commands: Any) -> None:
     """``calibrate``, ``noise-floor`` and ``verify``: what a lab measures of its set-up before it trusts a test."""
     calibrate = commands.add_parser("calibrate", help="camera calibration (intrinsics, lens distortion, px/mm) from "
-                                                      "chessboard or ChArUco target images",
+                                                      "chessboard or ChArUco target images, or a stereo rig's "
+                                                      "(--left, --right)",
                                     description="Find the target in each image, solve the camera (OpenCV), check "
                                                 "the reprojection error and write CAL.json, used by run, replay, export and report "
-                                                "--calibration (docs/guide/calibration.md).")
+                                                "--calibration; with --left and --right, both cameras of a stereo "
+                                                "rig and the pose between them (docs/guide/calibration.md).")
     add_calibrate_arguments(calibrate)
     calibrate.set_defaults(handler=calibrate_command)
 

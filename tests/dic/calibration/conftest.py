@@ -19,3 +19,29 @@ def chessboard_views():
              for i, pose in enumerate(calibration_views(spec, 10.0, lens))]
     plane = render_target(spec, 10.0, lens, plane_view(spec, 10.0, lens, 2.0), seed=99)
     return spec, 10.0, lens, views, plane
+
+
+STEREO_SIZE = (640, 480)
+# Two different lenses, both distorting: the right one longer and decentred differently.
+STEREO_LENSES = ({"k1": -0.1, "k2": 0.02, "p1": 0.0004, "p2": -0.0002},
+                 {"k1": -0.08, "p1": -0.0003, "p2": 0.0002, "focal_px": 660.0})
+
+
+@pytest.fixture(scope="session")
+def stereo_pairs():
+    """(rig, spec, square_mm, [TargetPair]): chessboard:9x6 pairs rendered through a known 25-degree rig."""
+    from livedic.acquire.simulator.lens import Lens
+    from livedic.acquire.simulator.stereo_rig import StereoRig
+    from livedic.acquire.simulator.targets import render_target_pair, stereo_calibration_views, stereo_square_mm
+    from livedic.dic.calibration import Detection, TargetPair, detect_target, parse_target
+
+    rig = StereoRig.symmetric(Lens(STEREO_SIZE, **STEREO_LENSES[0]), Lens(STEREO_SIZE, **STEREO_LENSES[1]),
+                              distance_mm=300.0, angle_deg=25.0)
+    spec = parse_target("chessboard:9x6")
+    square = stereo_square_mm(spec, rig, 0.45)
+    pairs = []
+    for i, pose in enumerate(stereo_calibration_views(spec, square, rig)):
+        found = [detect_target(image, spec, square) for image in render_target_pair(spec, square, rig, pose, seed=i)]
+        assert all(isinstance(f, Detection) for f in found)
+        pairs.append(TargetPair(f"left_{i}.png", f"right_{i}.png", *found))
+    return rig, spec, square, pairs
