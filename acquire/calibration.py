@@ -92,6 +92,16 @@ def read_stereo_calibration(path: str | os.PathLike[str]) -> StereoCalibration:
     return stereo_calibration_from_document(_read_document(name), f"calibration file {name}")
 
 
+def read_any_calibration(path: str | os.PathLike[str]) -> CameraCalibration | StereoCalibration:
+    """Read a CAL.json of either kind: a stereo rig's (``"stereo": true``) or one camera's; CalibrationError
+    (one line, naming the file) if it cannot be used."""
+    name = os.fspath(path)
+    document = _read_document(name)
+    if isinstance(document, dict) and document.get("stereo"):
+        return stereo_calibration_from_document(document, f"calibration file {name}")
+    return calibration_from_document(document, f"calibration file {name}")
+
+
 def _read_document(name: str) -> Any:
     """The parsed JSON of calibration file ``name``; CalibrationError when it is missing or does not parse."""
     try:

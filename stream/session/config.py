@@ -434,6 +434,21 @@ def session_name() -> str:
     return "session-" + datetime.now().strftime("%Y%m%d-%H%M%S")
 
 
+def _strain_and_rig_from_args(args: argparse.Namespace) -> dict[str, Any]:
+    """``strain`` (StrainConfig) and ``rig``: a ``--calibration`` file of a stereo rig is the rig's (the strain then
+    has no one-camera calibration), any other the strain's."""
+    path = getattr(args, "calibration", None)
+    if path is None:
+        return {"strain": StrainConfig.from_args(args)}
+    from livedic.acquire.calibration import read_any_calibration
+    from livedic.dic.calibration import StereoCalibration
+    calibration = read_any_calibration(path)
+    if not isinstance(calibration, StereoCalibration):
+        return {"strain": StrainConfig.from_args(args)}
+    return {"strain": StrainConfig.from_args(argparse.Namespace(**{**vars(args), "calibration": None})),
+            "rig": calibration}
+
+
 def _load_from_args(args):
     """``load``, ``load_offset``, ``area_mm2`` from ``--load --load-offset --area --width --thickness``."""
     from livedic.stream.stages.stress import cross_section_mm2
@@ -544,6 +559,7 @@ class SessionConfig:
     load_offset: float = 0.0
     area_mm2: float | None = None
     publish: tuple = ()
+    rig: Any = None                     # a stereo source's StereoCalibration (--calibration with a stereo file)
     static_frames: int | None = option(
         None, f"frames after the reference in which nothing moves, measured for the noise floor (displacement and "
         f"strain SDs; docs/guide/noise-floor.md): default {DEFAULT_STATIC_FRAMES} for the simulator (rendered before "
@@ -637,6 +653,6 @@ class SessionConfig:
             image_max_side=args.image_max_side,
             show_progress=progress_enabled(args.progress),
             threads=args.threads, summary_json=args.summary_json, reconnect=args.reconnect,
-            reconnect_timeout=args.reconnect_timeout, strain=StrainConfig.from_args(args),
+            reconnect_timeout=args.reconnect_timeout, **_strain_and_rig_from_args(args),
             publish=tuple(getattr(args, "publish", None) or ()), **_load_from_args(args),
             **config_values(SessionConfig, args))

@@ -277,8 +277,14 @@ class Preparation:
         else:
             self.source = sources.open_source(config.source, **self.source_options)
         if getattr(self.source, "stereo", False):
-            self.stereo, self.stereo_calibration_from = stereo_calibration(config.strain.calibration,
-                                                                           dict(self.source.settings or {}))
+            if config.strain.calibration is not None:
+                raise ValueError("--calibration holds one camera's calibration but the source is stereo: calibrate "
+                                 "the rig from target pairs (livedic calibrate --left ... --right ...) and give that")
+            self.stereo, self.stereo_calibration_from = stereo_calibration(config.rig, dict(self.source.settings or {}))
+        elif config.rig is not None:
+            raise ValueError("--calibration holds a stereo rig's calibration (two cameras) but the source is one "
+                             "camera: give a stereo source (--source stereo:LEFT,RIGHT) or that camera's own "
+                             "calibration")
         self._count_static_frames()
         self.phase = Phase.COMPILING
         if config.warm_up:

@@ -610,7 +610,7 @@ class Session:
         if self._stereo is not None:
             last = getattr(self.loop.tracker, "last_points", None)
             summary["stereo"] = {**self._stereo, "last": last_frame_numbers(last) if last is not None else None,
-                                 "pairing": (self._settings.get("pairing") if self._settings else None)}
+                                 "pairing": _safe_settings(self.source).get("pairing")}   # counted to the end
         return summary
 
     def _close_quietly(self, close, what):

@@ -21,19 +21,17 @@ from livedic.dic.stereo import StereoStatus, StereoTracker, match_stereo
 CALIBRATION_FROM_SOURCE = "the simulator's exact rig (no --calibration given)"
 
 
-def stereo_calibration(given: Any, source_settings: dict) -> tuple[StereoCalibration, str]:
-    """The rig's calibration and where it came from: ``--calibration`` (a stereo CAL.json), else the simulator's own.
+def stereo_calibration(given: StereoCalibration | None, source_settings: dict) -> tuple[StereoCalibration, str]:
+    """The rig's calibration and where it came from: ``--calibration`` (a stereo CAL.json, ``SessionConfig.rig``),
+    else the simulator's own.
 
     Raises
     ------
     ValueError
-        One line: a 2D calibration for a stereo source, or none for a source that does not know its rig.
+        One line: no calibration for a source that does not know its rig.
     """
-    if isinstance(given, StereoCalibration):
-        return given, "the calibration file"
     if given is not None:
-        raise ValueError("--calibration holds one camera's calibration but the source is stereo: calibrate the "
-                         "rig from target pairs (livedic calibrate --left ... --right ...) and give that file")
+        return given, "the calibration file"
     views = [source_settings.get(view) or {} for view in ("left", "right")]
     known = [(view.get("stereo") or {}).get("calibration") for view in views]
     if known[0] is not None and known[0] == known[1]:
