@@ -24,11 +24,11 @@ def end_positions_3d(placed: ExtensometerSet, points_px: npt.ArrayLike, xyz: npt
     """
     points = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
-    ok = np.asarray(ok, dtype=bool) & np.all(np.isfinite(xyz), axis=1)
-    filled = np.where(ok[:, None], xyz, 0.0)
-    ex, ey = end_displacements(placed, points, filled[:, 0], filled[:, 1], ok, point_labels=point_labels,
+    measured = np.asarray(ok, dtype=bool) & np.all(np.isfinite(xyz), axis=1)
+    filled = np.where(measured[:, None], xyz, 0.0)
+    ex, ey = end_displacements(placed, points, filled[:, 0], filled[:, 1], measured, point_labels=point_labels,
                                end_labels=end_labels)
-    ez, _ = end_displacements(placed, points, filled[:, 2], filled[:, 2], ok, point_labels=point_labels,
+    ez, _ = end_displacements(placed, points, filled[:, 2], filled[:, 2], measured, point_labels=point_labels,
                               end_labels=end_labels)
     return np.column_stack([ex, ey, ez])
 

@@ -68,7 +68,7 @@ class StereoStrainStage(StrainStage):
         started = time.perf_counter_ns()
         if result.fracture is not None:
             self.add_fracture(result.fracture)
-        points = result.measurement.points
+        points = getattr(result.measurement, "points")      # a StereoMeasurement's 3D points
         if self.surface is None:
             self._set_up(points)
         assert self.surface is not None and self.reference_xyz is not None and self.reference_ok is not None
