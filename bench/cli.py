@@ -1,4 +1,4 @@
-"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|accuracy|peers|soak|strain|fracture|tracker|extensometer``.
+"""The ``livedic`` program: stream's commands and ``livedic bench paper|speed|live|validate|accuracy|peers|stereo|soak|strain|fracture|tracker|extensometer``.
 
 The layers run one way, dic <- acquire <- stream <- bench, so the command line of
 stream (``livedic.stream.cli``) cannot name the benchmarks; this module, on top,
@@ -17,11 +17,11 @@ from livedic.stream.session.parsing import subpixel_method
 def add_bench_commands(commands):
     """Add ``livedic bench ...`` to the ``livedic`` subparsers ``commands`` (a ``stream.cli`` extension)."""
     bench = commands.add_parser("bench", help="benchmarks: paper reproduction, speed, live pipeline, soak, strain, "
-                                             "fracture, tensile, replay, tracker, extensometer, accuracy, peers")
+                                             "fracture, tensile, replay, tracker, extensometer, accuracy, peers, stereo")
     bench_commands = bench.add_subparsers(metavar="BENCH")
     for add in (_add_paper_command, _add_speed_command, _add_live_command, _add_validate_command, _add_soak_command,
                 _add_strain_command, _add_fracture_command, _add_replay_command, _add_tracker_command,
-                _add_tensile_command, _add_extensometer_command, _add_calibration_command, _add_accuracy_command, _add_peers_command):
+                _add_tensile_command, _add_extensometer_command, _add_calibration_command, _add_accuracy_command, _add_peers_command, _add_stereo_command):
         add(bench_commands)
 
 
@@ -95,6 +95,25 @@ def _add_accuracy_command(bench_commands):
     from livedic.stream.session.options import add_config_arguments
     add_config_arguments(accuracy, MeasureConfig, names=("interpolation", "prefilter"))   # measure's defaults
     accuracy.set_defaults(handler=_cmd_bench_accuracy)
+
+
+def _add_stereo_command(bench_commands):
+    """``livedic bench stereo``'s options."""
+    stereo = bench_commands.add_parser(
+        "stereo", help="stereo DIC against the simulator's 3D truth (U, V, W, strain in space), 2D beside it, and "
+                       "the live rate at 2 x 1 MP",
+        description="The simulated coupon stretched 1 %, moved 0.5 mm away from the cameras and turned 1 degree, "
+                    "seen by a 25 degree rig: U, V, W RMSE, the extensometers in space and on the surface against "
+                    "the exact strain, the same extensometers of a 2D session on one camera, and the live rate "
+                    "(paced at 25 fps and unpaced).")
+    stereo.add_argument("--quick", action="store_true", help="512x512 views, 8 frames (about a minute)")
+    stereo.add_argument("-o", "--output", metavar="OUT.json", help="also write the figures as JSON")
+    stereo.set_defaults(handler=_cmd_bench_stereo)
+
+
+def _cmd_bench_stereo(args):
+    from livedic.bench.stereo import run_stereo_benchmark
+    return run_stereo_benchmark(quick=args.quick, output=args.output)
 
 
 def _add_peers_command(bench_commands):
