@@ -3,8 +3,8 @@
 Method: each view's position is undistorted to ideal pixels (``dic.calibration.undistort_points``), the pair
 is moved onto each other's epipolar lines by the smallest total image displacement (Hartley and Sturm's optimal
 correction, computed by Lindstrom's two steps: ``correct_matches``, what ``cv2.correctMatches`` gives), and the
-corrected pair, whose rays now meet exactly, is triangulated with ``cv2.triangulatePoints``. That is the optimal (maximum-likelihood under equal Gaussian image noise in
-both views) triangulation: the linear method alone (DLT on the raw pair) minimises an algebraic error that
+corrected pair, whose rays now meet exactly, is triangulated with ``cv2.triangulatePoints``. That is the optimal
+(maximum-likelihood under equal Gaussian image noise in both views) triangulation: the linear method alone (DLT on the raw pair) minimises an algebraic error that
 weights the views by depth, and the midpoint method splits the error in 3D, not in the images where it
 arises. The shifts the correction made are each view's reprojection error (ideal px).
 
