@@ -32,7 +32,8 @@ pytestmark = pytest.mark.usefixtures("time_limit")
 FPS = 25
 SLOPE = 1000.0                 # N per second of the sender's clock
 TOLERANCE_S = 0.05             # a finite force is the ramp's within SLOPE x this
-MARGIN_S = 0.1                 # frames this close to a fault's edges are not classified
+MARGIN_S = 0.2                 # frames this close to a fault's edges are not classified (a busy machine
+                               # delays the reader's reconnection past 0.1 s: seen once in a CI run beside a load of 8)
 LINE_PERIOD_S = 0.05           # the tcp sender's line period: slower than the frames, so a frame usually
                                # arrives before the line after it (what a live load stage must wait for)
 
