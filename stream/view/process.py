@@ -50,6 +50,8 @@ from livedic.stream.pipeline.frame_result import StageTimes
 from livedic.stream.pipeline.tracker_loop import OUTPUT_NICE
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
     from livedic.stream.stages.force import LoadStage
 
@@ -323,7 +325,8 @@ class ViewProcess:
             self.frames_left_out += 1
             return
         frame = cast(Frame, result.frame)         # (FrameResult's field is untyped)
-        image = right_image = None
+        image: np.ndarray | None = None
+        right_image: np.ndarray | None = None
         if self.images.due(frame.timestamp_ns, backlog > BEHIND):
             image = display_image(frame.image, frame.pixel_format, self._scale)
             right = frame.right                  # a stereo pair's right camera: drawn with the left one
