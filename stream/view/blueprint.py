@@ -149,14 +149,16 @@ def _stereo_views(image_views: list[Any], legend_views: list[Any], strain: Strai
     camera, u_view, v_view = image_views
     _, u_bar, v_bar = legend_views
     right = rrb.Spatial2DView(name="right camera", origin=CAMERA_RIGHT)
-    space_w = rrb.Spatial3DView(name="3D: W (mm) along the specimen's normal", origin=SPACE,
-                                contents=[f"/{SPACE_W}"])
+    eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, look_target=[0.0, 0.0, 0.0], eye_up=[0.0, -1.0, 0.0])
+    space_w = rrb.Spatial3DView(name="3D by W (mm, out of plane)", origin=SPACE, contents=[f"/{SPACE_W}"],
+                                eye_controls=eye)
     w_bar = rrb.Spatial2DView(name="W colour scale (mm)", origin=LEGEND_W)
     top = [(camera, rrb.TextDocumentView(name="tracking", origin=TRACKING)),
            (right, rrb.TextDocumentView(name="session", origin=SUMMARY)), (space_w, w_bar)]
     bottom = [(u_view, u_bar), (v_view, v_bar)]
     if strain is not None:
-        space_eyy = rrb.Spatial3DView(name="3D: e_yy (%) on the surface", origin=SPACE, contents=[f"/{SPACE_EYY}"])
+        space_eyy = rrb.Spatial3DView(name="3D by e_yy (%)", origin=SPACE, contents=[f"/{SPACE_EYY}"],
+                                      eye_controls=eye)
         top.append((space_eyy, _eyy_views(strain, extensometers)[1]))
         bottom.insert(0, _eyy_views(strain, extensometers))
     rows = [rrb.Horizontal(*(rrb.Vertical(view, under, row_shares=[5, 1]) for view, under in row))

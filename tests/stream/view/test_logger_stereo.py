@@ -180,8 +180,8 @@ def test_the_blueprint_has_the_right_camera_and_the_3d_views_only_in_a_stereo_se
         assert not [v for v in two_d if v[0] == "Spatial3DView" or v[2] in (entities.CAMERA_RIGHT,
                                                                                entities.LEGEND_W)]
         spaces = [name for kind, name, origin in stereo if kind == "Spatial3DView"]
-        assert spaces == (["3D: W (mm) along the specimen's normal", "3D: e_yy (%) on the surface"] if strain
-                          else ["3D: W (mm) along the specimen's normal"])
+        assert spaces == (["3D by W (mm, out of plane)", "3D by e_yy (%)"] if strain
+                          else ["3D by W (mm, out of plane)"])
         origins = [origin for _, _, origin in stereo]
         assert entities.CAMERA_RIGHT in origins and entities.LEGEND_W in origins
         # every 2D session's view is there too (the plots and the fields on the left image)
