@@ -522,7 +522,7 @@ class Session:
             self.viewer.start(image_shape=frame.image.shape, roi=self.reference.roi, p0_index=0, points=self.points,
                               has_truth=has_truth, title=f"livedic run: {config.source}",
                               source_settings=self._settings, strain=self.strain, load=self.load_stage,
-                              setup=prepared.setup)
+                              setup=prepared.setup, stereo=prepared.stereo is not None)
         # an automatic choice is said: the user did not say where the points go
         self.event("note", note, tell=self.placement is not None and self.placement.placed_by is PlacedBy.SPECIMEN)
         for line in prepared.setup.checks() if prepared.setup is not None else ():

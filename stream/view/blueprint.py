@@ -10,8 +10,9 @@ from typing import TYPE_CHECKING, Any
 
 from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
 from livedic.stream.view.entities import (
-    CAMERA, DROPS, ERROR, EVENTS, EXTENSOMETER_LINES, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FORCE, LATENCY,
-    LEGEND_EYY, LEGEND_U, LEGEND_V, LOST, LOW_ZNCC, P0, QUALITY, SETUP, SETUP_NOTES, SUMMARY, THROUGHPUT, TRACKING)
+    CAMERA, CAMERA_RIGHT, DROPS, ERROR, EVENTS, EXTENSOMETER_LINES, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V,
+    FORCE, LATENCY, LEGEND_EYY, LEGEND_U, LEGEND_V, LEGEND_W, LOST, LOW_ZNCC, P0, QUALITY, SETUP, SETUP_NOTES, SPACE,
+    SPACE_EYY, SPACE_W, SUMMARY, THROUGHPUT, TRACKING)
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb
@@ -31,6 +32,10 @@ _SMALL_PLOT_NAMES = {
     DROPS: "dropped red, queue depth grey",
     ERROR: "px error: RMS purple, max pink",
 }
+
+
+# what a view of a field on the camera image shows besides the field: the image, P0, the flagged points
+_FIELD_CONTENTS = ("$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}")
 
 
 def _plot_share(view: object) -> float:
@@ -67,12 +72,13 @@ def axial_transverse_pair(strain: StrainStage | None) -> tuple[int, int] | None:
 
 def make_blueprint(has_truth: bool, strain: StrainStage | None = None, load: LoadStage | None = None, *,
                    setup: bool = False, strain_xy: XYPlot | None = None,
-                   stress_xy: XYPlot | None = None) -> rrb.Blueprint:
+                   stress_xy: XYPlot | None = None, stereo: bool = False) -> rrb.Blueprint:
     """The session's layout (docs/guide/live-view.md): ``has_truth`` adds the error plot, ``strain`` (the session's
     ``stream.stages.strain.StrainStage``) the e_yy view and the extensometer plots, ``load`` the force plot,
-    ``setup`` the set-up tabs; ``strain_xy`` and ``stress_xy`` are the ``xy_plot.XYPlot``s shown (or None)."""
+    ``setup`` the set-up tabs, ``stereo`` the right camera and the 3D views; ``strain_xy`` and ``stress_xy`` are the
+    ``xy_plot.XYPlot``s shown (or None)."""
     import rerun.blueprint as rrb
-    field = "$origin/image", "$origin/p0", f"/{LOST}", f"/{LOW_ZNCC}"
+    field = _FIELD_CONTENTS
     extensometers = [f"/{EXTENSOMETER_LINES}"] if strain is not None else []
     camera: Any = rrb.Spatial2DView(name="camera", origin=CAMERA, contents=[*field, "$origin/roi/**", *extensometers])
     if setup:      # the set-up a tab behind the camera: one click away, the live image in front
@@ -91,13 +97,14 @@ def make_blueprint(has_truth: bool, strain: StrainStage | None = None, load: Loa
     ]
     strain_plots: list[Any] = []
     left: Any
-    if strain is None:
+    if stereo:
+        left = _stereo_views(image_views, legend_views, strain, extensometers)
+        strain_plots = _strain_plots(strain, strain_xy) if strain is not None else []
+    elif strain is None:
         left = rrb.Vertical(rrb.Horizontal(*image_views), rrb.Horizontal(*legend_views), row_shares=[4, 1])
     else:
         # four fields do not fit in a row: a 2 x 2 grid, each view over its colour bar, camera and e_yy on top
-        eyy = rrb.Spatial2DView(name=_strain_view_name(strain), origin=CAMERA,
-                                contents=[*field, f"/{FIELD_EYY}", *extensometers])
-        eyy_bar = rrb.Spatial2DView(name="e_yy colour scale (%)", origin=LEGEND_EYY)
+        eyy, eyy_bar = _eyy_views(strain, extensometers)
         _, u_bar, v_bar = legend_views
         texts = rrb.Horizontal(rrb.TextDocumentView(name="tracking", origin=TRACKING),
                                rrb.TextDocumentView(name="session", origin=SUMMARY), column_shares=[1, 2])
@@ -122,7 +129,41 @@ def make_blueprint(has_truth: bool, strain: StrainStage | None = None, load: Loa
                 for k, pair in enumerate(pairs)]
         plots = rrb.Vertical(*strain_plots, *rows, events,
                              row_shares=[_plot_share(view) for view in strain_plots] + [2] * len(rows) + [1.2])
-    return rrb.Blueprint(rrb.Horizontal(left, plots, column_shares=[3, 2]), collapse_panels=True)
+    # a stereo session's seven views take more of the width than a 2D session's three or four
+    return rrb.Blueprint(rrb.Horizontal(left, plots, column_shares=[7, 3] if stereo else [3, 2]), collapse_panels=True)
+
+
+def _eyy_views(strain: StrainStage, extensometers: list[str]) -> tuple[rrb.Spatial2DView, rrb.Spatial2DView]:
+    """The e_yy field on the camera image (with the extensometers) and its colour bar."""
+    import rerun.blueprint as rrb
+    eyy = rrb.Spatial2DView(name=_strain_view_name(strain), origin=CAMERA,
+                            contents=[*_FIELD_CONTENTS, f"/{FIELD_EYY}", *extensometers])
+    return eyy, rrb.Spatial2DView(name="e_yy colour scale (%)", origin=LEGEND_EYY)
+
+
+def _stereo_views(image_views: list[Any], legend_views: list[Any], strain: StrainStage | None,
+                  extensometers: list[str]) -> rrb.Vertical:
+    """A stereo session's views, each over its colour bar or text: the two cameras and the 3D points by W and by
+    e_yy on top, the fields on the image below (e_yy, u, v)."""
+    import rerun.blueprint as rrb
+    camera, u_view, v_view = image_views
+    _, u_bar, v_bar = legend_views
+    right = rrb.Spatial2DView(name="right camera", origin=CAMERA_RIGHT)
+    eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, look_target=[0.0, 0.0, 0.0], eye_up=[0.0, -1.0, 0.0])
+    space_w = rrb.Spatial3DView(name="3D by W (mm, out of plane)", origin=SPACE, contents=[f"/{SPACE_W}"],
+                                eye_controls=eye)
+    w_bar = rrb.Spatial2DView(name="W colour scale (mm)", origin=LEGEND_W)
+    top = [(camera, rrb.TextDocumentView(name="tracking", origin=TRACKING)),
+           (right, rrb.TextDocumentView(name="session", origin=SUMMARY)), (space_w, w_bar)]
+    bottom = [(u_view, u_bar), (v_view, v_bar)]
+    if strain is not None:
+        space_eyy = rrb.Spatial3DView(name="3D by e_yy (%)", origin=SPACE, contents=[f"/{SPACE_EYY}"],
+                                      eye_controls=eye)
+        top.append((space_eyy, _eyy_views(strain, extensometers)[1]))
+        bottom.insert(0, _eyy_views(strain, extensometers))
+    rows = [rrb.Horizontal(*(rrb.Vertical(view, under, row_shares=[5, 1]) for view, under in row))
+            for row in (top, bottom)]
+    return rrb.Vertical(*rows)
 
 
 def _strain_plots(strain: StrainStage, strain_xy: XYPlot | None) -> list[Any]:

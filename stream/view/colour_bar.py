@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from livedic.stream.view.entities import LEGEND_EYY, LEGEND_U, LEGEND_V, LIMITS_EYY, LIMITS_U, LIMITS_V
+from livedic.stream.view.entities import (
+    LEGEND_EYY, LEGEND_U, LEGEND_V, LEGEND_W, LIMITS_EYY, LIMITS_U, LIMITS_V, LIMITS_W)
 
 _BAR_WIDTH = 340
 _BAR_MARGIN = 10
 _BAR_GRADIENT_HEIGHT = 24
 _BAR_TEXT_HEIGHT = 34
 # colour bars: legend -> (the entity of its numeric limits, the unit on the bar, display factor)
-LEGENDS = {LEGEND_U: (LIMITS_U, "px", 1.0), LEGEND_V: (LIMITS_V, "px", 1.0), LEGEND_EYY: (LIMITS_EYY, "%", 100.0)}
+LEGENDS = {LEGEND_U: (LIMITS_U, "px", 1.0), LEGEND_V: (LIMITS_V, "px", 1.0), LEGEND_EYY: (LIMITS_EYY, "%", 100.0),
+           LEGEND_W: (LIMITS_W, "mm", 1.0)}
 
 
 def colour_bar_image(lut: np.ndarray, lo: float, hi: float, unit: str = "px", factor: float = 1.0) -> np.ndarray:

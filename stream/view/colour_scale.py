@@ -14,6 +14,7 @@ import numpy.typing as npt
 
 MIN_COLOUR_LIMIT_PX = 0.05       # the automatic scale starts at +-this, so reference-frame noise is one colour
 MIN_COLOUR_LIMIT_STRAIN = 1e-3   # e_yy's scale starts at +-0.1 %: strain noise (~1e-4) is one colour
+MIN_COLOUR_LIMIT_MM = 0.01       # W's scale (stereo) starts at +-10 um: a rig's out-of-plane noise is one colour
 NICE_MANTISSAS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
 AXIS_MANTISSAS = (1.0, 2.0, 5.0, 10.0)   # the transverse-vs-axial axes grow in fewer, bigger steps
 _LIMIT_PERCENTILES = (0.5, 99.5)

@@ -51,6 +51,15 @@ STRESS_STRAIN = "stress_strain"                  # the stress-strain plot, an XY
 STRESS_STRAIN_CURVE = "stress_strain/data/curve"   # engineering stress (MPa) against axial strain (%)
 STRESS_STRAIN_TRUE = "stress_strain/data/true"     # true stress against true strain, up to Ag
 STRESS_STRAIN_NOW = "stress_strain/now"
+# stereo (only in a stereo session: ``start(stereo=True)``)
+CAMERA_RIGHT = "camera_right"
+CAMERA_RIGHT_IMAGE = "camera_right/image"
+CAMERA_RIGHT_POINTS = "camera_right/points"      # each point where the right view sees it, coloured by W
+SPACE = "space"                                  # the 3D points, mm, in the specimen's best-fit plane's frame
+SPACE_W = "space/points_w"                       # coloured by W, the displacement along the plane's normal
+SPACE_EYY = "space/points_eyy"                   # coloured by the surface strain e_yy
+LEGEND_W = "legend/w"
+LIMITS_W = "colour_scale/w"
 
 TIMELINE_FRAME = "frame"
 TIMELINE_TIME = "time"
@@ -84,6 +93,7 @@ SERIES_STYLE = {
     LIMITS_U: (["u low (px)", "u high (px)"], [(48, 18, 59), (122, 4, 3)]),
     LIMITS_V: (["v low (px)", "v high (px)"], [(48, 18, 59), (122, 4, 3)]),
 }
+LIMITS_W_STYLE = (["W low (mm)", "W high (mm)"], [(48, 18, 59), (122, 4, 3)])   # a stereo session's only
 
 
 def extensometer_colour(index: int) -> tuple[int, int, int]:

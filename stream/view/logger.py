@@ -28,16 +28,17 @@ from livedic.stream.view.blueprint import axial_transverse_pair, make_blueprint
 from livedic.stream.view.camera_image import CameraImagePacing, display_image, display_scale
 from livedic.stream.view.colour_bar import LEGENDS, colour_bar_image
 from livedic.stream.view.colour_scale import (
-    MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_STRAIN, NICE_MANTISSAS, colormap_lut, grow_limits, pack_colours,
+    MIN_COLOUR_LIMIT_MM, MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_STRAIN, NICE_MANTISSAS, colormap_lut, grow_limits, pack_colours,
     typical_spacing)
 from livedic.stream.view.entities import (
     BLACK, CAMERA_IMAGE, CAMERA_P0, CAMERA_ROI, CAMERA_ROI_LABEL, DROPS, ERROR, EVENTS, EXTENSOMETER_DRAW_ORDER,
     EXTENSOMETER_LINES, EXTENSOMETER_LOST_COLOUR, EXTENSOMETER_STRAIN, FIELD_EYY, FIELD_U, FIELD_V, FIT_COLOUR, FORCE,
-    LABEL_CHARACTER, LABEL_GAP, LABEL_HEIGHT, LATENCY, LEGEND_EYY, LEGEND_U, LEGEND_V, LIMITS_EYY, LOST, LOST_COLOUR,
+    LABEL_CHARACTER, LABEL_GAP, LABEL_HEIGHT, LATENCY, LEGEND_EYY, LEGEND_U, LEGEND_V, LEGEND_W, LIMITS_EYY, LOST, LOST_COLOUR,
     LOW_ZNCC, LOW_ZNCC_COLOUR, MARKER_DRAW_ORDER, NO_STRAIN_COLOUR, P0, QUALITY, SERIES_STYLE, STRAIN_XY, STRAIN_XY_FIT,
     STRESS_COLOURS, STRESS_STRAIN, SUMMARY, THROUGHPUT, TIMELINE_FRAME, TIMELINE_TIME, TRACKING, darker,
     extensometer_colour)
 from livedic.stream.view.setup_view import SetupOverlay, SetupView
+from livedic.stream.view.stereo_view import StereoView
 from livedic.stream.view.viewer import APPLICATION_ID, DEFAULT_PORT, RrdFile, spawn_viewer
 from livedic.stream.view.xy_plot import MIN_XY_LIMIT_STRAIN, MIN_XY_LIMIT_STRESS_MPA, SeriesColumns, XYPlot
 
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
 
     from livedic.acquire.base import Frame
     from livedic.dic.result import Measurement
+    from livedic.dic.stereo import StereoMeasurement
     from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.dic.tensile.poisson import ContractionRatio
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
@@ -161,7 +163,8 @@ class RerunLogger:
         self._p0: int | None = None
         start_limits = self.color_range or (-MIN_COLOUR_LIMIT_PX, MIN_COLOUR_LIMIT_PX)
         self.colour_limits: dict[str, Limits] = {LEGEND_U: start_limits, LEGEND_V: start_limits,   # what the bars show
-                                                 LEGEND_EYY: (-MIN_COLOUR_LIMIT_STRAIN, MIN_COLOUR_LIMIT_STRAIN)}
+                                                 LEGEND_EYY: (-MIN_COLOUR_LIMIT_STRAIN, MIN_COLOUR_LIMIT_STRAIN),
+                                                 LEGEND_W: (-MIN_COLOUR_LIMIT_MM, MIN_COLOUR_LIMIT_MM)}
         self._limits_logged: dict[str, Limits] = {}
         self._radius_key: tuple[Any, ...] | None = None
         self._radius = 4.0
@@ -176,6 +179,7 @@ class RerunLogger:
         self._extensometer_colours = self._label_colours = np.zeros(0, dtype=np.uint32)   # from _start_strain
         self._lost_colour = self._lost_label_colour = np.uint32(0)
         self._strain: StrainStage | None = None  # the session's stream.stages.strain.StrainStage, from start()
+        self._stereo: StereoView | None = None   # a stereo session's right camera and 3D panels, from start()
         self._end_u = self._end_v = np.zeros(0)  # last known displacement of each extensometer end
         self._series_shown: dict[str, bool] = {}  # extensometer name -> its strain series has a value now
         self._xy_pair: tuple[int, int] | None = None  # (axial index, transverse index) for the transverse-vs-axial plot
@@ -225,7 +229,7 @@ class RerunLogger:
     def start(self, *, image_shape: tuple[int, int], roi: Sequence[float] | None = None, p0_index: int | None = None,
               points: np.ndarray | None = None, has_truth: bool = False, title: str | None = None,
               source_settings: Mapping[str, object] | None = None, strain: StrainStage | None = None,
-              load: LoadStage | None = None, setup: SetupOverlay | None = None) -> None:
+              load: LoadStage | None = None, setup: SetupOverlay | None = None, stereo: bool = False) -> None:
         """Open the sink and log what does not change (blueprint, ROI, colour bars, series styles).
 
         ``setup`` is the session's ``stream.session.preview.SetupOverlay`` (None: the ROI's box only): the region's
@@ -234,7 +238,8 @@ class RerunLogger:
         ``strain`` is the session's ``stream.stages.strain.StrainStage`` (None: no strain): with it the view
         adds e_yy, the extensometers and their plots (docs/guide/live-view.md). ``load`` is the session's
         ``stream.stages.force.LoadStage`` (None: no force): with it the force against time and, with
-        a cross-section and an ``axial`` extensometer, the stress-strain curve.
+        a cross-section and an ``axial`` extensometer, the stress-strain curve. ``stereo``: a stereo session
+        (each result's measurement a ``dic.stereo.StereoMeasurement``): the right camera and the 3D points too.
         """
         if not self.enabled:
             return
@@ -243,16 +248,19 @@ class RerunLogger:
         height, width = image_shape
         self._scale = display_scale(image_shape, self.image_max_side)
         self._p0 = p0_index
-        self._open_stream(self._make_blueprint(has_truth, strain, load, setup=setup is not None))
+        self._open_stream(self._make_blueprint(has_truth, strain, load, setup=setup is not None, stereo=stereo))
         self._log_series_styles(has_truth)
         self._image_side = max(height, width)
         if setup is not None:
             self.log_setup(setup)
         elif roi is not None:
             self._log_roi(roi)
-        self._draw_first_bars(strain)
+        self._draw_first_bars(strain, stereo)
         if strain is not None:
             self._start_strain(strain)
+        if stereo:
+            self._stereo = StereoView(self.rr, self._stream, self._legend_colours, self._scale, self._no_strain_colour)
+            self._stereo.start()
         self._start_force(load)
         if self.color_range is not None:      # fixed: static; automatic: logged with the first frame
             for legend in (LEGEND_U, LEGEND_V):
@@ -282,10 +290,11 @@ class RerunLogger:
                 continue
             self._stream.log(path, self.rr.SeriesLines(names=names, colors=colours), static=True)
 
-    def _draw_first_bars(self, strain: StrainStage | None) -> None:
+    def _draw_first_bars(self, strain: StrainStage | None, stereo: bool = False) -> None:
         """The colour bars at their start limits, drawn now: OpenCV's first text call takes ~30 ms, which would
         land on the first frame."""
-        for legend in (LEGEND_U, LEGEND_EYY) if strain is not None else (LEGEND_U,):
+        legends = [LEGEND_U] + ([LEGEND_EYY] if strain is not None else []) + ([LEGEND_W] if stereo else [])
+        for legend in legends:
             _, unit, factor = LEGENDS[legend]
             limits = self.colour_limits[legend]
             self._first_bars[legend] = (limits, colour_bar_image(self._lut, *limits, unit=unit, factor=factor))
@@ -351,20 +360,22 @@ class RerunLogger:
                 plot.columns = self._series       # their segments go out as columns with the series
 
     def _make_blueprint(self, has_truth: bool, strain: StrainStage | None = None, load: LoadStage | None = None, *,
-                        setup: bool = False) -> rrb.Blueprint:
+                        setup: bool = False, stereo: bool = False) -> rrb.Blueprint:
         """The session's layout (``blueprint.make_blueprint``), with the XY plots this session shows."""
         self._plan_plots(strain, load)
         return make_blueprint(has_truth, strain, load, setup=setup, strain_xy=self._strain_xy,
-                              stress_xy=self._stress_xy)
+                              stress_xy=self._stress_xy, stereo=stereo)
 
     # ----------------------------------------------------------------- per frame
     def log_frame(self, result: FrameResult, stats: SessionStats | None, *,
-                  camera_image: np.ndarray | None = None) -> None:
+                  camera_image: np.ndarray | None = None, right_image: np.ndarray | None = None) -> None:
         """Log one ``stream.pipeline.frame_result.FrameResult`` (a TrackerLoop sink).
 
         ``camera_image``: this frame's camera image as drawn (``display_image``), chosen by the caller
         (``stream.view.process``: paced and prepared in the session's process); None: chosen here, by
-        ``images`` (a ``CameraImagePacing``), from ``result.frame.image``. ``stats`` is not read.
+        ``images`` (a ``CameraImagePacing``), from ``result.frame.image``. ``right_image``: a stereo pair's right
+        image as drawn, given with ``camera_image`` (None with it: chosen here with the left one, from
+        ``result.frame.right``). ``stats`` is not read.
         """
         if not self.enabled:
             return
@@ -380,7 +391,9 @@ class RerunLogger:
         rec.set_time(TIMELINE_FRAME, sequence=now[0])
         rec.set_time(TIMELINE_TIME, duration=now[1])
         ok = m.ok
-        self._log_fields(result, m, camera_image)
+        right_image = self._log_fields(result, m, camera_image, right_image)
+        if self._stereo is not None:
+            self._stereo.log(cast("StereoMeasurement", m), result.strain, right_image)
         if self._strain is not None and readings is not None and len(readings.names):
             self._log_extensometer_series(readings, cast("ContractionRatio | None", result.poisson))
         if self._load is not None:
@@ -415,13 +428,18 @@ class RerunLogger:
         """This frame's values of the series ``path`` (sent with the next columns: ``SeriesColumns``)."""
         self._series.add(path, values)
 
-    def _log_fields(self, result: FrameResult, m: Measurement, camera_image: np.ndarray | None = None) -> None:
-        """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker."""
+    def _log_fields(self, result: FrameResult, m: Measurement, camera_image: np.ndarray | None = None,
+                    right_image: np.ndarray | None = None) -> np.ndarray | None:
+        """The camera image, the u, v (and e_yy) fields, the extensometer lines, the flagged points and P0's marker;
+        returns the right image to draw (a stereo pair's, when its left one is drawn), or None."""
         rr, rec, frame = self.rr, self._stream, cast("Frame", result.frame)
         readings = cast("ExtensometerReadings | None", result.extensometers)
         if camera_image is None and frame.image is not None and self.images.due(frame.timestamp_ns,
                                                                                   result.output_backlog > 0):
             camera_image = self._display_image(frame.image, frame.pixel_format)
+            right = frame.right
+            if right is not None and right.image is not None:
+                right_image = self._display_image(right.image, right.pixel_format)
         if camera_image is not None:
             rec.log(CAMERA_IMAGE, rr.Image(camera_image))
         ok = m.ok
@@ -450,6 +468,7 @@ class RerunLogger:
             rec.log(CAMERA_P0, rr.Points2D([[px[p0], py[p0]]], labels=["P0"], radii=-4.0,
                                            colors=[(255, 0, 255) if ok[p0] else (128, 128, 128)],
                                            show_labels=True, draw_order=MARKER_DRAW_ORDER + 1))
+        return right_image
 
     def event(self, message: str, level: str = "info") -> None:
         """A line in the viewer's event log (level: info, warning or error)."""
@@ -475,6 +494,14 @@ class RerunLogger:
                 radius = min(radius, self._image_side / 20.0)
             self._radius_key, self._radius = key, max(radius, 0.5 * self._scale)   # >= 1 display px across
         return self._radius
+
+    def _legend_colours(self, legend: str, values: np.ndarray) -> np.ndarray:
+        """Packed colours of finite ``values`` on ``legend``'s automatic scale, grown to cover them (its bar and
+        limits logged when they change)."""
+        self.colour_limits[legend] = grow_limits(self.colour_limits[legend], values)
+        if self._limits_logged.get(legend) != self.colour_limits[legend]:
+            self._log_limits(legend)
+        return self._packed_lut[self._lut_index(values, *self.colour_limits[legend])]
 
     def _colours(self, values: np.ndarray, lo: float, hi: float) -> np.ndarray:
         """(N, 3) uint8 colours of ``values`` on the scale [lo, hi] (outside: the end colours)."""

@@ -7,8 +7,8 @@ part of the tracker's latency tail (docs/guide/performance.md). ``ViewProcess`` 
 summary reads) and runs a ``RerunLogger`` in a child process:
 
 - the session's output thread hands each frame over (``__call__``): the result without its camera frame (the
-  arrays of the measurement, strain, extensometers, force and timings), plus the camera image when this
-  frame's is drawn, chosen (``camera_image.CameraImagePacing``) and downsampled (``camera_image.display_image``)
+  arrays of the measurement, strain, extensometers, force and timings), plus the camera image (and a stereo
+  pair's right one) when this frame's is drawn, chosen (``camera_image.CameraImagePacing``) and downsampled (``camera_image.display_image``)
   here. A thread of this process pickles and writes them to the child's pipe (a
   ``multiprocessing.connection.Connection``); the output thread only appends to a queue.
 - every frame's fields reach the view: none is left out while the child keeps up; while it is behind (more
@@ -50,6 +50,8 @@ from livedic.stream.pipeline.frame_result import StageTimes
 from livedic.stream.pipeline.tracker_loop import OUTPUT_NICE
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
     from livedic.stream.stages.force import LoadStage
 
@@ -105,9 +107,9 @@ def serve(inbox: Connection, outbox: Connection) -> None:
             continue
         try:
             if kind == "frame":
-                result, camera_image = payload
+                result, camera_image, right_image = payload
                 started = time.perf_counter_ns()
-                logger.log_frame(result, None, camera_image=camera_image)
+                logger.log_frame(result, None, camera_image=camera_image, right_image=right_image)
                 times.add(DRAW_STAGE, time.perf_counter_ns() - started)
                 _tell(outbox, ("drawn", 1))
             elif kind == "start":
@@ -323,14 +325,18 @@ class ViewProcess:
             self.frames_left_out += 1
             return
         frame = cast(Frame, result.frame)         # (FrameResult's field is untyped)
-        image = None
+        image: np.ndarray | None = None
+        right_image: np.ndarray | None = None
         if self.images.due(frame.timestamp_ns, backlog > BEHIND):
             image = display_image(frame.image, frame.pixel_format, self._scale)
-        # the frame's metadata and full image stay here: the view draws from the measurement's arrays
-        # (the image None: Frame's type says a frame has one, this one goes over the pipe without)
+            right = frame.right                  # a stereo pair's right camera: drawn with the left one
+            if right is not None and right.image is not None:
+                right_image = display_image(right.image, right.pixel_format, self._scale)
+        # the frame's metadata and full images (the right one's too) stay here: the view draws from the
+        # measurement's arrays (the image None: Frame's type says a frame has one, this one goes over the pipe without)
         light = replace(result, frame=Frame(frame.index, frame.timestamp_ns,
                                             None, frame.pixel_format))  # type: ignore[arg-type]
-        self._send("frame", (light, image))
+        self._send("frame", (light, image, right_image))
         self.frames_handed += 1
 
     log_frame = __call__

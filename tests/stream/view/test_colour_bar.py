@@ -46,5 +46,6 @@ def test_a_zero_tick_only_when_zero_lies_inside_and_labels_scale_with_the_factor
 
 def test_each_legend_names_its_limits_entity_and_unit():
     assert LEGENDS[entities.LEGEND_EYY] == (entities.LIMITS_EYY, "%", 100.0)
+    assert LEGENDS[entities.LEGEND_W] == (entities.LIMITS_W, "mm", 1.0)
     assert {limits for limits, _, _ in LEGENDS.values()} == {entities.LIMITS_U, entities.LIMITS_V,
-                                                              entities.LIMITS_EYY}
+                                                              entities.LIMITS_EYY, entities.LIMITS_W}
