@@ -89,6 +89,17 @@ class ReplayReport:
         return max(self.max_du, self.max_dv)
 
     @property
+    def rounding_tolerance_mm(self) -> float | None:
+        """Stereo: what ``ROUNDING_TOLERANCE_PX`` in both views moves a point in space at most, in mm (None in 2D).
+
+        A pixel is ``mm_per_px`` across at the rig's working distance, and depth is read from the views' parallax,
+        1 / sin(angle) times as sensitive: the sum bounds a triangulated point's move."""
+        if self.stereo is None:
+            return None
+        gain = 1.0 + 1.0 / np.sin(np.radians(max(float(self.stereo["angle_deg"]), 1.0)))
+        return ROUNDING_TOLERANCE_PX * float(self.stereo["mm_per_px"]) * gain
+
+    @property
     def agreement(self) -> Agreement:
         """``Agreement``: exact, within floating-point rounding, differs, or not compared."""
         if self.recorded_frames == 0 or not self.same_points or self.compared_frames == 0:
@@ -98,7 +109,8 @@ class ReplayReport:
         if (self.compared_frames == self.recorded_frames - self.missing_frames and self.layout_differs == 0
                 and self.ok_differs == 0 and self.nan_differs == 0 and self.stereo_status_differs == 0
                 and self.max_difference_px <= ROUNDING_TOLERANCE_PX
-                and self.max_dzncc <= ROUNDING_TOLERANCE_ZNCC):
+                and self.max_dzncc <= ROUNDING_TOLERANCE_ZNCC
+                and self.max_d_mm <= (self.rounding_tolerance_mm or 0.0)):
             return Agreement.WITHIN_ROUNDING
         return Agreement.DIFFERS
 
@@ -125,7 +137,8 @@ class ReplayReport:
             if changes:
                 return f"replay with changed parameters ({changes}) agrees with the recording {within}"
             return f"replay agrees with the recording {within}" + (
-                f"; in space max {self.max_d_mm:.2g} mm" if self.stereo is not None else "")
+                f"; in space max {self.max_d_mm:.2g} mm <= {self.rounding_tolerance_mm:.2g} mm" if self.stereo is not None
+                else "")
         text = (f"replay differs from the recording on {self.mismatched_frames} of {size}: max difference "
                 f"{_g(self.max_du)} px in u, {_g(self.max_dv)} px in v, {_g(self.max_dzncc)} in zncc; "
                 f"ok differs at {self.ok_differs} and NaN at {self.nan_differs} point-frames")

@@ -41,6 +41,7 @@ from livedic.stream.session.config import SessionConfig, TrackingConfig
 from livedic.stream.replay.rows import FrameRows, frame_rows
 from livedic.stream.session.session import NoFrame, Session
 from livedic.stream.session.stereo import STEREO_KEY
+from livedic.stream.stages.stereo_strain import nominal_px_per_mm
 from livedic.stream.pipeline.sinks import FunctionSink
 from livedic.stream.stages.strain import StrainConfig
 
@@ -309,7 +310,8 @@ def _stereo_report(report: ReplayReport, frames: RecordedFrames, recorded: _Reco
         return []
     counts = frames.pairing
     report.stereo = {"calibration_from": recorded.rig_from, "baseline_mm": recorded.rig.baseline_mm,
-                     "angle_deg": recorded.rig.angle_deg, "pairing": counts.as_dict() if counts is not None else None}
+                     "angle_deg": recorded.rig.angle_deg, "mm_per_px": 1.0 / nominal_px_per_mm(recorded.rig),
+                     "pairing": counts.as_dict() if counts is not None else None}
     if counts is None or not counts.pairs_dropped:
         return []
     return [f"{counts.dropped_from('left')} left and {counts.dropped_from('right')} right frame(s) have no frame "

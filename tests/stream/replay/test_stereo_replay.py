@@ -1,5 +1,6 @@
 """``livedic replay`` and ``livedic export`` of a stereo recording: the replay re-runs the stereo measurement (both
-views paired by frame index, the recorded rig, the same tracker) and gives the recorded 3D points back; a right
+views paired by frame index, the recorded rig, the same tracker) and gives the recorded 3D points and surface
+strain back; a right
 frame missing from the file drops that pair, counted, never mismatched; export writes the recorded 3D columns;
 bad input is one line and exit 2."""
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 
 from livedic.acquire.recording import schema as rs
-from livedic.acquire.recording.reader import read_results, read_session
+from livedic.acquire.recording.reader import Recording, read_results, read_session
 from livedic.stream.cli import main
 from livedic.stream.export.columns import STEREO_COLUMNS
 from tests.stream.replay.test_replay import _one_error_line, _rows
@@ -61,6 +62,12 @@ def test_replay_gives_the_recorded_3d_results_back_with_the_3d_columns(recording
     assert sorted({int(row["frame"]) for row in rows}) == [r.frame_index for r in results] == [0, 1, 2]
     for result in results:
         _assert_3d_as_recorded(_frame(rows, result.frame_index), result)
+    for strain in Recording(recording).strain_fields():      # the strain on the surface, as live
+        part = _frame(rows, strain.frame_index)
+        for name in ("exx", "eyy", "exy"):
+            got = np.array([float(row[name]) for row in part])
+            assert np.array_equal(np.isnan(got), np.isnan(getattr(strain, name)))
+            assert np.nanmax(np.abs(got - getattr(strain, name))) <= 1e-12, name
     moved = np.array([float(row["W_mm"]) for row in _frame(rows, 2) if row["stereo_status"] == "0"])
     assert moved.size > 0.9 * len(_frame(rows, 2)) and np.all(np.abs(moved - 0.5) < 0.05)   # w0=0.5 mm towards
     assert "replay matches the recording exactly" in err
@@ -187,3 +194,30 @@ def test_bad_stereo_input_is_one_line_and_exit_2(case, recording, tmp_path, caps
     assert main(argv + ["-o", str(out), "--progress", "off"]) == 2
     assert words in _one_error_line(capsys.readouterr().err)
     assert not out.exists()
+
+
+def test_calibration_replaces_the_recorded_rig(recording, tmp_path, capsys):
+    """The recorded rig given as a file replays exactly; a rig 1 % wider places the points elsewhere in space
+    (the views' tracking unchanged) and the verdict says by how much."""
+    from dataclasses import replace
+
+    from livedic.acquire.calibration import write_calibration
+    from livedic.dic.calibration import StereoCalibration
+
+    rig = StereoCalibration.from_dict(read_session(recording)["stereo"]["calibration"])
+    same, wider = tmp_path / "same.json", tmp_path / "wider.json"
+    write_calibration(same, rig)
+    write_calibration(wider, replace(rig, translation_mm=np.asarray(rig.translation_mm) * 1.01))
+    capsys.readouterr()
+    assert main(["replay", recording, "--calibration", str(same), "-o", str(tmp_path / "a.csv"),
+                 "--progress", "off"]) == 0
+    err = capsys.readouterr().err
+    assert "replay matches the recording exactly" in err and "calibration the calibration file given" in err
+    assert main(["replay", recording, "--calibration", str(wider), "-o", str(tmp_path / "b.csv"),
+                 "--progress", "off"]) == 0
+    err = capsys.readouterr().err
+    assert "replay differs from the recording" in err and "in space max" in err
+    _, rows = _rows(tmp_path / "b.csv")
+    z = np.array([float(row["Z_mm"]) for row in _frame(rows, 0)])
+    recorded_z = read_results(recording)[0].stereo["z_mm"]
+    assert np.nanmedian(z / recorded_z) == pytest.approx(1.01, abs=2e-3)    # depth scales with the baseline
