@@ -36,8 +36,8 @@ from typing import Any, Literal
 
 from livedic.acquire.base import Frame, FrameSource, NoFirstFrame, SourceError, SourceLost
 
-__all__ = ["PairedFrames", "StereoFrame", "StereoSource", "DropReason", "PairingCounts", "pair_frames", "CLOCKS",
-           "DEFAULT_TOLERANCE_PERIODS", "VIEWS"]
+__all__ = ["PairedFrames", "StereoFrame", "StereoSource", "DropReason", "PairingCounts", "pair_frames",
+           "pair_by_index", "CLOCKS", "DEFAULT_TOLERANCE_PERIODS", "VIEWS", "CAMERA_INDEX_KEY"]
 
 VIEWS = ("left", "right")
 CLOCKS = ("host", "camera")
@@ -47,6 +47,9 @@ DEFAULT_TOLERANCE_PERIODS = 0.5
 _PERIOD_FRAMES = 2          # frames read from each view to measure the frame period when no trigger rate gives it
 _OFFSET_PAIRS = 64          # pairs the cameras' clock offset is averaged over (the pairing clock's jitter / 8)
 _ALIGN_FRAMES = 5           # frames of each view that vote for the first pair
+# ``PairedFrames``' right frame carries the pair's index (both views of a recording pair by it); the right camera's
+# own frame id is kept in its metadata under this key.
+CAMERA_INDEX_KEY = "camera_frame_index"
 
 
 class DropReason(enum.Enum):
@@ -325,6 +328,38 @@ class _Pairing:
         return StereoFrame(index=a.index - self.first_index, left=a, right=b, skew_ns=skew)
 
 
+def pair_by_index(left: Iterable[Frame], right: Iterable[Frame], counts: PairingCounts | None = None
+                  ) -> Iterator[Frame]:
+    """Frames of two views that carry their pair's index (a recording's, ``PairedFrames``), paired by index.
+
+    Each view's indices increase. A frame whose index the other view lacks (lost, or cut off the end of a file)
+    is dropped and counted (``DropReason.PARTNER_LOST``), never paired with another index's: yields each pair as
+    its left ``Frame`` with the right one in ``Frame.right``. ``counts`` is filled as it goes.
+    """
+    counts = counts if counts is not None else PairingCounts()
+    lefts, rights = iter(left), iter(right)
+    a, b = next(lefts, None), next(rights, None)
+    while a is not None and b is not None:
+        if a.index == b.index:
+            counts.pairs += 1
+            yield Frame(a.index, a.timestamp_ns, a.image, a.pixel_format, a.metadata, right=b)
+            a, b = next(lefts, None), next(rights, None)
+            continue
+        side = "left" if a.index < b.index else "right"
+        counts.dropped[(side, DropReason.PARTNER_LOST)] += 1
+        counts.pairs_dropped += 1
+        if side == "left":
+            a = next(lefts, None)
+        else:
+            b = next(rights, None)
+    counts.ended_by = "left" if a is None else "right"
+    for side, first, rest in (("left", a, lefts), ("right", b, rights)):
+        if first is not None:                   # the other view ended first: the rest of this one has no partner
+            lost = 1 + sum(1 for _ in rest)
+            counts.dropped[(side, DropReason.PARTNER_LOST)] += lost
+            counts.pairs_dropped += lost
+
+
 class _TriggerClock(threading.Thread):
     """Fires TriggerSoftware on both cameras of a pair at one rate; the first failure stops it (``error``)."""
 
@@ -449,7 +484,9 @@ class PairedFrames(FrameSource):
 
     What a live session takes (``open_source("stereo:...")``): the queue, drops, recording and the camera view
     handle the pair as one frame of the left view; the tracker reads both. The frame's index is the pair's,
-    its timestamp the left one's, ``metadata["stereo_skew_ns"]`` the pairing error. ``stereo`` marks it.
+    its timestamp the left one's, ``metadata["stereo_skew_ns"]`` the pairing error. ``stereo`` marks it. The right
+    frame has the pair's index too (a recording's views pair by it, ``pair_by_index``), its camera's own frame id
+    in ``metadata[CAMERA_INDEX_KEY]``.
     """
 
     stereo = True
@@ -471,7 +508,11 @@ class PairedFrames(FrameSource):
             left = pair.left
             metadata = dict(left.metadata) if isinstance(left.metadata, dict) else {}
             metadata["stereo_skew_ns"] = pair.skew_ns
-            yield Frame(pair.index, left.timestamp_ns, left.image, left.pixel_format, metadata, right=pair.right)
+            right = pair.right
+            right_metadata = dict(right.metadata) if isinstance(right.metadata, dict) else {}
+            right_metadata[CAMERA_INDEX_KEY] = right.index
+            right = Frame(pair.index, right.timestamp_ns, right.image, right.pixel_format, right_metadata)
+            yield Frame(pair.index, left.timestamp_ns, left.image, left.pixel_format, metadata, right=right)
 
     def discard_buffered(self) -> int:
         """Both views' frames sent while the session was prepared (cameras), dropped; how many."""

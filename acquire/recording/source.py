@@ -23,8 +23,9 @@ from livedic.acquire.recording.errors import CorruptRecording, RecordingError, R
 from livedic.acquire.recording.metadata import metadata_from_strings
 from livedic.acquire.recording.reader import Recording
 from livedic.acquire.recording.records import RecordingInfo
+from livedic.acquire.stereo import PairingCounts, pair_by_index
 
-__all__ = ["FrameReader", "McapSource"]
+__all__ = ["FrameReader", "McapPairs", "McapSource"]
 
 
 @contextmanager
@@ -175,6 +176,45 @@ class McapSource(FrameSource):
                 break
             time.sleep(min(left, 0.1))
         return first
+
+
+class McapPairs(FrameSource):
+    """A stereo recording's pairs: each ``/camera/image`` frame with the ``/camera/right/image`` frame of the same
+    index in ``Frame.right`` (``acquire.stereo.pair_by_index``), as ``PairedFrames`` delivered them live.
+
+    A frame whose index the other view lacks is dropped and counted (``counts``, a ``PairingCounts``), never paired
+    with another. ``stereo`` marks it, as ``PairedFrames``.
+
+    Raises
+    ------
+    RecordingSourceError
+        At construction: not a livedic recording, or not a stereo one (no right view); during iteration, at a
+        corrupt record.
+    """
+
+    stereo = True
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.right = McapSource(path, view="right")
+        self.left = McapSource(path)
+        self.path, self.uri = self.left.path, self.left.uri
+        self.counts = PairingCounts()
+
+    @property
+    def info(self) -> RecordingInfo:
+        """The left view's ``RecordingInfo`` (one file: truncated for both)."""
+        return self.left.info
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        return {**self.left.settings, "source": "stereo", "pairing": self.counts.as_dict()}
+
+    def __iter__(self) -> Iterator[Frame]:
+        return pair_by_index(self.left, self.right, self.counts)
+
+    def close(self) -> None:
+        self.left.close()
+        self.right.close()
 
 
 class FrameReader:

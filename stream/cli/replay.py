@@ -12,6 +12,8 @@ from typing import Any
 import os
 import sys
 
+from livedic.acquire.calibration import read_any_calibration
+from livedic.dic.calibration import StereoCalibration
 from livedic.stream.export.notes import say
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay.replay import PointOptions, replay
@@ -76,13 +78,33 @@ def describe_parallel(stats: Any) -> str:
             f"{stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent{moves}")
 
 
+def rig_and_strain(args: argparse.Namespace) -> tuple[StereoCalibration | None, dict[str, Any]]:
+    """A stereo rig's ``--calibration`` (the replay's rig, None otherwise) and the strain settings given (a one
+    camera's ``--calibration`` among them: ``overrides_from_args``). CalibrationError: a file neither can use."""
+    if args.calibration is None:
+        return None, overrides_from_args(args)
+    calibration = read_any_calibration(args.calibration)
+    if not isinstance(calibration, StereoCalibration):
+        return None, overrides_from_args(args)
+    return calibration, overrides_from_args(argparse.Namespace(**{**vars(args), "calibration": None}))
+
+
+def describe_stereo(stereo: dict[str, Any]) -> str:
+    """One line: a stereo replay's rig, where its calibration came from, and how the views paired."""
+    pairing = stereo.get("pairing") or {}
+    return (f"stereo: rig baseline {stereo['baseline_mm']:.1f} mm, {stereo['angle_deg']:.1f} degrees, calibration "
+            f"{stereo['calibration_from']}; {pairing.get('pairs', 0)} pairs by frame index, "
+            f"{pairing.get('dropped_left', 0)} left and {pairing.get('dropped_right', 0)} right frame(s) without a "
+            f"partner dropped")
+
+
 def replay_command(args: argparse.Namespace) -> int:
     """``livedic replay`` with parsed ``args`` (see ``add_replay_arguments``); returns the exit code."""
     check_rows_output(args.output, args.recording)
     given = config_values(TrackingConfig, args)
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
                            mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
-    strain = overrides_from_args(args)
+    rig, strain = rig_and_strain(args)
     stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")
     bar = ProgressBar(None, enabled=progress_enabled(args.progress))
@@ -95,12 +117,12 @@ def replay_command(args: argparse.Namespace) -> int:
                 report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
                                 on_rows=write_rows, progress=progress, threads=args.threads, strain=strain,
                                 workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
-                                stress=stress)
+                                stress=stress, rig=rig)
         else:
             report = replay(args.recording, given, point_options=options, all_frames=args.all_frames,
                             on_rows=CsvRows(sys.stdout), progress=progress, threads=args.threads, strain=strain,
                             workers=args.workers, cluster=args.cluster, shared_path=args.shared_path,
-                            stress=stress)
+                            stress=stress, rig=rig)
             sys.stdout.flush()
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
@@ -118,6 +140,8 @@ def replay_command(args: argparse.Namespace) -> int:
     say(f"replayed {report.frames} frames x {report.points} points ({frames_text}; "
         f"{report.params['search']}+{report.params['subpixel']}) in {report.seconds:.1f} s ({rate}){where}")
     say(report.verdict())
+    if report.stereo is not None:
+        say(describe_stereo(report.stereo))
     if report.parallel is not None:
         say(describe_parallel(report.parallel))
     floor = noise_floor_lines(report.noise_floor) if report.noise_floor is not None else []

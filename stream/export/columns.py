@@ -24,6 +24,11 @@ EXTENSOMETER_COLUMNS = ("frame", "time_s", "name", "L0_px", "L_px", "eng_strain"
 # specimen plane (undistorted with a calibration), in mm.
 EXTENSOMETER_MM_COLUMNS = ("L0_mm", "L_mm")
 FIELD_MM_COLUMNS = ("u_mm", "v_mm")
+# Appended for a stereo session (fields.csv, replay's rows) instead of FIELD_MM_COLUMNS (a nominal scale's 2D
+# displacements, whose names a case-blind reader such as DuckDB would take for U_mm, V_mm): each point in space
+# (mm, the left camera's frame), its displacement from the reference pair, its dic.stereo.StereoStatus code.
+# Each column's recording array (acquire.recording.schema.STEREO_ARRAYS) is its name in lower case.
+STEREO_COLUMNS = ("X_mm", "Y_mm", "Z_mm", "U_mm", "V_mm", "W_mm", "stereo_status")
 EXPORT_FILES = ("p0_trace.csv", "fields.csv", "events.csv", "session.json", "extensometers.csv", "extensometers.png")
 BINARY_FILES = ("extensometers.png", "stress_strain.png")
 STRESS_FILES = ("stress_strain.csv", "stress_strain.png")
@@ -40,6 +45,20 @@ def result_columns(frame_index: int, timestamp_ns: int, point_id: np.ndarray, x:
         if name in extras:
             columns[name] = extras[name]
     return columns
+
+
+def mm_columns(stereo: bool, scaled: bool) -> tuple[str, ...]:
+    """The columns in mm after ``STRAIN_COLUMNS``: ``STEREO_COLUMNS`` for a stereo frame, else ``FIELD_MM_COLUMNS``
+    with a scale, else none."""
+    return STEREO_COLUMNS if stereo else FIELD_MM_COLUMNS if scaled else ()
+
+
+def stereo_columns(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``STEREO_COLUMNS`` from a stereo frame's arrays named as recorded (``RecordedResults.stereo``,
+    ``stream.pipeline.sinks.stereo_arrays``); {} when it has none (2D)."""
+    if not arrays:
+        return {}
+    return {name: np.asarray(arrays[name.lower()]) for name in STEREO_COLUMNS}
 
 
 # The atomic writer shared by every output of livedic (kept under its old name for callers).

@@ -44,10 +44,11 @@ from livedic.stream.export.field_options import NO_FIELDS, PVD_FILE, VIDEO_FOURC
 from livedic.stream.export.field_writer import FieldWriter, RecordedImages, remove_stale
 from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_FILES, EXPORT_KEY, EXTENSOMETER_COLUMNS,
                                           EXTENSOMETER_MM_COLUMNS, EXTRA_COLUMNS, FIELD_MM_COLUMNS, LEADING_COLUMNS,
-                                          P0_COLUMNS, STRAIN_COLUMNS, STRESS_FILES, extensometer_columns,
-                                          result_columns)
+                                          P0_COLUMNS, STEREO_COLUMNS, STRAIN_COLUMNS, STRESS_FILES,
+                                          extensometer_columns, mm_columns, result_columns, stereo_columns)
 from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
 from livedic.stream.export.notes import plural, reader_notes
+from livedic.stream.session.stereo import STEREO_KEY
 from livedic.stream.export.recomputed_strain import (RecordedStrain, _chain, _lost_readings, _strain_settings,
                                                      open_recorded_strain, plot_extensometers)
 from livedic.stream.export.stop import _stopped_in
@@ -201,7 +202,8 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
     extensometers = staged["extensometers.csv"]
     trace.write(",".join(P0_COLUMNS) + "\n")
     scale = source.config.px_per_mm
-    mm_fields = FIELD_MM_COLUMNS if scale else ()
+    first = source.first
+    mm_fields = mm_columns(first is not None and bool(first.stereo), bool(scale))
     extensometers.write(",".join(EXTENSOMETER_COLUMNS + (EXTENSOMETER_MM_COLUMNS if scale else ())) + "\n")
     written = _Written()
     extras_seen: list[str] | None = None             # the extra columns of the first frame: the file's
@@ -214,7 +216,7 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
             fields_csv.write(",".join(list(LEADING_COLUMNS) + extras_seen + list(STRAIN_COLUMNS) + list(mm_fields))
                              + "\n")
             written.points = len(result.u)
-        readings = _write_fields_rows(fields_csv, result, extras_seen, source, written)
+        readings = _write_fields_rows(fields_csv, result, extras_seen, mm_fields, source, written)
         if written.t0 is None:
             written.t0 = int(result.timestamp_ns)
         time_s = (int(result.timestamp_ns) - written.t0) / 1e9
@@ -236,9 +238,10 @@ def _has_extra(result: RecordedResults, name: str) -> bool:
     return values is not None and len(values) == len(result.u)
 
 
-def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_seen: list[str], source: _Source,
-                       written: _Written) -> ExtensometerReadings:
-    """One frame's rows of ``fields.csv`` (its strain recomputed, its values added to the colour ranges);
+def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_seen: list[str],
+                       mm_fields: tuple[str, ...], source: _Source, written: _Written) -> ExtensometerReadings:
+    """One frame's rows of ``fields.csv`` (its strain recomputed, its values added to the colour ranges, the
+    ``mm_fields`` of the header: a stereo frame's recorded 3D columns as recorded, NaN where a frame lacks them);
     returns the frame's extensometer readings."""
     n = len(result.u)
     extras = {name: getattr(result, name) for name in EXTRA_COLUMNS if _has_extra(result, name)}
@@ -254,12 +257,14 @@ def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_s
         strain_field, readings = stage.compute(result.u, result.v, result.ok)
         columns.update(exx=strain_field.exx, eyy=strain_field.eyy, exy=strain_field.exy)
         source.ranges.add(columns, np.asarray(result.ok, dtype=bool))
-        if scale:
+        if mm_fields == FIELD_MM_COLUMNS:
             columns.update(zip(FIELD_MM_COLUMNS, stage.displacements_mm(result.u, result.v)))
     else:                             # not the reference's points: no strain to speak of
         written.other_points += 1
         readings = _lost_readings(stage.placed)
-        columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS + FIELD_MM_COLUMNS})
+        columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS + mm_fields})
+    if mm_fields == STEREO_COLUMNS:   # recorded per point, whatever the points: as recorded
+        columns.update(stereo_columns(result.stereo) or {name: np.full(n, np.nan) for name in STEREO_COLUMNS})
     fields_csv.write(csv_rows(columns, n))
     return readings
 
@@ -305,6 +310,10 @@ def _frame_notes(path: str, source: _Source, written: _Written) -> list[str]:
     if written.other_points:
         notes.append(f"{written.other_points} of {frames} frames track other points than the first: no strain "
                      f"and no extensometer readings for them")
+    if frames and source.metadata.get(STEREO_KEY):
+        notes.append("a stereo recording: X_mm..W_mm and stereo_status are the recorded 3D results; exx, eyy, exy "
+                     "and the extensometers are recomputed from the left view alone (2D, in px): `livedic replay` "
+                     "gives the strain on the specimen's surface and the lengths in space")
     return notes
 
 

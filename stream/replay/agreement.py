@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from livedic.stream.pipeline.sinks import stereo_arrays
+
 if TYPE_CHECKING:
     from livedic.acquire.recording.records import RecordedResults
     from livedic.dic.result import Measurement
@@ -70,10 +72,14 @@ class ReplayReport:
     parallel: Any = None             # stream.replay.parallel_replay.ParallelStats on Dask (--workers, --cluster)
     force: dict[str, Any] | None = None    # stream.stages.force.LoadStage.summary() with --load
     noise_floor: dict[str, Any] | None = None   # stream.stages.noise_floor.NoiseFloorStage.summary(): static frames
+    stereo: dict[str, Any] | None = None   # a stereo replay's rig (calibration_from, baseline_mm, angle_deg), pairing
+    max_d_mm: float = 0.0            # stereo: the largest |difference| in X..W (mm) over the compared point-frames
+    stereo_status_differs: int = 0   # stereo: point-frames whose 3D status differs
 
     @property
     def exact(self) -> bool:
-        """Every recorded frame that could be replayed is bit-for-bit equal (u, v, zncc, ok)."""
+        """Every recorded frame that could be replayed is bit-for-bit equal (u, v, zncc, ok; in stereo also X..W
+        and the 3D status)."""
         return self.same_points and self.compared_frames > 0 and self.mismatched_frames == 0 \
             and self.compared_frames == self.recorded_frames - self.missing_frames
 
@@ -83,6 +89,17 @@ class ReplayReport:
         return max(self.max_du, self.max_dv)
 
     @property
+    def rounding_tolerance_mm(self) -> float | None:
+        """Stereo: what ``ROUNDING_TOLERANCE_PX`` in both views moves a point in space at most, in mm (None in 2D).
+
+        A pixel is ``mm_per_px`` across at the rig's working distance, and depth is read from the views' parallax,
+        1 / sin(angle) times as sensitive: the sum bounds a triangulated point's move."""
+        if self.stereo is None:
+            return None
+        gain = 1.0 + 1.0 / np.sin(np.radians(max(float(self.stereo["angle_deg"]), 1.0)))
+        return ROUNDING_TOLERANCE_PX * float(self.stereo["mm_per_px"]) * gain
+
+    @property
     def agreement(self) -> Agreement:
         """``Agreement``: exact, within floating-point rounding, differs, or not compared."""
         if self.recorded_frames == 0 or not self.same_points or self.compared_frames == 0:
@@ -90,9 +107,10 @@ class ReplayReport:
         if self.exact:
             return Agreement.EXACT
         if (self.compared_frames == self.recorded_frames - self.missing_frames and self.layout_differs == 0
-                and self.ok_differs == 0 and self.nan_differs == 0
+                and self.ok_differs == 0 and self.nan_differs == 0 and self.stereo_status_differs == 0
                 and self.max_difference_px <= ROUNDING_TOLERANCE_PX
-                and self.max_dzncc <= ROUNDING_TOLERANCE_ZNCC):
+                and self.max_dzncc <= ROUNDING_TOLERANCE_ZNCC
+                and self.max_d_mm <= (self.rounding_tolerance_mm or 0.0)):
             return Agreement.WITHIN_ROUNDING
         return Agreement.DIFFERS
 
@@ -118,10 +136,15 @@ class ReplayReport:
                       f"on the machine that recorded it")
             if changes:
                 return f"replay with changed parameters ({changes}) agrees with the recording {within}"
-            return f"replay agrees with the recording {within}"
+            return f"replay agrees with the recording {within}" + (
+                f"; in space max {self.max_d_mm:.2g} mm <= {self.rounding_tolerance_mm:.2g} mm" if self.stereo is not None
+                else "")
         text = (f"replay differs from the recording on {self.mismatched_frames} of {size}: max difference "
                 f"{_g(self.max_du)} px in u, {_g(self.max_dv)} px in v, {_g(self.max_dzncc)} in zncc; "
                 f"ok differs at {self.ok_differs} and NaN at {self.nan_differs} point-frames")
+        if self.stereo is not None:
+            text += (f"; in space max {_g(self.max_d_mm)} mm in X..W, the 3D status differs at "
+                     f"{self.stereo_status_differs} point-frames")
         if changes:
             return text + f" (changed parameters: {changes})"
         if self.all_frames and self.extra_frames:
@@ -170,8 +193,31 @@ def _compare(report: ReplayReport, measurement: Measurement, recorded: RecordedR
         if both.any():
             attribute = {"u": "max_du", "v": "max_dv", "zncc": "max_dzncc"}[name]
             setattr(report, attribute, max(getattr(report, attribute), float(np.max(np.abs(a[both] - b[both])))))
+    same &= _compare_stereo(report, measurement, recorded)
     if not same.all():
         report.mismatched_frames += 1
+
+
+def _compare_stereo(report: ReplayReport, measurement: Measurement, recorded: RecordedResults) -> np.ndarray | bool:
+    """A stereo frame's 3D points and status against the recorded ones (True for a 2D frame): per point, bit-equal."""
+    replayed, in_file = stereo_arrays(measurement), getattr(recorded, "stereo", None)
+    if not replayed and not in_file:
+        return True
+    if not replayed or not in_file:                  # one side stereo, the other not: nothing agrees
+        report.stereo_status_differs += len(measurement.u)
+        return False
+    status_same = np.asarray(replayed["stereo_status"]) == np.asarray(in_file["stereo_status"])
+    report.stereo_status_differs += int((~status_same).sum())
+    same = status_same
+    for name in ("x_mm", "y_mm", "z_mm", "u_mm", "v_mm", "w_mm"):
+        a = np.asarray(replayed[name], dtype=np.float64)
+        b = np.asarray(in_file[name], dtype=np.float64)
+        same = same & _same_bits(a, b)
+        report.nan_differs += int((np.isnan(a) != np.isnan(b)).sum())
+        both = np.isfinite(a) & np.isfinite(b)
+        if both.any():
+            report.max_d_mm = max(report.max_d_mm, float(np.max(np.abs(a[both] - b[both]))))
+    return same
 
 
 class _Comparison:

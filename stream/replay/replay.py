@@ -34,11 +34,14 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, cast
 
 import numpy as np
 
+from livedic.dic.calibration import StereoCalibration
 from livedic.dic.strain.extensometer import ExtensometerOffPoints
 from livedic.stream.stages.noise_floor import STATIC_FRAMES_KEY
 from livedic.stream.session.config import SessionConfig, TrackingConfig
 from livedic.stream.replay.rows import FrameRows, frame_rows
 from livedic.stream.session.session import NoFrame, Session
+from livedic.stream.session.stereo import STEREO_KEY
+from livedic.stream.stages.stereo_strain import nominal_px_per_mm
 from livedic.stream.pipeline.sinks import FunctionSink
 from livedic.stream.stages.strain import StrainConfig
 
@@ -50,8 +53,9 @@ from livedic.stream.replay.points import PointOptions, build_replay_points
 
 if TYPE_CHECKING:
     from livedic.acquire.base import Frame
-    from livedic.acquire.recording.source import McapSource
+    from livedic.acquire.recording.source import McapPairs, McapSource
     from livedic.acquire.recording.records import RecordedResults
+    from livedic.acquire.stereo import PairingCounts
     from livedic.dic.result import Measurement
     from livedic.dic.strain.field import StrainField
     from livedic.stream.pipeline.frame_result import FrameResult, SessionStats
@@ -63,7 +67,8 @@ def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
            on_result: Callable[..., None] | None = None, progress: Callable[[int], None] | None = None,
            threads: int = 1, strain: dict[str, Any] | None = None, workers: int | None = None,
            cluster: str | None = None, in_flight: int | None = None, shared_path: str | None = None,
-           on_rows: Callable[[FrameRows], None] | None = None, stress: StressOptions | None = None) -> ReplayReport:
+           on_rows: Callable[[FrameRows], None] | None = None, stress: StressOptions | None = None,
+           rig: StereoCalibration | None = None) -> ReplayReport:
     """Track the frames of recording ``path`` again; returns a ``ReplayReport``.
 
     Parameters
@@ -104,6 +109,8 @@ def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
         The machine's force (``--load csv:FILE``, its offset, A0): each frame's force and engineering
         stress, from the session's load stage as in ``livedic run``, become the rows' last columns
         (``FORCE_COLUMNS``) and ``report.force`` its summary.
+    rig : dic.calibration.StereoCalibration, optional
+        A stereo recording's rig calibration to use instead of the recorded one (``--calibration RIG.json``).
 
     Raises
     ------
@@ -111,7 +118,8 @@ def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
         Bad parameters, or a recording that is missing, not MCAP, not livedic,
         corrupt, or holds nothing to replay (``RecordingError`` is a ValueError); in parallel
         also ``ClusterError`` (no scheduler at ``cluster``, no worker, livedic missing there) and
-        a recording without results to seed the frames from (``--all-frames``).
+        a recording without results to seed the frames from (``--all-frames``) or a stereo recording; ``rig``
+        with a recording that is not stereo.
     SourceError
         The frames cannot be read (``RecordingSourceError``).
     """
@@ -119,7 +127,7 @@ def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
     point_options = point_options or PointOptions()
     point_options.check()
     request = _Request(path, given or {}, point_options, all_frames, on_result, progress, threads, strain, on_rows,
-                       stress)
+                       stress, rig)
     if workers is not None or cluster is not None:
         from livedic.stream.replay.parallel_replay import (check_cluster_address, check_worker_count, check_workers,
                                                            dask_client)
@@ -146,6 +154,9 @@ def _check_parallel_input(path: str, given: Mapping[str, Any] | None, all_frames
     with reader_notes():                   # the replay itself says what the reader notes (a truncated file)
         metadata, _ = read_session_or_note(path)
         first = next(iter(Recording(path).results()), None)
+    if metadata.get(STEREO_KEY):
+        raise ValueError(f"{path} is a stereo recording: its replay runs in this process only for now (leave out "
+                         f"--workers/--cluster)")
     params, _, _ = resolve_parameters(metadata, given or {}, first.method if first is not None else "")
     check_parameters(params, threads)
     if first is None and all_frames:
@@ -166,6 +177,7 @@ class _Request:
     strain: dict[str, Any] | None
     on_rows: Callable[[FrameRows], None] | None
     stress: StressOptions | None
+    rig: StereoCalibration | None
 
 
 @dataclass
@@ -182,7 +194,8 @@ class _OnDask:
 class _Recorded:
     """What the replay takes from the recording: its metadata, its results keyed by (frame index, timestamp),
     the reference frame (by key, or by index when the first results are not the reference's) and the points of
-    the first results (None without results)."""
+    the first results (None without results); for a stereo recording its rig (the recorded one, or ``--calibration``)
+    and where that came from."""
     metadata: dict[str, Any]
     results: list[RecordedResults]
     by_key: dict[tuple[int, int], RecordedResults]
@@ -190,6 +203,8 @@ class _Recorded:
     reference_index: int | None
     xy: np.ndarray | None
     ids: np.ndarray | None
+    rig: StereoCalibration | None = None
+    rig_from: str | None = None
 
 
 def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
@@ -199,7 +214,7 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
         recorded, tracking, report = _read_recording(request, notes, dask.worker_notes if dask is not None else [])
         rebuild = request.point_options.given or recorded.xy is None
         points = _points(request, recorded, tracking, rebuild)
-        config = _session_config(request, tracking, recorded.metadata)
+        config = _session_config(request, tracking, recorded)
         point_ids: list[np.ndarray] = []          # filled once the session has its points
         served: list[Any] = []                    # the session (a parallel one holds the worker-formatted rows)
         comparison = _Comparison(report, recorded.by_key, recorded.xy)
@@ -225,6 +240,7 @@ def _replay(request: _Request, dask: _OnDask | None = None) -> ReplayReport:
             raise session.source_error
         report.seconds = time.perf_counter() - started
         notes.extend(_frame_counts(report, frames, recorded, comparison))
+        notes.extend(_stereo_report(report, frames, recorded))
     report.notes = list(notes)
     return report
 
@@ -256,7 +272,50 @@ def _read_recording(request: _Request, notes: list[str],
     if not results and not request.all_frames:
         raise ValueError(f"{path} holds no tracking results (/dic/results) to replay: pass --all-frames to "
                          f"track every recorded frame from the first one")
-    return _recorded(metadata, results, notes), tracking, report
+    recorded = _recorded(metadata, results, notes)
+    recorded.rig, recorded.rig_from = _stereo_rig(path, metadata, request.rig)
+    return recorded, tracking, report
+
+
+def _stereo_rig(path: str, metadata: dict[str, Any], given: StereoCalibration | None
+                ) -> tuple[StereoCalibration | None, str | None]:
+    """A stereo recording's rig and where it came from: ``given`` (``--calibration``), else the recorded one
+    (metadata ``STEREO_KEY``); (None, None) for a one-camera recording.
+
+    ValueError (one line): ``given`` for a one-camera recording, or a stereo recording without its rig.
+    """
+    stereo = metadata.get(STEREO_KEY)
+    if not stereo:
+        if given is not None:
+            raise ValueError(f"--calibration holds a stereo rig's calibration (two cameras) but {path} was recorded "
+                             f"with one camera: give that camera's own calibration")
+        return None, None
+    if given is not None:
+        return given, "the calibration file given (--calibration)"
+    document = stereo.get("calibration") if isinstance(stereo, dict) else None
+    if not document:
+        raise ValueError(f"{path} is a stereo recording without its rig's calibration: give it with "
+                         f"--calibration RIG.json")
+    try:
+        rig = StereoCalibration.from_dict(document)
+    except (KeyError, TypeError, ValueError) as error:
+        raise ValueError(f"{path}: the recorded rig calibration cannot be read ({error}): give it with "
+                         f"--calibration RIG.json") from None
+    return rig, f"the recorded rig, which came from {stereo.get('calibration_from') or 'an unnamed source'}"
+
+
+def _stereo_report(report: ReplayReport, frames: RecordedFrames, recorded: _Recorded) -> list[str]:
+    """A stereo replay's rig and pairing in the report (``report.stereo``) and a note for frames without partner."""
+    if recorded.rig is None:
+        return []
+    counts = frames.pairing
+    report.stereo = {"calibration_from": recorded.rig_from, "baseline_mm": recorded.rig.baseline_mm,
+                     "angle_deg": recorded.rig.angle_deg, "mm_per_px": 1.0 / nominal_px_per_mm(recorded.rig),
+                     "pairing": counts.as_dict() if counts is not None else None}
+    if counts is None or not counts.pairs_dropped:
+        return []
+    return [f"{counts.dropped_from('left')} left and {counts.dropped_from('right')} right frame(s) have no frame "
+            f"of the same index in the other view: dropped, never paired with another"]
 
 
 def _recorded(metadata: dict[str, Any], results: list[RecordedResults], notes: list[str]) -> _Recorded:
@@ -290,15 +349,17 @@ def _points(request: _Request, recorded: _Recorded, tracking: TrackingConfig,
     return points
 
 
-def _session_config(request: _Request, tracking: TrackingConfig, metadata: dict[str, Any]) -> SessionConfig:
-    """The session ``livedic run`` would run on these frames: blocking queue (nothing dropped), no warm-up."""
+def _session_config(request: _Request, tracking: TrackingConfig, recorded: _Recorded) -> SessionConfig:
+    """The session ``livedic run`` would run on these frames: blocking queue (nothing dropped), no warm-up; a
+    stereo recording's rig as its calibration."""
+    metadata = recorded.metadata
     stress = request.stress
     force: dict[str, Any] = {} if stress is None else {"load": stress.load, "load_offset": stress.offset_s,
                                        "area_mm2": stress.area_mm2}
     return SessionConfig(source=f"mcap:{request.path}", tracking=tracking, threads=request.threads, drop="block",
                          warm_up=False, command="livedic replay",
                          strain=StrainConfig.from_metadata(metadata, **(request.strain or {})),
-                         static_frames=int(metadata.get(STATIC_FRAMES_KEY) or 0), **force)
+                         static_frames=int(metadata.get(STATIC_FRAMES_KEY) or 0), rig=recorded.rig, **force)
 
 
 def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.ndarray],
@@ -330,9 +391,10 @@ def _output_sinks(request: _Request, report: ReplayReport, point_ids: list[np.nd
 
 
 def _recorded_frames(path: str, recorded: _Recorded, all_frames: bool) -> RecordedFrames:
-    """The frames to track, read from the recording at ``path``."""
-    from livedic.acquire.recording.source import McapSource
-    return RecordedFrames(McapSource(path), recorded.by_key, recorded.reference_key, recorded.reference_index,
+    """The frames to track, read from the recording at ``path`` (a stereo one's as pairs)."""
+    from livedic.acquire.recording.source import McapPairs, McapSource
+    source = McapPairs(path) if recorded.rig is not None else McapSource(path)
+    return RecordedFrames(source, recorded.by_key, recorded.reference_key, recorded.reference_index,
                           all_frames)
 
 
@@ -390,7 +452,7 @@ class RecordedFrames:
     (index, timestamp)), in the recorded order: what the live run tracked.
     """
 
-    def __init__(self, source: McapSource, recorded: Mapping[tuple[int, int], RecordedResults],
+    def __init__(self, source: McapSource | McapPairs, recorded: Mapping[tuple[int, int], RecordedResults],
                  reference_key: tuple[int, int] | None, reference_index: int | None, all_frames: bool) -> None:
         self.source = source
         self.recorded = recorded
@@ -416,6 +478,16 @@ class RecordedFrames:
     @property
     def settings(self) -> dict[str, Any]:
         return self.source.settings
+
+    @property
+    def stereo(self) -> bool:
+        """Pairs (``McapPairs``): the session tracks them in stereo."""
+        return bool(getattr(self.source, "stereo", False))
+
+    @property
+    def pairing(self) -> PairingCounts | None:
+        """A stereo recording's pairing counts (``McapPairs.counts``), None for one camera."""
+        return getattr(self.source, "counts", None)
 
     def close(self) -> None:
         self.source.close()

@@ -29,7 +29,8 @@ import pyarrow as pa
 from livedic.stream.output.files import OutputError, check_output_file
 from livedic.stream.output.csv_text import csv_rows, scalar_text
 from livedic.stream.export.columns import (EXTRA_COLUMNS, FIELD_MM_COLUMNS, LEADING_COLUMNS, STRAIN_COLUMNS, StagedFile,
-                                          result_columns)
+                                          mm_columns, result_columns, stereo_columns)
+from livedic.stream.pipeline.sinks import stereo_arrays
 
 if TYPE_CHECKING:
     from livedic.dic.result import Measurement
@@ -38,7 +39,7 @@ if TYPE_CHECKING:
 
 _GRADIENTS = ("ux", "uy", "vx", "vy", "iterations")
 FORCE_COLUMNS = ("force_N", "eng_stress_MPa")
-_INTEGER_COLUMNS = ("frame", "timestamp_ns", "point_id", "status", "iterations")
+_INTEGER_COLUMNS = ("frame", "timestamp_ns", "point_id", "status", "iterations", "stereo_status")
 _BOOLEAN_COLUMNS = ("ok",)
 # Output formats by suffix of -o (lower case); anything else is refused.
 OUTPUT_SUFFIXES = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
@@ -137,7 +138,8 @@ def frame_rows(frame_index: int, timestamp_ns: int, point_ids: np.ndarray, measu
     -------
     FrameRows
         Columns ``LEADING_COLUMNS``, then the extras in ``EXTRA_COLUMNS`` order, then ``STRAIN_COLUMNS``, then
-        ``FIELD_MM_COLUMNS`` when ``stage`` has a scale.
+        ``STEREO_COLUMNS`` for a stereo measurement (``dic.stereo.StereoMeasurement``), else ``FIELD_MM_COLUMNS``
+        when ``stage`` has a scale.
     """
     m = measurement
     extras = {"status": np.asarray(m.status, dtype=np.int64)}
@@ -148,10 +150,10 @@ def frame_rows(frame_index: int, timestamp_ns: int, point_ids: np.ndarray, measu
     columns = result_columns(frame_index, timestamp_ns, point_ids, m.x, m.y, m.u, m.v, m.zncc, m.ok, extras)
     columns.update(exx=strain.exx, eyy=strain.eyy, exy=strain.exy)
     header = list(LEADING_COLUMNS) + [name for name in EXTRA_COLUMNS if name in extras] + list(STRAIN_COLUMNS)
-    in_mm = stage.displacements_mm(m.u, m.v) if stage is not None else None
-    if in_mm is not None:
-        columns.update(zip(FIELD_MM_COLUMNS, in_mm))
-        header += list(FIELD_MM_COLUMNS)
+    in_space = stereo_columns(stereo_arrays(m))
+    in_mm = None if in_space or stage is None else stage.displacements_mm(m.u, m.v)
+    columns.update(in_space or zip(FIELD_MM_COLUMNS, in_mm or ()))
+    header += list(mm_columns(bool(in_space), in_mm is not None))
     return FrameRows(header, len(m.u), columns={name: columns[name] for name in header})
 
 

@@ -23,7 +23,7 @@ from livedic.acquire import sources
 from livedic.acquire.base import SourceError
 from livedic.dic import DEFAULT_SUBSET, bspline
 from livedic.dic.strain import field_fit
-from livedic.stream.session.stereo import stereo_calibration
+from livedic.stream.session.stereo import STEREO_KEY, stereo_calibration
 from livedic.stream.stages.stereo_strain import StereoStrainStage, stereo_strain_config
 from livedic.stream.pipeline.frame_queue import BLOCK, DROP_NEWEST, DROP_OLDEST
 from livedic.stream.pipeline.progress import ProgressBar
@@ -494,7 +494,7 @@ class Preparation:
             "publish": list(config.publish or ()),          # where the strain went (--publish)
         }
         if self.stereo is not None:
-            metadata["stereo"] = {"calibration": self.stereo.to_dict(), "calibration_from": self.stereo_calibration_from}
+            metadata[STEREO_KEY] = {"calibration": self.stereo.to_dict(), "calibration_from": self.stereo_calibration_from}
             metadata["calibration"] = None                  # the 2D one's key: the rig's is above
         for stage in self.stages:
             metadata.update(stage.metadata())               # a key named above keeps its place

@@ -19,6 +19,8 @@ from livedic.dic.calibration import StereoCalibration
 from livedic.dic.stereo import StereoStatus, StereoTracker, match_stereo
 
 CALIBRATION_FROM_SOURCE = "the simulator's exact rig (no --calibration given)"
+# The session metadata's key of a stereo session: {"calibration": StereoCalibration.to_dict(), "calibration_from"}.
+STEREO_KEY = "stereo"
 
 
 def stereo_calibration(given: StereoCalibration | None, source_settings: dict) -> tuple[StereoCalibration, str]:

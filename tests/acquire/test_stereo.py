@@ -4,9 +4,9 @@ frame without a partner dropped and counted (never paired with another trigger's
 import numpy as np
 import pytest
 
-from livedic.acquire.base import Frame, NoFirstFrame, SourceError, SourceLost
+from livedic.acquire.base import Frame, FrameSource, NoFirstFrame, SourceError, SourceLost
 from livedic.acquire.sources import SCHEMES, open_source, open_stereo_source, parse_scheme, parse_stereo_uri
-from livedic.acquire.stereo import (DEFAULT_TOLERANCE_PERIODS, DropReason, PairedFrames, PairingCounts, StereoSource,
+from livedic.acquire.stereo import (CAMERA_INDEX_KEY, DEFAULT_TOLERANCE_PERIODS, DropReason, PairedFrames, PairingCounts, StereoSource, pair_by_index,
                                     pair_frames)
 
 PERIOD_NS = 20_000_000            # 50 fps
@@ -210,3 +210,36 @@ def test_random_losses_late_arrivals_and_jitter_never_make_a_mismatched_pair(see
     pairs, counts = pair_all(view(), view())          # pair_all fails on any mismatched pair
     assert counts.pairs == len(pairs) > 0.6 * n        # ~0.73 of triggers have both frames in time
     assert len({p.index for p in pairs}) == len(pairs)
+
+
+class _Listed(FrameSource):
+    """Listed frames as a source."""
+    uri = "listed:"
+
+    def __init__(self, listed):
+        self.listed = listed
+
+    def __iter__(self):
+        return iter(self.listed)
+
+
+def test_paired_frames_give_the_right_frame_the_pairs_index_keeping_the_cameras_own():
+    """A recording's views pair by index: the right frame carries the pair's, its camera's id in the metadata."""
+    pairs = PairedFrames(StereoSource(_Listed(frames(range(4), first_id=10)), _Listed(frames(range(4), first_id=70)),
+                                      tolerance_ms=1.0))
+    delivered = list(pairs)
+    assert [f.index for f in delivered] == [f.right.index for f in delivered] == [0, 1, 2, 3]
+    assert [f.right.metadata[CAMERA_INDEX_KEY] for f in delivered] == [70, 71, 72, 73]
+
+
+def test_recorded_views_pair_by_index_and_a_frame_without_its_partner_is_dropped_and_counted():
+    left = [f for f in frames(range(8)) if f.index not in (2, 7)]       # the left view lost 2 and was cut at 7
+    right = [f for f in frames(range(8)) if f.index not in (0, 5)]      # the right one lost 0 and 5
+    counts = PairingCounts()
+    pairs = list(pair_by_index(left, right, counts))
+    assert [p.index for p in pairs] == [1, 3, 4, 6]
+    assert all(p.right is not None and p.right.index == p.index for p in pairs)
+    assert all(np.array_equal(p.image, q.image) for p, q in zip(pairs, (f for f in left if f.index in (1, 3, 4, 6))))
+    assert counts.pairs == 4 and counts.pairs_dropped == 4
+    assert counts.dropped == {("left", DropReason.PARTNER_LOST): 2, ("right", DropReason.PARTNER_LOST): 2}
+    assert counts.ended_by == "left"

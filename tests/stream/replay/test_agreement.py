@@ -5,6 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from livedic.stream.pipeline.sinks import stereo_arrays
 from livedic.stream.replay.agreement import (ROUNDING_TOLERANCE_PX, ROUNDING_TOLERANCE_ZNCC, Agreement, ReplayReport,
                                              _Comparison)
 
@@ -105,3 +106,34 @@ def test_the_verdict_names_changed_parameters():
     report.changed = [("subset", 21, 31), ("seed", None, 4)]
     assert report.verdict() == ("replay with changed parameters (subset 21 -> 31, seed ? -> 4) still equals the "
                                 "recording exactly: 1 frames x 3 points")
+
+
+def _in_space(values, dz=0.0, status=(0, 0, 1)):
+    """``values`` as a stereo measurement: points 300 mm away, moved ``dz`` mm in depth, their 3D status."""
+    n = len(values.u)
+    xyz = np.column_stack([values.x * 0.1, values.y * 0.1, np.full(n, 300.0 + dz)])
+    xyz[np.asarray(status) != 0] = np.nan
+    values.points = SimpleNamespace(xyz=xyz, displacement=xyz - xyz[0], status=np.array(status, dtype=np.int32))
+    values.right_xy = np.column_stack([values.x - 40.0, values.y])
+    return values
+
+
+def _stereo_replayed(dz, status=(0, 0, 1)):
+    recorded = [_in_space(_values()), _in_space(_values())]
+    for r in recorded:
+        r.stereo = stereo_arrays(r)
+    shifted = _in_space(_values(u=(0.5 + 0.4 * ROUNDING_TOLERANCE_PX, 1.0, np.nan)), dz=dz, status=status)
+    report = _replayed(recorded, [_in_space(_values()), shifted])
+    report.stereo = {"angle_deg": 25.0, "mm_per_px": 0.1}
+    return report
+
+
+def test_stereo_within_rounding_needs_the_points_in_space_within_what_rounding_moves_them():
+    tolerance = _stereo_replayed(0.0).rounding_tolerance_mm
+    assert tolerance == pytest.approx(ROUNDING_TOLERANCE_PX * 0.1 * (1 + 1 / np.sin(np.radians(25.0))))
+    assert _stereo_replayed(0.5 * tolerance).agreement is Agreement.WITHIN_ROUNDING
+    far = _stereo_replayed(3.0)                          # the 2D tracking within rounding, the 3D points 3 mm off
+    assert far.agreement is Agreement.DIFFERS and far.max_d_mm == pytest.approx(3.0)
+    assert "in space max 3 mm in X..W" in far.verdict()
+    flagged = _stereo_replayed(0.0, status=(0, 2, 1))    # a point no longer ok in 3D
+    assert flagged.stereo_status_differs == 1 and flagged.agreement is Agreement.DIFFERS
