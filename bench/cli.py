@@ -108,12 +108,24 @@ def _add_stereo_command(bench_commands):
                     "(paced at 25 fps and unpaced).")
     stereo.add_argument("--quick", action="store_true", help="512x512 views, 8 frames (about a minute)")
     stereo.add_argument("-o", "--output", metavar="OUT.json", help="also write the figures as JSON")
+    stereo.add_argument("--peer-python", metavar="PATH",
+                        help="the python of a separate environment where pyALDIC-3D (pip install al-dic-3d) is "
+                             "installed: it runs on the same pairs, its U, V, W RMSE beside livedic's (left out: "
+                             "not installed)")
     stereo.set_defaults(handler=_cmd_bench_stereo)
 
 
 def _cmd_bench_stereo(args):
-    from livedic.bench.stereo import run_stereo_benchmark
-    return run_stereo_benchmark(quick=args.quick, output=args.output)
+    from livedic.bench.stereo import check_peer_python, run_stereo_benchmark
+    from livedic.stream.output.files import check_output_file
+    try:
+        if args.peer_python is not None:
+            check_peer_python(args.peer_python)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if args.output is not None:
+        check_output_file(args.output, "-o")
+    return run_stereo_benchmark(quick=args.quick, output=args.output, peer_python=args.peer_python)
 
 
 def _add_peers_command(bench_commands):
