@@ -129,22 +129,28 @@ def replay(path: str | os.PathLike[str], given: dict[str, Any] | None = None, *,
     request = _Request(path, given or {}, point_options, all_frames, on_result, progress, threads, strain, on_rows,
                        stress, rig)
     if workers is not None or cluster is not None:
-        from livedic.stream.replay.parallel_replay import (check_cluster_address, check_worker_count, check_workers,
-                                                           dask_client)
-        if workers is not None:
-            check_worker_count(workers)
-        if cluster is not None:
-            check_cluster_address(cluster)          # its form, before the recording is read (one line otherwise)
-        _check_parallel_input(path, given, all_frames, threads)
-        if shared_path == "":
-            from livedic.acquire.recording.source import FrameReader
-            shared_path = os.path.abspath(path)
-            FrameReader(shared_path)                # indexed? (one line otherwise)
-        with dask_client(workers, cluster) as client:
-            where = f"the Dask scheduler at {cluster}" if cluster is not None \
-                else f"a local Dask cluster of {workers} worker process(es)"
-            return _replay(request, _OnDask(client, in_flight, shared_path, where, list(check_workers(client))))
+        return _replay_on_dask(request, workers, cluster, in_flight, shared_path)
     return _replay(request)
+
+
+def _replay_on_dask(request: _Request, workers: int | None, cluster: str | None, in_flight: int | None,
+                    shared_path: str | None) -> ReplayReport:
+    """``replay``'s frames measured on a Dask cluster (its options checked first, each in one line)."""
+    from livedic.stream.replay.parallel_replay import (check_cluster_address, check_worker_count, check_workers,
+                                                       dask_client)
+    if workers is not None:
+        check_worker_count(workers)
+    if cluster is not None:
+        check_cluster_address(cluster)          # its form, before the recording is read (one line otherwise)
+    _check_parallel_input(request.path, request.given, request.all_frames, request.threads)
+    if shared_path == "":
+        from livedic.acquire.recording.source import FrameReader
+        shared_path = os.path.abspath(request.path)
+        FrameReader(shared_path)                # indexed? (one line otherwise)
+    with dask_client(workers, cluster) as client:
+        where = f"the Dask scheduler at {cluster}" if cluster is not None \
+            else f"a local Dask cluster of {workers} worker process(es)"
+        return _replay(request, _OnDask(client, in_flight, shared_path, where, list(check_workers(client))))
 
 
 def _check_parallel_input(path: str, given: Mapping[str, Any] | None, all_frames: bool, threads: int | None) -> None:

@@ -1,4 +1,4 @@
-"""The view of a stereo session (issue 24): the right camera with its points, the 3D points coloured by W and by
+"""Tests of stream/view/stereo_view.py and the logger's stereo entities: what a stereo session draws.
 e_yy, the layout; read back from the saved .rrd.
 
 The specimen is a plane tilted 20 degrees about the camera's x axis, 500 mm away; each frame moves its points
