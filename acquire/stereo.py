@@ -494,20 +494,61 @@ class PairedFrames(FrameSource):
     def __init__(self, pairs: StereoSource) -> None:
         self.pairs = pairs
         self.uri = pairs.uri
+        views = (pairs.left, pairs.right)
+        if all(hasattr(view, "prepare") for view in views):
+            # two simulated views: both rendered before the session's clock, not the right one while the left's
+            # clock runs (its first frames then came seconds late, a burst the queue dropped)
+            left: Any = pairs.left
+            self.prepare = self._prepare_views
+            self.frames = min(int(getattr(view, "frames")) for view in views)
+            self.rendered_frames = int(getattr(left, "rendered_frames", left.frames))     # per view, as the test's
+            self.test_frames = self.frames
+            self.static = int(getattr(left, "static", 0) or 0)
+            self.fps, self.options = left.fps, dict(left.options)      # the pair's: paced as the views were asked
+            # one clock for both (as one trigger fires two cameras): the pairing reads a few frames of each view
+            # ahead to align them, which would start each view's own clock before the session is ready
+            self._pace = bool(left.options.get("pace", True))
+            for view in views:
+                view.options["pace"] = False                                        # type: ignore[attr-defined]
+
+    def _prepare_views(self, progress: Any = None) -> None:
+        """Render both simulated views ahead (``progress(done, total)``: a view's frames, both views' halves)."""
+        left: Any = self.pairs.left
+        right: Any = self.pairs.right
+        if progress is None:
+            left.prepare()
+            right.prepare()
+            return
+        left.prepare(progress=lambda done, total: progress(done // 2, total))
+        right.prepare(progress=lambda done, total: progress((total + done) // 2, total))
 
     @property
     def live(self) -> bool:
-        return self.pairs.live
+        return self._pace or self.pairs.live
 
     @property
     def settings(self) -> dict[str, Any]:
         return self.pairs.settings
 
+    _pace = False
+
     def __iter__(self) -> Iterator[Frame]:
-        for pair in self.pairs:
+        period_ns = 1e9 / self.fps if self._pace else 0.0
+        start_ns = time.monotonic_ns()
+        for k, pair in enumerate(self.pairs):
+            capture = None
+            if self._pace:
+                if k == 1:          # the clock starts when the second pair is asked for, as a simulated view's does
+                    start_ns = time.monotonic_ns() - int(round(period_ns))
+                capture = start_ns + int(round(k * period_ns))
+                wait = capture - time.monotonic_ns()
+                if wait > 0:
+                    time.sleep(wait / 1e9)
             left = pair.left
             metadata = dict(left.metadata) if isinstance(left.metadata, dict) else {}
             metadata["stereo_skew_ns"] = pair.skew_ns
+            if capture is not None:
+                metadata["capture_monotonic_ns"] = capture
             right = pair.right
             right_metadata = dict(right.metadata) if isinstance(right.metadata, dict) else {}
             right_metadata[CAMERA_INDEX_KEY] = right.index

@@ -243,3 +243,24 @@ def test_recorded_views_pair_by_index_and_a_frame_without_its_partner_is_dropped
     assert counts.pairs == 4 and counts.pairs_dropped == 4
     assert counts.dropped == {("left", DropReason.PARTNER_LOST): 2, ("right", DropReason.PARTNER_LOST): 2}
     assert counts.ended_by == "left"
+
+
+def test_two_simulated_views_are_rendered_ahead_and_paced_by_one_clock():
+    """A pair of paced simulated views: both rendered by ``prepare`` (before any clock), the pair live, each pair
+    stamped on one clock that starts when the second pair is asked for (the pairing's look-ahead no longer starts
+    the views' own clocks while the session prepares), a period apart."""
+    import time
+
+    fps = 50.0
+    view = "synthetic:translate?frames=5&size=64x64&fps=50"
+    with open_source(f"stereo:{view},{view}&seed=2") as paired:
+        assert paired.live and hasattr(paired, "prepare")
+        paired.prepare()
+        frames = iter(paired)
+        first = next(frames)
+        asked = time.monotonic_ns()
+        rest = list(frames)
+    stamps = [frame.metadata["capture_monotonic_ns"] for frame in [first, *rest]]
+    assert stamps[1] >= asked - 1e9 / fps                    # the clock started at the second request
+    np.testing.assert_allclose(np.diff(stamps[1:]), 1e9 / fps, atol=1.0)
+    assert all(frame.right is not None for frame in rest) and paired.pairs.counts.pairs == 5
