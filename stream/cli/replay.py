@@ -12,8 +12,6 @@ from typing import Any
 import os
 import sys
 
-from livedic.acquire.calibration import read_any_calibration
-from livedic.dic.calibration import StereoCalibration
 from livedic.stream.export.notes import say
 from livedic.stream.pipeline.progress import ProgressBar, add_progress_argument, progress_enabled
 from livedic.stream.replay.replay import PointOptions, replay
@@ -24,7 +22,7 @@ from livedic.stream.session.points import add_region_arguments
 from livedic.stream.session.summary import format_strain_summary
 from livedic.stream.stages.noise_floor import noise_floor_lines
 from livedic.stream.stages.force import format_force_summary
-from livedic.stream.stages.strain import add_strain_arguments, overrides_from_args
+from livedic.stream.stages.strain import add_strain_arguments, rig_and_overrides
 from livedic.stream.stages.stress import add_stress_arguments, stress_options_from_args
 
 
@@ -78,17 +76,6 @@ def describe_parallel(stats: Any) -> str:
             f"{stats.seed_bytes / max(stats.frames, 1) / 1e3:.1f} kB of seed per frame sent{moves}")
 
 
-def rig_and_strain(args: argparse.Namespace) -> tuple[StereoCalibration | None, dict[str, Any]]:
-    """A stereo rig's ``--calibration`` (the replay's rig, None otherwise) and the strain settings given (a one
-    camera's ``--calibration`` among them: ``overrides_from_args``). CalibrationError: a file neither can use."""
-    if args.calibration is None:
-        return None, overrides_from_args(args)
-    calibration = read_any_calibration(args.calibration)
-    if not isinstance(calibration, StereoCalibration):
-        return None, overrides_from_args(args)
-    return calibration, overrides_from_args(argparse.Namespace(**{**vars(args), "calibration": None}))
-
-
 def describe_stereo(stereo: dict[str, Any]) -> str:
     """One line: a stereo replay's rig, where its calibration came from, and how the views paired."""
     pairing = stereo.get("pairing") or {}
@@ -104,7 +91,7 @@ def replay_command(args: argparse.Namespace) -> int:
     given = config_values(TrackingConfig, args)
     options = PointOptions(roi=args.roi, points=args.points, step=args.step, n_points=args.n_points, p0=args.p0,
                            mask=args.mask, exclude=tuple(args.exclude) if args.exclude else None)
-    rig, strain = rig_and_strain(args)
+    rig, strain = rig_and_overrides(args)
     stress = stress_options_from_args(args)            # bad --load/--area: one line, before anything is read
     to_file = args.output not in (None, "-")
     bar = ProgressBar(None, enabled=progress_enabled(args.progress))

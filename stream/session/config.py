@@ -44,7 +44,7 @@ from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_interpolat
                                            parse_exclusion, parse_p0, parse_roi, read_mask)
 from livedic.stream.pipeline.progress import progress_enabled
 from livedic.stream.session.options import add_config_arguments, config_values, option
-from livedic.stream.stages.strain import StrainConfig
+from livedic.stream.stages.strain import StrainConfig, rig_and_overrides
 
 if TYPE_CHECKING:
     from livedic.dic.tracking.key_frames import KeyFrameTracker
@@ -435,18 +435,9 @@ def session_name() -> str:
 
 
 def _strain_and_rig_from_args(args: argparse.Namespace) -> dict[str, Any]:
-    """``strain`` (StrainConfig) and ``rig``: a ``--calibration`` file of a stereo rig is the rig's (the strain then
-    has no one-camera calibration), any other the strain's."""
-    path = getattr(args, "calibration", None)
-    if path is None:
-        return {"strain": StrainConfig.from_args(args)}
-    from livedic.acquire.calibration import read_any_calibration
-    from livedic.dic.calibration import StereoCalibration
-    calibration = read_any_calibration(path)
-    if not isinstance(calibration, StereoCalibration):
-        return {"strain": StrainConfig.from_args(args)}
-    return {"strain": StrainConfig.from_args(argparse.Namespace(**{**vars(args), "calibration": None})),
-            "rig": calibration}
+    """``strain`` (StrainConfig) and ``rig`` (a stereo rig's ``--calibration``, else None): ``rig_and_overrides``."""
+    rig, given = rig_and_overrides(args)
+    return {"strain": StrainConfig(**given), "rig": rig}
 
 
 def _load_from_args(args):

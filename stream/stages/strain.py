@@ -376,10 +376,28 @@ def _row_extent(points, p0, step):
     return float(chosen[:, 0].min()), float(chosen[:, 0].max())
 
 
-def overrides_from_args(args):
+def rig_and_overrides(args) -> tuple[Any, dict]:
+    """``(rig, strain settings)`` from the command line, ``--calibration`` read once: a stereo rig's file is the rig
+    (a ``dic.calibration.StereoCalibration``; the strain settings then have no calibration), a camera's goes to the
+    strain settings (``overrides_from_args``; rig None). CalibrationError: a file neither can use."""
+    path = getattr(args, "calibration", None)
+    if path is None:
+        return None, overrides_from_args(args)
+    from livedic.acquire.calibration import read_any_calibration
+    calibration = read_any_calibration(path)
+    if isinstance(calibration, CameraCalibration):
+        return None, overrides_from_args(args, calibration=calibration)
+    return calibration, overrides_from_args(args, calibration=None)
+
+
+_FROM_ARGS = object()
+
+
+def overrides_from_args(args, *, calibration=_FROM_ARGS):
     """The strain settings given on the command line (a dict for ``StrainConfig``; absent ones left out).
 
-    A ``--gauge-length`` or ``--extensometer`` given replaces all the recorded extensometers.
+    A ``--gauge-length`` or ``--extensometer`` given replaces all the recorded extensometers. ``calibration``: the
+    one ``--calibration`` names, already read (``rig_and_overrides``; None: none for the strain), else read here.
     """
     given = {}
     if getattr(args, "strain_window", None) is not None:
@@ -390,9 +408,11 @@ def overrides_from_args(args):
         given["scale"] = args.scale
     if getattr(args, "extensometer_ends", None) is not None:
         given["axial_end_fit"] = args.extensometer_ends
-    if getattr(args, "calibration", None) is not None:
+    if calibration is _FROM_ARGS and getattr(args, "calibration", None) is not None:
         from livedic.acquire.calibration import read_calibration
-        given["calibration"] = read_calibration(args.calibration)
+        calibration = read_calibration(args.calibration)
+    if calibration is not None and calibration is not _FROM_ARGS:
+        given["calibration"] = calibration
     length = parse_gauge_length(getattr(args, "gauge_length", None))
     extra = tuple(parse_extensometer(t) for t in (getattr(args, "extensometer", None) or ()))
     if length is not None or extra:
