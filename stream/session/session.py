@@ -58,7 +58,7 @@ from livedic.stream.session.points import PlacedBy
 # the preparation's names, imported from here by the callers of the session
 from livedic.stream.session.preparation import (FIRST_FRAME_NOTE_S, FirstFrameAhead, NoFrame, Phase, Preparation,
                                                 check_viewer_reachable, drop_policy, is_live, warm_up)
-from livedic.stream.session.stereo import last_frame_numbers, make_stereo_tracker, match_summary, stereo_lines
+from livedic.stream.session.stereo import describe_match, last_frame_numbers, make_stereo_tracker, match_summary
 from livedic.stream.session.summary import format_summary
 from livedic.stream.stages.contraction import ContractionWatch, has_pair
 
@@ -502,7 +502,7 @@ class Session:
         if prepared.stereo is not None:
             tracker, seconds = make_stereo_tracker(prepared.stereo, frame, self.points, config.tracking)
             self._stereo = {"match": match_summary(tracker, seconds), "calibration_from": prepared.stereo_calibration_from}
-            self.event("note", stereo_lines(self._stereo)[1].strip(), tell=True)
+            self.event("note", describe_match(self._stereo["match"]), tell=True)
         else:
             tracker = self._tracker_factory(frame.image, self.points)
         roi_used = prepared.roi if prepared.roi is not None else (0, 0, frame.image.shape[1], frame.image.shape[0])

@@ -73,14 +73,19 @@ def match_summary(tracker: StereoTracker, seconds: float) -> dict[str, Any]:
             "angle_deg": tracker.calibration.angle_deg}
 
 
+def describe_match(match: dict[str, Any]) -> str:
+    """The reference match in one line (``match_summary``'s numbers)."""
+    return (f"reference match: {match['matched']} of {match['points']} points in {match['match_s']:.1f} s"
+            + ("" if not match["not_matched"] else " (not matched: " + ", ".join(
+                f"{n} {reason}" for reason, n in match["not_matched"].items()) + ")"))
+
+
 def stereo_lines(stereo: dict[str, Any]) -> list[str]:
     """The summary's stereo lines: the rig, the reference match, the last frame's 3D points, the pairing."""
     match = stereo["match"]
     lines = [f"  stereo     rig: baseline {match['baseline_mm']:.1f} mm, {match['angle_deg']:.1f} degrees; "
              f"calibration: {stereo['calibration_from']}",
-             f"             reference match: {match['matched']} of {match['points']} points in {match['match_s']:.1f} s"
-             + ("" if not match["not_matched"] else " (not matched: " + ", ".join(
-                 f"{n} {reason}" for reason, n in match["not_matched"].items()) + ")")]
+             f"             {describe_match(match)}"]
     last = stereo.get("last")
     if last:
         lines.append(f"             last frame: {last['ok']} of {last['points']} points in 3D; W {last['w_min_mm']:+.4f} "

@@ -19,7 +19,7 @@ docs/guide/stereo.md.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -38,7 +38,6 @@ def nominal_px_per_mm(calibration: StereoCalibration) -> float:
 
 def stereo_strain_config(config: StrainConfig, calibration: StereoCalibration) -> StrainConfig:
     """``config`` for a stereo session: the rig's nominal scale where none was given, no 2D calibration."""
-    from dataclasses import replace
     scale = config.scale if config.scale is not None else nominal_px_per_mm(calibration)
     return replace(config, scale=scale, calibration=None, measure=SURFACE_MEASURE)
 
