@@ -17,7 +17,8 @@ __all__ = ["open_load", "LOAD_USAGE"]
 
 LOAD_USAGE = ("valid loads: csv:FILE (header time_s,force_N), tcp://HOST:PORT[?clock=arrival|sender], "
               "modbus://HOST:PORT?register=N[&scale=K...], "
-              "synthetic (with the synthetic:tensile camera) or synthetic:tensile?...")
+              "synthetic (with a simulated test's camera: synthetic:tensile, synthetic:stereo) or "
+              "synthetic:tensile?... / synthetic:stereo?...")
 
 
 def open_load(uri: str, **options: Any) -> LoadSource:
@@ -27,10 +28,11 @@ def open_load(uri: str, **options: Any) -> LoadSource:
     ----------
     uri : str
         ``csv:FILE``, ``tcp://HOST:PORT[?clock=arrival|sender]``, ``modbus://HOST:PORT?register=N...``,
-        ``synthetic`` or ``synthetic:tensile?...`` (see docs/guide/tensile-test.md).
+        ``synthetic`` or ``synthetic:tensile?...`` / ``synthetic:stereo?...`` (see docs/guide/tensile-test.md).
     **options
         csv: ``offset_s`` (``--load-offset``), ``max_gap_s`` (default: see ``csv_max_gap_s``).
-        synthetic: ``source`` (the ``synthetic:tensile`` camera; required for plain ``synthetic``),
+        synthetic: ``source`` (the simulated test's camera, or a stereo pair of its views; required for plain
+        ``synthetic``),
         ``offset_s``, ``max_gap_s``.
         tcp: ``clock``, ``max_gap_s``, ``retry_s``, ``keep_s``, ``max_samples``, ``connect_timeout_s``,
         ``poll_s``, ``offset_s``. modbus: ``register``, ``scale``, ``kind``, ``type``, ``word_order``,

@@ -1,4 +1,9 @@
-"""``synthetic``: the simulated tensile test's force, one sample per frame of the simulated camera."""
+"""``synthetic``: the simulated test's force, one sample per frame of the simulated camera.
+
+The tensile test's (``synthetic:tensile``, its law in acquire.simulator.model) or the stereo test's
+(``synthetic:stereo``, a stereo pair's left view: acquire.simulator.stereo_force). ``check_synthetic_load_source``
+says from the source's URI alone, before anything is rendered, whether it has one.
+"""
 
 from typing import Any
 
@@ -7,7 +12,7 @@ import numpy as np
 from livedic.acquire.force.csv_file import _KnownSamples, csv_max_gap_s
 from livedic.acquire.force.source import LoadError, _option
 
-__all__ = ["SyntheticLoad"]
+__all__ = ["SyntheticLoad", "check_synthetic_load_source", "SIMULATED_TESTS"]
 
 
 class SyntheticLoad(_KnownSamples):
@@ -45,8 +50,45 @@ class SyntheticLoad(_KnownSamples):
         return {**super().settings, "source": self.source_uri, "offset_s": self.offset_s, "specimen": self.specimen}
 
 
+# Which sources have a force law: the simulated tests. Said by the early check and by open_load alike.
+SIMULATED_TESTS = ("--source synthetic:tensile?... or a stereo pair of the stereo test, "
+                   "stereo:synthetic:stereo?view=left&...,synthetic:stereo?view=right&...")
+
+
+def check_synthetic_load_source(source_uri: str) -> None:
+    """Whether ``--load synthetic`` can use the session's source ``source_uri``: a simulated test with a force law
+    (``synthetic:tensile``, or a stereo pair of ``synthetic:stereo`` views), read from the URI alone, before
+    anything is opened or rendered.
+
+    Raises
+    ------
+    LoadError
+        One line: the source has no force law; what to give instead.
+    """
+    from livedic.acquire.base import SourceError
+    from livedic.acquire.simulator.options import parse_synthetic_uri
+    from livedic.acquire.sources import STEREO_SCHEME, parse_scheme, parse_stereo_uri
+    try:
+        views = (parse_stereo_uri(source_uri)[:2] if parse_scheme(source_uri) == STEREO_SCHEME else (source_uri,))
+        models = {parse_synthetic_uri(view)[0] if parse_scheme(view) == "synthetic" else None for view in views}
+    except SourceError:
+        return                          # the source's own check says what is wrong with it, in its words
+    if models not in ({"tensile"}, {"stereo"}):
+        raise LoadError(f"--load synthetic is the simulated test's own force and {source_uri!r} is no simulated "
+                        f"test with a force law: give {SIMULATED_TESTS}, or the machine's force (--load csv:FILE, "
+                        f"tcp://HOST:PORT or modbus://HOST:PORT?register=N)")
+
+
+def _simulated_test(source: Any) -> Any:
+    """The simulated camera whose law gives the force: ``source``, or a stereo pair's left view (both views show
+    one test, ``acquire.stereo.PairedFrames``)."""
+    pairs = getattr(source, "pairs", None)
+    return pairs.left if getattr(source, "stereo", False) and pairs is not None else source
+
+
 def _open_synthetic(uri: str, options: dict[str, Any]) -> SyntheticLoad:
-    """``synthetic`` with ``source=`` (the session's simulated camera) or ``synthetic:tensile?...``."""
+    """``synthetic`` with ``source=`` (the session's simulated camera) or ``synthetic:tensile?...`` /
+    ``synthetic:stereo?...``."""
     source = options.pop("source", None)
     offset_s = _option("offset_s", options.pop("offset_s", 0.0))
     max_gap_s = options.pop("max_gap_s", None)
@@ -58,21 +100,24 @@ def _open_synthetic(uri: str, options: dict[str, Any]) -> SyntheticLoad:
     if uri.lower() == "synthetic":
         if source is None:
             raise LoadError(f"load {uri!r}: the simulator's force needs the simulated camera: pass source= "
-                            f"(a synthetic:tensile source), or name the test: synthetic:tensile?...")
-        if not callable(getattr(source, "forces_N", None)):
+                            f"(a synthetic:tensile or synthetic:stereo source), or name the test: "
+                            f"synthetic:tensile?... or synthetic:stereo?...")
+        camera = _simulated_test(source)
+        if not callable(getattr(camera, "forces_N", None)):
             raise LoadError(f"load {uri!r}: the camera {getattr(source, 'uri', type(source).__name__)!r} is not a "
-                            f"simulated tensile test; --load synthetic needs --source synthetic:tensile?...")
-        return SyntheticLoad(source, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)
+                            f"simulated test with a force law; --load synthetic needs {SIMULATED_TESTS}")
+        return SyntheticLoad(camera, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)
     if source is not None:
         raise LoadError(f"load {uri!r}: give either source= with load synthetic, or the test's URI, not both")
     from livedic.acquire.base import SourceError
     from livedic.acquire.simulator.options import parse_synthetic_uri
     from livedic.acquire.simulator.sources import SyntheticTensileSource
+    from livedic.acquire.simulator.stereo_source import SyntheticStereoViewSource
     try:
         model, _ = parse_synthetic_uri(uri)
-        if model != "tensile":
-            raise SourceError(f"synthetic:{model} has no force; use synthetic:tensile?...")
-        source = SyntheticTensileSource(uri)
+        if model not in ("tensile", "stereo"):
+            raise SourceError(f"synthetic:{model} has no force; use synthetic:tensile?... or synthetic:stereo?...")
+        source = SyntheticTensileSource(uri) if model == "tensile" else SyntheticStereoViewSource(uri)
     except SourceError as error:
         raise LoadError(f"load {uri!r}: {error}") from None
     return SyntheticLoad(source, uri=uri, offset_s=offset_s, max_gap_s=max_gap_s)

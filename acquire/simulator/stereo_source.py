@@ -21,6 +21,8 @@ from livedic.acquire.simulator.lens import Lens
 from livedic.acquire.simulator.options import convert_options, parse_synthetic_uri, rendered_count
 from livedic.acquire.simulator.render import quantise
 from livedic.acquire.simulator.sources import _PrerenderedSource
+from livedic.acquire.simulator.stereo_force import forces_n
+from livedic.acquire.simulator.stereo_force import specimen as coupon_specimen
 from livedic.acquire.simulator.stereo_rig import StereoRig
 from livedic.acquire.simulator.stereo_scene import StereoScene
 
@@ -83,6 +85,16 @@ class SyntheticStereoViewSource(_PrerenderedSource):
         """The 3D truth of material points (N, 2) mm in delivered frame ``frame_index`` (``StereoScene.truth`` of the
         rendered frame it shows: its ``frame`` is that one)."""
         return self.scene.truth(self._check_index(frame_index), material_xy)
+
+    def forces_N(self) -> np.ndarray:  # noqa: N802 (the unit is part of the name, as in force_N columns)
+        """The machine's force (N) in every delivered frame 0 .. frames - 1 (``stereo_force``: the coupon's law on its
+        uniform strain; 0 in the static frames; cycled with ``loop``). Both views give the same."""
+        return forces_n(self.scene.coupon, self.scene.motion, [self.rendered_index(i) for i in range(self.frames)])
+
+    @property
+    def specimen(self) -> dict[str, Any]:
+        """The coupon's cross-section and force law (``stereo_force.specimen``)."""
+        return coupon_specimen(self.scene.coupon, self.scene.motion)
 
     def _clean(self, i: int) -> np.ndarray:
         return self.scene.clean(self.view, i)

@@ -590,6 +590,10 @@ class SessionConfig:
                 raise ValueError("--publish sends extensometer strain: add --gauge-length L[,W] or --extensometer "
                                  "NAME=x1,y1,x2,y2")
 
+        if self.load is not None and str(self.load).strip().lower() == "synthetic":
+            from livedic.acquire.force.simulated import check_synthetic_load_source
+            check_synthetic_load_source(self.source)    # now: before the simulator renders its test
+
         if self.reconnect and self.scheme not in CAMERA_SCHEMES:
             raise ValueError(f"--reconnect applies to cameras (aravis:, v4l2:); {self.source} is a {self.scheme} "
                              f"source")
