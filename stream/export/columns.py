@@ -68,12 +68,14 @@ StagedFile = AtomicFile
 def extensometer_columns(frame_index: int, time_s: float, readings: ExtensometerReadings,
                          px_per_mm: float | None = None) -> dict[str, Any]:
     """The ``EXTENSOMETER_COLUMNS`` of one frame's ``ExtensometerReadings`` (one row per extensometer), then
-    ``EXTENSOMETER_MM_COLUMNS`` with a scale ``px_per_mm``."""
+    ``EXTENSOMETER_MM_COLUMNS`` with a scale ``px_per_mm``, or the lengths in space of a stereo frame's readings."""
     columns = {"frame": int(frame_index), "time_s": float(time_s),
                "name": np.array([_csv_cell(name) for name in readings.names], dtype=object),
                "L0_px": readings.l0_px, "L_px": readings.length_px, "eng_strain": readings.eng_strain,
                "true_strain": readings.true_strain, "ok": np.asarray(readings.ok, dtype=bool)}
-    if px_per_mm:
+    if readings.l0_mm is not None:               # a stereo frame's: measured in space
+        columns.update(L0_mm=np.asarray(readings.l0_mm), L_mm=np.asarray(readings.length_mm))
+    elif px_per_mm:
         columns.update(L0_mm=np.asarray(readings.l0_px) / px_per_mm, L_mm=np.asarray(readings.length_px) / px_per_mm)
     return columns
 

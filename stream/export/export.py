@@ -10,7 +10,8 @@ files"). Then the fields as pictures (``stream.export.field_export``): maps, a v
 Strain and extensometers are *recomputed* from the recorded displacements with the settings
 the recording was made with (``StrainConfig.from_metadata``), by the same ``StrainStage`` as
 the live session; ``--strain-window --strain-measure --gauge-length --extensometer --scale``
-replace them.
+replace them. A stereo recording's are its session's as recorded (the strain on the specimen's surface,
+the extensometers in space: ``recomputed_strain.StereoStrainRecord``), and take no such option.
 
 Guarantees: numbers at full precision (a value read back is bit-for-bit the recorded one),
 NaN as ``nan``, ``ok`` as 1/0; the CSV files are written under temporary names and renamed
@@ -48,9 +49,8 @@ from livedic.stream.export.columns import (BINARY_FILES, EVENT_COLUMNS, EXPORT_F
                                           extensometer_columns, mm_columns, result_columns, stereo_columns)
 from livedic.stream.export.force import RecordedForce, _force_label, _open_stress_load, _write_stress_strain
 from livedic.stream.export.notes import plural, reader_notes
-from livedic.stream.session.stereo import STEREO_KEY
-from livedic.stream.export.recomputed_strain import (RecordedStrain, _chain, _lost_readings, _strain_settings,
-                                                     open_recorded_strain, plot_extensometers)
+from livedic.stream.export.recomputed_strain import (RecordedStrain, StereoStrainRecord, _chain, _strain_settings,
+                                                     open_recorded_strain, plot_extensometers, recorded_rig)
 from livedic.stream.export.stop import _stopped_in
 # Re-exported: stream.cli's export, replay and report commands name them as export's.
 
@@ -131,7 +131,7 @@ def export_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
         if fields.wanted and written.frames:
             report = _write_fields(path, directory, fields, source.shown, source.ranges, source.stage, source.first,
                                    written.frames, written.t0, overwrite, stop, progress,
-                                   title_note=os.path.basename(path))
+                                   title_note=os.path.basename(path), in_space=source.stereo is not None)
             session[EXPORT_KEY]["fields"] = _fields_settings(fields, source.shown, source.ranges, report, source.stage)
             write_text_atomic(targets["session.json"], json_text(session))
             notes.extend(_field_notes(report))
@@ -189,6 +189,7 @@ class _Written:
     times: list[float] = field(default_factory=list)
     frame_numbers: list[int] = field(default_factory=list)
     eng: list[np.ndarray] = field(default_factory=list)
+    l0_mm: list[float] | None = None                 # a stereo recording's L0s measured in space
 
     def eng_strain(self, names: Sequence[str]) -> np.ndarray:
         """(frames, extensometers) engineering strain, NaN where not read."""
@@ -204,7 +205,9 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
     scale = source.config.px_per_mm
     first = source.first
     mm_fields = mm_columns(first is not None and bool(first.stereo), bool(scale))
-    extensometers.write(",".join(EXTENSOMETER_COLUMNS + (EXTENSOMETER_MM_COLUMNS if scale else ())) + "\n")
+    in_space = source.stereo is not None      # lengths in mm measured in space, whatever the scale
+    extensometers.write(",".join(EXTENSOMETER_COLUMNS + (EXTENSOMETER_MM_COLUMNS if scale or in_space else ()))
+                        + "\n")
     written = _Written()
     extras_seen: list[str] | None = None             # the extra columns of the first frame: the file's
     for result in _chain(source.first, source.results):
@@ -225,6 +228,8 @@ def _write_frame_files(staged: dict[str, AtomicFile], source: _Source, stop: Cal
         written.times.append(time_s)
         written.frame_numbers.append(int(result.frame_index))
         written.eng.append(np.asarray(readings.eng_strain, dtype=np.float64))
+        if readings.l0_mm is not None and written.l0_mm is None:
+            written.l0_mm = [float(v) for v in readings.l0_mm]
         _write_p0_row(trace, result, source.p0_id, time_s, written)
         written.frames += 1
     if extras_seen is None:
@@ -251,17 +256,15 @@ def _write_fields_rows(fields_csv: AtomicFile, result: RecordedResults, extras_s
     columns = result_columns(result.frame_index, result.timestamp_ns, result.point_id, result.x,
                              result.y, result.u, result.v, result.zncc, result.ok, extras)
     stage = source.stage
-    assert stage is not None and source.first is not None     # a frame with results: the stage was placed on the first
-    scale = source.config.px_per_mm
-    if np.array_equal(result.point_id, source.first.point_id):
-        strain_field, readings = stage.compute(result.u, result.v, result.ok)
+    assert stage is not None          # a frame with results: the stage was placed on the first
+    strain_field, readings = source.frame_strain(result)
+    if strain_field is not None:
         columns.update(exx=strain_field.exx, eyy=strain_field.eyy, exy=strain_field.exy)
         source.ranges.add(columns, np.asarray(result.ok, dtype=bool))
         if mm_fields == FIELD_MM_COLUMNS:
             columns.update(zip(FIELD_MM_COLUMNS, stage.displacements_mm(result.u, result.v)))
     else:                             # not the reference's points: no strain to speak of
         written.other_points += 1
-        readings = _lost_readings(stage.placed)
         columns.update({name: np.full(n, np.nan) for name in STRAIN_COLUMNS + mm_fields})
     if mm_fields == STEREO_COLUMNS:   # recorded per point, whatever the points: as recorded
         columns.update(stereo_columns(result.stereo) or {name: np.full(n, np.nan) for name in STEREO_COLUMNS})
@@ -310,10 +313,11 @@ def _frame_notes(path: str, source: _Source, written: _Written) -> list[str]:
     if written.other_points:
         notes.append(f"{written.other_points} of {frames} frames track other points than the first: no strain "
                      f"and no extensometer readings for them")
-    if frames and source.metadata.get(STEREO_KEY):
-        notes.append("a stereo recording: X_mm..W_mm and stereo_status are the recorded 3D results; exx, eyy, exy "
-                     "and the extensometers are recomputed from the left view alone (2D, in px): `livedic replay` "
-                     "gives the strain on the specimen's surface and the lengths in space")
+    if frames and source.stereo is not None:
+        notes.append("a stereo recording: X_mm..W_mm, stereo_status, exx, eyy, exy and the extensometers are the "
+                     "session's 3D results as recorded: the strain on the specimen's surface (Green-Lagrange), the "
+                     "extensometers' lengths in space (L0_mm, L_mm; no length in px); `livedic replay` measures "
+                     "it again")
     return notes
 
 
@@ -321,13 +325,17 @@ def _plot_extensometer_file(staged: dict[str, AtomicFile], path: str, source: _S
     """``extensometers.png``: each extensometer's strain against time (a note in the plot when there is none)."""
     stage = source.stage
     title = f"{os.path.basename(path)}: virtual extensometers"
-    if stage is not None:
+    l0_mm = None
+    if stage is not None and source.stereo is not None:
+        l0, l0_mm = [], written.l0_mm
+        title += " in space (stereo)"
+    elif stage is not None:
         l0 = [e.length_px for e in stage.extensometers]
         title += f" ({stage.config.px_per_mm:g} px/mm)" if stage.config.px_per_mm else ""
     else:
         l0 = []
     plot_extensometers(staged["extensometers.png"].handle, written.times, source.names, l0,
-                       written.eng_strain(source.names), title=title, scale=source.config.px_per_mm,
+                       written.eng_strain(source.names), title=title, scale=source.config.px_per_mm, l0_mm=l0_mm,
                        empty_note="no tracking results" if written.frames == 0 else "no extensometers in this "
                        "recording\n(livedic export --gauge-length L[,W] or --extensometer NAME=x1,y1,x2,y2)")
 
@@ -364,13 +372,16 @@ def _session_json(path: str, source: _Source, written: _Written, events: Sequenc
 
 
 def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, t0, overwrite, stop, progress, *,
-                  title_note):
-    """The second pass over the recording: ``stream.export.field_export.FieldWriter`` on every frame with results."""
+                  title_note, in_space=False):
+    """The second pass over the recording: ``stream.export.field_export.FieldWriter`` on every frame with results
+    (``in_space``: a stereo recording, its strain as recorded)."""
     from livedic.acquire.recording.reader import Recording
     if overwrite:
         remove_stale(directory, fields)
     writer = FieldWriter(directory, fields, shown, ranges.limits, (first.x, first.y), stage.windows.step, frames,
                          title_note=title_note)
+    recording = Recording(path)
+    stereo = StereoStrainRecord(recording, stage.placed.names) if in_space else None
     images = RecordedImages(path) if fields.coloured else None
     if progress is not None:
         progress.close()
@@ -382,14 +393,15 @@ def _write_fields(path, directory, fields, shown, ranges, stage, first, frames, 
                                  f"{directory} holds the CSV files, plots and session.json, complete, and "
                                  f"{writer.report.written(fields)}, each complete"
                                  f"{_not_written(writer.report, fields)}"):
-            for position, result in enumerate(Recording(path).results()):
+            for position, result in enumerate(recording.results()):
                 stop()
                 if progress is not None:
                     progress.update(position, "drawing maps, video and VTK")
                 if not np.array_equal(result.point_id, first.point_id):
                     writer.report.other_points += 1
                     continue
-                strain_field, _ = stage.compute(result.u, result.v, result.ok)
+                strain_field, _ = (stereo.at(result, stage.placed) if stereo is not None
+                                   else stage.compute(result.u, result.v, result.ok))
                 values = {"u": result.u, "v": result.v, "exx": strain_field.exx, "eyy": strain_field.eyy,
                           "exy": strain_field.exy,
                           "zncc": result.zncc, "status": result.status, "point_id": result.point_id}

@@ -3,6 +3,12 @@
 The recorded settings (``stream.stages.strain.StrainConfig.from_metadata``) place the same ``StrainStage``
 on the recorded reference points (P0 first); ``axial_series`` reads the ``axial`` extensometer frame by frame
 (``livedic report``), ``plot_extensometers`` draws ``extensometers.png``.
+
+A stereo recording's strain is not recomputed: its surface strain (``/dic/strain``) and extensometers in space
+(``/dic/extensometers``) are read as recorded (``StereoStrainRecord``). They are the live measurement itself, bit for
+bit what the session showed and the report reads; recomputing them from the recorded 3D points would run the same
+dic.stereo code on the same numbers, and a measurement with other settings is ``livedic replay``'s (it re-runs the
+3D measurement from both views' frames).
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ from livedic.stream.export.notes import reader_notes, session_or_note
 if TYPE_CHECKING:
     from livedic.acquire.recording.reader import Recording
     from livedic.acquire.recording.records import RecordedResults
+    from livedic.dic.calibration import StereoCalibration
     from livedic.dic.strain.extensometer import ExtensometerReadings
     from livedic.stream.stages.strain import StrainConfig, StrainStage
 
@@ -71,18 +78,106 @@ def reference_geometry(metadata: Mapping[str, Any], first: RecordedResults,
 
 
 def strain_stage(metadata: Mapping[str, Any], first: RecordedResults, p0_id: int,
-                 overrides: Mapping[str, Any] | None = None) -> StrainStage:
-    """The ``stream.stages.strain.StrainStage`` of a recording (its settings, ``overrides`` replacing them).
+                 config: StrainConfig) -> StrainStage:
+    """The ``stream.stages.strain.StrainStage`` of a recording, ``config`` placed on its reference points (a stereo
+    recording's: the ``StereoStrainStage``, placed as live).
 
     Raises
     ------
     ValueError
         A bad setting, or an extensometer end away from the tracked points (one line).
     """
-    from livedic.stream.stages.strain import StrainConfig
-    config = StrainConfig.from_metadata(metadata, **(overrides or {}))
     points, p0, roi, step, subset = reference_geometry(metadata, first, p0_id)
-    return config.place(points, p0=p0, roi=roi, step=step, subset=subset)
+    stage = config.place(points, p0=p0, roi=roi, step=step, subset=subset)
+    if recorded_rig(metadata) is not None:
+        from livedic.stream.stages.stereo_strain import StereoStrainStage
+        return StereoStrainStage.of(stage)
+    return stage
+
+
+def recorded_rig(metadata: Mapping[str, Any]) -> StereoCalibration | None:
+    """A stereo recording's rig (its session metadata's ``stereo``), None for one camera."""
+    from livedic.dic.calibration import StereoCalibration
+    from livedic.stream.session.stereo import STEREO_KEY
+    stereo = metadata.get(STEREO_KEY)
+    return StereoCalibration.from_dict(stereo["calibration"]) if isinstance(stereo, Mapping) else None
+
+
+def recorded_strain_config(metadata: Mapping[str, Any], overrides: Mapping[str, Any] | None) -> StrainConfig:
+    """The strain settings of a recording (``overrides`` replacing them); a stereo recording's as its session had them
+    (the rig's nominal scale, the surface measure), which take no overrides: its strain and extensometers are the
+    recorded ones.
+
+    Raises
+    ------
+    ValueError
+        A bad setting; a strain option given for a stereo recording (one line).
+    """
+    from livedic.stream.stages.stereo_strain import stereo_strain_config
+    from livedic.stream.stages.strain import StrainConfig
+    rig = recorded_rig(metadata)
+    if rig is None:
+        return StrainConfig.from_metadata(metadata, **(overrides or {}))
+    if overrides:
+        raise ValueError(f"a stereo recording's strain and extensometers are taken as its session measured them (on "
+                         f"the specimen's surface, in space): {', '.join(sorted(overrides))} cannot change them here; "
+                         f"livedic replay FILE.mcap -o ROWS.csv with those options measures it again in 3D")
+    return stereo_strain_config(StrainConfig.from_metadata(metadata), rig)
+
+
+class _FrameCursor:
+    """Items of a recorded topic in frame order, taken by frame index alongside ``/dic/results``: the item of that
+    frame, or None when the topic has none for it (items of frames passed by are skipped)."""
+
+    def __init__(self, items: Iterator[Any], frame_of: Any) -> None:
+        self._items = items
+        self._frame_of = frame_of
+        self._ahead: Any = None
+
+    def take(self, frame_index: int) -> Any:
+        while True:
+            if self._ahead is None:
+                self._ahead = next(self._items, None)
+                if self._ahead is None:
+                    return None
+            frame = self._frame_of(self._ahead)
+            if frame > frame_index:
+                return None
+            item, self._ahead = self._ahead, None
+            if frame == frame_index:
+                return item
+
+
+class StereoStrainRecord:
+    """A stereo recording's strain as its session measured it, frame by frame: the surface strain recorded on
+    ``/dic/strain`` and the extensometers in space on ``/dic/extensometers`` (``l0_mm``, ``length_mm``; engineering
+    strain = L / L0 - 1), read alongside its results."""
+
+    def __init__(self, recording: Recording, names: Sequence[str]) -> None:
+        self.names = tuple(names)
+        self._strain = _FrameCursor(recording.strain_fields(), lambda field: int(field.frame_index))
+        self._readings = _FrameCursor(recording.extensometer_readings(), lambda item: int(item[0]))
+
+    def at(self, result: RecordedResults, placed: Any) -> tuple[Any, ExtensometerReadings]:
+        """(strain field with ``exx, eyy, exy``, extensometer readings) recorded for ``result``'s frame; NaN strain
+        and lost readings (``placed``: the extensometers) where the frame has none recorded or other points."""
+        field = self._strain.take(int(result.frame_index))
+        item = self._readings.take(int(result.frame_index))
+        if field is None or not np.array_equal(field.point_id, result.point_id):
+            field = _no_strain(len(result.u))
+        readings = item[2] if item is not None and item[2].names == self.names else _lost_readings(placed)
+        return field, readings
+
+
+@dataclass(frozen=True)
+class _NoStrain:
+    exx: np.ndarray
+    eyy: np.ndarray
+    exy: np.ndarray
+
+
+def _no_strain(n: int) -> _NoStrain:
+    return _NoStrain(np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan))
 
 
 def _lost_readings(placed: Any) -> ExtensometerReadings:
@@ -97,12 +192,14 @@ def _lost_readings(placed: Any) -> ExtensometerReadings:
 
 
 def plot_extensometers(handle: IO[bytes], times: npt.ArrayLike, names: Sequence[str], l0_px: Sequence[float],
-                       strains: npt.ArrayLike, *, title: str, scale: float | None = None, empty_note: str = "") -> None:
+                       strains: npt.ArrayLike, *, title: str, scale: float | None = None, empty_note: str = "",
+                       l0_mm: Sequence[float] | None = None) -> None:
     """Write ``extensometers.png`` to ``handle``: engineering strain (%) against time, one line each.
 
     ``strains`` is (frames, extensometers), NaN where not ok: the line has a gap there
     (points drawn too, so a reading between two gaps still shows). ``l0_px`` may be shorter than
     ``names`` (a recording with no results places no extensometer): those have no L0 in the legend.
+    ``l0_mm``: a stereo recording's L0s measured in space, in the legend instead.
     """
     from matplotlib.figure import Figure
 
@@ -111,7 +208,9 @@ def plot_extensometers(handle: IO[bytes], times: npt.ArrayLike, names: Sequence[
     times = np.asarray(times, dtype=np.float64)
     strains = np.asarray(strains, dtype=np.float64).reshape(len(times), len(names))
     for k, name in enumerate(names):
-        if k < len(l0_px):
+        if l0_mm is not None and k < len(l0_mm):
+            name += f" (L0 {l0_mm[k]:.3f} mm in space)"
+        elif k < len(l0_px):
             name += f" (L0 {l0_px[k]:.0f} px" + (f" = {l0_px[k] / scale:.2f} mm)" if scale else ")")
         axes.plot(times, 100.0 * strains[:, k], marker=".", markersize=3, linewidth=1.2, label=name)
     axes.set_xlabel("time since the reference frame (s)")
@@ -142,6 +241,19 @@ class RecordedStrain:
     results: Iterator[RecordedResults]               # the results after ``first``
     stage: StrainStage | None                         # None: no results
     names: tuple[str, ...]                           # the extensometers
+    stereo: StereoStrainRecord | None                # a stereo recording's strain as recorded (None: 2D)
+
+    def frame_strain(self, result: RecordedResults) -> tuple[Any | None, ExtensometerReadings]:
+        """(strain field or None, extensometer readings) of ``result``'s frame (after ``first``, in order): a stereo
+        recording's as recorded, a 2D one's recomputed from its displacements; None and lost readings for a 2D frame
+        tracking other points than the first."""
+        stage, first = self.stage, self.first
+        assert stage is not None and first is not None     # a frame with results: the stage was placed on the first
+        if self.stereo is not None:
+            return self.stereo.at(result, stage.placed)
+        if np.array_equal(result.point_id, first.point_id):
+            return stage.compute(result.u, result.v, result.ok)
+        return None, _lost_readings(stage.placed)
 
 
 def open_recorded_strain(path: str | os.PathLike[str], strain: Mapping[str, Any] | None,
@@ -149,30 +261,33 @@ def open_recorded_strain(path: str | os.PathLike[str], strain: Mapping[str, Any]
     """Open the recording at ``path``, read its first results and place the strain stage on them; a note about
     the session metadata goes to ``notes``. ValueError (one line) for a bad file or strain setting."""
     from livedic.acquire.recording.reader import Recording
-    from livedic.stream.stages.strain import StrainConfig
     recording = Recording(os.fspath(path))
     metadata, session_note = session_or_note(recording)
     if session_note:
         notes.append(session_note)
     p0_id, p0_how = p0_point_id(metadata)
-    config = StrainConfig.from_metadata(metadata, **(strain or {}))
+    config = recorded_strain_config(metadata, strain)
     results = recording.results()
     first = next(results, None)
-    stage = strain_stage(metadata, first, p0_id, strain) if first is not None else None
+    stage = strain_stage(metadata, first, p0_id, config) if first is not None else None
     placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
     names = placed.names if stage is not None else tuple(e.name for e in config.extensometers)
-    return RecordedStrain(recording, metadata, p0_id, p0_how, config, first, results, stage, names)
+    stereo = StereoStrainRecord(recording, names) if recorded_rig(metadata) is not None else None
+    return RecordedStrain(recording, metadata, p0_id, p0_how, config, first, results, stage, names, stereo)
 
 
 def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The ``axial`` extensometer of a recording, frame by frame, recomputed as ``export_recording`` does.
+    """The ``axial`` extensometer of a recording, frame by frame, as ``export_recording`` reads it (recomputed from a 2D
+    recording's displacements; a stereo recording's recorded in space, L / L0 - 1 in mm).
 
     Returns
     -------
     dict
         ``metadata``, ``frames`` (indices), ``time_s`` (since the first frame with results),
         ``eng_strain`` (NaN where not read), ``transverse_eng_strain`` (the ``transverse``
-        extensometer's, all NaN without one: ``has_transverse``), ``l0_px``, ``scale`` (px/mm or None), ``truncated``,
+        extensometer's, all NaN without one: ``has_transverse``), ``l0_px``, ``scale`` (px/mm or None), ``stereo``
+        (a stereo recording: the strain is the extensometer's in space, as recorded) with ``l0_mm_in_space`` (its L0
+        measured in space; NaN in 2D), ``truncated``,
         ``notes``, ``strain`` (the stage's one-line description).
 
     Raises
@@ -185,7 +300,6 @@ def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None 
         opened = open_recorded_strain(path, strain, notes)
         metadata, config, first, results, stage, names = (opened.metadata, opened.config, opened.first,
                                                           opened.results, opened.stage, opened.names)
-        placed: Any = stage.placed if stage is not None else None     # a PlacedExtensometers
         if AXIAL not in names:
             raise ValueError(f"the stress-strain curve needs an '{AXIAL}' extensometer, and this recording has "
                              f"{'only ' + ', '.join(names) if names else 'none'}: add --gauge-length L[,W] "
@@ -196,13 +310,12 @@ def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None 
         times: list[float] = []
         eng: list[float] = []
         transverse: list[float] = []
+        l0_mm = math.nan                              # a stereo recording's L0 in space
         t0 = None
         for result in _chain(first, results):
-            assert first is not None and stage is not None     # results: the stage was placed on the first
-            if np.array_equal(result.point_id, first.point_id):
-                _, readings = stage.compute(result.u, result.v, result.ok)
-            else:
-                readings = _lost_readings(placed)
+            _, readings = opened.frame_strain(result)
+            if readings.l0_mm is not None and not math.isfinite(l0_mm):
+                l0_mm = float(readings.l0_mm[column])
             t0 = int(result.timestamp_ns) if t0 is None else t0
             frames.append(int(result.frame_index))
             times.append((int(result.timestamp_ns) - t0) / 1e9)
@@ -213,7 +326,8 @@ def axial_series(path: str | os.PathLike[str], strain: Mapping[str, Any] | None 
     return {"metadata": metadata, "frames": np.asarray(frames, dtype=np.int64),
             "time_s": np.asarray(times, dtype=np.float64), "eng_strain": np.asarray(eng, dtype=np.float64),
             "transverse_eng_strain": np.asarray(transverse, dtype=np.float64), "has_transverse": across is not None,
-            "l0_px": float(l0), "scale": config.px_per_mm, "truncated": truncated, "notes": list(notes),
+            "l0_px": float(l0), "l0_mm_in_space": l0_mm, "stereo": opened.stereo is not None,
+            "scale": config.px_per_mm, "truncated": truncated, "notes": list(notes),
             "strain": stage.describe() if stage is not None else ""}
 
 
@@ -227,8 +341,12 @@ def _chain(first: RecordedResults | None, rest: Iterable[RecordedResults]) -> It
 
 def _strain_settings(stage: StrainStage | None, config: StrainConfig,
                      overrides: Mapping[str, Any] | None) -> dict[str, Any]:
-    """What the strain columns and the extensometers were computed with, for ``session.json``."""
-    settings: dict[str, Any] = {"recomputed_from": "the recorded displacements", "measure": config.measure,
+    """What the strain columns and the extensometers were computed with, for ``session.json`` (a stereo stage's:
+    not recomputed, ``recomputed_from`` None and ``as_recorded`` saying what)."""
+    from livedic.stream.stages.stereo_strain import StereoStrainStage
+    stereo = isinstance(stage, StereoStrainStage)
+    settings: dict[str, Any] = {"recomputed_from": None if stereo else "the recorded displacements",
+                                "measure": config.measure,
                                 "window": config.window, "scale_px_per_mm": config.px_per_mm,
                                 "overridden": sorted(overrides or {})}
     if stage is not None:
@@ -236,4 +354,7 @@ def _strain_settings(stage: StrainStage | None, config: StrainConfig,
         settings.update(step_px=windows.step, subset_px=windows.subset, vsg_px=stage.vsg_px,
                         extensometers=[{"name": e.name, "x1": e.x1, "y1": e.y1, "x2": e.x2, "y2": e.y2,
                                         "L0_px": e.length_px} for e in stage.extensometers])
+    if stereo:
+        settings["as_recorded"] = ("the stereo session's strain on the specimen's surface (/dic/strain) and "
+                                   "extensometers in space (/dic/extensometers)")
     return settings
