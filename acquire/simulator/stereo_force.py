@@ -1,17 +1,20 @@
 """The stereo test's force: what the simulated testing machine measures on the stereo coupon.
 
 The stereo coupon's motion is prescribed (coupon3d: a uniform axial strain ``e`` growing linearly to ``strain=``,
-a neck, a turn and a translation); it has no material of its own. Its force is that of the tensile simulator's
-default law (acquire.simulator.model): a steel-like elastic, perfectly plastic material, E 200 GPa and yield at
-0.4 % strain (800 MPa), applied to the uniform part's engineering strain ``e`` on the coupon's cross-section
-A0 = width x thickness::
+a neck, a turn and a translation); it has no material of its own. Its force is that of a steel-like law applied to
+the uniform part's engineering strain ``e`` on the coupon's cross-section A0 = width x thickness: elastic with the
+tensile simulator's E (200 GPa) up to its yield strain (0.4 %, 800 MPa), then linear work hardening of plastic
+modulus ``PLASTIC_MODULUS_GPA`` (stress 800 MPa + K e_p, e = stress / E + e_p)::
 
-    F = A0 E min(e, e_yield)
+    F = A0 stress(e)
 
-The neck's extra strain is local (the force is the uniform part's); it grows from the first frame, which a real
-neck does not (it starts at maximum force), so an extensometer across it reads more strain than ``e`` and the
-curve it gives follows the law only with ``neck=0``. With no work hardening there is no maximum force after
-yielding (ISO 6892-1 3.9.2 Note 1): a report gives E and Rp0.2 (when ``strain`` passes 0.6 %), Rm with its reason.
+The hardening makes the yielding continuous, so a report reads E and Rp0.2 (820 MPa, once the test passes 0.2 %
+plastic strain) from it; a perfectly plastic law's flat top, shorter than the 0.5 % plateau ISO 6892-1 reading needs
+at the default 1 % strain, gave neither. The test ends before any maximum of the material's force (the law has no
+neck): the largest force is the last frame's, which a report reads as Rm, Ag there. The neck's extra strain is local
+(the force is the uniform part's); it grows from the first frame, which a real neck does not (it starts at maximum
+force), so an extensometer across it reads more strain than ``e`` and the curve it gives follows the law only with
+``neck=0``.
 """
 
 from __future__ import annotations
@@ -24,13 +27,25 @@ from livedic.acquire.simulator.coupon3d import Coupon, CouponMotion
 from livedic.acquire.simulator.model import TensileModel
 from livedic.acquire.simulator.options import DEFAULT_MODULUS_GPA
 
+# The law's plastic modulus K (GPa): stress = yield + K e_p after yielding (5 % of E: clearly continuous yielding).
+PLASTIC_MODULUS_GPA = 10.0
 # The law's proof strain: Rp0.2 is the stress at 0.2 % plastic strain.
 PROOF_STRAIN = 0.002
 
 
 def stress_mpa(e: float) -> float:
-    """The law's engineering stress (MPa) at engineering strain ``e``: E min(e, e_yield)."""
-    return DEFAULT_MODULUS_GPA * 1e3 * min(float(e), TensileModel.YIELD_STRAIN)
+    """The law's engineering stress (MPa) at engineering strain ``e``: E e, then yield + K e_p."""
+    modulus = DEFAULT_MODULUS_GPA * 1e3
+    yield_strain = TensileModel.YIELD_STRAIN
+    if e <= yield_strain:
+        return modulus * float(e)
+    plastic = (float(e) - yield_strain) / (1.0 + PLASTIC_MODULUS_GPA / DEFAULT_MODULUS_GPA)
+    return modulus * yield_strain + PLASTIC_MODULUS_GPA * 1e3 * plastic
+
+
+def plastic_strain(e: float) -> float:
+    """The law's plastic strain at engineering strain ``e`` (0 while elastic)."""
+    return max(0.0, float(e) - stress_mpa(e) / (DEFAULT_MODULUS_GPA * 1e3))
 
 
 def area_mm2(coupon: Coupon) -> float:
@@ -46,16 +61,18 @@ def _force_n(coupon: Coupon, motion: CouponMotion, frame: int) -> float:
 def specimen(coupon: Coupon, motion: CouponMotion) -> dict[str, Any]:
     """The coupon and its law, as ``TensileModel.specimen`` gives the tensile test's (dict).
 
-    ``A0_mm2``, ``width_mm``, ``thickness_mm``, ``E_GPa``, ``hardening`` (0), ``yield_strain``, ``yield_MPa``,
-    ``Rp02_MPa`` (the yield stress; None when the test's strain stays below yield + 0.2 %), ``Rm_MPa`` (the
-    largest stress, the yield stress: with no work hardening ISO 6892-1 leaves Fm undefined), ``law``.
+    ``A0_mm2``, ``width_mm``, ``thickness_mm``, ``E_GPa``, ``plastic_modulus_GPa``, ``yield_strain``,
+    ``yield_MPa``, ``Rp02_MPa`` (None when the test ends before 0.2 % plastic strain), ``Rm_MPa`` (the largest
+    stress of the test: its last frame's, before the material's own maximum), ``law``.
     """
     sigma_y = stress_mpa(TensileModel.YIELD_STRAIN)
-    reaches_proof = motion.strain >= TensileModel.YIELD_STRAIN + PROOF_STRAIN
+    reaches_proof = plastic_strain(motion.strain) >= PROOF_STRAIN
     return {"A0_mm2": area_mm2(coupon), "width_mm": coupon.width_mm, "thickness_mm": coupon.thickness_mm,
-            "E_GPa": DEFAULT_MODULUS_GPA, "hardening": 0.0, "yield_strain": TensileModel.YIELD_STRAIN,
-            "yield_MPa": sigma_y, "Rp02_MPa": sigma_y if reaches_proof else None, "Rm_MPa": sigma_y,
-            "law": "elastic, perfectly plastic, on the uniform axial strain"}
+            "E_GPa": DEFAULT_MODULUS_GPA, "plastic_modulus_GPa": PLASTIC_MODULUS_GPA,
+            "yield_strain": TensileModel.YIELD_STRAIN, "yield_MPa": sigma_y,
+            "Rp02_MPa": sigma_y + PLASTIC_MODULUS_GPA * 1e3 * PROOF_STRAIN if reaches_proof else None,
+            "Rm_MPa": stress_mpa(motion.strain),
+            "law": "elastic, then linear work hardening, on the uniform axial strain"}
 
 
 def forces_n(coupon: Coupon, motion: CouponMotion, frames: list[int]) -> np.ndarray:

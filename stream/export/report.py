@@ -28,7 +28,8 @@ recorded), its cross-section from ``--area`` / ``--width --thickness`` or the se
     Engineering curve, true curve up to uniform elongation, Rp0.2, Rm, ReH, ReL and Ae marked.
 
 The strain is the ``axial`` extensometer recomputed from the recorded displacements
-(``stream.export.recomputed_strain.axial_series``, as ``livedic export`` does), the stress ``F / A0``
+(``stream.export.recomputed_strain.axial_series``, as ``livedic export`` does; a stereo recording's is its
+extensometer in space as recorded, L / L0 - 1 in mm, with a ``stereo`` section: the rig, L0 in space), the stress ``F / A0``
 (``stream.stages.stress``); the properties are ``dic.tensile.properties.tensile_properties`` of that
 engineering curve (ISO 6892-1: E by a least-squares line over a stated stress range, Rp0.2 by the
 0.2 % offset line, Rm at maximum force, Ag, A at the force drop). Files are written atomically and
@@ -66,6 +67,9 @@ REPORT_FILES = ("report.md", "report.json", "report.html", "stress_strain.png")
 PROPERTY_KEYS = ("E_GPa", "Rp02_MPa", "Rm_MPa", "Ag_percent", "A_percent", "ReH_MPa", "ReL_MPa", "Ae_percent")
 YIELD_KEYS = ("ReH_MPa", "ReL_MPa", "Ae_percent")      # null on continuous yielding: no yield phenomenon
 CURVE_SHAPE_KEY = "curve_shape"
+STEREO_SECTION_KEY = "stereo"   # a stereo recording's rig and strain in space (null for one camera)
+STEREO_STRAIN = ("the axial extensometer in space, L / L0 - 1, L the distance in space between its ends, each "
+                 "fitted in X, Y, Z over its band of triangulated points (dic.stereo.extensometer)")
 AG_RULE_KEY = "Ag_rule"          # where Ag and Agt were read: at maximum force, or the middle of a plateau there
 POISSON_KEY = "poisson_ratio"
 CONTRACTION_KEYS = (POISSON_KEY, "plastic_contraction_ratio")   # report.json only: the plastic one is no property
@@ -126,13 +130,17 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
     specimen."""
     specimen, source = report["specimen"], report["source"]
     gauge = f"{specimen['gauge_length_px']:.1f} px"
-    if specimen.get("gauge_length_mm") is not None:
+    if specimen.get("gauge_length_in_space"):
+        gauge = (f"{specimen['gauge_length_mm']:.3f} mm measured in space (stereo; its ends {gauge} apart in the "
+                 f"left view)")
+    elif specimen.get("gauge_length_mm") is not None:
         origin = f", {specimen['scale_origin']}" if specimen.get("scale_origin") else ""
         gauge += f" = {specimen['gauge_length_mm']:.3f} mm ({specimen['scale_px_per_mm']:g} px/mm{origin})"
     lines = [f"# Tensile test: {title}", "",
              "## Specimen", "",
              f"- cross-section A0: {specimen['area_mm2']:g} mm^2",
              f"- gauge length L0 (virtual extensometer `axial`): {gauge}", ""]
+    lines += _stereo_markdown(report.get(STEREO_SECTION_KEY))
     for _key, heading, rows in tables:
         lines += rows_markdown(rows, heading)
     lines += verification_markdown(report.get(VERIFICATION_KEY))
@@ -161,6 +169,32 @@ def report_markdown(report: Mapping[str, Any], plot_name: str, title: str, *,
               f"- {source['strain']}",
               f"- written {source['generated_at']} by livedic report", ""]
     return "\n".join(lines)
+
+
+def stereo_section(session: Mapping[str, Any], l0_mm: float) -> dict[str, Any] | None:
+    """``report.json``'s ``stereo``: the rig and how the strain was measured in space (None for one camera)."""
+    from livedic.stream.export.recomputed_strain import recorded_rig
+    rig = recorded_rig(session)
+    if rig is None:
+        return None
+    return {"baseline_mm": rig.baseline_mm, "angle_deg": rig.angle_deg, "calibration_rms_px": rig.rms_px,
+            "calibration_pairs": len(rig.pairs), "calibration_from": session["stereo"].get("calibration_from"),
+            "axial_L0_mm": l0_mm, "strain": STEREO_STRAIN}
+
+
+def _stereo_markdown(stereo: Mapping[str, Any] | None) -> list[str]:
+    """The report's stereo section (none for one camera)."""
+    if stereo is None:
+        return []
+    fit = (f", reprojection RMS {stereo['calibration_rms_px']:.3f} px over {stereo['calibration_pairs']} target pairs"
+           if stereo["calibration_pairs"] else "")
+    l0 = "not measured" if stereo["axial_L0_mm"] is None else f"{stereo['axial_L0_mm']:.3f} mm"
+    return ["## Stereo measurement", "",
+            f"- two calibrated cameras: baseline {stereo['baseline_mm']:.1f} mm, {stereo['angle_deg']:.1f} degrees "
+            f"apart; calibration: {stereo['calibration_from']}{fit}",
+            f"- strain: {stereo['strain']}; L0 {l0} measured in space",
+            "- out-of-plane motion of the specimen (towards or away from the cameras, a turn) is not read as strain, "
+            "as a single camera reads it", ""]
 
 
 def _ag_rule_markdown(rule: Mapping[str, Any] | None) -> list[str]:
@@ -288,7 +322,12 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     scale, scale_origin = specimen_scale(series["scale"], series["metadata"])
     specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
                 "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale,
-                "scale_origin": scale_origin}
+                "scale_origin": scale_origin, "gauge_length_in_space": series["stereo"]}
+    if series["stereo"]:                                  # L0 measured in space, no scale involved
+        l0_mm = series["l0_mm_in_space"]
+        scale, scale_origin = None, None
+        specimen.update(gauge_length_mm=l0_mm if math.isfinite(l0_mm) else None, scale_px_per_mm=None,
+                        scale_origin=None)
     source = _source_section(path, series, stress, table, recorded.source if stress.recorded else None)
     session = series["metadata"]
     verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
@@ -296,6 +335,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     tables = guide_tables(session, scale=(scale, scale_origin), noise_floor=noise_floor, verification=verified)
     report = report_json(properties, specimen, source, contraction, tables=tables)
     report[VERIFICATION_KEY] = verified
+    report[STEREO_SECTION_KEY] = stereo_section(session, specimen["gauge_length_mm"])
     report["noise_floor"] = noise_floor
     title = os.path.basename(path)
     plot = io.BytesIO()

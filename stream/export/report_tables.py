@@ -79,14 +79,25 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
     calibration and the scale on the specimen plane (``scale``: (px/mm, where it comes from), default the
     session's ``--scale``)."""
     settings = session.get("source_settings") or {}
-    camera, serial = camera_description(settings)
+    views = [settings.get(view) for view in ("left", "right")]
+    if settings.get("source") == "stereo" and all(isinstance(view, Mapping) for view in views):
+        (left, left_serial), (right, right_serial) = (camera_description(view) for view in views)
+        camera = f"two cameras (stereo): left {left}; right {right}"
+        serial = f"left {left_serial}, right {right_serial}" if left_serial or right_serial else None
+        settings = {**settings, **views[0]}          # the image settings: the left camera's (both views alike)
+    else:
+        camera, serial = camera_description(settings)
     image = _size(session.get("frame_size")) or _size([settings.get("width"), settings.get("height")])
     sensor = _size(settings.get("sensor_size"))
     bit = settings.get("bit_depth", settings.get("bit"))
     fps = settings.get("frame_rate", settings.get("fps"))
     exposure = settings.get("exposure_us")
     px_per_mm, origin = scale if scale is not None else (session.get("scale_px_per_mm"), None)
-    if calibration:
+    rig = _stereo_rig_text(session)
+    if rig is not None:
+        calibration, calibration_text = session.get("stereo"), rig
+        px_per_mm, origin = None, None
+    elif calibration:
         calibration_text = calibration_description(calibration)
     else:
         calibration_text = "none: lens distortion not corrected"
@@ -101,8 +112,23 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
         _row("calibration", "calibration", calibration or None, text=calibration_text),
         _row("scale_px_per_mm", "scale on the specimen plane", px_per_mm,
              text=(f"{px_per_mm:g} px/mm" + (f" ({origin})" if origin else "")) if px_per_mm
+             else "none needed: lengths measured in space, in mm (stereo)" if rig is not None
              else "none: lengths in px only"),
     ]
+
+
+def _stereo_rig_text(session: Mapping[str, Any]) -> str | None:
+    """One line on a stereo session's rig (its metadata's ``stereo``): baseline, angle, where its calibration came
+    from and its reprojection RMS; None for one camera."""
+    stereo = session.get("stereo")
+    if not isinstance(stereo, Mapping) or not isinstance(stereo.get("calibration"), Mapping):
+        return None
+    rig = stereo["calibration"]
+    pairs = rig.get("pairs") or []
+    fit = f", reprojection RMS {rig.get('rms_px', float('nan')):.3f} px over {len(pairs)} target pairs" if pairs else ""
+    return (f"stereo rig: baseline {rig.get('baseline_mm', float('nan')):.1f} mm, {rig.get('angle_deg', float('nan')):.1f} "
+            f"degrees between the cameras; calibration: {stereo.get('calibration_from') or NOT_RECORDED}{fit}; "
+            f"lens distortion removed before triangulation")
 
 
 def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
@@ -115,6 +141,18 @@ def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
     step = session.get("grid_step") or session.get("step")
     window = session.get("strain_window")
     vsg = session.get("vsg_px")
+    strain_method = "pointwise least squares: a plane fitted to u and v over the window (Pan et al. 2009)"
+    measure = session.get("strain_measure")
+    stereo: list[Row] = []
+    if _stereo_rig_text(session) is not None:
+        from livedic.dic.stereo import SURFACE_MEASURE
+        strain_method = ("on the specimen's surface: planes fitted to U, V, W over the window in each point's tangent "
+                         "plane (dic.stereo.surface_strain); extensometers' ends fitted in X, Y, Z")
+        measure = f"{SURFACE_MEASURE} (Green-Lagrange, on the surface: a stereo session's)"
+        stereo = [_row("stereo_method", "stereo matching and triangulation",
+                       "left -> right on the reference pair: an epipolar ZNCC scan seeding a second-order IC-GN warp "
+                       "(dic.stereo.match_stereo); both views tracked from their references; optimal triangulation "
+                       "(Hartley-Sturm correction, dic.stereo.triangulate)")]
     return [
         _row("software", "DIC software", f"livedic {version}" if version else None),
         _row("subset_px", "subset size", session.get("subset"), "px (square)"),
@@ -125,11 +163,11 @@ def analysis_rows(session: Mapping[str, Any]) -> list[Row]:
         _row("criterion", "correlation criterion", method.criterion if method else None),
         _row("search", "initial guess (integer search)", session.get("search")),
         _prefilter_row(session.get("prefilter", "none")),   # recorded before the option existed: none applied
-        _row("strain_method", "strain calculation",
-             "pointwise least squares: a plane fitted to u and v over the window (Pan et al. 2009)"),
+        *stereo,
+        _row("strain_method", "strain calculation", strain_method),
         _row("strain_window_points", "strain window", window, "points a side"),
         _row("vsg_px", "virtual strain gauge (VSG)", vsg, "px"),
-        _row("strain_measure", "strain measure", session.get("strain_measure")),
+        _row("strain_measure", "strain measure", measure),
         _row("reference_update", "reference updates", session.get("reference_update")),
     ]
 

@@ -71,3 +71,47 @@ def test_any_object_with_a_force_law_is_sampled_at_i_over_fps():
     assert f.tolist() == [0.0, 10.0, 20.0, 40.0] and load.specimen == {} and load.source_uri == "law:"
     assert load.force_at(1.25) == pytest.approx(30.0) and math.isnan(load.force_at(0.99))
     assert load.max_gap_s == pytest.approx(0.5) and SyntheticLoad(_Law(), max_gap_s=0.05).max_gap_s == 0.05
+
+
+STEREO_VIEW = "synthetic:stereo?view={}&frames=11&size=128x128&focal=1000&strain=0.01&static=2"
+
+
+def test_the_stereo_tests_force_is_its_law_on_the_uniform_strain():
+    """E 200 GPa to 0.4 % strain, then 800 MPa + 10 GPa x plastic strain, on A0 = 20 mm x 2 mm; 0 in the static
+    frames; a stereo pair's force is its left view's, and the test's URI gives the same without rendering."""
+    from livedic.acquire.simulator.stereo_source import SyntheticStereoViewSource
+    from livedic.acquire.sources import open_source
+    left = SyntheticStereoViewSource(STEREO_VIEW.format("left"))
+    e = np.r_[0.0, 0.0, 0.01 * np.arange(11) / 10]                       # 2 static frames, then the test
+    plastic = np.maximum(e - 0.004, 0.0) / (1.0 + 10.0 / 200.0)
+    law = np.where(e <= 0.004, 200e3 * e, 800.0 + 10e3 * plastic) * 40.0
+    np.testing.assert_allclose(left.forces_N(), law, rtol=1e-12, atol=1e-9)
+    assert left.specimen["A0_mm2"] == 40.0 and left.specimen["Rp02_MPa"] == pytest.approx(820.0, rel=1e-12)
+    pair = open_source(f"stereo:{STEREO_VIEW.format('left')},{STEREO_VIEW.format('right')}")
+    with loading("synthetic", source=pair) as load:
+        np.testing.assert_allclose(load.samples()[1], law, rtol=1e-12, atol=1e-9)
+        assert load.specimen["A0_mm2"] == 40.0
+    with loading(STEREO_VIEW.format("right")) as load:
+        np.testing.assert_allclose(load.samples()[1], law, rtol=1e-12, atol=1e-9)
+    assert left._images is None                                          # nothing was rendered
+
+
+@pytest.mark.parametrize("source, has_law", [
+    ("synthetic:tensile?frames=3", True),
+    ("synthetic:", True),
+    (f"stereo:{STEREO_VIEW.format('left')},{STEREO_VIEW.format('right')}", True),
+    (STEREO_VIEW.format("left"), True),
+    ("synthetic:translate", False),
+    ("aravis:", False),
+    ("images:/nonexistent/*.png", False),
+    (f"stereo:{STEREO_VIEW.format('left')},images:/nonexistent/*.png", False),
+    ("stereo:synthetic:tensile,synthetic:translate", False),
+])
+def test_whether_a_source_has_a_force_law_is_read_from_its_uri(source, has_law):
+    from livedic.acquire.force.simulated import check_synthetic_load_source
+    if has_law:
+        check_synthetic_load_source(source)
+        return
+    with pytest.raises(LoadError) as error:
+        check_synthetic_load_source(source)
+    assert "\n" not in str(error.value) and "stereo:synthetic:stereo" in str(error.value)

@@ -270,3 +270,26 @@ def test_load_options_give_the_cross_section(tmp_path):
     config = SessionConfig.from_args(_parse(["--no-record", "--load", "synthetic", "--width", "4", "--thickness",
                                              "2.5", "--load-offset", "-0.25"]), stem=str(tmp_path / "s"))
     assert (config.load, config.area_mm2, config.load_offset) == ("synthetic", 10.0, -0.25)
+
+
+@pytest.mark.parametrize("source", [
+    "synthetic:translate?frames=3",
+    "stereo:synthetic:stereo?view=left&frames=60,images:/nonexistent/*.png",
+])
+def test_load_synthetic_without_a_simulated_test_is_refused_before_any_work(tmp_path, monkeypatch, capsys, source):
+    """--load synthetic with a source that has no force law: one line, exit 2, from the options alone: no source
+    opened, no frame rendered (the check used to come after the simulator had rendered its whole test)."""
+    from livedic.acquire import sources
+    from livedic.acquire.simulator.sources import _PrerenderedSource
+    from livedic.stream.cli.main import main
+
+    def never(*args, **kwargs):
+        raise AssertionError("the source was opened or rendered before the options were checked")
+    monkeypatch.setattr(sources, "open_source", never)
+    monkeypatch.setattr(_PrerenderedSource, "prepare", never)
+    code = main(["run", "--viewer", "none", "--record", str(tmp_path / "s.mcap"), "--progress", "off",
+                 "--source", source, "--load", "synthetic"])
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("livedic: error")]
+    assert code == 2 and len(errors) == 1, errors
+    assert "--load synthetic" in errors[0] and "no simulated test with a force law" in errors[0]
+    assert not (tmp_path / "s.mcap").exists()
