@@ -339,8 +339,9 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     report["noise_floor"] = noise_floor
     title = os.path.basename(path)
     plot = io.BytesIO()
+    in_space = ", strain in space: stereo" if series["stereo"] else ""
     plot_stress_strain(plot, table, properties=properties,
-                       title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2)")
+                       title=f"{title}: stress-strain (A0 {stress.area_mm2:g} mm^2{in_space})")
     _write_report_files(targets, report, report_markdown(report, "stress_strain.png", title, tables=tables),
                         plot.getvalue(), title)
     return report

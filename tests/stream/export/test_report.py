@@ -83,3 +83,39 @@ def test_the_markdown_of_a_recorded_force_and_a_gauge_in_pixels_only(report):
     assert "- gauge length L0 (virtual extensometer `axial`): 200.0 px" in text.splitlines()
     assert "- force: as recorded on `/machine/force` (from `synthetic:tensile`); force at 2000 of 2001 frames" in text
     assert "truncated" not in text
+
+
+def test_a_stereo_recording_is_reported_from_its_extensometer_in_space(stereo_recording, tmp_path, capsys):
+    """A stereo test with the simulator's force (E 200 GPa, Rp0.2 820 MPa), moving 0.5 mm away from the cameras and
+    turning 1 degree: the report reads the strain of the axial extensometer in space, L / L0 - 1, so E and Rp0.2
+    come out of the law within 2 % and 1 % (bench tensile's bounds); one camera would read the motion away as
+    -0.5 / 300 = -1.7e-3 of strain over a test of 1e-2. It says it is a stereo measurement, L0 in mm in space."""
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.cli.main import main
+    out = tmp_path / "report"
+    assert main(["report", stereo_recording, "-o", str(out)]) == 0, capsys.readouterr().err
+    report = json.loads((out / "report.json").read_text())
+    assert report["E_GPa"]["value"] == pytest.approx(200.0, rel=0.02)
+    assert report["Rp02_MPa"]["value"] == pytest.approx(820.0, rel=0.01)
+    samples = [s for s in Recording(stereo_recording).extensometer_samples() if s.name == "axial"]
+    l0_mm = samples[0].l0_mm
+    assert report["specimen"]["gauge_length_in_space"] and report["specimen"]["gauge_length_mm"] == l0_mm
+    assert l0_mm == pytest.approx(10.0, rel=0.05) and report["specimen"]["area_mm2"] == 40.0
+    stereo = report["stereo"]
+    assert stereo["baseline_mm"] == pytest.approx(2 * 300 * np.sin(np.radians(12.5)), rel=1e-6)
+    assert stereo["angle_deg"] == pytest.approx(25.0) and "simulator's exact rig" in stereo["calibration_from"]
+    strain = [s.l_mm / s.l0_mm - 1.0 for s in samples]
+    assert strain[-1] == pytest.approx(0.01, abs=1e-4)                  # the uniform strain, out-of-plane removed
+    text = (out / "report.md").read_text()
+    assert "## Stereo measurement" in text and f"{l0_mm:.3f} mm measured in space" in text
+    assert "two cameras (stereo)" in text and "stereo rig: baseline 129.9 mm" in text
+    html = (out / "report.html").read_text()
+    assert "Stereo measurement" in html and "measured in space" in html
+
+
+def test_a_stereo_recordings_strain_takes_no_strain_option(stereo_recording, tmp_path, capsys):
+    from livedic.stream.cli.main import main
+    assert main(["report", stereo_recording, "-o", str(tmp_path / "r"), "--strain-window", "3"]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("livedic: error")]
+    assert len(errors) == 1 and "stereo recording" in errors[0] and "livedic replay" in errors[0], errors
+    assert not (tmp_path / "r").exists()
