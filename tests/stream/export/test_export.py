@@ -173,3 +173,44 @@ def test_stopped_while_drawing_keeps_the_csv_files_and_whole_pictures(recording,
     assert all(cv2.imread(str(out / "maps" / q / f"{q}_000001.png")) is not None for q in ("u", "v", "exx", "eyy"))
     assert not (out / "fields.pvd").exists() and not (out / "overlay_eyy.mp4").exists()
     assert partial_files(out) == []
+
+
+def _rows(path):
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_a_stereo_recordings_strain_and_extensometers_are_the_recorded_ones_in_space(stereo_recording, tmp_path):
+    """extensometers.csv holds each extensometer in space as recorded (L0_mm, L_mm; eng_strain = L / L0 - 1, bit for
+    bit), fields.csv the surface strain recorded on /dic/strain, the stress-strain curve the axial one in space;
+    the note says so."""
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.stages.stress import StressOptions, RECORDED_FORCE
+    out = tmp_path / "out"
+    summary = export_recording(stereo_recording, out, stress=StressOptions(RECORDED_FORCE, 0.0, 40.0))
+    recording = Recording(stereo_recording)
+    samples = list(recording.extensometer_samples())
+    rows = _rows(out / "extensometers.csv")
+    assert len(rows) == len(samples) == 2 * summary["frames"]
+    for row, sample in zip(rows, samples):
+        assert (int(row["frame"]), row["name"]) == (sample.frame_index, sample.name)
+        assert (float(row["L0_mm"]), float(row["L_mm"])) == (sample.l0_mm, sample.l_mm)
+        assert float(row["eng_strain"]) == sample.l_mm / sample.l0_mm - 1.0 == sample.eng_strain
+    assert float(rows[-2]["eng_strain"]) == pytest.approx(0.01, abs=1e-4)     # the axial strain, in space
+    fields = _rows(out / "fields.csv")
+    strain = list(recording.strain_fields())
+    last = [row for row in fields if int(row["frame"]) == strain[-1].frame_index]
+    for name in ("exx", "eyy", "exy"):
+        np.testing.assert_array_equal([float(row[name]) for row in last], getattr(strain[-1], name))
+    axial = [row for row in rows if row["name"] == "axial"]
+    curve = _rows(out / "stress_strain.csv")
+    assert [float(row["eng_strain"]) for row in curve] == [float(row["eng_strain"]) for row in axial]
+    assert any("the session's 3D results as recorded" in note for note in summary["notes"])
+    session = json.loads((out / "session.json").read_text())
+    assert session["livedic.export"]["strain"]["recomputed_from"] is None
+
+
+def test_strain_options_on_a_stereo_recording_are_one_line_before_the_folder(stereo_recording, tmp_path):
+    with pytest.raises(ValueError, match="stereo recording's strain and extensometers") as error:
+        export_recording(stereo_recording, tmp_path / "out", strain={"window": 3})
+    assert "\n" not in str(error.value) and not (tmp_path / "out").exists()
