@@ -144,7 +144,7 @@ def test_export_writes_the_recorded_3d_columns(recording, tmp_path, capsys):
     out = tmp_path / "export"
     capsys.readouterr()
     assert main(["export", recording, "-o", str(out)]) == 0
-    assert "recomputed from the left view alone" in capsys.readouterr().err     # what is not in space is said
+    assert "the session's 3D results as recorded" in capsys.readouterr().err    # strain in space, as recorded
     header, rows = _rows(out / "fields.csv")
     assert header[-len(STEREO_COLUMNS):] == list(STEREO_COLUMNS) and "u_mm" not in header
     for result in read_results(recording):
