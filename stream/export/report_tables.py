@@ -79,12 +79,12 @@ def hardware_rows(session: Mapping[str, Any], *, calibration: Mapping[str, Any] 
     calibration and the scale on the specimen plane (``scale``: (px/mm, where it comes from), default the
     session's ``--scale``)."""
     settings = session.get("source_settings") or {}
-    views = [settings.get(view) for view in ("left", "right")]
-    if settings.get("source") == "stereo" and all(isinstance(view, Mapping) for view in views):
-        (left, left_serial), (right, right_serial) = (camera_description(view) for view in views)
+    left_view, right_view = settings.get("left"), settings.get("right")
+    if settings.get("source") == "stereo" and isinstance(left_view, Mapping) and isinstance(right_view, Mapping):
+        (left, left_serial), (right, right_serial) = camera_description(left_view), camera_description(right_view)
         camera = f"two cameras (stereo): left {left}; right {right}"
         serial = f"left {left_serial}, right {right_serial}" if left_serial or right_serial else None
-        settings = {**settings, **views[0]}          # the image settings: the left camera's (both views alike)
+        settings = {**settings, **left_view}          # the image settings: the left camera's (both views alike)
     else:
         camera, serial = camera_description(settings)
     image = _size(session.get("frame_size")) or _size([settings.get("width"), settings.get("height")])
