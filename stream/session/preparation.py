@@ -270,8 +270,8 @@ class Preparation:
         if config.scheme == "synthetic" and config.frames is not None and "frames=" not in config.source:
             self.source_options["frames"] = max(config.frames, 2)
         self.static_frames = config.static_frames_wanted
-        if config.scheme == "synthetic" and "static=" not in config.source:
-            self.source_options["static"] = self.static_frames
+        if config.scheme in ("synthetic", "stereo") and "static=" not in config.source:
+            self.source_options["static"] = self.static_frames     # a stereo pair's simulated views render them
         if self._given_source is not None:
             self.source = self._given_source
         else:
@@ -458,13 +458,14 @@ class Preparation:
             strain = stereo_strain_config(self.config.strain, self.stereo)
             self.strain = StereoStrainStage.of(strain.place(used, p0=used[0], roi=roi, step=self.step,
                                                             subset=self.config.tracking.subset))
-            if self.static_frames:
-                self._say(f"the noise floor of {self.static_frames} static frames is not measured in stereo yet")
-            return
-        self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
-                                               subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
+        else:
+            self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
+                                                   subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
         if self.static_frames:
-            self.noise_floor = NoiseFloorStage(self.static_frames, self.config.strain.px_per_mm)
+            # stereo: U, V, W in mm from the 3D points (the rig's nominal px/mm only places the extensometers)
+            stereo = self.stereo is not None
+            self.noise_floor = NoiseFloorStage(self.static_frames, None if stereo else self.config.strain.px_per_mm,
+                                               stereo=stereo)
 
     def _frame_size(self) -> list[int] | None:
         """[W, H] of the first frame (the report's image size), None before it was read."""
