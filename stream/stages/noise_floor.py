@@ -23,7 +23,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from livedic.dic.noise_floor import NoiseFloor, field_noise_floor
+from livedic.dic.noise_floor import DISPLACEMENT_3D, NoiseFloor, field_noise_floor
 from livedic.dic.stereo import StereoStatus
 from livedic.dic.strain.field import StrainStatus
 from livedic.stream.pipeline.frame_result import FrameResult
@@ -208,6 +208,10 @@ def noise_floor_lines(summary: Mapping[str, Any], *, indent: str = "  ") -> list
     lines = [f"{indent}{'noise':<11}floor on {used} static frame(s) after the reference"
              + (f" (of {summary[STATIC_FRAMES_KEY]} asked)" if used < summary[STATIC_FRAMES_KEY] else "")
              + "; SD over points (spatial), over frames per point (temporal)"]
+    if any(item["quantity"] in DISPLACEMENT_3D for item in summary["table"]):
+        lines.append(f"{indent}{'':<11}stereo: u, v the left view (px); U, V, W in space in the specimen's axes "
+                     f"(W along its normal; X, Y, Z have their temporal SD); strain on its surface, extensometers "
+                     f"in space")
     rows = [list(NOISE_FLOOR_COLUMNS)] + noise_floor_rows(summary)
     widths = [max(len(row[i]) for row in rows) for i in range(len(NOISE_FLOOR_COLUMNS) - 1)]
     for row in rows:
