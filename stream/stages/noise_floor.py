@@ -98,12 +98,11 @@ class StaticFrames:
         extensometers = {name: (np.array(values), np.array(good)) for name, (values, good)
                          in self._extensometers.items() if len(values) == frames}
         stereo = {}
-        if self.stereo or self._displacement:
-            shape = (frames, width, 3)
-            whole = len(self._displacement) == frames
-            stereo = {"xyz_mm": np.array(self._xyz).reshape(shape) if whole else np.zeros((0, width, 3)),
-                      "displacement_mm": np.array(self._displacement).reshape(shape) if whole else np.zeros((0, width, 3)),
-                      "ok_3d": np.array(self._ok_3d).reshape(shape[:2]) if whole else np.zeros((0, width), bool)}
+        if self.stereo or self._displacement:               # the pairs' 3D points (none yet: the rows say so)
+            shape = (len(self._displacement), width, 3)
+            stereo = {"xyz_mm": np.array(self._xyz).reshape(shape),
+                      "displacement_mm": np.array(self._displacement).reshape(shape),
+                      "ok_3d": np.array(self._ok_3d, dtype=bool).reshape(shape[:2])}
         return field_noise_floor(u, v, ok, **strain, strain_ok=np.array(self._strain_ok) if with_strain else None,
                                  extensometers=extensometers, scale_px_per_mm=self.scale_px_per_mm, **stereo)
 
@@ -205,10 +204,12 @@ NOISE_FLOOR_COLUMNS = ("quantity", "unit", "spatial SD", "temporal SD (mean)", "
 def noise_floor_lines(summary: Mapping[str, Any], *, indent: str = "  ") -> list[str]:
     """The summary's lines: a header saying on how many static frames, then one aligned line per quantity."""
     used = len(summary["frames_used"])
-    lines = [f"{indent}{'noise':<11}floor on {used} static frame(s) after the reference"
+    stereo = any(item["quantity"] in DISPLACEMENT_3D for item in summary["table"])
+    frames = "pair(s)" if stereo else "frame(s)"
+    lines = [f"{indent}{'noise':<11}floor on {used} static {frames} after the reference"
              + (f" (of {summary[STATIC_FRAMES_KEY]} asked)" if used < summary[STATIC_FRAMES_KEY] else "")
-             + "; SD over points (spatial), over frames per point (temporal)"]
-    if any(item["quantity"] in DISPLACEMENT_3D for item in summary["table"]):
+             + f"; SD over points (spatial), over {'pairs' if stereo else 'frames'} per point (temporal)"]
+    if stereo:
         lines.append(f"{indent}{'':<11}stereo: u, v the left view (px); U, V, W in space in the specimen's axes "
                      f"(W along its normal; X, Y, Z have their temporal SD); strain on its surface, extensometers "
                      f"in space")

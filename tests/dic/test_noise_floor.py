@@ -99,7 +99,8 @@ def _tilted_plane(points: int, normal_deg: float):
     """Reference points on a plane whose normal is turned ``normal_deg`` about y from the camera's axis, and its
     specimen axes (rows: x, y, normal; the normal away from the camera at z = 300 mm)."""
     a = math.radians(normal_deg)
-    e1, e2, e3 = np.array([math.cos(a), 0, -math.sin(a)]), np.array([0.0, 1, 0]), np.array([math.sin(a), 0, math.cos(a)])
+    e1, e2 = np.array([math.cos(a), 0, -math.sin(a)]), np.array([0.0, 1, 0])
+    e3 = np.array([math.sin(a), 0, math.cos(a)])
     rng = np.random.default_rng(5)
     s, t = rng.uniform(-10, 10, (2, points))
     return np.array([0, 0, 300.0]) + s[:, None] * e1 + t[:, None] * e2, np.stack([e1, e2, e3])
