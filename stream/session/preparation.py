@@ -317,8 +317,9 @@ class Preparation:
             self.static_frames = simulated
             if config.frames is not None:
                 self.max_frames = config.frames + simulated      # --frames is the test's length
-        elif self.static_frames and config.scheme in CAMERA_SCHEMES:
-            self._say(f"hold the specimen still: taking {self.static_frames} static frames after the reference "
+        elif self.static_frames and _films(config.source):
+            pairs = "pairs" if getattr(self.source, "stereo", False) else "frames"
+            self._say(f"hold the specimen still: taking {self.static_frames} static {pairs} after the reference "
                       f"for the noise floor (--static-frames 0: none)")
 
     def _preload(self):
@@ -500,3 +501,12 @@ class Preparation:
         for stage in self.stages:
             metadata.update(stage.metadata())               # a key named above keeps its place
         return metadata
+
+
+def _films(uri: str) -> bool:
+    """Whether the source is a camera, or a stereo pair of cameras (a user must hold the specimen still)."""
+    from livedic.acquire.sources import parse_scheme, parse_stereo_uri
+    scheme = parse_scheme(uri)
+    if scheme == "stereo":
+        return all(parse_scheme(view) in CAMERA_SCHEMES for view in parse_stereo_uri(uri)[:2])
+    return scheme in CAMERA_SCHEMES
