@@ -153,11 +153,12 @@ def pair_options(options: dict[str, Any]) -> tuple[float | None, str]:
     return tolerance_ms, clock
 
 
-def open_stereo_source(uri: str, **options: Any) -> StereoSource:
+def open_stereo_source(uri: str, *, static: int | None = None, **options: Any) -> StereoSource:
     """Open ``stereo:LEFT_URI,RIGHT_URI``: both views, paired (``acquire.stereo.StereoSource``).
 
-    Keyword options (``tolerance_ms``, ``clock``) override those in the URI. A view that cannot be opened raises
-    ``SourceError`` naming it; the other view is closed.
+    Keyword options (``tolerance_ms``, ``clock``) override those in the URI. ``static``: the static frames each
+    simulated view renders before its test (a session's ``--static-frames``; other views hold what they hold). A
+    view that cannot be opened raises ``SourceError`` naming it; the other view is closed.
     """
     from livedic.acquire.stereo import StereoSource
     if parse_scheme(uri) != STEREO_SCHEME:
@@ -168,7 +169,8 @@ def open_stereo_source(uri: str, **options: Any) -> StereoSource:
     try:
         for side, view in (("left", left_uri), ("right", right_uri)):
             try:
-                opened.append(open_source(view))
+                simulated = static is not None and parse_scheme(view) == "synthetic"
+                opened.append(open_source(view, **({"static": static} if simulated else {})))
             except SourceError as error:
                 raise SourceError(f"{side} view ({view}): {error}") from None
         return StereoSource(opened[0], opened[1], tolerance_ms=tolerance_ms, clock=clock, uri=uri.strip())

@@ -502,7 +502,8 @@ class PairedFrames(FrameSource):
             self.prepare = self._prepare_views
             self.frames = min(int(getattr(view, "frames")) for view in views)
             self.rendered_frames = int(getattr(left, "rendered_frames", left.frames))     # per view, as the test's
-            self.test_frames = self.frames
+            # the test's frames, less the static ones (which frames counts)
+            self.test_frames = min(int(getattr(view, "test_frames", getattr(view, "frames"))) for view in views)
             self.static = int(getattr(left, "static", 0) or 0)
             self.fps, self.options = left.fps, dict(left.options)      # the pair's: paced as the views were asked
             # one clock for both (as one trigger fires two cameras): the pairing reads a few frames of each view

@@ -14,7 +14,15 @@ use ``ddof=1``. A spatial SD needs at least two ok points in a frame, a temporal
 A single-point quantity (an extensometer) has no spatial SD: NaN, its status still OK. One static frame (a
 reference and one static image, as many data sets give) has the spatial SD and the mean but no temporal SD:
 ``NoiseFloorStatus.SPATIAL_ONLY``; no static frame gives NaN everywhere with ``TOO_FEW_FRAMES``; no ok value
-at all gives NaN with ``NO_OK_VALUES``. Pure numpy: no I/O.
+at all gives NaN with ``NO_OK_VALUES``.
+
+**Stereo** (static pairs): the 3D displacements U, V, W (mm) have the same three statistics, in the specimen's axes
+(``dic.stereo.specimen_frame``: U, V in its best-fit plane, W along its normal), fitted to the reference pair's
+points (each ok point's X - U, the same in every pair): the depth noise of a rig with half-angle a between its
+cameras is about 1 / tan(a) times the in-plane noise, and in the left camera's axes it would leak into X. X, Y, Z
+have no rows of their own: the reference is fixed, so their SD over the pairs is U, V, W's. Fewer than 3 ok
+points give no plane: NaN with ``NO_SPECIMEN_PLANE``. Only ok 3D points count (``StereoPoints.ok``); the surface
+strain and the extensometers in space are the 2D rows' statistics on their stereo values. Pure numpy: no I/O.
 """
 
 from __future__ import annotations
@@ -40,6 +48,7 @@ class NoiseFloorStatus(enum.Enum):
     SPATIAL_ONLY = "spatial_only"
     TOO_FEW_FRAMES = "too_few_frames"
     NO_OK_VALUES = "no_ok_values"
+    NO_SPECIMEN_PLANE = "no_specimen_plane"
 
     @property
     def description(self) -> str:
@@ -52,7 +61,10 @@ _DESCRIPTIONS = {
                                    f"{MIN_TEMPORAL_FRAMES})",
     NoiseFloorStatus.TOO_FEW_FRAMES: "no static frame",
     NoiseFloorStatus.NO_OK_VALUES: "no ok value in the static frames",
+    NoiseFloorStatus.NO_SPECIMEN_PLANE: "fewer than 3 points in 3D: no specimen plane to give U, V, W their axes",
 }
+# The 3D displacements' quantities, in the specimen's axes (module notes).
+DISPLACEMENT_3D = ("U", "V", "W")
 
 
 @dataclass(frozen=True)
@@ -62,7 +74,8 @@ class NoiseFloor:
     Attributes
     ----------
     quantity : str
-        What was measured: ``u``, ``v``, ``exx``, ``eyy``, ``exy`` or an extensometer's name.
+        What was measured: ``u``, ``v``, ``U``, ``V``, ``W`` (stereo), ``exx``, ``eyy``, ``exy`` or an
+        extensometer's name.
     unit : str
         ``px``, ``mm`` or ``microstrain``.
     spatial_sd : float
@@ -177,8 +190,10 @@ def field_noise_floor(u: npt.ArrayLike, v: npt.ArrayLike, ok: npt.ArrayLike, *, 
                       eyy: npt.ArrayLike | None = None, exy: npt.ArrayLike | None = None,
                       strain_ok: npt.ArrayLike | None = None,
                       extensometers: Mapping[str, tuple[npt.ArrayLike, npt.ArrayLike]] | None = None,
-                      scale_px_per_mm: float | None = None) -> list[NoiseFloor]:
-    """Every quantity's noise floor of one set of static frames, in the order a table shows them.
+                      scale_px_per_mm: float | None = None, xyz_mm: npt.ArrayLike | None = None,
+                      displacement_mm: npt.ArrayLike | None = None, ok_3d: npt.ArrayLike | None = None
+                      ) -> list[NoiseFloor]:
+    """Every quantity's noise floor of one set of static frames (or pairs), in the order a table shows them.
 
     Parameters
     ----------
@@ -194,19 +209,88 @@ def field_noise_floor(u: npt.ArrayLike, v: npt.ArrayLike, ok: npt.ArrayLike, *, 
         Each extensometer's engineering strain (reported in microstrain).
     scale_px_per_mm : float, optional
         Adds u and v in mm.
+    xyz_mm, displacement_mm : arrays (F, N, 3), optional
+        Stereo: each static pair's 3D points and displacements from the reference pair (mm, any one frame's axes,
+        ``StereoPoints.xyz`` and ``.displacement``); adds U, V, W (mm) in the specimen's axes
+        (``displacement_3d_noise_floor``).
+    ok_3d : array (F, N) of bool, optional
+        The 3D points' status (``StereoPoints.ok``; default: the finite ones).
 
     Returns
     -------
     list of NoiseFloor
-        u, v (px), u, v (mm, with a scale), exx, eyy, exy, then the extensometers.
+        u, v (px), u, v (mm, with a scale), U, V, W (mm, stereo), exx, eyy, exy, then the extensometers.
     """
     out = [noise_floor(u, ok, quantity="u", unit="px"), noise_floor(v, ok, quantity="v", unit="px")]
     if scale_px_per_mm:
         out += [noise_floor(u, ok, quantity="u", unit="mm", factor=1.0 / scale_px_per_mm),
                 noise_floor(v, ok, quantity="v", unit="mm", factor=1.0 / scale_px_per_mm)]
+    if displacement_mm is not None:
+        if xyz_mm is None:
+            raise ValueError("the 3D displacements need their 3D points (xyz_mm) for the specimen's axes")
+        out += displacement_3d_noise_floor(xyz_mm, displacement_mm, ok_3d)
     for name, component in (("exx", exx), ("eyy", eyy), ("exy", exy)):
         if component is not None:
             out.append(noise_floor(component, strain_ok, quantity=name, unit="microstrain", factor=MICRO))
     for name, (strain, good) in (extensometers or {}).items():
         out.append(noise_floor(strain, good, quantity=name, unit="microstrain", factor=MICRO))
     return out
+
+
+def specimen_axes(xyz_mm: npt.ArrayLike, displacement_mm: npt.ArrayLike, ok: npt.ArrayLike) -> np.ndarray | None:
+    """The specimen frame's rotation (rows: its x, y and normal; ``dic.stereo.specimen_frame``) fitted to the
+    reference pair's points, X - U of every ok point of the static pairs; None below 3 such points."""
+    from livedic.dic.stereo.frame import specimen_frame
+    reference = np.asarray(xyz_mm, dtype=np.float64) - np.asarray(displacement_mm, dtype=np.float64)
+    good = np.asarray(ok, dtype=bool) & np.all(np.isfinite(reference), axis=-1)
+    if not good.any():
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)     # a point ok in no pair: NaN, left out by the fit
+        points = np.nanmean(np.where(good[..., None], reference, np.nan), axis=0)
+    try:
+        return specimen_frame(points).rotation
+    except ValueError:                                       # fewer than 3 points, or on a line
+        return None
+
+
+def displacement_3d_noise_floor(xyz_mm: npt.ArrayLike, displacement_mm: npt.ArrayLike,
+                                ok: npt.ArrayLike | None = None) -> list[NoiseFloor]:
+    """U, V, W's noise floor (mm) over static pairs, in the specimen's axes (see the module notes).
+
+    Parameters
+    ----------
+    xyz_mm, displacement_mm : arrays (F, N, 3)
+        Each static pair's 3D points and displacements from the reference pair (mm, the left camera's axes).
+    ok : array (F, N) of bool, optional
+        The 3D points' status (default: the finite ones).
+
+    Returns
+    -------
+    list of NoiseFloor
+        U, V, W: NaN with ``NO_SPECIMEN_PLANE`` where fewer than 3 ok points give no plane.
+
+    Examples
+    --------
+    >>> xyz = np.array([[[0.0, 0, 300], [10, 0, 300], [0, 10, 300], [10, 10, 300]]] * 2)
+    >>> moved = np.zeros_like(xyz); moved[1, :, 2] = [0.0, 0.002, 0.004, 0.002]
+    >>> [round(f.temporal_sd_max, 6) for f in displacement_3d_noise_floor(xyz + moved, moved)]
+    [0.0, 0.0, 0.002828]
+    """
+    displacement = np.asarray(displacement_mm, dtype=np.float64)
+    xyz = np.asarray(xyz_mm, dtype=np.float64)
+    if displacement.ndim != 3 or displacement.shape[-1] != 3 or xyz.shape != displacement.shape:
+        raise ValueError(f"3D points and displacements must both be (pairs, points, 3), got {xyz.shape} and "
+                         f"{displacement.shape}")
+    good = np.all(np.isfinite(displacement), axis=-1)
+    if ok is not None:
+        good &= np.asarray(ok, dtype=bool).reshape(good.shape)
+    axes = specimen_axes(xyz, displacement, good) if displacement.shape[0] else None
+    if axes is None:
+        nan = float("nan")
+        status = NoiseFloorStatus.TOO_FEW_FRAMES if displacement.shape[0] < MIN_STATIC_FRAMES else \
+            NoiseFloorStatus.NO_SPECIMEN_PLANE
+        return [NoiseFloor(name, "mm", nan, nan, nan, nan, displacement.shape[0], 0, int(good.sum()), status)
+                for name in DISPLACEMENT_3D]
+    turned = displacement @ axes.T
+    return [noise_floor(turned[..., i], good, quantity=name, unit="mm") for i, name in enumerate(DISPLACEMENT_3D)]

@@ -40,6 +40,7 @@ from livedic.stream.pipeline.frame_queue import QueueClosed
 from livedic.acquire.base import Frame
 from livedic.stream.pipeline.frame_queue import FrameQueue
 from livedic.stream.pipeline.frame_result import FrameResult, ReferenceReady, SessionStats, track_frame
+from livedic.stream.pipeline.cores import CoreSplit
 from livedic.stream.pipeline.stage import Stage
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
@@ -167,13 +168,16 @@ class TrackerLoop:
         End after this many results.
     poll_s : float
         How often to look at ``stop_event`` while waiting for a frame.
+    cores : stream.pipeline.cores.CoreSplit, optional
+        Pinned by the tracking thread once the output thread has started, released at the end.
     """
 
     def __init__(self, queue: FrameQueue, make_tracker: Callable[[Frame], Any], *,
                  reference: ReferenceReady | None = None, stages: Sequence[Stage] = (),
                  sinks: Sequence[Callable] = (), stop_event: threading.Event | None = None,
-                 max_frames: int | None = None, poll_s: float = 0.05) -> None:
+                 max_frames: int | None = None, poll_s: float = 0.05, cores: CoreSplit | None = None) -> None:
         self.queue = queue
+        self.cores = cores
         self.make_tracker = make_tracker
         self._ready = reference
         self.stages = list(stages)
@@ -213,10 +217,16 @@ class TrackerLoop:
         """Run to the end (the output thread's sinks too); returns the ``SessionStats``."""
         self.output = OutputThread(self.sinks, self.stats, on_required_error=self.stop_event.set,
                                    errors=self.sink_errors)
+        if self.cores is not None:
+            self.cores.pin()            # every other thread of the session has started by now
         try:
             self._track_all()
         finally:
-            self.output.finish()
+            try:
+                self.output.finish()
+            finally:
+                if self.cores is not None:
+                    self.cores.release()
         if self.output.error is not None:
             raise self.output.error
         self.stats.dropped = self.queue.dropped

@@ -60,6 +60,7 @@ RECORDINGS_DIR = "recordings"
 CAMERA_SCHEMES = ("aravis", "v4l2")
 # --drop: "auto" picks oldest for live sources and block for files (``Session`` decides, knowing the source).
 DROP_CHOICES = ("auto", "oldest", "newest", "block")
+CORES_CHOICES = ("split", "shared")     # --cores: stream.pipeline.cores
 VIEWER_NONE = "none"
 # Static frames after the reference for the noise floor, where the session does not say (--static-frames): 10
 # give each point's temporal SD to about 1 / sqrt(2 x 9) = 24 % and the mean over points much better, in 0.2 s
@@ -555,11 +556,17 @@ class SessionConfig:
         None, f"frames after the reference in which nothing moves, measured for the noise floor (displacement and "
         f"strain SDs; docs/guide/noise-floor.md): default {DEFAULT_STATIC_FRAMES} for the simulator (rendered before "
         f"its test) and cameras (hold the specimen still), 0 for files and recordings; 0: none", metavar="N", type=int)
+    cores: str = option(
+        "split", "split (default): while it tracks, the tracking thread has a CPU of its own and the session's other "
+        "threads and the view's process share the rest (Linux, --threads 1, two CPUs or more); shared: wherever the "
+        "system puts them (docs/guide/performance.md)", metavar="split|shared", type=str)
 
     def __post_init__(self):
         if self.frames is not None and self.frames < 1:
             raise ValueError(f"--frames must be >= 1, got {self.frames}")
         _check_threads(self.threads)
+        if self.cores not in CORES_CHOICES:
+            raise ValueError(f"unknown --cores {self.cores!r}: choose one of {', '.join(CORES_CHOICES)}")
         if self.static_frames is not None and self.static_frames < 0:
             raise ValueError(f"--static-frames must be >= 0 (0: no noise floor), got {self.static_frames}")
         if self.queue < 1:

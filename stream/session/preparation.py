@@ -270,8 +270,8 @@ class Preparation:
         if config.scheme == "synthetic" and config.frames is not None and "frames=" not in config.source:
             self.source_options["frames"] = max(config.frames, 2)
         self.static_frames = config.static_frames_wanted
-        if config.scheme == "synthetic" and "static=" not in config.source:
-            self.source_options["static"] = self.static_frames
+        if config.scheme in ("synthetic", "stereo") and "static=" not in config.source:
+            self.source_options["static"] = self.static_frames     # a stereo pair's simulated views render them
         if self._given_source is not None:
             self.source = self._given_source
         else:
@@ -317,8 +317,9 @@ class Preparation:
             self.static_frames = simulated
             if config.frames is not None:
                 self.max_frames = config.frames + simulated      # --frames is the test's length
-        elif self.static_frames and config.scheme in CAMERA_SCHEMES:
-            self._say(f"hold the specimen still: taking {self.static_frames} static frames after the reference "
+        elif self.static_frames and _films(config.source):
+            pairs = "pairs" if getattr(self.source, "stereo", False) else "frames"
+            self._say(f"hold the specimen still: taking {self.static_frames} static {pairs} after the reference "
                       f"for the noise floor (--static-frames 0: none)")
 
     def _preload(self):
@@ -458,13 +459,14 @@ class Preparation:
             strain = stereo_strain_config(self.config.strain, self.stereo)
             self.strain = StereoStrainStage.of(strain.place(used, p0=used[0], roi=roi, step=self.step,
                                                             subset=self.config.tracking.subset))
-            if self.static_frames:
-                self._say(f"the noise floor of {self.static_frames} static frames is not measured in stereo yet")
-            return
-        self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
-                                               subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
+        else:
+            self.strain = self.config.strain.place(used, p0=used[0], roi=roi, step=self.step,
+                                                   subset=self.config.tracking.subset, image_size=(shape[1], shape[0]))
         if self.static_frames:
-            self.noise_floor = NoiseFloorStage(self.static_frames, self.config.strain.px_per_mm)
+            # stereo: U, V, W in mm from the 3D points (the rig's nominal px/mm only places the extensometers)
+            stereo = self.stereo is not None
+            self.noise_floor = NoiseFloorStage(self.static_frames, None if stereo else self.config.strain.px_per_mm,
+                                               stereo=stereo)
 
     def _frame_size(self) -> list[int] | None:
         """[W, H] of the first frame (the report's image size), None before it was read."""
@@ -499,3 +501,12 @@ class Preparation:
         for stage in self.stages:
             metadata.update(stage.metadata())               # a key named above keeps its place
         return metadata
+
+
+def _films(uri: str) -> bool:
+    """Whether the source is a camera, or a stereo pair of cameras (a user must hold the specimen still)."""
+    from livedic.acquire.sources import parse_scheme, parse_stereo_uri
+    scheme = parse_scheme(uri)
+    if scheme == "stereo":
+        return all(parse_scheme(view) in CAMERA_SCHEMES for view in parse_stereo_uri(uri)[:2])
+    return scheme in CAMERA_SCHEMES

@@ -47,6 +47,7 @@ from livedic.acquire import sources
 from livedic.acquire.base import Frame
 from livedic.dic.strain.extensometer import AXIAL
 from livedic.stream.pipeline.acquisition import AcquisitionThread, Reconnect
+from livedic.stream.pipeline.cores import CoreSplit, core_split
 from livedic.stream.pipeline.frame_queue import BLOCK, FrameQueue
 from livedic.stream.pipeline.frame_result import SessionStats, reference_ready
 from livedic.stream.pipeline.progress import ProgressBar
@@ -187,6 +188,7 @@ class Session:
         self.queue: Any = None                  # FrameQueue, from start
         self.acquisition: Any = None
         self.loop: Any = None                   # TrackerLoop, from start
+        self.cores: CoreSplit | None = None     # where the tracking thread ran (--cores split), from start
         self.bar: Any = None
         self.progress: Any = None
         self.poisson: ContractionWatch | None = None
@@ -312,7 +314,7 @@ class Session:
         # the acquisition thread starts: the next frames do not queue up behind that set-up (~70 ms at 1 MP).
         self.loop = TrackerLoop(self.queue, self._make_tracker, reference=reference_ready(self._make_tracker,
                                                                                           self.preparation.ahead.frame),
-                                stages=self.stages, sinks=sinks)
+                                stages=self.stages, sinks=sinks, cores=self._core_split())
         # Each new frame is prefiltered in the acquisition thread while the tracker refines the one before.
         self.acquisition.prepare = self.loop.coefficients_ahead
         self.phase = Phase.RUNNING
@@ -322,6 +324,14 @@ class Session:
         if discard is not None:
             discard()           # a camera's frames sent while the session was prepared: stale (AravisSource)
         self.acquisition.start()
+
+    def _core_split(self) -> CoreSplit | None:
+        """Where the tracking thread and the rest run while it tracks (``--cores``: stream.pipeline.cores)."""
+        if self.config.cores != "split":
+            return None
+        view_pid = getattr(self.viewer, "pid", None) if self.viewer is not None else None
+        self.cores = core_split(self.config.threads, [view_pid] if view_pid is not None else [])
+        return self.cores
 
     def run(self) -> SessionStats:
         """Track until the source ends or fails, or ``stop`` is called; returns the ``SessionStats``.
@@ -598,6 +608,7 @@ class Session:
             viewer_images_above_rate=viewer.images.images_above_rate if viewer is not None else None,
             viewer_process=getattr(viewer, "frames_left_out", None) is not None,
             viewer_frames_left_out=getattr(viewer, "frames_left_out", None),
+            cores=self.cores.describe() if self.cores is not None else None,
             render_s=round(self.render_seconds, 3) if self.render_seconds is not None else None,
             strain=({**self.strain.summary(), **(self.poisson.summary() if self.poisson is not None else {})}
                     if self.strain is not None else None),

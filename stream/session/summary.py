@@ -123,6 +123,8 @@ def format_pipeline(summary: dict[str, Any]) -> str:
             text += (f"; the tracker waited {summary['output_waits']} time(s) for them (more than "
                      f"{OUTPUT_BACKLOG_MAX} behind)")
         parts.append(text)
+    if summary.get("cores"):
+        parts.append(summary["cores"])
     left_out = summary.get("viewer_images_left_out")
     above = summary.get("viewer_images_above_rate")
     if left_out or above:

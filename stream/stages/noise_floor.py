@@ -7,7 +7,9 @@ moving one) while nothing moves (the simulator renders them; a camera's user hol
 strain and extensometer strain (``StaticFrames``) and, after the Nth, computes the noise floor of each
 quantity (``dic.noise_floor.field_noise_floor``), sets it on that frame's result (``result.noise_floor``) and
 gives it to the summary (``summary_lines``, ``summary``). A session that ends before N gives what it had (NaN
-below two frames, with the reason). ``recorded_noise_floor`` computes the same table from a recording's
+below two frames, with the reason). A stereo session's static pairs (its ``StereoMeasurement``: the left view's
+u, v and the 3D points) add U, V, W in mm (the specimen's axes), and its strain and extensometers are those on the
+surface and in space: one code path, the 3D points the only difference. ``recorded_noise_floor`` computes the same table from a recording's
 results, strain and extensometer readings (the static count is in its metadata: ``static_frames``), for
 ``livedic report``; ``noise_floor_lines`` formats a table for the summary, the report and
 ``livedic noise-floor``.
@@ -16,11 +18,13 @@ results, strain and extensometer readings (the static count is in its metadata: 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from livedic.dic.noise_floor import NoiseFloor, field_noise_floor
+from livedic.dic.noise_floor import DISPLACEMENT_3D, NoiseFloor, field_noise_floor
+from livedic.dic.stereo import StereoStatus
 from livedic.dic.strain.field import StrainStatus
 from livedic.stream.pipeline.frame_result import FrameResult
 from livedic.stream.pipeline.stage import Reference, Stage
@@ -38,10 +42,13 @@ class StaticFrames:
     ----------
     scale_px_per_mm : float, optional
         Adds u and v in mm to the table.
+    stereo : bool
+        Static pairs: U, V, W rows, NaN with the reason while no pair is in.
     """
 
-    def __init__(self, scale_px_per_mm: float | None = None) -> None:
+    def __init__(self, scale_px_per_mm: float | None = None, *, stereo: bool = False) -> None:
         self.scale_px_per_mm = scale_px_per_mm
+        self.stereo = stereo
         self.frame_indices: list[int] = []
         self._u: list[np.ndarray] = []
         self._v: list[np.ndarray] = []
@@ -49,15 +56,23 @@ class StaticFrames:
         self._strain: dict[str, list[np.ndarray]] = {"exx": [], "eyy": [], "exy": []}
         self._strain_ok: list[np.ndarray] = []
         self._extensometers: dict[str, tuple[list[float], list[bool]]] = {}
+        self._xyz: list[np.ndarray] = []            # stereo: each pair's 3D points, displacements and status
+        self._displacement: list[np.ndarray] = []
+        self._ok_3d: list[np.ndarray] = []
 
     def __len__(self) -> int:
         return len(self.frame_indices)
 
     def add(self, frame_index: int, u: np.ndarray, v: np.ndarray, ok: np.ndarray, strain: Any = None,
-            extensometers: Any = None) -> None:
+            extensometers: Any = None, points: Any = None) -> None:
         """One static frame: displacements (px) and ok, its ``StrainField`` (or a recorded strain: ``exx``,
-        ``eyy``, ``exy`` and ``status``) and its ``ExtensometerReadings`` (None: none)."""
+        ``eyy``, ``exy`` and ``status``), its ``ExtensometerReadings`` (None: none) and, of a stereo pair, its 3D
+        points (``dic.stereo.StereoPoints``, or any object with ``xyz``, ``displacement`` and ``ok``)."""
         self.frame_indices.append(int(frame_index))
+        if points is not None:
+            self._xyz.append(np.array(points.xyz, dtype=np.float64))
+            self._displacement.append(np.array(points.displacement, dtype=np.float64))
+            self._ok_3d.append(np.array(points.ok, dtype=bool))
         self._u.append(np.array(u, dtype=np.float64))
         self._v.append(np.array(v, dtype=np.float64))
         self._ok.append(np.array(ok, dtype=bool))
@@ -82,8 +97,14 @@ class StaticFrames:
         strain = {name: np.array(values) for name, values in self._strain.items()} if with_strain else {}
         extensometers = {name: (np.array(values), np.array(good)) for name, (values, good)
                          in self._extensometers.items() if len(values) == frames}
+        stereo = {}
+        if self.stereo or self._displacement:               # the pairs' 3D points (none yet: the rows say so)
+            shape = (len(self._displacement), width, 3)
+            stereo = {"xyz_mm": np.array(self._xyz).reshape(shape),
+                      "displacement_mm": np.array(self._displacement).reshape(shape),
+                      "ok_3d": np.array(self._ok_3d, dtype=bool).reshape(shape[:2])}
         return field_noise_floor(u, v, ok, **strain, strain_ok=np.array(self._strain_ok) if with_strain else None,
-                                 extensometers=extensometers, scale_px_per_mm=self.scale_px_per_mm)
+                                 extensometers=extensometers, scale_px_per_mm=self.scale_px_per_mm, **stereo)
 
 
 class NoiseFloorStage(Stage):
@@ -94,7 +115,9 @@ class NoiseFloorStage(Stage):
     static_frames : int
         Frames after the reference in which nothing moves (>= 1; a session without them has no such stage).
     scale_px_per_mm : float, optional
-        The strain configuration's scale (u and v in mm too).
+        The strain configuration's scale (u and v in mm too; a stereo session has U, V, W in mm instead).
+    stereo : bool
+        A stereo session's static pairs (``StaticFrames``).
 
     Attributes
     ----------
@@ -106,14 +129,14 @@ class NoiseFloorStage(Stage):
     provides: ClassVar[tuple[str, ...]] = ("noise_floor",)
     required = False
 
-    def __init__(self, static_frames: int, scale_px_per_mm: float | None = None) -> None:
+    def __init__(self, static_frames: int, scale_px_per_mm: float | None = None, *, stereo: bool = False) -> None:
         self.static_frames = int(static_frames)
         self._last = self.static_frames         # the last static frame's index (set on the reference)
-        self.frames = StaticFrames(scale_px_per_mm)
+        self.frames = StaticFrames(scale_px_per_mm, stereo=stereo)
         self.table: list[NoiseFloor] | None = None
 
     def on_reference(self, reference: Reference) -> None:
-        self.frames = StaticFrames(self.frames.scale_px_per_mm)
+        self.frames = StaticFrames(self.frames.scale_px_per_mm, stereo=self.frames.stereo)
         self.table = None
         self._last = reference.frame_index + self.static_frames     # the last static frame's index
 
@@ -127,7 +150,8 @@ class NoiseFloorStage(Stage):
             self._last = index + self.static_frames - 1
         if index <= self._last:
             m = result.measurement
-            self.frames.add(index, m.u, m.v, m.ok, result.strain, result.extensometers)
+            self.frames.add(index, m.u, m.v, m.ok, result.strain, result.extensometers,
+                            getattr(m, "points", None))     # a stereo pair's 3D points (StereoMeasurement)
         if index >= self._last:                 # the last static frame, or past it (it was dropped)
             self.table = self.frames.table()
             result.noise_floor = self.table
@@ -180,9 +204,15 @@ NOISE_FLOOR_COLUMNS = ("quantity", "unit", "spatial SD", "temporal SD (mean)", "
 def noise_floor_lines(summary: Mapping[str, Any], *, indent: str = "  ") -> list[str]:
     """The summary's lines: a header saying on how many static frames, then one aligned line per quantity."""
     used = len(summary["frames_used"])
-    lines = [f"{indent}{'noise':<11}floor on {used} static frame(s) after the reference"
+    stereo = any(item["quantity"] in DISPLACEMENT_3D for item in summary["table"])
+    frames = "pair(s)" if stereo else "frame(s)"
+    lines = [f"{indent}{'noise':<11}floor on {used} static {frames} after the reference"
              + (f" (of {summary[STATIC_FRAMES_KEY]} asked)" if used < summary[STATIC_FRAMES_KEY] else "")
-             + "; SD over points (spatial), over frames per point (temporal)"]
+             + f"; SD over points (spatial), over {'pairs' if stereo else 'frames'} per point (temporal)"]
+    if stereo:
+        lines.append(f"{indent}{'':<11}stereo: u, v the left view (px); U, V, W in space in the specimen's axes "
+                     f"(W along its normal; X, Y, Z have their temporal SD); strain on its surface, extensometers "
+                     f"in space")
     rows = [list(NOISE_FLOOR_COLUMNS)] + noise_floor_rows(summary)
     widths = [max(len(row[i]) for row in rows) for i in range(len(NOISE_FLOOR_COLUMNS) - 1)]
     for row in rows:
@@ -222,12 +252,29 @@ def recorded_noise_floor(recording: Any, metadata: dict[str, Any] | None = None)
     indices = sorted(frames)[1:]
     strains = _first(recording.strain_fields(), indices, lambda s: s.frame_index)
     readings = _first(recording.extensometer_readings(), indices, lambda r: r[0])
-    kept = StaticFrames(float(scale) if scale else None)
+    stereo = bool(reference is not None and frames[reference].stereo)     # its 3D points are on /dic/results
+    kept = StaticFrames(None if stereo else float(scale) if scale else None, stereo=stereo)
     for index in indices:
         m = frames[index].measurement
         reading = readings.get(index)
-        kept.add(index, m.u, m.v, m.ok, strains.get(index), reading[2] if reading is not None else None)
+        kept.add(index, m.u, m.v, m.ok, strains.get(index), reading[2] if reading is not None else None,
+                 RecordedPoints.of(frames[index].stereo) if stereo else None)
     return noise_floor_summary(static, indices, kept.table())
+
+
+@dataclass(frozen=True)
+class RecordedPoints:
+    """A recorded stereo frame's 3D points as ``StaticFrames.add`` reads them (``StereoPoints``' names)."""
+    xyz: np.ndarray
+    displacement: np.ndarray
+    ok: np.ndarray
+
+    @classmethod
+    def of(cls, stereo: Mapping[str, np.ndarray]) -> RecordedPoints:
+        """From a ``RecordedResults.stereo`` (``x_mm`` .. ``w_mm``, ``stereo_status``: 0 is ok)."""
+        return cls(np.column_stack([stereo[name] for name in ("x_mm", "y_mm", "z_mm")]),
+                   np.column_stack([stereo[name] for name in ("u_mm", "v_mm", "w_mm")]),
+                   np.asarray(stereo["stereo_status"]) == int(StereoStatus.OK))
 
 
 def _first(items: Iterable[Any], indices: Sequence[int], index_of: Any) -> dict[int, Any]:

@@ -209,6 +209,11 @@ class ViewProcess:
 
     # ------------------------------------------------------------ what the summary reads
     @property
+    def pid(self) -> int:
+        """The view's process id (``stream.pipeline.cores`` places it)."""
+        return self._process.pid
+
+    @property
     def enabled(self) -> bool:
         return not self._closed and self._error is None and self._counters["file_error"] is None
 

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from livedic.dic.noise_floor import NoiseFloor, NoiseFloorStatus, field_noise_floor, noise_floor
+from livedic.dic.noise_floor import (NoiseFloor, NoiseFloorStatus, displacement_3d_noise_floor, field_noise_floor,
+                                      noise_floor)
 
 
 def test_white_noise_gives_its_sigma_both_ways_and_zero_bias():
@@ -90,3 +91,53 @@ def test_the_table_has_mm_with_a_scale_and_round_trips_through_its_dict():
     for floor in table:
         back = NoiseFloor.from_dict(floor.as_dict())
         assert back.as_dict() == floor.as_dict()
+
+
+# --- stereo: U, V, W in the specimen's axes --------------------------------------------------------------------
+
+def _tilted_plane(points: int, normal_deg: float):
+    """Reference points on a plane whose normal is turned ``normal_deg`` about y from the camera's axis, and its
+    specimen axes (rows: x, y, normal; the normal away from the camera at z = 300 mm)."""
+    a = math.radians(normal_deg)
+    e1, e2 = np.array([math.cos(a), 0, -math.sin(a)]), np.array([0.0, 1, 0])
+    e3 = np.array([math.sin(a), 0, math.cos(a)])
+    rng = np.random.default_rng(5)
+    s, t = rng.uniform(-10, 10, (2, points))
+    return np.array([0, 0, 300.0]) + s[:, None] * e1 + t[:, None] * e2, np.stack([e1, e2, e3])
+
+
+def test_stereo_displacements_are_measured_in_the_specimen_axes_exactly():
+    # U, V, W given in the specimen's axes and turned into the camera's: the floor gives back their exact SDs
+    reference, axes = _tilted_plane(50, 20.0)
+    rng = np.random.default_rng(6)
+    in_specimen = rng.normal(0.0, [0.001, 0.002, 0.008], (6, 50, 3))
+    displacement = in_specimen @ axes                  # rows of axes: specimen -> camera is axes.T @ q
+    rows = {f.quantity: f for f in field_noise_floor(np.zeros((6, 50)), np.zeros((6, 50)), np.ones((6, 50), bool),
+                                                     xyz_mm=reference + displacement, displacement_mm=displacement)}
+    for i, name in enumerate(("U", "V", "W")):
+        floor, values = rows[name], in_specimen[..., i]
+        assert floor.unit == "mm" and floor.status is NoiseFloorStatus.OK
+        assert floor.spatial_sd == pytest.approx(values.std(axis=1, ddof=1).mean(), rel=1e-9)
+        assert floor.temporal_sd_mean == pytest.approx(values.std(axis=0, ddof=1).mean(), rel=1e-9)
+        assert floor.temporal_sd_max == pytest.approx(values.std(axis=0, ddof=1).max(), rel=1e-9)
+        assert floor.mean == pytest.approx(values.mean(), abs=1e-15)
+    assert [f.quantity for f in rows.values()][:5] == ["u", "v", "U", "V", "W"]
+
+
+def test_stereo_points_not_ok_do_not_count_and_too_few_give_no_plane():
+    reference, axes = _tilted_plane(4, 0.0)
+    displacement = np.zeros((2, 4, 3))
+    displacement[1, :, 2] = [0.0, 0.002, 0.004, 0.002]            # W only (the normal is the camera's z)
+    displacement[1, 3, 0] = 5.0                                     # a point not ok: its huge U never counts
+    ok = np.array([[True, True, True, False], [True, True, True, False]])
+    rows = displacement_3d_noise_floor(reference + displacement, displacement, ok)
+    assert [r.points for r in rows] == [3, 3, 3] and rows[0].temporal_sd_max == pytest.approx(0.0, abs=1e-15)
+    assert rows[2].temporal_sd_max == pytest.approx(0.004 / math.sqrt(2))
+    ok[:, 2] = False                                                # two points left: no plane, NaN and why
+    for row in displacement_3d_noise_floor(reference + displacement, displacement, ok):
+        assert row.status is NoiseFloorStatus.NO_SPECIMEN_PLANE and math.isnan(row.temporal_sd_mean)
+        assert "no specimen plane" in row.as_dict()["reason"]
+    for row in displacement_3d_noise_floor(np.zeros((0, 4, 3)), np.zeros((0, 4, 3))):
+        assert row.status is NoiseFloorStatus.TOO_FEW_FRAMES
+    with pytest.raises(ValueError, match="3D points and displacements"):
+        displacement_3d_noise_floor(np.zeros((2, 4, 2)), np.zeros((2, 4, 2)))

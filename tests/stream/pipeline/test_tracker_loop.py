@@ -5,6 +5,7 @@ blocks cannot hold the tracker back; the stage times name each stage; a required
 loop and is raised; an optional one is switched off.
 """
 
+import os
 import threading
 
 import numpy as np
@@ -15,6 +16,7 @@ from livedic.acquire.simulator.sources import SyntheticTranslateSource
 from livedic.dic.tracking import Tracker
 from livedic.stream.pipeline.acquisition import AcquisitionThread
 from livedic.stream.pipeline.frame_queue import BLOCK, FrameQueue
+from livedic.stream.pipeline.cores import core_split
 from livedic.stream.pipeline.frame_result import reference_ready
 from livedic.stream.pipeline.stage import Stage
 from livedic.stream.pipeline.tracker_loop import OUTPUT_BACKLOG_MAX, TrackerLoop
@@ -217,3 +219,18 @@ def test_frames_are_prefiltered_in_the_acquisition_thread_one_ahead_of_the_track
 def test_no_coefficients_ahead_before_the_tracker_exists():
     loop = TrackerLoop(FrameQueue(2), lambda frame: None)
     assert loop.coefficients_ahead(None) is None
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="needs Linux's sched_setaffinity and two CPUs")
+def test_with_a_core_split_the_tracker_runs_alone_on_its_cpu_and_every_cpu_comes_back():
+    every = frozenset(os.sched_getaffinity(0))
+    split = core_split(1)
+    seen = {"stage": set(), "sink": set()}
+    loop, acquisition = _loop(stages=[_Stage(lambda result: seen["stage"].add(frozenset(os.sched_getaffinity(0))))],
+                              sinks=[lambda result, stats: seen["sink"].add(frozenset(os.sched_getaffinity(0)))],
+                              cores=split)
+    loop.run()
+    acquisition.join(5)
+    assert seen == {"stage": {split.tracking}, "sink": {split.others}}
+    assert os.sched_getaffinity(0) == every

@@ -53,3 +53,11 @@ def test_a_bad_force_source_is_refused_before_the_frame_source_opens():
     assert session.phase is Phase.CHECKING and session.source is None
     session.abandon()
     assert session.phase is Phase.CLOSED
+
+
+def test_a_camera_or_a_pair_of_cameras_films_static_frames_a_file_or_the_simulator_holds_them():
+    from livedic.stream.session.preparation import _films
+    assert _films("aravis:CAM") and _films("stereo:aravis:CAM_L?trigger=line:1,aravis:CAM_R?trigger=line:1")
+    assert not _films("synthetic:tensile") and not _films("images:frames/*.png")
+    assert not _films("stereo:synthetic:stereo?view=left,synthetic:stereo?view=right")
+    assert not _films("stereo:aravis:CAM_L,images:right/*.png")

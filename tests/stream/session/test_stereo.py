@@ -82,3 +82,33 @@ def test_calibrations_that_do_not_fit_the_source_are_one_line(tmp_path):
         _run("stereo:synthetic:translate?frames=2&size=128x128&pace=0,synthetic:translate?frames=2&size=128x128"
              "&pace=0&seed=3", tmp_path)
     assert json.loads(path.read_text())["stereo"] is True
+
+
+STATIC = 4
+STATIC_VIEW = "synthetic:stereo?view={}&frames=2&size=192x192&focal=1500&strain=0&neck=0&noise=1&pace=0"
+
+
+def test_static_pairs_give_the_noise_floor_in_space_live_and_from_the_recording(tmp_path):
+    """--static-frames N with a simulated stereo pair: both views render N static frames, the summary's floor has
+    U, V, W (the depth ~1 / tan(12.5 deg) = 4.5 x the in-plane noise), and the recording gives the same table."""
+    from livedic.acquire.recording.reader import Recording
+    from livedic.stream.stages.noise_floor import recorded_noise_floor
+    session = _run(f"stereo:{STATIC_VIEW.format('left')},{STATIC_VIEW.format('right')}", tmp_path,
+                   static_frames=STATIC)
+    floor = session.summary()["noise_floor"]
+    assert floor["static_frames"] == STATIC and floor["frames_used"] == list(range(1, STATIC + 1))
+    rows = {row["quantity"]: row for row in floor["table"]}
+    assert [row["quantity"] for row in floor["table"]][:5] == ["u", "v", "U", "V", "W"]
+    for name in ("U", "V", "W", "exx", "axial", "transverse"):
+        assert rows[name]["status"] == "ok" and rows[name]["temporal_sd_mean"] > 0.0, rows[name]
+    assert rows["W"]["temporal_sd_mean"] / rows["U"]["temporal_sd_mean"] == pytest.approx(4.5, rel=0.3)
+    text = session.summary_text().splitlines()
+    assert sum(line.split()[:2] in (["U", "mm"], ["V", "mm"], ["W", "mm"]) for line in text) == 3
+    assert any("pairs: 6 made" in line for line in text)           # the test's 2 frames and the 4 static ones
+    recorded = recorded_noise_floor(Recording(session.config.record))
+    assert recorded["frames_used"] == floor["frames_used"]
+    again = {row["quantity"]: row for row in recorded["table"]}
+    for name in ("U", "V", "W", "exx", "axial"):
+        for key in ("spatial_sd", "temporal_sd_mean", "mean"):
+            if rows[name][key] is not None:
+                assert again[name][key] == pytest.approx(rows[name][key], rel=1e-4, abs=1e-9), (name, key)
