@@ -76,6 +76,8 @@ class Reason(enum.Enum):
     NO_WORK_HARDENING = ("discontinuous yielding with no work hardening after it: ISO 6892-1:2019 3.9.2 Note 1 "
                          "leaves the maximum force Fm undefined, and with it Rm, Ag and Agt (ReH, ReL hold)")
     SHAPE_UNDETERMINED = "too few frames past the elastic range to read how the material yields"
+    STILL_RISING = ("the force was highest at the last frame with a force: the test ended before the maximum force, "
+                    "so Rm, Ag and Agt are not known")
 
 
 @dataclass(frozen=True)
@@ -362,7 +364,8 @@ def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, *, from_frame
         is ~0, so the maximum is the one before fracture. NaN with ``FORCE_MISSING_AT_MAXIMUM``
         when the frame just before or after the maximum (among the frames with a strain) has
         no stress: a force stream that stopped, or stalled, while the force still rose could
-        have its true maximum there, and the largest value seen is not Rm.
+        have its true maximum there, and the largest value seen is not Rm; NaN with ``STILL_RISING`` when the
+        maximum is the last frame with a stress (a test stopped while the force rose).
     """
     method = "maximum engineering stress (maximum force), first frame with it"
     if from_frame > 0:
@@ -377,6 +380,8 @@ def tensile_strength(strain: npt.ArrayLike, stress: npt.ArrayLike, *, from_frame
     beside = strained[max(at - 1, 0):at + 2]
     if not np.isfinite(stress[beside]).all():
         return TensileStrength(_NAN, -1, _NAN, method, Reason.FORCE_MISSING_AT_MAXIMUM)
+    if frame == frames[-1]:
+        return TensileStrength(_NAN, -1, _NAN, method, Reason.STILL_RISING)
     return TensileStrength(float(stress[frame]), frame, float(strain[frame]), method)
 
 

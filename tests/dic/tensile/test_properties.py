@@ -227,3 +227,14 @@ def test_rm_is_not_claimed_when_the_force_is_missing_next_to_the_maximum():
     assert tensile_strength(strain, away).value == 1000.0
     broken = np.array([0, 400, 800, 900, 950, 1000, 990, 900, 800, 50, np.nan])   # no force after fracture: fine
     assert tensile_strength(strain, broken).value == 1000.0
+
+
+def test_rm_is_not_claimed_when_the_test_ended_while_the_force_rose():
+    """The largest force at the last frame: the test stopped before the maximum, the material's Rm is not known."""
+    from livedic.dic.tensile.properties import Reason, tensile_strength
+    strain = np.linspace(0.0, 0.02, 9)
+    rising = np.array([0, 400, 800, 810, 820, 830, 840, 850, 860])          # linear hardening, stopped at 2 %
+    rm = tensile_strength(strain, rising)
+    assert math.isnan(rm.value) and rm.frame == -1 and rm.reason is Reason.STILL_RISING
+    past = np.append(rising[:-1], 845.0)                                     # one frame after the maximum: Rm
+    assert tensile_strength(strain, past).value == 850.0
