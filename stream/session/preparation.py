@@ -480,6 +480,8 @@ class Preparation:
         config = self.config
         wanted = config.points
         p0 = self.p0.xy if self.p0 is not None else tuple(self.points[0])
+        # a stereo session's strain is measured on the specimen's surface: its settings as the stage uses them
+        strain = config.strain if self.stereo is None else stereo_strain_config(config.strain, self.stereo)
         metadata = {
             "command": config.command, "source_uri": config.source, "source_settings": source_settings,
             "frame_size": self._frame_size(),
@@ -490,7 +492,7 @@ class Preparation:
             **config.tracking.as_dict(),
             "queue_size": config.queue, "drop_policy": self.drop_policy, "point_ids": "P0 is point 0",
             "threads": config.threads, "reconnect": config.reconnect, "reconnect_timeout_s": config.reconnect_timeout,
-            **config.strain.as_metadata(),
+            **strain.as_metadata(),
             "vsg_px": None, "extensometers": [],            # the strain stage's (its metadata below)
             "load": config.load, "load_offset_s": config.load_offset, "area_mm2": config.area_mm2,
             "publish": list(config.publish or ()),          # where the strain went (--publish)

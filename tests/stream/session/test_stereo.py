@@ -8,9 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from livedic.acquire.recording.reader import read_results
+from livedic.acquire.recording.reader import read_results, read_session
 from livedic.acquire.recording.source import McapSource
 from livedic.acquire.simulator.lens import Lens
+from livedic.dic.stereo import SURFACE_MEASURE
 from livedic.acquire.simulator.stereo_rig import StereoRig
 from livedic.acquire.calibration import write_calibration
 from livedic.stream.session.config import PointsConfig, SessionConfig, ViewerConfig
@@ -69,6 +70,8 @@ def test_both_views_and_the_3d_points_are_recorded(translated):
     moved = np.sqrt(last["u_mm"][ok] ** 2 + last["v_mm"][ok] ** 2 + last["w_mm"][ok] ** 2)
     assert np.mean(moved) == pytest.approx(0.5, abs=0.005)
     assert np.all(np.abs(last["z_mm"][ok] - 300.0) < 30.0)          # the coupon near the rig's working distance
+    session = read_session(path)                  # the strain settings as measured: on the surface, no 2D calibration
+    assert session["strain_measure"] == SURFACE_MEASURE and session["calibration"] is None
 
 
 def test_calibrations_that_do_not_fit_the_source_are_one_line(tmp_path):
