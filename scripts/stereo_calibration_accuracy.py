@@ -26,12 +26,14 @@ import numpy as np
 
 from livedic.acquire.simulator.lens import Lens
 from livedic.acquire.simulator.stereo_rig import StereoRig
-from livedic.acquire.simulator.targets import (NARROW_STEREO_VIEW_FILL, NARROW_STEREO_VIEWS, STEREO_VIEW_FILL,
+from livedic.acquire.simulator.targets import (NARROW_STEREO_VIEW_FILL, NARROW_STEREO_VIEWS,
                                                STEREO_VIEWS, render_target_pair, rig_aim_mm, stereo_calibration_views,
                                                stereo_square_mm, stereo_view_plan)
 from livedic.dic.calibration import (DEFAULT_STEREO_FLAGS, CalibrationRefused, Detection, StereoCalibration,
                                      TargetPair, calibrate_stereo, detect_target, parse_target, undistort_points)
 
+# The board's width for STEREO_VIEWS here (the guide's tables): a larger board than the simulator's STEREO_VIEW_FILL.
+WIDE_FILL = 0.45
 CHOICES = {"fixed": cv2.CALIB_FIX_INTRINSIC, "refined": DEFAULT_STEREO_FLAGS}
 
 
@@ -100,9 +102,9 @@ def main() -> None:
     for focal in args.focal:
         rig = (rig_of(size, focal, args.angle, args.distance) if args.lens == "two"  # type: ignore[arg-type]
                else simulator_rig(size, focal, args.angle, args.distance))  # type: ignore[arg-type]
-        views, fill = {"auto": stereo_view_plan(rig), "default": (STEREO_VIEWS, STEREO_VIEW_FILL),
+        views, fill = {"auto": stereo_view_plan(rig), "default": (STEREO_VIEWS, WIDE_FILL),
                        "narrow": (NARROW_STEREO_VIEWS, NARROW_STEREO_VIEW_FILL)}[args.views]
-        measure(rig, args, views, args.fill or fill)
+        measure(rig, args, views, args.fill or (WIDE_FILL if views is STEREO_VIEWS else fill))
 
 
 def simulator_rig(size: tuple[int, int], focal: float, angle: float, distance: float) -> StereoRig:

@@ -119,6 +119,7 @@ def describe_undetermined(name: str, value: float, bound: float) -> str:
     """One clause naming a poorly determined parameter and what the calibration images need."""
     if name in ("fx", "fy"):
         return (f"focal length {name} is determined to +-{value:.2g} % only (bound {bound:g} %): the views need more "
-                "tilt (30-40 degrees, in several directions) and more of them")
+                "tilt (30-40 degrees, in several directions) and more of them, or raise --max-focal-uncertainty")
     return (f"distortion {name} is determined to +-{value:.2g} px at the image's corner only (bound {bound:g} px): the "
-            "board must reach the image's corners and edges; use more views, or a larger target")
+            "board must reach the image's corners and edges; use more views, or a larger target, or raise "
+            "--max-uncertainty")

@@ -96,8 +96,7 @@ def calibrate(detections: Sequence[tuple[str, Detection]], image_size: tuple[int
                                  "and views where the board moved, bent or was mis-detected, or raise --max-error")
     poor = undetermined(corner_effects(fit.camera_matrix, fit.dist_coeffs, (width, height), fit.std_devs), bounds)
     if poor:
-        raise CalibrationRefused(f"{describe_undetermined(*poor[0])}; or raise --max-uncertainty / "
-                                 "--max-focal-uncertainty")
+        raise CalibrationRefused(describe_undetermined(*poor[0]))
     return replace(fit, target=target, square_mm=float(square_mm), skipped=tuple(skipped),
                    fixed=tuple(name for name in PARAMETERS if name not in free_parameters(flags)),
                    fixed_reason=reason or "")
