@@ -9,6 +9,8 @@ from them, here only:
   exceeds ``PRINCIPAL_POINT_LIMIT`` of the image's width, the principal point is fixed at the image's centre and
   k2, p1, p2 at 0 (``NARROW_FIELD_FIXED``), as VIC and MatchID keep fewer distortion terms for long lenses: a
   real lens's centre is within about that distance of the image's, so the centre is the better estimate.
+- ``view_spread_deg``: boards (nearly) parallel in every view (less than ``MIN_VIEW_SPREAD_DEG`` apart) determine
+  no focal length at all, whatever the standard deviations say: refused.
 - ``undetermined``: after that choice, a free parameter that is still poorly determined (the focal length's
   standard deviation in % of it, or a distortion parameter's as its effect at the image's corner, px) above
   ``UncertaintyBounds`` refuses the calibration, naming the parameter and the remedy.
@@ -17,6 +19,7 @@ from them, here only:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -37,6 +40,10 @@ _FIXED_BY_FLAG = ((cv2.CALIB_FIX_PRINCIPAL_POINT, ("cx", "cy")), (cv2.CALIB_FIX_
                   (cv2.CALIB_FIX_K2, ("k2",)), (cv2.CALIB_FIX_K3, ("k3",)),
                   (cv2.CALIB_ZERO_TANGENT_DIST, ("p1", "p2")))
 _DISTORTION = ("k1", "k2", "p1", "p2", "k3")
+# Zhang's method needs boards at different tilts: parallel boards leave the focal length free (a long lens's fit
+# then settled at f 2800 or 160 px for 8000, with tiny standard deviations and a good RMS). The largest angle between
+# two views' boards must reach this.
+MIN_VIEW_SPREAD_DEG = 10.0
 
 
 @dataclass(frozen=True)
@@ -46,13 +53,14 @@ class UncertaintyBounds:
     Attributes
     ----------
     focal_percent : float
-        Of each focal length, in % of it (well-tilted views give 0.05-0.5 %).
+        Of each focal length, in % of it (well-tilted views give 0.05-0.45 %; at +-0.8 % a long lens's rig came
+        out with T 6 mm wrong).
     corner_px : float
         Of each distortion parameter, as its effect on the image's corner (px; good views give 0.1-1.5 px:
         k1 and k2 trade, so each alone is less certain than the undistortion they give together).
     """
 
-    focal_percent: float = 1.0
+    focal_percent: float = 0.5
     corner_px: float = 2.0
 
 
@@ -80,6 +88,20 @@ def narrow_field_reason(deviations: dict[str, float], image_size: tuple[int, int
     return (f"the views locate the principal point to +-{spread:.1f} px only (more than {limit:.0f} px, "
             f"{100 * PRINCIPAL_POINT_LIMIT:g} % of the width: a narrow field): principal point fixed at the image's "
             "centre, k2, p1, p2 at 0")
+
+
+def view_spread_deg(rvecs: Sequence[np.ndarray]) -> float:
+    """The largest angle (degrees) between two views' board normals (boards' poses as rotation vectors)."""
+    normals = np.array([cv2.Rodrigues(np.asarray(r, dtype=np.float64))[0][:, 2] for r in rvecs])
+    cosines = np.clip(np.abs(normals @ normals.T), 0.0, 1.0)
+    return float(np.degrees(np.arccos(np.min(cosines))))
+
+
+def describe_parallel_views(spread_deg: float) -> str:
+    """One line refusing views whose boards are (nearly) parallel, with the remedy."""
+    return (f"the boards in the views turn at most {spread_deg:.1f} degrees from one another (under "
+            f"{MIN_VIEW_SPREAD_DEG:g}): a calibration needs them tilted 30-40 degrees in several directions, or the "
+            "focal length is not determined")
 
 
 def corner_effects(camera_matrix: np.ndarray, dist_coeffs: np.ndarray, image_size: tuple[int, int],

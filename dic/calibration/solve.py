@@ -5,7 +5,8 @@ specimen plane's scale from one target lying on it.
 overall or any image's reprojection RMS exceeds the bound (default ``DEFAULT_MAX_ERROR_PX``): a
 calibration that does not fit its own images would mis-correct every measurement made with it; or when
 a parameter its views leave poorly determined exceeds ``UncertaintyBounds`` (after the narrow-field choice of
-``dic.calibration.determinacy``): one that fits its images by luck would too.
+``dic.calibration.determinacy``), or when the views' boards are (nearly) parallel: one that fits its images by
+luck would too.
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ import numpy as np
 
 from livedic.dic.calibration.camera import (CalibrationError, CameraCalibration, ImageFit, PlaneScale,
                                             homography_jacobian, undistort_points)
-from livedic.dic.calibration.determinacy import (DEFAULT_UNCERTAINTY_BOUNDS, NARROW_FIELD_FLAGS, PARAMETERS,
-                                                 UncertaintyBounds, corner_effects, describe_undetermined,
-                                                 free_parameters, narrow_field_reason, std_devs, undetermined)
+from livedic.dic.calibration.determinacy import (DEFAULT_UNCERTAINTY_BOUNDS, MIN_VIEW_SPREAD_DEG, NARROW_FIELD_FLAGS,
+                                                 PARAMETERS, UncertaintyBounds, corner_effects,
+                                                 describe_parallel_views, describe_undetermined, free_parameters,
+                                                 narrow_field_reason, std_devs, undetermined, view_spread_deg)
 from livedic.dic.calibration.targets import Detection
 
 # Zhang's method needs views of the target in at least 3 different orientations.
@@ -80,13 +82,15 @@ def calibrate(detections: Sequence[tuple[str, Detection]], image_size: tuple[int
         raise CalibrationRefused(f"the target was found in {len(detections)} image(s); a calibration needs at least "
                                  f"{MIN_VIEWS} views of it at different tilts (more, 10-20, is better)")
     width, height = (int(image_size[0]), int(image_size[1]))
-    fit = _fit(detections, (width, height), flags)
+    fit, spread_deg = _fit(detections, (width, height), flags)
+    if spread_deg < MIN_VIEW_SPREAD_DEG:
+        raise CalibrationRefused(describe_parallel_views(spread_deg))
     reason = narrow_field if narrow_field is not None else narrow_field_reason(fit.std_devs, (width, height))
     if reason is not None and flags | NARROW_FIELD_FLAGS != flags:
         flags |= NARROW_FIELD_FLAGS
         guess = fit.camera_matrix.copy()
         guess[:2, 2] = (width - 1) / 2.0, (height - 1) / 2.0
-        fit = _fit(detections, (width, height), flags, guess)
+        fit, _ = _fit(detections, (width, height), flags, guess)
     worst = sorted(fit.images, key=lambda f: f.rms_px, reverse=True)
     bad = [f for f in worst if f.rms_px > max_error_px]
     if fit.rms_px > max_error_px or bad:
@@ -103,9 +107,10 @@ def calibrate(detections: Sequence[tuple[str, Detection]], image_size: tuple[int
 
 
 def _fit(detections: Sequence[tuple[str, Detection]], size: tuple[int, int], flags: int,
-         guess: np.ndarray | None = None) -> CameraCalibration:
+         guess: np.ndarray | None = None) -> tuple[CameraCalibration, float]:
     """One ``cv2.calibrateCameraExtended`` solution with its per-image errors and standard deviations (``guess``:
-    the starting camera matrix, its principal point kept under ``CALIB_FIX_PRINCIPAL_POINT``)."""
+    the starting camera matrix, its principal point kept under ``CALIB_FIX_PRINCIPAL_POINT``), and the largest angle
+    between its views' boards (degrees)."""
     objects = [d.object_points.astype(np.float32) for _, d in detections]
     images = [d.image_points.astype(np.float32).reshape(-1, 1, 2) for _, d in detections]
     if guess is not None:
@@ -118,9 +123,9 @@ def _fit(detections: Sequence[tuple[str, Detection]], size: tuple[int, int], fla
         projected, _ = cv2.projectPoints(detection.object_points, rvec, tvec, K, dist)
         residual = projected.reshape(-1, 2) - detection.image_points
         fits.append(ImageFit(name, int(residual.shape[0]), float(np.sqrt(np.mean(np.sum(residual ** 2, axis=1))))))
-    return CameraCalibration(size, np.asarray(K, dtype=np.float64), np.asarray(dist, dtype=np.float64).ravel(),
-                             float(rms), tuple(fits), "", 1.0, int(flags & ~cv2.CALIB_USE_INTRINSIC_GUESS),
-                             std_devs=std_devs(deviations, flags))
+    return (CameraCalibration(size, np.asarray(K, dtype=np.float64), np.asarray(dist, dtype=np.float64).ravel(),
+                              float(rms), tuple(fits), "", 1.0, int(flags & ~cv2.CALIB_USE_INTRINSIC_GUESS),
+                              std_devs=std_devs(deviations, flags)), view_spread_deg(rvecs))
 
 
 def plane_scale(calibration: CameraCalibration, name: str, detection: Detection) -> PlaneScale:
