@@ -3,7 +3,7 @@
 the cameras' intrinsics fixed at each camera's own fit or refined with R and T (``--intrinsics``; the choice of
 ``dic.calibration.DEFAULT_STEREO_FLAGS``).
 
-For each focal length and noise seed: renders the pairs (``STEREO_VIEWS``, or ``NARROW_STEREO_VIEWS`` under a 15 degree
+For each focal length and noise seed: renders the pairs (``STEREO_VIEWS``, or ``NARROW_STEREO_VIEWS`` under a 10 degree
 field: ``acquire.simulator.targets.stereo_view_plan``), calibrates, and prints the errors against the truth: R (deg),
 T (mm), each camera's focal length (%), principal point, k1, k2, which parameters the narrow-field rule fixed
 (``dic.calibration.determinacy``) and the parameters' standard deviations; and what a measurement sees: points of a
@@ -88,7 +88,7 @@ def main() -> None:
                         help="two: two different distorting lenses (rig_of); simulator: the stereo source's lens "
                              "(k1 -0.05) in both cameras")
     parser.add_argument("--views", choices=("auto", "default", "narrow"), default="auto",
-                        help="auto: stereo_view_plan (steeper tilts, a larger board under a 15 degree field)")
+                        help="auto: stereo_view_plan (steeper tilts, a larger board under a 10 degree field)")
     parser.add_argument("--intrinsics", nargs="+", choices=tuple(CHOICES), default=["refined"])
     parser.add_argument("--angle", type=float, default=25.0)
     parser.add_argument("--distance", type=float, default=300.0)
