@@ -116,8 +116,7 @@ def _fit(detections: Sequence[tuple[str, Detection]], size: tuple[int, int], fla
     if guess is not None:
         flags |= cv2.CALIB_USE_INTRINSIC_GUESS
     rms, K, dist, rvecs, tvecs, deviations, _, _ = cv2.calibrateCameraExtended(
-        objects, images, size, None if guess is None else guess.copy(), None if guess is None else np.zeros(5),
-        flags=flags)
+        objects, images, size, np.eye(3) if guess is None else guess.copy(), np.zeros(5), flags=flags)
     fits = []
     for (name, detection), rvec, tvec in zip(detections, rvecs, tvecs):
         projected, _ = cv2.projectPoints(detection.object_points, rvec, tvec, K, dist)
