@@ -231,8 +231,9 @@ def stereo_view_plan(rig: StereoRig) -> tuple[tuple[tuple[float, float, float, f
 
 def stereo_calibration_views(spec: TargetSpec, square_mm: float, rig: StereoRig,
                              views: tuple[tuple[float, float, float, float, float], ...] = STEREO_VIEWS) -> list[Pose]:
-    """Board -> left camera poses of ``views`` (``STEREO_VIEWS``; ``NARROW_STEREO_VIEWS`` for a long lens) around the rig's aim point (``rig_aim_mm``), each board moved
-    in its direction as far as it stays whole in both images (to 0.02 of the field of view).
+    """Board -> left camera poses of ``views`` (``STEREO_VIEWS``; ``NARROW_STEREO_VIEWS`` for a long lens) around
+    the rig's aim point (``rig_aim_mm``), each board moved in its direction as far as it stays whole in both images
+    (to 0.02 of the field of view).
 
     Raises
     ------

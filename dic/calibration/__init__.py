@@ -12,8 +12,8 @@ from livedic.dic.calibration.stereo_solve import DEFAULT_STEREO_FLAGS, TargetPai
 from livedic.dic.calibration.targets import (Detection, NotFound, NotFoundReason, TargetSpec, detect_target,
                                              parse_target)
 
-__all__ = ["CalibrationError", "CalibrationRefused", "CameraCalibration", "DEFAULT_MAX_ERROR_PX", "DEFAULT_STEREO_FLAGS",
-           "DEFAULT_UNCERTAINTY_BOUNDS", "Detection", "ImageFit", "MIN_VIEWS", "NotFound", "NotFoundReason", "PairFit", "PlaneFrame", "PlaneScale",
-           "StereoCalibration", "TargetPair", "TargetSpec", "UncertaintyBounds", "calibrate", "calibrate_stereo", "detect_target",
-           "distort_points", "image_points", "match_pair", "parse_target", "plane_from_homography", "plane_points",
-           "plane_scale", "undistort_points"]
+__all__ = ["CalibrationError", "CalibrationRefused", "CameraCalibration", "DEFAULT_MAX_ERROR_PX",
+           "DEFAULT_STEREO_FLAGS", "DEFAULT_UNCERTAINTY_BOUNDS", "Detection", "ImageFit", "MIN_VIEWS", "NotFound",
+           "NotFoundReason", "PairFit", "PlaneFrame", "PlaneScale", "StereoCalibration", "TargetPair", "TargetSpec",
+           "UncertaintyBounds", "calibrate", "calibrate_stereo", "detect_target", "distort_points", "image_points",
+           "match_pair", "parse_target", "plane_from_homography", "plane_points", "plane_scale", "undistort_points"]

@@ -1,4 +1,4 @@
-"""Solving a calibration from target detections (Zhang's method, ``cv2.calibrateCamera``) and the
+"""Solving a calibration from target detections (Zhang's method, ``cv2.calibrateCameraExtended``) and the
 specimen plane's scale from one target lying on it.
 
 ``calibrate`` refuses (``CalibrationRefused``) with fewer than ``MIN_VIEWS`` images, when the
@@ -91,19 +91,25 @@ def calibrate(detections: Sequence[tuple[str, Detection]], image_size: tuple[int
         guess = fit.camera_matrix.copy()
         guess[:2, 2] = (width - 1) / 2.0, (height - 1) / 2.0
         fit, _ = _fit(detections, (width, height), flags, guess)
-    worst = sorted(fit.images, key=lambda f: f.rms_px, reverse=True)
-    bad = [f for f in worst if f.rms_px > max_error_px]
-    if fit.rms_px > max_error_px or bad:
-        names = ", ".join(f"{f.name} ({f.rms_px:.2f} px)" for f in (bad or worst)[:3])
-        raise CalibrationRefused(f"reprojection error {fit.rms_px:.3f} px overall, above the bound {max_error_px:g} px "
-                                 f"in {len(bad)} of {len(fit.images)} image(s); worst: {names}: remove blurred views "
-                                 "and views where the board moved, bent or was mis-detected, or raise --max-error")
+    _refuse_above(fit, max_error_px)
     poor = undetermined(corner_effects(fit.camera_matrix, fit.dist_coeffs, (width, height), fit.std_devs), bounds)
     if poor:
         raise CalibrationRefused(describe_undetermined(*poor[0]))
     return replace(fit, target=target, square_mm=float(square_mm), skipped=tuple(skipped),
                    fixed=tuple(name for name in PARAMETERS if name not in free_parameters(flags)),
                    fixed_reason=reason or "")
+
+
+def _refuse_above(fit: CameraCalibration, max_error_px: float) -> None:
+    """CalibrationRefused naming the worst images when the overall RMS or an image's exceeds the bound."""
+    worst = sorted(fit.images, key=lambda f: f.rms_px, reverse=True)
+    bad = [f for f in worst if f.rms_px > max_error_px]
+    if fit.rms_px <= max_error_px and not bad:
+        return
+    names = ", ".join(f"{f.name} ({f.rms_px:.2f} px)" for f in (bad or worst)[:3])
+    raise CalibrationRefused(f"reprojection error {fit.rms_px:.3f} px overall, above the bound {max_error_px:g} px in "
+                             f"{len(bad)} of {len(fit.images)} image(s); worst: {names}: remove blurred views and "
+                             "views where the board moved, bent or was mis-detected, or raise --max-error")
 
 
 def _fit(detections: Sequence[tuple[str, Detection]], size: tuple[int, int], flags: int,

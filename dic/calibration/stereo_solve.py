@@ -4,9 +4,10 @@ Each camera is first calibrated alone (``calibrate``: Zhang's method on every vi
 then the pose between them is solved from the corners seen in both views of each pair (ChArUco corners matched
 by id; a chessboard numbered from the other end in one view is turned to match, ``match_pair``), with both
 cameras' intrinsics refined together with it (``DEFAULT_STEREO_FLAGS``; at a narrow field both cameras' principal
-points fixed at the images' centres and k2, p1, p2 at 0, as ``determinacy`` decides from each camera's own fit). A pair is refused when the reprojection
-RMS in either of its views exceeds the bound (``DEFAULT_MAX_ERROR_PX``, the 2D calibration's): one pair whose
-board moved between the two exposures would bend R and T for every measurement made with them.
+points fixed at the images' centres and k2, p1, p2 at 0, as ``determinacy`` decides from each camera's own fit). A
+pair is refused when the reprojection RMS in either of its views exceeds the bound (``DEFAULT_MAX_ERROR_PX``, the 2D
+calibration's): one pair whose board moved between the two exposures would bend R and T for every measurement made
+with them.
 """
 
 from __future__ import annotations
