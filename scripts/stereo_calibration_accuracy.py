@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -90,6 +91,9 @@ def main() -> None:
     parser.add_argument("--views", choices=("auto", "default", "narrow"), default="auto",
                         help="auto: stereo_view_plan (steeper tilts, a larger board under a 10 degree field)")
     parser.add_argument("--intrinsics", nargs="+", choices=tuple(CHOICES), default=["refined"])
+    parser.add_argument("--centre-offset", type=float, nargs=2, default=(0.0, 0.0), metavar=("DX", "DY"),
+                        help="the left lens's principal point this far (px) from the image's centre, the right's "
+                             "as far the other way (the truth a fixed principal point then misses)")
     parser.add_argument("--angle", type=float, default=25.0)
     parser.add_argument("--distance", type=float, default=300.0)
     parser.add_argument("--target", default="chessboard:9x6")
@@ -102,6 +106,9 @@ def main() -> None:
     for focal in args.focal:
         rig = (rig_of(size, focal, args.angle, args.distance) if args.lens == "two"  # type: ignore[arg-type]
                else simulator_rig(size, focal, args.angle, args.distance))  # type: ignore[arg-type]
+        dx, dy = args.centre_offset
+        rig = replace(rig, left=replace(rig.left, centre_offset_px=(dx, dy), _grid={}),
+                      right=replace(rig.right, centre_offset_px=(-dx, -dy), _grid={}))
         views, fill = {"auto": stereo_view_plan(rig), "default": (STEREO_VIEWS, WIDE_FILL),
                        "narrow": (NARROW_STEREO_VIEWS, NARROW_STEREO_VIEW_FILL)}[args.views]
         measure(rig, args, views, args.fill or (WIDE_FILL if views is STEREO_VIEWS else fill))
