@@ -20,9 +20,10 @@ from typing import Any, TypeVar
 from livedic.acquire.atomic_file import AtomicFile
 from livedic.acquire.files.image_file import read_grey_image, read_same_size_images
 from livedic.acquire.files.image_sequence import find_images
-from livedic.dic.calibration import (DEFAULT_MAX_ERROR_PX, MIN_VIEWS, CalibrationError, CameraCalibration,
-                                     Detection, NotFound, StereoCalibration, TargetPair, TargetSpec, calibrate,
-                                     calibrate_stereo, detect_target, parse_target, plane_scale)
+from livedic.dic.calibration import (DEFAULT_MAX_ERROR_PX, DEFAULT_UNCERTAINTY_BOUNDS, MIN_VIEWS, CalibrationError,
+                                     CameraCalibration, Detection, NotFound, StereoCalibration, TargetPair, TargetSpec,
+                                     UncertaintyBounds, calibrate, calibrate_stereo, detect_target, parse_target,
+                                     plane_scale)
 
 FORMAT = "livedic-calibration"
 VERSION = 1
@@ -141,6 +142,7 @@ def expand_images(arguments: Sequence[str]) -> list[str]:
 
 def calibrate_images(images: Sequence[str], target: str, square_mm: float, *, plane: str | None = None,
                      max_error_px: float = DEFAULT_MAX_ERROR_PX,
+                     bounds: UncertaintyBounds = DEFAULT_UNCERTAINTY_BOUNDS,
                      on_image: Callable[[ImageOutcome], object] | None = None) -> CameraCalibration:
     """Calibrate from target images on disk (each read, its target found, then ``dic.calibration.calibrate``).
 
@@ -182,7 +184,7 @@ def calibrate_images(images: Sequence[str], target: str, square_mm: float, *, pl
                                f"calibration needs at least {MIN_VIEWS} views at different tilts: check --target "
                                "(a chessboard counts inner corners: 10 x 7 squares is chessboard:9x6) and the images")
     calibration = calibrate(found, size, target=spec.text, square_mm=square_mm, max_error_px=max_error_px,
-                            skipped=skipped)
+                            skipped=skipped, bounds=bounds)
     if plane is None:
         return calibration
     image = _read(plane)
@@ -204,6 +206,7 @@ class PairOutcome:
 
 def calibrate_image_pairs(left_images: Sequence[str], right_images: Sequence[str], target: str, square_mm: float, *,
                           max_error_px: float = DEFAULT_MAX_ERROR_PX,
+                          bounds: UncertaintyBounds = DEFAULT_UNCERTAINTY_BOUNDS,
                           on_pair: Callable[[PairOutcome], object] | None = None) -> StereoCalibration:
     """Calibrate a stereo rig from target images on disk: the i-th left image and the i-th right image are one
     pair (taken at the same moment); each read, its target found, then ``calibrate_stereo``.
@@ -242,7 +245,7 @@ def calibrate_image_pairs(left_images: Sequence[str], right_images: Sequence[str
                                "--target (a chessboard counts inner corners: 10 x 7 squares is chessboard:9x6) and "
                                "that both cameras see the whole board")
     size = (lefts[0].shape[1], lefts[0].shape[0]), (rights[0].shape[1], rights[0].shape[0])
-    return calibrate_stereo(pairs, *size, spec=spec, square_mm=square_mm, max_error_px=max_error_px)
+    return calibrate_stereo(pairs, *size, spec=spec, square_mm=square_mm, max_error_px=max_error_px, bounds=bounds)
 
 
 def _found(outcome: ImageOutcome) -> Detection | None:

@@ -1,14 +1,18 @@
 #!/usr/bin/env python3
-"""A stereo calibration's accuracy on target pairs rendered through a known rig, with the cameras' intrinsics fixed
-at each camera's own fit or refined with R and T (the choice of ``dic.calibration.DEFAULT_STEREO_FLAGS``).
+"""A stereo calibration's accuracy on target pairs rendered through a known rig, at one or several focal lengths, with
+the cameras' intrinsics fixed at each camera's own fit or refined with R and T (``--intrinsics``; the choice of
+``dic.calibration.DEFAULT_STEREO_FLAGS``).
 
-For each noise seed: renders ``STEREO_VIEWS`` pairs (``acquire.simulator.targets``), calibrates both ways, and
-prints the errors against the truth: R (deg), T (mm), focal lengths (%), and what a measurement sees: points of a
+For each focal length and noise seed: renders the pairs (``STEREO_VIEWS``, or ``NARROW_STEREO_VIEWS`` under a 10 degree
+field: ``acquire.simulator.targets.stereo_view_plan``), calibrates, and prints the errors against the truth: R (deg),
+T (mm), each camera's focal length (%), principal point, k1, k2, which parameters the narrow-field rule fixed
+(``dic.calibration.determinacy``) and the parameters' standard deviations; and what a measurement sees: points of a
 flat specimen at the aim point projected through the true rig and triangulated with the calibration, their
 position error (mm RMS) and the false strain when it moves rigidly (0.5 mm, 1 degree; microstrain RMS). ``--write DIR`` also writes
 the images (DIR/left, DIR/right) for ``livedic calibrate --left DIR/left --right DIR/right``:
 
-    .venv/bin/python scripts/stereo_calibration_accuracy.py [--size 640x480] [--focal 640] [--angle 25]
+    .venv/bin/python scripts/stereo_calibration_accuracy.py [--size 640x480] [--focal 640 [2000 ...]] [--angle 25]
+        [--lens two|simulator] [--views auto|default|narrow] [--intrinsics refined fixed]
         [--target chessboard:9x6] [--fill 0.45] [--seeds 0 100 200] [--write DIR]
 """
 
@@ -16,17 +20,21 @@ from __future__ import annotations
 
 import argparse
 import os
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
 from livedic.acquire.simulator.lens import Lens
 from livedic.acquire.simulator.stereo_rig import StereoRig
-from livedic.acquire.simulator.targets import (rig_aim_mm, render_target_pair, stereo_calibration_views,
-                                               stereo_square_mm)
-from livedic.dic.calibration import (DEFAULT_STEREO_FLAGS, Detection, StereoCalibration, TargetPair,
-                                     calibrate_stereo, detect_target, parse_target, undistort_points)
+from livedic.acquire.simulator.targets import (NARROW_STEREO_VIEW_FILL, NARROW_STEREO_VIEWS,
+                                               STEREO_VIEWS, render_target_pair, rig_aim_mm, stereo_calibration_views,
+                                               stereo_square_mm, stereo_view_plan)
+from livedic.dic.calibration import (DEFAULT_STEREO_FLAGS, CalibrationRefused, Detection, StereoCalibration,
+                                     TargetPair, calibrate_stereo, detect_target, parse_target, undistort_points)
 
+# The board's width for STEREO_VIEWS here (the guide's tables): a larger board than the simulator's STEREO_VIEW_FILL.
+WIDE_FILL = 0.45
 CHOICES = {"fixed": cv2.CALIB_FIX_INTRINSIC, "refined": DEFAULT_STEREO_FLAGS}
 
 
@@ -75,22 +83,54 @@ def measured_points(rig: StereoRig, calibration: StereoCalibration, count: int =
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", default="640x480")
-    parser.add_argument("--focal", type=float, default=640.0, help="left focal length (px)")
+    parser.add_argument("--focal", type=float, nargs="+", default=[640.0],
+                        help="left focal length(s) (px): one rig each, e.g. 2000 4000 8000 12000")
+    parser.add_argument("--lens", choices=("two", "simulator"), default="two",
+                        help="two: two different distorting lenses (rig_of); simulator: the stereo source's lens "
+                             "(k1 -0.05) in both cameras")
+    parser.add_argument("--views", choices=("auto", "default", "narrow"), default="auto",
+                        help="auto: stereo_view_plan (steeper tilts, a larger board under a 10 degree field)")
+    parser.add_argument("--intrinsics", nargs="+", choices=tuple(CHOICES), default=["refined"])
+    parser.add_argument("--centre-offset", type=float, nargs=2, default=(0.0, 0.0), metavar=("DX", "DY"),
+                        help="the left lens's principal point this far (px) from the image's centre, the right's "
+                             "as far the other way (the truth a fixed principal point then misses)")
     parser.add_argument("--angle", type=float, default=25.0)
     parser.add_argument("--distance", type=float, default=300.0)
     parser.add_argument("--target", default="chessboard:9x6")
-    parser.add_argument("--fill", type=float, default=0.45, help="board width / left image width at the aim point")
+    parser.add_argument("--fill", type=float, help="board width / left image width at the aim point (default: the "
+                                                   "views' own)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--write", metavar="DIR", help="write the (first seed's) images to DIR/left, DIR/right")
     args = parser.parse_args()
     size = tuple(int(v) for v in args.size.split("x"))
-    rig = rig_of(size, args.focal, args.angle, args.distance)  # type: ignore[arg-type]
+    for focal in args.focal:
+        rig = (rig_of(size, focal, args.angle, args.distance) if args.lens == "two"  # type: ignore[arg-type]
+               else simulator_rig(size, focal, args.angle, args.distance))  # type: ignore[arg-type]
+        dx, dy = args.centre_offset
+        rig = replace(rig, left=replace(rig.left, centre_offset_px=(dx, dy), _grid={}),
+                      right=replace(rig.right, centre_offset_px=(-dx, -dy), _grid={}))
+        views, fill = {"auto": stereo_view_plan(rig), "default": (STEREO_VIEWS, WIDE_FILL),
+                       "narrow": (NARROW_STEREO_VIEWS, NARROW_STEREO_VIEW_FILL)}[args.views]
+        measure(rig, args, views, args.fill or (WIDE_FILL if views is STEREO_VIEWS else fill))
+
+
+def simulator_rig(size: tuple[int, int], focal: float, angle: float, distance: float) -> StereoRig:
+    """The stereo source's rig (``synthetic:stereo``): one lens with k1 -0.05 in both cameras."""
+    lens = Lens(size, k1=-0.05, focal_px=focal)
+    return StereoRig.symmetric(lens, lens, distance_mm=distance, angle_deg=angle)
+
+
+def measure(rig: StereoRig, args: argparse.Namespace, views: tuple, fill: float) -> None:
+    """Render the views' pairs for each seed, calibrate, print the errors against the truth."""
     truth = rig.calibration()
     spec = parse_target(args.target)
-    square = stereo_square_mm(spec, rig, args.fill)
-    poses = stereo_calibration_views(spec, square, rig)
-    print(f"rig {args.size}, f {args.focal:g}/{1.03 * args.focal:g} px, {args.angle:g} deg, baseline "
-          f"{truth.baseline_mm:.1f} mm; {len(poses)} pairs of {spec.text}, square {square:.4g} mm")
+    square = stereo_square_mm(spec, rig, fill)
+    poses = stereo_calibration_views(spec, square, rig, views)
+    focal = rig.left.camera_matrix[0, 0]
+    field = np.degrees(2 * np.arctan(rig.left.size[0] / 2 / focal))
+    print(f"rig {args.size}, f {focal:g}/{rig.right.camera_matrix[0, 0]:g} px ({field:.1f} degree field), "
+          f"{args.angle:g} deg, baseline {truth.baseline_mm:.1f} mm; {len(poses)} pairs of {spec.text}, square "
+          f"{square:.4g} mm ({fill:g} of the field), tilts up to {max(max(abs(v[0]), abs(v[1])) for v in views):g} deg")
     for seed in args.seeds:
         pairs = []
         for i, pose in enumerate(poses):
@@ -102,16 +142,28 @@ def main() -> None:
             found = [detect_target(image, spec, square) for image in images]
             pairs.append(TargetPair(f"left_{i}", f"right_{i}",
                                     *(f if isinstance(f, Detection) else None for f in found)))
-        for name, flags in CHOICES.items():
-            fit = calibrate_stereo(pairs, rig.left.size, rig.right.size, spec=spec, square_mm=square, flags=flags)
+        for name in args.intrinsics:
+            try:
+                fit = calibrate_stereo(pairs, rig.left.size, rig.right.size, spec=spec, square_mm=square,
+                                       flags=CHOICES[name])
+            except CalibrationRefused as refused:
+                print(f"seed {seed} {name:8s} refused: {refused}")
+                continue
             turn = fit.rotation @ truth.rotation.T
             angle = np.degrees(np.arccos(np.clip((np.trace(turn) - 1.0) / 2.0, -1.0, 1.0)))
-            focal = [100 * (getattr(fit, s).camera_matrix[0, 0] / getattr(truth, s).camera_matrix[0, 0] - 1)
-                     for s in ("left", "right")]
             position, strain = measured_points(rig, fit)
             print(f"seed {seed} {name:8s} RMS {fit.rms_px:.3f} px  R {angle:.3f} deg  T "
-                  f"{np.linalg.norm(fit.translation_mm - truth.translation_mm):.3f} mm  f {focal[0]:+.2f}/"
-                  f"{focal[1]:+.2f} %  points {position:.3f} mm RMS  rigid-motion strain {strain:.0f} microstrain RMS", flush=True)
+                  f"{np.linalg.norm(fit.translation_mm - truth.translation_mm):.3f} mm  rig angle "
+                  f"{fit.angle_deg:.3f} deg  points {position:.3f} mm RMS  rigid-motion strain {strain:.0f} "
+                  "microstrain RMS", flush=True)
+            for side in ("left", "right"):
+                camera, true = getattr(fit, side), getattr(truth, side)
+                K, dist = camera.camera_matrix, camera.dist_coeffs
+                spread = ", ".join(f"{k} {v:.3g}" for k, v in camera.std_devs.items())
+                print(f"    {side:5s} f {100 * (K[0, 0] / true.camera_matrix[0, 0] - 1):+.2f} % "
+                      f"principal point ({K[0, 2]:.1f}, {K[1, 2]:.1f}) for ({true.camera_matrix[0, 2]:.1f}, "
+                      f"{true.camera_matrix[1, 2]:.1f}), k1 {dist[0]:.4f} ({true.dist_coeffs[0]:g}), k2 {dist[1]:.3g} "
+                      f"({true.dist_coeffs[1]:g}); fixed {', '.join(camera.fixed)}; std dev (own views) {spread}")
 
 
 if __name__ == "__main__":

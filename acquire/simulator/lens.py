@@ -1,5 +1,5 @@
 """The simulated camera's lens: a pinhole camera (focal length ``LENS_FOCAL_WIDTHS`` x the image width unless
-``focal_px`` says otherwise, principal point at the image centre) with OpenCV's distortion k1, k2, p1, p2.
+``focal_px`` says otherwise, principal point at the image centre, or ``centre_offset_px`` from it) with OpenCV's distortion k1, k2, p1, p2.
 
 A scene point whose ideal (undistorted) pixel position is X appears in the image at ``distort(X)``;
 the image pixel x shows the scene point at ``undistort(x)``. The sources render through it exactly
@@ -28,13 +28,17 @@ class Lens:
     p1: float = 0.0
     p2: float = 0.0
     focal_px: float | None = None      # None: LENS_FOCAL_WIDTHS x the width (a normal lens)
+    # The principal point's offset from the image's centre (px): a real lens's optical centre is rarely the sensor's.
+    centre_offset_px: tuple[float, float] = (0.0, 0.0)
     _grid: dict[str, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def camera_matrix(self) -> np.ndarray:
         width, height = self.size
         focal = LENS_FOCAL_WIDTHS * width if self.focal_px is None else self.focal_px
-        return np.array([[focal, 0.0, (width - 1) / 2.0], [0.0, focal, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+        dx, dy = self.centre_offset_px
+        return np.array([[focal, 0.0, (width - 1) / 2.0 + dx], [0.0, focal, (height - 1) / 2.0 + dy],
+                         [0.0, 0.0, 1.0]])
 
     @property
     def dist_coeffs(self) -> np.ndarray:

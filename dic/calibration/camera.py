@@ -101,6 +101,16 @@ class CameraCalibration:
         The ``cv2.calibrateCamera`` flags used.
     plane : PlaneScale or None
         The specimen plane's scale, when a target image on it was given.
+    skipped : tuple of str
+        Images in which no target was found.
+    std_devs : dict of str to float
+        Each fitted parameter's standard deviation from its own views (fx, fy, cx, cy in px; k1, k2, p1, p2
+        unitless), as ``cv2.calibrateCameraExtended`` estimates it; empty for a calibration not fitted here.
+    fixed : tuple of str
+        The parameters held fixed (not fitted): k3 always; the principal point, k2, p1, p2 too when the views
+        could not determine them (``fixed_reason``; ``dic.calibration.determinacy``).
+    fixed_reason : str
+        Why more than k3 is fixed ("" when nothing else is).
     """
 
     image_size: tuple[int, int]
@@ -113,6 +123,9 @@ class CameraCalibration:
     flags: int = 0
     plane: PlaneScale | None = None
     skipped: tuple[str, ...] = field(default=())
+    std_devs: dict[str, float] = field(default_factory=dict)
+    fixed: tuple[str, ...] = field(default=())
+    fixed_reason: str = ""
 
     @property
     def px_per_mm(self) -> float | None:
@@ -126,7 +139,8 @@ class CameraCalibration:
                 "images": [{"name": f.name, "corners": f.corners, "rms_px": f.rms_px} for f in self.images],
                 "skipped": list(self.skipped), "target": self.target, "square_mm": self.square_mm,
                 "flags": self.flags, "plane": None if self.plane is None else self.plane.to_dict(),
-                "px_per_mm": self.px_per_mm}
+                "px_per_mm": self.px_per_mm, "std_devs": dict(self.std_devs), "fixed_parameters": list(self.fixed),
+                "fixed_reason": self.fixed_reason}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> CameraCalibration:
@@ -142,7 +156,9 @@ class CameraCalibration:
             plane = None if data.get("plane") is None else PlaneScale.from_dict(data["plane"])
             return cls((width, height), _matrix(data["camera_matrix"], (3, 3), "camera_matrix"), dist,
                        float(data["rms_px"]), images, str(data["target"]), _positive(data["square_mm"], "square_mm"),
-                       int(data.get("flags", 0)), plane, tuple(str(s) for s in data.get("skipped", ())))
+                       int(data.get("flags", 0)), plane, tuple(str(s) for s in data.get("skipped", ())),
+                       {str(k): float(v) for k, v in data.get("std_devs", {}).items()},
+                       tuple(str(s) for s in data.get("fixed_parameters", ())), str(data.get("fixed_reason", "")))
         except KeyError as missing:
             raise CalibrationError(f"field {missing.args[0]!r} is missing") from None
         except (TypeError, ValueError) as error:

@@ -3,9 +3,11 @@
 Each camera is first calibrated alone (``calibrate``: Zhang's method on every view in which it saw the target),
 then the pose between them is solved from the corners seen in both views of each pair (ChArUco corners matched
 by id; a chessboard numbered from the other end in one view is turned to match, ``match_pair``), with both
-cameras' intrinsics refined together with it (``DEFAULT_STEREO_FLAGS``). A pair is refused when the reprojection
-RMS in either of its views exceeds the bound (``DEFAULT_MAX_ERROR_PX``, the 2D calibration's): one pair whose
-board moved between the two exposures would bend R and T for every measurement made with them.
+cameras' intrinsics refined together with it (``DEFAULT_STEREO_FLAGS``; at a narrow field both cameras' principal
+points fixed at the images' centres and k2, p1, p2 at 0, as ``determinacy`` decides from each camera's own fit). A
+pair is refused when the reprojection RMS in either of its views exceeds the bound (``DEFAULT_MAX_ERROR_PX``, the 2D
+calibration's): one pair whose board moved between the two exposures would bend R and T for every measurement made
+with them.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import cv2
 import numpy as np
 
 from livedic.dic.calibration.camera import CameraCalibration, ImageFit
+from livedic.dic.calibration.determinacy import DEFAULT_UNCERTAINTY_BOUNDS, NARROW_FIELD_FLAGS, UncertaintyBounds
 from livedic.dic.calibration.solve import DEFAULT_MAX_ERROR_PX, MIN_VIEWS, CalibrationRefused, calibrate
 from livedic.dic.calibration.stereo import PairFit, StereoCalibration
 from livedic.dic.calibration.targets import MIN_CHARUCO_CORNERS, Detection, TargetSpec
@@ -46,7 +49,8 @@ class TargetPair:
 
 def calibrate_stereo(pairs: Sequence[TargetPair], left_size: tuple[int, int], right_size: tuple[int, int], *,
                      spec: TargetSpec, square_mm: float, max_error_px: float = DEFAULT_MAX_ERROR_PX,
-                     flags: int = DEFAULT_STEREO_FLAGS) -> StereoCalibration:
+                     flags: int = DEFAULT_STEREO_FLAGS,
+                     bounds: UncertaintyBounds = DEFAULT_UNCERTAINTY_BOUNDS) -> StereoCalibration:
     """The rig seen in ``pairs``: each camera's intrinsics and distortion, R and T left -> right, per-pair errors.
 
     Parameters
@@ -60,20 +64,34 @@ def calibrate_stereo(pairs: Sequence[TargetPair], left_size: tuple[int, int], ri
     max_error_px : float
         Refuse when the overall RMS, a camera's own fit, or either view of any pair exceeds it.
     flags : int
-        ``cv2.stereoCalibrate`` flags (default ``DEFAULT_STEREO_FLAGS``).
+        ``cv2.stereoCalibrate`` flags (default ``DEFAULT_STEREO_FLAGS``); the narrow field's
+        (``determinacy.NARROW_FIELD_FLAGS``) are added when a camera's views cannot locate its principal point.
+    bounds : UncertaintyBounds
+        Refuse when a camera's own fit leaves a parameter's standard deviation above them.
 
     Raises
     ------
     CalibrationRefused
-        Fewer than ``MIN_VIEWS`` usable pairs, or a reprojection RMS above ``max_error_px``.
+        Fewer than ``MIN_VIEWS`` usable pairs, a reprojection RMS above ``max_error_px``, or a camera's parameter
+        determined worse than ``bounds``.
     """
     seen = [pair for pair in pairs if pair.left_found is not None and pair.right_found is not None]
     if len(seen) < MIN_VIEWS:
         raise CalibrationRefused(f"the target was seen in both views of {len(seen)} of {len(pairs)} pair(s); a "
                                  f"stereo calibration needs at least {MIN_VIEWS} pairs at different tilts (10-20 is "
                                  "better)")
-    left = _camera(pairs, "left", left_size, spec, square_mm, max_error_px)
-    right = _camera(pairs, "right", right_size, spec, square_mm, max_error_px)
+    left = _camera(pairs, "left", left_size, spec, square_mm, max_error_px, bounds)
+    right = _camera(pairs, "right", right_size, spec, square_mm, max_error_px, bounds)
+    # One lens model for the rig: when either camera's views cannot locate its principal point, both are fixed
+    # (stereoCalibrate's flags hold for both cameras).
+    if left.fixed_reason and not right.fixed_reason:
+        right = _camera(pairs, "right", right_size, spec, square_mm, max_error_px, bounds,
+                        f"as the left camera's: {left.fixed_reason}")
+    elif right.fixed_reason and not left.fixed_reason:
+        left = _camera(pairs, "left", left_size, spec, square_mm, max_error_px, bounds,
+                       f"as the right camera's: {right.fixed_reason}")
+    if left.fixed_reason:
+        flags |= NARROW_FIELD_FLAGS
     used: list[tuple[TargetPair, Detection, Detection]] = []
     skipped: list[str] = []
     for pair in pairs:
@@ -151,12 +169,13 @@ def _turn_between(left: Detection, right: Detection, left_camera: CameraCalibrat
 
 
 def _camera(pairs: Sequence[TargetPair], side: str, size: tuple[int, int], spec: TargetSpec, square_mm: float,
-            max_error_px: float) -> CameraCalibration:
-    """One camera calibrated alone from every view in which it saw the target (the stereo fit's start)."""
+            max_error_px: float, bounds: UncertaintyBounds, narrow_field: str | None = None) -> CameraCalibration:
+    """One camera calibrated alone from every view in which it saw the target (the stereo fit's start;
+    ``narrow_field``: a reason to fix the narrow field's parameters whatever its own views say)."""
     missing = tuple(getattr(pair, side) for pair in pairs if getattr(pair, f"{side}_found") is None)
     try:
         return calibrate(_views(pairs, side), size, target=spec.text, square_mm=square_mm, max_error_px=max_error_px,
-                         skipped=missing)
+                         skipped=missing, bounds=bounds, narrow_field=narrow_field)
     except CalibrationRefused as refused:
         raise CalibrationRefused(f"the {side} camera: {refused}") from None
 

@@ -3,8 +3,10 @@
 
 Prints each image (target found or not, its reprojection RMS), the intrinsics, the distortion, the overall
 RMS and the specimen plane's px/mm (``--plane``); for a rig, each pair's RMS in both views, both cameras,
-the baseline and the angle between them. Refuses (one line, exit 2, nothing written) when the fit exceeds
-``--max-error``, too few views (pairs) show the target, or the two cameras' lists differ in length. The guide:
+the baseline and the angle between them, the parameters' standard deviations and those fixed (a narrow field's
+principal point, k2, p1, p2) and why. Refuses (one line, exit 2, nothing written) when the fit exceeds
+``--max-error``, a parameter stays less certain than ``--max-uncertainty`` / ``--max-focal-uncertainty``, too few
+views (pairs) show the target, or the two cameras' lists differ in length. The guide:
 docs/guide/calibration.md.
 """
 
@@ -14,7 +16,8 @@ import argparse
 import os
 import sys
 
-from livedic.dic.calibration import DEFAULT_MAX_ERROR_PX, CameraCalibration, Detection, StereoCalibration
+from livedic.dic.calibration import (DEFAULT_MAX_ERROR_PX, DEFAULT_UNCERTAINTY_BOUNDS, CameraCalibration, Detection,
+                                     StereoCalibration, UncertaintyBounds)
 from livedic.dic.calibration.solve import TILT_WARNING_DEG
 from livedic.stream.session.parsing import UsageError
 
@@ -43,6 +46,13 @@ def add_calibrate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-error", type=float, default=DEFAULT_MAX_ERROR_PX, metavar="PX",
                         help=f"refuse the calibration when the reprojection RMS, overall or of any image, exceeds "
                              f"PX (default {DEFAULT_MAX_ERROR_PX:g})")
+    parser.add_argument("--max-uncertainty", type=float, default=DEFAULT_UNCERTAINTY_BOUNDS.corner_px, metavar="PX",
+                        help="refuse the calibration when a distortion parameter's standard deviation moves the "
+                             f"image's corner by more than PX (default {DEFAULT_UNCERTAINTY_BOUNDS.corner_px:g})")
+    parser.add_argument("--max-focal-uncertainty", type=float, default=DEFAULT_UNCERTAINTY_BOUNDS.focal_percent,
+                        metavar="PERCENT",
+                        help="refuse the calibration when a focal length's standard deviation exceeds PERCENT of it "
+                             f"(default {DEFAULT_UNCERTAINTY_BOUNDS.focal_percent:g})")
     parser.add_argument("--overwrite", action="store_true", help="replace CAL.json if it exists")
 
 
@@ -56,6 +66,10 @@ def calibrate_command(args: argparse.Namespace) -> int:
     check_output_file(args.output, "-o")
     if not args.max_error > 0.0:
         raise UsageError(f"--max-error {args.max_error:g}: must be a number of pixels > 0, e.g. 0.5")
+    for option, value, example in (("--max-uncertainty", args.max_uncertainty, "1"),
+                                   ("--max-focal-uncertainty", args.max_focal_uncertainty, "1")):
+        if not value > 0.0:
+            raise UsageError(f"{option} {value:g}: must be a number > 0, e.g. {example}")
     if args.left or args.right:
         return _calibrate_stereo(args)
     if not args.images:
@@ -69,7 +83,7 @@ def calibrate_command(args: argparse.Namespace) -> int:
 
     print(f"livedic: finding {args.target} in {len(images)} image(s)", file=sys.stderr)
     calibration = calibrate_images(images, args.target, args.square, plane=args.plane,
-                                   max_error_px=args.max_error, on_image=say)
+                                   max_error_px=args.max_error, bounds=_bounds(args), on_image=say)
     write_calibration(args.output, calibration)
     print(describe_calibration(calibration))
     print(f"livedic: wrote {args.output}", file=sys.stderr)
@@ -98,11 +112,15 @@ def _calibrate_stereo(args: argparse.Namespace) -> int:
 
     print(f"livedic: finding {args.target} in {len(lefts)} left and {len(rights)} right image(s)", file=sys.stderr)
     calibration = calibrate_image_pairs(lefts, rights, args.target, args.square, max_error_px=args.max_error,
-                                        on_pair=say)
+                                        bounds=_bounds(args), on_pair=say)
     write_calibration(args.output, calibration)
     print(describe_stereo_calibration(calibration))
     print(f"livedic: wrote {args.output}", file=sys.stderr)
     return 0
+
+
+def _bounds(args: argparse.Namespace) -> UncertaintyBounds:
+    return UncertaintyBounds(focal_percent=args.max_focal_uncertainty, corner_px=args.max_uncertainty)
 
 
 def describe_stereo_calibration(rig: StereoCalibration) -> str:
@@ -113,6 +131,7 @@ def describe_stereo_calibration(rig: StereoCalibration) -> str:
     lines += [f"  not used: {reason}" for reason in rig.skipped]
     for side, camera in (("left", rig.left), ("right", rig.right)):
         lines.append(f"{side} camera ({camera.image_size[0]}x{camera.image_size[1]}): {_intrinsics(camera)}")
+        lines.append(f"  {_determinacy(camera)}")
     lines += [f"baseline {rig.baseline_mm:.3f} mm, angle between the cameras {rig.angle_deg:.3f} deg; "
               f"T = ({', '.join(f'{v:.3f}' for v in rig.translation_mm)}) mm (X_right = R X_left + T)",
               f"reprojection RMS {rig.rms_px:.3f} px over all pairs, both views"]
@@ -124,6 +143,14 @@ def _intrinsics(camera: CameraCalibration) -> str:
     K = camera.camera_matrix
     return (f"focal length fx={K[0, 0]:.2f} px, fy={K[1, 1]:.2f} px; principal point ({K[0, 2]:.2f}, {K[1, 2]:.2f}) "
             f"px; distortion {_distortion(camera)}")
+
+
+def _determinacy(camera: CameraCalibration) -> str:
+    """The fitted parameters' standard deviations and what was fixed, and why, on one line."""
+    spread = ", ".join(f"{name} +-{value:.3g}" for name, value in camera.std_devs.items())
+    fixed = f"fixed: {', '.join(camera.fixed) or 'nothing'}"
+    return f"standard deviations (own views) {spread}; {fixed}" + (f" ({camera.fixed_reason})"
+                                                                    if camera.fixed_reason else "")
 
 
 def _distortion(camera: CameraCalibration) -> str:
@@ -141,6 +168,7 @@ def describe_calibration(calibration: CameraCalibration) -> str:
         lines.append(f"  not used (no target): {', '.join(calibration.skipped)}")
     lines += [f"focal length fx={K[0, 0]:.2f} px, fy={K[1, 1]:.2f} px; principal point ({K[0, 2]:.2f}, {K[1, 2]:.2f}) px",
               f"distortion {_distortion(calibration)}",
+              _determinacy(calibration),
               f"reprojection RMS {calibration.rms_px:.3f} px over all views"]
     plane = calibration.plane
     if plane is None:

@@ -64,3 +64,14 @@ def test_the_lens_path_fades_the_paint_as_the_row_renderer():
     unfaded = list(open_synthetic(uri.replace("fade=0.8", "fade=0") + "&k1=-0.1"))
     np.testing.assert_array_equal(bent[0].image, unfaded[0].image)           # the reference is not faded
     assert np.mean(np.abs(bent[last].image.astype(float) - unfaded[last].image)) > 1.0
+
+
+def test_a_decentred_lens_distorts_about_its_principal_point():
+    lens = Lens((200, 100), k1=-0.2, focal_px=150.0, centre_offset_px=(7.0, -4.0))
+    np.testing.assert_allclose(lens.camera_matrix[:2, 2], [106.5, 45.5])
+    # the principal point does not move; a point 40 px right of it moves inwards along x only (barrel)
+    centre = lens.camera_matrix[:2, 2]
+    np.testing.assert_allclose(lens.distort(centre), centre, atol=1e-9)
+    moved = lens.distort(centre + [40.0, 0.0])
+    assert moved[0] < centre[0] + 40.0 and moved[1] == pytest.approx(centre[1], abs=1e-9)
+    np.testing.assert_allclose(lens.undistort(moved), centre + [40.0, 0.0], atol=1e-9)

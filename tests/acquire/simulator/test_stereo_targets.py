@@ -57,3 +57,31 @@ def test_a_board_too_large_or_a_rig_without_an_aim_point_is_refused(rig):
     parallel = StereoRig(rig.left, rig.right, np.eye(3), np.array([-100.0, 0.0, 0.0]))
     with pytest.raises(ValueError, match="parallel"):
         rig_aim_mm(parallel)
+
+
+def test_a_long_lens_gets_steeper_views_of_a_board_half_its_field_wide():
+    from livedic.acquire.simulator.targets import (NARROW_STEREO_VIEW_FILL, NARROW_STEREO_VIEWS, STEREO_VIEW_FILL,
+                                                   board_extent, stereo_view_plan)
+
+    # a 50 mm lens on a 1 MP camera at 300 mm: f 8000 px on 1024 px, a 7.3 degree field, ~38 mm wide at the aim
+    lens = Lens((1024, 768), k1=-0.05, focal_px=8000.0)
+    narrow = StereoRig.symmetric(lens, lens, distance_mm=300.0, angle_deg=25.0)
+    views, fill = stereo_view_plan(narrow)
+    assert (views, fill) == (NARROW_STEREO_VIEWS, NARROW_STEREO_VIEW_FILL)
+    wide = StereoRig.symmetric(Lens((1024, 768), focal_px=4000.0), Lens((1024, 768), focal_px=4000.0),
+                               distance_mm=300.0, angle_deg=25.0)
+    assert stereo_view_plan(wide) == (STEREO_VIEWS, STEREO_VIEW_FILL)
+    spec = parse_target("chessboard:9x6")
+    square = stereo_square_mm(spec, narrow, fill)
+    x0, _, x1, _ = board_extent(spec, square)
+    assert x1 - x0 == pytest.approx(0.5 * 1024 * 300.0 / 8000.0)        # 19.2 mm of a 38.4 mm field
+    tilts = []
+    for pose in stereo_calibration_views(spec, square, narrow, views):
+        assert board_in_view(spec, square, narrow.left, pose)
+        assert board_in_view(spec, square, narrow.right, narrow.right_pose(pose))
+        for rvec in (pose.rvec, narrow.right_pose(pose).rvec):
+            normal = cv2.Rodrigues(np.asarray(rvec))[0][:, 2]
+            tilts.append(np.degrees(np.arccos(abs(normal[2]))))
+    # each camera sees the board tilted 12.5-51.4 degrees from its axis (up to 37.5 from the bisector, and half the
+    # rig's angle), the median 33: the steep views a long lens's focal length needs
+    assert 45.0 < max(tilts) < 55.0 and 25.0 < np.median(tilts) < 40.0

@@ -45,3 +45,46 @@ def stereo_pairs():
         assert all(isinstance(f, Detection) for f in found)
         pairs.append(TargetPair(f"left_{i}.png", f"right_{i}.png", *found))
     return rig, spec, square, pairs
+
+
+# The simulator's long-lens rig (synthetic:stereo's: 1024 px wide, f 8000 px, a 7 degree field; k1 -0.05 in both
+# cameras, 25 degrees apart at 300 mm) and 9 of its narrow-field views (steep tilts, a board half the field wide).
+NARROW_SIZE = (1024, 768)
+NARROW_FOCAL_PX = 8000.0
+NARROW_VIEW_COUNT = 9
+
+
+def render_pairs(rig, spec, square, poses, seed=0):
+    """[TargetPair] of ``poses`` rendered through ``rig`` (None where the target is not found)."""
+    from livedic.acquire.simulator.targets import render_target_pair
+    from livedic.dic.calibration import Detection, TargetPair, detect_target
+
+    pairs = []
+    for i, pose in enumerate(poses):
+        found = [detect_target(image, spec, square)
+                 for image in render_target_pair(spec, square, rig, pose, seed=seed + i)]
+        pairs.append(TargetPair(f"left_{i}.png", f"right_{i}.png",
+                                *(f if isinstance(f, Detection) else None for f in found)))
+    return pairs
+
+
+def narrow_rig():
+    from livedic.acquire.simulator.lens import Lens
+    from livedic.acquire.simulator.stereo_rig import StereoRig
+
+    lens = Lens(NARROW_SIZE, k1=-0.05, focal_px=NARROW_FOCAL_PX)
+    return StereoRig.symmetric(lens, lens, distance_mm=300.0, angle_deg=25.0)
+
+
+@pytest.fixture(scope="session")
+def narrow_pairs():
+    """(rig, spec, square_mm, [TargetPair]) of the long-lens rig, its views as ``stereo_view_plan`` gives them."""
+    from livedic.acquire.simulator.targets import stereo_calibration_views, stereo_square_mm, stereo_view_plan
+    from livedic.dic.calibration import parse_target
+
+    rig = narrow_rig()
+    spec = parse_target("chessboard:9x6")
+    views, fill = stereo_view_plan(rig)
+    square = stereo_square_mm(spec, rig, fill)
+    poses = stereo_calibration_views(spec, square, rig, views[:NARROW_VIEW_COUNT])
+    return rig, spec, square, render_pairs(rig, spec, square, poses)

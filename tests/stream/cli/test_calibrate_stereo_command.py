@@ -1,6 +1,7 @@
 """``livedic calibrate --left ... --right ...``: a stereo rig's CAL.json from rendered target pairs, what it prints,
 and bad inputs as one line, exit 2, nothing written."""
 
+import json
 import shutil
 
 import cv2
@@ -85,3 +86,64 @@ def test_bad_stereo_inputs_are_one_line_and_write_nothing(pairs, tmp_path, capsy
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert code == 2 and says in error and error.startswith("livedic: error:"), error
     assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def narrow_pairs(tmp_path_factory):
+    """A long lens's rig (512 x 384, f 4000 px: a 7 degree field) in folder/steep: 7 pairs at the narrow field's
+    tilts; in folder/flat: 4 pairs tilted a fifth as much (the focal length then undetermined: +-2 %)."""
+    from livedic.acquire.simulator.lens import Lens
+    from livedic.acquire.simulator.stereo_rig import StereoRig
+    from livedic.acquire.simulator.targets import (render_target_pair, stereo_calibration_views, stereo_square_mm,
+                                                   stereo_view_plan)
+    from livedic.dic.calibration import parse_target
+
+    folder = tmp_path_factory.mktemp("narrow")
+    lens = Lens((512, 384), k1=-0.05, focal_px=4000.0)
+    rig = StereoRig.symmetric(lens, lens, distance_mm=300.0, angle_deg=25.0)
+    spec = parse_target("chessboard:7x5")
+    views, fill = stereo_view_plan(rig)
+    square = stereo_square_mm(spec, rig, fill)
+    flat = tuple((0.2 * tx, 0.2 * ty, rz, dx, dy) for tx, ty, rz, dx, dy in views[:4])
+    for name, chosen in (("steep", views[:7]), ("flat", flat)):
+        for i, pose in enumerate(stereo_calibration_views(spec, square, rig, chosen)):
+            for side, image in zip(("left", "right"), render_target_pair(spec, square, rig, pose, seed=i)):
+                (folder / name / side).mkdir(parents=True, exist_ok=True)
+                cv2.imwrite(str(folder / name / side / f"view_{i}.png"), image)
+    return folder, square
+
+
+def test_a_long_lens_rig_records_its_fixed_principal_point_and_why(narrow_pairs, tmp_path, capsys):
+    folder, square = narrow_pairs
+    out = tmp_path / "rig.json"
+    # 7 pairs of 512 px leave the focal length +-0.83 % (refused by default, below): accepted under a bound of 1 %
+    code = main(["calibrate", "--left", str(folder / "steep" / "left"), "--right", str(folder / "steep" / "right"),
+                 "--target", "chessboard:7x5", "--square", f"{square:.6f}", "--max-focal-uncertainty", "1",
+                 "-o", str(out)])
+    printed = capsys.readouterr().out
+    assert code == 0
+    assert printed.count("fixed: cx, cy, k2, p1, p2, k3 (the views locate the principal point to +-") == 2
+    document = json.loads(out.read_text())
+    for side in ("left", "right"):
+        camera = document[side]
+        assert camera["fixed_parameters"] == ["cx", "cy", "k2", "p1", "p2", "k3"]
+        assert "narrow field" in camera["fixed_reason"] and set(camera["std_devs"]) == {"fx", "fy", "k1"}
+        assert camera["camera_matrix"][0][2] == 255.5 and camera["camera_matrix"][1][2] == 191.5
+    calibration = read_stereo_calibration(out)
+    assert calibration.angle_deg == pytest.approx(25.0, abs=0.2)       # measured 25.05
+
+
+@pytest.mark.parametrize("subset, options, says", [
+    ("flat", [], "focal length fx is determined to +-"),
+    ("steep", [], "(bound 0.5 %): the views need more tilt"),
+    ("steep", ["--max-focal-uncertainty", "0"], "--max-focal-uncertainty 0: must be a number > 0"),
+])
+def test_an_undetermined_rig_is_refused_in_one_line_naming_the_parameter(narrow_pairs, tmp_path, capsys, subset,
+                                                                         options, says):
+    folder, square = narrow_pairs
+    out = tmp_path / "rig.json"
+    code = main(["calibrate", "--left", str(folder / subset / "left"), "--right", str(folder / subset / "right"),
+                 "--target", "chessboard:7x5", "--square", f"{square:.6f}", *options, "-o", str(out)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and says in lines[-1] and lines[-1].startswith("livedic: error:"), lines[-1]
+    assert not any("Traceback" in line for line in lines) and not out.exists()
