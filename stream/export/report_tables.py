@@ -246,6 +246,11 @@ def performance_rows(session: Mapping[str, Any], *, noise_floor: Mapping[str, An
         rows.append(_row(f"noise_{quantity}_px", f"noise floor, {quantity} (spatial SD)",
                          None if item is None else item["spatial_sd"],
                          text=(text + (f" = {in_mm}" if in_mm else "")) if text else unmeasured))
+    for quantity in ("U", "V", "W"):             # a stereo session's, in space (W along the specimen's normal)
+        item = _floor_item(noise_floor, quantity, "mm")
+        if item is not None:
+            rows.append(_row(f"noise_{quantity}_mm", f"noise floor, {quantity} in space (spatial SD)", item["spatial_sd"],
+                             text=_sd_text(item, 5, "mm")))
     for quantity in ("exx", "eyy", "exy"):
         item = _floor_item(noise_floor, quantity, "microstrain")
         rows.append(_row(f"noise_{quantity}_microstrain", f"noise floor, {quantity} (spatial SD)",

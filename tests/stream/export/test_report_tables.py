@@ -108,3 +108,15 @@ def test_the_performance_table_reads_the_noise_floor_and_the_verified_class():
         "verified": True, "class": None, "zero_point_class": "0.5", "date": "2026-12-02T1"})}
     assert zero_only["extensometer_class"].value is None       # static and rigid frames only: no class claimed
     assert zero_only["extensometer_class"].text.startswith("no class: zero point only, meets class 0.5's")
+    assert "noise_W_mm" not in rows                         # 2D: no rows in space
+
+
+def test_a_stereo_sessions_noise_floor_in_space_has_its_rows():
+    from livedic.stream.export.report_tables import performance_rows
+    floor = {"table": [
+        {"quantity": "U", "unit": "mm", "spatial_sd": 0.00017, "temporal_sd_mean": 0.00011, "status": "ok"},
+        {"quantity": "W", "unit": "mm", "spatial_sd": 0.00076, "temporal_sd_mean": 0.00049, "status": "ok"},
+        {"quantity": "V", "unit": "mm", "spatial_sd": None, "temporal_sd_mean": None, "status": "too_few_frames"}]}
+    rows = {r.key: r for r in performance_rows({}, noise_floor=floor, verification=None, scale=None)}
+    assert rows["noise_U_mm"].value == 0.00017 and rows["noise_W_mm"].text == "0.00076 mm"
+    assert "noise_V_mm" not in rows                         # not measured: no row claiming a number
