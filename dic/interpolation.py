@@ -15,10 +15,12 @@ from dataclasses import dataclass
 
 BSPLINE3 = "bspline3"
 BSPLINE5 = "bspline5"
+BSPLINE7 = "bspline7"
 DEFAULT_INTERPOLATION = BSPLINE3
 # name -> (B-spline degree, how a report names it)
 _KINDS = {BSPLINE3: (3, "bicubic B-spline (Unser's prefilter, dic.bspline)"),
-          BSPLINE5: (5, "biquintic B-spline (Unser's prefilter, dic.bspline)")}
+          BSPLINE5: (5, "biquintic B-spline (Unser's prefilter, dic.bspline)"),
+          BSPLINE7: (7, "biseptic B-spline (Unser's prefilter, dic.bspline)")}
 INTERPOLATIONS: tuple[str, ...] = tuple(_KINDS)
 
 

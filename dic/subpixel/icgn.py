@@ -7,7 +7,7 @@ Matthews 2004; OpenCorr's ``ICGN2D1``, Pan, Li & Tong 2013):
 
 - warp ``x' = x0 + u + (1 + ux) dx + uy dy``, ``y' = y0 + v + vx dx + (1 + vy) dy``;
 - target sampled by the B-spline of its coefficients (``prepare_target(degree=3)``, bicubic, or 5,
-  biquintic); update ``W(p) <- W(p) W(dp)^-1``;
+  biquintic, or 7, biseptic: a scalar sampler, ``_affine_sums7``); update ``W(p) <- W(p) W(dp)^-1``;
 - ZNSSD ``= sum e_i^2 / |f~|^2``, reported as ZNCC ``= 1 - ZNSSD/2``;
 - converged when ``sqrt(du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)) < 0.001``
   (M the subset half-width), at most 10 iterations by default.
@@ -34,7 +34,7 @@ from numba import njit, prange
 from numpy import float32 as _F32
 
 from livedic.dic.bspline import (FASTMATH, PAD, float32_lanes, BSplineCoefficients, check_degree, prefilter, sample_shift,
-                                 sample_shift5, warped_subset_inside)
+                                 sample_shift5, sample_shift7, warped_subset_inside, weights7)
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
@@ -344,7 +344,7 @@ def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLik
 def prepare_target(deformed: np.ndarray, *, out: BSplineCoefficients | None = None,
                    degree: int = 3) -> BSplineCoefficients:
     """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32, of
-    ``degree`` 3 (cubic) or 5 (quintic); IC-GN samples the target with the spline they record.
+    ``degree`` 3 (cubic), 5 (quintic) or 7 (septic); IC-GN samples the target with the spline they record.
 
     The grey levels are those of ``dic.validation.as_image`` (float32); 8- and 16-bit frames, whose
     values float32 holds exactly, are read as they are (no float32 copy of the frame is made).
@@ -722,12 +722,66 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
 
 
 @njit(cache=True)
+def _affine_sums7(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, out):
+    """``_affine_sums`` of septic coefficients: a plain scalar loop in float64, 8 x 8 taps per sample
+    (``dic.bspline.value_gradient_at7``'s sum, without the gradient). The caller guarantees every sample
+    keeps ``INTERPOLATION_MARGIN`` from the edges, so every tap lies in the padded coefficients."""
+    sg = 0.0
+    sgg = 0.0
+    sfg = 0.0
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    b0 = 0.0
+    b1 = 0.0
+    b2 = 0.0
+    for j in range(2 * half + 1):
+        dy = j - half
+        for i in range(2 * half + 1):
+            dx = i - half
+            xp = x0 + u + (1.0 + ux) * dx + uy * dy + PAD
+            yp = y0 + v + vx * dx + (1.0 + vy) * dy + PAD
+            ix = int(np.floor(xp))
+            iy = int(np.floor(yp))
+            wx = weights7(xp - ix)
+            wy = weights7(yp - iy)
+            g = 0.0
+            for m in range(8):
+                row = origin + (iy - 3 + m) * stride + ix - 3
+                r = 0.0
+                for n in range(8):
+                    r += wx[n] * np.float64(flat[row + n])
+                g += wy[m] * r
+            k = j * lanes + i
+            sg += g
+            sgg += g * g
+            sfg += np.float64(fhat[k]) * g
+            a = np.float64(fx[k]) * g
+            b = np.float64(fy[k]) * g
+            a0 += a
+            a1 += a * dx
+            a2 += a * dy
+            b0 += b
+            b1 += b * dx
+            b2 += b * dy
+    out[0] = sg
+    out[1] = sgg
+    out[2] = sfg
+    out[3] = a0
+    out[4] = a1
+    out[5] = a2
+    out[6] = b0
+    out[7] = b1
+    out[8] = b2
+
+
+@njit(cache=True)
 def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy, norm, hinv, hinv0, sum_j, sum_jf,
                  sum_f, p, order, max_iterations, tolerance, translation_iterations, translation_tolerance, scratch,
                  degree):
     """Refine p = [u, ux, uy, v, vx, vy] (6,) in place; return (status, zncc, iterations).
 
-    ``degree``: of the target's B-spline coefficients (``BSplineCoefficients.degree``), 3 or 5.
+    ``degree``: of the target's B-spline coefficients (``BSplineCoefficients.degree``), 3, 5 or 7.
 
     The per-point kernel of ``refine_prepared``, for kernels that refine one point at a time
     (``dic.reliability_guided``); ``scratch`` from ``refine_point_scratch``, one per task.
@@ -754,7 +808,9 @@ def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy
     for _ in range(steps):
         if not warped_subset_inside(height, width, x0, y0, half, u, 0.0, 0.0, v, 0.0, 0.0):
             return _OUTSIDE_TARGET, zncc, iterations
-        if degree == 5:
+        if degree == 7:
+            sample_shift7(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
+        elif degree == 5:
             sample_shift5(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
         else:
             sample_shift(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
@@ -790,8 +846,11 @@ def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy
     for _ in range(max_iterations):
         if not warped_subset_inside(height, width, x0, y0, half, u, ux, uy, v, vx, vy):
             return _OUTSIDE_TARGET, zncc, iterations
-        _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx, lane_mask,
-                     kx, ky, run_mask, degree, sums)
+        if degree == 7:
+            _affine_sums7(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, sums)
+        else:
+            _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat, fx, fy, lanes, lane_dx,
+                         lane_mask, kx, ky, run_mask, degree, sums)
         mean = sums[0] / n
         var = sums[1] - sums[0] * mean
         if var <= _FLAT * n * (1.0 + mean * mean):
@@ -851,7 +910,7 @@ def refine_point_scratch(half, lanes):
     """Per-task scratch arrays for ``refine_point``."""
     side = 2 * half + 1
     g = np.zeros(side * lanes, dtype=np.float32)
-    tmp = np.zeros((side + 5) * lanes, dtype=np.float32)     # side + 3 rows for the cubic, + 5 for the quintic
+    tmp = np.zeros((side + 7) * lanes, dtype=np.float32)     # side + 3 rows for the cubic, + 5 quintic, + 7 septic
     kx = np.empty(lanes, dtype=np.int64)
     ky = np.empty(lanes, dtype=np.int64)
     lane_dx = np.empty(lanes, dtype=np.float32)
@@ -962,7 +1021,7 @@ def refine_prepared(ref_prep: IcgnReference, target_coeffs: BSplineCoefficients,
         Coefficients not from ``prepare_target`` or of another image size,
         start arrays of the wrong length, bad options.
     """
-    points = checked_points(ref_prep, target_coeffs, points)
+    points = checked_points(ref_prep, target_coeffs, points, degrees=(3, 5, 7))
     npts = points.shape[0]
     orders, per_point = point_orders(order, npts, max_order=1)
     check_iterations(max_iterations, tolerance, translation_iterations, translation_tolerance)
@@ -1012,7 +1071,7 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     half : int
         Subset half-width M.
     **options
-        ``degree`` (of ``prepare_target``: 3 or 5); ``hessian`` (of ``prepare_reference``); ``order``, ``max_iterations``,
+        ``degree`` (of ``prepare_target``: 3, 5 or 7); ``hessian`` (of ``prepare_reference``); ``order``, ``max_iterations``,
         ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
         start gradients ``ux0, uy0, vx0, vy0`` (of ``refine_prepared``).
 
