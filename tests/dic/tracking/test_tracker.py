@@ -252,3 +252,18 @@ def test_quintic_interpolation_tracks_and_refuses_methods_without_it():
     for subpixel in ("icgn2", "improved-surface-fit"):
         with pytest.raises(ValueError, match="--interpolation bspline5 is not available"):
             Tracker(frames[0].image, points, subpixel=subpixel, interpolation="bspline5")
+
+
+def test_septic_interpolation_tracks_and_refuses_methods_without_it():
+    """``interpolation="bspline7"``: the kernel job and the window coefficients are septic (their prefilter
+    guard the widest), the sequence is followed; icgn2 refuses it in one line."""
+    source, frames = translate_frames("frames=4&size=160x160&du=0.35&dv=-0.2&noise=0")
+    points = grid_in_roi(source.shape, source.suggested_roi, 16, 21)
+    tracker = Tracker(frames[0].image, points, interpolation="bspline7")
+    assert str(tracker.interpolation) == "bspline7"
+    for frame in frames[1:]:
+        m = tracker.track(frame.image)
+        assert m.ok.all() and np.max(errors_to_truth(frame, m)) < 0.05
+    assert tracker.kernel_job().degree == 7
+    with pytest.raises(ValueError, match="--interpolation bspline7 is not available"):
+        Tracker(frames[0].image, points, subpixel="icgn2", interpolation="bspline7")
