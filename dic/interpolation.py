@@ -36,7 +36,8 @@ class Interpolation:
 
     @classmethod
     def parse(cls, text: str | Interpolation | None) -> Interpolation:
-        """``"bspline3"`` (or None), ``"bspline5"`` or ``"bspline7"``, any case; ValueError (one line) for anything else.
+        """``"bspline3"`` (or None), ``"bspline5"`` or ``"bspline7"``, any case; ValueError (one line) for anything
+        else.
 
         Examples
         --------

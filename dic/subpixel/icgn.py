@@ -1114,8 +1114,8 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     half : int
         Subset half-width M.
     **options
-        ``degree`` (of ``prepare_target``: 3, 5 or 7); ``hessian`` (of ``prepare_reference``); ``order``, ``max_iterations``,
-        ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
+        ``degree`` (of ``prepare_target``: 3, 5 or 7); ``hessian`` (of ``prepare_reference``); ``order``,
+        ``max_iterations``, ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
         start gradients ``ux0, uy0, vx0, vy0`` (of ``refine_prepared``).
 
     Returns

@@ -89,7 +89,7 @@ SUBSET_HELP = "odd subset side, pixels (default {default})"
 # Stars (docs/guide/measure.md, "The defaults"). ``run`` and ``replay`` keep the library's (bspline3, none): the
 # higher degrees double IC-GN's kernel or more, which the live rate cannot spare.
 OFFLINE_INTERPOLATION = BSPLINE7
-OFFLINE_PREFILTER = "gaussian:0.47"
+OFFLINE_PREFILTER = "gaussian:0.45"
 _MEASURE_INTERPOLATION = (f"{OFFLINE_INTERPOLATION} with the methods that sample it (icgn), else "
                           f"{DEFAULT_INTERPOLATION}")
 _MEASURE_PREFILTER = f"{OFFLINE_PREFILTER} with {OFFLINE_INTERPOLATION}, else {DEFAULT_PREFILTER}"
