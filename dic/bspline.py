@@ -31,9 +31,9 @@ order of magnitude (Ncorr's biquintic choice). The coefficients record their ``d
 evaluation here (and IC-GN's samplers) honours it.
 
 ``prefilter(..., degree=7)`` gives the septic B-spline (Unser 1999: three poles, gain 5040; 64 taps a value,
-3 px left and 4 px right of floor(x)). It reproduces polynomials up to degree 7; it was added to measure
-whether it meets issue 23's bias target on DIC Challenge 1.0 Sample 3 (docs/guide/measure.md). Its IC-GN
-sampler is a plain scalar loop (``dic.subpixel.icgn``), not vectorised like the cubic's and the quintic's.
+3 px left and 4 px right of floor(x)). It reproduces polynomials up to degree 7 and lowers DIC Challenge 1.0
+Sample 3's bias and SD below the quintic's (``livedic measure``'s default: docs/guide/measure.md); its largest
+pole (0.54) makes the mirror boundary reach further in than the quintic's.
 
 References
 ----------
@@ -60,8 +60,9 @@ DEGREES = (3, 5, 7)        # the B-spline degrees ``prefilter`` makes
 PAD = 3
 SLACK = 2                  # zero rows before and after the padded coefficients in the flat buffer
 # A warped subset must keep this many pixels from the image edge: the cubic's taps reach 1 px left and
-# 2 px right of a sample (the quintic's 2 and 3: still real pixels), and the mirror boundary condition of
-# the prefilter still weighs 0.27^k (quintic: 0.43^k) on coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
+# 2 px right of a sample (the quintic's 2 and 3: still real pixels; the septic's 3 and 4, one into the padding), and the
+# mirror boundary condition of the prefilter still weighs 0.27^k (quintic: 0.43^k, septic 0.54^k) on
+# coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
 # and integer searches keep the same margin so they never return a peak there.
 INTERPOLATION_MARGIN = 3
 

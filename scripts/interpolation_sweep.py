@@ -37,7 +37,9 @@ import numpy as np  # noqa: E402  (after the numba thread count)
 
 SWEEP = ([("bspline3", f) for f in ("none", "gaussian:0.5", "gaussian:0.6", "gaussian:0.7", "gaussian:0.8",
                                      "gaussian:1")]
-         + [("bspline5", f) for f in ("none", "gaussian:0.3", "gaussian:0.4", "gaussian:0.5", "gaussian:0.6")])
+         + [("bspline5", f) for f in ("none", "gaussian:0.3", "gaussian:0.4", "gaussian:0.5", "gaussian:0.6")]
+         + [("bspline7", f) for f in ("none", "gaussian:0.3", "gaussian:0.4", "gaussian:0.45", "gaussian:0.47",
+                                     "gaussian:0.5")])
 INTEGER_SHIFTS = (0.0, 1.0)
 MIDDLE_SHIFTS = (0.4, 0.5, 0.6)
 
