@@ -30,6 +30,11 @@ reproduces polynomials up to degree 5 and cuts the interpolation bias of sub-pix
 order of magnitude (Ncorr's biquintic choice). The coefficients record their ``degree``, and every
 evaluation here (and IC-GN's samplers) honours it.
 
+``prefilter(..., degree=7)`` gives the septic B-spline (Unser 1999: three poles, gain 5040; 64 taps a value,
+3 px left and 4 px right of floor(x)). It reproduces polynomials up to degree 7 and lowers DIC Challenge 1.0
+Sample 3's bias and SD below the quintic's (``livedic measure``'s default: docs/guide/measure.md); its largest
+pole (0.54) makes the mirror boundary reach further in than the quintic's.
+
 References
 ----------
 M. Unser, "Splines: a perfect fit for signal and image processing", IEEE Signal
@@ -47,13 +52,17 @@ POLE = np.sqrt(3.0) - 2.0  # z of the cubic B-spline prefilter
 GAIN = 6.0                 # (1 - z)(1 - 1/z)
 # The quintic's two poles (Unser 1999, table I), filtered in turn; each pass's gain (1 - z)(1 - 1/z), 120 in all.
 QUINTIC_POLES = (-0.430575347099973, -0.0430962882032647)
-DEGREES = (3, 5)           # the B-spline degrees ``prefilter`` makes
-# mirrored coefficient pixels on each side: the cubic's taps need 2 (1 spare), the quintic's 3 (right of floor(x))
+# The septic's three poles (Unser 1999), filtered in turn like the quintic's; gain 5040 in all.
+SEPTIC_POLES = (-0.5352804307964381, -0.12255461519232669, -0.009148694809608277)
+DEGREES = (3, 5, 7)        # the B-spline degrees ``prefilter`` makes
+# mirrored coefficient pixels on each side: the cubic's taps need 2 (1 spare), the quintic's 3 (right of floor(x));
+# the septic's 4 right of floor(x) need 3 too except at x = W - 1 exactly, evaluated one tap to the left (t = 1)
 PAD = 3
 SLACK = 2                  # zero rows before and after the padded coefficients in the flat buffer
 # A warped subset must keep this many pixels from the image edge: the cubic's taps reach 1 px left and
-# 2 px right of a sample (the quintic's 2 and 3: still real pixels), and the mirror boundary condition of
-# the prefilter still weighs 0.27^k (quintic: 0.43^k) on coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
+# 2 px right of a sample (the quintic's 2 and 3: still real pixels; the septic's 3 and 4, one into the padding), and the
+# mirror boundary condition of the prefilter still weighs 0.27^k (quintic: 0.43^k, septic 0.54^k) on
+# coefficients k px in. Within it a match is "clipped" (quality gate: OUTSIDE_TARGET),
 # and integer searches keep the same margin so they never return a peak there.
 INTERPOLATION_MARGIN = 3
 
@@ -65,7 +74,8 @@ def _horizon(z: float) -> int:
 
 # (z, gain, horizon) of each pass, per degree
 _POLES = {3: np.array([[POLE, GAIN, _horizon(POLE)]]),
-          5: np.array([[z, (1.0 - z) * (1.0 - 1.0 / z), _horizon(z)] for z in QUINTIC_POLES])}
+          5: np.array([[z, (1.0 - z) * (1.0 - 1.0 / z), _horizon(z)] for z in QUINTIC_POLES]),
+          7: np.array([[z, (1.0 - z) * (1.0 - 1.0 / z), _horizon(z)] for z in SEPTIC_POLES])}
 
 
 @dataclass(frozen=True)
@@ -83,8 +93,8 @@ class BSplineCoefficients:
         after, raveled: what the vectorised kernels index.
     origin : int
         Index in ``flat`` of ``coefficients[0, 0]``.
-    degree : {3, 5}
-        Of the B-spline: cubic (4 x 4 taps) or quintic (6 x 6).
+    degree : {3, 5, 7}
+        Of the B-spline: cubic (4 x 4 taps), quintic (6 x 6) or septic (8 x 8).
     """
     coefficients: np.ndarray
     shape: tuple
@@ -250,8 +260,8 @@ def prefilter(image: np.ndarray, dtype: npt.DTypeLike = np.float32, *,
         Coefficients of an earlier image of the same shape and ``dtype``: overwritten and returned
         (frame after frame in the same memory; a new buffer of a megabyte or more is often fresh
         pages from the system, each faulted in on first touch); of the same ``degree`` too.
-    degree : {3, 5}
-        Cubic (default) or quintic B-spline.
+    degree : {3, 5, 7}
+        Cubic (default), quintic or septic B-spline.
 
     Returns
     -------
@@ -346,6 +356,79 @@ def derivative_weights5(t):
     d3 = (50.0 + t * (40.0 + t * (-60.0 + t * (-80.0 + 50.0 * t)))) * (1.0 / 120.0)
     d4 = -d0 - d1 - d2 - d3 - d5
     return d0, d1, d2, d3, d4, d5
+
+
+@njit(cache=True, inline="always")
+def weights7(t):
+    """Septic B-spline weights of taps -3 .. 4 for a fraction t in [0, 1] (t = 1: the weights of t = 0 one
+    tap to the right). Each is beta7(t + 3 - i), times 5040 a polynomial with integer coefficients."""
+    s = 1.0 - t
+    s2 = s * s
+    t2 = t * t
+    w0 = s2 * s2 * s2 * s
+    w1 = 120.0 + t * (-392.0 + t * (504.0 + t * (-280.0 + t * (0.0 + t * (84.0 + t * (-42.0 + 7.0 * t))))))
+    w2 = 1191.0 + t * (-1715.0 + t * (315.0 + t * (665.0 + t * (-315.0 + t * (-105.0 + t * (105.0 - 21.0 * t))))))
+    w3 = 2416.0 + t2 * (-1680.0 + t2 * (560.0 + t2 * (-140.0 + 35.0 * t)))
+    w4 = 1191.0 + t * (1715.0 + t * (315.0 + t * (-665.0 + t * (-315.0 + t * (105.0 + t * (105.0 - 35.0 * t))))))
+    w5 = 120.0 + t * (392.0 + t * (504.0 + t * (280.0 + t * (0.0 + t * (-84.0 + t * (-42.0 + 21.0 * t))))))
+    w6 = 1.0 + t * (7.0 + t * (21.0 + t * (35.0 + t * (35.0 + t * (21.0 + t * (7.0 - 7.0 * t))))))
+    w7 = t2 * t2 * t2 * t
+    c = 1.0 / 5040.0
+    return w0 * c, w1 * c, w2 * c, w3 * c, w4 * c, w5 * c, w6 * c, w7 * c
+
+
+@njit(cache=True, inline="always")
+def derivative_weights7(t):
+    """d/dt of ``weights7(t)``."""
+    c = 1.0 / 5040.0
+    s = 1.0 - t
+    s2 = s * s
+    t2 = t * t
+    d0 = -7.0 * s2 * s2 * s2 * c
+    d1 = (-392.0 + t * (1008.0 + t * (-840.0 + t * (0.0 + t * (420.0 + t * (-252.0 + 49.0 * t)))))) * c
+    d2 = (-1715.0 + t * (630.0 + t * (1995.0 + t * (-1260.0 + t * (-525.0 + t * (630.0 - 147.0 * t)))))) * c
+    d3 = t * (-3360.0 + t2 * (2240.0 + t2 * (-840.0 + 245.0 * t))) * c
+    d4 = (1715.0 + t * (630.0 + t * (-1995.0 + t * (-1260.0 + t * (525.0 + t * (630.0 - 245.0 * t)))))) * c
+    d5 = (392.0 + t * (1008.0 + t * (840.0 + t * (0.0 + t * (-420.0 + t * (-252.0 + 147.0 * t)))))) * c
+    d6 = (7.0 + t * (42.0 + t * (105.0 + t * (140.0 + t * (105.0 + t * (42.0 - 49.0 * t)))))) * c
+    d7 = 7.0 * t2 * t2 * t2 * c
+    return d0, d1, d2, d3, d4, d5, d6, d7
+
+
+@njit(cache=True, inline="always")
+def septic_origin(p, last):
+    """(floor(p), p - floor(p)) for a padded coordinate p, or (floor(p) - 1, 1.0) where floor(p) is ``last``
+    (the image's last pixel, p exactly on it): the 4th tap right would leave the padding, and has weight 0."""
+    i = int(p)
+    if i >= last:
+        return last - 1, p - (last - 1)
+    return i, p - i
+
+
+@njit(cache=True)
+def value_gradient_at7(coeffs, height, width, x, y):
+    """(value, d/dx, d/dy) of the septic spline at image point (x, y); the caller guarantees ``inside``."""
+    ix, tx = septic_origin(x + PAD, width - 1 + PAD)
+    iy, ty = septic_origin(y + PAD, height - 1 + PAD)
+    wx = weights7(tx)
+    wy = weights7(ty)
+    dx = derivative_weights7(tx)
+    dy = derivative_weights7(ty)
+    val = 0.0
+    gx = 0.0
+    gy = 0.0
+    for m in range(8):
+        row = iy - 3 + m
+        r = 0.0
+        rd = 0.0
+        for k in range(8):
+            c = coeffs[row, ix - 3 + k]
+            r += wx[k] * c
+            rd += dx[k] * c
+        val += wy[m] * r
+        gx += wy[m] * rd
+        gy += dy[m] * r
+    return val, gx, gy
 
 
 @njit(cache=True)
@@ -456,6 +539,8 @@ def _interpolate_batch(coeffs, height, width, xs, ys, want_gradient, degree, out
             out_gy[i] = np.nan
         elif degree == 5:
             out_v[i], out_gx[i], out_gy[i] = value_gradient_at5(coeffs, x, y)
+        elif degree == 7:
+            out_v[i], out_gx[i], out_gy[i] = value_gradient_at7(coeffs, height, width, x, y)
         elif want_gradient:
             out_v[i], out_gx[i], out_gy[i] = value_gradient_at(coeffs, x, y)
         else:
@@ -475,7 +560,7 @@ def interpolate(image_or_coeffs: np.ndarray | BSplineCoefficients, x: npt.ArrayL
         Image coordinates: x along columns, y along rows, pixel centres at integers.
     gradient : bool
         Also return the analytic derivatives d/dx and d/dy.
-    degree : {3, 5}
+    degree : {3, 5, 7}
         Of the spline made from an image (ignored for coefficients).
 
     Returns
@@ -630,6 +715,39 @@ def sample_shift5(flat, origin, stride, x, y, half, tmp, out, out_stride):
         ku = np.uint64(k)
         out[ku] = (b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + 2 * s1] + b3 * tmp[ku + 3 * s1]
                    + b4 * tmp[ku + 4 * s1] + b5 * tmp[ku + 5 * s1])
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def sample_shift7(flat, origin, stride, x, y, half, tmp, out, out_stride):
+    """``sample_shift`` of septic coefficients: 8 x-taps per pixel of side + 7 rows, then 8 y-taps.
+
+    tmp : float32 ((side + 7) * out_stride,) scratch, zero beyond ``side`` in each row.
+    """
+    side = 2 * half + 1
+    xp = x - half + PAD
+    yp = y - half + PAD
+    ix = int(np.floor(xp))
+    iy = int(np.floor(yp))
+    wx = weights7(xp - ix)
+    wy = weights7(yp - iy)
+    a0, a1, a2, a3 = _F32(wx[0]), _F32(wx[1]), _F32(wx[2]), _F32(wx[3])
+    a4, a5, a6, a7 = _F32(wx[4]), _F32(wx[5]), _F32(wx[6]), _F32(wx[7])
+    for r in range(side + 7):
+        base = np.uint64(origin + (iy - 3 + r) * stride + ix - 3)
+        tu = np.uint64(r * out_stride)
+        for i in range(side):
+            o = base + np.uint64(i)
+            tmp[tu + np.uint64(i)] = (a0 * flat[o] + a1 * flat[o + np.uint64(1)] + a2 * flat[o + np.uint64(2)]
+                                      + a3 * flat[o + np.uint64(3)] + a4 * flat[o + np.uint64(4)]
+                                      + a5 * flat[o + np.uint64(5)] + a6 * flat[o + np.uint64(6)]
+                                      + a7 * flat[o + np.uint64(7)])
+    b0, b1, b2, b3 = _F32(wy[0]), _F32(wy[1]), _F32(wy[2]), _F32(wy[3])
+    b4, b5, b6, b7 = _F32(wy[4]), _F32(wy[5]), _F32(wy[6]), _F32(wy[7])
+    s1 = np.uint64(out_stride)
+    for k in range(side * out_stride):
+        ku = np.uint64(k)
+        out[ku] = (b0 * tmp[ku] + b1 * tmp[ku + s1] + b2 * tmp[ku + 2 * s1] + b3 * tmp[ku + 3 * s1]
+                   + b4 * tmp[ku + 4 * s1] + b5 * tmp[ku + 5 * s1] + b6 * tmp[ku + 6 * s1] + b7 * tmp[ku + 7 * s1])
 
 
 @njit(cache=True)

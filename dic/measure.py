@@ -69,8 +69,8 @@ def measure(reference: np.ndarray, deformed: np.ndarray, points: ArrayLike, *, s
         Image pre-filter applied to both images before anything reads them: ``"none"`` (default; None too) or
         ``"gaussian:SIGMA"`` (``dic.image_filter``).
     interpolation : str or dic.interpolation.Interpolation or None
-        The B-spline IC-GN samples the deformed image with: ``"bspline3"`` (default; None too) or ``"bspline5"``
-        (``icgn`` only; ``dic.interpolation``).
+        The B-spline IC-GN samples the deformed image with: ``"bspline3"`` (default; None too), ``"bspline5"``
+        or ``"bspline7"`` (``icgn`` only; ``dic.interpolation``).
 
     Returns
     -------

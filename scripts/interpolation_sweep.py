@@ -16,7 +16,7 @@ then, for the ``--finalists``, Star 1/2 of the DIC Challenge 2.0 (subset 21, icg
 the period at 10 % amplitude error, Star 2's noise and their product (MEI).
 
     .venv/bin/python scripts/interpolation_sweep.py --data ../shared/datasets [--finalists bspline3/none ...]
-        [--step 2] [--only-finalists] [-o sweep.json]
+        [--step 2] [--only-finalists] [--pairs bspline7/none ...] [-o sweep.json]
 
 A pair is ``NAME/FILTER`` (``bspline5/gaussian:0.5``). Runs on 1 numba thread unless NUMBA_NUM_THREADS says.
 """
@@ -37,7 +37,9 @@ import numpy as np  # noqa: E402  (after the numba thread count)
 
 SWEEP = ([("bspline3", f) for f in ("none", "gaussian:0.5", "gaussian:0.6", "gaussian:0.7", "gaussian:0.8",
                                      "gaussian:1")]
-         + [("bspline5", f) for f in ("none", "gaussian:0.3", "gaussian:0.4", "gaussian:0.5", "gaussian:0.6")])
+         + [("bspline5", f) for f in ("none", "gaussian:0.3", "gaussian:0.4", "gaussian:0.5", "gaussian:0.6")]
+         + [("bspline7", f) for f in ("none", "gaussian:0.3", "gaussian:0.4", "gaussian:0.45", "gaussian:0.47",
+                                     "gaussian:0.5")])
 INTEGER_SHIFTS = (0.0, 1.0)
 MIDDLE_SHIFTS = (0.4, 0.5, 0.6)
 
@@ -89,6 +91,7 @@ def main() -> int:
     parser.add_argument("--finalists", type=pair, nargs="*", default=[],
                         help="NAME/FILTER pairs also run on the Stars (e.g. bspline3/none bspline5/gaussian:0.5)")
     parser.add_argument("--only-finalists", action="store_true", help="Sample 3 for the finalists only")
+    parser.add_argument("--pairs", type=pair, nargs="+", help="NAME/FILTER pairs run on Sample 3 instead of the sweep")
     parser.add_argument("--step", type=int, default=2, help="px between points on the Stars' centre row (default 2)")
     parser.add_argument("-o", "--output", help="also write the numbers as JSON")
     args = parser.parse_args()
@@ -100,7 +103,8 @@ def main() -> int:
         return 2
 
     quiet = (lambda line: None)
-    pairs = list(dict.fromkeys(args.finalists if args.only_finalists else SWEEP + args.finalists))
+    sample3 = args.pairs if args.pairs else SWEEP
+    pairs = list(dict.fromkeys(args.finalists if args.only_finalists else sample3 + args.finalists))
     header = (f"{'interpolation':13s} {'prefilter':13s} {'worst u':>8s} {'worst v':>8s} {'mean SD u':>9s} "
               f"{'mean SD v':>9s} {'SD 0/1':>7s} {'SD .5':>7s} {'bias share':>10s} {'ok':>9s}")
     print("DIC Challenge 1.0 Sample 3, grid 10, subset 21, icgn; px (module notes)")

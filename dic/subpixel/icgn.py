@@ -7,7 +7,7 @@ Matthews 2004; OpenCorr's ``ICGN2D1``, Pan, Li & Tong 2013):
 
 - warp ``x' = x0 + u + (1 + ux) dx + uy dy``, ``y' = y0 + v + vx dx + (1 + vy) dy``;
 - target sampled by the B-spline of its coefficients (``prepare_target(degree=3)``, bicubic, or 5,
-  biquintic); update ``W(p) <- W(p) W(dp)^-1``;
+  biquintic, or 7, biseptic); update ``W(p) <- W(p) W(dp)^-1``;
 - ZNSSD ``= sum e_i^2 / |f~|^2``, reported as ZNCC ``= 1 - ZNSSD/2``;
 - converged when ``sqrt(du^2 + dv^2 + M^2 (dux^2 + duy^2 + dvx^2 + dvy^2)) < 0.001``
   (M the subset half-width), at most 10 iterations by default.
@@ -34,7 +34,7 @@ from numba import njit, prange
 from numpy import float32 as _F32
 
 from livedic.dic.bspline import (FASTMATH, PAD, float32_lanes, BSplineCoefficients, check_degree, prefilter, sample_shift,
-                                 sample_shift5, warped_subset_inside)
+                                 sample_shift5, sample_shift7, warped_subset_inside)
 from livedic.dic.correlation import FLAT_VARIANCE as _FLAT
 from livedic.dic.gradient import diff4_x, diff4_y
 from livedic.dic.subpixel.hessian import fold_row, gauss_newton_matrix, subtract_normalisation
@@ -344,7 +344,7 @@ def prepare_reference(reference: np.ndarray, xs: npt.ArrayLike, ys: npt.ArrayLik
 def prepare_target(deformed: np.ndarray, *, out: BSplineCoefficients | None = None,
                    degree: int = 3) -> BSplineCoefficients:
     """B-spline coefficients of a target frame (once per frame): ``dic.bspline.prefilter``, float32, of
-    ``degree`` 3 (cubic) or 5 (quintic); IC-GN samples the target with the spline they record.
+    ``degree`` 3 (cubic), 5 (quintic) or 7 (septic); IC-GN samples the target with the spline they record.
 
     The grey levels are those of ``dic.validation.as_image`` (float32); 8- and 16-bit frames, whose
     values float32 holds exactly, are read as they are (no float32 copy of the frame is made).
@@ -500,6 +500,97 @@ def _row_sums5(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, f
 
 
 @njit(cache=True, fastmath=FASTMATH, inline="always")
+def _septic_weights(t):
+    """The 8 septic B-spline weights of the taps at -3 .. 4 for a fractional offset t in [0, 1) (float32;
+    the polynomials of ``dic.bspline.weights7``)."""
+    s = _F32(1.0) - t
+    s2 = s * s
+    t2 = t * t
+    c = _F32(1.0 / 5040.0)
+    w0 = s2 * s2 * s2 * s * c
+    w7 = t2 * t2 * t2 * t * c
+    w1 = (_F32(120.0) + t * (_F32(-392.0) + t * (_F32(504.0) + t * (_F32(-280.0) + t2 * (
+        _F32(84.0) + t * (_F32(-42.0) + _F32(7.0) * t)))))) * c
+    w2 = (_F32(1191.0) + t * (_F32(-1715.0) + t * (_F32(315.0) + t * (_F32(665.0) + t * (
+        _F32(-315.0) + t * (_F32(-105.0) + t * (_F32(105.0) - _F32(21.0) * t))))))) * c
+    w4 = (_F32(1191.0) + t * (_F32(1715.0) + t * (_F32(315.0) + t * (_F32(-665.0) + t * (
+        _F32(-315.0) + t * (_F32(105.0) + t * (_F32(105.0) - _F32(35.0) * t))))))) * c
+    w5 = (_F32(120.0) + t * (_F32(392.0) + t * (_F32(504.0) + t * (_F32(280.0) + t2 * (
+        _F32(-84.0) + t * (_F32(-42.0) + _F32(21.0) * t)))))) * c
+    w6 = (_F32(1.0) + t * (_F32(7.0) + t * (_F32(21.0) + t * (_F32(35.0) + t * (
+        _F32(35.0) + t * (_F32(21.0) + t * (_F32(7.0) - _F32(7.0) * t))))))) * c
+    return w0, w1, w2, _F32(1.0) - w0 - w1 - w2 - w4 - w5 - w6 - w7, w4, w5, w6, w7
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _column8(flat, o0, stride, wy):
+    """One column of 8 coefficients from flat[o0] (rows ``stride`` apart, uint64 indices) weighted in y by ``wy``."""
+    o1 = o0 + stride
+    o2 = o1 + stride
+    o3 = o2 + stride
+    o4 = o3 + stride
+    o5 = o4 + stride
+    o6 = o5 + stride
+    return (wy[0] * flat[o0] + wy[1] * flat[o1] + wy[2] * flat[o2] + wy[3] * flat[o3] + wy[4] * flat[o4]
+            + wy[5] * flat[o5] + wy[6] * flat[o6] + wy[7] * flat[o6 + stride])
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
+def _row_sums7(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx, fy, koff, xstep):
+    """``_row_sums5`` of septic coefficients: lane l's 64 taps start at flat[base + l] (3 px left and up of
+    floor(x'), floor(y')); with ``xstep`` every lane reads the same 9 columns and weighs the first or last 8."""
+    st = np.uint64(stride)
+    ko = np.uint64(koff)
+    sg = _F32(0.0)
+    sgg = _F32(0.0)
+    sfg = _F32(0.0)
+    pa = _F32(0.0)
+    pax = _F32(0.0)
+    pb = _F32(0.0)
+    pbx = _F32(0.0)
+    for l in range(lanes):
+        lu = np.uint64(l)
+        d = lane_dx[lu]
+        xo = ax + sx * d
+        wy = _septic_weights(ay + sy * d)
+        o = base + lu
+        if xstep:
+            stepped = xo >= _F32(1.0)
+            w0, w1, w2, w3, w4, w5, w6, w7 = _septic_weights(xo - _F32(1.0) if stepped else xo)
+            c0 = _column8(flat, o, st, wy)
+            c1 = _column8(flat, o + np.uint64(1), st, wy)
+            c2 = _column8(flat, o + np.uint64(2), st, wy)
+            c3 = _column8(flat, o + np.uint64(3), st, wy)
+            c4 = _column8(flat, o + np.uint64(4), st, wy)
+            c5 = _column8(flat, o + np.uint64(5), st, wy)
+            c6 = _column8(flat, o + np.uint64(6), st, wy)
+            c7 = _column8(flat, o + np.uint64(7), st, wy)
+            c8 = _column8(flat, o + np.uint64(8), st, wy)
+            if stepped:
+                g = (w0 * c1 + w1 * c2 + w2 * c3 + w3 * c4 + w4 * c5 + w5 * c6 + w6 * c7 + w7 * c8) * mask[lu]
+            else:
+                g = (w0 * c0 + w1 * c1 + w2 * c2 + w3 * c3 + w4 * c4 + w5 * c5 + w6 * c6 + w7 * c7) * mask[lu]
+        else:
+            w0, w1, w2, w3, w4, w5, w6, w7 = _septic_weights(xo)
+            g = (w0 * _column8(flat, o, st, wy) + w1 * _column8(flat, o + np.uint64(1), st, wy)
+                 + w2 * _column8(flat, o + np.uint64(2), st, wy) + w3 * _column8(flat, o + np.uint64(3), st, wy)
+                 + w4 * _column8(flat, o + np.uint64(4), st, wy) + w5 * _column8(flat, o + np.uint64(5), st, wy)
+                 + w6 * _column8(flat, o + np.uint64(6), st, wy)
+                 + w7 * _column8(flat, o + np.uint64(7), st, wy)) * mask[lu]
+        k = ko + lu
+        sg += g
+        sgg += g * g
+        sfg += fhat[k] * g
+        a = fx[k] * g
+        b = fy[k] * g
+        pa += a
+        pax += a * d
+        pb += b
+        pbx += b * d
+    return sg, sgg, sfg, pa, pax, pb, pbx
+
+
+@njit(cache=True, fastmath=FASTMATH, inline="always")
 def _row_sums(flat, base, stride, ax, sx, ay, sy, lanes, lane_dx, mask, fhat, fx, fy, koff):
     """Sample one subset row at an affine warp and return its 7 IC-GN sums (float32).
 
@@ -614,8 +705,8 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
                  kx, ky, run_mask, degree, out):
     """out (9,) <- sums over the subset warped by p: g, g^2, fhat g, fx g, fx g dx, fx g dy, fy g, fy g dx, fy g dy.
 
-    ``degree`` 3 (cubic: ``_row_sums``, ``_row_sums_xstep``) or 5 (quintic: ``_row_sums5``); it is chosen
-    per row, outside the lane loops, which stay whole vector passes.
+    ``degree`` 3 (cubic: ``_row_sums``, ``_row_sums_xstep``), 5 (quintic: ``_row_sums5``) or 7 (septic:
+    ``_row_sums7``); it is chosen per row, outside the lane loops, which stay whole vector passes.
 
     One row at a time. Along a row x' = bx + dx + ux dx and y' = by + vx dx, so
     the tap origin (floor(bx + ux dx) + dx, floor(by + vx dx)) advances by one
@@ -624,15 +715,16 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
     pass of ``_row_sums_xstep``), or, rarely, more (one masked pass each). Rows are summed in float32 (<= 3 terms per lane), the subset in float64.
     The caller guarantees every sample lies in the spline domain. Lanes that
     are computed and discarded (past the subset, or outside the run of a masked
-    pass) read at most 2M + 10 columns beside a real tap, which stays inside the
-    coefficient buffer thanks to its SLACK rows (the subset side is <= the image
+    pass) read at most 2M + 10 columns beside a real tap (septic, 16 lanes: 2M + 24), which stays inside
+    the coefficient buffer thanks to its SLACK rows and PAD (the subset side is <= the image
     width). ``flat`` is that buffer, padded coefficient [0, 0] at ``origin``.
     """
     side = 2 * half + 1
     sx = _F32(ux)
     sy = _F32(vx)
     quintic = degree == 5
-    reach = 2 if quintic else 1     # taps left of / above floor(x'), floor(y')
+    septic = degree == 7
+    reach = 3 if septic else (2 if quintic else 1)     # taps left of / above floor(x'), floor(y')
     sg = 0.0
     sgg = 0.0
     sfg = 0.0
@@ -655,7 +747,11 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
             steps = kx0 != kx1
             kx0 = min(kx0, kx1)
             base = np.uint64(origin + (ky0 + PAD - reach) * stride + kx0 + PAD - reach - half)
-            if quintic:
+            if septic:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums7(
+                    flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
+                    fhat, fx, fy, koff, steps)
+            elif quintic:
                 rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums5(
                     flat, base, stride, _F32(bx - kx0), sx, _F32(by - ky0), sy, lanes, lane_dx, lane_mask,
                     fhat, fx, fy, koff, steps)
@@ -691,7 +787,11 @@ def _affine_sums(flat, origin, stride, x0, y0, half, u, ux, uy, v, vx, vy, fhat,
             base = np.uint64(origin + (kya + PAD - reach) * stride + kxa + PAD - reach - half)
             for m in range(lanes):
                 run_mask[m] = 1.0 if (kx[m] == kxa and ky[m] == kya) else 0.0
-            if quintic:
+            if septic:
+                rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums7(
+                    flat, base, stride, _F32(bx - kxa), sx, _F32(by - kya), sy, lanes, lane_dx, run_mask,
+                    fhat, fx, fy, koff, False)
+            elif quintic:
                 rsg, rsgg, rsfg, rpa, rpax, rpb, rpbx = _row_sums5(
                     flat, base, stride, _F32(bx - kxa), sx, _F32(by - kya), sy, lanes, lane_dx, run_mask,
                     fhat, fx, fy, koff, False)
@@ -727,7 +827,7 @@ def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy
                  degree):
     """Refine p = [u, ux, uy, v, vx, vy] (6,) in place; return (status, zncc, iterations).
 
-    ``degree``: of the target's B-spline coefficients (``BSplineCoefficients.degree``), 3 or 5.
+    ``degree``: of the target's B-spline coefficients (``BSplineCoefficients.degree``), 3, 5 or 7.
 
     The per-point kernel of ``refine_prepared``, for kernels that refine one point at a time
     (``dic.reliability_guided``); ``scratch`` from ``refine_point_scratch``, one per task.
@@ -754,7 +854,9 @@ def refine_point(flat, origin, stride, height, width, x0, y0, half, fhat, fx, fy
     for _ in range(steps):
         if not warped_subset_inside(height, width, x0, y0, half, u, 0.0, 0.0, v, 0.0, 0.0):
             return _OUTSIDE_TARGET, zncc, iterations
-        if degree == 5:
+        if degree == 7:
+            sample_shift7(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
+        elif degree == 5:
             sample_shift5(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
         else:
             sample_shift(flat, origin, stride, x0 + u, y0 + v, half, tmp, g, lanes)
@@ -851,7 +953,7 @@ def refine_point_scratch(half, lanes):
     """Per-task scratch arrays for ``refine_point``."""
     side = 2 * half + 1
     g = np.zeros(side * lanes, dtype=np.float32)
-    tmp = np.zeros((side + 5) * lanes, dtype=np.float32)     # side + 3 rows for the cubic, + 5 for the quintic
+    tmp = np.zeros((side + 7) * lanes, dtype=np.float32)     # side + 3 rows for the cubic, + 5 quintic, + 7 septic
     kx = np.empty(lanes, dtype=np.int64)
     ky = np.empty(lanes, dtype=np.int64)
     lane_dx = np.empty(lanes, dtype=np.float32)
@@ -962,7 +1064,7 @@ def refine_prepared(ref_prep: IcgnReference, target_coeffs: BSplineCoefficients,
         Coefficients not from ``prepare_target`` or of another image size,
         start arrays of the wrong length, bad options.
     """
-    points = checked_points(ref_prep, target_coeffs, points)
+    points = checked_points(ref_prep, target_coeffs, points, degrees=(3, 5, 7))
     npts = points.shape[0]
     orders, per_point = point_orders(order, npts, max_order=1)
     check_iterations(max_iterations, tolerance, translation_iterations, translation_tolerance)
@@ -1012,8 +1114,8 @@ def refine(reference: np.ndarray, deformed: np.ndarray, xs: np.ndarray, ys: np.n
     half : int
         Subset half-width M.
     **options
-        ``degree`` (of ``prepare_target``: 3 or 5); ``hessian`` (of ``prepare_reference``); ``order``, ``max_iterations``,
-        ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
+        ``degree`` (of ``prepare_target``: 3, 5 or 7); ``hessian`` (of ``prepare_reference``); ``order``,
+        ``max_iterations``, ``tolerance``, ``translation_iterations``, ``translation_tolerance`` and
         start gradients ``ux0, uy0, vx0, vy0`` (of ``refine_prepared``).
 
     Returns

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from livedic.dic.bspline import INTERPOLATION_MARGIN
-from livedic.dic.interpolation import BSPLINE3, BSPLINE5, DEFAULT_INTERPOLATION, Interpolation
+from livedic.dic.interpolation import BSPLINE3, BSPLINE5, BSPLINE7, DEFAULT_INTERPOLATION, Interpolation
 from livedic.dic.subpixel import gradient_method, icgn, icgn2, improved_surface_fit, newton_raphson, surface_fit
 
 BSPLINE = Interpolation(BSPLINE3).describe()
@@ -144,7 +144,7 @@ METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (
                    interpolant="none: an improved surface fitted to the ZNCC around its integer peak"),
     SubpixelMethod("icgn", icgn, INTERPOLATION_MARGIN, shape_order=1, prepared=True, final_after_guidance=True,
                    shape_function="first order (affine, 6 parameters)", interpolant=BSPLINE,
-                   criterion="ZNSSD (equivalent to ZNCC)", interpolations=(BSPLINE3, BSPLINE5)),
+                   criterion="ZNSSD (equivalent to ZNCC)", interpolations=(BSPLINE3, BSPLINE5, BSPLINE7)),
     _SecondOrderIcgn("icgn2", icgn2, INTERPOLATION_MARGIN, shape_order=2, prepared=True,
                      shape_terms=icgn2.SECOND_ORDER, reference_options=("vif_max", "curvature_threshold"),
                      shape_function="second order (quadratic, 12 parameters)", interpolant=BSPLINE,

@@ -39,9 +39,9 @@ REFIND_ZNCC = 0.8
 SEED_SWARM = {"population": 6, "iterations": 8}
 # IC-GN reads each frame on a window around the points: displacement room it starts with (px) and the
 # extra border that keeps the B-spline prefilter's edge effects away, per degree (cubic pole 2 - sqrt(3):
-# 0.27^12 < 1e-6; the quintic's larger pole 0.43 needs 19 px for the same).
+# 0.27^12 < 1e-6; the quintic's larger pole 0.43 needs 19 px for the same, the septic's 0.54 25 px).
 _WINDOW_ALLOWANCE = 48
-_FILTER_GUARD = {3: 12, 5: 19}
+_FILTER_GUARD = {3: 12, 5: 19, 7: 25}
 
 # The stages of ``track`` that ``last_timings`` times (``StageTimes``), in the order a frame passes them:
 # prepare = the new frame made ready to sample (the image pre-filter if any, grey float32, the B-spline prefilter
@@ -147,8 +147,8 @@ class Tracker(RefindSteps):
         Image pre-filter applied to the reference and, once, to every frame ``track`` is given, before
         anything reads them: ``"none"`` (default) or ``"gaussian:SIGMA"`` (``dic.image_filter``).
     interpolation : str or dic.interpolation.Interpolation
-        The B-spline IC-GN samples each frame with: ``"bspline3"`` (default) or ``"bspline5"`` (``icgn``
-        only; ``dic.interpolation``).
+        The B-spline IC-GN samples each frame with: ``"bspline3"`` (default), ``"bspline5"`` or ``"bspline7"``
+        (``icgn`` only; ``dic.interpolation``).
 
     Attributes
     ----------

@@ -37,7 +37,7 @@ from livedic.dic.region import Polygon, Rectangle, Region
 from livedic.dic.search import DEFAULT_RADIUS, DEFAULT_SEARCH
 from livedic.dic.tracking.tracker import REFIND_ZNCC
 from livedic.dic.image_filter import DEFAULT_PREFILTER, MAX_SIGMA
-from livedic.dic.interpolation import BSPLINE5, DEFAULT_INTERPOLATION, INTERPOLATIONS
+from livedic.dic.interpolation import BSPLINE7, DEFAULT_INTERPOLATION, INTERPOLATIONS
 from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, check_interpolation, check_prefilter, check_search,
                                            check_subpixel, interpolation_name, parse_color_range, prefilter_text,
                                            search_method, subpixel_method,
@@ -85,12 +85,12 @@ def _option(name):
 SUBSET_HELP = "odd subset side, pixels (default {default})"
 
 
-# ``measure``'s defaults (offline: no frame rate to keep): the biquintic B-spline wherever the sub-pixel method
+# ``measure``'s defaults (offline: no frame rate to keep): the biseptic B-spline wherever the sub-pixel method
 # samples it (icgn) and, with it, the Gaussian pre-filter chosen with it on DIC Challenge 1.0 Sample 3 and the
 # Stars (docs/guide/measure.md, "The defaults"). ``run`` and ``replay`` keep the library's (bspline3, none): the
-# quintic doubles IC-GN's kernel, which the live rate cannot spare.
-OFFLINE_INTERPOLATION = BSPLINE5
-OFFLINE_PREFILTER = "gaussian:0.55"
+# higher degrees double IC-GN's kernel or more, which the live rate cannot spare.
+OFFLINE_INTERPOLATION = BSPLINE7
+OFFLINE_PREFILTER = "gaussian:0.45"
 _MEASURE_INTERPOLATION = (f"{OFFLINE_INTERPOLATION} with the methods that sample it (icgn), else "
                           f"{DEFAULT_INTERPOLATION}")
 _MEASURE_PREFILTER = f"{OFFLINE_PREFILTER} with {OFFLINE_INTERPOLATION}, else {DEFAULT_PREFILTER}"
@@ -110,10 +110,10 @@ def _interpolation_option(default: str | None = DEFAULT_INTERPOLATION, shown: st
     """``--interpolation``, declared here once for ``run``/``replay`` (``TrackingConfig``) and ``measure``
     (``MeasureConfig``: ``default`` None, resolved by ``measure_defaults``; ``shown`` says what it becomes)."""
     return option(default, f"grey-level interpolant IC-GN samples each frame with: "
-                           f"{' or '.join(INTERPOLATIONS)} (bicubic or biquintic B-spline; bspline5 "
-                           f"halves the sub-pixel interpolation bias on DIC Challenge images for ~2x the kernel "
-                           f"time, icgn only; docs/guide/measure.md) (default {shown})",
-                  brief=f"interpolant: {' or '.join(INTERPOLATIONS)}", metavar="NAME", type=interpolation_name)
+                           f"{', '.join(INTERPOLATIONS)} (bicubic, biquintic or biseptic B-spline; the "
+                           f"higher degrees cut the sub-pixel interpolation bias on DIC Challenge images for 2-3x "
+                           f"the kernel time, icgn only; docs/guide/measure.md) (default {shown})",
+                  brief=f"interpolant: {', '.join(INTERPOLATIONS)}", metavar="NAME", type=interpolation_name)
 
 
 def _checked_interpolation(name: str, subpixel: str) -> str:

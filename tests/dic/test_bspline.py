@@ -266,3 +266,141 @@ def test_prefilter_degree_is_checked_and_a_buffer_of_another_degree_is_not_reuse
     for bad in (4, "5", True, 3.5):
         with pytest.raises(ValueError, match="degree must be one of 3, 5"):
             prefilter(image, degree=bad)
+
+
+# ---------------------------------------------------------------------------
+# septic B-spline (degree=7)
+
+
+def _beta(n, x):
+    """The centred B-spline of degree ``n``, from its definition (a sum of truncated powers)."""
+    from math import comb, factorial
+    x = np.asarray(x, dtype=np.float64)
+    return sum((-1) ** k * comb(n + 1, k) * np.maximum(x + (n + 1) / 2 - k, 0.0) ** n
+               for k in range(n + 2)) / factorial(n)
+
+
+def _beta7(x):
+    """The septic B-spline: the slow reference."""
+    return _beta(7, x)
+
+
+def _mirror_index(i, n):
+    if n == 1:
+        return 0
+    period = 2 * n - 2
+    i = i % period
+    return period - i if i >= n else i
+
+
+def _septic_reference(image, x, y):
+    """Slow septic interpolation: coefficients from a dense solve of the interpolation condition with mirrored
+    coefficients (the prefilter's boundary condition), values from ``_beta7`` at every tap."""
+    def solve(n):
+        a = np.zeros((n, n))
+        for i in range(n):
+            for j in range(i - 3, i + 4):
+                a[i, _mirror_index(j, n)] += _beta7(i - j)
+        return np.linalg.inv(a)
+    height, width = image.shape
+    coeffs = solve(height) @ image @ solve(width).T
+    out = np.zeros(np.shape(x))
+    for idx in np.ndindex(out.shape):
+        px, py = x[idx], y[idx]
+        for j in range(int(py) - 4, int(py) + 5):
+            for k in range(int(px) - 4, int(px) + 5):
+                out[idx] += _beta7(px - k) * _beta7(py - j) * coeffs[_mirror_index(j, height), _mirror_index(k, width)]
+    return coeffs, out
+
+
+def test_septic_weights_are_the_b_spline_and_sum_to_one():
+    from livedic.dic.bspline import derivative_weights7, weights7
+    for t in np.linspace(0.0, 1.0, 23):
+        w = np.array(weights7(t))
+        np.testing.assert_allclose(w, _beta7(t + 3 - np.arange(8)), rtol=0, atol=1e-12)   # the sum cancels to ~1e-14
+        assert abs(w.sum() - 1.0) < 1e-15
+        x = t + 3 - np.arange(8)     # d/dx beta7(x) = beta6(x + 1/2) - beta6(x - 1/2)
+        np.testing.assert_allclose(derivative_weights7(t), _beta(6, x + 0.5) - _beta(6, x - 0.5), rtol=0, atol=1e-12)
+        assert abs(sum(derivative_weights7(t))) < 1e-15
+
+
+@pytest.mark.parametrize("dtype, tol", [(np.float64, 1e-9), (np.float32, 5e-5)])
+def test_septic_reproduces_samples_at_integer_positions(dtype, tol):
+    image = blurred_noise((37, 53), seed=2).astype(np.float64)
+    coeffs = prefilter(image, dtype=dtype, degree=7)
+    assert coeffs.degree == 7
+    rows, cols = np.mgrid[0:37, 0:53]
+    values = interpolate(coeffs, cols, rows)      # the last row and column too (taps shifted one left there)
+    assert np.max(np.abs(values - image)) <= tol * np.max(np.abs(image))
+
+
+def _septic_poly(x, y):
+    return _quintic(x, y) + 3e-10 * (x - 29.7) ** 6 * (1.0 + 1e-2 * (y - 40.2)) - 2e-11 * (y - 41.3) ** 7
+
+
+def test_septic_reproduces_polynomials_up_to_degree_7_and_their_gradient():
+    rows, cols = np.mgrid[0:96, 0:96].astype(np.float64)
+    image = _septic_poly(cols, rows)
+    coeffs = prefilter(image, dtype=np.float64, degree=7)
+    rng = np.random.default_rng(0)
+    # away from the mirror boundary (its effect decays as 0.54^distance: 1e-14 at 42 px)
+    x = rng.uniform(42, 53, 400)
+    y = rng.uniform(42, 53, 400)
+    values, gx, gy = interpolate(coeffs, x, y, gradient=True)
+    h = 1e-5
+    np.testing.assert_allclose(values, _septic_poly(x, y), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(gx, (_septic_poly(x + h, y) - _septic_poly(x - h, y)) / (2 * h), rtol=0, atol=1e-5)
+    np.testing.assert_allclose(gy, (_septic_poly(x, y + h) - _septic_poly(x, y - h)) / (2 * h), rtol=0, atol=1e-5)
+
+
+def test_sextic_is_reproduced_by_the_septic_not_by_the_quintic():
+    rows, cols = np.mgrid[0:96, 0:96].astype(np.float64)
+    image = 1e-6 * (cols - 47.3) ** 6
+    x = np.array([48.5, 47.25, 46.7])
+    y = np.array([47.0, 47.0, 49.4])
+    truth = 1e-6 * (x - 47.3) ** 6
+    assert np.max(np.abs(interpolate(image, x, y, degree=7) - truth)) < 1e-9
+    assert np.max(np.abs(interpolate(image, x, y, degree=5) - truth)) > 2e-8     # 4.7e-8 measured
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (2, 40), (23, 31)])
+def test_septic_matches_a_slow_reference_on_the_whole_domain(shape):
+    """Coefficients and values against ``_septic_reference``: lines shorter than the poles' horizons (exact
+    periodic initial sums) and long ones, the borders included (x = W - 1 exactly: taps shifted one left)."""
+    image = blurred_noise(shape, seed=3).astype(np.float64)
+    coeffs = prefilter(image, dtype=np.float64, degree=7)
+    rng = np.random.default_rng(1)
+    height, width = shape
+    x = np.concatenate([rng.uniform(0, width - 1, 60), [0.0, width - 1.0, max(width - 1.01, 0.0), 0.3 * (width > 1)]])
+    y = np.concatenate([rng.uniform(0, height - 1, 60), [0.0, height - 1.0, height - 1.0, 0.0]])
+    expected_coeffs, expected = _septic_reference(image, x, y)
+    np.testing.assert_allclose(coeffs.coefficients[PAD:PAD + height, PAD:PAD + width], expected_coeffs, atol=1e-9)
+    np.testing.assert_allclose(interpolate(coeffs, x, y), expected, atol=1e-9)
+
+
+def test_septic_shift_sampler_matches_pointwise_interpolation():
+    from livedic.dic.bspline import sample_shift7
+    image = blurred_noise((60, 70), seed=4)
+    coeffs = prefilter(image, degree=7)
+    half = 10
+    side = 2 * half + 1
+    lanes = -(-side // 8) * 8
+    tmp = np.zeros((side + 7) * lanes, dtype=np.float32)
+    out = np.zeros(side * lanes, dtype=np.float32)
+    x, y = 31.37, 28.81
+    sample_shift7(coeffs.flat, coeffs.origin, coeffs.coefficients.shape[1], x, y, half, tmp, out, lanes)
+    got = out.reshape(side, lanes)
+    dy, dx = np.mgrid[-half:half + 1, -half:half + 1]
+    expected = interpolate(prefilter(image, dtype=np.float64, degree=7), x + dx, y + dy)
+    np.testing.assert_allclose(got[:, :side], expected, rtol=0, atol=2e-4 * np.abs(expected).max())
+    assert np.all(got[:, side:] == 0)
+
+
+def test_septic_buffer_is_not_reused_for_another_degree():
+    image = blurred_noise((20, 24), seed=1)
+    quintic = prefilter(image, degree=5)
+    septic = prefilter(image, out=quintic, degree=7)
+    assert septic is not quintic and septic.degree == 7
+    assert prefilter(image, out=septic, degree=7) is septic
+    with pytest.raises(ValueError, match="degree must be one of 3, 5, 7"):
+        prefilter(image, degree=6)

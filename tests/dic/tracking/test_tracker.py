@@ -238,17 +238,20 @@ def test_zncc_stays_within_one_for_a_frame_tracked_against_itself():
     assert np.all(first.zncc <= 1.0) and np.all(first.zncc > 0.999)
 
 
-def test_quintic_interpolation_tracks_and_refuses_methods_without_it():
-    """``interpolation="bspline5"``: the kernel job and the window coefficients are quintic, the sequence is
-    followed; icgn2 and the surface fits refuse it in one line."""
+@pytest.mark.parametrize("name, degree", [("bspline5", 5), ("bspline7", 7)])
+def test_higher_degree_interpolation_tracks_and_refuses_methods_without_it(name, degree):
+    """``interpolation="bspline5"`` or ``"bspline7"``: the kernel job and the window coefficients are of that
+    degree (the septic's prefilter guard the widest), the sequence is followed; icgn2 and the surface fits
+    refuse it in one line."""
     source, frames = translate_frames("frames=6&size=160x160&du=0.35&dv=-0.2&noise=0")
     points = grid_in_roi(source.shape, source.suggested_roi, 16, 21)
-    tracker = Tracker(frames[0].image, points, interpolation="bspline5")
-    assert str(tracker.interpolation) == "bspline5"
+    tracker = Tracker(frames[0].image, points, interpolation=name)
+    assert str(tracker.interpolation) == name
     for frame in frames[1:]:
         m = tracker.track(frame.image)
         assert m.ok.all() and np.max(errors_to_truth(frame, m)) < 0.05
-    assert tracker.kernel_job().degree == 5
+    assert tracker.kernel_job().degree == degree
     for subpixel in ("icgn2", "improved-surface-fit"):
-        with pytest.raises(ValueError, match="--interpolation bspline5 is not available"):
-            Tracker(frames[0].image, points, subpixel=subpixel, interpolation="bspline5")
+        with pytest.raises(ValueError, match=f"--interpolation {name} is not available"):
+            Tracker(frames[0].image, points, subpixel=subpixel, interpolation=name)
+

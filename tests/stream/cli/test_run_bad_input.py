@@ -23,7 +23,7 @@ SMALL = "synthetic:tensile?size=96x160&frames=3&fps=1000"
     (["--subpixel", "bar"], "unknown sub-pixel method"),
     (["--prefilter", "gaussian:5"], "pre-filter 'gaussian:5': SIGMA must be > 0 and <= 2 px"),
     (["--prefilter", "median:3"], "unknown pre-filter 'median:3'"),
-    (["--interpolation", "bspline7"], "unknown interpolation 'bspline7': choose one of bspline3, bspline5"),
+    (["--interpolation", "bspline9"], "unknown interpolation 'bspline9': choose one of bspline3, bspline5, bspline7"),
     (["--subpixel", "icgn2", "--interpolation", "bspline5"], "--interpolation bspline5 is not available with"),
     (["--source", "synthetic:nope"], "unknown synthetic model"),
     (["--source", "bogus://x"], "unknown source scheme"),

@@ -30,15 +30,15 @@ def test_interpolation_is_canonical_and_checked_against_the_method(config):
     _one_line_error(lambda: config(interpolation="bspline2"), "unknown interpolation 'bspline2'")
 
 
-def test_measure_defaults_to_the_quintic_and_its_prefilter_where_the_method_samples_it_run_keeps_the_cubic():
+def test_measure_defaults_to_the_septic_and_its_prefilter_where_the_method_samples_it_run_keeps_the_cubic():
     """``measure``'s offline defaults (``measure_defaults``); what is given is kept; ``run``/``replay`` unchanged."""
     assert (MeasureConfig(subpixel="icgn").interpolation, MeasureConfig(subpixel="icgn").prefilter) == \
-        (OFFLINE_INTERPOLATION, OFFLINE_PREFILTER) == ("bspline5", "gaussian:0.55")
-    for subpixel in ("icgn2", "newton-raphson", "improved-surface-fit"):      # they sample no quintic
+        (OFFLINE_INTERPOLATION, OFFLINE_PREFILTER) == ("bspline7", "gaussian:0.45")
+    for subpixel in ("icgn2", "newton-raphson", "improved-surface-fit"):      # they sample no septic
         assert (MeasureConfig(subpixel=subpixel).interpolation, MeasureConfig(subpixel=subpixel).prefilter) == \
             ("bspline3", "none"), subpixel
-    assert MeasureConfig(subpixel="icgn", interpolation="bspline3").prefilter == "none"   # goes with the quintic
-    assert MeasureConfig(subpixel="icgn", prefilter="none").interpolation == "bspline5"
+    assert MeasureConfig(subpixel="icgn", interpolation="bspline3").prefilter == "none"   # goes with the septic
+    assert MeasureConfig(subpixel="icgn", prefilter="none").interpolation == "bspline7"
     assert MeasureConfig(subpixel="icgn", prefilter="gaussian:0.80").prefilter == "gaussian:0.8"
     assert (TrackingConfig().interpolation, TrackingConfig().prefilter) == ("bspline3", "none")
     _one_line_error(lambda: MeasureConfig(subpixel="icgn", prefilter="box:1"), "unknown pre-filter 'box:1'")
@@ -52,21 +52,21 @@ def test_measure_defaults_round_trip_through_the_command_line_and_the_config():
     parser = argparse.ArgumentParser()
     add_config_arguments(parser, MeasureConfig)
     config = MeasureConfig(**config_values(MeasureConfig, parser.parse_args(["--subpixel", "icgn"])))
-    assert (config.interpolation, config.prefilter) == ("bspline5", "gaussian:0.55")
+    assert (config.interpolation, config.prefilter) == ("bspline7", "gaussian:0.45")
     again = parser.parse_args(["--subpixel", "icgn", "--interpolation", config.interpolation,
                                "--prefilter", config.prefilter])
     assert MeasureConfig(**config_values(MeasureConfig, again)) == config
     search = config.search
-    assert config.described() == f"{search} + icgn, pre-filter gaussian:0.55, interpolation bspline5"
+    assert config.described() == f"{search} + icgn, pre-filter gaussian:0.45, interpolation bspline7"
     assert MeasureConfig(subpixel="surface-fit").described() == f"{search} + surface-fit, pre-filter none"
     text = " ".join(parser.format_help().split())
-    assert "(default bspline5 with the methods that sample it (icgn), else bspline3)" in text
-    assert "(default gaussian:0.55 with bspline5, else none)" in text
+    assert "(default bspline7 with the methods that sample it (icgn), else bspline3)" in text
+    assert "(default gaussian:0.45 with bspline7, else none)" in text
 
 
 def test_measure_defaults_cut_the_bias_of_a_rendered_sub_pixel_shift():
     """Sample 3's physics on a pattern rendered here: fine speckles (content near Nyquist) shifted 0.3 and 0.7 px,
-    8-bit. The cubic without a filter reads a bias of 0.002-0.003 px; measure's defaults (quintic, gaussian:0.55)
+    8-bit. The cubic without a filter reads a bias of 0.002-0.003 px; measure's defaults (septic, gaussian:0.45)
     stay under 0.001 px (measured 0.0005), at the same scatter."""
     from livedic.dic import measure
     from livedic.dic.speckle import SpecklePattern, render

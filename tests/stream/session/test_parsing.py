@@ -16,7 +16,7 @@ from livedic.stream.session.parsing import (ROI_AUTO, ROI_FULL, UsageError, argu
 
 def test_interpolation_names_are_checked_and_canonical():
     assert check_interpolation(" BSpline5") == "bspline5" and check_interpolation("bspline3") == "bspline3"
-    with pytest.raises(ValueError, match="^unknown interpolation 'cubic': choose one of bspline3, bspline5$"):
+    with pytest.raises(ValueError, match="^unknown interpolation 'cubic': choose one of bspline3, bspline5, bspline7$"):
         check_interpolation("cubic")
 
 
