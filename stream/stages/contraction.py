@@ -6,8 +6,9 @@ engineering strains (NaN without a reading) and force (NaN without one), and fit
 ``dic.tensile.poisson.contraction_ratios`` on them: Poisson's ratio over the elastic range, labelled
 "Poisson's ratio (elastic, frames a-b, axial strain x-y %)", and the plastic contraction ratio
 apart (never called Poisson's ratio). The fit so far goes on each ``FrameResult``
-(``result.poisson``) for the live view; it is refitted every frame at first and then every
-``n / REFIT_SHARE`` frames (a fit is O(n): about REFIT_SHARE x ln(n) fits a session). The
+(``result.poisson``) for the live view; it is refitted after ``n / REFIT_SHARE`` new frames (every frame at
+first), and at most every ``REFIT_INTERVAL_S`` of the frames' clock: a fit is O(n) (~2 ms at 300 frames), and at
+100 fps refitting every frame cost the output thread more than the recording (docs/guide/performance.md). The
 summary holds both ratios as objects (``as_dict``). The static frames after the reference (``--static-frames``,
 ``stream.stages.noise_floor``) are no part of the test: left out, as ten copies of the origin would weigh the
 fit and hide where the elastic range ends.
@@ -21,6 +22,7 @@ from livedic.dic.tensile.poisson import contraction_ratios
 from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
 
 REFIT_SHARE = 50      # the live fit is redone after n / REFIT_SHARE new frames
+REFIT_INTERVAL_S = 0.2  # ... and at most this often (frames' clock): a display's rate, not the camera's
 
 
 def has_pair(strain):
@@ -34,14 +36,16 @@ class ContractionWatch:
     name = "Poisson's ratio"
     required = False
 
-    def __init__(self, static_frames=0):
+    def __init__(self, static_frames=0, refit_interval_s=REFIT_INTERVAL_S):
         self._static_left = int(static_frames)   # frames after the reference still to leave out
+        self._refit_interval_ns = refit_interval_s * 1e9
         self.frames = array("q")
         self.axial = array("d")
         self.transverse = array("d")
         self.force = array("d")
         self.current = None              # the last live fit (dic.tensile.poisson.ContractionRatio)
         self._fitted_at = 0
+        self._fitted_ns = 0              # the frame time of the last live fit
 
     def __call__(self, result, stats):
         if not result.is_reference and self._static_left > 0:
@@ -54,14 +58,16 @@ class ContractionWatch:
         self.transverse.append(_reading(readings, TRANSVERSE))
         force = result.force_N
         self.force.append(float("nan") if force is None else float(force))
-        result.poisson = self.live()
+        result.poisson = self.live(result.frame.timestamp_ns)
 
-    def live(self):
-        """The elastic fit so far, refitted when enough new frames came (see the module notes)."""
+    def live(self, now_ns: int):
+        """The elastic fit so far, refitted when enough new frames came and time passed (see the module notes);
+        ``now_ns``: the frame's time."""
         n = len(self.frames)
-        if self.current is None or n - self._fitted_at >= max(1, n // REFIT_SHARE):
+        if self.current is None or (n - self._fitted_at >= max(1, n // REFIT_SHARE)
+                                    and now_ns - self._fitted_ns >= self._refit_interval_ns):
             self.current = self.fit()[0]
-            self._fitted_at = n
+            self._fitted_at, self._fitted_ns = n, now_ns
         return self.current
 
     def fit(self):

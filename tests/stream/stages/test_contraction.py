@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE, Extensometer, ExtensometerReadings
-from livedic.stream.stages.contraction import REFIT_SHARE, ContractionWatch, format_poisson, has_pair
+from livedic.stream.stages.contraction import REFIT_INTERVAL_S, REFIT_SHARE, ContractionWatch, format_poisson, has_pair
 
 
 def _readings(axial, transverse, transverse_ok=True):
@@ -17,9 +17,9 @@ def _readings(axial, transverse, transverse_ok=True):
                                 status=np.array([0, 0 if transverse_ok else 2]))
 
 
-def _result(index, readings, force=None):
-    return SimpleNamespace(frame=SimpleNamespace(index=index), extensometers=readings, force_N=force, poisson=None,
-                           is_reference=index == 0)
+def _result(index, readings, force=None, fps=1.0):
+    return SimpleNamespace(frame=SimpleNamespace(index=index, timestamp_ns=round(index * 1e9 / fps)),
+                           extensometers=readings, force_N=force, poisson=None, is_reference=index == 0)
 
 
 def test_the_pair_is_needed():
@@ -68,6 +68,19 @@ def test_the_live_fit_is_redone_every_frame_at_first_then_every_n_over_refit_sha
     assert fits[:REFIT_SHARE] == list(range(1, REFIT_SHARE + 1))           # every frame while n < REFIT_SHARE
     gaps = np.diff([n for n in fits if n >= 2 * REFIT_SHARE])
     assert gaps.size and (gaps == 2).all()                                  # then every n / REFIT_SHARE frames
+
+
+
+def test_at_a_camera_rate_the_live_fit_waits_for_the_display_interval(monkeypatch):
+    fps = 100.0
+    watch = ContractionWatch()
+    fits = []
+    monkeypatch.setattr(watch, "fit", lambda: (fits.append(len(watch.frames)) or len(fits), None))
+    for k in range(300):
+        watch(_result(k, _readings(0.0, 0.0), fps=fps), None)
+    every = round(REFIT_INTERVAL_S * fps)
+    assert fits == list(range(1, 301, every))          # the first frame, then one fit an interval of frames' time
+    assert watch.summary is not None and len(watch.frames) == 300           # every frame kept for the final fit
 
 
 def test_the_text_of_a_ratio_and_of_none():

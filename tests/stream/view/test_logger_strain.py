@@ -60,7 +60,7 @@ def _session(path, *, strain=True, lose=(), stage_config=None, feed_strain=True)
     options = {"strain": stage} if strain else {}
     logger.start(image_shape=SHAPE, roi=ROI, p0_index=0, points=points, **options)
     readings = []
-    watch = ContractionWatch()
+    watch = ContractionWatch(refit_interval_s=0.0)      # refitted every frame: the view shows the last frame's fit
     for i in range(FRAMES):
         u, v = _field(i, x, y)
         ok = _isolate_top_end(stage, x, y) if i in lose else None
