@@ -48,6 +48,7 @@ from livedic.acquire.base import Frame
 from livedic.dic.strain.extensometer import AXIAL
 from livedic.stream.pipeline.acquisition import AcquisitionThread, Reconnect
 from livedic.stream.pipeline.cores import CoreSplit, core_split
+from livedic.stream.pipeline.frame_recording import FrameRecording
 from livedic.stream.pipeline.frame_queue import BLOCK, FrameQueue
 from livedic.stream.pipeline.frame_result import SessionStats, reference_ready
 from livedic.stream.pipeline.progress import ProgressBar
@@ -189,6 +190,7 @@ class Session:
         self.acquisition: Any = None
         self.loop: Any = None                   # TrackerLoop, from start
         self.cores: CoreSplit | None = None     # where the tracking thread ran (--cores split), from start
+        self.frame_recording: FrameRecording | None = None     # writes the camera frames, from start
         self.bar: Any = None
         self.progress: Any = None
         self.poisson: ContractionWatch | None = None
@@ -271,12 +273,13 @@ class Session:
         recorder = self.recorder
         on_frame = None
         if recorder is not None:
-            def on_frame(item):          # in the acquisition thread: every frame, tracked or dropped
+            def write_frame(item):       # every frame, tracked or dropped, in order, behind the acquisition thread
                 started = time.perf_counter_ns()
                 recorder.write_frame(for_recording(item.frame))
                 if item.frame.right is not None:
                     recorder.write_frame(for_recording(item.frame.right), view="right")
                 self.loop.stats.stages.add("record frame", time.perf_counter_ns() - started)
+            on_frame = self.frame_recording = FrameRecording(write_frame)
         reconnect = None
         if config.reconnect:
             options = self.preparation.source_options
@@ -346,6 +349,8 @@ class Session:
             self.acquisition.stop()
             self.queue.close()          # frees a put blocked on a full queue ("block" policy)
             self.acquisition.join(timeout=10.0)
+            if self.frame_recording is not None:    # every frame acquired is in the recording before it closes
+                self._close_quietly(self.frame_recording.close, "frame recording")
             for publisher in self.publishers:
                 self._close_quietly(publisher.finish, publisher.name)
         self.progress.finish()
@@ -396,6 +401,8 @@ class Session:
         elif self.source is not None:
             self._close_quietly(self.source.close, "frame source")
         self.source = None
+        if self.frame_recording is not None:      # before the recorder: the frames still waiting are written
+            self._close_quietly(self.frame_recording.close, "frame recording")
         if self.load is not None:
             load, self.load = self.load, None
             self._close_quietly(load.close, "force source")
