@@ -30,7 +30,7 @@ STAGE_ROWS = (
     ("publish", "strain out (publish)", "tracking"),
     ("force", "force", "tracking"),
     ("Poisson's ratio", "Poisson's ratio", "output"),
-    ("record frame", "recording the frame", "acquisition"),
+    ("record frame", "recording the frame", "frame recorder"),
     ("record results", "recording the results", "output"),
     ("view", "Rerun view: handing the frame over", "output"),
     ("view drawing", "Rerun view: drawing", "view process"),
