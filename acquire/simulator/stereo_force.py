@@ -11,10 +11,10 @@ modulus ``PLASTIC_MODULUS_GPA`` (stress 800 MPa + K e_p, e = stress / E + e_p)::
 The hardening makes the yielding continuous, so a report reads E and Rp0.2 (820 MPa, once the test passes 0.2 %
 plastic strain) from it; a perfectly plastic law's flat top, shorter than the 0.5 % plateau ISO 6892-1 reading needs
 at the default 1 % strain, gave neither. The test ends before any maximum of the material's force (the law has no
-neck): the largest force is the last frame's, which a report reads as Rm, Ag there. The neck's extra strain is local
-(the force is the uniform part's); it grows from the first frame, which a real neck does not (it starts at maximum
-force), so an extensometer across it reads more strain than ``e`` and the curve it gives follows the law only with
-``neck=0``.
+neck): the largest force is the last frame's, so a report gives no Rm, Ag or Agt (the test ended before Fm). The
+neck's extra strain is local (the force is the uniform part's); it grows from the first frame, which a real neck
+does not (it starts at maximum force), so an extensometer across it reads more strain than ``e`` and the curve it
+gives follows the law only with ``neck=0``.
 """
 
 from __future__ import annotations
