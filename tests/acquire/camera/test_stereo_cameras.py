@@ -165,3 +165,83 @@ def test_a_camera_lost_mid_pair_ends_it_with_one_error_naming_that_view(scene):
                     pass
     message = str(lost.value)
     assert message.startswith(f"right view ({right}): camera ") and " lost: " in message and "\n" not in message
+
+
+# --------------------------------------------------------------------------- a rendered stereo pair, end to end
+
+RENDERED = "synthetic:stereo?view={}&frames=6&size=160x160&focal=1500&strain=0&neck=0&w0=0.5&noise=0.5&pace=0"
+TICK_STAMP = slice(0, 8)          # row 0, each view's first 8 columns (background): the tick, as in Scene
+
+
+class RenderedPair:
+    """Both views of the 3D simulator side by side (left | right), at tick k its frame ``k mod frames``, the tick
+    stamped in each view's corner: two fakes cropping each half serve the two cameras of a rendered stereo rig."""
+
+    def __init__(self):
+        from livedic.acquire.simulator.stereo_source import SyntheticStereoViewSource
+        views = []
+        for view in ("left", "right"):
+            source = SyntheticStereoViewSource(RENDERED.format(view))
+            source.prepare()
+            views.append([frame.image.copy() for frame in source])
+            source.close()
+        self.scene = source.scene
+        self.frames = [np.hstack(pair) for pair in zip(*views)]
+        self.width = views[0][0].shape[1]
+
+    def __call__(self, k):
+        image = self.frames[k % len(self.frames)].copy()
+        stamp = np.frombuffer(np.int64(k).tobytes(), np.uint8)
+        image[0, TICK_STAMP] = stamp
+        image[0, self.width + TICK_STAMP.start:self.width + TICK_STAMP.stop] = stamp
+        return image
+
+    def displacement_mm(self, k0, k1):
+        """The coupon's rigid 3D motion (mm, the left camera's frame) from the state shown at tick k0 to k1's."""
+        centre = np.zeros((1, 2))
+        n = len(self.frames)
+        return (self.scene.positions(k1 % n, centre) - self.scene.positions(k0 % n, centre))[0]
+
+
+def _tick(image):
+    return int(np.frombuffer(np.ascontiguousarray(image[0, TICK_STAMP]).tobytes(), np.int64)[0])
+
+
+@pytest.mark.time_limit(180)
+def test_two_fakes_serving_a_rendered_stereo_pair_give_its_3d_motion_live(tmp_path):
+    """Two Aravis fakes on one software trigger serve the 3D simulator's left and right views of a coupon moving
+    towards and away from the cameras (0 to 0.5 mm); a live stereo session on them, given the rig's calibration,
+    reads each frame's 3D motion from the reference, every frame's right view of the same tick as its left."""
+    from livedic.acquire.recording.reader import read_results
+    from livedic.acquire.recording.source import McapSource
+    from livedic.stream.session.config import PointsConfig, SessionConfig, ViewerConfig
+    from livedic.stream.session.session import Session
+    from livedic.stream.stages.strain import StrainConfig
+    scene = RenderedPair()
+    height, width = scene.frames[0].shape[0], scene.width
+    view = "aravis:Fake_1?roi={},0," + f"{width},{height}&trigger=software&frame_rate={RATE}&copy=1"
+    record = tmp_path / "s.mcap"
+    with InProcessFakeCamera(scene, tick_hz=RATE):
+        config = SessionConfig(source=f"stereo:{view.format(0)},{view.format(width)}", frames=12,
+                               viewer=ViewerConfig("none"), record=str(record), warm_up=False, static_frames=0,
+                               rig=scene.scene.rig.calibration(), strain=StrainConfig(gauge_length=5.0),
+                               points=PointsConfig(step=12))
+        with Session(config) as session:
+            session.prepare()
+            session.start()
+            session.run()
+    left = {frame.index: _tick(frame.image) for frame in McapSource(str(record))}
+    right = {frame.index: _tick(frame.image) for frame in McapSource(str(record), view="right")}
+    assert left == right and len(left) == 12                      # every pair one tick, never mismatched
+    results = read_results(str(record))
+    reference_tick = left[results[0].frame_index]
+    moving = 0
+    for result in results[1:]:
+        truth = scene.displacement_mm(reference_tick, left[result.frame_index])
+        stereo = result.stereo
+        ok = stereo["stereo_status"] == 0
+        assert np.mean(ok) > 0.9
+        measured = [np.mean(stereo[name][ok]) for name in ("u_mm", "v_mm", "w_mm")]
+        np.testing.assert_allclose(measured, truth, atol=0.005)      # 5 um of 0-0.5 mm, at 160 px and f 1500 px
+        moving += np.linalg.norm(truth) > 0.05
+    assert moving >= 3                                                # the motion was there to be read
