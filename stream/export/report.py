@@ -331,7 +331,8 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     source = _source_section(path, series, stress, table, recorded.source if stress.recorded else None)
     session = series["metadata"]
     verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
-                                    scale_px_per_mm=scale, end_fit=axial_end_fit(session))
+                                    scale_px_per_mm=scale, end_fit=axial_end_fit(session),
+                                    in_space=bool(series["stereo"]))
     tables = guide_tables(session, scale=(scale, scale_origin), noise_floor=noise_floor, verification=verified)
     report = report_json(properties, specimen, source, contraction, tables=tables)
     report[VERIFICATION_KEY] = verified

@@ -266,6 +266,8 @@ def performance_rows(session: Mapping[str, Any], *, noise_floor: Mapping[str, An
         met = (f"class {klass}" if klass else
                f"no class: zero point only, meets class {zero}'s absolute limits" if zero else "no class met")
         text = met + f" (ISO 9513, verified {str(verification.get('date'))[:10]})"
+    elif verification and verification.get("in_space"):
+        klass, text = None, "not verified: an extensometer in space (stereo) has no verification in livedic yet"
     else:
         klass, text = None, ("not verified (livedic verify or livedic bench extensometer -o FILE.json, then "
                              "--verification FILE.json)")

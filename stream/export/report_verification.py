@@ -61,10 +61,17 @@ def axial_end_fit(session: Mapping[str, Any]) -> str:
 
 def verification_section(verification: Mapping[str, Any] | None, *, gauge_length_px: float,
                          subset: int | None, scale_px_per_mm: float | None,
-                         end_fit: str | None = None) -> dict[str, Any]:
+                         end_fit: str | None = None, in_space: bool = False) -> dict[str, Any]:
     """The ``report.json`` section: the class of the verified gauge length nearest the session's, its table,
     date, settings and warnings; or ``{"verified": False, ...}`` naming the command. ``end_fit``: the session's
-    axial end fit (a verification written before the choice existed was made with local ends)."""
+    axial end fit (a verification written before the choice existed was made with local ends). ``in_space``: a
+    stereo session's extensometer, which ``livedic verify`` (one camera) does not verify: never a class."""
+    if in_space:
+        given = (" (the verification file given is of a one-camera extensometer and does not apply)"
+                 if verification is not None else "")
+        return {"verified": False, "class": None, "in_space": True,
+                "statement": f"the extensometer in space (stereo) has no ISO 9513 verification in livedic yet: "
+                             f"livedic verify and livedic bench extensometer verify a one-camera extensometer{given}"}
     if verification is None:
         return {"verified": False, "class": None,
                 "statement": f"the extensometer's ISO 9513 class was not verified: run {VERIFY_COMMAND} and pass "

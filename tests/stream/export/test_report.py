@@ -112,6 +112,10 @@ def test_a_stereo_recording_is_reported_from_its_extensometer_in_space(stereo_re
     assert "two cameras (stereo)" in text and "stereo rig: baseline 129.9 mm" in text
     html = (out / "report.html").read_text()
     assert "Stereo measurement" in html and "measured in space" in html
+    # livedic verify checks a one-camera extensometer: no ISO 9513 class is claimed for one in space
+    assert report["extensometer_verification"]["verified"] is False and report["extensometer_verification"]["in_space"]
+    assert "an extensometer in space (stereo) has no verification" in text
+    assert "in space (stereo) has no ISO 9513 verification" in report["extensometer_verification"]["statement"]
 
 
 def test_a_stereo_recordings_strain_takes_no_strain_option(stereo_recording, tmp_path, capsys):
