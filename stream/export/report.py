@@ -319,15 +319,7 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     contraction = (contraction_ratios(series["eng_strain"][test], series["transverse_eng_strain"][test],
                                       force=table.force_N[test], frames=table.frame[test])
                    if series["has_transverse"] else None)
-    scale, scale_origin = specimen_scale(series["scale"], series["metadata"])
-    specimen = {"area_mm2": stress.area_mm2, "gauge_length_px": series["l0_px"],
-                "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale,
-                "scale_origin": scale_origin, "gauge_length_in_space": series["stereo"]}
-    if series["stereo"]:                                  # L0 measured in space, no scale involved
-        l0_mm = series["l0_mm_in_space"]
-        scale, scale_origin = None, None
-        specimen.update(gauge_length_mm=l0_mm if math.isfinite(l0_mm) else None, scale_px_per_mm=None,
-                        scale_origin=None)
+    specimen, scale, scale_origin = _specimen_section(series, stress.area_mm2)
     source = _source_section(path, series, stress, table, recorded.source if stress.recorded else None)
     session = series["metadata"]
     verified = verification_section(verification, gauge_length_px=series["l0_px"], subset=session.get("subset"),
@@ -346,6 +338,21 @@ def report_recording(path: str | os.PathLike[str], directory: str | os.PathLike[
     _write_report_files(targets, report, report_markdown(report, "stress_strain.png", title, tables=tables),
                         plot.getvalue(), title)
     return report
+
+
+def _specimen_section(series: Mapping[str, Any], area_mm2: float) -> tuple[dict[str, Any], float | None, str | None]:
+    """``report.json``'s specimen (A0, L0 in px and mm) and the scale the report uses, with its origin; a stereo
+    recording's L0 is the one measured in space, with no scale involved."""
+    scale, scale_origin = specimen_scale(series["scale"], series["metadata"])
+    specimen = {"area_mm2": area_mm2, "gauge_length_px": series["l0_px"],
+                "gauge_length_mm": series["l0_px"] / scale if scale else None, "scale_px_per_mm": scale,
+                "scale_origin": scale_origin, "gauge_length_in_space": series["stereo"]}
+    if series["stereo"]:
+        l0_mm = series["l0_mm_in_space"]
+        scale, scale_origin = None, None
+        specimen.update(gauge_length_mm=l0_mm if math.isfinite(l0_mm) else None, scale_px_per_mm=None,
+                        scale_origin=None)
+    return specimen, scale, scale_origin
 
 
 def _source_section(path: str, series: Mapping[str, Any], stress: StressOptions, table: Any,
