@@ -204,6 +204,15 @@ class PairOutcome:
     right: ImageOutcome
 
 
+def check_image_pairs(left_images: Sequence[str], right_images: Sequence[str], of: str) -> None:
+    """CalibrationError unless both cameras give as many images: the i-th left and the i-th right (sorted) are one
+    pair, images ``of`` the same poses or moments."""
+    if len(left_images) != len(right_images):
+        raise CalibrationError(f"--left gives {len(left_images)} image(s) but --right {len(right_images)}: each "
+                               "left image pairs with the right image of the same place in sorted order, so give "
+                               f"both cameras' images of the same {of}")
+
+
 def calibrate_image_pairs(left_images: Sequence[str], right_images: Sequence[str], target: str, square_mm: float, *,
                           max_error_px: float = DEFAULT_MAX_ERROR_PX,
                           bounds: UncertaintyBounds = DEFAULT_UNCERTAINTY_BOUNDS,
@@ -220,10 +229,7 @@ def calibrate_image_pairs(left_images: Sequence[str], right_images: Sequence[str
     spec = _spec(target)
     if not (square_mm > 0.0 and square_mm < float("inf")):
         raise CalibrationError(f"--square {square_mm:g}: the target's square side must be a length > 0 in mm")
-    if len(left_images) != len(right_images):
-        raise CalibrationError(f"--left gives {len(left_images)} image(s) but --right {len(right_images)}: each "
-                               "left image pairs with the right image of the same place in sorted order, so give "
-                               "both cameras' images of the same poses")
+    check_image_pairs(left_images, right_images, "poses")
     if not left_images:
         raise CalibrationError("no calibration image given")
     try:

@@ -121,7 +121,7 @@ def _stereo_noise_floor(args: argparse.Namespace) -> int:
     """``livedic noise-floor --left ... --right ... --calibration RIG.json``: the floor of static pairs."""
     import numpy as np
 
-    from livedic.acquire.calibration import expand_images, read_stereo_calibration
+    from livedic.acquire.calibration import check_image_pairs, expand_images, read_stereo_calibration
     from livedic.acquire.files.image_file import read_same_size_images
     from livedic.dic.stereo import SURFACE_MEASURE, StereoTracker, match_stereo, surface_strain, surface_window
     from livedic.stream.cli.measure import _measure_points
@@ -147,10 +147,7 @@ def _stereo_noise_floor(args: argparse.Namespace) -> int:
         check_output_file(args.output, "-o")
     rig = read_stereo_calibration(args.calibration)           # a one-camera file: one line
     lefts, rights = expand_images(args.left), expand_images(args.right)
-    if len(lefts) != len(rights):
-        raise UsageError(f"--left gives {len(lefts)} image(s) but --right {len(rights)}: each left image pairs with "
-                         "the right image of the same place in sorted order, so give both cameras' images of the "
-                         "same moments")
+    check_image_pairs(lefts, rights, "moments")
     if len(lefts) < 2:
         raise UsageError(f"noise-floor needs at least 2 pairs (a reference and static pairs), got {len(lefts)}")
     views = {}
