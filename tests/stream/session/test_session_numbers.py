@@ -225,3 +225,19 @@ def test_a_report_without_a_transverse_extensometer_says_so():
         assert report[key]["value"] is None and report[key]["reason"] == "no axial and transverse extensometer pair"
     json.dumps(report, allow_nan=False)
     assert "| Poisson's ratio (elastic) | n/a |" in report_markdown(report, "plot.png", "r.mcap")
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="needs Linux's sched_setaffinity and two CPUs")
+def test_cores_split_is_said_in_the_summary_and_every_cpu_comes_back():
+    every = os.sched_getaffinity(0)
+    config = SessionConfig(source="synthetic:translate?frames=6&size=96x96&du=0.3&dv=0.2&pace=0",
+                           viewer=ViewerConfig("none"), record=None, warm_up=False, cores="split")
+    with Session(config) as session:
+        session.prepare()
+        session.start()
+        session.run()
+    assert session.summary()["cores"].startswith(f"tracking thread on CPU {max(every)}")
+    assert "tracking thread on CPU" in session.summary_text()
+    assert os.sched_getaffinity(0) == every
+    assert SessionConfig(source="synthetic:translate").cores == "shared"       # the default: the system places them
