@@ -133,6 +133,41 @@ def _zncc_batch(reference, target, xs, ys, us, vs, half, out_c, out_status):
         out_c[i] = c
 
 
+@njit(cache=True, parallel=True, nogil=True)
+def _reference_status_batch(reference, xs, ys, half, out_status):
+    """``_zncc_batch``'s status of the reference against itself, without the ZNCC: OUTSIDE_REFERENCE, else
+    FLAT_REFERENCE (``prepare_reference_subset``'s two-pass test), else FLAT_TARGET (``zncc_at_integer``'s
+    one-pass test on the same pixels, which rounding may fail alone), else OK."""
+    side = 2 * half + 1
+    n = side * side
+    for i in prange(xs.shape[0]):
+        x, y = xs[i], ys[i]
+        if not subset_inside(reference.shape[0], reference.shape[1], x, y, half):
+            out_status[i] = OUTSIDE_REFERENCE
+            continue
+        total = 0.0
+        sum_g = 0.0
+        sum_gg = 0.0
+        for dy in range(-half, half + 1):
+            for dx in range(-half, half + 1):
+                g = np.float64(reference[y + dy, x + dx])
+                total += g
+                sum_g += g
+                sum_gg += g * g
+        mean = total / n
+        sq = 0.0
+        for dy in range(-half, half + 1):
+            for dx in range(-half, half + 1):
+                d = np.float64(reference[y + dy, x + dx]) - mean
+                sq += d * d
+        if sq <= FLAT_VARIANCE * n * (1.0 + mean * mean):
+            out_status[i] = FLAT_REFERENCE
+            continue
+        var = sum_gg - sum_g * sum_g / n
+        mean_g = sum_g / n
+        out_status[i] = FLAT_TARGET if var <= FLAT_VARIANCE * n * (1.0 + mean_g * mean_g) else OK
+
+
 # Subset side (px) every measurement uses unless told otherwise: about 4-5 speckles of 3-5 px across.
 DEFAULT_SUBSET = 21
 

@@ -29,6 +29,7 @@ points are carried, and the measurements: docs/guide/large-deformation.md ("How 
 from __future__ import annotations
 
 import time
+from concurrent.futures import Executor, Future
 from typing import Any
 
 import numpy as np
@@ -77,6 +78,9 @@ class KeyFrameTracker:
         across the crack are ``SEPARATED`` from that frame on). ``detect_fractures=False`` turns it off.
     key_frame : int
         The tracked frame that is the reference now (0: the first).
+    last_trackable : ndarray of bool (N,)
+        The points the frame just tracked tried to measure (``trackable`` as that frame began: a move of the
+        reference after it may change ``trackable`` for the next).
     last_timings : dict of str -> int
         Nanoseconds per stage (``TRACKER_STAGES``) of the last ``track`` call: the inner tracker's
         stages (``Tracker.last_timings``) and ``reference_update``, the composition to the first frame,
@@ -90,7 +94,11 @@ class KeyFrameTracker:
         self.detect_fractures = bool(detect_fractures)
         self.prefilter = Prefilter.parse(prefilter)
         self._options = tracker_options            # the inner trackers get filtered images: no pre-filter of theirs
-        self._inner = Tracker(self.prefilter.apply(reference_image), points, **tracker_options)
+        self._executor: Executor | None = None        # ``build_on``
+        # the key frame's Tracker, or the Future of the one being built (``_inner`` waits for it); only the
+        # tracking thread replaces it, other threads (``coefficients_ahead``) only read it
+        self._slot: Tracker | Future = Tracker(self.prefilter.apply(reference_image), points, **tracker_options)
+        self._token = object()                  # ``state``: a new one with every new inner tracker
         self._first = self._inner.reference            # points lost at a key frame are re-measured from it
         self.x, self.y = self._inner.x.copy(), self._inner.y.copy()
         n = self.x.size
@@ -111,6 +119,42 @@ class KeyFrameTracker:
         self.last_fracture = None
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None   # the last result (fracture test)
         self.last_timings = StageTimes().ns
+        self.last_trackable = self.trackable
+        self._last_refound = np.zeros(n, dtype=bool)
+        self._last_searches = (0, 0)            # the last frame's re-find attempts and seeded searches
+
+    def build_on(self, executor: Executor | None) -> None:
+        """Build the next key frames' trackers on ``executor`` (None: in the call that moves the reference).
+
+        The frame that moves the reference then returns once the points are placed in the new key frame, and
+        the next call (or ``coefficients_ahead`` from another thread) waits for the build only if it is not done.
+        The results are the same either way: the same tracker, built from the same data.
+
+        Returns once the executor has built trackers like the current one (thrown away): the memory a build
+        takes is then mapped in the executor's thread, whose first builds would otherwise spend 10-30 ms in page
+        faults (measured: docs/guide/performance.md), and its numba kernels have run there once.
+        """
+        self._executor = executor
+        if executor is not None:
+            inner = self._inner
+            image = inner.reference.astype(np.float64)     # not float32: the build converts it, as it does a frame
+            # twice: the C library maps the first build's large arrays on their own and returns them when freed
+            # (raising its threshold for that), the second one's stay in the thread's heap for the moves to come
+            for _ in range(2):
+                executor.submit(Tracker, image, np.column_stack([inner.x, inner.y]), **self._options).result()
+
+    @property
+    def _inner(self) -> Tracker:
+        """The current key frame's Tracker (waits for it if it is being built)."""
+        slot = self._slot
+        return slot.result() if isinstance(slot, Future) else slot
+
+    def __getstate__(self):
+        # a copy or a pickle (replay --workers) holds the built tracker, never a build in progress or the executor
+        state = self.__dict__.copy()
+        state["_slot"] = self._inner
+        state["_executor"] = None
+        return state
 
     # the Tracker interface the session uses
     @property
@@ -125,17 +169,15 @@ class KeyFrameTracker:
 
     @property
     def last_refound(self) -> np.ndarray:
-        mask = np.zeros(self.n_points, dtype=bool)
-        mask[self._members] = self._inner.last_refound
-        return mask
+        return self._last_refound
 
     @property
     def last_refind_attempts(self) -> int:
-        return self._inner.last_refind_attempts
+        return self._last_searches[0]
 
     @property
     def last_seed_searches(self) -> int:
-        return self._inner.last_seed_searches
+        return self._last_searches[1]
 
     @property
     def window(self) -> tuple[int, int, int, int] | None:
@@ -158,12 +200,18 @@ class KeyFrameTracker:
     def track(self, image: np.ndarray, *, ahead: WindowCoefficients | None = None) -> Measurement:
         """Displacement of every material point from the first frame to ``image`` (a ``Measurement``);
         ``ahead``: ``image``'s coefficients from ``coefficients_ahead``."""
+        if isinstance(self._slot, Future):
+            self._slot = self._slot.result()        # the key frame's tracker built meanwhile
         tracker = self._inner
+        self.last_trackable = self.trackable
         times = StageTimes()
         with times.stage("prepare"):
             image = ahead.filtered if ahead is not None and ahead.filtered is not None else self.prefilter.apply(image)
         filtering = times.ns["prepare"]
         inner = tracker.track(image, ahead=ahead)
+        self._last_refound = np.zeros(self.n_points, dtype=bool)
+        self._last_refound[self._members] = tracker.last_refound
+        self._last_searches = (tracker.last_refind_attempts, tracker.last_seed_searches)
         times.ns.update(tracker.last_timings)
         times.ns["prepare"] += filtering
         with times.stage("reference_update"):
@@ -183,7 +231,7 @@ class KeyFrameTracker:
             # the round trip): a frame resumed from the recording (replay --workers) then starts bit for bit
             # where this one does. A start 1 ulp away can flip the last bit of an IC-GN float32 row sum: ~1e-7
             # px in the result.
-            if composed and self._inner is tracker:
+            if composed and self._slot is tracker:
                 tracker.carry(self._key_frame_view({name: getattr(result, name)
                                                     for name in ("u", "v", "ok") + _SHAPE}))
             self._previous = (result.ok.copy(), result.u.copy(), result.v.copy())
@@ -298,7 +346,7 @@ class KeyFrameTracker:
         self._f0[members] = f
         where = np.column_stack([self.x[members] + u[placed], self.y[members] + v[placed]])
         snapped = np.floor(where + 0.5)
-        self._rebuild(np.array(image, copy=True), members, snapped, where - snapped)
+        self._rebuild(np.array(image, copy=True), members, snapped, where - snapped, elsewhere=True)
         self.key_frame = self.frames_tracked - 1
         self._since_key = 0
         self.last_update = ReferenceUpdate(frame=self.key_frame, reason=reason, carried=int((placed & own).sum()),
@@ -422,7 +470,7 @@ class KeyFrameTracker:
         """An opaque token of the key-frame state (compare with ``is``): it changes whenever ``track``
         rebuilds the inner tracker: a reference move, a fracture, or a known crack widening (which stops
         tracking more points without a new ``last_fracture``)."""
-        return self._inner
+        return self._token
 
     def _key_frame_view(self, fields):
         """``fields`` of an outer result (``u, v`` and ``ux, uy, vx, vy`` from the first frame at X; ``zncc, ok``,
@@ -456,9 +504,14 @@ class KeyFrameTracker:
             self._f0_inv = (inverse[:, 0, 0], inverse[:, 0, 1], inverse[:, 1, 0], inverse[:, 1, 1])
         return self._f0_inv
 
-    def _rebuild(self, key_image, members, positions, offset):
-        """A new inner Tracker on ``key_image`` for the outer points ``members`` at pixel ``positions``."""
-        self._inner = Tracker(key_image, positions, **self._options)
+    def _rebuild(self, key_image, members, positions, offset, *, elsewhere=False):
+        """A new inner Tracker on ``key_image`` for the outer points ``members`` at pixel ``positions``; built on
+        the executor (``build_on``) when ``elsewhere`` and there is one."""
+        if elsewhere and self._executor is not None:
+            self._slot = self._executor.submit(Tracker, key_image, positions, **self._options)
+        else:
+            self._slot = Tracker(key_image, positions, **self._options)
+        self._token = object()
         self._members = np.asarray(members)
         self._offset = np.asarray(offset, dtype=np.float64).reshape(-1, 2)
         self._f0_inv = None

@@ -9,7 +9,7 @@ import numpy as np
 
 from livedic.dic import quality
 from livedic.dic.bspline import INTERPOLATION_MARGIN, BSplineCoefficients
-from livedic.dic.correlation import DEFAULT_SUBSET, _zncc_batch, snap_points
+from livedic.dic.correlation import DEFAULT_SUBSET, _reference_status_batch, snap_points
 from livedic.dic.image_filter import DEFAULT_PREFILTER, Prefilter
 from livedic.dic.interpolation import DEFAULT_INTERPOLATION, Interpolation
 from livedic.dic.measure import measure
@@ -347,12 +347,9 @@ class Tracker(RefindSteps):
         return self._xs.shape[0]
 
     def _reference_status(self):
-        """OUTSIDE_REFERENCE / FLAT_REFERENCE per point, from the ZNCC of the reference with itself."""
-        n = self._xs.shape[0]
-        zncc = np.empty(n)
-        status = np.empty(n, dtype=np.int8)
-        zero = np.zeros(n, dtype=np.int64)
-        _zncc_batch(self.reference, self.reference, self._xs, self._ys, zero, zero, self.half, zncc, status)
+        """OUTSIDE_REFERENCE / FLAT_REFERENCE per point: the status of the ZNCC of the reference with itself."""
+        status = np.empty(self._xs.shape[0], dtype=np.int8)
+        _reference_status_batch(self.reference, self._xs, self._ys, self.half, status)
         return status
 
     # ------------------------------------------------------------------ guesses

@@ -325,7 +325,10 @@ class TrackerLoop:
         stats.frames += 1
         stats.last_done_ns = result.done_ns
         stats.dropped = result.dropped_total
-        trackable = self.tracker.trackable
+        # the points this frame tried (a key frame tracker's next ones may still be being built: never waited for)
+        trackable = getattr(self.tracker, "last_trackable", None)
+        if trackable is None:
+            trackable = self.tracker.trackable
         if result.is_reference:
             stats.trackable_at_reference = np.array(trackable, dtype=bool)
             stats.reference_status = np.array(m.status, dtype=np.int64)

@@ -51,6 +51,7 @@ from livedic.stream.pipeline.cores import CoreSplit, core_split
 from livedic.stream.pipeline.frame_recording import FrameRecording
 from livedic.stream.pipeline.frame_queue import BLOCK, FrameQueue
 from livedic.stream.pipeline.frame_result import SessionStats, reference_ready
+from livedic.stream.pipeline.key_frame_builder import KeyFrameBuilder
 from livedic.stream.pipeline.progress import ProgressBar
 from livedic.stream.pipeline.sinks import (BitDepthWatch, FractureWatch, P0Watch, ProgressLine, RecordResults,
                                            ReferenceUpdates)
@@ -191,6 +192,7 @@ class Session:
         self.loop: Any = None                   # TrackerLoop, from start
         self.cores: CoreSplit | None = None     # where the tracking thread ran (--cores split), from start
         self.frame_recording: FrameRecording | None = None     # writes the camera frames, from start
+        self.key_frames: KeyFrameBuilder | None = None          # builds new key frames' trackers, from start
         self.bar: Any = None
         self.progress: Any = None
         self.poisson: ContractionWatch | None = None
@@ -270,6 +272,7 @@ class Session:
         """Start acquisition (after ``prepare``)."""
         config = self.config
         self.queue = FrameQueue(config.queue, self.drop_policy)
+        self.key_frames = KeyFrameBuilder(config.threads)
         recorder = self.recorder
         on_frame = None
         if recorder is not None:
@@ -353,6 +356,7 @@ class Session:
                 self._close_quietly(self.frame_recording.close, "frame recording")
             for publisher in self.publishers:
                 self._close_quietly(publisher.finish, publisher.name)
+            self._close_key_frames()
         self.progress.finish()
         self._report_end()
         self.phase = Phase.FINISHED
@@ -403,6 +407,7 @@ class Session:
         self.source = None
         if self.frame_recording is not None:      # before the recorder: the frames still waiting are written
             self._close_quietly(self.frame_recording.close, "frame recording")
+        self._close_key_frames()
         if self.load is not None:
             load, self.load = self.load, None
             self._close_quietly(load.close, "force source")
@@ -427,6 +432,11 @@ class Session:
             sys.setswitchinterval(self._previous_switch_interval)
             self._previous_switch_interval = None
         self.phase = Phase.CLOSED
+
+    def _close_key_frames(self) -> None:
+        if self.key_frames is not None:
+            builder, self.key_frames = self.key_frames, None
+            self._close_quietly(builder.close, "key frame builder")
 
     def abandon(self) -> None:
         """Before ``start``: close what is open and remove the recording this session had just created."""
@@ -522,6 +532,8 @@ class Session:
             self.event("note", describe_match(self._stereo["match"]), tell=True)
         else:
             tracker = self._tracker_factory(frame.image, self.points)
+        if self.key_frames is not None:
+            self.key_frames.attach(tracker)
         roi_used = prepared.roi if prepared.roi is not None else (0, 0, frame.image.shape[1], frame.image.shape[0])
         self.reference = Reference(frame_index=frame.index, points=self.points, roi=tuple(int(v) for v in roi_used),
                                    step=prepared.step, shape=frame.image.shape, timestamp_ns=frame.timestamp_ns)

@@ -68,3 +68,23 @@ def test_bad_subset_is_a_clear_error(kwargs, message):
 def test_mismatched_sizes_are_a_clear_error():
     with pytest.raises(ValueError, match="same size"):
         zncc(blurred_noise((40, 40)), blurred_noise((40, 41)), [(20, 20)], [(0, 0)])
+
+
+def test_reference_status_is_the_zncc_of_the_reference_with_itself(rng):
+    """The tracker's reference check (no ZNCC computed) gives _zncc_batch's status bit for bit: at the edges, on
+    flat patches, on nearly flat ones (grey levels a rounding step apart) and on texture."""
+    from livedic.dic.correlation import _reference_status_batch, _zncc_batch
+    image = blurred_noise((96, 96), seed=3).astype(np.float64)
+    image[10:40, 10:40] = 7.0                       # flat
+    image[50:80, 10:40] = 1000.0 + 1e-4 * rng.standard_normal((30, 30))   # flat within the tolerance
+    image[50:80, 50:80] = 3.0 + (rng.random((30, 30)) < 0.002)             # a speck or two on a flat patch
+    half = 5
+    ys, xs = np.mgrid[0:96:3, 0:96:3]
+    xs, ys = xs.ravel().astype(np.int64), ys.ravel().astype(np.int64)
+    zero = np.zeros(xs.size, dtype=np.int64)
+    expected = np.empty(xs.size, dtype=np.int8)
+    _zncc_batch(image, image, xs, ys, zero, zero, half, np.empty(xs.size), expected)
+    status = np.empty(xs.size, dtype=np.int8)
+    _reference_status_batch(image, xs, ys, half, status)
+    np.testing.assert_array_equal(status, expected)
+    assert {Status.OK, Status.OUTSIDE_REFERENCE, Status.FLAT_REFERENCE} <= set(status.tolist())

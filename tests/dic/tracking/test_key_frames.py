@@ -118,3 +118,73 @@ def test_stop_tracking_reports_separated_points(frames):
     assert np.all(m.status[band] == Status.SEPARATED) and not m.ok[band].any()
     assert np.all(np.isnan(m.u[band]))
     assert m.ok[~band].all() and not tracker.trackable[band].any()
+
+
+class _HeldBuilds:
+    """An executor whose builds run on its own thread only once ``release`` is set: shows what waits for them."""
+
+    def __init__(self):
+        import threading
+        from concurrent.futures import ThreadPoolExecutor
+        self.pool = ThreadPoolExecutor(1)
+        self.release = threading.Event()
+        self.release.set()                  # build_on's first builds run at once
+        self.submitted = 0
+
+    def submit(self, fn, *args, **kwargs):
+        self.submitted += 1
+        return self.pool.submit(self._held, fn, *args, **kwargs)
+
+    def _held(self, fn, *args, **kwargs):
+        self.release.wait()
+        return fn(*args, **kwargs)
+
+
+def _same(a, b):
+    for name in ("u", "v", "zncc", "ok", "status", "ux", "uy", "vx", "vy", "iterations"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_key_frames_built_on_an_executor_give_the_same_results_and_do_not_hold_the_move(frames):
+    """The frame that moves the reference returns before the new key frame's tracker is built (its build is held
+    back here), the next frame waits for it, and every result is bit for bit the one of a tracker that builds in
+    its own call; a copy taken while a build is held holds the built tracker and goes on the same way."""
+    import copy
+    _, images = frames
+    inline = run(KeyFrameTracker(images[0], POINTS, reference_update="every:3"), images[:9])
+    builds = _HeldBuilds()
+    tracker = KeyFrameTracker(images[0], POINTS, reference_update="every:3")
+    tracker.build_on(builds)
+    assert builds.submitted == 2                 # build_on's own: the thread's memory and kernels ready
+    results, copies = [], []
+    for image in images[:9]:
+        builds.release.clear()
+        results.append(tracker.track(image))
+        if tracker.last_update is not None:
+            assert builds.submitted > 2 and not tracker._slot.done()     # the move did not wait for its build
+            assert tracker.last_trackable.all()
+            builds.release.set()
+            copies.append((len(results), copy.deepcopy(tracker)))
+    assert len(copies) == 3
+    for a, b in zip(inline, results):
+        _same(a, b)
+    at, copied = copies[0]
+    for a, b in zip(inline[at:at + 3], run(copied, images[at:at + 3])):
+        _same(a, b)
+    tracker.build_on(None)
+    builds.pool.shutdown()
+
+
+def test_last_refound_and_trackable_belong_to_the_frame_just_tracked(frames):
+    """After a reference move, ``last_refound``, ``last_refind_attempts`` and ``last_trackable`` still describe the
+    frame just tracked (not the new key frame's tracker, which has tracked nothing yet)."""
+    _, images = frames
+    tracker = KeyFrameTracker(images[0], POINTS, reference_update="every:2")
+    for image in images[:4]:
+        m = tracker.track(image)
+        if tracker.last_update is not None:
+            break
+    assert tracker.last_update is not None
+    assert tracker.last_trackable.shape == m.ok.shape and tracker.last_trackable.all()
+    assert tracker.last_refound.shape == m.ok.shape
+    assert tracker.last_refind_attempts == int(tracker.last_refound.sum()) == 0
