@@ -9,6 +9,7 @@ themselves are one module each in this package; docs/guide/measure.md compares t
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
@@ -114,6 +115,14 @@ class SubpixelMethod:
         """The first-order IC-GN part of ``prepared`` (what the guided propagation and re-finds run on)."""
         return prepared
 
+    def moved_data(self, prepared: Any, dx: int, dy: int, shape: tuple[int, int]) -> Any:
+        """``prepared`` on a window of ``shape`` whose origin lies (dx, dy) px up and left of the one it was made on.
+
+        Each point's data come from the pixels around it, so only the positions change; the caller checks that
+        every subset sits the same way in both windows (inside, and clear of the gradient stencil's border).
+        """
+        return dataclasses.replace(prepared, xs=prepared.xs + dx, ys=prepared.ys + dy, shape=tuple(shape))
+
     def refine_prepared(self, prepared: Any, target: Any, u0: np.ndarray, v0: np.ndarray, **options: Any) -> Any:
         """``module.refine_prepared`` (prepared methods only)."""
         assert self.module is not None, f"{self.name} has no prepared refinement"
@@ -129,6 +138,9 @@ class _SecondOrderIcgn(SubpixelMethod):
 
     def first_order_data(self, prepared):
         return prepared.first
+
+    def moved_data(self, prepared, dx, dy, shape):
+        return dataclasses.replace(prepared, first=super().moved_data(prepared.first, dx, dy, shape))
 
 
 METHODS: dict[str, SubpixelMethod] = {method.name: method for method in (

@@ -294,12 +294,28 @@ class Tracker(RefindSteps):
         y0 = max(int(self._ys.min()) - reach, 0)
         x1 = min(int(self._xs.max()) + reach + 1, width)
         y1 = min(int(self._ys.max()) + reach + 1, height)
-        window = np.ascontiguousarray(self.reference[y0:y1, x0:x1])
-        self._prep = self.method.reference_data(prepare_reference(window, self._xs - x0, self._ys - y0, self.half),
-                                                **self._reference_options)
+        if self._prep is not None and self._same_subsets((y0, y1, x0, x1)):
+            # a larger window: the prepared subsets stay as they are (bit for bit), only their positions move
+            old_y0, _, old_x0, _ = self._window
+            self._prep = self.method.moved_data(self._prep, old_x0 - x0, old_y0 - y0, (y1 - y0, x1 - x0))
+        else:
+            window = np.ascontiguousarray(self.reference[y0:y1, x0:x1])
+            self._prep = self.method.reference_data(prepare_reference(window, self._xs - x0, self._ys - y0,
+                                                                      self.half), **self._reference_options)
         self._window = (y0, y1, x0, x1)
         self._allowance = int(allowance)
         self._window_full = (y0, x0) == (0, 0) and (y1, x1) == (height, width)
+
+    def _same_subsets(self, window):
+        """Whether ``icgn.prepare_reference`` computes every point's subset the same way in ``window`` as in the
+        current one: the point clear of both windows' edges by the gradient stencil's reach (the same pixels are
+        read), or as far from each edge in both (near an image edge both share)."""
+        def rooms(bounds):
+            y0, y1, x0, x1 = bounds
+            return np.column_stack([self._xs - x0, x1 - 1 - self._xs, self._ys - y0, y1 - 1 - self._ys])
+        new, now = rooms(window), rooms(self._window)
+        clear = (new.min(axis=1) >= self.half + 2) & (now.min(axis=1) >= self.half + 2)
+        return bool(np.all(clear | np.all(new == now, axis=1)))
 
     def _ensure_window(self, displacement):
         """Grow the IC-GN window (re-preparing the reference) if points may move ``displacement`` px."""

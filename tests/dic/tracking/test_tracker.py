@@ -165,6 +165,38 @@ def test_icgn_window_grows_with_large_displacements():
     assert (grown[1] - grown[0]) > (start[1] - start[0])
 
 
+@pytest.mark.parametrize("subpixel", ["icgn", "icgn2"])
+@pytest.mark.parametrize("roi", [(100, 100, 56, 56), (2, 150, 60, 60)], ids=["inside", "at the image edge"])
+def test_a_grown_window_keeps_the_prepared_subsets_bit_for_bit(subpixel, roi, monkeypatch):
+    """Growing the IC-GN window moves the prepared subsets instead of preparing them again: every array is the one
+    a preparation on the grown window gives, for points well inside and for points at the image's edge."""
+    import dataclasses
+
+    from livedic.dic.subpixel.icgn import prepare_reference
+    from livedic.dic.tracking import tracker as tracker_module
+    source, frames = translate_frames("frames=2&size=256x256")
+    points = grid_in_roi(source.shape, roi, 14, 21)
+    tracker = Tracker(frames[0].image, points, subpixel=subpixel)
+    before = tracker.window
+    monkeypatch.setattr(tracker_module, "prepare_reference", None)      # not prepared again
+    tracker._ensure_window(tracker._allowance + 10)
+    y0, y1, x0, x1 = tracker.window
+    assert (y1 - y0, x1 - x0) > (before[1] - before[0], before[3] - before[2])
+    window = np.ascontiguousarray(tracker.reference[y0:y1, x0:x1])
+    fresh = tracker.method.reference_data(prepare_reference(window, tracker._xs - x0, tracker._ys - y0, tracker.half),
+                                          **tracker._reference_options)
+
+    def arrays(data):
+        return {f.name: getattr(data, f.name) for f in dataclasses.fields(data)}
+    moved, expected = arrays(tracker._prep), arrays(fresh)
+    if subpixel == "icgn2":
+        moved.update(arrays(moved.pop("first")))
+        expected.update(arrays(expected.pop("first")))
+    for name, value in expected.items():
+        assert np.array_equal(moved[name], value), name
+        assert np.asarray(moved[name]).tobytes() == np.asarray(value).tobytes(), name
+
+
 @pytest.mark.parametrize("kwargs, words", [
     ({"search": "bogus"}, "unknown search"), ({"subpixel": "bogus"}, "unknown sub-pixel"),
     ({"subset": 8}, "odd"), ({"seed_radius": -1}, "radius"), ({"refind_zncc": "high"}, "refind_zncc"),
