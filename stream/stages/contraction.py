@@ -17,6 +17,7 @@ fit and hide where the elastic range ends.
 from array import array
 
 import numpy as np
+import numpy.ma  # noqa: F401 - np.median imports it on its first call: ~80 ms holding the GIL in the output thread
 
 from livedic.dic.tensile.poisson import contraction_ratios
 from livedic.dic.strain.extensometer import AXIAL, TRANSVERSE
