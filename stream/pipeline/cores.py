@@ -15,8 +15,25 @@ Measured and explained in docs/guide/performance.md ("The live pipeline: threads
 from __future__ import annotations
 
 import os
+import sys
 import threading
 from dataclasses import dataclass, field
+
+# The outputs' niceness (Linux, per thread; the view's whole process): when the cores are busy the scheduler gives
+# the tracking and acquisition threads (and numba's workers) the CPU first; the outputs catch up in the gaps. The
+# output thread, the frame recorder, the view writer and the view's process run at it.
+OUTPUT_NICE = 10
+
+
+def lower_priority(nice: int) -> None:
+    """Raise the calling thread's niceness by ``nice`` where the system allows it per thread (Linux); else nothing."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
+    except OSError:
+        pass
 
 
 def _tasks(pid: int | str) -> list[int]:

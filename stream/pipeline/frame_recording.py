@@ -18,6 +18,8 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from livedic.stream.pipeline.cores import OUTPUT_NICE, lower_priority
+
 RECORD_BACKLOG_MAX = 200         # frames waiting to be written before the acquisition thread waits
 
 
@@ -65,6 +67,7 @@ class FrameRecording:
             raise error
 
     def _run(self) -> None:
+        lower_priority(OUTPUT_NICE)     # an output: the acquisition thread on the same core comes first
         while True:
             item = self._waiting.get()
             if item is None:

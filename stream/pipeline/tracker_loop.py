@@ -25,8 +25,6 @@ instead, its error raised by ``run`` once the output thread has finished what it
 """
 
 import collections
-import os
-import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -42,26 +40,13 @@ from livedic.stream.pipeline.frame_queue import FrameQueue
 from livedic.stream.pipeline.frame_result import FrameResult, ReferenceReady, SessionStats, track_frame
 from livedic.stream.pipeline.cores import CoreSplit
 from livedic.stream.pipeline.stage import Stage
+from livedic.stream.pipeline.cores import OUTPUT_NICE, lower_priority
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000
-# The output thread's niceness (Linux, per thread): when the cores are busy the scheduler gives the tracking
-# thread (and numba's workers) the CPU first; the outputs catch up in the gaps.
-OUTPUT_NICE = 10
 # Results the output thread may have waiting before the tracking thread waits for it (bounded memory:
 # each holds its frame's image); at 50 fps, 4 s of results.
 OUTPUT_BACKLOG_MAX = 200
-
-
-def _lower_priority(nice):
-    """Raise the calling thread's niceness by ``nice`` where the system allows it per thread (Linux); else nothing."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
-    except OSError:
-        pass
 
 
 def _stage_name(stage):
@@ -112,7 +97,7 @@ class OutputThread:
         return not self._thread.is_alive()
 
     def _run(self):
-        _lower_priority(OUTPUT_NICE)
+        lower_priority(OUTPUT_NICE)
         stages = self.stats.stages
         while True:
             with self._changed:

@@ -47,7 +47,7 @@ from livedic.acquire.base import Frame
 from livedic.stream.view.camera_image import CameraImagePacing, display_image, display_scale
 from livedic.stream.view.logger import RerunLogger
 from livedic.stream.pipeline.frame_result import StageTimes
-from livedic.stream.pipeline.tracker_loop import OUTPUT_NICE
+from livedic.stream.pipeline.cores import OUTPUT_NICE, lower_priority
 
 if TYPE_CHECKING:
     import numpy as np
@@ -242,6 +242,7 @@ class ViewProcess:
 
     # ------------------------------------------------------------ the pipes
     def _write_loop(self) -> None:
+        lower_priority(OUTPUT_NICE)     # an output: the acquisition thread on the same core comes first
         while True:
             message = self._outgoing.get()
             if message is None:
