@@ -87,6 +87,20 @@ class StereoTracker:
         return self.left.trackable
 
     @property
+    def last_trackable(self) -> np.ndarray:
+        """The left view's points the frame just tracked tried (``KeyFrameTracker.last_trackable``: never waits for
+        a new key frame's tracker being built)."""
+        left = getattr(self.left, "last_trackable", None)
+        return left if left is not None else self.left.trackable
+
+    def build_on(self, executor: Any) -> None:
+        """Both views build their new key frames' trackers on ``executor`` (``KeyFrameTracker.build_on``)."""
+        for view in (self.left, self.right):
+            build_on = getattr(view, "build_on", None)
+            if build_on is not None:
+                build_on(executor)
+
+    @property
     def last_refind_attempts(self) -> int:
         return int(getattr(self.left, "last_refind_attempts", 0)) + int(getattr(self.right, "last_refind_attempts", 0))
 

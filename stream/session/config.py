@@ -557,10 +557,10 @@ class SessionConfig:
         f"strain SDs; docs/guide/noise-floor.md): default {DEFAULT_STATIC_FRAMES} for the simulator (rendered before "
         f"its test) and cameras (hold the specimen still), 0 for files and recordings; 0: none", metavar="N", type=int)
     cores: str = option(
-        "shared", "shared (default): the system places the session's threads; split: while it tracks, the tracking "
-        "thread has a CPU of its own and the session's other threads and the view's process share the rest (Linux, "
-        "--threads 1, two CPUs or more; fewer frames dropped at 100 fps on 2 cores, measured: "
-        "docs/guide/performance.md)", metavar="shared|split", type=str)
+        "split", "split (default): while it tracks, the tracking thread has a CPU of its own and the session's other "
+        "threads and the view's process share the rest (Linux, --threads 1, two CPUs or more; else as shared); "
+        "shared: the system places them (measured on 2 cores, split as good at 50 fps, far fewer frames dropped at "
+        "100: docs/guide/performance.md)", metavar="split|shared", type=str)
 
     def __post_init__(self):
         if self.frames is not None and self.frames < 1:

@@ -67,3 +67,26 @@ def test_unmatched_points_are_never_ok_and_no_match_at_all_is_refused(scene):
     nothing = match_stereo(stereo.calibration(), left, unrelated, match.left)
     with pytest.raises(ValueError, match="no point of the left view was matched"):
         StereoTracker(stereo.calibration(), nothing, left, unrelated, _tracker)
+
+
+def test_key_frames_built_on_an_executor_give_the_same_3d_results(scene):
+    """``build_on`` hands both views' key frames to the executor (as a live session's builder thread); every frame's
+    3D result is bit for bit that of the pair building them in its own calls, over frames that move both references."""
+    from concurrent.futures import ThreadPoolExecutor
+    stereo, pose, speckle, left, right, match = scene
+
+    def every_frame(reference, points):
+        return KeyFrameTracker(reference, points, reference_update="every:1")
+    normal = cv2.Rodrigues(pose.rvec)[0][:, 2]
+    pairs = [render(stereo, moved(pose, (0.0, 0.0, 0.0), -0.2 * k * normal), speckle) for k in (1, 2, 3)]
+    inline = StereoTracker(stereo.calibration(), match, left, right, every_frame)
+    elsewhere = StereoTracker(stereo.calibration(), match, left, right, every_frame)
+    with ThreadPoolExecutor(1) as executor:
+        elsewhere.build_on(executor)
+        assert elsewhere.left._executor is executor and elsewhere.right._executor is executor
+        for pair in pairs:
+            a, b = inline.track(*pair), elsewhere.track(*pair)
+            assert elsewhere.last_update is not None and elsewhere.last_trackable.shape == a.ok.shape
+            np.testing.assert_array_equal(a.points.displacement, b.points.displacement)
+            np.testing.assert_array_equal(a.points.ok, b.points.ok)
+        elsewhere.build_on(None)

@@ -240,4 +240,4 @@ def test_cores_split_is_said_in_the_summary_and_every_cpu_comes_back():
     assert session.summary()["cores"].startswith(f"tracking thread on CPU {max(every)}")
     assert "tracking thread on CPU" in session.summary_text()
     assert os.sched_getaffinity(0) == every
-    assert SessionConfig(source="synthetic:translate").cores == "shared"       # the default: the system places them
+    assert SessionConfig(source="synthetic:translate").cores == "split"        # the default: a CPU for the tracker
