@@ -145,15 +145,13 @@ def _reference_status_batch(reference, xs, ys, half, out_status):
         if not subset_inside(reference.shape[0], reference.shape[1], x, y, half):
             out_status[i] = OUTSIDE_REFERENCE
             continue
-        total = 0.0
-        sum_g = 0.0
-        sum_gg = 0.0
+        total = 0.0                 # the pixels' sum (both tests' mean) and sum of squares, as both tests add them
+        total_sq = 0.0
         for dy in range(-half, half + 1):
             for dx in range(-half, half + 1):
                 g = np.float64(reference[y + dy, x + dx])
                 total += g
-                sum_g += g
-                sum_gg += g * g
+                total_sq += g * g
         mean = total / n
         sq = 0.0
         for dy in range(-half, half + 1):
@@ -163,9 +161,8 @@ def _reference_status_batch(reference, xs, ys, half, out_status):
         if sq <= FLAT_VARIANCE * n * (1.0 + mean * mean):
             out_status[i] = FLAT_REFERENCE
             continue
-        var = sum_gg - sum_g * sum_g / n
-        mean_g = sum_g / n
-        out_status[i] = FLAT_TARGET if var <= FLAT_VARIANCE * n * (1.0 + mean_g * mean_g) else OK
+        var = total_sq - total * total / n
+        out_status[i] = FLAT_TARGET if var <= FLAT_VARIANCE * n * (1.0 + mean * mean) else OK
 
 
 # Subset side (px) every measurement uses unless told otherwise: about 4-5 speckles of 3-5 px across.
