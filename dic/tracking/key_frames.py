@@ -138,10 +138,11 @@ class KeyFrameTracker:
         if executor is not None:
             inner = self._inner
             image = inner.reference.astype(np.float64)     # not float32: the build converts it, as it does a frame
+            points = np.column_stack([inner.x, inner.y])
             # twice: the C library maps the first build's large arrays on their own and returns them when freed
             # (raising its threshold for that), the second one's stay in the thread's heap for the moves to come
             for _ in range(2):
-                executor.submit(Tracker, image, np.column_stack([inner.x, inner.y]), **self._options).result()
+                executor.submit(Tracker, image, points, **self._options).result()
 
     @property
     def _inner(self) -> Tracker:
