@@ -191,7 +191,11 @@ class KeyFrameTracker:
     def coefficients_ahead(self, image: np.ndarray, out: BSplineCoefficients | None = None
                            ) -> WindowCoefficients | None:
         """``Tracker.coefficients_ahead`` on the current key frame's window (any thread), of the image
-        pre-filtered as ``track`` filters it."""
+        pre-filtered as ``track`` filters it; None, at once, while the key frame's tracker is being built
+        (``build_on``): the caller (a camera's acquisition thread) never waits for a build, ``track`` makes them."""
+        slot = self._slot
+        if isinstance(slot, Future) and not slot.done():
+            return None
         if not self.prefilter.active:
             return self._inner.coefficients_ahead(image, out)
         filtered = self.prefilter.apply(image)

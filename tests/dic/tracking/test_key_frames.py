@@ -163,6 +163,7 @@ def test_key_frames_built_on_an_executor_give_the_same_results_and_do_not_hold_t
         if tracker.last_update is not None:
             assert builds.submitted > 2 and not tracker._slot.done()     # the move did not wait for its build
             assert tracker.last_trackable.all()
+            assert tracker.coefficients_ahead(image) is None              # nor does a frame's acquisition
             builds.release.set()
             copies.append((len(results), copy.deepcopy(tracker)))
     assert len(copies) == 3
