@@ -124,25 +124,16 @@ class KeyFrameTracker:
         self._last_searches = (0, 0)            # the last frame's re-find attempts and seeded searches
 
     def build_on(self, executor: Executor | None) -> None:
-        """Build the next key frames' trackers on ``executor`` (None: in the call that moves the reference).
+        """Submit the next key frames' trackers' builds to ``executor`` (None: build them in the call that moves
+        the reference).
 
-        The frame that moves the reference then returns once the points are placed in the new key frame, and
-        the next call (or ``coefficients_ahead`` from another thread) waits for the build only if it is not done.
-        The results are the same either way: the same tracker, built from the same data.
-
-        Returns once the executor has built trackers like the current one (thrown away): the memory a build
-        takes is then mapped in the executor's thread, whose first builds would otherwise spend 10-30 ms in page
-        faults (measured: docs/guide/performance.md), and its numba kernels have run there once.
+        The frame that moves the reference then returns once the points are placed in the new key frame; the
+        next call waits for the build only if it is not done (a live session's tracking loop runs it between the
+        two frames: ``stream.pipeline.key_frame_builder``). ``coefficients_ahead``, called from another thread,
+        never waits for it: None until it is done. The results are the same either way: the same tracker, built
+        from the same data.
         """
         self._executor = executor
-        if executor is not None:
-            inner = self._inner
-            image = inner.reference.astype(np.float64)     # not float32: the build converts it, as it does a frame
-            points = np.column_stack([inner.x, inner.y])
-            # twice: the C library maps the first build's large arrays on their own and returns them when freed
-            # (raising its threshold for that), the second one's stay in the thread's heap for the moves to come
-            for _ in range(2):
-                executor.submit(Tracker, image, points, **self._options).result()
 
     @property
     def _inner(self) -> Tracker:

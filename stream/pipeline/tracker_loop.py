@@ -155,13 +155,19 @@ class TrackerLoop:
         How often to look at ``stop_event`` while waiting for a frame.
     cores : stream.pipeline.cores.CoreSplit, optional
         Pinned by the tracking thread once the output thread has started, released at the end.
+    between_frames : callable, optional
+        Called in the tracking thread after each frame's result is handed to the output thread, before the
+        next frame is taken: work the next frame needs that must not hold this one's result back (a new key
+        frame's tracker: ``stream.pipeline.key_frame_builder``).
     """
 
     def __init__(self, queue: FrameQueue, make_tracker: Callable[[Frame], Any], *,
                  reference: ReferenceReady | None = None, stages: Sequence[Stage] = (),
                  sinks: Sequence[Callable] = (), stop_event: threading.Event | None = None,
-                 max_frames: int | None = None, poll_s: float = 0.05, cores: CoreSplit | None = None) -> None:
+                 max_frames: int | None = None, poll_s: float = 0.05, cores: CoreSplit | None = None,
+                 between_frames: Callable[[], None] | None = None) -> None:
         self.queue = queue
+        self.between_frames = between_frames
         self.cores = cores
         self.make_tracker = make_tracker
         self._ready = reference
@@ -303,6 +309,8 @@ class TrackerLoop:
                 else:
                     stages.add(_stage_name(stage), time.perf_counter_ns() - started)
             self.output.put(result)
+            if self.between_frames is not None:
+                self.between_frames()
 
     def _update(self, result):
         stats = self.stats

@@ -272,7 +272,7 @@ class Session:
         """Start acquisition (after ``prepare``)."""
         config = self.config
         self.queue = FrameQueue(config.queue, self.drop_policy)
-        self.key_frames = KeyFrameBuilder(config.threads)
+        key_frames = self.key_frames = KeyFrameBuilder()
         recorder = self.recorder
         on_frame = None
         if recorder is not None:
@@ -320,7 +320,8 @@ class Session:
         # the acquisition thread starts: the next frames do not queue up behind that set-up (~70 ms at 1 MP).
         self.loop = TrackerLoop(self.queue, self._make_tracker, reference=reference_ready(self._make_tracker,
                                                                                           self.preparation.ahead.frame),
-                                stages=self.stages, sinks=sinks, cores=self._core_split())
+                                stages=self.stages, sinks=sinks, cores=self._core_split(),
+                                between_frames=key_frames.run_pending)
         # Each new frame is prefiltered in the acquisition thread while the tracker refines the one before.
         self.acquisition.prepare = self.loop.coefficients_ahead
         self.phase = Phase.RUNNING

@@ -128,7 +128,7 @@ class _HeldBuilds:
         from concurrent.futures import ThreadPoolExecutor
         self.pool = ThreadPoolExecutor(1)
         self.release = threading.Event()
-        self.release.set()                  # build_on's first builds run at once
+        self.release.set()                  # builds run at once until a test holds them back
         self.submitted = 0
 
     def submit(self, fn, *args, **kwargs):
@@ -155,13 +155,12 @@ def test_key_frames_built_on_an_executor_give_the_same_results_and_do_not_hold_t
     builds = _HeldBuilds()
     tracker = KeyFrameTracker(images[0], POINTS, reference_update="every:3")
     tracker.build_on(builds)
-    assert builds.submitted == 2                 # build_on's own: the thread's memory and kernels ready
     results, copies = [], []
     for image in images[:9]:
         builds.release.clear()
         results.append(tracker.track(image))
         if tracker.last_update is not None:
-            assert builds.submitted > 2 and not tracker._slot.done()     # the move did not wait for its build
+            assert builds.submitted >= 1 and not tracker._slot.done()     # the move did not wait for its build
             assert tracker.last_trackable.all()
             assert tracker.coefficients_ahead(image) is None              # nor does a frame's acquisition
             builds.release.set()
