@@ -291,26 +291,31 @@ class TrackerLoop:
                 stages.add("tracker", done - tracked)
                 if timings is not None:
                     stages.add_all(timings)
-            for stage in list(self.stages):
-                started = time.perf_counter_ns()
-                try:
-                    stage.on_frame(result)
-                except Exception as error:  # noqa: BLE001 - keep measuring, report later
-                    if getattr(stage, "required", False):
-                        raise             # the session's output itself: it cannot go on without it
-                    self.stages.remove(stage)
-                    self.sink_errors.append((stage, error))
-                    continue
-                if is_reference:
-                    continue
-                parts = getattr(stage, "last_timings", None)
-                if parts:
-                    stages.add_all(parts)
-                else:
-                    stages.add(_stage_name(stage), time.perf_counter_ns() - started)
+            self._run_stages(result, stages)
             self.output.put(result)
             if self.between_frames is not None:
                 self.between_frames()
+
+    def _run_stages(self, result, stages):
+        """Each stage on ``result``, in order, timed into ``stages`` (not the reference frame's); a stage that fails
+        is dropped and reported later, unless it is required."""
+        for stage in list(self.stages):
+            started = time.perf_counter_ns()
+            try:
+                stage.on_frame(result)
+            except Exception as error:  # noqa: BLE001 - keep measuring, report later
+                if getattr(stage, "required", False):
+                    raise             # the session's output itself: it cannot go on without it
+                self.stages.remove(stage)
+                self.sink_errors.append((stage, error))
+                continue
+            if result.is_reference:
+                continue
+            parts = getattr(stage, "last_timings", None)
+            if parts:
+                stages.add_all(parts)
+            else:
+                stages.add(_stage_name(stage), time.perf_counter_ns() - started)
 
     def _update(self, result):
         stats = self.stats
