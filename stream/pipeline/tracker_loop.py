@@ -38,9 +38,8 @@ from livedic.stream.pipeline.frame_queue import QueueClosed
 from livedic.acquire.base import Frame
 from livedic.stream.pipeline.frame_queue import FrameQueue
 from livedic.stream.pipeline.frame_result import FrameResult, ReferenceReady, SessionStats, track_frame
-from livedic.stream.pipeline.cores import CoreSplit
+from livedic.stream.pipeline.cores import OUTPUT_NICE, CoreSplit, lower_priority
 from livedic.stream.pipeline.stage import Stage
-from livedic.stream.pipeline.cores import OUTPUT_NICE, lower_priority
 
 # A capture time further than this before arrival is not trusted (another clock, another process).
 _MAX_DELIVERY_NS = 10_000_000_000
